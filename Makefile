@@ -1,0 +1,39 @@
+# evoscen — two commands on a fresh machine: `make demo` and `make test`.
+# Both run `make setup` first (idempotent): .venv with pinned requirements, then colcon build.
+
+PYTHON_BOOT ?= python3.11
+VENV        := .venv
+PY          := $(VENV)/bin/python
+WS          := ros2_ws
+INSTALL     := $(WS)/install
+REQ_STAMP   := $(VENV)/.requirements-installed
+# Run anything with the workspace overlay (colcon's install/setup.sh) on top of the venv.
+RUN         := . $(VENV)/bin/activate && . $(INSTALL)/setup.sh &&
+DEMO_OUT    ?= runs/demo
+PYTEST_ARGS ?=
+
+.PHONY: setup build demo test bench clean
+
+setup: $(REQ_STAMP) build
+
+$(REQ_STAMP): requirements.txt
+	@command -v $(PYTHON_BOOT) >/dev/null || { echo "error: $(PYTHON_BOOT) not found (evoscen needs Python 3.11 for the ROS 2 Jazzy wheels)"; exit 2; }
+	test -x $(PY) || $(PYTHON_BOOT) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	touch $@
+
+build: $(REQ_STAMP)
+	. $(VENV)/bin/activate && cd $(WS) && colcon --log-base log build --base-paths src \
+	    --build-base build --install-base install --event-handlers console_cohesion- summary-
+
+demo: setup
+	$(RUN) python scripts/run_scenario.py --mode inprocess --out $(DEMO_OUT)
+
+test: setup
+	$(RUN) python -m pytest $(PYTEST_ARGS)
+
+bench: setup
+	$(RUN) python scripts/bench.py
+
+clean:
+	rm -rf $(WS)/build $(WS)/install $(WS)/log runs

@@ -1,0 +1,467 @@
+"""THE evoscen topic contract: every topic, its type, QoS, publisher, rate and meaning.
+
+This module is the single source of truth that every node, the recorder, the replayer
+and the README import (:func:`contract_markdown` renders the README table). Nothing
+else in evoscen may spell a topic name, a table's column list or a QoS profile.
+
+Time: every message is stamped with *simulation* time (integer nanoseconds in the
+cores, ``builtin_interfaces/Time`` on the wire). Step ``k`` happens at ``t_k``.
+
+Lockstep (ARCHITECTURE.md "Time"): the sim publishes ``/clock`` and
+``/evoscen/world`` stamped ``t_k``; every controller answers on its command topic with
+a table stamped with the *same* ``t_k`` (``header.stamp`` of the world message it
+answers, ``frame_id = "map"``). The stamp alone identifies the step (the sim keeps
+``t_k`` exactly, as integer nanoseconds), so no step counter is put in ``frame_id``.
+
+QoS choices:
+
+* Per-step topics (``/clock``, world, commands, odom, events) are **reliable**,
+  volatile, ``keep_last(100)``. Reliable because the run is lockstep and the bag must
+  hold every step: a lost world or command message would stall a step (or, with the
+  deadline policy, turn into a spurious fault), and a lost ``/clock`` would make
+  ``use_sim_time`` nodes skip time. Many ROS 2 tools publish ``/clock`` best effort;
+  a reliable writer still matches best-effort readers (e.g. ``rclcpp``'s default
+  clock subscription), so nothing is lost by choosing reliable. Depth 100 is the
+  slack of readers outside the lockstep loop (the recorder): they may lag up to 100
+  steps without losing data (with ``keep_last`` a reliable writer overwrites samples
+  that a slow reader has not acknowledged yet). Lockstep controllers never lag more
+  than one step. 100 world tables of 21 vehicles are ~290 kB, negligible.
+* ``/evoscen/roster`` is reliable, **transient_local**, ``keep_last(1)``: published
+  once, delivered to late joiners (the recorder, RViz, a replay tool).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from nav_msgs.msg import Odometry
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import PointCloud2
+
+from evoscen_contract.qos import QosSpec
+from evoscen_contract.tables import stamp_from_ns
+
+# --------------------------------------------------------------------------- nodes
+
+#: Node names (publishers in the contract).
+NODE_SIM: str = "evoscen_sim"
+NODE_BV: str = "evoscen_bv"
+NODE_SUT: str = "evoscen_sut"
+NODE_EVAL: str = "evoscen_eval"
+
+#: Frame of all world-fixed data (the OpenDRIVE inertial frame, x/y in m).
+MAP_FRAME: str = "map"
+#: Child frame of the SUT odometry.
+SUT_BASE_FRAME: str = "sut/base_link"
+
+# --------------------------------------------------------------------------- codes
+
+#: ``role`` column values.
+ROLE_BV: int = 0
+ROLE_SUT: int = 1
+
+#: ``policy`` column values (driver model of each vehicle).
+POLICY_CODES: dict[str, int] = {
+    "level0": 0,
+    "mutual": 1,
+    "competitive": 2,
+    "cooperative": 3,
+    "sut": 4,
+    "nilsson": 5,
+    "mobil": 6,
+}
+#: Inverse of :data:`POLICY_CODES`.
+POLICY_NAMES: dict[int, str] = {code: name for name, code in POLICY_CODES.items()}
+
+# --------------------------------------------------------------------------- tables
+
+#: Columns of ``/evoscen/world`` (one row per vehicle, float64).
+WORLD_FIELDS: tuple[str, ...] = (
+    "id", "role", "policy", "x", "y", "yaw", "s", "d", "heading_rel", "speed", "accel",
+    "steer", "lane", "target_lane", "lane_change", "length", "width",
+)  # fmt: skip
+
+#: Columns of ``/evoscen/commands/bv`` and ``/evoscen/commands/sut``.
+COMMAND_FIELDS: tuple[str, ...] = ("id", "throttle", "lane_change")
+
+#: Columns of ``/evoscen/roster``.
+ROSTER_FIELDS: tuple[str, ...] = ("id", "role", "policy", "length", "width")
+
+#: Meaning and unit of every table column (rendered in the README).
+FIELD_DOCS: dict[str, str] = {
+    "id": "vehicle id (integer valued), unique in a scenario",
+    "role": f"{ROLE_BV} = background vehicle (BV), {ROLE_SUT} = system under test (SUT)",
+    "policy": "driver model code: " + ", ".join(f"{c} = {n}" for n, c in POLICY_CODES.items()),
+    "x": "position x in the map frame (m), vehicle reference point",
+    "y": "position y in the map frame (m)",
+    "yaw": "heading in the map frame (rad, counter-clockwise from +x)",
+    "s": "arc length along the OpenDRIVE reference line (m)",
+    "d": "lateral offset from the reference line (m, positive to the left)",
+    "heading_rel": "heading relative to the road direction at s (rad, positive to the left)",
+    "speed": "longitudinal speed (m/s)",
+    "accel": "longitudinal acceleration (m/s^2)",
+    "steer": "front-wheel steering angle (rad, positive to the left)",
+    "lane": "current lane index (0 = lane I merge lane ... 4 = lane V; -1 = off-road)",
+    "target_lane": "lane index the vehicle is heading for (= lane when keeping lane)",
+    "lane_change": "executed lane-change direction in progress (-1 right, 0 none, +1 left)",
+    "length": "vehicle length (m)",
+    "width": "vehicle width (m)",
+    "throttle": (
+        "normalized longitudinal command in [-1, 1] (dimensionless; +1 full throttle, "
+        "-1 full brake; scaling owned by evoscen_sim)"
+    ),
+}
+
+# --------------------------------------------------------------------------- events
+
+EVENT_COLLISION: str = "evoscen/collision"
+EVENT_LANE_CHANGE: str = "evoscen/lane_change"
+EVENT_REENTRY: str = "evoscen/reentry"
+EVENT_FAULT: str = "evoscen/fault"
+EVENT_OFF_ROAD: str = "evoscen/off_road"
+#: All event names allowed on ``/evoscen/events``.
+EVENT_NAMES: tuple[str, ...] = (EVENT_COLLISION, EVENT_LANE_CHANGE, EVENT_REENTRY, EVENT_OFF_ROAD, EVENT_FAULT)
+
+#: ``diagnostic_msgs/DiagnosticStatus`` levels (OK, WARN, ERROR, STALE).
+LEVEL_OK, LEVEL_WARN, LEVEL_ERROR, LEVEL_STALE = 0, 1, 2, 3
+#: Level used when an event dict gives none.
+DEFAULT_EVENT_LEVELS: dict[str, int] = {
+    EVENT_COLLISION: LEVEL_ERROR,
+    EVENT_LANE_CHANGE: LEVEL_OK,
+    EVENT_REENTRY: LEVEL_WARN,
+    EVENT_OFF_ROAD: LEVEL_ERROR,
+    EVENT_FAULT: LEVEL_ERROR,
+}
+#: ``hardware_id`` of every event status.
+EVENT_HARDWARE_ID: str = "evoscen"
+
+#: Typed event keys: values are encoded to / decoded from KeyValue strings by type.
+#: ``"int"`` -> ``str(int)``; ``"float"`` -> ``repr(float)`` (exact round trip, also
+#: ``inf``/``nan``); ``"ints"`` -> comma separated ints (``"3,7"``, ``""`` = empty);
+#: ``"str"`` -> as is. Keys not listed here are written with ``str(value)`` and read back
+#: as strings.
+EVENT_KEY_TYPES: dict[str, str] = {
+    "step": "int",  # step index k
+    "time_s": "float",  # simulation time of the event (s)
+    "ids": "ints",  # vehicle ids involved
+    "duration_s": "float",  # duration (s), e.g. of a lane change or an off-road episode
+    "direction": "int",  # lane-change direction (+1 left, -1 right)
+    "from_lane": "int",  # lane index before
+    "to_lane": "int",  # lane index after
+    "misses": "int",  # consecutive missed controller deadlines (fault)
+    "controller": "str",  # node name of the controller concerned (fault)
+    "kind": "str",  # sub-kind of the event (e.g. fault kind "deadline", "abort")
+}
+
+_RESERVED_EVENT_KEYS = ("name", "level", "message")
+
+# --------------------------------------------------------------------------- spec
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    """One row of the topic contract.
+
+    Attributes:
+        name: absolute topic name.
+        type_name: ROS 2 type name, ``pkg/msg/Type``.
+        msg_class: the rclpy message class.
+        qos: QoS of publishers and subscriptions (:class:`QosSpec`).
+        publisher: name of the node that publishes it.
+        rate: publication rate, in words.
+        description: meaning (one line).
+        fields: column names for flat-table topics (PointCloud2 tables), else ``()``.
+    """
+
+    name: str
+    type_name: str
+    msg_class: type
+    qos: QosSpec
+    publisher: str
+    rate: str
+    description: str
+    fields: tuple[str, ...] = ()
+
+    def qos_profile(self) -> Any:
+        """Return the ``rclpy.qos.QoSProfile`` of this topic."""
+        return self.qos.to_rclpy()
+
+    def offered_qos_profiles(self) -> list[dict[str, Any]]:
+        """Return rosbag2's ``offered_qos_profiles`` list (one profile: the contract's)."""
+        return [self.qos.to_rosbag2()]
+
+
+#: QoS of every per-step topic (see module docstring for why).
+STEP_QOS = QosSpec(reliability="reliable", durability="volatile", history="keep_last", depth=100)
+#: QoS of once-published, latched data.
+LATCHED_QOS = QosSpec(
+    reliability="reliable", durability="transient_local", history="keep_last", depth=1
+)
+
+CLOCK = TopicSpec(
+    name="/clock",
+    type_name="rosgraph_msgs/msg/Clock",
+    msg_class=Clock,
+    qos=STEP_QOS,
+    publisher=NODE_SIM,
+    rate="every step",
+    description="simulation time t_k, for use_sim_time",
+)
+WORLD = TopicSpec(
+    name="/evoscen/world",
+    type_name="sensor_msgs/msg/PointCloud2",
+    msg_class=PointCloud2,
+    qos=STEP_QOS,
+    publisher=NODE_SIM,
+    rate="every step",
+    description=(
+        "world state at t_k: flat table, one row per vehicle, columns WORLD_FIELDS, "
+        "frame 'map'"
+    ),
+    fields=WORLD_FIELDS,
+)
+COMMANDS_BV = TopicSpec(
+    name="/evoscen/commands/bv",
+    type_name="sensor_msgs/msg/PointCloud2",
+    msg_class=PointCloud2,
+    qos=STEP_QOS,
+    publisher=NODE_BV,
+    rate="every step (answer to the world at t_k)",
+    description=(
+        "BV commands: flat table, one row per hosted BV, columns COMMAND_FIELDS; "
+        "stamp = t_k of the world step answered, frame 'map'"
+    ),
+    fields=COMMAND_FIELDS,
+)
+COMMANDS_SUT = TopicSpec(
+    name="/evoscen/commands/sut",
+    type_name="sensor_msgs/msg/PointCloud2",
+    msg_class=PointCloud2,
+    qos=STEP_QOS,
+    publisher=NODE_SUT,
+    rate="every step (answer to the world at t_k)",
+    description=(
+        "SUT command: flat table, one row, columns COMMAND_FIELDS; "
+        "stamp = t_k of the world step answered, frame 'map'"
+    ),
+    fields=COMMAND_FIELDS,
+)
+SUT_ODOM = TopicSpec(
+    name="/evoscen/sut/odom",
+    type_name="nav_msgs/msg/Odometry",
+    msg_class=Odometry,
+    qos=STEP_QOS,
+    publisher=NODE_SIM,
+    rate="every step",
+    description=(
+        f"SUT pose in '{MAP_FRAME}' and twist in '{SUT_BASE_FRAME}' "
+        "(linear.x = speed m/s, angular.z = yaw rate rad/s)"
+    ),
+)
+EVENTS = TopicSpec(
+    name="/evoscen/events",
+    type_name="diagnostic_msgs/msg/DiagnosticArray",
+    msg_class=DiagnosticArray,
+    qos=STEP_QOS,
+    publisher=NODE_SIM,
+    rate="on event (steps with at least one event)",
+    description=(
+        "one DiagnosticStatus per event: " + ", ".join(EVENT_NAMES)
+        + "; key/values " + ", ".join(EVENT_KEY_TYPES)
+    ),
+)
+ROSTER = TopicSpec(
+    name="/evoscen/roster",
+    type_name="sensor_msgs/msg/PointCloud2",
+    msg_class=PointCloud2,
+    qos=LATCHED_QOS,
+    publisher=NODE_SIM,
+    rate="once, at start (latched)",
+    description="vehicles of the scenario: flat table, one row per vehicle, columns ROSTER_FIELDS",
+    fields=ROSTER_FIELDS,
+)
+
+#: The whole contract, in README order.
+CONTRACT: tuple[TopicSpec, ...] = (CLOCK, WORLD, COMMANDS_BV, COMMANDS_SUT, SUT_ODOM, EVENTS, ROSTER)
+#: Contract by topic name.
+TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in CONTRACT}
+
+
+def contract_markdown() -> str:
+    """Render the contract as Markdown for the README.
+
+    Returns the topic table (topic | type | QoS | publisher | rate | meaning), followed
+    by the table columns with their meaning/units, the policy codes and the event keys.
+    Deterministic (depends only on this module).
+    """
+    lines = [
+        "| topic | type | QoS | publisher | rate | meaning |",
+        "|---|---|---|---|---|---|",
+    ]
+    for spec in CONTRACT:
+        lines.append(
+            f"| `{spec.name}` | `{spec.type_name}` | {spec.qos.short()} | `{spec.publisher}` "
+            f"| {spec.rate} | {spec.description} |"
+        )
+    lines += ["", "Table columns (float64, one row per vehicle):", ""]
+    lines += ["| table | columns |", "|---|---|"]
+    for spec in CONTRACT:
+        if spec.fields:
+            lines.append(f"| `{spec.name}` | {', '.join(f'`{f}`' for f in spec.fields)} |")
+    lines += ["", "| column | meaning (unit) |", "|---|---|"]
+    for name, doc in FIELD_DOCS.items():
+        lines.append(f"| `{name}` | {doc} |")
+    lines += ["", "| event key | type |", "|---|---|"]
+    for key, typ in EVENT_KEY_TYPES.items():
+        lines.append(f"| `{key}` | {typ} |")
+    return "\n".join(lines) + "\n"
+
+
+# --------------------------------------------------------------------------- builders
+
+
+def clock_message(stamp_ns: int) -> Clock:
+    """Return a ``rosgraph_msgs/Clock`` for simulation time ``stamp_ns`` (ns)."""
+    return Clock(clock=stamp_from_ns(stamp_ns))
+
+
+def odometry_message(
+    x: float, y: float, yaw: float, speed: float, yaw_rate: float, stamp_ns: int
+) -> Odometry:
+    """Return the SUT odometry.
+
+    Args:
+        x, y: position in the map frame (m).
+        yaw: heading in the map frame (rad, counter-clockwise from +x).
+        speed: longitudinal speed (m/s), written to ``twist.twist.linear.x``.
+        yaw_rate: yaw rate (rad/s), written to ``twist.twist.angular.z``.
+        stamp_ns: simulation time (ns).
+
+    Pose is in ``"map"``, twist in the child frame ``"sut/base_link"`` (REP 105);
+    the orientation is the quaternion of a pure yaw rotation. Covariances stay zero
+    (simulated, exact state).
+    """
+    msg = Odometry()
+    msg.header.stamp = stamp_from_ns(stamp_ns)
+    msg.header.frame_id = MAP_FRAME
+    msg.child_frame_id = SUT_BASE_FRAME
+    pose = msg.pose.pose
+    pose.position.x = float(x)
+    pose.position.y = float(y)
+    pose.orientation.z = math.sin(0.5 * float(yaw))
+    pose.orientation.w = math.cos(0.5 * float(yaw))
+    msg.twist.twist.linear.x = float(speed)
+    msg.twist.twist.angular.z = float(yaw_rate)
+    return msg
+
+
+def _encode_event_value(key: str, value: Any) -> str:
+    """Encode one event value as a KeyValue string (see :data:`EVENT_KEY_TYPES`)."""
+    typ = EVENT_KEY_TYPES.get(key, "str")
+    try:
+        if typ == "int":
+            if isinstance(value, bool) or int(value) != value:
+                raise ValueError
+            return str(int(value))
+        if typ == "float":
+            if isinstance(value, bool):
+                raise ValueError
+            return repr(float(value))
+        if typ == "ints":
+            items = [int(v) for v in value]
+            if any(isinstance(v, bool) or int(v) != v for v in value):
+                raise ValueError
+            return ",".join(str(v) for v in items)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"event key {key!r}: value {value!r} is not of type {typ!r}"
+        ) from None
+    return str(value)
+
+
+def _decode_event_value(key: str, text: str) -> Any:
+    """Decode one KeyValue string (inverse of :func:`_encode_event_value`)."""
+    typ = EVENT_KEY_TYPES.get(key, "str")
+    try:
+        if typ == "int":
+            return int(text)
+        if typ == "float":
+            return float(text)
+        if typ == "ints":
+            return [int(v) for v in text.split(",")] if text else []
+    except ValueError:
+        raise ValueError(
+            f"event key {key!r}: value {text!r} is not of type {typ!r}"
+        ) from None
+    return text
+
+
+def events_message(events: Sequence[Mapping[str, Any]], stamp_ns: int) -> DiagnosticArray:
+    """Return the ``/evoscen/events`` message for the events of one step.
+
+    Args:
+        events: one mapping per event. ``"name"`` (required, one of
+            :data:`EVENT_NAMES`) -> ``DiagnosticStatus.name``; ``"level"`` (optional int
+            0..3, default :data:`DEFAULT_EVENT_LEVELS`) -> ``level``; ``"message"``
+            (optional str, default ``""``) -> ``message``; every other key becomes a
+            KeyValue, in the mapping's order, encoded per :data:`EVENT_KEY_TYPES`.
+        stamp_ns: simulation time (ns) of the step.
+
+    Raises:
+        ValueError: unknown event name, bad level, or a typed key with a wrong value.
+    """
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp_from_ns(stamp_ns)
+    msg.header.frame_id = MAP_FRAME
+    statuses = []
+    for i, event in enumerate(events):
+        name = event.get("name")
+        if name not in EVENT_NAMES:
+            raise ValueError(f"event {i}: name {name!r} is not one of {list(EVENT_NAMES)}")
+        level = event.get("level", DEFAULT_EVENT_LEVELS[name])
+        if isinstance(level, bool) or level not in (0, 1, 2, 3):
+            raise ValueError(f"event {i} ({name}): level {level!r} is not one of 0, 1, 2, 3")
+        status = DiagnosticStatus()
+        status.level = bytes((int(level),))
+        status.name = name
+        status.message = str(event.get("message", ""))
+        status.hardware_id = EVENT_HARDWARE_ID
+        status.values = [
+            KeyValue(key=str(key), value=_encode_event_value(str(key), value))
+            for key, value in event.items()
+            if key not in _RESERVED_EVENT_KEYS
+        ]
+        statuses.append(status)
+    msg.status = statuses
+    return msg
+
+
+def parse_events(msg: Any) -> list[dict[str, Any]]:
+    """Return the events of an ``/evoscen/events`` message as dicts.
+
+    Inverse of :func:`events_message`: each dict has ``"name"``, ``"level"`` (int) and
+    ``"message"``, then the key/values decoded per :data:`EVENT_KEY_TYPES` (unknown
+    keys as strings). Accepts rclpy, ``mcap_ros2`` and ``rosbags`` messages (``level``
+    as bytes or int).
+
+    Raises:
+        ValueError: a typed value does not parse.
+    """
+    out: list[dict[str, Any]] = []
+    for status in msg.status:
+        level = status.level
+        if isinstance(level, (bytes, bytearray)):
+            level = level[0] if level else 0
+        event: dict[str, Any] = {
+            "name": str(status.name),
+            "level": int(level),
+            "message": str(status.message),
+        }
+        for kv in status.values:
+            event[str(kv.key)] = _decode_event_value(str(kv.key), str(kv.value))
+        out.append(event)
+    return out
+

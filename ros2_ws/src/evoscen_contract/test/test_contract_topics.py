@@ -1,0 +1,116 @@
+"""Tests of evoscen_contract.topics: the contract table, events, odometry, clock."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+
+from evoscen_contract.qos import QosSpec, rosbag2_qos_yaml
+from evoscen_contract.topics import (
+    CONTRACT,
+    POLICY_CODES,
+    POLICY_NAMES,
+    TOPICS,
+    WORLD_FIELDS,
+    clock_message,
+    contract_markdown,
+    events_message,
+    odometry_message,
+    parse_events,
+)
+
+
+def test_contract_names_types_and_qos() -> None:
+    assert list(TOPICS) == [
+        "/clock", "/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut",
+        "/evoscen/sut/odom", "/evoscen/events", "/evoscen/roster",
+    ]  # fmt: skip
+    assert TOPICS["/clock"].type_name == "rosgraph_msgs/msg/Clock"
+    assert TOPICS["/evoscen/world"].fields == WORLD_FIELDS
+    assert len(WORLD_FIELDS) == 17 and WORLD_FIELDS[0] == "id"
+    assert TOPICS["/evoscen/commands/bv"].fields == ("id", "throttle", "lane_change")
+    assert TOPICS["/evoscen/roster"].fields == ("id", "role", "policy", "length", "width")
+    assert TOPICS["/evoscen/roster"].qos.durability == "transient_local"
+    assert TOPICS["/clock"].qos.reliability == "reliable"
+    for spec in CONTRACT:
+        pkg, ns, name = spec.type_name.split("/")
+        assert ns == "msg" and spec.msg_class.__name__ == name
+        assert spec.msg_class.__module__.startswith(pkg + ".msg")
+    assert POLICY_CODES == {"level0": 0, "mutual": 1, "competitive": 2, "cooperative": 3,
+                            "sut": 4, "nilsson": 5, "mobil": 6}
+    assert POLICY_NAMES[2] == "competitive"
+
+
+def test_qos_conversions() -> None:
+    q = TOPICS["/evoscen/roster"].qos_profile()
+    assert isinstance(q, QoSProfile)
+    assert q.reliability == ReliabilityPolicy.RELIABLE
+    assert q.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert q.history == HistoryPolicy.KEEP_LAST and q.depth == 1
+    be = QosSpec(reliability="best_effort", history="keep_all").to_rclpy()
+    assert be.reliability == ReliabilityPolicy.BEST_EFFORT and be.history == HistoryPolicy.KEEP_ALL
+    prof = TOPICS["/evoscen/world"].offered_qos_profiles()[0]
+    assert list(prof)[:4] == ["history", "depth", "reliability", "durability"]
+    assert prof["deadline"] == {"sec": 9223372036, "nsec": 854775807}
+    assert rosbag2_qos_yaml([TOPICS["/clock"].qos]).startswith("- history: keep_last\n  depth: 100\n")
+    with pytest.raises(ValueError):
+        QosSpec(reliability="sometimes")
+    with pytest.raises(ValueError):
+        QosSpec(depth=0)
+
+
+def test_contract_markdown_lists_every_topic() -> None:
+    md = contract_markdown()
+    assert md.splitlines()[0] == "| topic | type | QoS | publisher | rate | meaning |"
+    for spec in CONTRACT:
+        assert f"| `{spec.name}` | `{spec.type_name}` |" in md
+    assert "`heading_rel`" in md
+
+
+def test_events_round_trip() -> None:
+    events = [
+        {"name": "evoscen/collision", "level": 2, "message": "BV 3 hit SUT",
+         "step": 41, "time_s": 4.1, "ids": [3, 0]},
+        {"name": "evoscen/lane_change", "level": 0, "message": "", "step": 41,
+         "time_s": 4.1, "ids": [7], "direction": -1, "from_lane": 2, "to_lane": 1,
+         "duration_s": 3.0000000000000004},
+        {"name": "evoscen/reentry", "level": 1, "message": "", "ids": [], "duration_s": math.inf},
+        {"name": "evoscen/fault", "level": 2, "message": "deadline", "controller": "evoscen_bv",
+         "misses": 3, "note": "free text"},
+    ]  # fmt: skip
+    msg = events_message(events, stamp_ns=4_100_000_000)
+    back = deserialize_message(serialize_message(msg), DiagnosticArray)
+    assert (back.header.stamp.sec, back.header.stamp.nanosec) == (4, 100_000_000)
+    assert [s.hardware_id for s in back.status] == ["evoscen"] * 4
+    assert parse_events(back) == events
+    kv = {v.key: v.value for v in back.status[0].values}
+    assert kv == {"step": "41", "time_s": "4.1", "ids": "3,0"}
+
+
+def test_events_defaults_and_errors() -> None:
+    (ev,) = parse_events(events_message([{"name": "evoscen/collision", "ids": (1, 2)}], 0))
+    assert ev == {"name": "evoscen/collision", "level": 2, "message": "", "ids": [1, 2]}
+    assert parse_events(events_message([], 0)) == []
+    with pytest.raises(ValueError, match="name 'evoscen/boom'"):
+        events_message([{"name": "evoscen/boom"}], 0)
+    with pytest.raises(ValueError, match="'step'"):
+        events_message([{"name": "evoscen/fault", "step": 1.5}], 0)
+    with pytest.raises(ValueError, match="level"):
+        events_message([{"name": "evoscen/fault", "level": 7}], 0)
+
+
+def test_odometry_and_clock() -> None:
+    odom = odometry_message(10.0, -2.5, math.pi / 2, 30.0, 0.1, stamp_ns=1_500_000_000)
+    assert odom.header.frame_id == "map" and odom.child_frame_id == "sut/base_link"
+    assert (odom.header.stamp.sec, odom.header.stamp.nanosec) == (1, 500_000_000)
+    assert odom.pose.pose.position.x == 10.0 and odom.pose.pose.position.y == -2.5
+    q = odom.pose.pose.orientation
+    assert q.x == 0.0 and q.y == 0.0
+    assert q.z == pytest.approx(math.sqrt(0.5)) and q.w == pytest.approx(math.sqrt(0.5))
+    assert odom.twist.twist.linear.x == 30.0 and odom.twist.twist.angular.z == 0.1
+    clk = clock_message(2_000_000_001)
+    assert (clk.clock.sec, clk.clock.nanosec) == (2, 1)

@@ -1,0 +1,90 @@
+"""Initial placement of the SUT and the background vehicles (the scenario's spawn layout).
+
+Layout, deterministic for a given generator:
+
+* the SUT at ``sut_lane`` / ``sut_s_m`` with ``sut_speed_mps``;
+* ``ramp_vehicles`` BVs on the merge lane (lane I), from its start, one every
+  ``mainline_gap_m + length`` metres;
+* the other BVs on the mainline lanes II–V in a block around the SUT: slots every
+  ``mainline_gap_m + length`` metres along each lane, the lanes staggered by a quarter
+  slot so no four vehicles stand side by side, filled nearest-to-the-SUT first (ties:
+  behind before ahead, then the lower lane) — so the SUT starts in traffic;
+* every BV gets a longitudinal jitter uniform in ``±jitter_m`` (limited so neighbours in a
+  lane cannot overlap) and a speed uniform in ``speed_range_mps``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+from .world import ROLE_BV, ROLE_SUT, InitialState
+
+MERGE_LANE = 0
+
+
+def spawn_layout(
+    road,
+    *,
+    bv_policies: np.ndarray,
+    sut_policy: int,
+    sut_lane: int,
+    sut_s_m: float,
+    sut_speed_mps: float,
+    ramp_vehicles: int,
+    mainline_gap_m: float,
+    speed_range_mps: tuple[float, float],
+    jitter_m: float,
+    vehicle_length_m: float,
+    rng: np.random.Generator,
+) -> InitialState:
+    """Initial state: vehicle 0 is the SUT (id 0), vehicles 1..N are the BVs (ids 1..N)."""
+    n_bv = int(len(bv_policies))
+    pitch = mainline_gap_m + vehicle_length_m
+    jitter = min(jitter_m, max(0.0, 0.5 * mainline_gap_m - 0.5))
+    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
+        raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
+
+    s_list: list[float] = []
+    lane_list: list[int] = []
+    # ramp vehicles, front first
+    start, end = float(road.lane_start_s[MERGE_LANE]), float(road.lane_end_s[MERGE_LANE])
+    for j in range(ramp_vehicles):
+        s = start + vehicle_length_m + j * pitch
+        if s > end - 30.0:
+            raise InputError(
+                f"spawn: spawn.ramp_vehicles = {ramp_vehicles} do not fit on the merge lane "
+                f"({end - start:.0f} m at a pitch of {pitch:.1f} m); allowed at most {j}"
+            )
+        s_list.append(s)
+        lane_list.append(MERGE_LANE)
+    # mainline block around the SUT
+    n_main = n_bv - ramp_vehicles
+    slots = []
+    max_j = n_main + 1
+    for lane in mainline:
+        stagger = (lane - sut_lane) % 4 * 0.25 * pitch
+        for j in range(-max_j, max_j + 1):
+            s = sut_s_m + j * pitch + stagger
+            if lane == sut_lane and j == 0:
+                continue
+            if s < 5.0 or s > road.length_m - 50.0:
+                continue
+            slots.append((abs(s - sut_s_m), 0 if s < sut_s_m else 1, lane, s))
+    slots.sort()
+    if len(slots) < n_main:
+        raise InputError(f"spawn: {n_main} mainline vehicles do not fit at spawn.mainline_gap_m = {mainline_gap_m}")
+    for _, _, lane, s in slots[:n_main]:
+        s_list.append(s)
+        lane_list.append(lane)
+    s_bv = np.array(s_list, dtype=float) + rng.uniform(-jitter, jitter, size=n_bv)
+    v_bv = rng.uniform(speed_range_mps[0], speed_range_mps[1], size=n_bv)
+    return InitialState(
+        ids=np.arange(n_bv + 1, dtype=np.int64),
+        roles=np.array([ROLE_SUT] + [ROLE_BV] * n_bv, dtype=np.int64),
+        policies=np.concatenate([[sut_policy], np.asarray(bv_policies, dtype=np.int64)]).astype(np.int64),
+        s_m=np.concatenate([[sut_s_m], s_bv]),
+        lane=np.array([sut_lane] + lane_list, dtype=np.int64),
+        speed_mps=np.concatenate([[sut_speed_mps], v_bv]),
+    )

@@ -1,0 +1,326 @@
+"""The world: every vehicle's state and the fixed-step update, vectorized over vehicles.
+
+One call of :meth:`World.step` takes one command per vehicle — a throttle/brake value in
+[-1, 1] and a lane-change request in {-1, 0, +1} (+1 = left) — and advances all vehicles
+by ``dt_s``:
+
+1. **Lane-change requests.** A request is executed only when the vehicle is not already
+   changing lanes and the target lane exists at the vehicle's position; otherwise the
+   executed action is 0 (keep). The executed action is returned, so drivers can compare
+   requested and executed actions. An executed request moves the *target lane*; the
+   dual PID (:mod:`evoscen_sim.control`) then steers to the target lane's centre line.
+2. **Dynamics.** Throttle → acceleration, dual PID → steering, kinematic bicycle
+   (:mod:`evoscen_sim.vehicle`).
+3. **Lanes.** A vehicle's lane is the lane that contains its centre of mass. A lane
+   change is complete when the centre of mass is in the target lane; its duration (the
+   decision to that moment) is T_l of the efficiency score. A vehicle whose centre leaves
+   the road keeps its last lane and raises one ``off_road`` event.
+4. **Re-entry** (SPEC §1 [choice]): a vehicle whose centre passes the end of the road
+   re-enters at once, so the number of vehicles on the road never changes. With
+   probability ``ramp_share`` (drawn from the scenario's seeded generator) it re-enters
+   at the start of the merge lane (coming from the on-ramp), else at ``s = 0`` of the
+   mainline lane with the most free space. It is put ``min_gap_m`` behind the last
+   vehicle of that lane if the entry point is not free (``s`` may then be negative: the
+   vehicle is on the approach and road look-ups use ``s = 0``), centred in the lane,
+   heading along the road, and keeps its speed, capped by the speed of the vehicle it
+   enters behind when that one is within 100 m.
+5. **Collisions**: oriented bounding boxes overlap (:mod:`evoscen_sim.collision`). A
+   collision is reported once, at the first step a pair overlaps; vehicles are not
+   removed and there is no contact physics (the drivers see the negative gap and brake).
+   A pair that separates and touches again is a new collision.
+
+Time: ``time_s = step_index * dt_s`` exactly (no accumulated floating-point drift).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .collision import overlapping_pairs
+from .control import ControlParams, DualPidController
+from .neighbors import Neighborhood, compute_neighborhood
+from .vehicle import VehicleParams, bicycle_step, throttle_to_accel
+
+ROLE_BV = 0
+ROLE_SUT = 1
+
+
+@dataclass(frozen=True)
+class ReentryParams:
+    """Re-entry policy of vehicles that leave the road (see the module docstring)."""
+
+    ramp_share: float = 0.2
+    min_gap_m: float = 15.0
+    speed_match_range_m: float = 100.0
+
+
+@dataclass(frozen=True)
+class InitialState:
+    """Where the vehicles start. Arrays of length N; lanes are lane indices."""
+
+    ids: np.ndarray
+    roles: np.ndarray
+    policies: np.ndarray
+    s_m: np.ndarray
+    lane: np.ndarray
+    speed_mps: np.ndarray
+
+
+@dataclass
+class StepResult:
+    """What happened during one step (indices are vehicle indices, not ids)."""
+
+    step: int
+    time_s: float
+    executed_lane_change: np.ndarray
+    collisions: list[tuple[int, int]] = field(default_factory=list)
+    lane_changes_completed: list[tuple[int, int, int, float]] = field(default_factory=list)
+    """(vehicle, from lane, to lane, duration_s) of lane changes completed in this step."""
+    reentries: list[tuple[int, int, float]] = field(default_factory=list)
+    """(vehicle, lane, s_m) of vehicles that left the road and re-entered."""
+    off_road: list[int] = field(default_factory=list)
+
+
+class World:
+    """State of all vehicles on one road and the fixed-step update (see module docstring)."""
+
+    def __init__(
+        self,
+        road,  # evoscen_sim.road.RoadModel
+        initial: InitialState,
+        *,
+        vehicle: VehicleParams,
+        control: ControlParams,
+        reentry: ReentryParams,
+        dt_s: float,
+        rng: np.random.Generator,
+    ) -> None:
+        self.road = road
+        self.vehicle = vehicle
+        self.reentry = reentry
+        self.dt_s = float(dt_s)
+        self.rng = rng
+        n = int(initial.s_m.shape[0])
+        self.n = n
+        self.ids = np.asarray(initial.ids, dtype=np.int64).copy()
+        self.role = np.asarray(initial.roles, dtype=np.int64).copy()
+        self.policy = np.asarray(initial.policies, dtype=np.int64).copy()
+        self.length = np.full(n, vehicle.length_m)
+        self.width = np.full(n, vehicle.width_m)
+        self.lane = np.asarray(initial.lane, dtype=np.int64).copy()
+        self.s = np.asarray(initial.s_m, dtype=float).copy()
+        self.d = road.lane_center_d(self.lane, self.s).astype(float)
+        self.psi = np.zeros(n)
+        self.v = np.asarray(initial.speed_mps, dtype=float).copy()
+        self.accel = np.zeros(n)
+        self.steer = np.zeros(n)
+        self.target_lane = self.lane.copy()
+        self.lane_change = np.zeros(n, dtype=np.int64)
+        """Direction of the lane change in progress (0 = none)."""
+        self.lane_change_start_s = np.full(n, np.nan)
+        self.lane_change_count = np.zeros(n, dtype=np.int64)
+        self.last_lane_change_duration_s = np.full(n, np.nan)
+        self.off_road = np.zeros(n, dtype=bool)
+        self.step_index = 0
+        self.controller = DualPidController(n, control, vehicle.wheelbase_m, self.dt_s)
+        self.controller.reset(np.arange(n))
+        self._contacts: set[tuple[int, int]] = set()
+        self._neighborhood: Neighborhood | None = None
+        self._rows = np.arange(n)
+        self._refresh_road_lookups()
+        bad = ~road.lane_exists(self.lane, self.s)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"initial state: vehicle {int(self.ids[i])} placed in lane {int(self.lane[i])} "
+                f"at s = {self.s[i]:.1f} m, where that lane does not exist"
+            )
+
+    @property
+    def time_s(self) -> float:
+        """Simulation time of the current state (s)."""
+        return self.step_index * self.dt_s
+
+    @property
+    def time_ns(self) -> int:
+        """Simulation time of the current state in integer nanoseconds (message stamps)."""
+        return self.step_index * round(self.dt_s * 1e9)
+
+    def _refresh_road_lookups(self) -> None:
+        """Road quantities at the current positions, evaluated once per step."""
+        s = np.maximum(self.s, 0.0)
+        self._geometry = self.road.lane_geometry(s)
+        self._kappa = self.road.curvature(s)
+        self._speed_limit = None
+
+    @property
+    def speed_limit_mps(self) -> np.ndarray:
+        """Maximum speed of every vehicle's lane at its position (m/s), cached per step."""
+        if self._speed_limit is None:
+            self._speed_limit = self.road.speed_limit_max_mps(self.lane, np.maximum(self.s, 0.0))
+        return self._speed_limit
+
+    def neighborhood(self) -> Neighborhood:
+        """Leaders/followers of every vehicle in the current state (cached per step)."""
+        if self._neighborhood is None:
+            self._neighborhood = compute_neighborhood(self.s, self.lane, self.v, self.accel, self.length)
+        return self._neighborhood
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The current state as named columns (the world table of the topic contract)."""
+        x, y, heading = self.road.frenet_to_cartesian(np.maximum(self.s, 0.0), self.d)
+        return {
+            "id": self.ids,
+            "role": self.role,
+            "policy": self.policy,
+            "x": x,
+            "y": y,
+            "yaw": heading + self.psi,
+            "s": self.s,
+            "d": self.d,
+            "heading_rel": self.psi,
+            "speed": self.v,
+            "accel": self.accel,
+            "steer": self.steer,
+            "lane": self.lane,
+            "target_lane": self.target_lane,
+            "lane_change": self.lane_change,
+            "length": self.length,
+            "width": self.width,
+        }
+
+    # ------------------------------------------------------------------ the step
+    def step(self, throttle: np.ndarray, lane_change_request: np.ndarray) -> StepResult:
+        """Advance every vehicle by ``dt_s`` (see the module docstring for the order)."""
+        road = self.road
+        n = self.n
+        if throttle.shape != (n,) or lane_change_request.shape != (n,):
+            raise ValueError(f"step: expected commands of shape ({n},), got {throttle.shape} and {lane_change_request.shape}")
+        t_decision = self.time_s
+        request = np.asarray(lane_change_request, dtype=np.int64)
+        rows = self._rows
+        d_right, d_left, present = self._geometry
+
+        # 1. lane-change requests
+        wanted = (request != 0) & (self.lane_change == 0)
+        executed = np.zeros(n, dtype=np.int64)
+        if wanted.any():
+            request = np.minimum(np.maximum(request, -1), 1)
+            target = self.lane + request
+            in_range = (target >= 0) & (target < road.num_lanes)
+            ok = wanted & in_range & present[rows, np.where(in_range, target, 0)]
+            if ok.any():
+                executed[ok] = request[ok]
+                self.target_lane[ok] = target[ok]
+                self.lane_change[ok] = request[ok]
+                self.lane_change_start_s[ok] = t_decision
+                self.controller.reset(np.flatnonzero(ok))
+
+        # 2. control and dynamics (a target lane that has ended: its centre is its border)
+        tl = self.target_lane
+        d_target = 0.5 * (d_right[rows, tl] + d_left[rows, tl])
+        kappa = self._kappa
+        steer_cmd = self.controller.steering(self.d, self.psi, self.v, d_target, kappa)
+        max_delta = self.vehicle.max_steer_rate_radps * self.dt_s
+        max_steer = self.vehicle.max_steer_rad
+        steer = self.steer + np.minimum(np.maximum(steer_cmd - self.steer, -max_delta), max_delta)
+        self.steer = np.minimum(np.maximum(steer, -max_steer), max_steer)
+        accel_cmd = throttle_to_accel(throttle, self.vehicle)
+        self.s, self.d, self.psi, self.v, self.accel = bicycle_step(
+            self.s, self.d, self.psi, self.v, accel_cmd, self.steer, kappa, self.vehicle, self.dt_s
+        )
+        self.step_index += 1
+        self._neighborhood = None
+        result = StepResult(step=self.step_index, time_s=self.time_s, executed_lane_change=executed)
+
+        # 3. lanes and lane-change completion
+        self._refresh_road_lookups()
+        lane_now = road.lane_of_geometry(self._geometry, self.d)
+        on_road = lane_now >= 0
+        newly_off = ~on_road & ~self.off_road
+        self.off_road = ~on_road
+        self.lane = np.where(on_road, lane_now, self.lane)
+        done = (self.lane_change != 0) & (self.lane == self.target_lane)
+        if done.any():
+            duration = self.time_s - self.lane_change_start_s[done]
+            rows = np.flatnonzero(done)
+            result.lane_changes_completed = [
+                (int(i), int(self.lane[i] - self.lane_change[i]), int(self.lane[i]), float(t))
+                for i, t in zip(rows, duration)
+            ]
+            self.last_lane_change_duration_s[done] = duration
+            self.lane_change_count[done] += 1
+            self.lane_change[done] = 0
+            self.lane_change_start_s[done] = np.nan
+        if newly_off.any():
+            result.off_road = [int(i) for i in np.flatnonzero(newly_off)]
+
+        # 4. re-entry of vehicles past the end of the road
+        gone = self.s > road.length_m
+        if gone.any():
+            for i in np.flatnonzero(gone):
+                result.reentries.append(self._reenter(int(i)))
+            self._refresh_road_lookups()
+
+        # 5. collisions (rising edge of each overlapping pair)
+        pairs = overlapping_pairs(self.s, self.d, self.psi, self.length, self.width)
+        contacts = {(int(i), int(j)) for i, j in pairs}
+        if contacts or self._contacts:
+            result.collisions = sorted(contacts - self._contacts)
+            self._contacts = contacts
+        return result
+
+    # ------------------------------------------------------------------ re-entry
+    def _reenter(self, i: int) -> tuple[int, int, float]:
+        road = self.road
+        p = self.reentry
+        others = np.arange(self.n) != i
+        ramp_lane = 0
+        choice: tuple[int, float] | None = None
+        if road.lane_start_s[ramp_lane] > 0.0 and self.rng.random() < p.ramp_share:
+            entry_s = float(road.lane_start_s[ramp_lane])
+            space, _ = self._free_space(ramp_lane, entry_s, others)
+            if space >= p.min_gap_m:
+                choice = (ramp_lane, entry_s)
+        if choice is None:
+            mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+            spaces = [self._free_space(k, 0.0, others)[0] for k in mainline]
+            best = int(np.argmax(spaces))  # first lane (rightmost) among equals
+            lane = mainline[best]
+            s_entry = min(0.0, spaces[best] - p.min_gap_m)  # behind the last vehicle if crowded
+            choice = (lane, s_entry)
+        lane, s_entry = choice
+        _, ahead = self._free_space(lane, max(s_entry, 0.0), others)
+        speed = self.v[i]
+        if ahead >= 0 and self.s[ahead] - s_entry < p.speed_match_range_m:
+            speed = min(speed, self.v[ahead])
+        self.s[i] = s_entry
+        self.lane[i] = lane
+        self.target_lane[i] = lane
+        self.d[i] = road.lane_center_d(np.array([lane]), np.array([max(s_entry, 0.0)]))[0]
+        self.psi[i] = 0.0
+        self.steer[i] = 0.0
+        self.v[i] = speed
+        self.accel[i] = 0.0
+        self.lane_change[i] = 0
+        self.lane_change_start_s[i] = np.nan
+        self.off_road[i] = False
+        self.controller.reset(np.array([i]))
+        for pair in [c for c in self._contacts if i in c]:
+            self._contacts.discard(pair)
+        return (i, int(lane), float(s_entry))
+
+    def _free_space(self, lane: int, s_entry: float, others: np.ndarray) -> tuple[float, int]:
+        """Bumper gap from a vehicle centred at ``s_entry`` to the nearest vehicle ahead in ``lane``.
+
+        Returns ``(gap_m, index)``, ``(inf, -1)`` when the lane is empty ahead.
+        """
+        cand = others & (self.lane == lane) & (self.s >= s_entry)
+        if not cand.any():
+            return float("inf"), -1
+        k = np.flatnonzero(cand)
+        j = int(k[np.argmin(self.s[k])])
+        gap = self.s[j] - s_entry - 0.5 * (self.length[j] + self.vehicle.length_m)
+        return float(gap), j

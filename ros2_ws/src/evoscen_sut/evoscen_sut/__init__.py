@@ -1,0 +1,1 @@
+"""evoscen systems under test: the SUT plug-in interface and registry."""
