@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evoscen_sim.car_following import IdmParams, idm_acceleration
+from evoscen_sim.car_following import IdmParams, idm_scalar
+from evoscen_sim.jit import kernel
 from evoscen_sim.neighbors import LEFT, OWN
-from evoscen_sim.vehicle import accel_to_throttle
 
 MERGE_LANE = 0
 
@@ -54,41 +54,59 @@ class Level0Driver:
 
     def act(self, world) -> tuple[np.ndarray, np.ndarray]:  # world: evoscen_sim.world.World
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
-        idx = self.vehicles
         p = self.params
+        idm = p.idm
+        vp = self.vehicle_params
         nb = world.neighborhood()
-        v = world.v[idx]
-        v0 = np.minimum(self.desired_speed_mps, world.speed_limit_mps[idx])
-        max_decel = self.vehicle_params.max_brake_mps2
-        accel = idm_acceleration(v, v0, nb.gap_front_m[idx, OWN], nb.leader_speed_mps[idx, OWN], p.idm, max_decel)
-        request = np.zeros(idx.size, dtype=np.int64)
+        return _level0_kernel(
+            self.vehicles, world.v, world.s, world.lane, world.lane_change, world.length,
+            world.speed_limit_mps, self.desired_speed_mps,
+            nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower_speed_mps,
+            float(world.road.lane_end_s[MERGE_LANE]),
+            idm.time_headway_s, idm.min_gap_m, idm.accel_mps2, idm.comfort_decel_mps2, idm.delta,
+            p.merge_min_front_gap_m, p.merge_min_rear_gap_m, p.merge_closing_headway_s, p.merge_stop_margin_m,
+            vp.max_accel_mps2, vp.max_brake_mps2,
+        )
 
-        # while changing lanes, also follow the leader in the target lane
-        lc = world.lane_change[idx]
-        changing = lc != 0
-        if changing.any():
-            col = OWN + lc[changing]
-            rows = idx[changing]
-            a_target = idm_acceleration(
-                v[changing], v0[changing], nb.gap_front_m[rows, col], nb.leader_speed_mps[rows, col], p.idm, max_decel
-            )
-            accel[changing] = np.minimum(accel[changing], a_target)
 
-        on_merge = (world.lane[idx] == MERGE_LANE) & ~changing
-        if on_merge.any():
-            rows = idx[on_merge]
-            vm = v[on_merge]
-            # the lane end is a standing obstacle
-            end_gap = world.road.lane_end_s[MERGE_LANE] - p.merge_stop_margin_m - (world.s[rows] + 0.5 * world.length[rows])
-            a_end = idm_acceleration(vm, v0[on_merge], end_gap, np.zeros(rows.size), p.idm, max_decel)
-            accel[on_merge] = np.minimum(accel[on_merge], a_end)
-            # acceptable gap in lane II? (fmax drops the nan of a missing neighbour: no closing)
-            closing_front = np.fmax(0.0, vm - nb.leader_speed_mps[rows, LEFT])
-            closing_rear = np.fmax(0.0, nb.follower_speed_mps[rows, LEFT] - vm)
-            front_ok = nb.gap_front_m[rows, LEFT] >= p.merge_min_front_gap_m + p.merge_closing_headway_s * closing_front
-            rear_ok = nb.gap_rear_m[rows, LEFT] >= p.merge_min_rear_gap_m + p.merge_closing_headway_s * closing_rear
-            request[on_merge] = front_ok & rear_ok
-        return accel_to_throttle(accel, self.vehicle_params), request
+@kernel
+def _level0_kernel(  # noqa: ANN202, PLR0913
+    idx, v, s, lane, lane_change, length, speed_limit, desired,
+    gap_front, v_front, gap_rear, v_rear, merge_lane_end_s,
+    time_headway, min_gap, accel_max, comfort_decel, delta,
+    min_front, min_rear, closing_headway, stop_margin, max_accel, max_brake,
+):  # noqa: ANN001
+    """Level-0 decisions of the vehicles ``idx`` (see the module docstring)."""
+    m = idx.shape[0]
+    throttle = np.empty(m)
+    request = np.zeros(m, dtype=np.int64)
+    for k in range(m):
+        i = idx[k]
+        vi = v[i]
+        v0 = min(desired[k], speed_limit[i])
+        acc = idm_scalar(vi, v0, gap_front[i, OWN], v_front[i, OWN], time_headway, min_gap, accel_max,
+                         comfort_decel, delta, max_brake)
+        lc = lane_change[i]
+        if lc != 0:
+            # while changing lanes, also follow the leader in the target lane
+            c = OWN + lc
+            acc = min(acc, idm_scalar(vi, v0, gap_front[i, c], v_front[i, c], time_headway, min_gap,
+                                      accel_max, comfort_decel, delta, max_brake))
+        elif lane[i] == MERGE_LANE:
+            # the end of the merge lane is a standing obstacle
+            end_gap = merge_lane_end_s - stop_margin - (s[i] + 0.5 * length[i])
+            acc = min(acc, idm_scalar(vi, v0, end_gap, 0.0, time_headway, min_gap, accel_max,
+                                      comfort_decel, delta, max_brake))
+            # an acceptable gap in lane II? (no neighbour: no closing speed)
+            closing_front = 0.0 if np.isnan(v_front[i, LEFT]) else max(0.0, vi - v_front[i, LEFT])
+            closing_rear = 0.0 if np.isnan(v_rear[i, LEFT]) else max(0.0, v_rear[i, LEFT] - vi)
+            if (gap_front[i, LEFT] >= min_front + closing_headway * closing_front
+                    and gap_rear[i, LEFT] >= min_rear + closing_headway * closing_rear):
+                request[k] = 1
+        # acceleration -> throttle/brake command (inverse of evoscen_sim.vehicle.throttle_to_accel)
+        u = acc / max_accel if acc >= 0.0 else acc / max_brake
+        throttle[k] = min(max(u, -1.0), 1.0)
+    return throttle, request
 
 
 def level0_params_from_config(cfg) -> Level0Params:

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .jit import elementwise, kernel
+
 
 @dataclass(frozen=True)
 class IdmParams:
@@ -35,15 +37,27 @@ def idm_acceleration(
     params: IdmParams,
     max_decel_mps2: float = 9.0,
 ) -> np.ndarray:
-    """IDM acceleration (m/s²), clipped below at ``-max_decel_mps2``.
+    """IDM acceleration (m/s²), clipped below at ``-max_decel_mps2``; broadcasts like numpy.
 
     ``gap_m = inf`` (and any ``leader_speed_mps``, e.g. ``nan``) means no leader.
     """
     p = params
-    v = speed_mps
-    free = 1.0 - (v / desired_speed_mps) ** p.delta
-    # no leader: v_leader is nan, fmax drops the nan dynamic term and gap = inf zeroes the ratio
-    closing = v * (v - leader_speed_mps) * (0.5 / np.sqrt(p.accel_mps2 * p.comfort_decel_mps2))
-    s_star = p.min_gap_m + np.fmax(0.0, v * p.time_headway_s + closing)
-    interaction = (s_star / np.maximum(gap_m, 1e-3)) ** 2
-    return np.maximum(p.accel_mps2 * (free - interaction), -max_decel_mps2)
+    return _idm_ufunc(speed_mps, desired_speed_mps, gap_m, leader_speed_mps, p.time_headway_s,
+                      p.min_gap_m, p.accel_mps2, p.comfort_decel_mps2, p.delta, max_decel_mps2)
+
+
+@kernel
+def idm_scalar(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel):  # noqa: ANN001, ANN201
+    """IDM for one vehicle (compiled; callable from other kernels). See the module docstring."""
+    free = 1.0 - (v / v0) ** delta
+    if gap == np.inf or np.isnan(v_leader):
+        interaction = 0.0
+    else:
+        s_star = min_gap + max(0.0, v * time_headway + v * (v - v_leader) / (2.0 * np.sqrt(accel * comfort_decel)))
+        interaction = (s_star / max(gap, 1e-3)) ** 2
+    return max(accel * (free - interaction), -max_decel)
+
+
+@elementwise
+def _idm_ufunc(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel):  # noqa: ANN001, ANN202
+    return idm_scalar(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel)

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .jit import kernel
+
 
 @dataclass(frozen=True)
 class ControlParams:
@@ -68,25 +70,34 @@ class DualPidController:
     ) -> np.ndarray:
         """Steering angle request (rad) for every vehicle."""
         p = self.params
-        dt = self.dt_s
-        v_eff = np.maximum(v, _MIN_SPEED_MPS)
-        e_d = d_target - d
-        w = p.lat_kp * e_d
-        if p.lat_ki:
-            self.int_d += e_d * dt
-            w += p.lat_ki * self.int_d
-        if p.lat_kd:
-            w += p.lat_kd * np.where(self.fresh, 0.0, (e_d - self.prev_e_d) / dt)
-        w = np.minimum(np.maximum(w, -p.max_lateral_speed_mps), p.max_lateral_speed_mps)
-        psi_ref = np.arcsin(np.minimum(np.maximum(w / v_eff, -1.0), 1.0))
-        e_psi = psi_ref - psi
-        r = p.head_kp * e_psi
-        if p.head_ki:
-            self.int_psi += e_psi * dt
-            r += p.head_ki * self.int_psi
-        if p.head_kd:
-            r += p.head_kd * np.where(self.fresh, 0.0, (e_psi - self.prev_e_psi) / dt)
-        self.prev_e_d = e_d
-        self.prev_e_psi = e_psi
-        self.fresh[:] = False
-        return np.arctan(self.wheelbase_m * (r / v_eff + kappa))
+        return _dual_pid_kernel(
+            d, psi, v, d_target, kappa, self.int_d, self.int_psi, self.prev_e_d, self.prev_e_psi, self.fresh,
+            p.lat_kp, p.lat_ki, p.lat_kd, p.head_kp, p.head_ki, p.head_kd, p.max_lateral_speed_mps,
+            self.wheelbase_m, self.dt_s,
+        )
+
+
+@kernel
+def _dual_pid_kernel(d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,  # noqa: ANN001, ANN202
+                     lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, wheelbase, dt):
+    n = d.shape[0]
+    steer = np.empty(n)
+    for i in range(n):
+        v_eff = max(v[i], _MIN_SPEED_MPS)
+        # outer loop: lateral offset -> lateral-speed demand -> heading reference
+        e_d = d_target[i] - d[i]
+        int_d[i] += e_d * dt
+        de_d = 0.0 if fresh[i] else (e_d - prev_e_d[i]) / dt
+        w = lat_kp * e_d + lat_ki * int_d[i] + lat_kd * de_d
+        w = min(max(w, -max_lat_speed), max_lat_speed)
+        psi_ref = np.arcsin(min(max(w / v_eff, -1.0), 1.0))
+        # inner loop: heading error -> heading-rate demand -> steering (+ curvature feed-forward)
+        e_psi = psi_ref - psi[i]
+        int_psi[i] += e_psi * dt
+        de_psi = 0.0 if fresh[i] else (e_psi - prev_e_psi[i]) / dt
+        r = head_kp * e_psi + head_ki * int_psi[i] + head_kd * de_psi
+        prev_e_d[i] = e_d
+        prev_e_psi[i] = e_psi
+        fresh[i] = False
+        steer[i] = np.arctan(wheelbase * (r / v_eff + kappa[i]))
+    return steer

@@ -61,11 +61,12 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Union
+from typing import NamedTuple, Optional, Union
 
 import numpy as np
 
 from evoscen_sim.errors import InputError
+from evoscen_sim.jit import kernel
 from evoscen_sim.opendrive import Lane, LaneSection, OpenDriveMap, Poly3, parse_opendrive
 
 ArrayLike = Union[float, int, np.ndarray, list, tuple]
@@ -133,6 +134,23 @@ def _last_at_or_before(starts: list[float], s: float) -> int:
         else:
             break
     return idx
+
+
+class LaneLookup(NamedTuple):
+    """Lane data at ``N`` positions (:meth:`RoadModel.lane_lookup`); 2-D arrays are ``(N, num_lanes)``."""
+
+    d_right: np.ndarray
+    """d of each lane's right border (m)."""
+    d_left: np.ndarray
+    """d of each lane's left border (m)."""
+    present: np.ndarray
+    """Whether each lane exists there."""
+    max_speed_mps: np.ndarray
+    """Each lane's maximum speed there (m/s)."""
+    lane: np.ndarray
+    """Index of the lane containing each position's ``d``, -1 if off the road (as ``lane_of``)."""
+    curvature: np.ndarray
+    """Curvature of the reference line at each ``s`` (1/m, as ``curvature``)."""
 
 
 class RoadModel:
@@ -217,6 +235,12 @@ class RoadModel:
         self._vmin = _readonly(vmin)
         self._off_coef = _readonly(off_coef)
         self._off_origin = _readonly(off_origin)
+        # segments where every width and the lane offset are constant: borders tabulated
+        seg_const = np.all(w_coef[:, :, 1:] == 0.0, axis=(1, 2)) & np.all(off_coef[:, 1:] == 0.0, axis=1)
+        self._seg_const = _readonly(seg_const)
+        self._dr_table, self._dl_table, _ = self._bounds_all(np.maximum(br, 0.0))
+        self._dr_table = _readonly(self._dr_table)
+        self._dl_table = _readonly(self._dl_table)
 
         # ---------------- lane extents ----------------
         start = np.full(n, np.nan)
@@ -363,22 +387,18 @@ class RoadModel:
         r, l = self.lane_bounds_d(lane, s)
         return 0.5 * (r + l)
 
-    def lane_geometry(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """All lanes at once, for the simulation's hot path: ``(d_right, d_left, present)``.
+    def lane_lookup(self, s: np.ndarray, d: np.ndarray) -> LaneLookup:
+        """Every lane-related quantity the simulation needs per step, in one compiled pass.
 
-        Arrays of shape ``(N, num_lanes)`` for ``N`` arc positions (clamped to the road):
-        the lanes' border offsets and whether each lane exists there. One evaluation serves
-        every per-vehicle lane query of a step (see :meth:`lane_of_geometry`).
+        For ``N`` vehicles at ``(s, d)`` (``s`` clamped to the road for lane data): all lanes'
+        borders, existence and speed limits, the lane containing ``d`` (as :meth:`lane_of`)
+        and the reference line's curvature (as :meth:`curvature`). See :class:`LaneLookup`.
         """
-        dr, dl, j = self._bounds_all(np.minimum(np.maximum(s, 0.0), self.length_m))
-        return dr, dl, self._present[j]
-
-    def lane_of_geometry(self, geometry: tuple[np.ndarray, np.ndarray, np.ndarray], d: np.ndarray) -> np.ndarray:
-        """:meth:`lane_of` for ``d`` at the positions :meth:`lane_geometry` was evaluated at."""
-        dr, dl, ex = geometry
-        dd = d[:, None]
-        inside = ex & (dl > dr) & (dd <= dl) & ((dd > dr) | ((dd >= dr) & (dr == dr[:, :1])))
-        return np.where(inside.any(axis=1), np.argmax(inside, axis=1), -1)
+        return LaneLookup(*_lane_lookup_kernel(
+            np.asarray(s, dtype=float), np.asarray(d, dtype=float), self.length_m, self._breaks,
+            self._seg_const, self._dr_table, self._dl_table, self._present, self._vmax,
+            self._w_coef, self._w_origin, self._off_coef, self._off_origin, self._g_s0, self._g_k,
+        ))
 
     def lane_of(self, s: ArrayLike, d: ArrayLike) -> np.ndarray:
         """Index of the lane containing lateral position ``d`` at ``s``, -1 if off the road."""
@@ -535,3 +555,48 @@ def load_road(path: "str | os.PathLike[str]" = DEFAULT_MAP_PATH) -> RoadModel:
 
 
 __all__ = ["RoadModel", "LaneMarking", "load_road", "DEFAULT_MAP_PATH", "DRIVABLE_LANE_TYPES"]
+
+
+@kernel
+def _lane_lookup_kernel(s, d, length, breaks, seg_const, dr_table, dl_table, present, vmax,  # noqa: ANN001, ANN202
+                        w_coef, w_origin, off_coef, off_origin, g_s0, g_k):
+    n = s.shape[0]
+    nl = present.shape[1]
+    d_right = np.empty((n, nl))
+    d_left = np.empty((n, nl))
+    here = np.empty((n, nl), dtype=np.bool_)
+    vmax_here = np.empty((n, nl))
+    lane = np.full(n, -1, dtype=np.int64)
+    kappa = np.empty(n)
+    widths = np.empty(nl)
+    for i in range(n):
+        sc = min(max(s[i], 0.0), length)
+        j = np.searchsorted(breaks, sc, side="right") - 1
+        if seg_const[j]:
+            for k in range(nl):
+                d_right[i, k] = dr_table[j, k]
+                d_left[i, k] = dl_table[j, k]
+        else:  # a lane whose width (or the lane offset) varies: evaluate the cubics
+            for k in range(nl):
+                x = sc - w_origin[j, k]
+                c = w_coef[j, k]
+                widths[k] = max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0)
+            x = sc - off_origin[j]
+            c = off_coef[j]
+            edge = c[0] + x * (c[1] + x * (c[2] + x * c[3]))
+            for k in range(nl - 1, -1, -1):  # from the reference line (left) to the right
+                d_left[i, k] = edge
+                edge -= widths[k]
+                d_right[i, k] = edge
+        for k in range(nl):
+            here[i, k] = present[j, k]
+            vmax_here[i, k] = vmax[j, k]
+        # lane of d: the lowest lane whose (dr, dl] holds d; the right road edge counts
+        for k in range(nl):
+            dr, dl = d_right[i, k], d_left[i, k]
+            if here[i, k] and dl > dr and d[i] <= dl and (d[i] > dr or (d[i] >= dr and dr == d_right[i, 0])):
+                lane[i] = k
+                break
+        g = np.searchsorted(g_s0, s[i], side="right") - 1
+        kappa[i] = g_k[min(max(g, 0), g_s0.shape[0] - 1)]
+    return d_right, d_left, here, vmax_here, lane, kappa

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .jit import kernel
+
 
 @dataclass(frozen=True)
 class VehicleParams:
@@ -50,13 +52,13 @@ def throttle_to_accel(throttle: np.ndarray, params: VehicleParams) -> np.ndarray
     linear in between; commands outside [-1, 1] are clipped.
     """
     u = np.minimum(np.maximum(throttle, -1.0), 1.0)
-    return np.where(u >= 0.0, u * params.max_accel_mps2, u * params.max_brake_mps2)
+    return np.maximum(u, 0.0) * params.max_accel_mps2 + np.minimum(u, 0.0) * params.max_brake_mps2
 
 
 def accel_to_throttle(accel_mps2: np.ndarray, params: VehicleParams) -> np.ndarray:
     """Inverse of :func:`throttle_to_accel`: the command that asks for ``accel_mps2`` (clipped)."""
     a = np.asarray(accel_mps2, dtype=float)
-    u = np.where(a >= 0.0, a / params.max_accel_mps2, a / params.max_brake_mps2)
+    u = np.maximum(a, 0.0) * (1.0 / params.max_accel_mps2) + np.minimum(a, 0.0) * (1.0 / params.max_brake_mps2)
     return np.minimum(np.maximum(u, -1.0), 1.0)
 
 
@@ -71,19 +73,34 @@ def bicycle_step(
     params: VehicleParams,
     dt_s: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Advance the kinematic bicycle one step.
+    """Advance the kinematic bicycle one step (inputs are not modified).
 
     Returns ``(s, d, psi, v, accel)`` after the step, where ``accel`` is the acceleration
     actually realised (differs from the request when the speed hits 0 or ``v_max``).
     """
-    v_new = np.minimum(np.maximum(v + accel_mps2 * dt_s, 0.0), params.max_speed_mps)
-    accel = (v_new - v) / dt_s
-    v_mean = 0.5 * (v + v_new)
-    wheelbase = params.wheelbase_m
-    tan_delta = np.tan(steer_rad)
-    beta = np.arctan(0.5 * tan_delta)  # l_r / L = 1/2
-    course = psi + beta
-    s_dot = v_mean * np.cos(course) / (1.0 - kappa * d)
-    d_new = d + v_mean * np.sin(course) * dt_s
-    psi_new = psi + (v_mean * np.cos(beta) * tan_delta / wheelbase - kappa * s_dot) * dt_s
-    return s + s_dot * dt_s, d_new, psi_new, v_new, accel
+    arrays = [np.array(x, dtype=float, ndmin=1) for x in (s, d, psi, v)]
+    shape = np.broadcast_shapes(*(a.shape for a in arrays), np.shape(accel_mps2), np.shape(steer_rad), np.shape(kappa))
+    s1, d1, psi1, v1 = (np.ascontiguousarray(np.broadcast_to(a, shape), dtype=float).copy().ravel() for a in arrays)
+    acc = np.ascontiguousarray(np.broadcast_to(np.asarray(accel_mps2, dtype=float), shape)).ravel()
+    steer = np.ascontiguousarray(np.broadcast_to(np.asarray(steer_rad, dtype=float), shape)).ravel()
+    kap = np.ascontiguousarray(np.broadcast_to(np.asarray(kappa, dtype=float), shape)).ravel()
+    a_real = np.empty_like(s1)
+    bicycle_step_inplace(s1, d1, psi1, v1, a_real, acc, steer, kap, params.wheelbase_m, params.max_speed_mps, dt_s)
+    return tuple(x.reshape(shape) for x in (s1, d1, psi1, v1, a_real))  # type: ignore[return-value]
+
+
+@kernel
+def bicycle_step_inplace(s, d, psi, v, accel_out, accel_cmd, steer, kappa, wheelbase, max_speed, dt):  # noqa: ANN001, ANN201
+    """Compiled :func:`bicycle_step` updating ``s, d, psi, v`` and writing ``accel_out`` in place."""
+    for i in range(s.shape[0]):
+        v_new = min(max(v[i] + accel_cmd[i] * dt, 0.0), max_speed)
+        accel_out[i] = (v_new - v[i]) / dt
+        v_mean = 0.5 * (v[i] + v_new)
+        tan_delta = np.tan(steer[i])
+        beta = np.arctan(0.5 * tan_delta)  # l_r / L = 1/2
+        course = psi[i] + beta
+        s_dot = v_mean * np.cos(course) / (1.0 - kappa[i] * d[i])
+        d[i] = d[i] + v_mean * np.sin(course) * dt
+        psi[i] = psi[i] + (v_mean * np.cos(beta) * tan_delta / wheelbase - kappa[i] * s_dot) * dt
+        s[i] = s[i] + s_dot * dt
+        v[i] = v_new

@@ -41,7 +41,7 @@ import numpy as np
 from .collision import overlapping_pairs
 from .control import ControlParams, DualPidController
 from .neighbors import Neighborhood, compute_neighborhood
-from .vehicle import VehicleParams, bicycle_step, throttle_to_accel
+from .vehicle import VehicleParams, bicycle_step_inplace, throttle_to_accel
 
 ROLE_BV = 0
 ROLE_SUT = 1
@@ -150,16 +150,14 @@ class World:
 
     def _refresh_road_lookups(self) -> None:
         """Road quantities at the current positions, evaluated once per step."""
-        s = np.maximum(self.s, 0.0)
-        self._geometry = self.road.lane_geometry(s)
-        self._kappa = self.road.curvature(s)
-        self._speed_limit = None
+        self._lanes = self.road.lane_lookup(np.maximum(self.s, 0.0), self.d)
+        self._speed_limit: np.ndarray | None = None
 
     @property
     def speed_limit_mps(self) -> np.ndarray:
-        """Maximum speed of every vehicle's lane at its position (m/s), cached per step."""
+        """Maximum speed of every vehicle's lane at its position (m/s)."""
         if self._speed_limit is None:
-            self._speed_limit = self.road.speed_limit_max_mps(self.lane, np.maximum(self.s, 0.0))
+            self._speed_limit = self._lanes.max_speed_mps[self._rows, self.lane]
         return self._speed_limit
 
     def neighborhood(self) -> Neighborhood:
@@ -201,7 +199,7 @@ class World:
         t_decision = self.time_s
         request = np.asarray(lane_change_request, dtype=np.int64)
         rows = self._rows
-        d_right, d_left, present = self._geometry
+        d_right, d_left, present = self._lanes.d_right, self._lanes.d_left, self._lanes.present
 
         # 1. lane-change requests
         wanted = (request != 0) & (self.lane_change == 0)
@@ -221,23 +219,22 @@ class World:
         # 2. control and dynamics (a target lane that has ended: its centre is its border)
         tl = self.target_lane
         d_target = 0.5 * (d_right[rows, tl] + d_left[rows, tl])
-        kappa = self._kappa
+        kappa = self._lanes.curvature
         steer_cmd = self.controller.steering(self.d, self.psi, self.v, d_target, kappa)
         max_delta = self.vehicle.max_steer_rate_radps * self.dt_s
         max_steer = self.vehicle.max_steer_rad
         steer = self.steer + np.minimum(np.maximum(steer_cmd - self.steer, -max_delta), max_delta)
         self.steer = np.minimum(np.maximum(steer, -max_steer), max_steer)
         accel_cmd = throttle_to_accel(throttle, self.vehicle)
-        self.s, self.d, self.psi, self.v, self.accel = bicycle_step(
-            self.s, self.d, self.psi, self.v, accel_cmd, self.steer, kappa, self.vehicle, self.dt_s
-        )
+        bicycle_step_inplace(self.s, self.d, self.psi, self.v, self.accel, accel_cmd, self.steer, kappa,
+                             self.vehicle.wheelbase_m, self.vehicle.max_speed_mps, self.dt_s)
         self.step_index += 1
         self._neighborhood = None
         result = StepResult(step=self.step_index, time_s=self.time_s, executed_lane_change=executed)
 
         # 3. lanes and lane-change completion
         self._refresh_road_lookups()
-        lane_now = road.lane_of_geometry(self._geometry, self.d)
+        lane_now = self._lanes.lane
         on_road = lane_now >= 0
         newly_off = ~on_road & ~self.off_road
         self.off_road = ~on_road

@@ -1,0 +1,125 @@
+"""Shared fixtures of the end-to-end tests (``scripts/run_scenario.py`` and its bag).
+
+The CLI is run as a subprocess, ``[sys.executable, "scripts/run_scenario.py", ...]``, with the
+repository root as the working directory, exactly as a user runs it. The packages are imported
+from the colcon install tree (``. ros2_ws/install/setup.sh``).
+
+One recorded run (``--steps 200 --seed 3``, the shipped default config) is shared by the tests
+that only read its output (:func:`recorded_run`), to keep the whole suite fast.
+"""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPT = "scripts/run_scenario.py"
+
+#: Steps and seed of the shared recorded run.
+RUN_STEPS = 200
+RUN_SEED = 3
+
+
+@dataclass
+class CliResult:
+    """Outcome of one CLI run."""
+
+    args: list[str]
+    returncode: int
+    stdout: str
+    stderr: str
+
+    def stderr_lines(self) -> list[str]:
+        """Non-empty stderr lines (a ``\\r`` progress bar counts as text on its line)."""
+        return [line for line in self.stderr.split("\n") if line.strip()]
+
+
+def run_cli(*args: object, timeout: float = 120.0) -> CliResult:
+    """Run ``scripts/run_scenario.py`` with ``args`` (str()-converted) from the repo root."""
+    argv = [str(a) for a in args]
+    proc = subprocess.run(
+        [sys.executable, SCRIPT, *argv],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        check=False,
+    )
+    return CliResult(argv, proc.returncode, proc.stdout, proc.stderr)
+
+
+def parse_summary(stdout: str) -> dict[str, int | float | str]:
+    """The numbers of the CLI's step summary (``steps``, ``collisions``, ``lane_changes``, ...)."""
+    out: dict[str, int | float | str] = {}
+    m = re.search(r"^steps: (\d+)\s+simulated: ([0-9.]+) s", stdout, re.M)
+    if m:
+        out["steps"] = int(m.group(1))
+        out["sim_time_s"] = float(m.group(2))
+    m = re.search(
+        r"^collisions: (\d+)\s+lane changes: (\d+)\s+re-entries: (\d+)\s+off-road: (\d+)", stdout, re.M
+    )
+    if m:
+        out["collisions"], out["lane_changes"], out["reentries"], out["off_road"] = map(int, m.groups())
+    m = re.search(r"^bag: (.+?)\s+\((\d+) messages", stdout, re.M)
+    if m:
+        out["bag"] = m.group(1)
+        out["messages"] = int(m.group(2))
+    return out
+
+
+@dataclass
+class RecordedRun:
+    """The shared recorded run: its output directory and CLI result."""
+
+    out: Path
+    result: CliResult
+    steps: int
+    seed: int
+
+    @property
+    def bag_dir(self) -> Path:
+        return self.out / "bag"
+
+    @property
+    def mcap_path(self) -> Path:
+        # BagRecorder names the file "<bag dir name>_0.mcap"
+        return self.bag_dir / "bag_0.mcap"
+
+    @property
+    def summary(self) -> dict[str, int | float | str]:
+        return parse_summary(self.result.stdout)
+
+
+@pytest.fixture(scope="session")
+def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> RecordedRun:
+    """``run_scenario.py --mode inprocess --steps 200 --seed 3 --out DIR`` (default config)."""
+    out = tmp_path_factory.mktemp("recorded") / "run"
+    res = run_cli("--mode", "inprocess", "--steps", RUN_STEPS, "--seed", RUN_SEED, "--out", out, "--quiet")
+    assert res.returncode == 0, f"CLI failed ({res.returncode}): {res.stderr}"
+    return RecordedRun(out=out, result=res, steps=RUN_STEPS, seed=RUN_SEED)
+
+
+@pytest.fixture(scope="session")
+def map_source() -> Path:
+    """The shipped OpenDRIVE map (installed share file)."""
+    from evoscen_sim.config import share_path
+
+    return share_path("maps/onramp.xodr")
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """The :func:`run_cli` helper (test modules cannot import conftest under importlib mode)."""
+    return run_cli
+
+
+@pytest.fixture(scope="session")
+def summary_of():
+    """The :func:`parse_summary` helper."""
+    return parse_summary
