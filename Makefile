@@ -27,12 +27,18 @@ build: $(REQ_STAMP)
 	    --build-base build --install-base install --event-handlers console_cohesion- summary-
 
 demo: setup
-	$(RUN) python scripts/run_scenario.py --mode inprocess --out $(DEMO_OUT)
+	$(RUN) python scripts/run_scenario.py --mode inprocess --out $(DEMO_OUT) --overwrite
 
 test: setup
 	$(RUN) python -m pytest $(PYTEST_ARGS)
 
-bench: setup
+# Optional SUMO reference for the benchmark (not part of setup: evoscen never needs SUMO).
+BENCH_STAMP := $(VENV)/.bench-requirements-installed
+$(BENCH_STAMP): requirements-bench.txt $(REQ_STAMP)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-bench.txt
+	touch $@
+
+bench: setup $(BENCH_STAMP)
 	$(RUN) python scripts/bench.py
 
 clean:

@@ -104,9 +104,9 @@ FIELD_DOCS: dict[str, str] = {
     "speed": "longitudinal speed (m/s)",
     "accel": "longitudinal acceleration (m/s^2)",
     "steer": "front-wheel steering angle (rad, positive to the left)",
-    "lane": "current lane index (0 = lane I merge lane ... 4 = lane V; -1 = off-road)",
+    "lane": "current lane index (0 = lane I, the merge lane ... 4 = lane V); a vehicle whose centre leaves the road keeps its last lane (see the evoscen/off_road event)",
     "target_lane": "lane index the vehicle is heading for (= lane when keeping lane)",
-    "lane_change": "executed lane-change direction in progress (-1 right, 0 none, +1 left)",
+    "lane_change": "world table: lane change in progress (-1 right, 0 none, +1 left); command tables: the requested lane change (the world executes it only if the target lane exists and no change is in progress)",
     "length": "vehicle length (m)",
     "width": "vehicle width (m)",
     "throttle": (
