@@ -1,7 +1,7 @@
 # evoscen — two commands on a fresh machine: `make demo` and `make test`.
 # Both run `make setup` first (idempotent): .venv with pinned requirements, then colcon build.
 
-PYTHON_BOOT ?= python3.11
+PYTHON_BOOT ?= $(shell command -v python3.11 || command -v python3)
 VENV        := .venv
 PY          := $(VENV)/bin/python
 WS          := ros2_ws
@@ -17,7 +17,8 @@ PYTEST_ARGS ?=
 setup: $(REQ_STAMP) build
 
 $(REQ_STAMP): requirements.txt
-	@command -v $(PYTHON_BOOT) >/dev/null || { echo "error: $(PYTHON_BOOT) not found (evoscen needs Python 3.11 for the ROS 2 Jazzy wheels)"; exit 2; }
+	@$(PYTHON_BOOT) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null || { \
+	    echo "error: Python 3.11 not found (PYTHON_BOOT='$(PYTHON_BOOT)'); the ROS 2 Jazzy wheels need CPython 3.11: install it or run make PYTHON_BOOT=/path/to/python3.11"; exit 2; }
 	test -x $(PY) || $(PYTHON_BOOT) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
 	touch $@
