@@ -63,7 +63,13 @@ def step_events(world, result) -> list[dict]:  # noqa: ANN001
     for i, from_lane, to_lane, duration in result.lane_changes_completed:
         events.append({"name": "evoscen/lane_change", "message": f"vehicle {ids[i]}: lane {from_lane} -> {to_lane}",
                        **common, "ids": [int(ids[i])], "duration_s": duration,
-                       "direction": 1 if to_lane > from_lane else -1, "from_lane": from_lane, "to_lane": to_lane})
+                       "direction": 1 if to_lane > from_lane else -1, "from_lane": from_lane, "to_lane": to_lane,
+                       "kind": "completed"})
+    for i, from_lane, to_lane in result.lane_changes_aborted:
+        events.append({"name": "evoscen/lane_change", "level": 1,
+                       "message": f"vehicle {ids[i]}: lane change {from_lane} -> {to_lane} aborted, lane {to_lane} ended",
+                       **common, "ids": [int(ids[i])], "direction": 1 if to_lane > from_lane else -1,
+                       "from_lane": from_lane, "to_lane": to_lane, "kind": "aborted"})
     for i, lane, s in result.reentries:
         events.append({"name": "evoscen/reentry", "message": f"vehicle {ids[i]} re-entered lane {lane} at s = {s:.1f} m",
                        **common, "ids": [int(ids[i])], "to_lane": lane})
@@ -152,7 +158,8 @@ def run_inprocess(
             summary.lane_changes += len(result.lane_changes_completed)
             summary.reentries += len(result.reentries)
             summary.off_road += len(result.off_road)
-            if pub is not None and (result.collisions or result.lane_changes_completed or result.reentries or result.off_road):
+            if pub is not None and (result.collisions or result.lane_changes_completed or result.lane_changes_aborted
+                                    or result.reentries or result.off_road):
                 pub.events(step_events(world, result), world.time_ns)
             if progress is not None:
                 progress(k + 1)

@@ -19,8 +19,9 @@ by ``dt_s``:
    re-enters at once, so the number of vehicles on the road never changes. With
    probability ``ramp_share`` (drawn from the scenario's seeded generator) it re-enters
    at the start of the merge lane (coming from the on-ramp), else at ``s = 0`` of the
-   mainline lane with the most free space. It is put ``min_gap_m`` behind the last
-   vehicle of that lane if the entry point is not free (``s`` may then be negative: the
+   mainline lane with the most free space before its rearmost vehicle. It is put
+   ``min_gap_m`` behind that rearmost vehicle if the entry point is not free (also when
+   that vehicle is itself still waiting on the approach) (``s`` may then be negative: the
    vehicle is on the approach and road look-ups use ``s = 0``), centred in the lane,
    heading along the road, and keeps its speed, capped by the speed of the vehicle it
    enters behind when that one is within 100 m.
@@ -78,6 +79,8 @@ class StepResult:
     collisions: list[tuple[int, int]] = field(default_factory=list)
     lane_changes_completed: list[tuple[int, int, int, float]] = field(default_factory=list)
     """(vehicle, from lane, to lane, duration_s) of lane changes completed in this step."""
+    lane_changes_aborted: list[tuple[int, int, int]] = field(default_factory=list)
+    """(vehicle, from lane, target lane) of lane changes aborted because the target lane ended."""
     reentries: list[tuple[int, int, float]] = field(default_factory=list)
     """(vehicle, lane, s_m) of vehicles that left the road and re-entered."""
     off_road: list[int] = field(default_factory=list)
@@ -167,7 +170,11 @@ class World:
         return self._neighborhood
 
     def columns(self) -> dict[str, np.ndarray]:
-        """The current state as named columns (the world table of the topic contract)."""
+        """The current state as named columns (the world table of the topic contract).
+
+        State columns are live views that the next :meth:`step` updates in place: copy
+        them (``np.column_stack`` does) to keep a snapshot.
+        """
         x, y, heading = self.road.frenet_to_cartesian(np.maximum(self.s, 0.0), self.d)
         return {
             "id": self.ids,
@@ -251,6 +258,19 @@ class World:
             self.lane_change_count[done] += 1
             self.lane_change[done] = 0
             self.lane_change_start_s[done] = np.nan
+        # a target lane that ended before the change completed: the change is aborted
+        changing = self.lane_change != 0
+        if changing.any():
+            ended = changing & ~self._lanes.present[self._rows, self.target_lane]
+            if ended.any():
+                rows = np.flatnonzero(ended)
+                result.lane_changes_aborted = [
+                    (int(i), int(self.target_lane[i] - self.lane_change[i]), int(self.target_lane[i])) for i in rows
+                ]
+                self.target_lane[rows] = self.lane[rows]
+                self.lane_change[rows] = 0
+                self.lane_change_start_s[rows] = np.nan
+                self.controller.reset(rows)
         if newly_off.any():
             result.off_road = [int(i) for i in np.flatnonzero(newly_off)]
 
@@ -289,7 +309,7 @@ class World:
             s_entry = min(0.0, spaces[best] - p.min_gap_m)  # behind the last vehicle if crowded
             choice = (lane, s_entry)
         lane, s_entry = choice
-        _, ahead = self._free_space(lane, max(s_entry, 0.0), others)
+        _, ahead = self._free_space(lane, s_entry, others)
         speed = self.v[i]
         if ahead >= 0 and self.s[ahead] - s_entry < p.speed_match_range_m:
             speed = min(speed, self.v[ahead])
@@ -310,11 +330,12 @@ class World:
         return (i, int(lane), float(s_entry))
 
     def _free_space(self, lane: int, s_entry: float, others: np.ndarray) -> tuple[float, int]:
-        """Bumper gap from a vehicle centred at ``s_entry`` to the nearest vehicle ahead in ``lane``.
+        """Bumper gap from a vehicle centred at ``s_entry`` to the rearmost vehicle of ``lane``.
 
-        Returns ``(gap_m, index)``, ``(inf, -1)`` when the lane is empty ahead.
+        The rearmost vehicle may itself be behind ``s_entry`` (waiting on the approach);
+        the gap is then negative. Returns ``(gap_m, index)``, ``(inf, -1)`` for an empty lane.
         """
-        cand = others & (self.lane == lane) & (self.s >= s_entry)
+        cand = others & (self.lane == lane)
         if not cand.any():
             return float("inf"), -1
         k = np.flatnonzero(cand)

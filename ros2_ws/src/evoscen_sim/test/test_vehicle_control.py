@@ -298,3 +298,21 @@ def test_time_is_step_times_dt(road: RoadModel) -> None:
     assert res.step == 1000 and w.step_index == 1000
     assert res.time_s == 1000 * DT
     assert w.time_ns == 1000 * 100_000_000
+
+
+def test_lane_change_into_ending_lane_is_not_left_pending(road: RoadModel) -> None:
+    w = make_world(road, [950.0], [1], [30.0])
+    res = w.step(np.zeros(1), np.array([-1]))
+    assert res.executed_lane_change[0] == -1  # lane 0 exists at s = 950
+    aborted = []
+    for _ in range(60):  # 180 m: well past the end of the merge lane
+        aborted += [(r, w.s[0]) for r in w.step(*keep()).lane_changes_aborted]
+    # reported once, as (vehicle, from lane, target lane), when lane 0 ends at s = 960
+    assert [r for r, _ in aborted] == [(0, 1, 0)]
+    assert 960.0 <= aborted[0][1] < 960.0 + 30.0 * 0.1 + 1e-9
+    assert w.s[0] > 1100.0 and w.lane[0] == 1
+    # the impossible change is over: the vehicle is back on its lane and can act again
+    assert w.lane_change[0] == 0 and w.target_lane[0] == 1
+    assert abs(w.d[0] - CENTRE[1]) < 0.05
+    res = w.step(np.zeros(1), np.array([1]))
+    assert res.executed_lane_change[0] == 1

@@ -142,12 +142,6 @@ def test_reentry_behind_last_vehicle_when_crowded(road: RoadModel) -> None:
     assert w.s[4] == pytest.approx(-6.8 + 15.0)
 
 
-@pytest.mark.xfail(
-    reason="BUG: World._reenter/_free_space only look at vehicles with s >= 0, so vehicles on "
-    "the approach (s < 0) are invisible: two vehicles re-entering a crowded entry (in the same "
-    "step, or one step apart) are put at the same s in the same lane, overlapping",
-    strict=True,
-)
 def test_two_reentries_into_crowded_entry_do_not_overlap(road: RoadModel) -> None:
     s = [10.0, 10.0, 10.0, 10.0, ROAD_LENGTH - 1.0, ROAD_LENGTH - 1.5]
     w = make_world(road, s, [1, 2, 3, 4, 2, 3], [30.0] * 6, ReentryParams(ramp_share=0.0))
