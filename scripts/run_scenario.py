@@ -39,9 +39,30 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
+def prepare_output(out: Path, bag_dir: Path | None, *, overwrite: bool) -> None:
+    """Create ``out``; make sure ``bag_dir`` is free (removing an old bag only with ``overwrite``)."""
+    from evoscen_sim.errors import InputError
+
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        if bag_dir is not None and (bag_dir.exists() or bag_dir.is_symlink()):
+            if not bag_dir.is_dir() or bag_dir.is_symlink():
+                raise InputError(f"--out {out}: {bag_dir} exists and is not a bag directory; remove it or choose another --out")
+            if any(bag_dir.iterdir()):
+                if not overwrite:
+                    raise InputError(f"--out {out}: {bag_dir} already holds a bag; choose another --out or pass --overwrite")
+                shutil.rmtree(bag_dir)
+        probe = out / ".evoscen-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write the output directory: {exc.strerror or exc}") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import dump_config, load_scenario_config
     from evoscen_sim.errors import InputError
 
@@ -49,29 +70,22 @@ def main(argv: list[str] | None = None) -> int:
         ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
         ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
     try:
+        # everything the run needs is validated (config, map, SUT, spawn) before the output
+        # directory is touched, so a bad input never costs an existing bag
         cfg = load_scenario_config(args.config, overrides)
-        bag_dir = None
+        scenario = build_scenario(cfg)
         out = args.out
-        if not args.no_record and cfg.recording.enabled:
-            bag_dir = out / "bag"
-            if bag_dir.exists() and args.overwrite:
-                shutil.rmtree(bag_dir)
-            elif bag_dir.exists() and any(bag_dir.iterdir()):
-                raise InputError(f"--out {out}: {bag_dir} already holds a bag; choose another --out or pass --overwrite")
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-            dump_config(cfg, out / "scenario.yaml")
-        except OSError as exc:
-            raise InputError(f"--out {out}: cannot write the output directory: {exc.strerror or exc}") from None
-        from evoscen_sim.road import load_road  # noqa: F401  (map errors surface before the progress bar)
-
+        bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
+        prepare_output(out, bag_dir, overwrite=args.overwrite)
+        dump_config(cfg, out / "scenario.yaml")
         bar = None
         if not args.quiet:
             from tqdm import tqdm
 
             bar = tqdm(total=cfg.steps, unit="step", desc=f"{cfg.name} ({args.mode})", file=sys.stderr, mininterval=0.5)
         try:
-            summary = run_inprocess(cfg, bag_dir=bag_dir, progress=(lambda k: bar.update(1)) if bar else None)
+            summary = run_inprocess(cfg, bag_dir=bag_dir, scenario=scenario,
+                                    progress=(lambda k: bar.update(1)) if bar else None)
         finally:
             if bar is not None:
                 bar.close()

