@@ -83,21 +83,30 @@ def _dual_pid_kernel(d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_
     n = d.shape[0]
     steer = np.empty(n)
     for i in range(n):
-        v_eff = max(v[i], _MIN_SPEED_MPS)
-        # outer loop: lateral offset -> lateral-speed demand -> heading reference
-        e_d = d_target[i] - d[i]
-        int_d[i] += e_d * dt
-        de_d = 0.0 if fresh[i] else (e_d - prev_e_d[i]) / dt
-        w = lat_kp * e_d + lat_ki * int_d[i] + lat_kd * de_d
-        w = min(max(w, -max_lat_speed), max_lat_speed)
-        psi_ref = np.arcsin(min(max(w / v_eff, -1.0), 1.0))
-        # inner loop: heading error -> heading-rate demand -> steering (+ curvature feed-forward)
-        e_psi = psi_ref - psi[i]
-        int_psi[i] += e_psi * dt
-        de_psi = 0.0 if fresh[i] else (e_psi - prev_e_psi[i]) / dt
-        r = head_kp * e_psi + head_ki * int_psi[i] + head_kd * de_psi
-        prev_e_d[i] = e_d
-        prev_e_psi[i] = e_psi
-        fresh[i] = False
-        steer[i] = np.arctan(wheelbase * (r / v_eff + kappa[i]))
+        steer[i] = dual_pid_one(i, d[i], psi[i], v[i], d_target[i], kappa[i], int_d, int_psi, prev_e_d,
+                                prev_e_psi, fresh, lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd,
+                                max_lat_speed, wheelbase, dt)
     return steer
+
+
+@kernel
+def dual_pid_one(i, d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,  # noqa: ANN001, ANN201
+                 lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, wheelbase, dt):
+    """Steering request of vehicle ``i`` (compiled; updates the loop memory arrays at ``i``)."""
+    v_eff = max(v, _MIN_SPEED_MPS)
+    # outer loop: lateral offset -> lateral-speed demand -> heading reference
+    e_d = d_target - d
+    int_d[i] += e_d * dt
+    de_d = 0.0 if fresh[i] else (e_d - prev_e_d[i]) / dt
+    w = lat_kp * e_d + lat_ki * int_d[i] + lat_kd * de_d
+    w = min(max(w, -max_lat_speed), max_lat_speed)
+    psi_ref = np.arcsin(min(max(w / v_eff, -1.0), 1.0))
+    # inner loop: heading error -> heading-rate demand -> steering (+ curvature feed-forward)
+    e_psi = psi_ref - psi
+    int_psi[i] += e_psi * dt
+    de_psi = 0.0 if fresh[i] else (e_psi - prev_e_psi[i]) / dt
+    r = head_kp * e_psi + head_ki * int_psi[i] + head_kd * de_psi
+    prev_e_d[i] = e_d
+    prev_e_psi[i] = e_psi
+    fresh[i] = False
+    return np.arctan(wheelbase * (r / v_eff + kappa))

@@ -93,14 +93,20 @@ def bicycle_step(
 def bicycle_step_inplace(s, d, psi, v, accel_out, accel_cmd, steer, kappa, wheelbase, max_speed, dt):  # noqa: ANN001, ANN201
     """Compiled :func:`bicycle_step` updating ``s, d, psi, v`` and writing ``accel_out`` in place."""
     for i in range(s.shape[0]):
-        v_new = min(max(v[i] + accel_cmd[i] * dt, 0.0), max_speed)
-        accel_out[i] = (v_new - v[i]) / dt
-        v_mean = 0.5 * (v[i] + v_new)
-        tan_delta = np.tan(steer[i])
-        beta = np.arctan(0.5 * tan_delta)  # l_r / L = 1/2
-        course = psi[i] + beta
-        s_dot = v_mean * np.cos(course) / (1.0 - kappa[i] * d[i])
-        d[i] = d[i] + v_mean * np.sin(course) * dt
-        psi[i] = psi[i] + (v_mean * np.cos(beta) * tan_delta / wheelbase - kappa[i] * s_dot) * dt
-        s[i] = s[i] + s_dot * dt
-        v[i] = v_new
+        bicycle_one(i, s, d, psi, v, accel_out, accel_cmd[i], steer[i], kappa[i], wheelbase, max_speed, dt)
+
+
+@kernel
+def bicycle_one(i, s, d, psi, v, accel_out, accel_cmd, steer, kappa, wheelbase, max_speed, dt):  # noqa: ANN001, ANN201
+    """Advance vehicle ``i`` of the state arrays one step in place (see the module docstring)."""
+    v_new = min(max(v[i] + accel_cmd * dt, 0.0), max_speed)
+    accel_out[i] = (v_new - v[i]) / dt
+    v_mean = 0.5 * (v[i] + v_new)
+    tan_delta = np.tan(steer)
+    beta = np.arctan(0.5 * tan_delta)  # l_r / L = 1/2
+    course = psi[i] + beta
+    s_dot = v_mean * np.cos(course) / (1.0 - kappa * d[i])
+    d[i] = d[i] + v_mean * np.sin(course) * dt
+    psi[i] = psi[i] + (v_mean * np.cos(beta) * tan_delta / wheelbase - kappa * s_dot) * dt
+    s[i] = s[i] + s_dot * dt
+    v[i] = v_new

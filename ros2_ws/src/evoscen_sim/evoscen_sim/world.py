@@ -40,9 +40,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .collision import overlapping_pairs
-from .control import ControlParams, DualPidController
+from .control import ControlParams, DualPidController, dual_pid_one
+from .jit import kernel
 from .neighbors import Neighborhood, compute_neighborhood
-from .vehicle import VehicleParams, bicycle_step_inplace, throttle_to_accel
+from .vehicle import VehicleParams, bicycle_one
 
 ROLE_BV = 0
 ROLE_SUT = 1
@@ -203,76 +204,45 @@ class World:
         n = self.n
         if throttle.shape != (n,) or lane_change_request.shape != (n,):
             raise ValueError(f"step: expected commands of shape ({n},), got {throttle.shape} and {lane_change_request.shape}")
-        t_decision = self.time_s
-        request = np.asarray(lane_change_request, dtype=np.int64)
-        rows = self._rows
-        d_right, d_left, present = self._lanes.d_right, self._lanes.d_left, self._lanes.present
+        lanes = self._lanes
+        c = self.controller
+        cp = c.params
+        vp = self.vehicle
 
-        # 1. lane-change requests
-        wanted = (request != 0) & (self.lane_change == 0)
-        executed = np.zeros(n, dtype=np.int64)
-        if wanted.any():
-            request = np.minimum(np.maximum(request, -1), 1)
-            target = self.lane + request
-            in_range = (target >= 0) & (target < road.num_lanes)
-            ok = wanted & in_range & present[rows, np.where(in_range, target, 0)]
-            if ok.any():
-                executed[ok] = request[ok]
-                self.target_lane[ok] = target[ok]
-                self.lane_change[ok] = request[ok]
-                self.lane_change_start_s[ok] = t_decision
-                self.controller.reset(np.flatnonzero(ok))
-
-        # 2. control and dynamics (a target lane that has ended: its centre is its border)
-        tl = self.target_lane
-        d_target = 0.5 * (d_right[rows, tl] + d_left[rows, tl])
-        kappa = self._lanes.curvature
-        steer_cmd = self.controller.steering(self.d, self.psi, self.v, d_target, kappa)
-        max_delta = self.vehicle.max_steer_rate_radps * self.dt_s
-        max_steer = self.vehicle.max_steer_rad
-        steer = self.steer + np.minimum(np.maximum(steer_cmd - self.steer, -max_delta), max_delta)
-        self.steer = np.minimum(np.maximum(steer, -max_steer), max_steer)
-        accel_cmd = throttle_to_accel(throttle, self.vehicle)
-        bicycle_step_inplace(self.s, self.d, self.psi, self.v, self.accel, accel_cmd, self.steer, kappa,
-                             self.vehicle.wheelbase_m, self.vehicle.max_speed_mps, self.dt_s)
+        # 1. lane-change requests, 2. control and dynamics: one compiled pass
+        executed, reset = _advance_kernel(
+            np.asarray(lane_change_request, dtype=np.int64), np.asarray(throttle, dtype=float), self.time_s,
+            self.lane, self.lane_change, self.target_lane, self.lane_change_start_s,
+            lanes.d_right, lanes.d_left, lanes.present, lanes.curvature,
+            self.s, self.d, self.psi, self.v, self.accel, self.steer,
+            c.int_d, c.int_psi, c.prev_e_d, c.prev_e_psi, c.fresh,
+            cp.lat_kp, cp.lat_ki, cp.lat_kd, cp.head_kp, cp.head_ki, cp.head_kd, cp.max_lateral_speed_mps,
+            vp.wheelbase_m, vp.max_speed_mps, vp.max_accel_mps2, vp.max_brake_mps2,
+            vp.max_steer_rad, vp.max_steer_rate_radps * self.dt_s, self.dt_s,
+        )
         self.step_index += 1
         self._neighborhood = None
         result = StepResult(step=self.step_index, time_s=self.time_s, executed_lane_change=executed)
 
-        # 3. lanes and lane-change completion
+        # 3. lanes, lane-change completion and abortion, leaving the road
         self._refresh_road_lookups()
-        lane_now = self._lanes.lane
-        on_road = lane_now >= 0
-        newly_off = ~on_road & ~self.off_road
-        self.off_road = ~on_road
-        self.lane = np.where(on_road, lane_now, self.lane)
-        done = (self.lane_change != 0) & (self.lane == self.target_lane)
-        if done.any():
-            duration = self.time_s - self.lane_change_start_s[done]
-            rows = np.flatnonzero(done)
+        done, done_from, done_duration, aborted, aborted_from, newly_off = _lane_bookkeeping_kernel(
+            self._lanes.lane, self._lanes.present, self.time_s, self.lane, self.off_road, self.lane_change,
+            self.target_lane, self.lane_change_start_s, self.lane_change_count, self.last_lane_change_duration_s,
+        )
+        if done.size:
             result.lane_changes_completed = [
-                (int(i), int(self.lane[i] - self.lane_change[i]), int(self.lane[i]), float(t))
-                for i, t in zip(rows, duration)
+                (int(i), int(f), int(self.lane[i]), float(t)) for i, f, t in zip(done, done_from, done_duration)
             ]
-            self.last_lane_change_duration_s[done] = duration
-            self.lane_change_count[done] += 1
-            self.lane_change[done] = 0
-            self.lane_change_start_s[done] = np.nan
-        # a target lane that ended before the change completed: the change is aborted
-        changing = self.lane_change != 0
-        if changing.any():
-            ended = changing & ~self._lanes.present[self._rows, self.target_lane]
-            if ended.any():
-                rows = np.flatnonzero(ended)
-                result.lane_changes_aborted = [
-                    (int(i), int(self.target_lane[i] - self.lane_change[i]), int(self.target_lane[i])) for i in rows
-                ]
-                self.target_lane[rows] = self.lane[rows]
-                self.lane_change[rows] = 0
-                self.lane_change_start_s[rows] = np.nan
-                self.controller.reset(rows)
-        if newly_off.any():
-            result.off_road = [int(i) for i in np.flatnonzero(newly_off)]
+        if aborted.size:
+            result.lane_changes_aborted = [
+                (int(i), int(f), int(self.target_lane[i])) for i, f in zip(aborted, aborted_from)
+            ]
+            # the target reverts to the lane the vehicle is in
+            self.target_lane[aborted] = self.lane[aborted]
+            self.controller.reset(aborted)
+        if newly_off.size:
+            result.off_road = [int(i) for i in newly_off]
 
         # 4. re-entry of vehicles past the end of the road
         gone = self.s > road.length_m
@@ -342,3 +312,80 @@ class World:
         j = int(k[np.argmin(self.s[k])])
         gap = self.s[j] - s_entry - 0.5 * (self.length[j] + self.vehicle.length_m)
         return float(gap), j
+
+
+@kernel
+def _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, lane_change_start_s,  # noqa: ANN001, ANN202, PLR0913
+                    d_right, d_left, present, kappa, s, d, psi, v, accel, steer,
+                    int_d, int_psi, prev_e_d, prev_e_psi, fresh,
+                    lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed,
+                    wheelbase, max_speed, max_accel, max_brake, max_steer, max_steer_step, dt):
+    """Steps 1 and 2 of :meth:`World.step` for every vehicle, state updated in place."""
+    n = s.shape[0]
+    num_lanes = present.shape[1]
+    executed = np.zeros(n, dtype=np.int64)
+    reset = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        # 1. a lane-change request is executed if no change is in progress and the target exists
+        r = min(max(request[i], -1), 1)
+        if r != 0 and lane_change[i] == 0:
+            tgt = lane[i] + r
+            if 0 <= tgt < num_lanes and present[i, tgt]:
+                executed[i] = r
+                target_lane[i] = tgt
+                lane_change[i] = r
+                lane_change_start_s[i] = time_s
+                int_d[i] = 0.0
+                int_psi[i] = 0.0
+                fresh[i] = True
+                reset[i] = True
+        # 2. dual PID to the target lane's centre (a lane that has ended: its border)
+        tl = target_lane[i]
+        d_target = 0.5 * (d_right[i, tl] + d_left[i, tl])
+        cmd = dual_pid_one(i, d[i], psi[i], v[i], d_target, kappa[i], int_d, int_psi, prev_e_d, prev_e_psi,
+                           fresh, lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, wheelbase, dt)
+        delta = steer[i] + min(max(cmd - steer[i], -max_steer_step), max_steer_step)
+        steer[i] = min(max(delta, -max_steer), max_steer)
+        # throttle/brake command -> acceleration (as evoscen_sim.vehicle.throttle_to_accel)
+        u = min(max(throttle[i], -1.0), 1.0)
+        a_cmd = u * max_accel if u >= 0.0 else u * max_brake
+        bicycle_one(i, s, d, psi, v, accel, a_cmd, steer[i], kappa[i], wheelbase, max_speed, dt)
+    return executed, reset
+
+
+@kernel
+def _lane_bookkeeping_kernel(lane_now, present, time_s, lane, off_road, lane_change, target_lane,  # noqa: ANN001, ANN202
+                             lane_change_start_s, lane_change_count, last_duration):
+    """Step 3 of :meth:`World.step`: lanes, completed and aborted lane changes, off-road flags."""
+    n = lane.shape[0]
+    done = []
+    done_from = []
+    done_duration = []
+    aborted = []
+    aborted_from = []
+    newly_off = []
+    for i in range(n):
+        if lane_now[i] >= 0:
+            lane[i] = lane_now[i]
+            off_road[i] = False
+        else:  # off the road: keep the last lane, flag the first step
+            if not off_road[i]:
+                newly_off.append(i)
+            off_road[i] = True
+        if lane_change[i] != 0:
+            if lane[i] == target_lane[i]:
+                duration = time_s - lane_change_start_s[i]
+                done.append(i)
+                done_from.append(target_lane[i] - lane_change[i])
+                done_duration.append(duration)
+                last_duration[i] = duration
+                lane_change_count[i] += 1
+                lane_change[i] = 0
+                lane_change_start_s[i] = np.nan
+            elif not present[i, target_lane[i]]:
+                aborted.append(i)
+                aborted_from.append(target_lane[i] - lane_change[i])
+                lane_change[i] = 0
+                lane_change_start_s[i] = np.nan
+    return (np.array(done, dtype=np.int64), np.array(done_from, dtype=np.int64), np.array(done_duration, dtype=np.float64),
+            np.array(aborted, dtype=np.int64), np.array(aborted_from, dtype=np.int64), np.array(newly_off, dtype=np.int64))
