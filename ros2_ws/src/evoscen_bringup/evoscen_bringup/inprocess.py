@@ -80,17 +80,27 @@ def step_events(world, result) -> list[dict]:  # noqa: ANN001
 
 
 class _Publisher:
-    """Builds and records the contract's messages for the in-process runner."""
+    """Builds and records the contract's messages for the in-process runner.
+
+    Tables, ``/clock`` and the odometry are encoded straight to canonical CDR
+    (:mod:`evoscen_contract.cdr`); events go through rclpy's serializer and the recorder's
+    canonical form.
+    Either way the bytes equal what the recorder stores for the same message from the wire.
+    """
 
     def __init__(self, bag_dir: Path, cfg: ScenarioConfig) -> None:
         from evoscen_contract import topics as T
-        from evoscen_contract.tables import table_message
+        from evoscen_contract.cdr import OdometryEncoder, TableEncoder, encode_clock
         from evoscen_eval.recorder import BagRecorder
         from rclpy.serialization import serialize_message
 
         self.T = T
-        self.table_message = table_message
         self.serialize = serialize_message
+        self.encode_clock = encode_clock
+        self.world_table = TableEncoder(T.WORLD_FIELDS, T.MAP_FRAME)
+        self.command_table = TableEncoder(T.COMMAND_FIELDS, T.MAP_FRAME)
+        self.roster_table = TableEncoder(T.ROSTER_FIELDS, T.MAP_FRAME)
+        self.odometry = OdometryEncoder(T.MAP_FRAME, T.SUT_BASE_FRAME)
         self.bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
                                chunk_size=cfg.recording.chunk_size_bytes)
         self._prev_yaw: float | None = None
@@ -100,26 +110,25 @@ class _Publisher:
 
     def roster(self, world) -> None:  # noqa: ANN001
         cols = world.columns()
-        data = np.column_stack([cols[f] for f in self.T.ROSTER_FIELDS]).astype(float)
-        self._write(self.T.ROSTER.name, self.table_message(self.T.ROSTER_FIELDS, data, world.time_ns, self.T.MAP_FRAME), world.time_ns)
+        data = np.column_stack([cols[f] for f in self.T.ROSTER_FIELDS])
+        self.bag.write(self.T.ROSTER.name, self.roster_table.encode(data, world.time_ns), world.time_ns, canonical=True)
 
     def world_state(self, world, sut_index: int) -> None:  # noqa: ANN001
         T = self.T
         t_ns = world.time_ns
         cols = world.columns()
-        data = np.column_stack([cols[f] for f in T.WORLD_FIELDS]).astype(float)
-        self._write(T.CLOCK.name, T.clock_message(t_ns), t_ns)
-        self._write(T.WORLD.name, self.table_message(T.WORLD_FIELDS, data, t_ns, T.MAP_FRAME), t_ns)
+        data = np.column_stack([cols[f] for f in T.WORLD_FIELDS])
+        self.bag.write(T.CLOCK.name, self.encode_clock(t_ns), t_ns, canonical=True)
+        self.bag.write(T.WORLD.name, self.world_table.encode(data, t_ns), t_ns, canonical=True)
         yaw = float(cols["yaw"][sut_index])
         yaw_rate = 0.0 if self._prev_yaw is None else (yaw - self._prev_yaw) / world.dt_s
         self._prev_yaw = yaw
-        odom = T.odometry_message(float(cols["x"][sut_index]), float(cols["y"][sut_index]), yaw,
-                                  float(cols["speed"][sut_index]), yaw_rate, t_ns)
-        self._write(T.SUT_ODOM.name, odom, t_ns)
+        odom = self.odometry.encode(cols["x"][sut_index], cols["y"][sut_index], yaw, cols["speed"][sut_index], yaw_rate, t_ns)
+        self.bag.write(T.SUT_ODOM.name, odom, t_ns, canonical=True)
 
     def commands(self, topic: str, ids: np.ndarray, throttle: np.ndarray, lane_change: np.ndarray, t_ns: int) -> None:
-        data = np.column_stack([ids, throttle, lane_change]).astype(float)
-        self._write(topic, self.table_message(self.T.COMMAND_FIELDS, data, t_ns, self.T.MAP_FRAME), t_ns)
+        data = np.column_stack([ids, throttle, lane_change])
+        self.bag.write(topic, self.command_table.encode(data, t_ns), t_ns, canonical=True)
 
     def events(self, events: list[dict], t_ns: int) -> None:
         self._write(self.T.EVENTS.name, self.T.events_message(events, t_ns), t_ns)

@@ -260,6 +260,8 @@ class BagRecorder:
         data: bytes | bytearray | memoryview,
         log_time_ns: int,
         publish_time_ns: int | None = None,
+        *,
+        canonical: bool = False,
     ) -> None:
         """Append one serialized (CDR) message.
 
@@ -270,6 +272,8 @@ class BagRecorder:
             log_time_ns: record time (ns); evoscen uses the simulation time of the
                 message (its header stamp), never the wall clock.
             publish_time_ns: publish time (ns); defaults to ``log_time_ns``.
+            canonical: the caller guarantees ``data`` is already canonical CDR (zero
+                padding, e.g. from :mod:`evoscen_contract.cdr`): stored as given.
 
         Raises:
             ValueError: unknown topic, negative time, the recorder is closed, or (with
@@ -289,7 +293,7 @@ class BagRecorder:
             raise ValueError(
                 f"BagRecorder: times must be >= 0 ns (log {log_time}, publish {publish_time})"
             )
-        if self._canonical is not None:
+        if self._canonical is not None and not canonical:
             try:
                 payload = self._canonical(state.spec.type_name, data)
             except ValueError as exc:

@@ -453,15 +453,11 @@ class RoadModel:
         """(x_m, y_m, heading_rad): the point at lateral offset ``d`` from the reference line at ``s``,
         and the reference line's heading there. Exact for line and arc pieces."""
         s_a, d_a = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
-        j = self._piece(s_a)
-        ds = s_a - self._g_s0[j]
-        k, h0 = self._g_k[j], self._g_h0[j]
-        half = 0.5 * k * ds
-        chord = ds * np.sinc(half / np.pi)  # = 2 sin(k ds / 2) / k, and ds for a line
-        h = h0 + k * ds
-        x = self._g_x0[j] + chord * np.cos(h0 + half) - d_a * np.sin(h)
-        y = self._g_y0[j] + chord * np.sin(h0 + half) + d_a * np.cos(h)
-        return x, y, h
+        x, y, h = _frenet_to_cartesian_kernel(
+            np.ascontiguousarray(s_a).ravel(), np.ascontiguousarray(d_a).ravel(),
+            self._g_s0, self._g_x0, self._g_y0, self._g_h0, self._g_k,
+        )
+        return x.reshape(s_a.shape), y.reshape(s_a.shape), h.reshape(s_a.shape)
 
     def cartesian_to_frenet(self, x: ArrayLike, y: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """(s_m, d_m) of the point (x, y): the projection onto the nearest planView piece.
@@ -600,3 +596,22 @@ def _lane_lookup_kernel(s, d, length, breaks, seg_const, dr_table, dl_table, pre
         g = np.searchsorted(g_s0, s[i], side="right") - 1
         kappa[i] = g_k[min(max(g, 0), g_s0.shape[0] - 1)]
     return d_right, d_left, here, vmax_here, lane, kappa
+
+
+@kernel
+def _frenet_to_cartesian_kernel(s, d, g_s0, g_x0, g_y0, g_h0, g_k):  # noqa: ANN001, ANN202
+    n = s.shape[0]
+    x = np.empty(n)
+    y = np.empty(n)
+    h = np.empty(n)
+    last = g_s0.shape[0] - 1
+    for i in range(n):
+        j = min(max(np.searchsorted(g_s0, s[i], side="right") - 1, 0), last)
+        ds = s[i] - g_s0[j]
+        k, h0 = g_k[j], g_h0[j]
+        half = 0.5 * k * ds
+        chord = ds if half == 0.0 else ds * np.sin(half) / half  # = 2 sin(k ds / 2) / k; ds on a line
+        h[i] = h0 + k * ds
+        x[i] = g_x0[j] + chord * np.cos(h0 + half) - d[i] * np.sin(h[i])
+        y[i] = g_y0[j] + chord * np.sin(h0 + half) + d[i] * np.cos(h[i])
+    return x, y, h

@@ -1,0 +1,128 @@
+"""Canonical CDR bytes for the per-step messages, straight from numpy.
+
+``rclpy.serialization.serialize_message`` leaves CDR alignment padding uninitialised, so
+the same message can serialize to different bytes; the recorder therefore re-encodes
+messages with zeroed padding (:class:`evoscen_eval.recorder.CanonicalCdr`), which costs
+tens of microseconds per message. The encoders here write the *canonical* bytes (little
+endian CDR, XCDR1 alignment relative to the payload, zero padding) of the messages the
+simulation publishes every step — the flat tables (``sensor_msgs/PointCloud2``) and
+``/clock`` — directly: a template with the constant part, patched with the stamp, the
+row count and the numpy buffer. They decode with rclpy, ``rosbags`` and ``mcap_ros2``
+like any other CDR message and equal the recorder's canonical form byte for byte (a test),
+so bags stay identical whichever path a message took. ``publish(bytes)`` on an rclpy
+publisher sends them as they are.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from collections.abc import Sequence
+
+import numpy as np
+
+from .tables import CELL_BYTES, FLOAT64, stamp_from_ns
+
+_ENCAPSULATION_CDR_LE = b"\x00\x01\x00\x00"
+
+
+class _PayloadWriter:
+    """Minimal CDR writer: primitives aligned to their size relative to the payload start."""
+
+    def __init__(self) -> None:
+        self.buf = bytearray()
+
+    def tell(self) -> int:
+        return len(self.buf)
+
+    def _align(self, size: int) -> None:
+        self.buf += b"\x00" * (-len(self.buf) % size)
+
+    def pack(self, fmt: str, *values: object) -> None:
+        size = struct.calcsize("<" + fmt[0])
+        self._align(size)
+        self.buf += struct.pack("<" + fmt, *values)
+
+    def string(self, text: str) -> None:
+        raw = text.encode("utf-8") + b"\x00"
+        self.pack("I", len(raw))
+        self.buf += raw
+
+
+def _stamp_bytes(stamp_ns: int) -> bytes:
+    t = stamp_from_ns(stamp_ns)
+    return struct.pack("<iI", t.sec, t.nanosec)
+
+
+class TableEncoder:
+    """Canonical CDR of a flat typed table (the layout of :func:`evoscen_contract.tables.table_message`).
+
+    Args:
+        fields: column names, in column order.
+        frame_id: ``header.frame_id``.
+    """
+
+    def __init__(self, fields: Sequence[str], frame_id: str) -> None:
+        self.fields = tuple(fields)
+        self.point_step = CELL_BYTES * len(self.fields)
+        w = _PayloadWriter()
+        w.pack("iI", 0, 0)  # header.stamp, patched per message
+        w.string(frame_id)
+        w.pack("I", 1)  # height
+        self._width_at = w.tell()
+        w.pack("I", 0)  # width, patched
+        w.pack("I", len(self.fields))
+        for k, name in enumerate(self.fields):
+            w.string(name)
+            w.pack("I", CELL_BYTES * k)  # offset
+            w.pack("B", FLOAT64)  # datatype
+            w.pack("I", 1)  # count
+        w.pack("?", False)  # is_bigendian
+        w.pack("I", self.point_step)
+        self._row_step_at = w.tell()
+        w.pack("I", 0)  # row_step, patched
+        self._data_len_at = w.tell()
+        w.pack("I", 0)  # len(data), patched
+        self._template = bytes(w.buf)
+        self._head = len(_ENCAPSULATION_CDR_LE)
+
+    def encode(self, data: np.ndarray, stamp_ns: int) -> bytes:
+        """CDR bytes of the table ``data`` (rows × len(fields), converted to float64)."""
+        table = np.ascontiguousarray(data, dtype="<f8")
+        if table.ndim != 2 or table.shape[1] != len(self.fields):
+            raise ValueError(f"TableEncoder: expected rows x {len(self.fields)} data, got shape {table.shape}")
+        rows = table.shape[0]
+        payload = table.tobytes()
+        head = bytearray(self._template)
+        head[0:8] = _stamp_bytes(stamp_ns)
+        struct.pack_into("<I", head, self._width_at, rows)
+        struct.pack_into("<I", head, self._row_step_at, rows * self.point_step)
+        struct.pack_into("<I", head, self._data_len_at, len(payload))
+        return b"".join((_ENCAPSULATION_CDR_LE, head, payload, b"\x01"))  # is_dense = True
+
+
+def encode_clock(stamp_ns: int) -> bytes:
+    """Canonical CDR of ``rosgraph_msgs/Clock`` at ``stamp_ns``."""
+    return _ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns)
+
+
+class OdometryEncoder:
+    """Canonical CDR of the SUT's ``nav_msgs/Odometry`` (as :func:`evoscen_contract.topics.odometry_message`)."""
+
+    def __init__(self, frame_id: str, child_frame_id: str) -> None:
+        w = _PayloadWriter()
+        w.pack("iI", 0, 0)  # header.stamp, patched
+        w.string(frame_id)
+        w.string(child_frame_id)
+        w._align(8)  # the pose's doubles start 8-aligned; everything after is doubles
+        self._template = bytes(w.buf)
+        self._zeros36 = bytes(8 * 36)  # a zero covariance
+
+    def encode(self, x: float, y: float, yaw: float, speed: float, yaw_rate: float, stamp_ns: int) -> bytes:
+        """CDR bytes of the odometry at ``stamp_ns`` (pose in frame_id, twist in child_frame_id)."""
+        head = bytearray(self._template)
+        head[0:8] = _stamp_bytes(stamp_ns)
+        half = 0.5 * float(yaw)
+        pose = struct.pack("<7d", float(x), float(y), 0.0, 0.0, 0.0, math.sin(half), math.cos(half))
+        twist = struct.pack("<6d", float(speed), 0.0, 0.0, 0.0, 0.0, float(yaw_rate))
+        return b"".join((_ENCAPSULATION_CDR_LE, head, pose, self._zeros36, twist, self._zeros36))
