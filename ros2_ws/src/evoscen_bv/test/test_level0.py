@@ -18,10 +18,10 @@ from evoscen_bringup.scenario import build_scenario
 from evoscen_bv.level0 import Level0Driver, Level0Params
 from evoscen_sim.car_following import IdmParams, idm_acceleration
 from evoscen_sim.config import load_scenario_config
-from evoscen_sim.control import ControlParams
 from evoscen_sim.road import RoadModel, load_road
 from evoscen_sim.vehicle import VehicleParams
-from evoscen_sim.world import InitialState, ReentryParams, World
+from evoscen_sim.testing import hand_built_world
+from evoscen_sim.world import World
 
 DT = 0.1
 L = 4.8
@@ -82,17 +82,7 @@ def road() -> RoadModel:
 
 
 def make_world(road: RoadModel, s, lane, speed) -> World:
-    n = len(s)
-    init = InitialState(
-        ids=np.arange(n),
-        roles=np.zeros(n, dtype=np.int64),
-        policies=np.zeros(n, dtype=np.int64),
-        s_m=np.asarray(s, dtype=float),
-        lane=np.asarray(lane, dtype=np.int64),
-        speed_mps=np.asarray(speed, dtype=float),
-    )
-    return World(road, init, vehicle=VehicleParams(), control=ControlParams(), reentry=ReentryParams(),
-                 dt_s=DT, rng=np.random.default_rng(0))
+    return hand_built_world(road, s, lane, speed, dt_s=DT)
 
 
 def _hand_merge_ok(s_m, v_m, s_o, v_o) -> bool:

@@ -9,10 +9,9 @@ import numpy as np
 import pytest
 
 from evoscen_sim.collision import boxes_overlap, overlapping_pairs
-from evoscen_sim.control import ControlParams
 from evoscen_sim.road import RoadModel, load_road
-from evoscen_sim.vehicle import VehicleParams
-from evoscen_sim.world import InitialState, ReentryParams, World
+from evoscen_sim.testing import hand_built_world
+from evoscen_sim.world import World
 
 DT = 0.1
 L, W = 4.8, 1.9
@@ -24,17 +23,7 @@ def road() -> RoadModel:
 
 
 def make_world(road: RoadModel, s, lane, speed) -> World:
-    n = len(s)
-    init = InitialState(
-        ids=np.arange(n),
-        roles=np.zeros(n, dtype=np.int64),
-        policies=np.zeros(n, dtype=np.int64),
-        s_m=np.asarray(s, dtype=float),
-        lane=np.asarray(lane, dtype=np.int64),
-        speed_mps=np.asarray(speed, dtype=float),
-    )
-    return World(road, init, vehicle=VehicleParams(), control=ControlParams(), reentry=ReentryParams(),
-                 dt_s=DT, rng=np.random.default_rng(0))
+    return hand_built_world(road, s, lane, speed, dt_s=DT)
 
 
 def overlap1(b1, b2) -> bool:

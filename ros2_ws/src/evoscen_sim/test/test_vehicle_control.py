@@ -14,7 +14,8 @@ import pytest
 from evoscen_sim.control import ControlParams, DualPidController
 from evoscen_sim.road import RoadModel, load_road
 from evoscen_sim.vehicle import VehicleParams, accel_to_throttle, bicycle_step, throttle_to_accel
-from evoscen_sim.world import InitialState, ReentryParams, World
+from evoscen_sim.testing import hand_built_world
+from evoscen_sim.world import World
 
 DT = 0.1
 P = VehicleParams()  # max_accel 3, max_brake 8, max_speed 40
@@ -29,17 +30,7 @@ def road() -> RoadModel:
 
 
 def make_world(road: RoadModel, s, lane, speed) -> World:
-    n = len(s)
-    init = InitialState(
-        ids=np.arange(n),
-        roles=np.zeros(n, dtype=np.int64),
-        policies=np.zeros(n, dtype=np.int64),
-        s_m=np.asarray(s, dtype=float),
-        lane=np.asarray(lane, dtype=np.int64),
-        speed_mps=np.asarray(speed, dtype=float),
-    )
-    return World(road, init, vehicle=VehicleParams(), control=ControlParams(), reentry=ReentryParams(),
-                 dt_s=DT, rng=np.random.default_rng(0))
+    return hand_built_world(road, s, lane, speed, dt_s=DT)
 
 
 def keep(n: int = 1) -> tuple[np.ndarray, np.ndarray]:

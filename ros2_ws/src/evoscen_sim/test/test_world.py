@@ -9,12 +9,11 @@ import pytest
 from evoscen_bringup.scenario import build_scenario
 from evoscen_sim.collision import overlapping_pairs
 from evoscen_sim.config import load_scenario_config
-from evoscen_sim.control import ControlParams
 from evoscen_sim.errors import InputError
 from evoscen_sim.road import RoadModel, load_road
 from evoscen_sim.spawn import spawn_layout
-from evoscen_sim.vehicle import VehicleParams
-from evoscen_sim.world import ROLE_BV, ROLE_SUT, InitialState, ReentryParams, World
+from evoscen_sim.testing import hand_built_world
+from evoscen_sim.world import ROLE_BV, ROLE_SUT, ReentryParams, World
 
 DT = 0.1
 L = 4.8
@@ -28,17 +27,7 @@ def road() -> RoadModel:
 
 
 def make_world(road: RoadModel, s, lane, speed, reentry: ReentryParams = ReentryParams(), seed: int = 0) -> World:
-    n = len(s)
-    init = InitialState(
-        ids=np.arange(n) + 10,
-        roles=np.zeros(n, dtype=np.int64),
-        policies=np.zeros(n, dtype=np.int64),
-        s_m=np.asarray(s, dtype=float),
-        lane=np.asarray(lane, dtype=np.int64),
-        speed_mps=np.asarray(speed, dtype=float),
-    )
-    return World(road, init, vehicle=VehicleParams(), control=ControlParams(), reentry=reentry,
-                 dt_s=DT, rng=np.random.default_rng(seed))
+    return hand_built_world(road, s, lane, speed, reentry=reentry, dt_s=DT, seed=seed, first_id=10)
 
 
 def keep(n: int):
