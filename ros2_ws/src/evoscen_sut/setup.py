@@ -16,7 +16,7 @@ setup(
     zip_safe=True,
     maintainer="evoscen developers",
     maintainer_email="dev@evoscen.org",
-    description="evoscen systems under test: the SUT plug-in interface and registry.",
+    description="evoscen systems under test: rule-based SUT models (registered with evoscen_sim.models).",
     license="Apache-2.0",
     entry_points={"console_scripts": []},
 )

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evoscen_bv.level0 import Level0Driver, level0_params_from_config
 from evoscen_sim.config import ScenarioConfig, mix_counts
+from evoscen_sim.models import create_driver
 from evoscen_sim.road import RoadModel, load_road
 from evoscen_sim.scenario_params import (
     control_params_from_config,
@@ -21,7 +21,6 @@ from evoscen_sim.scenario_params import (
 )
 from evoscen_sim.spawn import spawn_layout
 from evoscen_sim.world import World
-from evoscen_sut.registry import SutModel, create_sut
 
 POLICY_CODES = {"level0": 0, "mutual": 1, "competitive": 2, "cooperative": 3, "sut": 4, "nilsson": 5, "mobil": 6}
 """Policy codes of the world table (kept equal to ``evoscen_contract.topics.POLICY_CODES``)."""
@@ -37,8 +36,10 @@ class Scenario:
     config: ScenarioConfig
     road: RoadModel
     world: World
-    bv_driver: Level0Driver
-    sut: SutModel
+    bv_driver: object
+    """Driver of all BVs (``act(view) -> (throttle, lane_change)``), from the model registry."""
+    sut: object
+    """Driver of the SUT, from the model registry."""
     bv_indices: np.ndarray
     sut_index: int = SUT_INDEX
 
@@ -108,6 +109,6 @@ def build_scenario(cfg: ScenarioConfig) -> Scenario:
         rng=world_rng,
     )
     bv_indices = np.arange(1, world.n)
-    bv_driver = Level0Driver(bv_indices, level0_params_from_config(cfg), bv_rng, vehicle)
-    sut = create_sut(cfg.sut.model, SUT_INDEX, cfg, sut_rng)
+    bv_driver = create_driver(cfg.bvs.driver, "bv", bv_indices, cfg, bv_rng)
+    sut = create_driver(cfg.sut.model, "sut", [SUT_INDEX], cfg, sut_rng)
     return Scenario(config=cfg, road=road, world=world, bv_driver=bv_driver, sut=sut, bv_indices=bv_indices)

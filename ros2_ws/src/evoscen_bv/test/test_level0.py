@@ -174,3 +174,24 @@ def test_default_scenario_level0_traffic() -> None:
     assert all((a, b) == (0, 1) for _, a, b, _ in changes)
     assert all(3.0 <= t <= 6.0 for *_, t in changes)
     assert executed - len(changes) in (0, 1, 2)  # at most a change or two still in progress
+
+
+# ---------------------------------------------------------------- same decisions from the wire
+def test_level0_decides_identically_on_the_world_and_on_its_table_view():
+    """A node sees only the world table: rebuilt into a WorldView it must give the same commands."""
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_contract.tables import table_columns, table_message
+    from evoscen_contract.topics import MAP_FRAME, WORLD_FIELDS
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.view import WorldView
+
+    sc = build_scenario(load_scenario_config(None))
+    for _ in range(1500):  # through merges, lane changes and re-entries
+        w = sc.world
+        cols = w.columns()
+        msg = table_message(WORLD_FIELDS, np.column_stack([cols[f] for f in WORLD_FIELDS]), w.time_ns, MAP_FRAME)
+        view = WorldView(w.road, table_columns(msg), w.step_index, w.dt_s)
+        thr_w, lc_w = sc.bv_driver.act(w)
+        thr_v, lc_v = sc.bv_driver.act(view)
+        assert np.array_equal(thr_w, thr_v) and np.array_equal(lc_w, lc_v)
+        sc.apply(thr_w, lc_w, *sc.sut.act(w))

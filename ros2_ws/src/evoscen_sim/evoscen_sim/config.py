@@ -285,6 +285,28 @@ def _section(cls: type) -> Any:
     return field(default_factory=cls, metadata={"section": cls})
 
 
+# Public helpers to declare the fields of a model's parameter dataclass (see
+# evoscen_sim.models): the scenario YAML's ``models.<name>`` section is validated with them.
+def number(default: float, lo: float | None = None, hi: float | None = None, *, lo_open: bool = False) -> Any:
+    """A float parameter with bounds (``lo_open``: strictly above ``lo``)."""
+    return field(default=default, metadata=_check(_Float(lo, hi, lo_open=lo_open)))
+
+
+def integer(default: int, lo: int | None = None, hi: int | None = None) -> Any:
+    """An integer parameter with bounds."""
+    return field(default=default, metadata=_check(_Int(lo, hi)))
+
+
+def flag(default: bool) -> Any:
+    """A boolean parameter."""
+    return field(default=default, metadata=_check(_Bool()))
+
+
+def number_range(default: tuple[float, float], lo: float, hi: float, *, lo_open: bool = False) -> Any:
+    """A ``[lo, hi]`` pair parameter within bounds."""
+    return field(default=default, metadata=_check(_Range(lo, hi, lo_open=lo_open)))
+
+
 # --------------------------------------------------------------------------------------------
 # Schema
 # --------------------------------------------------------------------------------------------
@@ -470,6 +492,10 @@ class ScenarioConfig:
     """Level-0 (IDM) driver parameters."""
     recording: RecordingConfig = _section(RecordingConfig)
     """Bag recording."""
+    models: dict[str, Any] = field(default_factory=dict, metadata={"models": True})
+    """Parameters of driver models by model name (``models.mobil.politeness: 0.5``), each
+    validated against the model's parameter dataclass (:mod:`evoscen_sim.models`); a model
+    not listed uses its defaults."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -618,6 +644,9 @@ def _build(cls: type, raw: Any, path: str, ctx: _Context,
         if "section" in f.metadata:
             kwargs[f.name] = _build(f.metadata["section"], value, key_path, ctx, explicit)
             continue
+        if "models" in f.metadata:
+            kwargs[f.name] = _build_models(value, key_path, ctx, explicit)
+            continue
         checker = f.metadata["check"]
         if isinstance(value, str) and not checker.takes_str and ctx.from_cli(key_path):
             value = _parse_cli_scalar(value)
@@ -631,6 +660,25 @@ def _build(cls: type, raw: Any, path: str, ctx: _Context,
                 ctx.unknown(key_path, bad.subkey, POLICIES)
             ctx.fail(sub_path, bad.value, bad.expected)
     return cls(**kwargs)
+
+
+def _build_models(raw: Any, path: str, ctx: _Context, explicit: set[str]) -> dict[str, Any]:
+    """The ``models`` section: model name -> validated parameter dataclass."""
+    from .models import model_names, params_type_of
+
+    if raw is None:
+        return {}
+    with_params = sorted({n for role in ("sut", "bv") for n in model_names(role) if params_type_of(n) is not None})
+    if not isinstance(raw, Mapping):
+        ctx.fail(path, raw, "expected a mapping of model name -> parameters (models with parameters: "
+                 + ", ".join(with_params) + ")")
+    out: dict[str, Any] = {}
+    for name, section in raw.items():
+        cls = params_type_of(str(name))
+        if cls is None:
+            ctx.unknown(path, name, with_params)
+        out[str(name)] = _build(cls, section, _join(path, str(name)), ctx, explicit)
+    return out
 
 
 def _cross_check(cfg: ScenarioConfig, ctx: _Context, explicit: set[str]) -> None:
@@ -674,6 +722,9 @@ def config_from_dict(data: Any, *, source: str = "<dict>",
 
     ``source`` names it in error messages; ``base_dir`` anchors a relative ``map``.
     """
+    from .models import discover
+
+    discover()  # the registered models define the valid sut.model, bvs.driver and models.*
     override_keys: set[str] = set()
     cli_paths: set[str] = set()
     if overrides:

@@ -1,1 +1,1 @@
-"""evoscen systems under test: the SUT plug-in interface and registry."""
+"""evoscen systems under test: rule-based SUT models (registered with evoscen_sim.models)."""

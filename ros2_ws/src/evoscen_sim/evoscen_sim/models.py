@@ -1,0 +1,135 @@
+"""Driver models as plug-ins: one registry for SUT models and BV drivers.
+
+A driver model is described by a :class:`ModelSpec`: its name, the roles it can play
+(``"sut"``, ``"bv"``), an optional frozen dataclass of parameters, and a factory building a
+driver for a set of vehicles. A *driver* is any object with::
+
+    act(view) -> (throttle: np.ndarray, lane_change: np.ndarray)
+
+one entry per vehicle it drives, where ``view`` is a traffic view
+(:mod:`evoscen_sim.view`): throttle/brake in [-1, 1], lane-change request in {-1, 0, +1}.
+
+Models come from two places, found by :func:`discover`:
+
+* the built-in modules (``evoscen_bv.models``, ``evoscen_sut.models``), which call
+  :func:`register_model` when imported;
+* Python entry points in the groups ``evoscen.sut`` and ``evoscen.bv`` whose value is a
+  :class:`ModelSpec` — how a user's own package plugs a model in without touching ours::
+
+      # the user's setup.py / pyproject
+      entry_points={"evoscen.sut": ["my_sut = my_pkg.my_sut:SPEC"]}
+
+Parameters live in the scenario YAML under ``models.<name>`` and are validated against the
+model's parameter dataclass with the same checks and one-line errors as every other key
+(declare fields with :func:`evoscen_sim.config.number`, :func:`~evoscen_sim.config.integer`,
+:func:`~evoscen_sim.config.flag`).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any
+
+from .errors import InputError
+
+ROLES = ("sut", "bv")
+ENTRY_POINT_GROUPS = {"sut": "evoscen.sut", "bv": "evoscen.bv"}
+BUILTIN_MODULES = ("evoscen_bv.models", "evoscen_sut.models")
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A driver model: how to validate its parameters and build it."""
+
+    name: str
+    """Registry name (``sut.model``, ``bvs.driver``, ``models.<name>``)."""
+    roles: tuple[str, ...]
+    """Roles the model can play: ``"sut"`` and/or ``"bv"``."""
+    factory: Callable[..., Any]
+    """``factory(vehicles, params, config, rng) -> driver``: ``vehicles`` an int array of
+    world indices, ``params`` an instance of ``params_type`` (or None), ``config`` the
+    :class:`~evoscen_sim.config.ScenarioConfig`, ``rng`` a seeded numpy Generator."""
+    params_type: type | None = None
+    """Frozen dataclass of the model's parameters (defaults documented per field)."""
+    description: str = ""
+    """One line for listings."""
+
+
+_REGISTRY: dict[str, ModelSpec] = {}
+_discovered = False
+
+
+def register_model(spec: ModelSpec) -> None:
+    """Add (or replace) a model in the registry."""
+    bad = [r for r in spec.roles if r not in ROLES]
+    if bad or not spec.roles:
+        raise ValueError(f"model {spec.name!r}: roles {spec.roles} must be a non-empty subset of {ROLES}")
+    _REGISTRY[spec.name] = spec
+    from . import config
+
+    if "sut" in spec.roles:
+        config.register_sut_model(spec.name)
+    if "bv" in spec.roles:
+        config.register_bv_driver(spec.name)
+
+
+def discover() -> None:
+    """Import the built-in model modules and load the entry points (once per process)."""
+    global _discovered
+    if _discovered:
+        return
+    _discovered = True
+    for module in BUILTIN_MODULES:
+        try:
+            importlib.import_module(module)
+        except ImportError:  # a partial install (e.g. evoscen_sim alone): those models are absent
+            pass
+    for role, group in ENTRY_POINT_GROUPS.items():
+        for ep in metadata.entry_points(group=group):
+            try:
+                spec = ep.load()
+            except Exception as exc:  # noqa: BLE001 - a broken plug-in must be named, not crash
+                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) failed to load: {exc}") from None
+            if not isinstance(spec, ModelSpec):
+                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) is not an "
+                                 f"evoscen_sim.models.ModelSpec (got {type(spec).__name__})")
+            if role not in spec.roles:
+                spec = ModelSpec(spec.name, (*spec.roles, role), spec.factory, spec.params_type, spec.description)
+            register_model(spec)
+
+
+def model_names(role: str) -> tuple[str, ...]:
+    """Names of the models that can play ``role``, sorted."""
+    discover()
+    return tuple(sorted(name for name, spec in _REGISTRY.items() if role in spec.roles))
+
+
+def get_model(name: str, role: str) -> ModelSpec:
+    """The spec of model ``name`` for ``role``; InputError listing the valid choices otherwise."""
+    discover()
+    spec = _REGISTRY.get(name)
+    if spec is None or role not in spec.roles:
+        key = "sut.model" if role == "sut" else "bvs.driver"
+        raise InputError(f"unknown {key} '{name}': expected one of {', '.join(model_names(role))}")
+    return spec
+
+
+def create_driver(name: str, role: str, vehicles, config, rng) -> Any:  # noqa: ANN001
+    """Build model ``name`` for ``role`` driving world indices ``vehicles``."""
+    import numpy as np
+
+    spec = get_model(name, role)
+    params = config.models.get(name) if spec.params_type is not None else None
+    if spec.params_type is not None and params is None:
+        params = spec.params_type()
+    return spec.factory(np.asarray(vehicles, dtype=np.int64), params, config, rng)
+
+
+def params_type_of(name: str) -> type | None:
+    """The parameter dataclass of a registered model (None if it has none or is unknown)."""
+    discover()
+    spec = _REGISTRY.get(name)
+    return None if spec is None else spec.params_type
