@@ -76,6 +76,15 @@ def register_model(spec: ModelSpec) -> None:
         config.register_bv_driver(spec.name)
 
 
+def unregister_model(name: str) -> None:
+    """Remove a model from the registry (tests; plug-ins are normally permanent)."""
+    from . import config
+
+    _REGISTRY.pop(name, None)
+    config.SUT_MODELS = tuple(n for n in config.SUT_MODELS if n != name)
+    config.BV_DRIVERS = tuple(n for n in config.BV_DRIVERS if n != name)
+
+
 def discover() -> None:
     """Import the built-in model modules and load the entry points (once per process)."""
     global _discovered

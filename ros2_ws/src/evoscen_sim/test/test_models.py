@@ -9,7 +9,7 @@ import pytest
 
 from evoscen_sim.config import config_from_dict, integer, number
 from evoscen_sim.errors import InputError
-from evoscen_sim.models import ModelSpec, create_driver, get_model, model_names, register_model
+from evoscen_sim.models import ModelSpec, create_driver, get_model, model_names, register_model, unregister_model
 
 
 @dataclass(frozen=True)
@@ -29,8 +29,12 @@ class _ToyDriver:
         return np.full(n, self.params.gain), np.zeros(n, dtype=np.int64)
 
 
-register_model(ModelSpec("toy_sut", ("sut",), lambda vehicles, params, cfg, rng: _ToyDriver(vehicles, params),
-                         _ToyParams, "a test model"))
+@pytest.fixture(autouse=True)
+def toy_model():
+    register_model(ModelSpec("toy_sut", ("sut",), lambda vehicles, params, cfg, rng: _ToyDriver(vehicles, params),
+                             _ToyParams, "a test model"))
+    yield
+    unregister_model("toy_sut")
 
 
 def test_builtin_level0_serves_both_roles():
