@@ -10,10 +10,12 @@ No middleware: the cores are called directly, in the same order the node graph u
 3. the world integrates to ``t_{k+1}``; what happened goes out on ``/evoscen/events``
    stamped ``t_{k+1}`` (only in steps where something happened).
 
-After the last step the final state (``t_N``) is published too. With recording on, every
-message goes through :class:`evoscen_eval.recorder.BagRecorder` — the same recorder the
-evaluator node uses — serialized with ``rclpy.serialization``, log time = simulation
-time, so the bag is byte-identical for the same config and seed.
+After the last step the final state (``t_N``) is published too, and a ``run_end`` event.
+With recording on, every message goes through :class:`evoscen_eval.recorder.OrderedBag`
+and :class:`~evoscen_eval.recorder.BagRecorder` — what the evaluator node uses — with the
+bytes of :class:`evoscen_contract.messages.WorldMessages` — what the simulation node
+publishes — and log time = simulation time, so the bag is byte-identical for the same
+config and seed, and equal to the node graph's.
 """
 
 from __future__ import annotations
@@ -24,9 +26,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 
 from evoscen_sim.config import ScenarioConfig
+
+from evoscen_sim.events import has_events, run_end_event, step_events
 
 from .scenario import Scenario, build_scenario
 
@@ -52,86 +55,35 @@ class RunSummary:
         return self.steps / self.wall_time_s if self.wall_time_s > 0 else math.inf
 
 
-def step_events(world, result) -> list[dict]:  # noqa: ANN001
-    """The ``/evoscen/events`` entries of one world step, in a fixed order."""
-    ids = world.ids
-    common = {"step": result.step, "time_s": result.time_s}
-    events: list[dict] = []
-    for i, j in result.collisions:
-        events.append({"name": "evoscen/collision", "message": f"vehicles {ids[i]} and {ids[j]} collide",
-                       **common, "ids": [int(ids[i]), int(ids[j])]})
-    for i, from_lane, to_lane, duration in result.lane_changes_completed:
-        events.append({"name": "evoscen/lane_change", "message": f"vehicle {ids[i]}: lane {from_lane} -> {to_lane}",
-                       **common, "ids": [int(ids[i])], "duration_s": duration,
-                       "direction": 1 if to_lane > from_lane else -1, "from_lane": from_lane, "to_lane": to_lane,
-                       "kind": "completed"})
-    for i, from_lane, to_lane in result.lane_changes_aborted:
-        events.append({"name": "evoscen/lane_change", "level": 1,
-                       "message": f"vehicle {ids[i]}: lane change {from_lane} -> {to_lane} aborted, lane {to_lane} ended",
-                       **common, "ids": [int(ids[i])], "direction": 1 if to_lane > from_lane else -1,
-                       "from_lane": from_lane, "to_lane": to_lane, "kind": "aborted"})
-    for i, lane, s in result.reentries:
-        events.append({"name": "evoscen/reentry", "message": f"vehicle {ids[i]} re-entered lane {lane} at s = {s:.1f} m",
-                       **common, "ids": [int(ids[i])], "to_lane": lane})
-    for i in result.off_road:
-        events.append({"name": "evoscen/off_road", "message": f"vehicle {ids[i]} left the road",
-                       **common, "ids": [int(ids[i])]})
-    return events
-
-
-class _Publisher:
-    """Builds and records the contract's messages for the in-process runner.
-
-    Tables, ``/clock`` and the odometry are encoded straight to canonical CDR
-    (:mod:`evoscen_contract.cdr`); events go through rclpy's serializer and the recorder's
-    canonical form.
-    Either way the bytes equal what the recorder stores for the same message from the wire.
-    """
+class _Recorder:
+    """The contract's messages of an in-process run, written through an ordered bag."""
 
     def __init__(self, bag_dir: Path, cfg: ScenarioConfig) -> None:
         from evoscen_contract import topics as T
-        from evoscen_contract.cdr import OdometryEncoder, TableEncoder, encode_clock
-        from evoscen_eval.recorder import BagRecorder
-        from rclpy.serialization import serialize_message
+        from evoscen_contract.messages import WorldMessages
+        from evoscen_eval.recorder import BagRecorder, OrderedBag
 
         self.T = T
-        self.serialize = serialize_message
-        self.encode_clock = encode_clock
-        self.world_table = TableEncoder(T.WORLD_FIELDS, T.MAP_FRAME)
-        self.command_table = TableEncoder(T.COMMAND_FIELDS, T.MAP_FRAME)
-        self.roster_table = TableEncoder(T.ROSTER_FIELDS, T.MAP_FRAME)
-        self.odometry = OdometryEncoder(T.MAP_FRAME, T.SUT_BASE_FRAME)
-        self.bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
-                               chunk_size=cfg.recording.chunk_size_bytes)
-        self._prev_yaw: float | None = None
+        self.msgs = WorldMessages(cfg.dt_s)
+        bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
+                          chunk_size=cfg.recording.chunk_size_bytes)
+        self.bag = OrderedBag(bag, T.CONTRACT)
 
-    def _write(self, topic: str, msg, t_ns: int) -> None:  # noqa: ANN001
-        self.bag.write(topic, self.serialize(msg), t_ns)
-
-    def roster(self, world) -> None:  # noqa: ANN001
+    def world_state(self, world, sut_index: int, *, roster: bool = False) -> None:  # noqa: ANN001
+        T, m, t_ns = self.T, self.msgs, world.time_ns
         cols = world.columns()
-        data = np.column_stack([cols[f] for f in self.T.ROSTER_FIELDS])
-        self.bag.write(self.T.ROSTER.name, self.roster_table.encode(data, world.time_ns), world.time_ns, canonical=True)
+        self.bag.flush_before(t_ns)
+        if roster:
+            self.bag.add(T.ROSTER.name, m.roster(cols, t_ns), t_ns, canonical=True)
+        self.bag.add(T.CLOCK.name, m.clock(t_ns), t_ns, canonical=True)
+        self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
+        self.bag.add(T.SUT_ODOM.name, m.odometry(cols, sut_index, t_ns), t_ns, canonical=True)
 
-    def world_state(self, world, sut_index: int) -> None:  # noqa: ANN001
-        T = self.T
-        t_ns = world.time_ns
-        cols = world.columns()
-        data = np.column_stack([cols[f] for f in T.WORLD_FIELDS])
-        self.bag.write(T.CLOCK.name, self.encode_clock(t_ns), t_ns, canonical=True)
-        self.bag.write(T.WORLD.name, self.world_table.encode(data, t_ns), t_ns, canonical=True)
-        yaw = float(cols["yaw"][sut_index])
-        yaw_rate = 0.0 if self._prev_yaw is None else (yaw - self._prev_yaw) / world.dt_s
-        self._prev_yaw = yaw
-        odom = self.odometry.encode(cols["x"][sut_index], cols["y"][sut_index], yaw, cols["speed"][sut_index], yaw_rate, t_ns)
-        self.bag.write(T.SUT_ODOM.name, odom, t_ns, canonical=True)
-
-    def commands(self, topic: str, ids: np.ndarray, throttle: np.ndarray, lane_change: np.ndarray, t_ns: int) -> None:
-        data = np.column_stack([ids, throttle, lane_change])
-        self.bag.write(topic, self.command_table.encode(data, t_ns), t_ns, canonical=True)
+    def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+        self.bag.add(topic, self.msgs.commands(ids, throttle, lane_change, t_ns), t_ns, canonical=True)
 
     def events(self, events: list[dict], t_ns: int) -> None:
-        self._write(self.T.EVENTS.name, self.T.events_message(events, t_ns), t_ns)
+        self.bag.add(self.T.EVENTS.name, self.msgs.events(events, t_ns), t_ns)
 
 
 def run_inprocess(
@@ -142,44 +94,47 @@ def run_inprocess(
     progress: Callable[[int], None] | None = None,
     scenario: Scenario | None = None,
 ) -> RunSummary:
-    """Run ``steps`` (default ``cfg.steps``) steps; record to ``bag_dir`` unless it is None."""
+    """Run ``steps`` (default ``cfg.steps``) steps; record to ``bag_dir`` unless it is None.
+
+    Ctrl-C (KeyboardInterrupt) ends the run after the current step: the bag is finished
+    (``run_end`` event of kind ``interrupted``) and the interrupt is raised again.
+    """
     sc = scenario if scenario is not None else build_scenario(cfg)
     n_steps = cfg.steps if steps is None else steps
     world = sc.world
-    pub = _Publisher(bag_dir, cfg) if bag_dir is not None else None
+    rec = _Recorder(bag_dir, cfg) if bag_dir is not None else None
     bv_ids = world.ids[sc.bv_indices]
     sut_ids = world.ids[[sc.sut_index]]
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
+    end_kind, end_message = "interrupted", "run interrupted"
     t0 = time.perf_counter()
     try:
-        if pub is not None:
-            pub.roster(world)
         for k in range(n_steps):
-            if pub is not None:
-                pub.world_state(world, sc.sut_index)
+            if rec is not None:
+                rec.world_state(world, sc.sut_index, roster=(k == 0))
             bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
-            if pub is not None:
+            if rec is not None:
                 t_ns = world.time_ns
-                pub.commands(pub.T.COMMANDS_BV.name, bv_ids, bv_thr, bv_lc, t_ns)
-                pub.commands(pub.T.COMMANDS_SUT.name, sut_ids, sut_thr, sut_lc, t_ns)
+                rec.commands(rec.T.COMMANDS_BV.name, bv_ids, bv_thr, bv_lc, t_ns)
+                rec.commands(rec.T.COMMANDS_SUT.name, sut_ids, sut_thr, sut_lc, t_ns)
             result = sc.apply(bv_thr, bv_lc, sut_thr, sut_lc)
             summary.collisions += len(result.collisions)
             summary.lane_changes += len(result.lane_changes_completed)
             summary.reentries += len(result.reentries)
             summary.off_road += len(result.off_road)
-            if pub is not None and (result.collisions or result.lane_changes_completed or result.lane_changes_aborted
-                                    or result.reentries or result.off_road):
-                pub.events(step_events(world, result), world.time_ns)
+            if rec is not None and has_events(result):
+                rec.events(step_events(world, result), world.time_ns)
             if progress is not None:
                 progress(k + 1)
-        if pub is not None:
-            pub.world_state(world, sc.sut_index)
+        end_kind, end_message = "completed", f"run completed: {world.step_index} steps"
     finally:
         summary.wall_time_s = time.perf_counter() - t0
         summary.steps = world.step_index
         summary.sim_time_s = world.time_s
-        if pub is not None:
-            pub.bag.close()
-            summary.message_count = pub.bag.message_count
+        if rec is not None:
+            rec.world_state(world, sc.sut_index, roster=(world.step_index == 0))
+            rec.events([run_end_event(world, end_kind, end_message)], world.time_ns)
+            rec.bag.close()
+            summary.message_count = rec.bag.message_count
             summary.bag_bytes = sum(f.stat().st_size for f in Path(bag_dir).iterdir())
     return summary

@@ -80,14 +80,20 @@ def bv_policy_codes(cfg: ScenarioConfig, rng: np.random.Generator) -> np.ndarray
     return rng.permutation(codes)
 
 
-def build_scenario(cfg: ScenarioConfig) -> Scenario:
-    """Road, spawn layout, world and drivers for ``cfg`` (deterministic in ``cfg.seed``)."""
-    road = load_road(cfg.map)
-    spawn_rng, world_rng, bv_rng, sut_rng = (np.random.default_rng(s) for s in np.random.SeedSequence(cfg.seed).spawn(4))
+def scenario_rngs(seed: int) -> dict[str, np.random.Generator]:
+    """The scenario's independent random streams (the same in every runner and node)."""
+    names = ("spawn", "world", "bv", "sut")
+    return {name: np.random.default_rng(s) for name, s in zip(names, np.random.SeedSequence(seed).spawn(len(names)))}
+
+
+def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
+    """Road, spawn layout and world for ``cfg`` (what the simulation node owns)."""
+    road = load_road(cfg.map) if road is None else road
+    rngs = scenario_rngs(cfg.seed)
     vehicle = vehicle_params_from_config(cfg)
     initial = spawn_layout(
         road,
-        bv_policies=bv_policy_codes(cfg, spawn_rng),
+        bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
         sut_policy=POLICY_CODES["sut"],
         sut_lane=cfg.sut.lane,
         sut_s_m=cfg.sut.s_m,
@@ -97,18 +103,36 @@ def build_scenario(cfg: ScenarioConfig) -> Scenario:
         speed_range_mps=tuple(cfg.spawn.speed_mps),
         jitter_m=cfg.spawn.jitter_m,
         vehicle_length_m=vehicle.length_m,
-        rng=spawn_rng,
+        rng=rngs["spawn"],
     )
-    world = World(
+    return World(
         road,
         initial,
         vehicle=vehicle,
         control=control_params_from_config(cfg),
         reentry=reentry_params_from_config(cfg),
         dt_s=cfg.dt_s,
-        rng=world_rng,
+        rng=rngs["world"],
     )
-    bv_indices = np.arange(1, world.n)
-    bv_driver = create_driver(cfg.bvs.driver, "bv", bv_indices, cfg, bv_rng)
-    sut = create_driver(cfg.sut.model, "sut", [SUT_INDEX], cfg, sut_rng)
-    return Scenario(config=cfg, road=road, world=world, bv_driver=bv_driver, sut=sut, bv_indices=bv_indices)
+
+
+def bv_indices(cfg: ScenarioConfig) -> np.ndarray:
+    """World indices of the BVs: 1..count (the SUT is 0)."""
+    return np.arange(1, cfg.bvs.count + 1)
+
+
+def build_bv_driver(cfg: ScenarioConfig):  # noqa: ANN201
+    """The driver of all BVs (what the BV node hosts)."""
+    return create_driver(cfg.bvs.driver, "bv", bv_indices(cfg), cfg, scenario_rngs(cfg.seed)["bv"])
+
+
+def build_sut_driver(cfg: ScenarioConfig, model: str | None = None):  # noqa: ANN201
+    """The SUT's driver, model ``cfg.sut.model`` unless ``model`` is given (what the SUT node hosts)."""
+    return create_driver(model or cfg.sut.model, "sut", [SUT_INDEX], cfg, scenario_rngs(cfg.seed)["sut"])
+
+
+def build_scenario(cfg: ScenarioConfig) -> Scenario:
+    """Road, spawn layout, world and drivers for ``cfg`` (deterministic in ``cfg.seed``)."""
+    world = build_world(cfg)
+    return Scenario(config=cfg, road=world.road, world=world, bv_driver=build_bv_driver(cfg),
+                    sut=build_sut_driver(cfg), bv_indices=bv_indices(cfg))

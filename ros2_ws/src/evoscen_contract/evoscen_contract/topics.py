@@ -122,8 +122,11 @@ EVENT_LANE_CHANGE: str = "evoscen/lane_change"
 EVENT_REENTRY: str = "evoscen/reentry"
 EVENT_FAULT: str = "evoscen/fault"
 EVENT_OFF_ROAD: str = "evoscen/off_road"
+EVENT_RUN_END: str = "evoscen/run_end"
 #: All event names allowed on ``/evoscen/events``.
-EVENT_NAMES: tuple[str, ...] = (EVENT_COLLISION, EVENT_LANE_CHANGE, EVENT_REENTRY, EVENT_OFF_ROAD, EVENT_FAULT)
+EVENT_NAMES: tuple[str, ...] = (
+    EVENT_COLLISION, EVENT_LANE_CHANGE, EVENT_REENTRY, EVENT_OFF_ROAD, EVENT_FAULT, EVENT_RUN_END,
+)
 
 #: ``diagnostic_msgs/DiagnosticStatus`` levels (OK, WARN, ERROR, STALE).
 LEVEL_OK, LEVEL_WARN, LEVEL_ERROR, LEVEL_STALE = 0, 1, 2, 3
@@ -134,6 +137,7 @@ DEFAULT_EVENT_LEVELS: dict[str, int] = {
     EVENT_REENTRY: LEVEL_WARN,
     EVENT_OFF_ROAD: LEVEL_ERROR,
     EVENT_FAULT: LEVEL_ERROR,
+    EVENT_RUN_END: LEVEL_OK,
 }
 #: ``hardware_id`` of every event status.
 EVENT_HARDWARE_ID: str = "evoscen"
@@ -153,7 +157,8 @@ EVENT_KEY_TYPES: dict[str, str] = {
     "to_lane": "int",  # lane index after
     "misses": "int",  # consecutive missed controller deadlines (fault)
     "controller": "str",  # node name of the controller concerned (fault)
-    "kind": "str",  # sub-kind of the event (e.g. fault kind "deadline", "abort")
+    "kind": "str",  # sub-kind: fault "deadline"/"abort"; lane_change "completed"/"aborted"; run_end "completed"/"aborted"/"interrupted"
+    "steps": "int",  # steps simulated (run_end)
 }
 
 _RESERVED_EVENT_KEYS = ("name", "level", "message")

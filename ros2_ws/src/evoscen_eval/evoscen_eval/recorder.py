@@ -517,3 +517,59 @@ def _iter_messages(
         raise InputError(f"bag {str(path)!r}: corrupt MCAP data: {exc!r}") from None
     finally:
         stream.close()
+
+
+class OrderedBag:
+    """A :class:`BagRecorder` front that writes messages in one canonical order.
+
+    Messages are written sorted by (log time, the topic's rank in ``topics``, arrival order
+    within the topic). The in-process runner produces messages in some order, the node graph
+    receives them from several publishers in whatever order the middleware delivers; both
+    write through this class, so the bag's bytes depend only on the messages.
+
+    A message is held until :meth:`flush_before` passes its time (the graph's evaluator
+    calls it with a lag of some steps; the in-process runner with the current step) and at
+    :meth:`close`. Messages arriving for a time already flushed are written at once (the
+    order is then no longer canonical: the evaluator's lag makes that practically impossible
+    and the byte-equality test would show it).
+    """
+
+    def __init__(self, bag: BagRecorder, topics: Sequence[TopicSpec]) -> None:
+        self.bag = bag
+        self._rank = {spec.name: k for k, spec in enumerate(topics)}
+        self._pending: list[tuple[int, int, int, str, bytes, bool]] = []
+        self._seq = 0
+        self._flushed_before = -1
+        self.late_messages = 0
+
+    def add(self, topic: str, data: bytes, log_time_ns: int, *, canonical: bool = False) -> None:
+        """Queue one serialized message (see :meth:`BagRecorder.write`)."""
+        if log_time_ns < self._flushed_before:
+            self.late_messages += 1
+            self.bag.write(topic, data, log_time_ns, canonical=canonical)
+            return
+        self._seq += 1
+        self._pending.append((log_time_ns, self._rank[topic], self._seq, topic, data, canonical))
+
+    def flush_before(self, time_ns: int) -> None:
+        """Write every queued message with a log time before ``time_ns``, in canonical order."""
+        if not self._pending:
+            self._flushed_before = max(self._flushed_before, time_ns)
+            return
+        ready = [m for m in self._pending if m[0] < time_ns]
+        if ready:
+            self._pending = [m for m in self._pending if m[0] >= time_ns]
+            for t, _, _, topic, data, canonical in sorted(ready):
+                self.bag.write(topic, data, t, canonical=canonical)
+        self._flushed_before = max(self._flushed_before, time_ns)
+
+    def close(self) -> None:
+        """Write everything still queued and close the bag (idempotent)."""
+        if not self.bag.closed:
+            self.flush_before(2**63 - 1)
+            self.bag.close()
+
+    @property
+    def message_count(self) -> int:
+        """Messages written so far."""
+        return self.bag.message_count

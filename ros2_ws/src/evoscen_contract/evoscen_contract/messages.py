@@ -1,0 +1,60 @@
+"""The simulation's per-step messages as CDR bytes, built the same way in every runner.
+
+The in-process runner records these bytes; the simulation node publishes them
+(``publisher.publish(bytes)``). Tables, ``/clock`` and the SUT's odometry are canonical CDR
+from :mod:`evoscen_contract.cdr`; events are serialized by rclpy (the recorder canonicalizes
+them, whichever runner they came from).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from . import topics as T
+from .cdr import OdometryEncoder, TableEncoder, encode_clock
+
+
+class WorldMessages:
+    """Encoders for the world-side topics of the contract (one instance per run)."""
+
+    def __init__(self, dt_s: float) -> None:
+        self.dt_s = dt_s
+        self._world = TableEncoder(T.WORLD_FIELDS, T.MAP_FRAME)
+        self._roster = TableEncoder(T.ROSTER_FIELDS, T.MAP_FRAME)
+        self._commands = TableEncoder(T.COMMAND_FIELDS, T.MAP_FRAME)
+        self._odometry = OdometryEncoder(T.MAP_FRAME, T.SUT_BASE_FRAME)
+        self._prev_yaw: float | None = None
+
+    @staticmethod
+    def clock(t_ns: int) -> bytes:
+        """``/clock`` at ``t_ns``."""
+        return encode_clock(t_ns)
+
+    def world(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
+        """``/evoscen/world`` from the world's columns."""
+        return self._world.encode(np.column_stack([columns[f] for f in T.WORLD_FIELDS]), t_ns)
+
+    def roster(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
+        """``/evoscen/roster`` from the world's columns."""
+        return self._roster.encode(np.column_stack([columns[f] for f in T.ROSTER_FIELDS]), t_ns)
+
+    def odometry(self, columns: Mapping[str, np.ndarray], sut_index: int, t_ns: int) -> bytes:
+        """``/evoscen/sut/odom``; the yaw rate is the yaw change since the previous call / dt."""
+        yaw = float(columns["yaw"][sut_index])
+        yaw_rate = 0.0 if self._prev_yaw is None else (yaw - self._prev_yaw) / self.dt_s
+        self._prev_yaw = yaw
+        return self._odometry.encode(columns["x"][sut_index], columns["y"][sut_index], yaw,
+                                     columns["speed"][sut_index], yaw_rate, t_ns)
+
+    def commands(self, ids: np.ndarray, throttle: np.ndarray, lane_change: np.ndarray, t_ns: int) -> bytes:
+        """A command table (``/evoscen/commands/bv`` or ``/sut``) answering the world at ``t_ns``."""
+        return self._commands.encode(np.column_stack([ids, throttle, lane_change]), t_ns)
+
+    @staticmethod
+    def events(events: Sequence[Mapping], t_ns: int) -> bytes:
+        """``/evoscen/events`` (rclpy serialization; the recorder canonicalizes it)."""
+        from rclpy.serialization import serialize_message
+
+        return serialize_message(T.events_message(events, t_ns))
