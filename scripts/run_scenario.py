@@ -19,13 +19,14 @@ from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 
-MODES = ("inprocess",)
+MODES = ("graph", "inprocess")
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="run_scenario.py", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--mode", default="inprocess", choices=MODES,
-                    help="inprocess: all cores in one process, no middleware")
+    ap.add_argument("--mode", default="graph", choices=MODES,
+                    help="graph (default): one ROS 2 process per node, lockstep; inprocess: all cores in one process, "
+                         "no middleware")
     ap.add_argument("--config", type=Path, default=None, help="scenario YAML (default: the shipped default)")
     ap.add_argument("--steps", help="number of steps (overrides 'steps')")
     ap.add_argument("--seed", help="random seed (overrides 'seed')")
@@ -35,7 +36,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--out", type=Path, default=Path("runs/latest"), help="output directory (default runs/latest)")
     ap.add_argument("--no-record", action="store_true", help="do not record a bag")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag")
-    ap.add_argument("--quiet", action="store_true", help="no progress bar")
+    ap.add_argument("--quiet", action="store_true", help="no progress bar (inprocess)")
+    g = ap.add_argument_group("graph mode")
+    g.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID of the nodes (default: random in 1..100)")
+    g.add_argument("--discovery-range", default="LOCALHOST", choices=("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT"),
+                   help="ROS_AUTOMATIC_DISCOVERY_RANGE: SUBNET lets ROS 2 machines on the network see the topics")
+    g.add_argument("--deadline", type=float, default=2.0, help="per-step controller deadline in seconds (default 2.0)")
+    g.add_argument("--max-misses", type=int, default=5, help="consecutive missed deadlines that abort (default 5)")
     return ap.parse_args(argv)
 
 
@@ -59,6 +66,31 @@ def prepare_output(out: Path, bag_dir: Path | None, *, overwrite: bool) -> None:
         raise InputError(f"--out {out}: cannot write the output directory: {exc.strerror or exc}") from None
 
 
+def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> int:  # noqa: ANN001
+    """Run the node graph; print the outcome; return its status."""
+    from evoscen_bringup.graph_runner import GraphOptions, run_graph
+    from evoscen_eval.recorder import open_bag_reader
+
+    opts = GraphOptions(domain_id=args.domain_id, discovery_range=args.discovery_range,
+                        deadline_s=args.deadline, max_misses=args.max_misses)
+    print(f"graph: ROS_DOMAIN_ID={opts.domain_id if opts.domain_id is not None else '(random)'}, "
+          f"discovery {opts.discovery_range}; parameter files in {out / 'params'}", file=sys.stderr)
+    result = run_graph(cfg, out, bag_dir, opts)
+    counts: dict[str, int] = {}
+    try:
+        for topic, _type, _t, _data in open_bag_reader(bag_dir):
+            counts[topic] = counts.get(topic, 0) + 1
+    except InputError as exc:
+        print(f"error: the bag is not readable: {exc}", file=sys.stderr)
+        return result.status or 3
+    steps = max(counts.get("/evoscen/world", 1) - 1, 0)
+    print(f"steps: {steps}  domain: {result.domain_id}  wall: {result.wall_time_s:.2f} s  "
+          f"nodes: " + ", ".join(f"{n}={s}" for n, s in result.node_status.items()))
+    size = sum(f.stat().st_size for f in bag_dir.iterdir())
+    print(f"bag: {bag_dir}  ({sum(counts.values())} messages, {size / 1e6:.2f} MB)")
+    return result.status
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.inprocess import run_inprocess
@@ -69,6 +101,14 @@ def main(argv: list[str] | None = None) -> int:
     overrides = {key: value for key, value in (
         ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
         ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+    if args.mode == "graph":
+        for name, value, ok in (("--domain-id", args.domain_id, args.domain_id is None or 0 <= args.domain_id <= 232),
+                                ("--deadline", args.deadline, args.deadline > 0),
+                                ("--max-misses", args.max_misses, args.max_misses >= 1)):
+            if not ok:
+                print(f"error: {name} = {value}: expected " + {"--domain-id": "an integer in [0, 232]",
+                      "--deadline": "a number > 0 (s)", "--max-misses": "an integer >= 1"}[name], file=sys.stderr)
+                return 2
     try:
         # everything the run needs is validated (config, map, SUT, spawn) before the output
         # directory is touched, so a bad input never costs an existing bag
@@ -76,8 +116,13 @@ def main(argv: list[str] | None = None) -> int:
         scenario = build_scenario(cfg)
         out = args.out
         bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
+        if args.mode == "graph" and bag_dir is None:
+            raise InputError("--mode graph always records (the evaluator node is part of the graph): "
+                             "drop --no-record / recording.enabled: false, or use --mode inprocess")
         prepare_output(out, bag_dir, overwrite=args.overwrite)
         dump_config(cfg, out / "scenario.yaml")
+        if args.mode == "graph":
+            return run_graph_mode(args, cfg, out, bag_dir)
         bar = None
         if not args.quiet:
             from tqdm import tqdm

@@ -41,8 +41,14 @@ class CliResult:
 
 
 def run_cli(*args: object, timeout: float = 120.0) -> CliResult:
-    """Run ``scripts/run_scenario.py`` with ``args`` (str()-converted) from the repo root."""
+    """Run ``scripts/run_scenario.py`` with ``args`` (str()-converted) from the repo root.
+
+    Without ``--mode`` the run is ``--mode inprocess`` (the CLI's default is the node graph,
+    which has its own tests in ``test_graph.py``; these tests are about the CLI itself).
+    """
     argv = [str(a) for a in args]
+    if "--mode" not in argv:
+        argv = ["--mode", "inprocess", *argv]
     proc = subprocess.run(
         [sys.executable, SCRIPT, *argv],
         cwd=REPO,

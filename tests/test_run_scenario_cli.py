@@ -184,14 +184,6 @@ def test_overwrite_keeps_old_bag_when_input_is_bad(cli, tmp_path, truncated_xodr
     assert {p.name: p.read_bytes() for p in (out / "bag").iterdir()} == before
 
 
-def test_graph_mode_not_available(cli, tmp_path):
-    res = cli("--mode", "graph", "--steps", 5, "--out", tmp_path / "out")
-    assert res.returncode == 2
-    assert "inprocess" in res.stderr and "graph" in res.stderr
-    assert "Traceback" not in res.stderr
-    assert not (tmp_path / "out").exists()
-
-
 # --------------------------------------------------------------------------- success
 
 

@@ -18,5 +18,5 @@ setup(
     maintainer_email="dev@evoscen.org",
     description="evoscen background-vehicle driver models (level-0 traffic now; learned social drivers later).",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["bv_node = evoscen_bv.bv_node:main"]},
 )

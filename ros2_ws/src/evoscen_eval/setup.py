@@ -18,5 +18,5 @@ setup(
     maintainer_email="dev@evoscen.org",
     description="evoscen evaluation: rosbag2 MCAP recorder, metrics and reports.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["eval_node = evoscen_eval.eval_node:main"]},
 )

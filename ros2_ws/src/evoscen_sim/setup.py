@@ -21,5 +21,5 @@ setup(
     maintainer_email="dev@evoscen.org",
     description="evoscen simulation core: OpenDRIVE road, vehicle dynamics, low-level PID control, collision, re-entry and the world step.",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["sim_node = evoscen_sim.sim_node:main"]},
 )

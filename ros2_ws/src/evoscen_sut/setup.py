@@ -18,5 +18,5 @@ setup(
     maintainer_email="dev@evoscen.org",
     description="evoscen systems under test: rule-based SUT models (registered with evoscen_sim.models).",
     license="Apache-2.0",
-    entry_points={"console_scripts": []},
+    entry_points={"console_scripts": ["sut_node = evoscen_sut.sut_node:main"]},
 )

@@ -5,8 +5,9 @@ the same message can serialize to different bytes; the recorder therefore re-enc
 messages with zeroed padding (:class:`evoscen_eval.recorder.CanonicalCdr`), which costs
 tens of microseconds per message. The encoders here write the *canonical* bytes (little
 endian CDR, XCDR1 alignment relative to the payload, zero padding) of the messages the
-simulation publishes every step — the flat tables (``sensor_msgs/PointCloud2``) and
-``/clock`` — directly: a template with the constant part, patched with the stamp, the
+simulation publishes every step — the flat tables (``sensor_msgs/PointCloud2``),
+``/clock`` and the SUT's odometry — directly, padded to a multiple of 4 bytes as DDS
+transports them (:func:`pad4`): a template with the constant part, patched with the stamp, the
 row count and the numpy buffer. They decode with rclpy, ``rosbags`` and ``mcap_ros2``
 like any other CDR message and equal the recorder's canonical form byte for byte (a test),
 so bags stay identical whichever path a message took. ``publish(bytes)`` on an rclpy
@@ -24,6 +25,16 @@ import numpy as np
 from .tables import CELL_BYTES, FLOAT64, stamp_from_ns
 
 _ENCAPSULATION_CDR_LE = b"\x00\x01\x00\x00"
+
+
+def pad4(data: bytes) -> bytes:
+    """``data`` followed by zero bytes up to a multiple of 4 bytes.
+
+    DDS transports a serialized message padded to a multiple of 4 bytes, so that is what a
+    raw subscription (and ``ros2 bag record``) sees; the canonical form includes it.
+    """
+    extra = -len(data) % 4
+    return data + b"\x00" * extra if extra else data
 
 
 class _PayloadWriter:
@@ -98,12 +109,12 @@ class TableEncoder:
         struct.pack_into("<I", head, self._width_at, rows)
         struct.pack_into("<I", head, self._row_step_at, rows * self.point_step)
         struct.pack_into("<I", head, self._data_len_at, len(payload))
-        return b"".join((_ENCAPSULATION_CDR_LE, head, payload, b"\x01"))  # is_dense = True
+        return pad4(b"".join((_ENCAPSULATION_CDR_LE, head, payload, b"\x01")))  # is_dense = True
 
 
 def encode_clock(stamp_ns: int) -> bytes:
     """Canonical CDR of ``rosgraph_msgs/Clock`` at ``stamp_ns``."""
-    return _ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns)
+    return pad4(_ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns))
 
 
 class OdometryEncoder:
@@ -125,4 +136,4 @@ class OdometryEncoder:
         half = 0.5 * float(yaw)
         pose = struct.pack("<7d", float(x), float(y), 0.0, 0.0, 0.0, math.sin(half), math.cos(half))
         twist = struct.pack("<6d", float(speed), 0.0, 0.0, 0.0, 0.0, float(yaw_rate))
-        return b"".join((_ENCAPSULATION_CDR_LE, head, pose, self._zeros36, twist, self._zeros36))
+        return pad4(b"".join((_ENCAPSULATION_CDR_LE, head, pose, self._zeros36, twist, self._zeros36)))

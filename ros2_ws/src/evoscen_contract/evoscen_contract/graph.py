@@ -11,9 +11,9 @@ Python (``KeyboardInterrupt``) rather than by rclpy's signal handler.
 Parameters. A node gets its parameters from a ROS 2 parameter file
 (``node_name: ros__parameters: ...``) written by the launcher: the node's own settings at
 the top level and the whole scenario configuration under ``scenario.`` (nested mappings,
-i.e. dotted names ``scenario.bvs.count``). :func:`scenario_from_node` rebuilds the nested
-mapping and validates it with :func:`evoscen_sim.config.config_from_dict`, so a bad value
-is the same one-line error as in a YAML file, naming the parameter.
+i.e. dotted names ``scenario.bvs.count``). :func:`node_parameters` rebuilds the nested
+mapping; ``evoscen_sim.node_params.scenario_from_node`` validates the scenario part like a
+YAML file, so a bad value is the same one-line error, naming the parameter.
 """
 
 from __future__ import annotations
@@ -84,21 +84,6 @@ def own_parameter(params: Mapping[str, Any], node_name: str, key: str, default: 
     return value
 
 
-def scenario_from_node(params: Mapping[str, Any], node_name: str):  # noqa: ANN201
-    """The scenario configuration from the ``scenario`` parameters (validated)."""
-    from evoscen_sim.config import config_from_dict
-
-    scenario = params.get("scenario")
-    if not isinstance(scenario, Mapping):
-        raise NodeParameterError(f"{node_name}: parameters 'scenario.*' missing: start the node with the "
-                                 "parameter file written by scripts/run_scenario.py --mode graph")
-    return config_from_dict(_prefix_keys(scenario), source=f"{node_name} parameter 'scenario'")
-
-
-def _prefix_keys(mapping: Mapping[str, Any]) -> dict[str, Any]:
-    return {k: (_prefix_keys(v) if isinstance(v, Mapping) else v) for k, v in mapping.items()}
-
-
 def publisher(node: Node, spec: TopicSpec):  # noqa: ANN201
     """A publisher for a contract topic with the contract's QoS."""
     return node.create_publisher(spec.msg_class, spec.name, spec.qos_profile())
@@ -129,3 +114,9 @@ class MessagePump:
         for sub in self.subscriptions:
             ws.add_subscription(sub.handle)
         ws.wait(max(0, int(timeout_s * 1e9)))
+
+
+def shutdown() -> None:
+    """``rclpy.shutdown`` if the context is still up."""
+    if rclpy.ok():
+        rclpy.shutdown()

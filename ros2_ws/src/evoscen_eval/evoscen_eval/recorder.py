@@ -53,6 +53,7 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
+from evoscen_contract.cdr import pad4
 from evoscen_contract.qos import rosbag2_qos_yaml
 from evoscen_contract.topics import TopicSpec
 from evoscen_eval.schemas import message_definition, type_description_hash
@@ -95,12 +96,15 @@ class CanonicalCdr:
     def __call__(self, type_name: str, data: bytes | bytearray | memoryview) -> bytes:
         """Return ``data`` (a CDR message of ``type_name``) with all padding zeroed.
 
+        The result is padded with zeros to a multiple of 4 bytes, the length DDS transports
+        (:func:`evoscen_contract.cdr.pad4`), so wire bytes and re-encoded bytes agree.
+
         Raises:
             ValueError: ``data`` does not decode as ``type_name``.
         """
         try:
             msg = self._store.deserialize_cdr(bytes(data), type_name)
-            return bytes(self._store.serialize_cdr(msg, type_name))
+            return pad4(bytes(self._store.serialize_cdr(msg, type_name)))
         except Exception as exc:  # noqa: BLE001 - any decoder failure: bad bytes
             raise ValueError(
                 f"CDR data ({len(data)} bytes) does not decode as {type_name}: {exc!r}"

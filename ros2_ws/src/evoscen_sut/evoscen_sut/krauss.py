@@ -6,7 +6,8 @@ position update (``--step-method.ballistic false``) and ``actionStepLength`` = t
 (``followSpeed``, ``dawdle2``, ``patchSpeedBeforeLC``), ``MSCFModel_KraussOrig1.cpp`` (the
 original ``vsafe``), ``MSCFModel.cpp`` (``maximumSafeFollowSpeed``,
 ``maximumSafeStopSpeedEuler``, ``brakeGapEuler``, ``calculateEmergencyDeceleration``,
-``finalizeSpeed``, ``maxNextSpeed``, ``minNextSpeed[Emergency]``), ``MSCFModel.h``
+``finalizeSpeed``, ``maxNextSpeed``, ``minNextSpeed[Emergency]``), ``MSVehicle.cpp``
+(``planMoveInternal``: the lane speed cap), ``MSCFModel.h``
 (``EMERGENCY_DECEL_AMPLIFIER = 1.2``), ``NUMERICAL_EPS = 0.001``.
 
 Notation: ``v`` own speed, ``v_l`` leader speed, ``a`` = accel, ``b`` = decel, ``e`` =
@@ -51,14 +52,15 @@ length is 5 m, our vehicles are 4.8 m; only the bumper gap matters).
 **Next speed** (``followSpeed`` + ``finalizeSpeed`` + ``dawdle2``), with ``U ~ uniform[0, 1)``
 (one draw per vehicle per step)::
 
-    v_pos  = min(v + a Δt, v_max, x)                       (x = +∞ without a leader)
+    v_pos  = min(v + a Δt, max(v_max, v − b Δt), x)        (x = +∞ without a leader)
     v_min  = min(max(0, v − b Δt), max(v_pos, max(0, v − e Δt)))
     v_high = max(v_min, v_pos)
     v_next = max(v_min, max(0, v_high − σ Δt U · (v_high if v_high < a else a)))
 
-(the comparison of a speed with ``a`` is SUMO's, unit quirk included). The acceleration
-returned is ``(v_next − v) / Δt``, always within ``[−max(b, e), a]`` for ``v ≤ v_max``; the
-position update SUMO pairs with it is ``s += v_next Δt``.
+(the comparison of a speed with ``a`` is SUMO's, unit quirk included; ``max(v_max, v − b Δt)``
+is ``MSVehicle::planMoveInternal``'s "speed limits are not emergencies": above the cap the
+vehicle slows at ``b``). The acceleration returned is ``(v_next − v) / Δt``, always within
+``[−max(b, e), a]``; the position update SUMO pairs with it is ``s += v_next Δt``.
 
 **Free-road mean speed.** Once ``v ≥ v_max − σ a Δt`` (and ``v_max ≥ a``, σ < 1) every
 step gives ``v_high = v_max`` and ``v_next = v_max − σ a Δt U``, so the speeds are i.i.d.
@@ -75,7 +77,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 from evoscen_sim.config import number
 from evoscen_sim.jit import kernel
 from evoscen_sim.neighbors import OWN
@@ -121,7 +122,7 @@ class KraussParams:
 
 # ------------------------------------------------------------------------ scalar kernels
 @kernel
-def _brake_gap_euler(speed, decel, dt):  # noqa: ANN001, ANN202
+def _brake_gap_euler(speed, decel, dt):
     """SUMO ``brakeGapEuler(speed, decel, headwayTime=0)``: distance braking by ``decel Δt`` per step."""
     reduction = decel * dt
     steps = int(speed / reduction)
@@ -129,7 +130,7 @@ def _brake_gap_euler(speed, decel, dt):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _max_safe_stop_speed_euler(gap, decel, tau, dt):  # noqa: ANN001, ANN202
+def _max_safe_stop_speed_euler(gap, decel, tau, dt):
     """SUMO ``maximumSafeStopSpeedEuler(gap, decel, onInsertion, headway=tau)``."""
     g = gap - NUMERICAL_EPS
     if g < 0.0:
@@ -144,7 +145,7 @@ def _max_safe_stop_speed_euler(gap, decel, tau, dt):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _emergency_decel(gap, speed, leader_speed, leader_decel, emergency_decel, dt):  # noqa: ANN001, ANN202
+def _emergency_decel(gap, speed, leader_speed, leader_decel, emergency_decel, dt):
     """SUMO ``calculateEmergencyDeceleration`` (its ``−ACCEL2SPEED(e)`` return for ``g ≤ 0`` kept)."""
     denom = gap + 0.5 * leader_speed * leader_speed / leader_decel
     if denom != 0.0:  # 0 gives inf or nan in C++: neither is <= leader_decel
@@ -157,7 +158,7 @@ def _emergency_decel(gap, speed, leader_speed, leader_decel, emergency_decel, dt
 
 
 @kernel
-def follow_speed_scalar(gap, speed, leader_speed, decel, emergency_decel, tau, dt):  # noqa: ANN001, ANN201
+def follow_speed_scalar(gap, speed, leader_speed, decel, emergency_decel, tau, dt):
     """SUMO ``maximumSafeFollowSpeed`` for one vehicle; ``gap`` is SUMO's (bumper gap − minGap).
 
     The leader's deceleration is taken equal to ``decel``. ``gap = inf`` or a NaN leader
@@ -180,9 +181,10 @@ def follow_speed_scalar(gap, speed, leader_speed, decel, emergency_decel, tau, d
 
 
 @kernel
-def next_speed_scalar(speed, max_speed, gap, leader_speed, u, accel, decel, emergency_decel, sigma, tau, dt):  # noqa: ANN001, ANN201
+def next_speed_scalar(speed, max_speed, gap, leader_speed, u, accel, decel, emergency_decel, sigma, tau, dt):
     """Krauss speed after one step for one vehicle (module docstring); ``gap`` is SUMO's gap."""
-    v_pos = min(speed + accel * dt, max_speed)
+    # MSVehicle::planMoveInternal: "speed limits are not emergencies" (laneMaxV >= minNextSpeed)
+    v_pos = min(speed + accel * dt, max(max_speed, max(speed - decel * dt, 0.0)))
     v_pos = min(v_pos, follow_speed_scalar(gap, speed, leader_speed, decel, emergency_decel, tau, dt))
     v_min = min(max(speed - decel * dt, 0.0), max(v_pos, max(speed - emergency_decel * dt, 0.0)))
     v_high = max(v_min, v_pos)
@@ -194,7 +196,7 @@ def next_speed_scalar(speed, max_speed, gap, leader_speed, u, accel, decel, emer
 
 
 @kernel
-def _next_speed_kernel(speed, max_speed, gap_bb, leader_speed, u, min_gap, accel, decel,  # noqa: ANN001, ANN202
+def _next_speed_kernel(speed, max_speed, gap_bb, leader_speed, u, min_gap, accel, decel,
                        emergency_decel, sigma, tau, dt):
     n = speed.shape[0]
     out = np.empty(n)
@@ -205,7 +207,7 @@ def _next_speed_kernel(speed, max_speed, gap_bb, leader_speed, u, min_gap, accel
 
 
 @kernel
-def _follow_speed_kernel(gap_bb, speed, leader_speed, min_gap, decel, emergency_decel, tau, dt):  # noqa: ANN001, ANN202
+def _follow_speed_kernel(gap_bb, speed, leader_speed, min_gap, decel, emergency_decel, tau, dt):
     n = gap_bb.shape[0]
     out = np.empty(n)
     for k in range(n):
@@ -213,13 +215,13 @@ def _follow_speed_kernel(gap_bb, speed, leader_speed, min_gap, decel, emergency_
     return out
 
 
-def _flat(*arrays) -> tuple[tuple[int, ...], list[np.ndarray]]:  # noqa: ANN002
+def _flat(*arrays) -> tuple[tuple[int, ...], list[np.ndarray]]:
     shape = np.broadcast_shapes(*(np.shape(a) for a in arrays))
     return shape, [np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=float), shape)).ravel() for a in arrays]
 
 
 # ------------------------------------------------------------------------ public functions
-def krauss_safe_speed(gap_m, leader_speed_mps, tau_s: float, decel_mps2: float) -> np.ndarray:  # noqa: ANN001
+def krauss_safe_speed(gap_m, leader_speed_mps, tau_s: float, decel_mps2: float) -> np.ndarray:
     """Continuous Krauss safe speed ``−τb + √((τb)² + v_l² + 2 b g)`` (m/s); no randomness.
 
     ``gap_m`` is SUMO's gap: the bumper-to-bumper gap **minus** ``min_gap_m``. Broadcasts like
@@ -238,7 +240,7 @@ def krauss_safe_speed(gap_m, leader_speed_mps, tau_s: float, decel_mps2: float) 
     return np.where(no_leader, np.inf, v)
 
 
-def sumo_follow_speed(gap_m, speed_mps, leader_speed_mps, params: KraussParams, dt_s: float) -> np.ndarray:  # noqa: ANN001
+def sumo_follow_speed(gap_m, speed_mps, leader_speed_mps, params: KraussParams, dt_s: float) -> np.ndarray:
     """SUMO's per-step safe follow speed (``maximumSafeFollowSpeed``, module docstring) (m/s).
 
     ``gap_m`` is the **bumper-to-bumper** gap (``min_gap_m`` is subtracted here); no leader
@@ -250,7 +252,7 @@ def sumo_follow_speed(gap_m, speed_mps, leader_speed_mps, params: KraussParams, 
     return out.reshape(shape)
 
 
-def krauss_next_speed(speed_mps, max_speed_mps, gap_m, leader_speed_mps, uniform, params: KraussParams,  # noqa: ANN001
+def krauss_next_speed(speed_mps, max_speed_mps, gap_m, leader_speed_mps, uniform, params: KraussParams,
                       dt_s: float) -> np.ndarray:
     """Krauss speed after one step (m/s), SUMO's ``finalizeSpeed`` with dawdling.
 
@@ -281,15 +283,15 @@ class KraussCarFollowing:
         self.rng = rng
         self.dt_s = float(dt_s)
 
-    def acceleration(self, view, vehicles: np.ndarray, lane_offset: np.ndarray | None = None) -> np.ndarray:  # noqa: ANN001
+    def acceleration(self, view, vehicles: np.ndarray, lane_offset: np.ndarray | None = None) -> np.ndarray:
         """Next-step acceleration (m/s²) of ``vehicles`` (world indices).
 
         Each vehicle follows the nearest leader in lane ``lane + lane_offset`` (offsets in
         -2..+2, +1 = left; default 0, the own lane), from the view's neighbourhood; no leader
         means free road. The speed cap is ``min(desired_speed_mps, speed limit of the
         vehicle's own lane at its position)`` (a missing limit is ignored). Result: ``(v_next −
-        v) / dt_s`` with ``v_next`` from :func:`krauss_next_speed`, in
-        ``[−max(decel, emergency_decel), accel]`` while ``v`` is at most the cap.
+        v) / dt_s`` with ``v_next`` from :func:`krauss_next_speed`, always in
+        ``[−max(decel, emergency_decel), accel]``.
         """
         idx = np.asarray(vehicles, dtype=np.int64)
         m = idx.shape[0]

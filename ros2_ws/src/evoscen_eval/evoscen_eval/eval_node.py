@@ -1,0 +1,135 @@
+"""The evaluator node: records every contract topic into a rosbag2 (MCAP) bag.
+
+    python -m evoscen_eval.eval_node --ros-args --params-file eval.yaml -p bag_dir:=runs/x/bag
+
+Raw (serialized) subscriptions on every topic of the contract, with the contract's QoS;
+the bytes go through the same :class:`~evoscen_eval.recorder.OrderedBag` and
+:class:`~evoscen_eval.recorder.BagRecorder` as the in-process runner, so a graph run's bag
+equals the in-process bag of the same scenario. Messages are written in canonical order
+with a lag of ``reorder_lag_steps`` steps of simulation time (messages of one step arrive
+from several publishers in no fixed order). The bag is finished when the ``run_end`` event
+arrives (after ``drain_s`` more seconds of taking what is still in flight), on Ctrl-C, or
+after ``idle_timeout_s`` without any message.
+
+Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory),
+``reorder_lag_steps`` [50], ``drain_s`` [0.5], ``idle_timeout_s`` [60].
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from evoscen_contract import graph
+from evoscen_contract import topics as T
+from evoscen_sim.errors import InputError
+from evoscen_sim.node_params import scenario_from_node
+
+from .recorder import BagRecorder, OrderedBag
+
+NODE_NAME = T.NODE_EVAL
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
+# topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
+_CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name}
+
+
+class EvaluatorNode:
+    """The recorder (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.node = graph.make_node(NODE_NAME)
+        params = graph.node_parameters(self.node)
+        self.cfg = scenario_from_node(params, NODE_NAME)
+        p = lambda *a, **k: graph.own_parameter(params, NODE_NAME, *a, **k)  # noqa: E731
+        bag_dir = p("bag_dir", "", str, check=bool, expected="expected the path of a new or empty bag directory")
+        self.lag_steps = p("reorder_lag_steps", 50, int, check=lambda v: v >= 1, expected="expected an integer >= 1")
+        self.drain_s = p("drain_s", 0.5, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
+        self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
+                                expected="expected a number > 0 (s)")
+        self.dt_ns = round(self.cfg.dt_s * 1e9)
+        rec = self.cfg.recording
+        self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,
+                                          chunk_size=rec.chunk_size_bytes), T.CONTRACT)
+        self.subs = {spec.name: graph.subscription(self.node, spec, raw=True) for spec in T.CONTRACT}
+        self.pump = graph.MessagePump(self.node, self.subs.values())
+        self.latest_world_ns = -1
+        self.run_end_seen = False
+
+    def _take_all(self) -> int:
+        """Take every available message; returns how many."""
+        taken = 0
+        for topic, sub in self.subs.items():
+            while (data := graph.MessagePump.take(sub)) is not None:
+                taken += 1
+                t_ns = _stamp_ns(topic, data)
+                self.bag.add(topic, data, t_ns, canonical=topic in _CANONICAL_TOPICS)
+                if topic == T.WORLD.name:
+                    self.latest_world_ns = max(self.latest_world_ns, t_ns)
+                elif topic == T.EVENTS.name and _is_run_end(data):
+                    self.run_end_seen = True
+        if self.latest_world_ns >= 0:
+            self.bag.flush_before(self.latest_world_ns - self.lag_steps * self.dt_ns)
+        return taken
+
+    def run(self) -> int:
+        """Record until the run ends; returns the exit status."""
+        status = EXIT_OK
+        last_message = time.monotonic()
+        try:
+            while not self.run_end_seen:
+                if self._take_all():
+                    last_message = time.monotonic()
+                elif time.monotonic() - last_message > self.idle_timeout_s:
+                    print(f"error: {NODE_NAME}: no message for {self.idle_timeout_s:g} s; finishing the bag",
+                          file=sys.stderr)
+                    status = EXIT_FAULT
+                    break
+                self.pump.wait(0.1)
+            drain_until = time.monotonic() + self.drain_s
+            while time.monotonic() < drain_until:
+                self._take_all()
+                self.pump.wait(0.02)
+        except KeyboardInterrupt:
+            status = EXIT_INTERRUPTED
+        finally:
+            self.bag.close()
+        return status
+
+
+def _stamp_ns(topic: str, data: bytes) -> int:
+    """The header stamp (= log time) of a serialized contract message, in ns."""
+    # every contract message starts with a builtin_interfaces/Time after the 4-byte CDR header
+    # (Clock.clock, or Header.stamp)
+    sec = int.from_bytes(data[4:8], "little", signed=True)
+    nanosec = int.from_bytes(data[8:12], "little")
+    return sec * 1_000_000_000 + nanosec
+
+
+def _is_run_end(data: bytes) -> bool:
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message
+
+    return any(status.name == T.EVENT_RUN_END for status in deserialize_message(data, DiagnosticArray).status)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: one-line errors for bad parameters (exit 2)."""
+    graph.init(args)
+    try:
+        try:
+            node = EvaluatorNode()
+        except (InputError, graph.NodeParameterError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        try:
+            return node.run()
+        finally:
+            node.node.destroy_node()
+    except KeyboardInterrupt:
+        return EXIT_INTERRUPTED
+    finally:
+        graph.shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,126 @@
+"""A controller node: answers every world message with commands for the vehicles it drives.
+
+The BV node (:mod:`evoscen_bv.bv_node`) and the SUT node (:mod:`evoscen_sut.sut_node`) are
+this loop with a different driver: take ``/evoscen/world`` at t_k, rebuild a
+:class:`~evoscen_sim.view.WorldView`, ask the driver, publish one command table stamped
+t_k. Before answering the first world message the node waits until its command publisher
+is matched with the simulation node and the recorder (``command_subscribers``, default 2),
+so no command is lost. It ends on the ``run_end`` event, on Ctrl-C, or after
+``idle_timeout_s`` without a world message (the simulation is gone).
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from evoscen_contract import graph
+from evoscen_contract import topics as T
+from evoscen_contract.messages import WorldMessages
+from evoscen_contract.tables import ns_from_stamp, table_columns
+
+from .errors import InputError
+from .node_params import scenario_from_node
+from .road import load_road
+from .view import WorldView
+
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
+
+
+class ControllerNode:
+    """One controller (see the module docstring).
+
+    Args:
+        name: node name (``evoscen_bv``, ``evoscen_sut``).
+        command_spec: the contract topic it publishes.
+        build: ``build(params, cfg) -> (driver, vehicle indices)`` from the node's parameters
+            and the validated scenario configuration.
+    """
+
+    def __init__(self, name: str, command_spec: T.TopicSpec, build: Callable) -> None:
+        self.name = name
+        self.node = graph.make_node(name)
+        params = graph.node_parameters(self.node)
+        self.cfg = scenario_from_node(params, name)
+        p = lambda *a, **k: graph.own_parameter(params, name, *a, **k)  # noqa: E731
+        self.command_subscribers = p("command_subscribers", 2, int, check=lambda v: v >= 1,
+                                     expected="expected an integer >= 1 (the simulation node and the recorder)")
+        self.startup_timeout_s = p("startup_timeout_s", 30.0, float, check=lambda v: v > 0,
+                                   expected="expected a number > 0 (s)")
+        self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
+                                expected="expected a number > 0 (s)")
+        self.driver, self.vehicles = build(params, self.cfg)
+        self.road = load_road(self.cfg.map)
+        self.msgs = WorldMessages(self.cfg.dt_s)
+        self.dt_ns = round(self.cfg.dt_s * 1e9)
+        self.world_sub = graph.subscription(self.node, T.WORLD, raw=False)
+        self.events_sub = graph.subscription(self.node, T.EVENTS, raw=False)
+        self.pub = graph.publisher(self.node, command_spec)
+        self.pump = graph.MessagePump(self.node, [self.world_sub, self.events_sub])
+
+    def _ready(self) -> bool:
+        return self.pub.get_subscription_count() >= self.command_subscribers
+
+    def answer(self, msg) -> None:  # noqa: ANN001
+        """Publish the commands answering one world message (not the final state after the last step)."""
+        t_ns = ns_from_stamp(msg.header.stamp)
+        if t_ns >= self.cfg.steps * self.dt_ns:
+            return
+        view = WorldView(self.road, table_columns(msg), t_ns // self.dt_ns, self.cfg.dt_s)
+        throttle, lane_change = self.driver.act(view)
+        ids = view.ids[self.vehicles]
+        self.pub.publish(self.msgs.commands(ids, np.asarray(throttle, float), np.asarray(lane_change, float), t_ns))
+
+    def run(self) -> int:
+        """Answer world messages until the run ends; returns the exit status."""
+        started = time.monotonic()
+        last_world = started
+        try:
+            while True:
+                if self._ready():
+                    while (msg := graph.MessagePump.take(self.world_sub)) is not None:
+                        self.answer(msg)
+                        last_world = time.monotonic()
+                elif time.monotonic() - started > self.startup_timeout_s:
+                    print(f"error: {self.name}: start-up: {self.pub.topic_name} not matched with "
+                          f"{self.command_subscribers} subscribers after {self.startup_timeout_s:g} s", file=sys.stderr)
+                    return EXIT_FAULT
+                while (ev := graph.MessagePump.take(self.events_sub)) is not None:
+                    if any(status.name == T.EVENT_RUN_END for status in ev.status):
+                        self.pub.wait_for_all_acked(_duration(2.0))
+                        return EXIT_OK
+                if time.monotonic() - last_world > self.idle_timeout_s:
+                    print(f"error: {self.name}: no world message for {self.idle_timeout_s:g} s; "
+                          "the simulation node is gone", file=sys.stderr)
+                    return EXIT_FAULT
+                self.pump.wait(0.1)
+        except KeyboardInterrupt:
+            return EXIT_INTERRUPTED
+
+
+def _duration(seconds: float):  # noqa: ANN202
+    from rclpy.duration import Duration
+
+    return Duration(nanoseconds=int(seconds * 1e9))
+
+
+def run_controller(name: str, command_spec: T.TopicSpec, build: Callable, args: list[str] | None) -> int:
+    """``main`` of a controller node: one-line errors for bad parameters (exit 2)."""
+    graph.init(args)
+    try:
+        try:
+            node = ControllerNode(name, command_spec, build)
+        except (InputError, graph.NodeParameterError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        try:
+            return node.run()
+        finally:
+            node.node.destroy_node()
+    except KeyboardInterrupt:
+        return EXIT_INTERRUPTED
+    finally:
+        graph.shutdown()

@@ -1,0 +1,93 @@
+"""Build a scenario's world and drivers from a :class:`ScenarioConfig` — the same in every runner.
+
+Random streams: the scenario seed feeds one :class:`numpy.random.SeedSequence`, spawned
+into independent child streams for the spawn layout, the world (re-entry draws), the BV
+drivers and the SUT, so adding draws to one consumer never shifts another's, and each
+node of the graph rebuilds exactly its own part (the simulation node the world, the BV
+node the BV driver, the SUT node the SUT).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .config import ScenarioConfig, mix_counts
+from .models import create_driver
+from .road import RoadModel, load_road
+from .scenario_params import control_params_from_config, reentry_params_from_config, vehicle_params_from_config
+from .spawn import spawn_layout
+from .world import World
+
+POLICY_CODES = {"level0": 0, "mutual": 1, "competitive": 2, "cooperative": 3, "sut": 4, "nilsson": 5, "mobil": 6}
+"""Policy codes of the world table (kept equal to ``evoscen_contract.topics.POLICY_CODES`` by a test)."""
+
+SUT_INDEX = 0
+"""The SUT is always vehicle 0 (id 0)."""
+
+
+def bv_policy_codes(cfg: ScenarioConfig, rng: np.random.Generator) -> np.ndarray:
+    """Policy code of each BV.
+
+    A rule-based BV driver (level-0, Nilsson, MOBIL) drives every BV, which is recorded with
+    that driver's code (a plug-in driver without a code of its own as level-0). The policy
+    mix applies to the learned drivers (``bvs.driver: learned``): it is split by
+    :func:`mix_counts` and shuffled over the BVs with ``rng``.
+    """
+    n = cfg.bvs.count
+    if cfg.bvs.driver != "learned":
+        return np.full(n, POLICY_CODES.get(cfg.bvs.driver, POLICY_CODES["level0"]), dtype=np.int64)
+    codes = np.concatenate([np.full(k, POLICY_CODES[name], dtype=np.int64) for name, k in mix_counts(cfg).items()])
+    return rng.permutation(codes)
+
+
+def scenario_rngs(seed: int) -> dict[str, np.random.Generator]:
+    """The scenario's independent random streams (the same in every runner and node)."""
+    names = ("spawn", "world", "bv", "sut")
+    return {name: np.random.default_rng(s) for name, s in zip(names, np.random.SeedSequence(seed).spawn(len(names)))}
+
+
+def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
+    """Road, spawn layout and world for ``cfg`` (what the simulation node owns)."""
+    road = load_road(cfg.map) if road is None else road
+    rngs = scenario_rngs(cfg.seed)
+    vehicle = vehicle_params_from_config(cfg)
+    initial = spawn_layout(
+        road,
+        bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
+        sut_policy=POLICY_CODES["sut"],
+        sut_lane=cfg.sut.lane,
+        sut_s_m=cfg.sut.s_m,
+        sut_speed_mps=cfg.sut.speed_mps,
+        ramp_vehicles=cfg.spawn.ramp_vehicles,
+        mainline_gap_m=cfg.spawn.mainline_gap_m,
+        speed_range_mps=tuple(cfg.spawn.speed_mps),
+        jitter_m=cfg.spawn.jitter_m,
+        vehicle_length_m=vehicle.length_m,
+        rng=rngs["spawn"],
+    )
+    return World(
+        road,
+        initial,
+        vehicle=vehicle,
+        control=control_params_from_config(cfg),
+        reentry=reentry_params_from_config(cfg),
+        dt_s=cfg.dt_s,
+        rng=rngs["world"],
+    )
+
+
+def bv_indices(cfg: ScenarioConfig) -> np.ndarray:
+    """World indices of the BVs: 1..count (the SUT is 0)."""
+    return np.arange(1, cfg.bvs.count + 1)
+
+
+def build_bv_driver(cfg: ScenarioConfig):  # noqa: ANN201
+    """The driver of all BVs (what the BV node hosts)."""
+    return create_driver(cfg.bvs.driver, "bv", bv_indices(cfg), cfg, scenario_rngs(cfg.seed)["bv"])
+
+
+def build_sut_driver(cfg: ScenarioConfig, model: str | None = None):  # noqa: ANN201
+    """The SUT's driver, model ``cfg.sut.model`` unless ``model`` is given (what the SUT node hosts)."""
+    return create_driver(model or cfg.sut.model, "sut", [SUT_INDEX], cfg, scenario_rngs(cfg.seed)["sut"])
+
+

@@ -1,0 +1,210 @@
+"""The simulation node: owns time and the world, steps in lockstep with its controllers.
+
+    python -m evoscen_sim.sim_node --ros-args --params-file sim.yaml   (or: ros2 run evoscen_sim sim_node ...)
+
+Step k: publish ``/clock``, ``/evoscen/world`` and ``/evoscen/sut/odom`` at t_k (and the
+latched ``/evoscen/roster`` before the first step); wait until every registered controller
+(``controllers``: the BV node, the SUT node) has answered with commands stamped t_k;
+integrate to t_{k+1}; publish what happened on ``/evoscen/events``. After the last step the
+final state and a ``run_end`` event go out.
+
+Start-up waits (``startup_timeout_s``) until every controller and the recorder are matched
+on every topic, so no message is lost. A controller that misses the deadline of a step
+(``deadline_s``) is a fault: its last throttle is held (no lane change), a ``fault`` event
+(kind ``deadline``) is published, and after ``max_misses`` consecutive misses the run stops
+cleanly: ``fault`` (kind ``abort``) and ``run_end`` (kind ``aborted``) events, a one-line
+error naming the controller, exit status 3. Ctrl-C ends the run after the current step
+(``run_end`` kind ``interrupted``, exit status 130). Never a hang.
+
+Parameters: ``scenario.*`` (the scenario configuration, validated like the YAML file),
+``deadline_s`` [2.0], ``startup_timeout_s`` [30.0], ``max_misses`` [5], ``controllers``
+[``["evoscen_bv", "evoscen_sut"]``], ``recorder`` [true]: wait for the evaluator node.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from evoscen_contract import graph
+from evoscen_contract import topics as T
+from evoscen_contract.messages import WorldMessages
+from evoscen_contract.tables import ns_from_stamp, table_array
+
+from .errors import InputError
+from .node_params import scenario_from_node
+from .events import fault_event, has_events, run_end_event, step_events
+from .scenario import SUT_INDEX, build_world
+
+NODE_NAME = T.NODE_SIM
+CONTROLLER_TOPICS = {T.NODE_BV: T.COMMANDS_BV, T.NODE_SUT: T.COMMANDS_SUT}
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
+
+
+class RunAborted(RuntimeError):
+    """The run cannot go on (a controller fault or a start-up timeout); the message says why."""
+
+
+class SimulationNode:
+    """The simulation node (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.node = graph.make_node(NODE_NAME)
+        params = graph.node_parameters(self.node)
+        self.cfg = scenario_from_node(params, NODE_NAME)
+        p = lambda *a, **k: graph.own_parameter(params, NODE_NAME, *a, **k)  # noqa: E731
+        self.deadline_s = p("deadline_s", 2.0, float, check=lambda v: v > 0, expected="expected a number > 0 (s)")
+        self.startup_timeout_s = p("startup_timeout_s", 30.0, float, check=lambda v: v > 0,
+                                   expected="expected a number > 0 (s)")
+        self.max_misses = p("max_misses", 5, int, check=lambda v: v >= 1, expected="expected an integer >= 1")
+        self.controllers = p("controllers", [T.NODE_BV, T.NODE_SUT], list,
+                             check=lambda v: len(v) > 0 and set(v) <= set(CONTROLLER_TOPICS) and len(set(v)) == len(v),
+                             expected=f"expected a non-empty list of distinct names from {sorted(CONTROLLER_TOPICS)}")
+        self.recorder = p("recorder", True, bool, expected="expected true or false")
+
+        self.world = build_world(self.cfg)
+        self.msgs = WorldMessages(self.cfg.dt_s)
+        n = self.node
+        self.pub = {spec.name: graph.publisher(n, spec)
+                    for spec in (T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.ROSTER)}
+        self.subs = {c: graph.subscription(n, CONTROLLER_TOPICS[c], raw=False) for c in self.controllers}
+        self.pump = graph.MessagePump(n, self.subs.values())
+        # commands held for a controller that misses a deadline: its last throttle, no lane change
+        self.throttle = np.zeros(self.world.n)
+        self.lane_change = np.zeros(self.world.n, dtype=np.int64)
+        self.misses = dict.fromkeys(self.controllers, 0)
+
+    # ------------------------------------------------------------------ publishing
+    def _publish(self, spec: T.TopicSpec, data: bytes) -> None:
+        self.pub[spec.name].publish(data)
+
+    def _publish_state(self, *, roster: bool) -> None:
+        w, m, t_ns = self.world, self.msgs, self.world.time_ns
+        cols = w.columns()
+        if roster:
+            self._publish(T.ROSTER, m.roster(cols, t_ns))
+        self._publish(T.CLOCK, m.clock(t_ns))
+        self._publish(T.WORLD, m.world(cols, t_ns))
+        self._publish(T.SUT_ODOM, m.odometry(cols, SUT_INDEX, t_ns))
+
+    def _publish_events(self, events: list[dict]) -> None:
+        self._publish(T.EVENTS, self.msgs.events(events, self.world.time_ns))
+
+    # ------------------------------------------------------------------ start-up
+    def _unmatched(self) -> list[str]:
+        expected_world = len(self.controllers) + (1 if self.recorder else 0)
+        missing = []
+        if self.pub[T.WORLD.name].get_subscription_count() < expected_world:
+            missing.append(f"{T.WORLD.name} (needs {expected_world} subscribers: {', '.join(self.controllers)}"
+                           f"{', evoscen_eval' if self.recorder else ''})")
+        if self.recorder:
+            missing += [f"{name} (needs the recorder evoscen_eval)" for name in (T.CLOCK.name, T.SUT_ODOM.name,
+                        T.EVENTS.name, T.ROSTER.name) if self.pub[name].get_subscription_count() < 1]
+        missing += [f"{CONTROLLER_TOPICS[c].name} (needs its publisher {c})"
+                    for c, sub in self.subs.items() if sub.get_publisher_count() < 1]
+        return missing
+
+    def wait_for_graph(self) -> None:
+        """Block until every peer is matched; RunAborted after ``startup_timeout_s``."""
+        deadline = time.monotonic() + self.startup_timeout_s
+        while missing := self._unmatched():
+            if time.monotonic() > deadline:
+                raise RunAborted(f"start-up: not matched after {self.startup_timeout_s:g} s: {'; '.join(missing)}")
+            time.sleep(0.02)
+
+    # ------------------------------------------------------------------ lockstep
+    def _collect_commands(self, step: int, timeout_s: float) -> None:
+        """Take the commands stamped for this step from every controller (or count a miss)."""
+        t_ns = self.world.time_ns
+        pending = set(self.controllers)
+        deadline = time.monotonic() + timeout_s
+        while True:
+            for c in list(pending):
+                sub = self.subs[c]
+                while (msg := graph.MessagePump.take(sub)) is not None:
+                    stamp = ns_from_stamp(msg.header.stamp)
+                    if stamp != t_ns:
+                        continue  # a late answer to an earlier step
+                    table = table_array(msg)
+                    rows = table[:, 0].astype(np.int64)  # ids are world indices
+                    self.throttle[rows] = table[:, 1]
+                    self.lane_change[rows] = table[:, 2].astype(np.int64)
+                    pending.discard(c)
+            remaining = deadline - time.monotonic()
+            if not pending or remaining <= 0:
+                break
+            self.pump.wait(min(remaining, 0.1))
+        for c in self.controllers:
+            if c not in pending:
+                self.misses[c] = 0
+                continue
+            self.misses[c] += 1
+            rows = self._rows_of(c)
+            self.lane_change[rows] = 0
+            kind = "abort" if self.misses[c] >= self.max_misses else "deadline"
+            text = (f"controller '{c}' missed {self.misses[c]} consecutive deadline(s) of {timeout_s:g} s "
+                    f"at step {step}" + ("; run aborted" if kind == "abort" else "; holding its last throttle"))
+            self._publish_events([fault_event(self.world, kind, c, self.misses[c], text)])
+            self.node.get_logger().warning(text)
+            if kind == "abort":
+                raise RunAborted(text)
+
+    def _rows_of(self, controller: str) -> np.ndarray:
+        role = self.world.role
+        return np.flatnonzero(role == 1) if controller == T.NODE_SUT else np.flatnonzero(role == 0)
+
+    def run(self) -> int:
+        """The whole run; returns the process exit status."""
+        w = self.world
+        end_kind, end_text, status = "interrupted", "run interrupted (SIGINT)", EXIT_INTERRUPTED
+        try:
+            self.wait_for_graph()
+            for k in range(self.cfg.steps):
+                self._publish_state(roster=(k == 0))
+                self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
+                result = w.step(self.throttle, self.lane_change)
+                if has_events(result):
+                    self._publish_events(step_events(w, result))
+            end_kind, end_text, status = "completed", f"run completed: {w.step_index} steps", EXIT_OK
+        except RunAborted as exc:
+            end_kind, end_text, status = "aborted", str(exc), EXIT_FAULT
+            print(f"error: {NODE_NAME}: {exc}", file=sys.stderr)
+        except KeyboardInterrupt:
+            pass
+        self._publish_state(roster=(w.step_index == 0))
+        self._publish_events([run_end_event(w, end_kind, end_text)])
+        for pub in self.pub.values():
+            pub.wait_for_all_acked(rclpy_duration(5.0))
+        return status
+
+
+def rclpy_duration(seconds: float):  # noqa: ANN201
+    """An rclpy Duration of ``seconds``."""
+    from rclpy.duration import Duration
+
+    return Duration(nanoseconds=int(seconds * 1e9))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point: run the node; one-line errors for bad parameters (exit 2)."""
+    graph.init(args)
+    try:
+        try:
+            sim = SimulationNode()
+        except (InputError, graph.NodeParameterError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        try:
+            return sim.run()
+        finally:
+            sim.node.destroy_node()
+    except KeyboardInterrupt:
+        return EXIT_INTERRUPTED
+    finally:
+        graph.shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,37 @@
+"""The SUT node: hosts one SUT model, chosen by parameter.
+
+    python -m evoscen_sut.sut_node --ros-args --params-file sut.yaml [-p model:=mobil]
+
+``model`` (default: ``scenario.sut.model``) names a model of the registry
+(:mod:`evoscen_sim.models`: built-ins and ``evoscen.sut`` entry points); an unknown name is a
+one-line error listing the valid choices (exit 2). Other parameters: ``scenario.*``,
+``command_subscribers`` [2], ``startup_timeout_s`` [30], ``idle_timeout_s`` [60].
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from evoscen_contract import graph
+from evoscen_contract import topics as T
+from evoscen_sim.controller_node import run_controller
+from evoscen_sim.models import model_names
+from evoscen_sim.scenario import SUT_INDEX, build_sut_driver
+
+
+def _build(params, cfg):  # noqa: ANN001, ANN202
+    model = graph.own_parameter(params, T.NODE_SUT, "model", cfg.sut.model, str,
+                                check=lambda v: v in model_names("sut"),
+                                expected="expected one of " + ", ".join(model_names("sut")))
+    return build_sut_driver(cfg, model), np.array([SUT_INDEX])
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point."""
+    return run_controller(T.NODE_SUT, T.COMMANDS_SUT, _build, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
