@@ -19,7 +19,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 DT_NS = 100_000_000  # dt_s = 0.1 of the shipped config
 N_VEHICLES = 21  # 20 BVs + the SUT
 
-# topics published in every step / once; /evoscen/events only in steps with events
+# topics published in every step / once; /evoscen/events after every step plus the run_end event
 ALWAYS = {"/clock", "/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut",
           "/evoscen/sut/odom", "/evoscen/roster"}
 
@@ -55,22 +55,16 @@ def _ns(stamp) -> int:  # noqa: ANN001
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
-def _expected_counts(steps: int, with_events: int) -> dict[str, int]:
-    counts = {
+def _expected_counts(steps: int) -> dict[str, int]:
+    return {
         "/clock": steps + 1,
         "/evoscen/world": steps + 1,
         "/evoscen/sut/odom": steps + 1,
         "/evoscen/commands/bv": steps,
         "/evoscen/commands/sut": steps,
+        "/evoscen/events": steps + 1,  # one after each step (empty if nothing happened) + run_end
         "/evoscen/roster": 1,
     }
-    if with_events:
-        counts["/evoscen/events"] = with_events
-    return counts
-
-
-def _event_steps(messages: dict) -> int:
-    return len(messages.get("/evoscen/events", []))
 
 
 # --------------------------------------------------------------------------- rosbags
@@ -88,14 +82,9 @@ def test_rosbags_topics_types_and_counts(recorded_run, rosbags_messages):
         assert conn.ext.serialization_format == "cdr"
     present = set(messages)
     assert ALWAYS <= present <= {spec.name for spec in T.CONTRACT}
-    n_event_msgs = _event_steps(messages)
-    # events appear iff the run had any (the CLI summary counts them)
     s = recorded_run.summary
-    n_events = s["collisions"] + s["lane_changes"] + s["reentries"] + s["off_road"]
-    assert (n_event_msgs > 0) == (n_events > 0)
-    assert n_event_msgs <= n_events  # one message per step with events
     counts = {topic: len(v) for topic, v in messages.items()}
-    assert counts == _expected_counts(steps, n_event_msgs)
+    assert counts == _expected_counts(steps)
     assert meta["message_count"] == sum(counts.values()) == s["messages"]
     assert {c.topic: c.msgcount for c in meta["connections"].values() if c.msgcount} == counts
 
@@ -178,6 +167,9 @@ def test_rosbags_events(recorded_run, rosbags_messages):
     assert names[T.EVENT_COLLISION] == s["collisions"]
     assert names[T.EVENT_REENTRY] == s["reentries"]
     assert names[T.EVENT_OFF_ROAD] == s["off_road"]
+    assert names[T.EVENT_RUN_END] == 1  # the last message, kind completed
+    last = T.parse_events(messages["/evoscen/events"][-1][2])
+    assert [(e["name"], e["kind"], e["steps"]) for e in last] == [(T.EVENT_RUN_END, "completed", recorded_run.steps)]
     for t, _, m in messages.get("/evoscen/events", []):
         for e in T.parse_events(m):
             assert e["time_s"] == pytest.approx(t / 1e9)

@@ -8,7 +8,7 @@ No middleware: the cores are called directly, in the same order the node graph u
 2. the BV drivers and the SUT answer with their commands, stamped ``t_k``
    (``/evoscen/commands/bv``, ``/evoscen/commands/sut``);
 3. the world integrates to ``t_{k+1}``; what happened goes out on ``/evoscen/events``
-   stamped ``t_{k+1}`` (only in steps where something happened).
+   stamped ``t_{k+1}`` (every step; empty when nothing happened).
 
 After the last step the final state (``t_N``) is published too, and a ``run_end`` event.
 With recording on, every message goes through :class:`evoscen_eval.recorder.OrderedBag`
@@ -29,7 +29,7 @@ from typing import Callable
 
 from evoscen_sim.config import ScenarioConfig
 
-from evoscen_sim.events import has_events, run_end_event, step_events
+from evoscen_sim.events import run_end_event, step_events
 
 from .scenario import Scenario, build_scenario
 
@@ -122,8 +122,8 @@ def run_inprocess(
             summary.lane_changes += len(result.lane_changes_completed)
             summary.reentries += len(result.reentries)
             summary.off_road += len(result.off_road)
-            if rec is not None and has_events(result):
-                rec.events(step_events(world, result), world.time_ns)
+            if rec is not None:
+                rec.events(step_events(world, result), world.time_ns)  # every step, as the sim node
             if progress is not None:
                 progress(k + 1)
         end_kind, end_message = "completed", f"run completed: {world.step_index} steps"

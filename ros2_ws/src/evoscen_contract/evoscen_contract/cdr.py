@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -137,3 +138,89 @@ class OdometryEncoder:
         pose = struct.pack("<7d", float(x), float(y), 0.0, 0.0, 0.0, math.sin(half), math.cos(half))
         twist = struct.pack("<6d", float(speed), 0.0, 0.0, 0.0, 0.0, float(yaw_rate))
         return pad4(b"".join((_ENCAPSULATION_CDR_LE, head, pose, self._zeros36, twist, self._zeros36)))
+
+
+class TableDecodeError(ValueError):
+    """Bytes that are not a flat typed table (all-FLOAT64 little-endian PointCloud2)."""
+
+
+_FIELDS_CACHE: dict[int, list[tuple[bytes, tuple[str, ...], int]]] = {}
+
+
+class DecodedTable(NamedTuple):
+    """A table message read by :func:`decode_table`."""
+
+    stamp_ns: int
+    frame_id: str
+    fields: tuple[str, ...]
+    data: np.ndarray
+    """rows x fields float64 (a read-only view of the message bytes)."""
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The columns by name."""
+        return {name: self.data[:, k] for k, name in enumerate(self.fields)}
+
+
+def decode_table(data: bytes | memoryview) -> DecodedTable:
+    """The stamp, frame id, field names and rows of a serialized table message.
+
+    The fast path of every node that reads tables (the world, commands) from raw
+    subscriptions: no rclpy deserialization; the (constant) field-list block is parsed once
+    and recognised by its bytes afterwards. Accepts any valid CDR encoding of a table
+    (rclpy's, ours, with any frame id). The array is a read-only view of ``data``.
+
+    Raises:
+        TableDecodeError: not little-endian CDR, not a table, or inconsistent sizes.
+    """
+    buf = bytes(data)
+    if len(buf) < 16 or buf[1] != 1:
+        raise TableDecodeError("not little-endian CDR")
+    sec, nanosec = struct.unpack_from("<iI", buf, 4)
+    pos = 12
+
+    def align(p: int, n: int) -> int:
+        return p + (-(p - 4) % n)
+
+    try:
+        (n,) = struct.unpack_from("<I", buf, pos)
+        frame_id = buf[pos + 4:pos + 3 + n].decode("utf-8") if n else ""
+        pos = align(pos + 4 + n, 4)
+        height, width = struct.unpack_from("<II", buf, pos)
+        pos += 8
+        cached = None
+        for block, fields, end in _FIELDS_CACHE.get(pos, ()):
+            if buf.startswith(block, pos):
+                cached = (fields, end)
+                break
+        if cached is None:
+            start = pos
+            (nf,) = struct.unpack_from("<I", buf, pos)
+            pos += 4
+            names = []
+            for k in range(nf):
+                (ln,) = struct.unpack_from("<I", buf, pos)
+                name = buf[pos + 4:pos + 4 + ln - 1].decode("utf-8")
+                pos = align(pos + 4 + ln, 4)
+                offset, datatype = struct.unpack_from("<IB", buf, pos)
+                pos = align(pos + 5, 4)
+                (count,) = struct.unpack_from("<I", buf, pos)
+                pos += 4
+                if offset != CELL_BYTES * k or datatype != FLOAT64 or count != 1:
+                    raise TableDecodeError(f"field {name!r} is not the FLOAT64 column {k}")
+                names.append(name)
+            cached = (tuple(names), pos)
+            _FIELDS_CACHE.setdefault(start, []).append((buf[start:pos], *cached))
+        fields, pos = cached
+        if buf[pos] != 0:
+            raise TableDecodeError("big-endian table")
+        pos = align(pos + 1, 4)
+        point_step, row_step, n_data = struct.unpack_from("<III", buf, pos)
+        pos += 12
+    except struct.error as exc:
+        raise TableDecodeError(f"truncated message ({exc})") from None
+    nf = len(fields)
+    if point_step != CELL_BYTES * nf or row_step != point_step * width or n_data != row_step * height \
+            or pos + n_data > len(buf):
+        raise TableDecodeError("table sizes are inconsistent")
+    table = np.frombuffer(buf, dtype="<f8", count=height * width * nf, offset=pos).reshape(height * width, nf)
+    return DecodedTable(sec * 1_000_000_000 + nanosec, frame_id, fields, table)

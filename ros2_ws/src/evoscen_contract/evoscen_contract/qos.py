@@ -39,7 +39,7 @@ class QosSpec:
         reliability: ``"reliable"`` or ``"best_effort"``.
         durability: ``"volatile"`` or ``"transient_local"``.
         history: ``"keep_last"`` or ``"keep_all"``.
-        depth: queue depth in messages (used with ``keep_last``; >= 1).
+        depth: queue depth in messages (``keep_last``: >= 1; ``keep_all``: 0, as rosbag2 writes it).
     """
 
     reliability: str = "reliable"
@@ -55,8 +55,9 @@ class QosSpec:
             raise ValueError(f"QosSpec.durability: {self.durability!r} not in {DURABILITIES}")
         if self.history not in HISTORIES:
             raise ValueError(f"QosSpec.history: {self.history!r} not in {HISTORIES}")
-        if not isinstance(self.depth, int) or isinstance(self.depth, bool) or self.depth < 1:
-            raise ValueError(f"QosSpec.depth: {self.depth!r} is not an integer >= 1")
+        minimum = 1 if self.history == "keep_last" else 0
+        if not isinstance(self.depth, int) or isinstance(self.depth, bool) or self.depth < minimum:
+            raise ValueError(f"QosSpec.depth: {self.depth!r} is not an integer >= {minimum} (history {self.history})")
 
     def to_rclpy(self) -> Any:
         """Return the equivalent ``rclpy.qos.QoSProfile`` (imports rclpy lazily)."""

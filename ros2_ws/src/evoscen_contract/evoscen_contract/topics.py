@@ -16,16 +16,18 @@ answers, ``frame_id = "map"``). The stamp alone identifies the step (the sim kee
 QoS choices:
 
 * Per-step topics (``/clock``, world, commands, odom, events) are **reliable**,
-  volatile, ``keep_last(100)``. Reliable because the run is lockstep and the bag must
+  volatile, **keep_all**. Reliable because the run is lockstep and the bag must
   hold every step: a lost world or command message would stall a step (or, with the
   deadline policy, turn into a spurious fault), and a lost ``/clock`` would make
   ``use_sim_time`` nodes skip time. Many ROS 2 tools publish ``/clock`` best effort;
   a reliable writer still matches best-effort readers (e.g. ``rclcpp``'s default
-  clock subscription), so nothing is lost by choosing reliable. Depth 100 is the
-  slack of readers outside the lockstep loop (the recorder): they may lag up to 100
-  steps without losing data (with ``keep_last`` a reliable writer overwrites samples
-  that a slow reader has not acknowledged yet). Lockstep controllers never lag more
-  than one step. 100 world tables of 21 vehicles are ~290 kB, negligible.
+  clock subscription), so nothing is lost by choosing reliable. Keep-all because the
+  recorder is outside the lockstep loop and may lag behind the simulation: with
+  ``keep_last(N)`` a lag of more than N steps silently overwrites samples (seen: a
+  3,000-step run losing 3 % of its world messages); with keep-all the middleware keeps
+  every unacknowledged sample, so a slow recorder costs memory for a while, never data.
+  Lockstep controllers never lag more than one step. (rosbag2 reports keep-all with
+  depth 0.)
 * ``/evoscen/roster`` is reliable, **transient_local**, ``keep_last(1)``: published
   once, delivered to late joiners (the recorder, RViz, a replay tool).
 """
@@ -200,7 +202,7 @@ class TopicSpec:
 
 
 #: QoS of every per-step topic (see module docstring for why).
-STEP_QOS = QosSpec(reliability="reliable", durability="volatile", history="keep_last", depth=100)
+STEP_QOS = QosSpec(reliability="reliable", durability="volatile", history="keep_all", depth=0)
 #: QoS of once-published, latched data.
 LATCHED_QOS = QosSpec(
     reliability="reliable", durability="transient_local", history="keep_last", depth=1
@@ -272,7 +274,7 @@ EVENTS = TopicSpec(
     msg_class=DiagnosticArray,
     qos=STEP_QOS,
     publisher=NODE_SIM,
-    rate="on event (steps with at least one event)",
+    rate="every step (after the integration; empty when nothing happened)",
     description=(
         "one DiagnosticStatus per event: " + ", ".join(EVENT_NAMES)
         + "; key/values " + ", ".join(EVENT_KEY_TYPES)

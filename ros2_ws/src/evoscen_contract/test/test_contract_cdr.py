@@ -61,3 +61,31 @@ def test_odometry_encoder_equals_canonical_serialization(frames, pose):
     back = deserialize_message(ours, Odometry)
     assert back.pose.pose.position.x == x and back.twist.twist.linear.x == speed
     assert back.twist.twist.angular.z == yaw_rate and back.child_frame_id == frames[1]
+
+
+@pytest.mark.parametrize("fields", [WORLD_FIELDS, COMMAND_FIELDS, ("a",)])
+@pytest.mark.parametrize("rows", [0, 1, 21])
+@pytest.mark.parametrize("frame_id", [MAP_FRAME, "", "abcde"])
+def test_decode_table_reads_ours_and_rclpys(fields, rows, frame_id):
+    from evoscen_contract.cdr import decode_table
+
+    data = np.arange(rows * len(fields), dtype=float).reshape(rows, len(fields)) * 0.5
+    for raw in (TableEncoder(fields, frame_id).encode(data, 7_000_000_123),
+                serialize_message(table_message(fields, data, 7_000_000_123, frame_id))):
+        for _ in range(2):  # parsed, then recognised from the cache
+            stamp, frame, names, table = decode_table(raw)
+            assert stamp == 7_000_000_123 and names == tuple(fields) and frame == frame_id
+            assert np.array_equal(table, data)
+
+
+def test_decode_table_rejects_non_tables():
+    from evoscen_contract.cdr import TableDecodeError, decode_table
+
+    with pytest.raises(TableDecodeError):
+        decode_table(b"\x00\x01\x00\x00" + bytes(3))
+    from sensor_msgs.msg import PointField
+
+    cloud = table_message(("x",), np.zeros((2, 1)), 0, MAP_FRAME)
+    cloud.fields = [PointField(name="x", offset=0, datatype=PointField.FLOAT32, count=1)]
+    with pytest.raises(TableDecodeError, match="FLOAT64"):
+        decode_table(serialize_message(cloud))

@@ -56,7 +56,9 @@ def test_qos_conversions() -> None:
     prof = TOPICS["/evoscen/world"].offered_qos_profiles()[0]
     assert list(prof)[:4] == ["history", "depth", "reliability", "durability"]
     assert prof["deadline"] == {"sec": 9223372036, "nsec": 854775807}
-    assert rosbag2_qos_yaml([TOPICS["/clock"].qos]).startswith("- history: keep_last\n  depth: 100\n")
+    # per-step topics are keep-all (a lagging recorder must not lose samples); rosbag2 writes depth 0
+    assert rosbag2_qos_yaml([TOPICS["/clock"].qos]).startswith("- history: keep_all\n  depth: 0\n")
+    assert TOPICS["/clock"].qos_profile().history == HistoryPolicy.KEEP_ALL
     with pytest.raises(ValueError):
         QosSpec(reliability="sometimes")
     with pytest.raises(ValueError):

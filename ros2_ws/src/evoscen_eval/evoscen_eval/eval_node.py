@@ -5,14 +5,18 @@
 Raw (serialized) subscriptions on every topic of the contract, with the contract's QoS;
 the bytes go through the same :class:`~evoscen_eval.recorder.OrderedBag` and
 :class:`~evoscen_eval.recorder.BagRecorder` as the in-process runner, so a graph run's bag
-equals the in-process bag of the same scenario. Messages are written in canonical order
-with a lag of ``reorder_lag_steps`` steps of simulation time (messages of one step arrive
-from several publishers in no fixed order). The bag is finished when the ``run_end`` event
-arrives (after ``drain_s`` more seconds of taking what is still in flight), on Ctrl-C, or
-after ``idle_timeout_s`` without any message.
+equals the in-process bag of the same scenario. Messages of one step arrive from several
+publishers in no fixed order; every per-step topic carries exactly one message per step, in
+order, so a step is complete once every such topic has delivered a later one — it is then
+written in canonical order (no timing assumption). The bag is finished once the ``run_end`` event
+and the final world state (same stamp) have arrived and nothing more came for ``drain_s``;
+on Ctrl-C; or after ``idle_timeout_s`` without any message. The per-step topics are
+keep-all (see the contract), so a recorder lagging behind the simulation loses nothing.
 
 Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory),
-``reorder_lag_steps`` [50], ``drain_s`` [0.5], ``idle_timeout_s`` [60].
+``drain_s`` [0.5], ``idle_timeout_s`` [60], ``batch_s`` [0.005]:
+after taking messages the node sleeps this long so that several steps' messages are taken
+per wake-up (it is outside the lockstep loop; fewer wake-ups leave more CPU to the loop).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import time
 
 from evoscen_contract import graph
 from evoscen_contract import topics as T
+from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table
 from evoscen_sim.errors import InputError
 from evoscen_sim.node_params import scenario_from_node
 
@@ -31,6 +36,8 @@ NODE_NAME = T.NODE_EVAL
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 # topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
 _CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name}
+# tables from any publisher (a user's SUT node may serialize with rclpy): re-encoded canonically
+_TABLE_TOPICS = {T.COMMANDS_BV.name, T.COMMANDS_SUT.name}
 
 
 class EvaluatorNode:
@@ -42,8 +49,8 @@ class EvaluatorNode:
         self.cfg = scenario_from_node(params, NODE_NAME)
         p = lambda *a, **k: graph.own_parameter(params, NODE_NAME, *a, **k)  # noqa: E731
         bag_dir = p("bag_dir", "", str, check=bool, expected="expected the path of a new or empty bag directory")
-        self.lag_steps = p("reorder_lag_steps", 50, int, check=lambda v: v >= 1, expected="expected an integer >= 1")
         self.drain_s = p("drain_s", 0.5, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
+        self.batch_s = p("batch_s", 0.005, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
         self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
                                 expected="expected a number > 0 (s)")
         self.dt_ns = round(self.cfg.dt_s * 1e9)
@@ -52,8 +59,10 @@ class EvaluatorNode:
                                           chunk_size=rec.chunk_size_bytes), T.CONTRACT)
         self.subs = {spec.name: graph.subscription(self.node, spec, raw=True) for spec in T.CONTRACT}
         self.pump = graph.MessagePump(self.node, self.subs.values())
-        self.latest_world_ns = -1
-        self.run_end_seen = False
+        self._encoders: dict = {}
+        per_step = [T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.COMMANDS_SUT] + ([T.COMMANDS_BV] if self.cfg.bvs.count else [])
+        self.latest = {spec.name: -1 for spec in per_step}
+        self.run_end_ns: int | None = None
 
     def _take_all(self) -> int:
         """Take every available message; returns how many."""
@@ -62,33 +71,51 @@ class EvaluatorNode:
             while (data := graph.MessagePump.take(sub)) is not None:
                 taken += 1
                 t_ns = _stamp_ns(topic, data)
-                self.bag.add(topic, data, t_ns, canonical=topic in _CANONICAL_TOPICS)
-                if topic == T.WORLD.name:
-                    self.latest_world_ns = max(self.latest_world_ns, t_ns)
-                elif topic == T.EVENTS.name and _is_run_end(data):
-                    self.run_end_seen = True
-        if self.latest_world_ns >= 0:
-            self.bag.flush_before(self.latest_world_ns - self.lag_steps * self.dt_ns)
+                canonical = topic in _CANONICAL_TOPICS
+                if topic in _TABLE_TOPICS:
+                    data, canonical = self._canonical_table(data), True
+                self.bag.add(topic, data, t_ns, canonical=canonical)
+                if topic in self.latest:
+                    self.latest[topic] = max(self.latest[topic], t_ns)
+                if topic == T.EVENTS.name and _is_run_end(data):
+                    self.run_end_ns = t_ns
+        # every per-step topic has one message per step, each topic in order: all messages
+        # before the oldest of the topics' latest stamps are in, so that much can be written
+        self.bag.flush_before(min(self.latest.values()))
         return taken
+
+    def _canonical_table(self, data: bytes) -> bytes:
+        """A command table in canonical CDR (any publisher's encoding), via decode + re-encode."""
+        try:
+            t = decode_table(data)
+        except TableDecodeError:
+            return data  # not a table: the recorder's generic canonicalization reports it
+        encoder = self._encoders.get((t.fields, t.frame_id))
+        if encoder is None:
+            encoder = self._encoders[(t.fields, t.frame_id)] = TableEncoder(t.fields, t.frame_id)
+        return encoder.encode(t.data, t.stamp_ns)
+
+    def _finished(self, last_message: float) -> bool:
+        return (self.run_end_ns is not None and self.latest[T.WORLD.name] >= self.run_end_ns
+                and time.monotonic() - last_message >= self.drain_s)
 
     def run(self) -> int:
         """Record until the run ends; returns the exit status."""
         status = EXIT_OK
         last_message = time.monotonic()
         try:
-            while not self.run_end_seen:
+            # until the run_end event and the final world state (same stamp) are in, and then
+            # everything still in flight (drain_s without a message)
+            while not self._finished(last_message):
                 if self._take_all():
                     last_message = time.monotonic()
+                    time.sleep(self.batch_s)  # let a few steps accumulate: fewer wake-ups, less CPU
                 elif time.monotonic() - last_message > self.idle_timeout_s:
                     print(f"error: {NODE_NAME}: no message for {self.idle_timeout_s:g} s; finishing the bag",
                           file=sys.stderr)
                     status = EXIT_FAULT
                     break
-                self.pump.wait(0.1)
-            drain_until = time.monotonic() + self.drain_s
-            while time.monotonic() < drain_until:
-                self._take_all()
-                self.pump.wait(0.02)
+                self.pump.wait(0.02 if self.run_end_ns is not None else 0.1)
         except KeyboardInterrupt:
             status = EXIT_INTERRUPTED
         finally:

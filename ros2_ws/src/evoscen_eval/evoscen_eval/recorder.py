@@ -532,10 +532,10 @@ class OrderedBag:
     write through this class, so the bag's bytes depend only on the messages.
 
     A message is held until :meth:`flush_before` passes its time (the graph's evaluator
-    calls it with a lag of some steps; the in-process runner with the current step) and at
-    :meth:`close`. Messages arriving for a time already flushed are written at once (the
-    order is then no longer canonical: the evaluator's lag makes that practically impossible
-    and the byte-equality test would show it).
+    calls it with the oldest of the per-step topics' latest stamps, the in-process runner
+    with the current step) and at :meth:`close`. A message arriving for a time already
+    flushed is written at once and counted in ``late_messages`` (the order is then no longer
+    canonical; with one message per step on every per-step topic it cannot happen).
     """
 
     def __init__(self, bag: BagRecorder, topics: Sequence[TopicSpec]) -> None:

@@ -191,7 +191,7 @@ def test_mcap_summary_schemas_and_channels(bag: Path) -> None:
             assert channel.message_encoding == "cdr"
             assert channel.metadata["topic_type_hash"].startswith("RIHS01_")
         qos = yaml.safe_load(by_topic["/clock"].metadata["offered_qos_profiles"])
-        assert qos[0]["reliability"] == "reliable" and qos[0]["depth"] == 100
+        assert qos[0]["reliability"] == "reliable" and qos[0]["history"] == "keep_all" and qos[0]["depth"] == 0
         assert stats.channel_message_counts[by_topic["/evoscen/events"].id] == N_EVENTS
         (meta,) = list(reader.iter_metadata())
         assert meta.name == "rosbag2"
@@ -226,7 +226,7 @@ def test_metadata_yaml(bag: Path) -> None:
     world = info["topics_with_message_count"][1]["topic_metadata"]
     assert world["type"] == "sensor_msgs/msg/PointCloud2"
     assert world["serialization_format"] == "cdr"
-    assert world["offered_qos_profiles"][0]["history"] == "keep_last"
+    assert world["offered_qos_profiles"][0]["history"] == "keep_all"
     assert world["type_description_hash"].startswith("RIHS01_")
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
-from evoscen_contract.tables import ns_from_stamp, table_columns
+from evoscen_contract.cdr import decode_table
 
 from .errors import InputError
 from .node_params import scenario_from_node
@@ -56,7 +56,7 @@ class ControllerNode:
         self.road = load_road(self.cfg.map)
         self.msgs = WorldMessages(self.cfg.dt_s)
         self.dt_ns = round(self.cfg.dt_s * 1e9)
-        self.world_sub = graph.subscription(self.node, T.WORLD, raw=False)
+        self.world_sub = graph.subscription(self.node, T.WORLD, raw=True)
         self.events_sub = graph.subscription(self.node, T.EVENTS, raw=False)
         self.pub = graph.publisher(self.node, command_spec)
         self.pump = graph.MessagePump(self.node, [self.world_sub, self.events_sub])
@@ -64,12 +64,13 @@ class ControllerNode:
     def _ready(self) -> bool:
         return self.pub.get_subscription_count() >= self.command_subscribers
 
-    def answer(self, msg) -> None:  # noqa: ANN001
-        """Publish the commands answering one world message (not the final state after the last step)."""
-        t_ns = ns_from_stamp(msg.header.stamp)
+    def answer(self, data: bytes) -> None:
+        """Publish the commands answering one serialized world message (not the final state)."""
+        table = decode_table(data)
+        t_ns = table.stamp_ns
         if t_ns >= self.cfg.steps * self.dt_ns:
             return
-        view = WorldView(self.road, table_columns(msg), t_ns // self.dt_ns, self.cfg.dt_s)
+        view = WorldView(self.road, table.columns(), t_ns // self.dt_ns, self.cfg.dt_s)
         throttle, lane_change = self.driver.act(view)
         ids = view.ids[self.vehicles]
         self.pub.publish(self.msgs.commands(ids, np.asarray(throttle, float), np.asarray(lane_change, float), t_ns))

@@ -5,7 +5,9 @@
 Step k: publish ``/clock``, ``/evoscen/world`` and ``/evoscen/sut/odom`` at t_k (and the
 latched ``/evoscen/roster`` before the first step); wait until every registered controller
 (``controllers``: the BV node, the SUT node) has answered with commands stamped t_k;
-integrate to t_{k+1}; publish what happened on ``/evoscen/events``. After the last step the
+integrate to t_{k+1}; publish what happened on ``/evoscen/events`` (every step; an empty
+array when nothing happened, so every per-step topic has one message per step and the
+recorder knows when a step is complete). After the last step the
 final state and a ``run_end`` event go out.
 
 Start-up waits (``startup_timeout_s``) until every controller and the recorder are matched
@@ -31,11 +33,11 @@ import numpy as np
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
-from evoscen_contract.tables import ns_from_stamp, table_array
+from evoscen_contract.cdr import TableDecodeError, decode_table
 
 from .errors import InputError
 from .node_params import scenario_from_node
-from .events import fault_event, has_events, run_end_event, step_events
+from .events import fault_event, run_end_event, step_events
 from .scenario import SUT_INDEX, build_world
 
 NODE_NAME = T.NODE_SIM
@@ -63,13 +65,14 @@ class SimulationNode:
                              check=lambda v: len(v) > 0 and set(v) <= set(CONTROLLER_TOPICS) and len(set(v)) == len(v),
                              expected=f"expected a non-empty list of distinct names from {sorted(CONTROLLER_TOPICS)}")
         self.recorder = p("recorder", True, bool, expected="expected true or false")
+        self.stats_file = p("stats_file", "", str, expected="expected a file path or ''")
 
         self.world = build_world(self.cfg)
         self.msgs = WorldMessages(self.cfg.dt_s)
         n = self.node
         self.pub = {spec.name: graph.publisher(n, spec)
                     for spec in (T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.ROSTER)}
-        self.subs = {c: graph.subscription(n, CONTROLLER_TOPICS[c], raw=False) for c in self.controllers}
+        self.subs = {c: graph.subscription(n, CONTROLLER_TOPICS[c], raw=True) for c in self.controllers}
         self.pump = graph.MessagePump(n, self.subs.values())
         # commands held for a controller that misses a deadline: its last throttle, no lane change
         self.throttle = np.zeros(self.world.n)
@@ -85,8 +88,10 @@ class SimulationNode:
         cols = w.columns()
         if roster:
             self._publish(T.ROSTER, m.roster(cols, t_ns))
-        self._publish(T.CLOCK, m.clock(t_ns))
+        # the world first: it is what the controllers wait for (the bag's order does not depend
+        # on the publishing order: the recorder writes each step in canonical order)
         self._publish(T.WORLD, m.world(cols, t_ns))
+        self._publish(T.CLOCK, m.clock(t_ns))
         self._publish(T.SUT_ODOM, m.odometry(cols, SUT_INDEX, t_ns))
 
     def _publish_events(self, events: list[dict]) -> None:
@@ -123,11 +128,14 @@ class SimulationNode:
         while True:
             for c in list(pending):
                 sub = self.subs[c]
-                while (msg := graph.MessagePump.take(sub)) is not None:
-                    stamp = ns_from_stamp(msg.header.stamp)
-                    if stamp != t_ns:
-                        continue  # a late answer to an earlier step
-                    table = table_array(msg)
+                while (data := graph.MessagePump.take(sub)) is not None:
+                    try:
+                        stamp, _frame, fields, table = decode_table(data)
+                    except TableDecodeError as exc:
+                        self.node.get_logger().error(f"{CONTROLLER_TOPICS[c].name}: not a command table ({exc})")
+                        continue
+                    if stamp != t_ns or fields != T.COMMAND_FIELDS:
+                        continue  # a late answer to an earlier step (or a malformed one)
                     rows = table[:, 0].astype(np.int64)  # ids are world indices
                     self.throttle[rows] = table[:, 1]
                     self.lane_change[rows] = table[:, 2].astype(np.int64)
@@ -159,25 +167,39 @@ class SimulationNode:
         """The whole run; returns the process exit status."""
         w = self.world
         end_kind, end_text, status = "interrupted", "run interrupted (SIGINT)", EXIT_INTERRUPTED
+        loop_start = None
         try:
             self.wait_for_graph()
+            loop_start = time.perf_counter()
             for k in range(self.cfg.steps):
                 self._publish_state(roster=(k == 0))
                 self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
                 result = w.step(self.throttle, self.lane_change)
-                if has_events(result):
-                    self._publish_events(step_events(w, result))
+                self._publish_events(step_events(w, result))  # every step, empty when nothing happened
             end_kind, end_text, status = "completed", f"run completed: {w.step_index} steps", EXIT_OK
         except RunAborted as exc:
             end_kind, end_text, status = "aborted", str(exc), EXIT_FAULT
             print(f"error: {NODE_NAME}: {exc}", file=sys.stderr)
         except KeyboardInterrupt:
             pass
+        if loop_start is not None:
+            self._report(w.step_index, time.perf_counter() - loop_start)
         self._publish_state(roster=(w.step_index == 0))
         self._publish_events([run_end_event(w, end_kind, end_text)])
         for pub in self.pub.values():
             pub.wait_for_all_acked(rclpy_duration(5.0))
         return status
+
+
+    def _report(self, steps: int, seconds: float) -> None:
+        """Lockstep rate to stderr and, if asked, to ``stats_file`` (never into the bag: wall time)."""
+        rate = steps / seconds if seconds > 0 else float("inf")
+        print(f"{NODE_NAME}: lockstep: {steps} steps in {seconds:.2f} s ({rate:.0f} steps/s)", file=sys.stderr)
+        if self.stats_file:
+            import json
+
+            with open(self.stats_file, "w", encoding="utf-8") as f:
+                json.dump({"steps": steps, "loop_wall_s": seconds, "steps_per_s": rate}, f)
 
 
 def rclpy_duration(seconds: float):  # noqa: ANN201

@@ -303,9 +303,10 @@ class World:
         """Bumper gap from a vehicle centred at ``s_entry`` to the rearmost vehicle of ``lane``.
 
         The rearmost vehicle may itself be behind ``s_entry`` (waiting on the approach);
-        the gap is then negative. Returns ``(gap_m, index)``, ``(inf, -1)`` for an empty lane.
+        the gap is then negative. Vehicles changing into ``lane`` count as in it. Returns
+        ``(gap_m, index)``, ``(inf, -1)`` for an empty lane.
         """
-        cand = others & (self.lane == lane)
+        cand = others & ((self.lane == lane) | (self.target_lane == lane))
         if not cand.any():
             return float("inf"), -1
         k = np.flatnonzero(cand)

@@ -161,10 +161,10 @@ def test_unknown_sut_model_lists_valid_choices(scenario_dir):
 
 def test_registered_models_become_valid(scenario_dir, monkeypatch):
     monkeypatch.setattr(config_module, "SUT_MODELS", config_module.SUT_MODELS)
-    register_sut_model("mobil")
-    assert load_scenario_config(write(scenario_dir, "sut: {model: mobil}\n")).sut.model == "mobil"
-    message = load_error(scenario_dir, "sut: {model: mobli}\n")
-    assert "expected one of level0, mobil; did you mean 'mobil'?" in message
+    register_sut_model("my_sut")
+    assert load_scenario_config(write(scenario_dir, "sut: {model: my_sut}\n")).sut.model == "my_sut"
+    message = load_error(scenario_dir, "sut: {model: my_stu}\n")
+    assert "expected one of level0" in message and "my_sut; did you mean 'my_sut'?" in message
 
 
 def test_bad_mix_string(scenario_dir):

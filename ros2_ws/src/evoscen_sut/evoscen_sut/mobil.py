@@ -31,6 +31,9 @@ Readings and choices (all configurable through :class:`MobilParams`):
   brake harder than ``b_safe`` behind the new leader (``ã_c ≥ −b_safe``); this also rejects
   a target lane whose leader overlaps the ego longitudinally (gap ≤ 0 gives IDM's maximum
   braking). MOBIL proper checks the new follower only.
+* **Vehicles changing into the candidate lane** [choice] count as being in it for the
+  safety criteria (the neighbourhood places a vehicle by its centre, so two vehicles
+  could otherwise move into the same gap from both sides).
 * **Target lanes.** Only adjacent lanes that exist at the ego's ``s``
   (``road.lane_exists``). A lane that ends ahead (the merge lane I, index 0) is never
   entered unless ``enter_ending_lane`` [choice: it is an acceleration lane, not a passing
@@ -43,7 +46,12 @@ Readings and choices (all configurable through :class:`MobilParams`):
   gets the bias *towards* the target (threshold ``Δa_th − Δa_bias``: the bias models a
   mandatory change), and within ``merge_mandatory_distance_m`` of the stop point the
   incentive criterion is dropped (only the safety criteria count).
-* A vehicle already changing lanes (``view.lane_change != 0``) requests 0.
+* A vehicle already changing lanes (``view.lane_change != 0``) requests 0, and one that has
+  not yet settled near its lane's centre line after a change (``settle_tolerance_m``)
+  requests 0 too [choice], except for a mandatory change.
+* Among the vehicles one driver drives (the BV role), two requests into the same lane at
+  the same step that would be unsafe for each other are resolved in favour of the vehicle
+  ahead (:func:`resolve_conflicts`) [choice].
 
 Parameter sources: MODELS.md ("IDM and MOBIL"): p = 0–0.5, Δa_th = 0.1–0.2 m/s²,
 Δa_bias = 0.2–0.3 m/s², b_safe = 4 m/s²; IDM highway values v0 = 120 km/h, T = 1.0–1.5 s,
@@ -62,7 +70,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
 from evoscen_sim.car_following import IdmParams, idm_acceleration
 from evoscen_sim.config import flag, number
 from evoscen_sim.models import ModelSpec
@@ -113,6 +120,9 @@ class MobilParams:
     criteria (m) [choice]. Default 100 m (4 s at 25 m/s)."""
     enter_ending_lane: bool = flag(False)
     """Allow changes into a lane that ends ahead (the merge lane) [choice: no]."""
+    settle_tolerance_m: float = number(0.5, 0.0, 10.0)
+    """A new change is requested only with the centre within this distance of the lane's
+    centre line (m) [choice]; not applied to a mandatory change."""
 
     @property
     def idm(self) -> IdmParams:
@@ -167,6 +177,28 @@ def lane_end_gap_m(view: Any, vehicles: np.ndarray, lanes: np.ndarray, margin_m:
     dist = np.asarray(view.road.distance_to_lane_end(lanes, s), dtype=float)
     dist = np.where(np.isnan(dist), np.inf, dist)
     return dist - margin_m - half
+
+
+def _incoming_safe(view: Any, idx: np.ndarray, lanes: np.ndarray, v0: np.ndarray, p: MobilParams) -> np.ndarray:
+    """(k, 3): the safety criteria also hold against the vehicles changing *into* each candidate
+    lane (``target_lane`` = the lane, ``lane`` ≠ it), which the neighbourhood (by ``lane``)
+    does not show: one behind the ego must not need to brake harder than ``b_safe`` behind
+    it, nor the ego behind one ahead."""
+    moving_in = view.target_lane != view.lane  # (n,)
+    if not moving_in.any():
+        return np.ones(lanes.shape, dtype=bool)
+    j = np.flatnonzero(moving_in)
+    j = j[None, :]
+    into = (view.target_lane[j][:, :, None] == lanes[:, None, :]) & (j != idx[:, None])[:, :, None]  # (k, m, 3)
+    ds = (view.s[j] - view.s[idx][:, None])[:, :, None]  # > 0: the other is ahead
+    gap = np.abs(ds) - 0.5 * (view.length[j] + view.length[idx][:, None])[:, :, None]
+    v_i = view.v[idx][:, None, None]
+    v_j = view.v[j][:, :, None]
+    ahead = ds > 0.0
+    v_follow = np.where(ahead, v_i, v_j)
+    v_lead = np.where(ahead, v_j, v_i)
+    acc = _idm(p, v_follow, v0[:, None, :], gap, v_lead)
+    return ~np.any(into & (acc < -p.safe_decel_mps2), axis=1)
 
 
 def evaluate(view: Any, vehicles: np.ndarray, params: MobilParams) -> MobilEvaluation:
@@ -234,7 +266,7 @@ def evaluate(view: Any, vehicles: np.ndarray, params: MobilParams) -> MobilEvalu
         for c in (0, 2):
             inc[:, c] = at_c[:, c] - a_c[:, 0] + p.politeness * (gain_n[:, c] + gain_o[:, 0]) - p.threshold_mps2
 
-    safe = (at_n >= -p.safe_decel_mps2) & (acc_ego >= -p.safe_decel_mps2)
+    safe = (at_n >= -p.safe_decel_mps2) & (acc_ego >= -p.safe_decel_mps2) & _incoming_safe(view, idx, lanes, v0, p)
     mandatory = ending[:, 1] & (end_gap[:, 1] < p.merge_mandatory_distance_m)
     safe[:, 1] = True
     return MobilEvaluation(exists=exists, acc_ego=acc_ego, gain_new_follower=gain_n, gain_old_follower=gain_o,
@@ -255,7 +287,49 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: MobilParams) -
     best = np.argmax(score, axis=1)
     request = np.where(np.isfinite(score[np.arange(idx.size), best]), _OFFSETS[best], 0)
     request = np.where(view.lane_change[idx] != 0, 0, request)
-    return request.astype(np.int64)
+    request = np.where(settled(view, idx, params.settle_tolerance_m) | ev.mandatory, request, 0)
+
+    def unsafe_pair(i: np.ndarray) -> np.ndarray:
+        # the rear vehicle of each pair behind the front one: IDM deceleration beyond b_safe
+        ds = view.s[i][None, :] - view.s[i][:, None]
+        gap = np.abs(ds) - 0.5 * (view.length[i][None, :] + view.length[i][:, None])
+        v_rear = np.where(ds > 0, view.v[i][:, None], view.v[i][None, :])
+        v_front = np.where(ds > 0, view.v[i][None, :], view.v[i][:, None])
+        return _idm(params, v_rear, params.desired_speed_mps, gap, v_front) < -params.safe_decel_mps2
+
+    return resolve_conflicts(view, idx, request.astype(np.int64), unsafe_pair)
+
+
+def settled(view: Any, vehicles: np.ndarray, tolerance_m: float) -> np.ndarray:
+    """True where a vehicle's centre is within ``tolerance_m`` of its lane's centre line: a new
+    change is requested only once the previous one has settled [choice] (the world completes a
+    change when the centre crosses into the target lane, while the vehicle is still moving
+    across; reversing there produced ping-pong changes and side-by-side conflicts)."""
+    centre = view.road.lane_center_d(view.lane[vehicles], np.maximum(view.s[vehicles], 0.0))
+    return np.abs(view.d[vehicles] - centre) <= tolerance_m
+
+
+def resolve_conflicts(view: Any, vehicles: np.ndarray, request: np.ndarray,
+                      unsafe_pair: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """Requests of one driver's vehicles into the same lane at the same step, resolved [choice].
+
+    Decisions of one step are taken from the same state, so two vehicles can each find a gap
+    safe and move into it together from both sides. Of two requesting vehicles with the same
+    target lane whose pair is unsafe (``unsafe_pair(world indices) -> (m, m) bool``), the one
+    ahead keeps its request (the lower index when level) and the other keeps its lane.
+    """
+    moving = np.flatnonzero(request != 0)
+    if moving.size < 2:
+        return request
+    i = vehicles[moving]
+    target = view.lane[i] + request[moving]
+    conflict = (target[:, None] == target[None, :]) & np.asarray(unsafe_pair(i), dtype=bool)
+    np.fill_diagonal(conflict, False)
+    ds = view.s[i][None, :] - view.s[i][:, None]  # > 0: the column vehicle is ahead of the row vehicle
+    yields = np.any(conflict & ((ds > 0.0) | ((ds == 0.0) & (i[None, :] < i[:, None]))), axis=1)
+    out = request.copy()
+    out[moving[yields]] = 0
+    return out
 
 
 # ------------------------------------------------------------------------------------ driver

@@ -1,0 +1,20 @@
+"""The SUT package's built-in models, registered with :mod:`evoscen_sim.models`.
+
+Every model decides lane changes its own way and drives longitudinally with SUMO's Krauss
+model (:mod:`evoscen_sut.krauss`), through the same PID low-level control as every vehicle:
+
+* ``nilsson`` (SUT and BV driver): lane utilities of Nilsson et al. (:mod:`evoscen_sut.nilsson`);
+* ``mobil`` (SUT and BV driver): MOBIL with IDM accelerations (:mod:`evoscen_sut.mobil`);
+* ``stackelberg`` (SUT): a leader/followers game (:mod:`evoscen_sut.stackelberg`).
+
+Their parameters are the scenario YAML's ``models.<name>`` sections.
+"""
+
+from __future__ import annotations
+
+from evoscen_sim.models import register_model
+
+from . import mobil, nilsson, stackelberg
+
+for _spec in (nilsson.SPEC, mobil.SPEC, stackelberg.SPEC):
+    register_model(_spec)
