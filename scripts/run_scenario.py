@@ -43,6 +43,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="ROS_AUTOMATIC_DISCOVERY_RANGE: SUBNET lets ROS 2 machines on the network see the topics")
     g.add_argument("--deadline", type=float, default=2.0, help="per-step controller deadline in seconds (default 2.0)")
     g.add_argument("--max-misses", type=int, default=5, help="consecutive missed deadlines that abort (default 5)")
+    g.add_argument("--external-sut", action="store_true",
+                   help="do not start evoscen's SUT node: your own node answers on /evoscen/commands/sut "
+                        "(see examples/README.md)")
     return ap.parse_args(argv)
 
 
@@ -72,7 +75,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> i
     from evoscen_eval.recorder import open_bag_reader
 
     opts = GraphOptions(domain_id=args.domain_id, discovery_range=args.discovery_range,
-                        deadline_s=args.deadline, max_misses=args.max_misses)
+                        deadline_s=args.deadline, max_misses=args.max_misses, external_sut=args.external_sut)
     print(f"graph: ROS_DOMAIN_ID={opts.domain_id if opts.domain_id is not None else '(random)'}, "
           f"discovery {opts.discovery_range}; parameter files in {out / 'params'}", file=sys.stderr)
     result = run_graph(cfg, out, bag_dir, opts)

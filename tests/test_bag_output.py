@@ -64,6 +64,8 @@ def _expected_counts(steps: int) -> dict[str, int]:
         "/evoscen/commands/sut": steps,
         "/evoscen/events": steps + 1,  # one after each step (empty if nothing happened) + run_end
         "/evoscen/roster": 1,
+        "/evoscen/markers": steps // 5 + 1,  # every recording.markers_every = 5 steps, t_0 .. t_N
+        "/evoscen/map_markers": 1,
     }
 
 

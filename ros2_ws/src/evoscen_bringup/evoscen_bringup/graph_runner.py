@@ -61,6 +61,9 @@ class GraphOptions:
     """How long the launcher waits for a node to end by itself before signalling it."""
     node_args: dict[str, dict] = field(default_factory=dict)
     """Extra parameters per node name (tests)."""
+    external_sut: bool = False
+    """Do not start evoscen's SUT node: a user's own node answers on ``/evoscen/commands/sut``
+    (the simulation node waits for it at start-up like for any controller)."""
 
 
 @dataclass
@@ -113,7 +116,8 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     domain_id = opts.domain_id if opts.domain_id is not None else random.SystemRandom().randint(1, 100)
     params = write_parameter_files(cfg, out_dir, bag_dir, opts)
     env = node_environment(domain_id, opts.discovery_range)
-    wanted = [(name, module) for name, module in NODES if name != "evoscen_bv" or cfg.bvs.count > 0]
+    wanted = [(name, module) for name, module in NODES
+              if (name != "evoscen_bv" or cfg.bvs.count > 0) and (name != "evoscen_sut" or not opts.external_sut)]
     procs: dict[str, subprocess.Popen] = {}
     t0 = time.monotonic()
     interrupted = False

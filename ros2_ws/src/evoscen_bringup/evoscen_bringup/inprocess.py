@@ -58,7 +58,7 @@ class RunSummary:
 class _Recorder:
     """The contract's messages of an in-process run, written through an ordered bag."""
 
-    def __init__(self, bag_dir: Path, cfg: ScenarioConfig) -> None:
+    def __init__(self, bag_dir: Path, cfg: ScenarioConfig, road) -> None:  # noqa: ANN001
         from evoscen_contract import topics as T
         from evoscen_contract.messages import WorldMessages
         from evoscen_eval.recorder import BagRecorder, OrderedBag
@@ -68,6 +68,8 @@ class _Recorder:
         bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
                           chunk_size=cfg.recording.chunk_size_bytes)
         self.bag = OrderedBag(bag, T.CONTRACT)
+        self.road = road
+        self.markers_every = cfg.recording.markers_every
 
     def world_state(self, world, sut_index: int, *, roster: bool = False) -> None:  # noqa: ANN001
         T, m, t_ns = self.T, self.msgs, world.time_ns
@@ -75,9 +77,12 @@ class _Recorder:
         self.bag.flush_before(t_ns)
         if roster:
             self.bag.add(T.ROSTER.name, m.roster(cols, t_ns), t_ns, canonical=True)
+            self.bag.add(T.MAP_MARKERS.name, m.map_markers(self.road, t_ns), t_ns)
         self.bag.add(T.CLOCK.name, m.clock(t_ns), t_ns, canonical=True)
         self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
         self.bag.add(T.SUT_ODOM.name, m.odometry(cols, sut_index, t_ns), t_ns, canonical=True)
+        if self.markers_every and world.step_index % self.markers_every == 0:
+            self.bag.add(T.MARKERS.name, m.vehicle_markers(cols, t_ns), t_ns)
 
     def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
         self.bag.add(topic, self.msgs.commands(ids, throttle, lane_change, t_ns), t_ns, canonical=True)
@@ -102,7 +107,7 @@ def run_inprocess(
     sc = scenario if scenario is not None else build_scenario(cfg)
     n_steps = cfg.steps if steps is None else steps
     world = sc.world
-    rec = _Recorder(bag_dir, cfg) if bag_dir is not None else None
+    rec = _Recorder(bag_dir, cfg, world.road) if bag_dir is not None else None
     bv_ids = world.ids[sc.bv_indices]
     sut_ids = world.ids[[sc.sut_index]]
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)

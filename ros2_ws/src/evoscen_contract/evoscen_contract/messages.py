@@ -53,6 +53,24 @@ class WorldMessages:
         return self._commands.encode(np.column_stack([ids, throttle, lane_change]), t_ns)
 
     @staticmethod
+    def vehicle_markers(columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
+        """``/evoscen/markers`` (rclpy serialization; the recorder canonicalizes it)."""
+        from rclpy.serialization import serialize_message
+
+        from .markers import vehicle_markers
+
+        return serialize_message(vehicle_markers(columns, t_ns))
+
+    @staticmethod
+    def map_markers(road, t_ns: int) -> bytes:  # noqa: ANN001
+        """``/evoscen/map_markers`` of ``road``."""
+        from rclpy.serialization import serialize_message
+
+        from .markers import road_markers
+
+        return serialize_message(road_markers(road, t_ns))
+
+    @staticmethod
     def events(events: Sequence[Mapping], t_ns: int) -> bytes:
         """``/evoscen/events`` (rclpy serialization; the recorder canonicalizes it)."""
         from rclpy.serialization import serialize_message

@@ -42,6 +42,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import PointCloud2
+from visualization_msgs.msg import MarkerArray
 
 from evoscen_contract.qos import QosSpec
 from evoscen_contract.tables import stamp_from_ns
@@ -292,7 +293,28 @@ ROSTER = TopicSpec(
 )
 
 #: The whole contract, in README order.
-CONTRACT: tuple[TopicSpec, ...] = (CLOCK, WORLD, COMMANDS_BV, COMMANDS_SUT, SUT_ODOM, EVENTS, ROSTER)
+MARKERS = TopicSpec(
+    name="/evoscen/markers",
+    type_name="visualization_msgs/msg/MarkerArray",
+    msg_class=MarkerArray,
+    qos=STEP_QOS,
+    publisher=NODE_SIM,
+    rate="every recording.markers_every steps (default 5)",
+    description=("vehicles as oriented boxes sized to each vehicle, coloured by policy (competitive red, "
+                 "mutual blue, cooperative green, level-0 grey, SUT amber), with id and speed as text; frame 'map'"),
+)
+
+MAP_MARKERS = TopicSpec(
+    name="/evoscen/map_markers",
+    type_name="visualization_msgs/msg/MarkerArray",
+    msg_class=MarkerArray,
+    qos=LATCHED_QOS,
+    publisher=NODE_SIM,
+    rate="once, at start (latched)",
+    description="lane lines (broken) and road edges (solid) as LINE_LIST markers; frame 'map'",
+)
+
+CONTRACT: tuple[TopicSpec, ...] = (CLOCK, WORLD, COMMANDS_BV, COMMANDS_SUT, SUT_ODOM, EVENTS, ROSTER, MARKERS, MAP_MARKERS)
 #: Contract by topic name.
 TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in CONTRACT}
 

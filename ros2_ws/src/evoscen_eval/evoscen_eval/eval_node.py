@@ -62,6 +62,8 @@ class EvaluatorNode:
         self._encoders: dict = {}
         per_step = [T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.COMMANDS_SUT] + ([T.COMMANDS_BV] if self.cfg.bvs.count else [])
         self.latest = {spec.name: -1 for spec in per_step}
+        self.markers_every = self.cfg.recording.markers_every
+        self.latest_markers = -self.markers_every * self.dt_ns  # the first markers are due at t = 0
         self.run_end_ns: int | None = None
 
     def _take_all(self) -> int:
@@ -77,11 +79,18 @@ class EvaluatorNode:
                 self.bag.add(topic, data, t_ns, canonical=canonical)
                 if topic in self.latest:
                     self.latest[topic] = max(self.latest[topic], t_ns)
+                elif topic == T.MARKERS.name:
+                    self.latest_markers = max(self.latest_markers, t_ns)
                 if topic == T.EVENTS.name and _is_run_end(data):
                     self.run_end_ns = t_ns
         # every per-step topic has one message per step, each topic in order: all messages
         # before the oldest of the topics' latest stamps are in, so that much can be written
-        self.bag.flush_before(min(self.latest.values()))
+        complete = min(self.latest.values())
+        if self.markers_every:  # vehicle markers come every markers_every steps: wait for the next one too
+            due = self.latest_markers + self.markers_every * self.dt_ns
+            if due <= self.cfg.steps * self.dt_ns:
+                complete = min(complete, due)
+        self.bag.flush_before(complete)
         return taken
 
     def _canonical_table(self, data: bytes) -> bytes:
@@ -123,12 +132,17 @@ class EvaluatorNode:
         return status
 
 
+# where the stamp of each contract message starts: after the 4-byte CDR header comes a
+# builtin_interfaces/Time (Clock.clock, Header.stamp), except for a MarkerArray: its
+# sequence length, then the first marker's header (evoscen's marker arrays are never empty)
+_STAMP_OFFSET = {T.MARKERS.name: 8, T.MAP_MARKERS.name: 8}
+
+
 def _stamp_ns(topic: str, data: bytes) -> int:
-    """The header stamp (= log time) of a serialized contract message, in ns."""
-    # every contract message starts with a builtin_interfaces/Time after the 4-byte CDR header
-    # (Clock.clock, or Header.stamp)
-    sec = int.from_bytes(data[4:8], "little", signed=True)
-    nanosec = int.from_bytes(data[8:12], "little")
+    """The stamp (= log time) of a serialized contract message, in ns."""
+    at = _STAMP_OFFSET.get(topic, 4)
+    sec = int.from_bytes(data[at:at + 4], "little", signed=True)
+    nanosec = int.from_bytes(data[at + 4:at + 8], "little")
     return sec * 1_000_000_000 + nanosec
 
 

@@ -177,7 +177,8 @@ def test_mcap_summary_schemas_and_channels(bag: Path) -> None:
         stats = summary.statistics
         assert stats.message_count == N_MESSAGES
         assert stats.channel_count == len(CONTRACT)
-        assert stats.schema_count == 4  # Clock, PointCloud2 (4 topics), Odometry, DiagnosticArray
+        # Clock, PointCloud2 (4 topics), Odometry, DiagnosticArray, MarkerArray (2 topics)
+        assert stats.schema_count == 5
         assert stats.message_start_time == 0
         assert stats.message_end_time == (STEPS - 1) * DT_NS
         assert summary.chunk_indexes and all(ci.compression == "zstd"
@@ -222,7 +223,8 @@ def test_metadata_yaml(bag: Path) -> None:
               for t in info["topics_with_message_count"]}
     assert counts == {"/clock": STEPS, "/evoscen/world": STEPS, "/evoscen/commands/bv": STEPS,
                       "/evoscen/commands/sut": STEPS, "/evoscen/sut/odom": STEPS,
-                      "/evoscen/events": N_EVENTS, "/evoscen/roster": 1}
+                      "/evoscen/events": N_EVENTS, "/evoscen/roster": 1,
+                      "/evoscen/markers": 0, "/evoscen/map_markers": 0}  # declared, none written here
     world = info["topics_with_message_count"][1]["topic_metadata"]
     assert world["type"] == "sensor_msgs/msg/PointCloud2"
     assert world["serialization_format"] == "cdr"

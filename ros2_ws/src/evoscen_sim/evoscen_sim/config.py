@@ -458,6 +458,9 @@ class RecordingConfig:
     """Chunk compression, one of :data:`COMPRESSIONS`."""
     chunk_size_bytes: int = field(default=1048576, metadata=_check(_Int(1)))
     """Target MCAP chunk size (bytes), >= 1."""
+    markers_every: int = field(default=5, metadata=_check(_Int(0, 100000)))
+    """Publish the vehicle markers (``/evoscen/markers``) every this many steps; 0 = never.
+    The map markers go out once whatever the value."""
 
 
 @dataclass(frozen=True)

@@ -71,7 +71,7 @@ class SimulationNode:
         self.msgs = WorldMessages(self.cfg.dt_s)
         n = self.node
         self.pub = {spec.name: graph.publisher(n, spec)
-                    for spec in (T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.ROSTER)}
+                    for spec in (T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.ROSTER, T.MARKERS, T.MAP_MARKERS)}
         self.subs = {c: graph.subscription(n, CONTROLLER_TOPICS[c], raw=True) for c in self.controllers}
         self.pump = graph.MessagePump(n, self.subs.values())
         # commands held for a controller that misses a deadline: its last throttle, no lane change
@@ -88,11 +88,15 @@ class SimulationNode:
         cols = w.columns()
         if roster:
             self._publish(T.ROSTER, m.roster(cols, t_ns))
+            self._publish(T.MAP_MARKERS, m.map_markers(w.road, t_ns))
         # the world first: it is what the controllers wait for (the bag's order does not depend
         # on the publishing order: the recorder writes each step in canonical order)
         self._publish(T.WORLD, m.world(cols, t_ns))
         self._publish(T.CLOCK, m.clock(t_ns))
         self._publish(T.SUT_ODOM, m.odometry(cols, SUT_INDEX, t_ns))
+        every = self.cfg.recording.markers_every
+        if every and w.step_index % every == 0:
+            self._publish(T.MARKERS, m.vehicle_markers(cols, t_ns))
 
     def _publish_events(self, events: list[dict]) -> None:
         self._publish(T.EVENTS, self.msgs.events(events, self.world.time_ns))
@@ -106,7 +110,8 @@ class SimulationNode:
                            f"{', evoscen_eval' if self.recorder else ''})")
         if self.recorder:
             missing += [f"{name} (needs the recorder evoscen_eval)" for name in (T.CLOCK.name, T.SUT_ODOM.name,
-                        T.EVENTS.name, T.ROSTER.name) if self.pub[name].get_subscription_count() < 1]
+                        T.EVENTS.name, T.ROSTER.name, T.MARKERS.name, T.MAP_MARKERS.name)
+                        if self.pub[name].get_subscription_count() < 1]
         missing += [f"{CONTROLLER_TOPICS[c].name} (needs its publisher {c})"
                     for c, sub in self.subs.items() if sub.get_publisher_count() < 1]
         return missing

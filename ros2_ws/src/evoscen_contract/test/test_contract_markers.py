@@ -1,0 +1,49 @@
+"""Vehicle and road markers: what a tester sees in Foxglove or RViz."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from evoscen_contract.markers import POLICY_COLORS, road_markers, vehicle_markers
+from evoscen_contract.topics import POLICY_CODES
+
+
+def test_vehicle_markers_are_oriented_sized_coloured_boxes_with_labels():
+    cols = {
+        "id": np.array([0.0, 7.0]), "policy": np.array([POLICY_CODES["sut"], POLICY_CODES["competitive"]], float),
+        "x": np.array([10.0, -3.5]), "y": np.array([2.0, 4.0]), "yaw": np.array([0.0, math.pi / 2]),
+        "length": np.array([4.8, 5.5]), "width": np.array([1.9, 2.0]), "speed": np.array([25.0, 10.0]),
+    }
+    msg = vehicle_markers(cols, 1_500_000_000)
+    boxes = [m for m in msg.markers if m.ns == "vehicles"]
+    labels = [m for m in msg.markers if m.ns == "labels"]
+    assert [b.id for b in boxes] == [0, 7] and [lb.id for lb in labels] == [0, 7]
+    b = boxes[1]
+    assert b.type == b.CUBE and b.header.frame_id == "map"
+    assert (b.header.stamp.sec, b.header.stamp.nanosec) == (1, 500_000_000)
+    assert (b.pose.position.x, b.pose.position.y) == (-3.5, 4.0)
+    assert (b.scale.x, b.scale.y) == (5.5, 2.0)  # length along the heading, width across
+    # yaw pi/2 -> quaternion (0, 0, sin(pi/4), cos(pi/4))
+    assert b.pose.orientation.z == pytest.approx(math.sqrt(0.5)) and b.pose.orientation.w == pytest.approx(math.sqrt(0.5))
+    assert (b.color.r, b.color.g, b.color.b) == pytest.approx(POLICY_COLORS["competitive"])
+    assert (boxes[0].color.r, boxes[0].color.g, boxes[0].color.b) == pytest.approx(POLICY_COLORS["sut"])
+    assert labels[0].text == "0  90 km/h" and labels[1].text == "7  36 km/h"
+
+
+def test_road_markers_draw_every_marking_solid_lines_whole_broken_lines_dashed():
+    from evoscen_sim.road import load_road
+
+    road = load_road()
+    lines = road.lane_markings()
+    msg = road_markers(road)
+    assert len(msg.markers) == len(lines)
+    for line, m in zip(lines, msg.markers):
+        segments = len(line.x_m) - 1
+        assert m.type == m.LINE_LIST and m.ns == line.kind
+        if line.type == "broken":  # every third segment of the ~5 m samples
+            assert len(m.points) == 2 * len(range(0, segments, 3))
+        else:
+            assert len(m.points) == 2 * segments

@@ -1,0 +1,168 @@
+"""The plug-in route: a user's own SUT model, registered through an entry point of group
+``evoscen.sut``, runs without any change to evoscen.
+
+The user's "installed package" is a directory on PYTHONPATH holding the module
+``my_sut_plugin.py`` (a ``SPEC = ModelSpec(...)``) and a ``my_sut_plugin-0.1.dist-info/``
+(``METADATA`` + ``entry_points.txt``), which is all ``importlib.metadata`` needs. Every run is
+a subprocess, so the plug-in never leaks into this process's model registry.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+import yaml
+
+REPO = Path(__file__).resolve().parents[4]
+SCRIPT = REPO / "scripts" / "run_scenario.py"
+
+PLUGIN = textwrap.dedent('''
+    """A user's SUT model: proportional speed control towards a desired speed, no lane changes."""
+    from dataclasses import dataclass
+
+    import numpy as np
+
+    from evoscen_sim.config import number
+    from evoscen_sim.models import ModelSpec
+    from evoscen_sim.scenario_params import vehicle_params_from_config
+    from evoscen_sim.vehicle import accel_to_throttle
+
+
+    @dataclass(frozen=True)
+    class MySutParams:
+        desired_speed_mps: float = number(25.0, 0.0, 40.0, lo_open=True)
+        """Desired speed (m/s); example default."""
+        gain_per_s: float = number(0.5, 0.0, 5.0, lo_open=True)
+        """Acceleration per m/s of speed error (1/s); example default."""
+
+
+    class MySut:
+        def __init__(self, vehicles, params, config, rng):
+            self.vehicles, self.params = vehicles, params
+            self.vehicle = vehicle_params_from_config(config)
+            self.calls = 0
+
+        def act(self, view):
+            self.calls += 1
+            v = np.asarray(view.v)[self.vehicles]
+            accel = self.params.gain_per_s * (self.params.desired_speed_mps - v)
+            return accel_to_throttle(accel, self.vehicle), np.zeros(len(self.vehicles), dtype=np.int64)
+
+
+    def make(vehicles, params, config, rng):
+        return MySut(vehicles, params, config, rng)
+
+
+    SPEC = ModelSpec(name="my_sut", roles=("sut",), factory=make, params_type=MySutParams,
+                     description="a user's plug-in SUT (test)")
+    NOT_A_SPEC = {"name": "broken"}
+''')
+
+RUN_INPROCESS = textwrap.dedent('''
+    import sys
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.errors import InputError
+
+    try:
+        cfg = load_scenario_config(sys.argv[1], {})
+        sc = build_scenario(cfg)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)
+    summary = run_inprocess(cfg, bag_dir=None, scenario=sc)
+    print(type(sc.sut).__module__, type(sc.sut).__name__, sc.sut.calls, summary.steps,
+          sc.sut.params.desired_speed_mps, repr(float(sc.world.v[sc.sut_index])), summary.collisions)
+''')
+
+
+def make_plugin_dir(root: Path, entry_points: str) -> Path:
+    """``root`` with the plug-in module and a dist-info declaring ``entry_points``."""
+    root.mkdir(parents=True, exist_ok=True)
+    (root / "my_sut_plugin.py").write_text(PLUGIN, encoding="utf-8")
+    info = root / "my_sut_plugin-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: my_sut_plugin\nVersion: 0.1\n", encoding="utf-8")
+    (info / "entry_points.txt").write_text(entry_points, encoding="utf-8")
+    return root
+
+
+def write_config(path: Path, models: dict) -> Path:
+    path.write_text(yaml.safe_dump({"steps": 100, "seed": 4, "sut": {"model": "my_sut"}, "models": models}),
+                    encoding="utf-8")
+    return path
+
+
+def run(argv: list[str], plugin_dir: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(plugin_dir), *filter(None, [env.get("PYTHONPATH")])])
+    return subprocess.run([sys.executable, *argv], env=env, cwd=REPO, capture_output=True, text=True,
+                          timeout=120, check=False)
+
+
+def one_line_error(res: subprocess.CompletedProcess) -> str:
+    assert "Traceback" not in res.stderr, res.stderr
+    assert res.returncode == 2, (res.returncode, res.stdout, res.stderr)
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: "), res.stderr
+    return lines[0]
+
+
+@pytest.fixture
+def plugin(tmp_path: Path) -> Path:
+    return make_plugin_dir(tmp_path / "site", "[evoscen.sut]\nmy_sut = my_sut_plugin:SPEC\n")
+
+
+def test_plugin_drives_the_sut_in_process(plugin: Path, tmp_path: Path) -> None:
+    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {"desired_speed_mps": 20.0}})
+    res = run(["-c", RUN_INPROCESS, str(cfg)], plugin)
+    assert res.returncode == 0, res.stderr
+    module, cls, calls, steps, desired, speed, collisions = res.stdout.split()
+    assert (module, cls, int(calls), int(steps)) == ("my_sut_plugin", "MySut", 100, 100)
+    assert float(desired) == 20.0  # models.my_sut from the YAML reached the model
+    # from 27 m/s, 10 s of a = 0.5 (20 - v) (at most 8 m/s² of braking): v = 20 + 7 e^-5 = 20.05
+    assert abs(float(speed) - 20.0) < 0.2, speed
+
+
+def test_plugin_through_the_cli(plugin: Path, tmp_path: Path) -> None:
+    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {"gain_per_s": 1.0}})
+    res = run([str(SCRIPT), "--mode", "inprocess", "--config", str(cfg), "--sut", "my_sut", "--no-record",
+               "--quiet", "--out", str(tmp_path / "out")], plugin)
+    assert res.returncode == 0, res.stderr
+    assert "steps: 100" in res.stdout
+    assert (tmp_path / "out" / "scenario.yaml").read_text(encoding="utf-8").count("my_sut") >= 2
+
+
+@pytest.mark.parametrize(("key", "value"), [("gain_per_s", -1.0), ("desired_speed_mps", "fast")])
+def test_bad_plugin_parameter_is_a_one_line_error(plugin: Path, tmp_path: Path, key: str, value: object) -> None:
+    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {key: value}})
+    line = one_line_error(run(["-c", RUN_INPROCESS, str(cfg)], plugin))
+    assert f"models.my_sut.{key}" in line and str(value) in line, line
+    line = one_line_error(run([str(SCRIPT), "--mode", "inprocess", "--config", str(cfg), "--no-record", "--quiet",
+                               "--out", str(tmp_path / "out")], plugin))
+    assert f"models.my_sut.{key}" in line, line
+
+
+def test_unknown_plugin_parameter_is_a_one_line_error(plugin: Path, tmp_path: Path) -> None:
+    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {"gain": 1.0}})
+    line = one_line_error(run(["-c", RUN_INPROCESS, str(cfg)], plugin))
+    assert "models.my_sut.gain" in line, line
+
+
+@pytest.mark.parametrize(("value", "needle"), [("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.models.ModelSpec"),
+                                                ("my_sut_plugin:MISSING", "failed to load"),
+                                                ("no_such_module:SPEC", "failed to load")])
+def test_broken_entry_point_is_named(tmp_path: Path, value: str, needle: str) -> None:
+    plugin = make_plugin_dir(tmp_path / "site", f"[evoscen.sut]\nbroken = {value}\n")
+    cfg = write_config(tmp_path / "scenario.yaml", {})
+    for argv in (["-c", RUN_INPROCESS, str(cfg)],
+                 [str(SCRIPT), "--mode", "inprocess", "--steps", "10", "--no-record", "--quiet",
+                  "--out", str(tmp_path / "out")]):
+        line = one_line_error(run(argv, plugin))
+        assert "entry point 'broken'" in line and "evoscen.sut" in line and value in line and needle in line, line

@@ -1,0 +1,228 @@
+#!/usr/bin/env python3
+"""Replay a recorded rosbag2 (MCAP) bag on the ROS 2 wire.
+
+    python scripts/replay.py BAG [--rate R] [--loop] [--topics T ...] [--domain-id N]
+                             [--discovery-range LOCALHOST|SUBNET|SYSTEM_DEFAULT]
+                             [--start-delay S] [--wait-subscribers N] [--wait-timeout S]
+
+One publisher per topic, with the topic's recorded type and its ORIGINAL QoS (the
+channel's ``offered_qos_profiles``); the recorded CDR bytes are published as they are
+(no deserialization), in log-time order, paced in simulation time by ``--rate`` (1 = real
+time, 0 = as fast as possible). ``/clock`` is replayed like any other topic, so
+``use_sim_time`` nodes follow the bag. ``--wait-subscribers N`` holds the first message
+until every publisher has N matched subscriptions; at the end the tool stays until every
+reliable subscriber has acknowledged every message. Discovery is local
+(``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless ``--discovery-range`` says otherwise.
+
+Exit status: 0 done; 1 no subscribers within ``--wait-timeout``; 2 bad input (one line
+``error: ...`` naming the bag/argument); 130 Ctrl-C (143 SIGTERM).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+
+DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
+#: Seconds between retries of a publish the middleware refused (writer history full).
+PUBLISH_RETRY_S = 0.005
+
+
+class Interrupted(Exception):
+    """SIGINT / SIGTERM arrived (exit status 128 + signum)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="replay.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap) or the .mcap file")
+    ap.add_argument("--rate", default="1.0",
+                    help="simulated seconds per wall-clock second: 1 = real time (default), 0 = as fast as possible")
+    ap.add_argument("--loop", action="store_true", help="replay again and again until Ctrl-C")
+    ap.add_argument("--topics", nargs="+", metavar="T", help="replay only these topics (default: all)")
+    ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: the environment's, else 0)")
+    ap.add_argument("--discovery-range", default="LOCALHOST", choices=DISCOVERY_RANGES,
+                    help="ROS_AUTOMATIC_DISCOVERY_RANGE (default LOCALHOST; SUBNET reaches other machines)")
+    ap.add_argument("--start-delay", default="0", metavar="S", help="seconds to wait before the first message")
+    ap.add_argument("--wait-subscribers", type=int, default=0, metavar="N",
+                    help="start only when every publisher has N matched subscriptions (default 0)")
+    ap.add_argument("--wait-timeout", default="30", metavar="S",
+                    help="give up waiting for subscribers after S s (exit 1), and for acknowledgements at the "
+                         "end after S s (warning) (default 30)")
+    return ap.parse_args(argv)
+
+
+def validate(args: argparse.Namespace):  # noqa: ANN201
+    """Check every argument and the bag before the middleware starts; InputError otherwise."""
+    from evoscen_eval.replay import CDR, parse_rate, parse_seconds, read_bag_topics, select_topics
+    from evoscen_sim.errors import InputError
+
+    rate = parse_rate(args.rate)
+    start_delay = parse_seconds("--start-delay", args.start_delay)
+    wait_timeout = parse_seconds("--wait-timeout", args.wait_timeout)
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        raise InputError(f"--domain-id {args.domain_id}: expected an integer in [0, 232]")
+    if args.wait_subscribers < 0:
+        raise InputError(f"--wait-subscribers {args.wait_subscribers}: expected an integer >= 0")
+    topics = select_topics(read_bag_topics(args.bag), args.topics, bag=f"bag {str(args.bag)!r}")
+    if not topics:
+        raise InputError(f"bag {str(args.bag)!r}: has no topics to replay")
+    for t in topics:
+        if t.encoding != CDR:
+            raise InputError(f"bag {str(args.bag)!r}: topic {t.name!r} ({t.type_name}) is encoded as "
+                             f"{t.encoding!r}, only {CDR!r} can be published; leave it out with --topics")
+    return rate, start_delay, wait_timeout, topics
+
+
+def message_classes(topics, bag: Path) -> dict[str, type]:  # noqa: ANN001
+    """Import the message class of every topic; InputError naming topic and type if one is missing."""
+    import importlib
+
+    from evoscen_eval.replay import message_class_path
+    from evoscen_sim.errors import InputError
+
+    out = {}
+    for t in topics:
+        try:
+            module, cls = message_class_path(t.type_name)
+        except InputError as exc:
+            raise InputError(f"bag {str(bag)!r}: topic {t.name!r}: {exc}") from None
+        try:
+            out[t.name] = getattr(importlib.import_module(module), cls)
+        except (ImportError, AttributeError):
+            raise InputError(f"bag {str(bag)!r}: topic {t.name!r} has type {t.type_name!r}, which is not installed "
+                             f"(no {module}.{cls}): source its package, or leave the topic out with --topics") from None
+    return out
+
+
+def set_ros_environment(args: argparse.Namespace) -> str:
+    """Domain and discovery of this process (before rclpy.init); returns the domain id used."""
+    if args.domain_id is not None:
+        os.environ["ROS_DOMAIN_ID"] = str(args.domain_id)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = args.discovery_range
+    os.environ.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; the discovery range decides
+    os.environ.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    return os.environ.get("ROS_DOMAIN_ID", "0")
+
+
+def wait_for_subscribers(pubs: dict, n: int, timeout_s: float) -> list[str]:
+    """Wait until every publisher has ``n`` matched subscriptions; the topics still short at the timeout."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        short = [name for name, pub in pubs.items() if pub.get_subscription_count() < n]
+        if not short or time.monotonic() >= deadline:
+            return short
+        time.sleep(0.01)
+
+
+def publish(pub, data: bytes, deadline_s: float) -> None:  # noqa: ANN001
+    """``pub.publish(data)``; retried while the middleware refuses it (a full keep-all history)."""
+    from rclpy._rclpy_pybind11 import RCLError
+
+    give_up = time.monotonic() + deadline_s
+    while True:
+        try:
+            pub.publish(data)
+            return
+        except RCLError:
+            if time.monotonic() >= give_up:
+                raise
+            time.sleep(PUBLISH_RETRY_S)
+
+
+def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeout: float, topics) -> int:  # noqa: ANN001
+    """Publish the bag (see the module docstring); returns the exit status."""
+    from rclpy.duration import Duration
+
+    from evoscen_contract.graph import init, make_node, shutdown
+    from evoscen_eval.replay import Pacer, iter_replay
+
+    classes = message_classes(topics, args.bag)
+    domain = set_ros_environment(args)
+    init([])
+    node = None
+    sent = 0
+    passes = 0
+    t_first = t_last = None
+    wall0 = None
+    try:
+        node = make_node("evoscen_replay")
+        pubs = {t.name: node.create_publisher(classes[t.name], t.name, t.qos.to_rclpy()) for t in topics}
+        print(f"replay: {args.bag} ({len(topics)} topic{'s' if len(topics) != 1 else ''}: {', '.join(pubs)}) on ROS_DOMAIN_ID={domain}, "
+              f"discovery {args.discovery_range}, rate {'max' if rate == 0 else f'{rate:g}'}"
+              f"{', loop' if args.loop else ''}", file=sys.stderr, flush=True)
+        if args.wait_subscribers > 0:
+            short = wait_for_subscribers(pubs, args.wait_subscribers, wait_timeout)
+            if short:
+                print(f"error: --wait-subscribers {args.wait_subscribers}: after {wait_timeout:g} s (--wait-timeout) "
+                      f"fewer subscribers on {', '.join(short)}", file=sys.stderr)
+                return 1
+        if start_delay > 0:
+            time.sleep(start_delay)
+        pacer = Pacer(rate)
+        wall0 = time.monotonic()
+        names = list(pubs)
+        while True:
+            pacer.restart()
+            for topic, log_time, data in iter_replay(args.bag, names):
+                pacer.wait(log_time)
+                publish(pubs[topic], data, wait_timeout)
+                sent += 1
+                t_first = log_time if t_first is None else min(t_first, log_time)
+                t_last = log_time if t_last is None else max(t_last, log_time)
+            passes += 1
+            if not args.loop:
+                break
+        wall = time.monotonic() - wall0
+        for name, pub in pubs.items():
+            if not pub.wait_for_all_acked(Duration(nanoseconds=int(wait_timeout * 1e9))):
+                print(f"warning: {name}: not every subscriber acknowledged every message within {wait_timeout:g} s",
+                      file=sys.stderr)
+        sim = (t_last - t_first) * 1e-9 if sent else 0.0
+        print(f"replayed: {sent} messages on {len(topics)} topic{'s' if len(topics) != 1 else ''}, {passes} pass{'es' if passes != 1 else ''}, "
+              f"simulated {sim:.3f} s, wall {wall:.3f} s", flush=True)
+        return 0
+    except Interrupted as exc:
+        wall = time.monotonic() - wall0 if wall0 is not None else 0.0
+        print(f"interrupted: {sent} messages sent, {passes} full passes, wall {wall:.3f} s", flush=True)
+        return 128 + exc.signum
+    finally:
+        # ignore further signals while tearing down, so a second Ctrl-C cannot leave a traceback
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        if node is not None:
+            node.destroy_node()
+        shutdown()
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+
+    def on_signal(signum, frame):  # noqa: ANN001, ANN202
+        raise Interrupted(signum)
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    from evoscen_sim.errors import InputError
+
+    try:
+        rate, start_delay, wait_timeout, topics = validate(args)
+        return replay(args, rate, start_delay, wait_timeout, topics)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except Interrupted as exc:
+        return 128 + exc.signum
+
+
+if __name__ == "__main__":
+    sys.exit(main())
