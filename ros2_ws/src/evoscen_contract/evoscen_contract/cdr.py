@@ -224,3 +224,18 @@ def decode_table(data: bytes | memoryview) -> DecodedTable:
         raise TableDecodeError("table sizes are inconsistent")
     table = np.frombuffer(buf, dtype="<f8", count=height * width * nf, offset=pos).reshape(height * width, nf)
     return DecodedTable(sec * 1_000_000_000 + nanosec, frame_id, fields, table)
+
+
+class EmptyEventsEncoder:
+    """Canonical CDR of an empty ``diagnostic_msgs/DiagnosticArray`` (a step without events)."""
+
+    def __init__(self, frame_id: str) -> None:
+        w = _PayloadWriter()
+        w.pack("iI", 0, 0)  # header.stamp, patched
+        w.string(frame_id)
+        w.pack("I", 0)  # status: empty sequence
+        self._template = bytes(w.buf)
+
+    def encode(self, stamp_ns: int) -> bytes:
+        """CDR bytes of the empty array stamped ``stamp_ns``."""
+        return pad4(_ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns) + self._template[8:])

@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from . import topics as T
-from .cdr import OdometryEncoder, TableEncoder, encode_clock
+from .cdr import EmptyEventsEncoder, OdometryEncoder, TableEncoder, encode_clock
 
 
 class WorldMessages:
@@ -25,6 +25,7 @@ class WorldMessages:
         self._roster = TableEncoder(T.ROSTER_FIELDS, T.MAP_FRAME)
         self._commands = TableEncoder(T.COMMAND_FIELDS, T.MAP_FRAME)
         self._odometry = OdometryEncoder(T.MAP_FRAME, T.SUT_BASE_FRAME)
+        self._no_events = EmptyEventsEncoder(T.MAP_FRAME)
         self._prev_yaw: float | None = None
 
     @staticmethod
@@ -70,9 +71,10 @@ class WorldMessages:
 
         return serialize_message(road_markers(road, t_ns))
 
-    @staticmethod
-    def events(events: Sequence[Mapping], t_ns: int) -> bytes:
-        """``/evoscen/events`` (rclpy serialization; the recorder canonicalizes it)."""
+    def events(self, events: Sequence[Mapping], t_ns: int) -> bytes:
+        """``/evoscen/events``: canonical bytes when empty, else rclpy's (the recorder canonicalizes)."""
+        if not events:
+            return self._no_events.encode(t_ns)
         from rclpy.serialization import serialize_message
 
         return serialize_message(T.events_message(events, t_ns))

@@ -89,3 +89,18 @@ def test_decode_table_rejects_non_tables():
     cloud.fields = [PointField(name="x", offset=0, datatype=PointField.FLOAT32, count=1)]
     with pytest.raises(TableDecodeError, match="FLOAT64"):
         decode_table(serialize_message(cloud))
+
+
+@pytest.mark.parametrize("frame_id", [MAP_FRAME, "", "abc"])
+def test_empty_events_encoder_equals_canonical_serialization(frame_id):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from evoscen_contract.cdr import EmptyEventsEncoder
+    from evoscen_contract.topics import events_message
+
+    msg = events_message([], 12_300_000_000)
+    msg.header.frame_id = frame_id
+    canon = CanonicalCdr(["diagnostic_msgs/msg/DiagnosticArray"])
+    ours = EmptyEventsEncoder(frame_id).encode(12_300_000_000)
+    assert ours == canon("diagnostic_msgs/msg/DiagnosticArray", serialize_message(msg))
+    assert deserialize_message(ours, DiagnosticArray).status == []

@@ -27,8 +27,10 @@ from evoscen_contract.topics import (
 def test_contract_names_types_and_qos() -> None:
     assert list(TOPICS) == [
         "/clock", "/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut",
-        "/evoscen/sut/odom", "/evoscen/events", "/evoscen/roster",
+        "/evoscen/sut/odom", "/evoscen/events", "/evoscen/roster", "/evoscen/markers", "/evoscen/map_markers",
     ]  # fmt: skip
+    assert TOPICS["/evoscen/map_markers"].qos.durability == "transient_local"
+    assert TOPICS["/evoscen/markers"].type_name == "visualization_msgs/msg/MarkerArray"
     assert TOPICS["/clock"].type_name == "rosgraph_msgs/msg/Clock"
     assert TOPICS["/evoscen/world"].fields == WORLD_FIELDS
     assert len(WORLD_FIELDS) == 17 and WORLD_FIELDS[0] == "id"
@@ -43,6 +45,9 @@ def test_contract_names_types_and_qos() -> None:
     assert POLICY_CODES == {"level0": 0, "mutual": 1, "competitive": 2, "cooperative": 3,
                             "sut": 4, "nilsson": 5, "mobil": 6}
     assert POLICY_NAMES[2] == "competitive"
+    from evoscen_sim.scenario import POLICY_CODES as SIM_POLICY_CODES
+
+    assert SIM_POLICY_CODES == POLICY_CODES  # the simulation core keeps its own copy (no ROS import)
 
 
 def test_qos_conversions() -> None:

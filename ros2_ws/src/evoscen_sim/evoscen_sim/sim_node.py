@@ -83,15 +83,20 @@ class SimulationNode:
     def _publish(self, spec: T.TopicSpec, data: bytes) -> None:
         self.pub[spec.name].publish(data)
 
-    def _publish_state(self, *, roster: bool) -> None:
+    def _publish_state(self, *, roster: bool, events: list[dict] | None = None) -> None:
+        """The world at t_k first (what the controllers wait for), then the rest of the step.
+
+        The bag's order does not depend on the publishing order: the recorder writes each
+        step in canonical order.
+        """
         w, m, t_ns = self.world, self.msgs, self.world.time_ns
         cols = w.columns()
+        self._publish(T.WORLD, m.world(cols, t_ns))
         if roster:
             self._publish(T.ROSTER, m.roster(cols, t_ns))
             self._publish(T.MAP_MARKERS, m.map_markers(w.road, t_ns))
-        # the world first: it is what the controllers wait for (the bag's order does not depend
-        # on the publishing order: the recorder writes each step in canonical order)
-        self._publish(T.WORLD, m.world(cols, t_ns))
+        if events is not None:  # what happened in the step that led to t_k
+            self._publish_events(events)
         self._publish(T.CLOCK, m.clock(t_ns))
         self._publish(T.SUT_ODOM, m.odometry(cols, SUT_INDEX, t_ns))
         every = self.cfg.recording.markers_every
@@ -173,14 +178,16 @@ class SimulationNode:
         w = self.world
         end_kind, end_text, status = "interrupted", "run interrupted (SIGINT)", EXIT_INTERRUPTED
         loop_start = None
+        events = None  # the events of the last step, published with the next state
         try:
             self.wait_for_graph()
             loop_start = time.perf_counter()
             for k in range(self.cfg.steps):
-                self._publish_state(roster=(k == 0))
+                self._publish_state(roster=(k == 0), events=events)
+                events = None
                 self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
                 result = w.step(self.throttle, self.lane_change)
-                self._publish_events(step_events(w, result))  # every step, empty when nothing happened
+                events = step_events(w, result)  # published every step with the next state, [] if nothing happened
             end_kind, end_text, status = "completed", f"run completed: {w.step_index} steps", EXIT_OK
         except RunAborted as exc:
             end_kind, end_text, status = "aborted", str(exc), EXIT_FAULT
@@ -189,7 +196,7 @@ class SimulationNode:
             pass
         if loop_start is not None:
             self._report(w.step_index, time.perf_counter() - loop_start)
-        self._publish_state(roster=(w.step_index == 0))
+        self._publish_state(roster=(w.step_index == 0), events=events)
         self._publish_events([run_end_event(w, end_kind, end_text)])
         for pub in self.pub.values():
             pub.wait_for_all_acked(rclpy_duration(5.0))

@@ -139,30 +139,31 @@ def test_plugin_through_the_cli(plugin: Path, tmp_path: Path) -> None:
     assert (tmp_path / "out" / "scenario.yaml").read_text(encoding="utf-8").count("my_sut") >= 2
 
 
-@pytest.mark.parametrize(("key", "value"), [("gain_per_s", -1.0), ("desired_speed_mps", "fast")])
-def test_bad_plugin_parameter_is_a_one_line_error(plugin: Path, tmp_path: Path, key: str, value: object) -> None:
-    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {key: value}})
-    line = one_line_error(run(["-c", RUN_INPROCESS, str(cfg)], plugin))
-    assert f"models.my_sut.{key}" in line and str(value) in line, line
+def test_bad_plugin_parameter_is_a_one_line_error(plugin: Path, tmp_path: Path) -> None:
+    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {"gain_per_s": -1.0}})
     line = one_line_error(run([str(SCRIPT), "--mode", "inprocess", "--config", str(cfg), "--no-record", "--quiet",
                                "--out", str(tmp_path / "out")], plugin))
+    assert "models.my_sut.gain_per_s" in line and "-1" in line and str(cfg) in line, line
+    assert not (tmp_path / "out").exists()  # nothing touched before the input is valid
+
+
+@pytest.mark.parametrize(("key", "value"), [("desired_speed_mps", "fast"), ("gain", 1.0)])
+def test_bad_plugin_parameter_in_process(plugin: Path, tmp_path: Path, key: str, value: object) -> None:
+    """A value of the wrong type, an unknown key: named the same way."""
+    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {key: value}})
+    line = one_line_error(run(["-c", RUN_INPROCESS, str(cfg)], plugin))
     assert f"models.my_sut.{key}" in line, line
 
 
-def test_unknown_plugin_parameter_is_a_one_line_error(plugin: Path, tmp_path: Path) -> None:
-    cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {"gain": 1.0}})
-    line = one_line_error(run(["-c", RUN_INPROCESS, str(cfg)], plugin))
-    assert "models.my_sut.gain" in line, line
-
-
-@pytest.mark.parametrize(("value", "needle"), [("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.models.ModelSpec"),
-                                                ("my_sut_plugin:MISSING", "failed to load"),
-                                                ("no_such_module:SPEC", "failed to load")])
-def test_broken_entry_point_is_named(tmp_path: Path, value: str, needle: str) -> None:
+@pytest.mark.parametrize(("value", "needle", "via_cli"), [
+    ("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.models.ModelSpec (got dict)", True),
+    ("my_sut_plugin:MISSING", "failed to load", False),
+    ("no_such_module:SPEC", "failed to load", False),
+])
+def test_broken_entry_point_is_named(tmp_path: Path, value: str, needle: str, via_cli: bool) -> None:
     plugin = make_plugin_dir(tmp_path / "site", f"[evoscen.sut]\nbroken = {value}\n")
     cfg = write_config(tmp_path / "scenario.yaml", {})
-    for argv in (["-c", RUN_INPROCESS, str(cfg)],
-                 [str(SCRIPT), "--mode", "inprocess", "--steps", "10", "--no-record", "--quiet",
-                  "--out", str(tmp_path / "out")]):
-        line = one_line_error(run(argv, plugin))
-        assert "entry point 'broken'" in line and "evoscen.sut" in line and value in line and needle in line, line
+    argv = ([str(SCRIPT), "--mode", "inprocess", "--steps", "10", "--no-record", "--quiet",
+             "--out", str(tmp_path / "out")] if via_cli else ["-c", RUN_INPROCESS, str(cfg)])
+    line = one_line_error(run(argv, plugin))
+    assert "entry point 'broken'" in line and "'evoscen.sut'" in line and value in line and needle in line, line
