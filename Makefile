@@ -28,7 +28,7 @@ build: $(REQ_STAMP)
 	    --build-base build --install-base install --event-handlers console_cohesion- summary-
 
 demo: setup
-	$(RUN) python scripts/run_scenario.py --mode inprocess --out $(DEMO_OUT) --overwrite
+	$(RUN) python scripts/run_scenario.py --out $(DEMO_OUT) --overwrite
 
 test: setup
 	$(RUN) python -m pytest $(PYTEST_ARGS)

@@ -192,6 +192,8 @@ class TopicSpec:
     rate: str
     description: str
     fields: tuple[str, ...] = ()
+    subscribers: tuple[str, ...] = ()
+    """evoscen's own subscribers (any other node may subscribe too)."""
 
     def qos_profile(self) -> Any:
         """Return the ``rclpy.qos.QoSProfile`` of this topic."""
@@ -217,6 +219,7 @@ CLOCK = TopicSpec(
     publisher=NODE_SIM,
     rate="every step",
     description="simulation time t_k, for use_sim_time",
+    subscribers=(NODE_EVAL,),
 )
 WORLD = TopicSpec(
     name="/evoscen/world",
@@ -230,6 +233,7 @@ WORLD = TopicSpec(
         "frame 'map'"
     ),
     fields=WORLD_FIELDS,
+    subscribers=(NODE_BV, NODE_SUT, NODE_EVAL),
 )
 COMMANDS_BV = TopicSpec(
     name="/evoscen/commands/bv",
@@ -243,6 +247,7 @@ COMMANDS_BV = TopicSpec(
         "stamp = t_k of the world step answered, frame 'map'"
     ),
     fields=COMMAND_FIELDS,
+    subscribers=(NODE_SIM, NODE_EVAL),
 )
 COMMANDS_SUT = TopicSpec(
     name="/evoscen/commands/sut",
@@ -256,6 +261,7 @@ COMMANDS_SUT = TopicSpec(
         "stamp = t_k of the world step answered, frame 'map'"
     ),
     fields=COMMAND_FIELDS,
+    subscribers=(NODE_SIM, NODE_EVAL),
 )
 SUT_ODOM = TopicSpec(
     name="/evoscen/sut/odom",
@@ -268,6 +274,7 @@ SUT_ODOM = TopicSpec(
         f"SUT pose in '{MAP_FRAME}' and twist in '{SUT_BASE_FRAME}' "
         "(linear.x = speed m/s, angular.z = yaw rate rad/s)"
     ),
+    subscribers=(NODE_EVAL,),
 )
 EVENTS = TopicSpec(
     name="/evoscen/events",
@@ -280,6 +287,7 @@ EVENTS = TopicSpec(
         "one DiagnosticStatus per event: " + ", ".join(EVENT_NAMES)
         + "; key/values " + ", ".join(EVENT_KEY_TYPES)
     ),
+    subscribers=(NODE_BV, NODE_SUT, NODE_EVAL),
 )
 ROSTER = TopicSpec(
     name="/evoscen/roster",
@@ -290,6 +298,7 @@ ROSTER = TopicSpec(
     rate="once, at start (latched)",
     description="vehicles of the scenario: flat table, one row per vehicle, columns ROSTER_FIELDS",
     fields=ROSTER_FIELDS,
+    subscribers=(NODE_EVAL,),
 )
 
 #: The whole contract, in README order.
@@ -302,6 +311,7 @@ MARKERS = TopicSpec(
     rate="every recording.markers_every steps (default 5)",
     description=("vehicles as oriented boxes sized to each vehicle, coloured by policy (competitive red, "
                  "mutual blue, cooperative green, level-0 grey, SUT amber), with id and speed as text; frame 'map'"),
+    subscribers=(NODE_EVAL,),
 )
 
 MAP_MARKERS = TopicSpec(
@@ -312,6 +322,7 @@ MAP_MARKERS = TopicSpec(
     publisher=NODE_SIM,
     rate="once, at start (latched)",
     description="lane lines (broken) and road edges (solid) as LINE_LIST markers; frame 'map'",
+    subscribers=(NODE_EVAL,),
 )
 
 CONTRACT: tuple[TopicSpec, ...] = (CLOCK, WORLD, COMMANDS_BV, COMMANDS_SUT, SUT_ODOM, EVENTS, ROSTER, MARKERS, MAP_MARKERS)
@@ -322,17 +333,18 @@ TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in CONTRACT}
 def contract_markdown() -> str:
     """Render the contract as Markdown for the README.
 
-    Returns the topic table (topic | type | QoS | publisher | rate | meaning), followed
+    Returns the topic table (topic | type | publisher | subscribers | QoS | rate | meaning), followed
     by the table columns with their meaning/units, the policy codes and the event keys.
     Deterministic (depends only on this module).
     """
     lines = [
-        "| topic | type | QoS | publisher | rate | meaning |",
-        "|---|---|---|---|---|---|",
+        "| topic | type | publisher | subscribers | QoS | rate | meaning |",
+        "|---|---|---|---|---|---|---|",
     ]
     for spec in CONTRACT:
+        subs = ", ".join(f"`{s}`" for s in spec.subscribers)
         lines.append(
-            f"| `{spec.name}` | `{spec.type_name}` | {spec.qos.short()} | `{spec.publisher}` "
+            f"| `{spec.name}` | `{spec.type_name}` | `{spec.publisher}` | {subs} | {spec.qos.short()} "
             f"| {spec.rate} | {spec.description} |"
         )
     lines += ["", "Table columns (float64, one row per vehicle):", ""]

@@ -72,7 +72,7 @@ def test_qos_conversions() -> None:
 
 def test_contract_markdown_lists_every_topic() -> None:
     md = contract_markdown()
-    assert md.splitlines()[0] == "| topic | type | QoS | publisher | rate | meaning |"
+    assert md.splitlines()[0] == "| topic | type | publisher | subscribers | QoS | rate | meaning |"
     for spec in CONTRACT:
         assert f"| `{spec.name}` | `{spec.type_name}` |" in md
     assert "`heading_rel`" in md
