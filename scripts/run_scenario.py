@@ -13,6 +13,7 @@ prints one line ``error: ...`` and exits with status 2.
 from __future__ import annotations
 
 import argparse
+import random
 import shutil
 import sys
 from pathlib import Path
@@ -74,10 +75,14 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> i
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
     from evoscen_eval.recorder import open_bag_reader
 
-    opts = GraphOptions(domain_id=args.domain_id, discovery_range=args.discovery_range,
+    domain = args.domain_id if args.domain_id is not None else random.SystemRandom().randint(1, 100)
+    opts = GraphOptions(domain_id=domain, discovery_range=args.discovery_range,
                         deadline_s=args.deadline, max_misses=args.max_misses, external_sut=args.external_sut)
-    print(f"graph: ROS_DOMAIN_ID={opts.domain_id if opts.domain_id is not None else '(random)'}, "
-          f"discovery {opts.discovery_range}; parameter files in {out / 'params'}", file=sys.stderr)
+    print(f"graph: ROS_DOMAIN_ID={domain}, discovery {opts.discovery_range}; parameter files in {out / 'params'}",
+          file=sys.stderr)
+    if args.external_sut:
+        print(f"graph: waiting up to {opts.startup_timeout_s:g} s for your SUT node on /evoscen/commands/sut "
+              f"(ROS_DOMAIN_ID={domain})", file=sys.stderr)
     result = run_graph(cfg, out, bag_dir, opts)
     counts: dict[str, int] = {}
     try:
@@ -104,6 +109,9 @@ def main(argv: list[str] | None = None) -> int:
     overrides = {key: value for key, value in (
         ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
         ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+    if args.external_sut and args.mode != "graph":
+        print("error: --external-sut needs --mode graph (an external SUT node answers on the wire)", file=sys.stderr)
+        return 2
     if args.mode == "graph":
         for name, value, ok in (("--domain-id", args.domain_id, args.domain_id is None or 0 <= args.domain_id <= 232),
                                 ("--deadline", args.deadline, args.deadline > 0),

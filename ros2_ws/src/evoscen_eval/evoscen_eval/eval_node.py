@@ -75,6 +75,8 @@ class EvaluatorNode:
                 t_ns = _stamp_ns(topic, data)
                 canonical = topic in _CANONICAL_TOPICS
                 if topic in _TABLE_TOPICS:
+                    if t_ns >= self.cfg.steps * self.dt_ns or (self.run_end_ns is not None and t_ns >= self.run_end_ns):
+                        continue  # an answer to the final state: no step follows it, the simulation ignores it
                     data, canonical = self._canonical_table(data), True
                 self.bag.add(topic, data, t_ns, canonical=canonical)
                 if topic in self.latest:

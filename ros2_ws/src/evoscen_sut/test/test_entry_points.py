@@ -101,7 +101,8 @@ def write_config(path: Path, models: dict) -> Path:
 
 def run(argv: list[str], plugin_dir: Path) -> subprocess.CompletedProcess:
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(plugin_dir), *filter(None, [env.get("PYTHONPATH")])])
+    # the plug-in's directory first, then what this process imports evoscen from
+    env["PYTHONPATH"] = os.pathsep.join([str(plugin_dir), *(p for p in sys.path if p)])
     return subprocess.run([sys.executable, *argv], env=env, cwd=REPO, capture_output=True, text=True,
                           timeout=120, check=False)
 
