@@ -47,8 +47,12 @@ PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE
 PUBLISH_RETRY_S = 0.005
 
 
-class Interrupted(Exception):
-    """SIGINT / SIGTERM arrived (exit status 128 + signum)."""
+class Interrupted(BaseException):
+    """SIGINT / SIGTERM arrived (exit status 128 + signum).
+
+    A BaseException, like KeyboardInterrupt, so that no ``except Exception`` on the way (the
+    bag reader turns any exception into "corrupt MCAP data") can swallow it.
+    """
 
     def __init__(self, signum: int) -> None:
         super().__init__(signum)
@@ -76,7 +80,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def validate(args: argparse.Namespace):  # noqa: ANN201
     """Check every argument and the bag before the middleware starts; InputError otherwise."""
-    from evoscen_eval.replay import CDR, parse_rate, parse_seconds, read_bag_topics, select_topics
+    from evoscen_eval.replay import (
+        CDR,
+        parse_rate,
+        parse_seconds,
+        read_bag_topics,
+        select_topics,
+    )
     from evoscen_sim.errors import InputError
 
     rate = parse_rate(args.rate)

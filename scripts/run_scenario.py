@@ -74,6 +74,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> i
     """Run the node graph; print the outcome; return its status."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
     from evoscen_eval.recorder import open_bag_reader
+    from evoscen_sim.errors import InputError
 
     domain = args.domain_id if args.domain_id is not None else random.SystemRandom().randint(1, 100)
     opts = GraphOptions(domain_id=domain, discovery_range=args.discovery_range,

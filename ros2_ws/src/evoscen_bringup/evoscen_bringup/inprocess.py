@@ -70,9 +70,11 @@ class _Recorder:
         self.bag = OrderedBag(bag, T.CONTRACT)
         self.road = road
         self.markers_every = cfg.recording.markers_every
+        self.last_state_ns: int | None = None
 
     def world_state(self, world, sut_index: int, *, roster: bool = False) -> None:  # noqa: ANN001
         T, m, t_ns = self.T, self.msgs, world.time_ns
+        self.last_state_ns = t_ns
         cols = world.columns()
         self.bag.flush_before(t_ns)
         if roster:
@@ -137,7 +139,8 @@ def run_inprocess(
         summary.steps = world.step_index
         summary.sim_time_s = world.time_s
         if rec is not None:
-            rec.world_state(world, sc.sut_index, roster=(world.step_index == 0))
+            if rec.last_state_ns != world.time_ns:  # the final state, unless recorded already (Ctrl-C)
+                rec.world_state(world, sc.sut_index, roster=(world.step_index == 0))
             rec.events([run_end_event(world, end_kind, end_message)], world.time_ns)
             rec.bag.close()
             summary.message_count = rec.bag.message_count

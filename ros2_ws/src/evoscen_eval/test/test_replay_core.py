@@ -14,7 +14,15 @@ import yaml
 from rclpy.serialization import serialize_message
 
 from evoscen_contract.qos import QosSpec, rosbag2_qos_yaml
-from evoscen_contract.topics import CLOCK, CONTRACT, LATCHED_QOS, ROSTER, STEP_QOS, TOPICS, clock_message
+from evoscen_contract.topics import (
+    CLOCK,
+    CONTRACT,
+    LATCHED_QOS,
+    ROSTER,
+    STEP_QOS,
+    TOPICS,
+    clock_message,
+)
 from evoscen_eval.recorder import BagRecorder
 from evoscen_eval.replay import (
     DEFAULT_QOS,
@@ -117,7 +125,14 @@ def test_read_bag_topics_of_our_bag(tmp_path: Path) -> None:
 
 
 def test_read_bag_topics_of_a_rosbags_bag(tmp_path: Path) -> None:
-    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 

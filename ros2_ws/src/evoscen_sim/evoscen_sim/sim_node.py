@@ -78,6 +78,7 @@ class SimulationNode:
         self.throttle = np.zeros(self.world.n)
         self.lane_change = np.zeros(self.world.n, dtype=np.int64)
         self.misses = dict.fromkeys(self.controllers, 0)
+        self._published_ns: int | None = None
 
     # ------------------------------------------------------------------ publishing
     def _publish(self, spec: T.TopicSpec, data: bytes) -> None:
@@ -91,6 +92,7 @@ class SimulationNode:
         """
         w, m, t_ns = self.world, self.msgs, self.world.time_ns
         cols = w.columns()
+        self._published_ns = t_ns
         self._publish(T.WORLD, m.world(cols, t_ns))
         if roster:
             self._publish(T.ROSTER, m.roster(cols, t_ns))
@@ -122,9 +124,14 @@ class SimulationNode:
         return missing
 
     def wait_for_graph(self) -> None:
-        """Block until every peer is matched; RunAborted after ``startup_timeout_s``."""
+        """Block until every peer is matched; RunAborted after ``startup_timeout_s``.
+
+        Also refuses a domain where another simulation node already publishes the world: two
+        graphs on one ROS_DOMAIN_ID would take each other's commands and record each other.
+        """
         deadline = time.monotonic() + self.startup_timeout_s
         while missing := self._unmatched():
+            self._check_alone()
             if time.monotonic() > deadline:
                 raise RunAborted(f"start-up: not matched after {self.startup_timeout_s:g} s: {'; '.join(missing)}")
             time.sleep(0.02)
@@ -169,6 +176,13 @@ class SimulationNode:
             if kind == "abort":
                 raise RunAborted(text)
 
+    def _check_alone(self) -> None:
+        others = self.node.count_publishers(T.WORLD.name) - 1
+        if others > 0:
+            domain = self.node.context.get_domain_id()
+            raise RunAborted(f"start-up: ROS_DOMAIN_ID {domain} already has {others} other publisher(s) of "
+                             f"{T.WORLD.name} (another evoscen graph or a replay); choose another domain")
+
     def _rows_of(self, controller: str) -> np.ndarray:
         role = self.world.role
         return np.flatnonzero(role == 1) if controller == T.NODE_SUT else np.flatnonzero(role == 0)
@@ -196,10 +210,11 @@ class SimulationNode:
             pass
         if loop_start is not None:
             self._report(w.step_index, time.perf_counter() - loop_start)
-        self._publish_state(roster=(w.step_index == 0), events=events)
+        if w.time_ns != self._published_ns:  # the final state, unless it went out already (abort, Ctrl-C)
+            self._publish_state(roster=(w.step_index == 0), events=events)
         self._publish_events([run_end_event(w, end_kind, end_text)])
-        for pub in self.pub.values():
-            pub.wait_for_all_acked(rclpy_duration(5.0))
+        for pub in self.pub.values():  # a dead reader would hold this for the whole timeout: keep it short
+            pub.wait_for_all_acked(rclpy_duration(1.0))
         return status
 
 

@@ -1,0 +1,390 @@
+"""Acceptance tests of the ROS 2 node graph (``run_scenario.py --mode graph``): real processes,
+real rclpy + Fast DDS, no mocks.
+
+* a 200-step run completes and its bag holds every step;
+* the graph's bag is byte-identical to the in-process bag of the same config and seed;
+* a controller killed mid-run is a clean abort (status 3, one error line naming it, a finished bag
+  holding every step up to the fault);
+* Ctrl-C (SIGINT to the launcher) leaves a finished bag (status 130, run_end ``interrupted``);
+* the recorder killed mid-run is reported as one line, not a traceback;
+* a node started with a bad parameter exits 2 with one line naming the parameter;
+* the launcher's parameter files (``OUT/params/<node>.yaml``) load back with the scenario values.
+
+Every graph runs on its own ROS_DOMAIN_ID (the launcher draws one, or a test passes a random
+explicit one) with localhost-only discovery. Only processes started by a test are signalled:
+node processes are found as children of the test's own launcher (``pgrep -P <launcher pid>``),
+never by name alone (other graphs may run on the same machine).
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import pytest
+import yaml
+
+pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPT = "scripts/run_scenario.py"
+DT_NS = 100_000_000  # dt_s of the shipped config
+N_VEHICLES = 21  # 1 SUT + 20 BVs (shipped config)
+NODES = ("evoscen_eval", "evoscen_bv", "evoscen_sut", "evoscen_sim")
+PER_STEP_STATE = ("/clock", "/evoscen/world", "/evoscen/sut/odom")  # published at t_0 .. t_N
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _domain_id() -> int:
+    return random.SystemRandom().randint(1, 100)
+
+
+def _node_env(domain_id: int) -> dict[str, str]:
+    """Environment for a process of the test itself that joins a graph's domain (localhost only)."""
+    env = dict(os.environ)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["RMW_IMPLEMENTATION"] = "rmw_fastrtps_cpp"
+    env.pop("ROS_LOCALHOST_ONLY", None)
+    return env
+
+
+def _run_cli(*args: object, timeout: float = 120.0) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, SCRIPT, *map(str, args)], cwd=REPO, capture_output=True, text=True,
+                          timeout=timeout, check=False)
+
+
+def _launch(*args: object) -> subprocess.Popen:
+    """Start the launcher (``--mode graph``) in the background."""
+    return subprocess.Popen([sys.executable, SCRIPT, "--mode", "graph", *map(str, args)], cwd=REPO, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def _children(launcher: subprocess.Popen, module: str = "") -> list[int]:
+    """Pids of the launcher's own node processes (optionally only the one running ``module``)."""
+    cmd = ["pgrep", "-P", str(launcher.pid)] + (["-f", rf"\s-m {re.escape(module)}(\s|$)"] if module else [])
+    out = subprocess.run(cmd, capture_output=True, text=True, check=False).stdout
+    return [int(pid) for pid in out.split()]
+
+
+def _wait_running(launcher: subprocess.Popen, bag_dir: Path, timeout: float = 90.0) -> None:
+    """Until the run is in progress: the recorder has written steps (the bag file grows)."""
+    mcap = bag_dir / "bag_0.mcap"
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if launcher.poll() is not None:
+            out, err = launcher.communicate()
+            pytest.fail(f"the launcher ended ({launcher.returncode}) before the run got going:\n{out}\n{err}")
+        if mcap.exists() and mcap.stat().st_size > 0:
+            return
+        time.sleep(0.1)
+    pytest.fail(f"the run did not start within {timeout:g} s (no data in {mcap})")
+
+
+def _terminate(launcher: subprocess.Popen) -> None:
+    """Clean-up after a failed test: end the launcher and its node processes (ours only)."""
+    if launcher.poll() is not None:
+        return
+    pids = _children(launcher)
+    launcher.kill()
+    launcher.communicate()
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def _read_bag(bag_dir: Path) -> dict[str, list[tuple[int, bytes]]]:
+    """``{topic: [(log_time_ns, cdr bytes), ...]}`` in file order (evoscen's reader)."""
+    from evoscen_eval.recorder import open_bag_reader
+
+    out: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
+    for topic, _type, t_ns, data in open_bag_reader(bag_dir):
+        out[topic].append((t_ns, data))
+    return out
+
+
+def _events(bag: dict[str, list[tuple[int, bytes]]]) -> list[tuple[int, dict]]:
+    """Every event of the bag with the stamp of its message, in order."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from evoscen_contract.topics import parse_events
+    from rclpy.serialization import deserialize_message
+
+    return [(t, ev) for t, data in bag.get("/evoscen/events", [])
+            for ev in parse_events(deserialize_message(data, DiagnosticArray))]
+
+
+def _mcap_summary_count(bag_dir: Path) -> int:
+    """The message count of the MCAP summary section (present only in a finished file)."""
+    from mcap.reader import make_reader
+
+    with open(bag_dir / "bag_0.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None, f"{bag_dir}: no MCAP summary (bag not finished)"
+    return summary.statistics.message_count
+
+
+def _stamps(bag: dict, topic: str) -> list[int]:
+    return [t for t, _ in bag.get(topic, [])]
+
+
+def _steps(stamps: list[int]) -> list[int]:
+    assert all(t % DT_NS == 0 for t in stamps), f"stamps not on the step grid: {stamps[:5]}"
+    return [t // DT_NS for t in stamps]
+
+
+def _error_lines(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if line.startswith("error:")]
+
+
+# --------------------------------------------------------------------------- 200-step run
+
+
+@pytest.fixture(scope="module")
+def graph_200(tmp_path_factory):
+    """``--mode graph --steps 200 --seed 5`` and ``--mode inprocess`` of the same scenario."""
+    root = tmp_path_factory.mktemp("graph200")
+    t0 = time.monotonic()
+    graph = _run_cli("--mode", "graph", "--steps", 200, "--seed", 5, "--out", root / "graph")
+    wall = time.monotonic() - t0
+    inproc = _run_cli("--mode", "inprocess", "--steps", 200, "--seed", 5, "--out", root / "inproc", "--quiet")
+    assert inproc.returncode == 0, inproc.stderr
+    return {"out": root / "graph", "res": graph, "wall": wall, "inproc_out": root / "inproc"}
+
+
+def test_graph_run_completes(graph_200):
+    res, bag_dir = graph_200["res"], graph_200["out"] / "bag"
+    assert res.returncode == 0, f"graph run failed ({res.returncode}):\n{res.stdout}\n{res.stderr}"
+    assert not _error_lines(res.stderr) and "Traceback" not in res.stderr, res.stderr
+    assert re.search(r"^steps: 200\b", res.stdout, re.MULTILINE), res.stdout
+    assert re.search(r"nodes: evoscen_eval=0, evoscen_bv=0, evoscen_sut=0, evoscen_sim=0", res.stdout), res.stdout
+    bag = _read_bag(bag_dir)
+    for topic in PER_STEP_STATE:
+        assert _steps(_stamps(bag, topic)) == list(range(201)), topic
+    for topic in ("/evoscen/commands/bv", "/evoscen/commands/sut"):
+        assert _steps(_stamps(bag, topic)) == list(range(200)), topic
+    assert len(bag["/evoscen/roster"]) == 1
+    # events after every step (stamped t_1 .. t_200, empty when nothing happened), then run_end
+    assert _steps(_stamps(bag, "/evoscen/events")) == [*range(1, 201), 200]
+    ends = [(t, ev) for t, ev in _events(bag) if ev["name"] == "evoscen/run_end"]
+    assert len(ends) == 1 and ends[0][1]["kind"] == "completed" and ends[0][0] == 200 * DT_NS, ends
+    assert not [ev for _, ev in _events(bag) if ev["name"] == "evoscen/fault"]
+    assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())
+    print(f"\ngraph 200 steps: {graph_200['wall']:.1f} s wall (launcher)")
+
+
+def test_graph_bag_equals_inprocess_bag(graph_200):
+    assert graph_200["res"].returncode == 0, graph_200["res"].stderr
+    g_dir, i_dir = graph_200["out"] / "bag", graph_200["inproc_out"] / "bag"
+    g, i = _read_bag(g_dir), _read_bag(i_dir)
+    assert sorted(g) == sorted(i), "different topics"
+    # message by message first, for a failure that says where
+    for topic in ("/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut", *sorted(i)):
+        assert _stamps(g, topic) == _stamps(i, topic), f"{topic}: different stamps"
+        for (t, a), (_, b) in zip(g[topic], i[topic]):
+            assert a == b, f"{topic} at t = {t / 1e9:g} s: graph and in-process messages differ"
+    assert (g_dir / "metadata.yaml").read_bytes() == (i_dir / "metadata.yaml").read_bytes(), "metadata.yaml differs"
+    assert (g_dir / "bag_0.mcap").read_bytes() == (i_dir / "bag_0.mcap").read_bytes(), "bag_0.mcap differs"
+
+
+def test_parameter_files_written_and_load_back(graph_200):
+    from evoscen_sim.config import config_from_dict, load_scenario_config
+    from evoscen_sim.node_params import scenario_parameters
+
+    out = graph_200["out"]
+    cfg = load_scenario_config(out / "scenario.yaml")
+    assert (cfg.steps, cfg.seed, cfg.bvs.count) == (200, 5, 20)
+    for node in NODES:
+        path = out / "params" / f"{node}.yaml"
+        assert path.is_file(), path
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        assert list(doc) == [node] and list(doc[node]) == ["ros__parameters"], f"{path}: not 'node: ros__parameters:'"
+        params = doc[node]["ros__parameters"]
+        assert params["scenario"] == scenario_parameters(cfg), f"{path}: scenario parameters differ"
+        assert config_from_dict(params["scenario"], source=str(path)) == cfg, f"{path}: does not load back"
+        assert params["scenario"]["steps"] == 200 and params["scenario"]["seed"] == 5
+        assert params["scenario"]["bvs"]["count"] == 20
+    sim = yaml.safe_load((out / "params" / "evoscen_sim.yaml").read_text())["evoscen_sim"]["ros__parameters"]
+    assert (sim["deadline_s"], sim["max_misses"]) == (2.0, 5)
+    assert sim["controllers"] == ["evoscen_bv", "evoscen_sut"]
+    ev = yaml.safe_load((out / "params" / "evoscen_eval.yaml").read_text())["evoscen_eval"]["ros__parameters"]
+    assert Path(ev["bag_dir"]) == out / "bag"
+
+
+# --------------------------------------------------------------------------- a controller dies
+
+
+@pytest.fixture(scope="module")
+def killed_bv(tmp_path_factory):
+    """A long run whose BV node is SIGKILLed mid-run (deadline 0.5 s, 3 misses abort)."""
+    out = tmp_path_factory.mktemp("killbv") / "run"
+    launcher = _launch("--steps", 5000, "--seed", 5, "--deadline", 0.5, "--max-misses", 3, "--out", out)
+    try:
+        _wait_running(launcher, out / "bag")
+        time.sleep(0.3)
+        bv = _children(launcher, "evoscen_bv.bv_node")
+        assert len(bv) == 1, f"expected one evoscen_bv.bv_node child of the launcher, found {bv}"
+        os.kill(bv[0], signal.SIGKILL)
+        t_kill = time.monotonic()
+        stdout, stderr = launcher.communicate(timeout=120)
+        after_kill = time.monotonic() - t_kill
+    finally:
+        _terminate(launcher)
+    return {"out": out, "rc": launcher.returncode, "stdout": stdout, "stderr": stderr, "after_kill": after_kill}
+
+
+def test_killed_controller_aborts_cleanly(killed_bv):
+    rc, stderr, bag_dir = killed_bv["rc"], killed_bv["stderr"], killed_bv["out"] / "bag"
+    print(f"\nBV killed: launcher ended {killed_bv['after_kill']:.1f} s after the kill")
+    assert rc == 3, f"exit status {rc}, expected 3 (controller fault)\n{stderr}"
+    assert "Traceback" not in stderr, stderr
+    errors = _error_lines(stderr)
+    assert len(errors) == 1, f"expected one 'error:' line, got {errors}\n{stderr}"
+    assert re.fullmatch(r"error: evoscen_sim: controller 'evoscen_bv' missed 3 consecutive deadline\(s\) .*", errors[0]), errors
+    assert "evoscen_bv=-9" in killed_bv["stdout"], killed_bv["stdout"]  # the launcher reports the dead node
+
+    bag = _read_bag(bag_dir)
+    assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())
+    events = _events(bag)
+    faults = [ev for _, ev in events if ev["name"] == "evoscen/fault"]
+    # the last three: the dead controller's consecutive misses (an earlier isolated miss of a live
+    # controller on a loaded machine would be a 'deadline' fault that did not abort)
+    assert [(f["kind"], f["controller"], f["misses"]) for f in faults[-3:]] == [
+        ("deadline", "evoscen_bv", 1), ("deadline", "evoscen_bv", 2), ("abort", "evoscen_bv", 3)], faults
+    assert all(f["kind"] == "deadline" for f in faults[:-3]), faults
+    faults = faults[-3:]
+    k = faults[-1]["step"]  # the step at which the run stopped (world t_K published, never integrated)
+    assert [f["step"] for f in faults] == [k - 2, k - 1, k]
+    ends = [(t, ev) for t, ev in events if ev["name"] == "evoscen/run_end"]
+    assert len(ends) == 1 and ends[0][1]["kind"] == "aborted" and ends[0][0] == k * DT_NS, ends
+    assert ends[0] == events[-1], "run_end is not the last event"
+    assert 0 < k < 5000
+    for topic in PER_STEP_STATE:  # every step up to the fault, none after it
+        assert sorted(set(_steps(_stamps(bag, topic)))) == list(range(k + 1)), topic
+        assert _stamps(bag, topic) == sorted(_stamps(bag, topic)), topic
+    sut = set(_steps(_stamps(bag, "/evoscen/commands/sut")))
+    assert set(range(k)) <= sut <= set(range(k + 1))
+    bv = _steps(_stamps(bag, "/evoscen/commands/bv"))
+    assert bv == list(range(k - 2)), "BV commands: expected steps 0 .. K-3 (it died before answering K-2)"
+    assert len(bag["/evoscen/roster"]) == 1
+
+
+def test_killed_controller_bag_has_one_message_per_step(killed_bv):
+    bag = _read_bag(killed_bv["out"] / "bag")
+    for topic in (*PER_STEP_STATE, "/evoscen/commands/sut"):
+        dup = {t: n for t, n in Counter(_stamps(bag, topic)).items() if n > 1}
+        assert not dup, f"{topic}: several messages with the same stamp {dup}"
+
+
+# --------------------------------------------------------------------------- Ctrl-C, a dead recorder
+
+
+def test_sigint_to_launcher_leaves_finished_bag(tmp_path):
+    out = tmp_path / "run"
+    launcher = _launch("--steps", 5000, "--seed", 5, "--out", out)
+    try:
+        _wait_running(launcher, out / "bag")
+        time.sleep(0.3)
+        launcher.send_signal(signal.SIGINT)  # the launcher only: it forwards to the simulation node
+        stdout, stderr = launcher.communicate(timeout=90)
+    finally:
+        _terminate(launcher)
+    assert launcher.returncode == 130, f"exit status {launcher.returncode}\n{stdout}\n{stderr}"
+    assert "Traceback" not in stderr and not _error_lines(stderr), stderr
+    bag_dir = out / "bag"
+    assert (bag_dir / "metadata.yaml").is_file()
+    bag = _read_bag(bag_dir)
+    assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())
+    events = _events(bag)
+    ends = [(t, ev) for t, ev in events if ev["name"] == "evoscen/run_end"]
+    assert len(ends) == 1 and ends[0][1]["kind"] == "interrupted", ends
+    assert ends[0] == events[-1], "run_end is not the last event"
+    k = ends[0][0] // DT_NS
+    assert 0 < k < 5000
+    for topic in PER_STEP_STATE:
+        assert sorted(set(_steps(_stamps(bag, topic)))) == list(range(k + 1)), topic
+    for topic in ("/evoscen/commands/bv", "/evoscen/commands/sut"):
+        assert set(range(k)) <= set(_steps(_stamps(bag, topic))) <= set(range(k + 1)), topic
+    assert not [ev for _, ev in events if ev["name"] == "evoscen/fault"]
+    # every node ended by itself (nothing had to be killed)
+    assert re.search(r"nodes: evoscen_eval=0, evoscen_bv=0, evoscen_sut=0, evoscen_sim=130", stdout), stdout
+
+
+def test_killed_recorder_is_one_error_line(tmp_path):
+    out = tmp_path / "run"
+    launcher = _launch("--steps", 5000, "--seed", 5, "--out", out)
+    try:
+        _wait_running(launcher, out / "bag")
+        ev = _children(launcher, "evoscen_eval.eval_node")
+        assert len(ev) == 1, ev
+        os.kill(ev[0], signal.SIGKILL)
+        _stdout, stderr = launcher.communicate(timeout=90)
+    finally:
+        _terminate(launcher)
+    assert launcher.returncode not in (0, 1), f"exit status {launcher.returncode}\n{stderr}"
+    assert "Traceback" not in stderr, stderr
+    errors = _error_lines(stderr)
+    assert any("bag" in line for line in errors), errors
+
+
+# --------------------------------------------------------------------------- bad parameters
+
+
+def _node_with_params(module: str, params_file: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", module, "--ros-args", "--params-file", str(params_file), *extra],
+                            cwd=REPO, env=_node_env(_domain_id()), text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def test_bad_node_parameters_are_one_line_errors(tmp_path):
+    from evoscen_bringup.graph_runner import GraphOptions, write_parameter_files
+    from evoscen_sim.config import load_scenario_config
+
+    cfg = load_scenario_config(None, {"steps": 50})
+    files = write_parameter_files(cfg, tmp_path, tmp_path / "bag", GraphOptions())
+
+    def edit(node: str, change) -> Path:
+        doc = yaml.safe_load(files[node].read_text())
+        change(doc[node]["ros__parameters"])
+        path = tmp_path / f"bad_{node}.yaml"
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+        return path
+
+    bad_bv = edit("evoscen_bv", lambda p: p["scenario"]["bvs"].__setitem__("count", -1))
+    bad_sim = edit("evoscen_sim", lambda p: p.__setitem__("deadline_s", -1))
+    cases = {  # started together: each takes a few seconds to start
+        "model": _node_with_params("evoscen_sut.sut_node", files["evoscen_sut"], "-p", "model:=nosuch"),
+        "bvs.count": _node_with_params("evoscen_bv.bv_node", bad_bv),
+        "deadline_s": _node_with_params("evoscen_sim.sim_node", bad_sim),
+    }
+    results = {}
+    try:
+        for name, proc in cases.items():
+            results[name] = (*proc.communicate(timeout=60), proc.returncode)
+    finally:
+        for proc in cases.values():
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+    for name, (_out, err, rc) in results.items():
+        lines = [line for line in err.splitlines() if line.strip()]
+        assert rc == 2, f"{name}: exit status {rc}\n{err}"
+        assert len(lines) == 1 and lines[0].startswith("error: "), f"{name}: expected one 'error:' line:\n{err}"
+        results[name] = lines[0]
+    model = results["model"]
+    assert "'model'" in model and "nosuch" in model, model
+    assert all(choice in model for choice in ("level0", "mobil", "nilsson", "stackelberg")), model
+    assert "bvs.count" in results["bvs.count"] and "-1" in results["bvs.count"], results["bvs.count"]
+    assert "evoscen_bv" in results["bvs.count"]
+    assert "'deadline_s'" in results["deadline_s"] and "evoscen_sim" in results["deadline_s"], results["deadline_s"]
+    assert "> 0" in results["deadline_s"]
