@@ -435,7 +435,7 @@ def _dump_yaml(data: Any) -> str:
 # ---------------------------------------------------------------------- reading
 
 
-def _bag_file(bag_dir: Path) -> Path:
+def bag_file(bag_dir: Path) -> Path:
     """Return the .mcap file of a bag directory (or the file itself if given one)."""
     if bag_dir.is_file():
         return bag_dir
@@ -489,7 +489,7 @@ def open_bag_reader(
             message names the path). Raised by this call for what the file's start and
             summary show, and during iteration for corrupt data further on.
     """
-    path = _bag_file(Path(bag_dir))
+    path = bag_file(Path(bag_dir))
     try:
         stream = open(path, "rb")  # noqa: SIM115
     except OSError as exc:

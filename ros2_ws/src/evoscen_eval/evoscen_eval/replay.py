@@ -32,7 +32,7 @@ from typing import Any
 import yaml
 
 from evoscen_contract.qos import QosSpec
-from evoscen_eval.recorder import _bag_file, open_bag_reader
+from evoscen_eval.recorder import bag_file, open_bag_reader
 from evoscen_sim.errors import InputError
 
 #: QoS used when a topic has no recorded offer (rclcpp's default profile).
@@ -206,7 +206,7 @@ def read_bag_topics(bag_dir: Path | str) -> list[BagTopic]:
             topic is recorded with two types, or a QoS entry is malformed (names the path).
     """
     bag_dir = Path(bag_dir)
-    path = _bag_file(bag_dir)
+    path = bag_file(bag_dir)
     meta = _metadata_topics(bag_dir)
     channels, schemas, counts = _channels_and_schemas(path)
     merged: dict[str, dict[str, Any]] = {}
