@@ -84,7 +84,7 @@ class _Recorder:
         self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
         self.bag.add(T.SUT_ODOM.name, m.odometry(cols, sut_index, t_ns), t_ns, canonical=True)
         if self.markers_every and world.step_index % self.markers_every == 0:
-            self.bag.add(T.MARKERS.name, m.vehicle_markers(cols, t_ns), t_ns)
+            self.bag.add(T.MARKERS.name, m.vehicle_markers(cols, t_ns), t_ns, canonical=True)
 
     def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
         self.bag.add(topic, self.msgs.commands(ids, throttle, lane_change, t_ns), t_ns, canonical=True)

@@ -34,6 +34,13 @@ POLICY_COLORS: dict[str, tuple[float, float, float]] = {
 }
 """Box colour (r, g, b) per policy: competitive red, mutual blue, cooperative green, SUT amber."""
 _CODE_COLORS = {POLICY_CODES[name]: rgb for name, rgb in POLICY_COLORS.items()}
+CUBE = 1  # visualization_msgs/Marker.CUBE
+TEXT_VIEW_FACING = 9  # visualization_msgs/Marker.TEXT_VIEW_FACING
+
+
+def policy_color(code: float) -> tuple[float, float, float]:
+    """Box colour of a policy code (white for an unknown code)."""
+    return _CODE_COLORS.get(int(code), (1.0, 1.0, 1.0))
 
 
 def _color(rgb: tuple[float, float, float], alpha: float = 1.0):  # noqa: ANN202
@@ -67,7 +74,7 @@ def vehicle_markers(columns: Mapping[str, np.ndarray], stamp_ns: int):  # noqa: 
         box.scale.x = float(columns["length"][i])
         box.scale.y = float(columns["width"][i])
         box.scale.z = VEHICLE_HEIGHT_M
-        box.color = _color(_CODE_COLORS.get(int(columns["policy"][i]), (1.0, 1.0, 1.0)))
+        box.color = _color(policy_color(columns["policy"][i]))
         label = Marker()
         label.header = box.header
         label.ns = "labels"

@@ -1,9 +1,10 @@
 """The simulation's per-step messages as CDR bytes, built the same way in every runner.
 
 The in-process runner records these bytes; the simulation node publishes them
-(``publisher.publish(bytes)``). Tables, ``/clock`` and the SUT's odometry are canonical CDR
-from :mod:`evoscen_contract.cdr`; events are serialized by rclpy (the recorder canonicalizes
-them, whichever runner they came from).
+(``publisher.publish(bytes)``). Tables, ``/clock``, the SUT's odometry, the vehicle markers
+and steps without events are canonical CDR from :mod:`evoscen_contract.cdr`; events and the
+(once-published) map markers are serialized by rclpy and canonicalized by the recorder,
+whichever runner they came from.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from . import topics as T
-from .cdr import EmptyEventsEncoder, OdometryEncoder, TableEncoder, encode_clock
+from .cdr import EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, encode_clock
 
 
 class WorldMessages:
@@ -26,6 +27,7 @@ class WorldMessages:
         self._commands = TableEncoder(T.COMMAND_FIELDS, T.MAP_FRAME)
         self._odometry = OdometryEncoder(T.MAP_FRAME, T.SUT_BASE_FRAME)
         self._no_events = EmptyEventsEncoder(T.MAP_FRAME)
+        self._markers = VehicleMarkersEncoder(T.MAP_FRAME)
         self._prev_yaw: float | None = None
 
     @staticmethod
@@ -53,14 +55,9 @@ class WorldMessages:
         """A command table (``/evoscen/commands/bv`` or ``/sut``) answering the world at ``t_ns``."""
         return self._commands.encode(np.column_stack([ids, throttle, lane_change]), t_ns)
 
-    @staticmethod
-    def vehicle_markers(columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
-        """``/evoscen/markers`` (rclpy serialization; the recorder canonicalizes it)."""
-        from rclpy.serialization import serialize_message
-
-        from .markers import vehicle_markers
-
-        return serialize_message(vehicle_markers(columns, t_ns))
+    def vehicle_markers(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
+        """``/evoscen/markers`` (canonical CDR)."""
+        return self._markers.encode(columns, t_ns)
 
     @staticmethod
     def map_markers(road, t_ns: int) -> bytes:  # noqa: ANN001

@@ -104,3 +104,18 @@ def test_empty_events_encoder_equals_canonical_serialization(frame_id):
     ours = EmptyEventsEncoder(frame_id).encode(12_300_000_000)
     assert ours == canon("diagnostic_msgs/msg/DiagnosticArray", serialize_message(msg))
     assert deserialize_message(ours, DiagnosticArray).status == []
+
+
+@pytest.mark.parametrize("frame_id", [MAP_FRAME, "", "ab", "abcdef"])
+def test_is_run_end_reads_the_count_and_names(frame_id):
+    from evoscen_contract.cdr import is_run_end
+    from evoscen_contract.topics import events_message
+
+    def raw(events):
+        msg = events_message(events, 5)
+        msg.header.frame_id = frame_id
+        return serialize_message(msg)
+
+    assert not is_run_end(raw([]))
+    assert not is_run_end(raw([{"name": "evoscen/collision", "ids": [1, 2]}]))
+    assert is_run_end(raw([{"name": "evoscen/fault", "controller": "x"}, {"name": "evoscen/run_end", "kind": "completed"}]))

@@ -47,3 +47,21 @@ def test_road_markers_draw_every_marking_solid_lines_whole_broken_lines_dashed()
             assert len(m.points) == 2 * len(range(0, segments, 3))
         else:
             assert len(m.points) == 2 * segments
+
+
+@pytest.mark.parametrize("n", [1, 2, 21])
+def test_vehicle_markers_encoder_equals_canonical_serialization(n):
+    from rclpy.serialization import deserialize_message, serialize_message
+    from visualization_msgs.msg import MarkerArray
+
+    from evoscen_contract.cdr import VehicleMarkersEncoder
+    from evoscen_eval.recorder import CanonicalCdr
+
+    rng = np.random.default_rng(n)
+    cols = {"id": np.arange(n, dtype=float) * 7, "policy": rng.integers(0, 8, n).astype(float),
+            "x": rng.normal(size=n) * 500, "y": rng.normal(size=n) * 20, "yaw": rng.normal(size=n),
+            "length": rng.uniform(4, 6, n), "width": rng.uniform(1.7, 2.1, n), "speed": rng.uniform(0, 40, n)}
+    ours = VehicleMarkersEncoder("map").encode(cols, 3_700_000_000)
+    canon = CanonicalCdr(["visualization_msgs/msg/MarkerArray"])
+    assert ours == canon("visualization_msgs/msg/MarkerArray", serialize_message(vehicle_markers(cols, 3_700_000_000)))
+    assert len(deserialize_message(ours, MarkerArray).markers) == 2 * n

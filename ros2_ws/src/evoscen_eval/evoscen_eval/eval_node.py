@@ -26,7 +26,7 @@ import time
 
 from evoscen_contract import graph
 from evoscen_contract import topics as T
-from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table
+from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table, is_run_end
 from evoscen_sim.errors import InputError
 from evoscen_sim.node_params import scenario_from_node
 
@@ -35,7 +35,7 @@ from .recorder import BagRecorder, OrderedBag
 NODE_NAME = T.NODE_EVAL
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 # topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
-_CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name}
+_CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name, T.MARKERS.name}
 # tables from any publisher (a user's SUT node may serialize with rclpy): re-encoded canonically
 _TABLE_TOPICS = {T.COMMANDS_BV.name, T.COMMANDS_SUT.name}
 
@@ -149,10 +149,7 @@ def _stamp_ns(topic: str, data: bytes) -> int:
 
 
 def _is_run_end(data: bytes) -> bool:
-    from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.serialization import deserialize_message
-
-    return any(status.name == T.EVENT_RUN_END for status in deserialize_message(data, DiagnosticArray).status)
+    return is_run_end(data)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -20,7 +20,7 @@ import numpy as np
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
-from evoscen_contract.cdr import decode_table
+from evoscen_contract.cdr import decode_table, is_run_end
 
 from .errors import InputError
 from .node_params import scenario_from_node
@@ -57,7 +57,7 @@ class ControllerNode:
         self.msgs = WorldMessages(self.cfg.dt_s)
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         self.world_sub = graph.subscription(self.node, T.WORLD, raw=True)
-        self.events_sub = graph.subscription(self.node, T.EVENTS, raw=False)
+        self.events_sub = graph.subscription(self.node, T.EVENTS, raw=True)
         self.pub = graph.publisher(self.node, command_spec)
         self.pump = graph.MessagePump(self.node, [self.world_sub, self.events_sub])
 
@@ -90,7 +90,7 @@ class ControllerNode:
                           f"{self.command_subscribers} subscribers after {self.startup_timeout_s:g} s", file=sys.stderr)
                     return EXIT_FAULT
                 while (ev := graph.MessagePump.take(self.events_sub)) is not None:
-                    if any(status.name == T.EVENT_RUN_END for status in ev.status):
+                    if is_run_end(ev):
                         self.pub.wait_for_all_acked(_duration(2.0))
                         return EXIT_OK
                 if time.monotonic() - last_world > self.idle_timeout_s:

@@ -67,15 +67,19 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from evoscen_sim.car_following import IdmParams, idm_acceleration
+from evoscen_sim.car_following import IdmParams, idm_acceleration, idm_scalar
 from evoscen_sim.config import flag, number
+from evoscen_sim.jit import kernel
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.neighbors import LEFT, OWN, RIGHT
 from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import VehicleParams, accel_to_throttle
+
+from .krauss import follow_speed_scalar, next_speed_scalar
 
 IDM_MAX_DECEL_MPS2 = 9.0
 """Lower clip of the IDM accelerations MOBIL compares (m/s²; the IDM helper's default)."""
@@ -179,125 +183,391 @@ def lane_end_gap_m(view: Any, vehicles: np.ndarray, lanes: np.ndarray, margin_m:
     return dist - margin_m - half
 
 
-def _incoming_safe(view: Any, idx: np.ndarray, lanes: np.ndarray, v0: np.ndarray, p: MobilParams) -> np.ndarray:
-    """(k, 3): the safety criteria also hold against the vehicles changing *into* each candidate
-    lane (``target_lane`` = the lane, ``lane`` ≠ it), which the neighbourhood (by ``lane``)
-    does not show: one behind the ego must not need to brake harder than ``b_safe`` behind
-    it, nor the ego behind one ahead."""
-    moving_in = view.target_lane != view.lane  # (n,)
-    if not moving_in.any():
-        return np.ones(lanes.shape, dtype=bool)
-    j = np.flatnonzero(moving_in)
-    j = j[None, :]
-    into = (view.target_lane[j][:, :, None] == lanes[:, None, :]) & (j != idx[:, None])[:, :, None]  # (k, m, 3)
-    ds = (view.s[j] - view.s[idx][:, None])[:, :, None]  # > 0: the other is ahead
-    gap = np.abs(ds) - 0.5 * (view.length[j] + view.length[idx][:, None])[:, :, None]
-    v_i = view.v[idx][:, None, None]
-    v_j = view.v[j][:, :, None]
-    ahead = ds > 0.0
-    v_follow = np.where(ahead, v_i, v_j)
-    v_lead = np.where(ahead, v_j, v_i)
-    acc = _idm(p, v_follow, v0[:, None, :], gap, v_lead)
-    return ~np.any(into & (acc < -p.safe_decel_mps2), axis=1)
+# ------------------------------------------------------------------------------------ compiled
+# The decision runs as one compiled kernel over the view's arrays (:mod:`evoscen_sim.jit`): for
+# one or twenty vehicles numpy's per-call overhead, not arithmetic, dominated the vectorised
+# form. The kernels compute exactly the expressions of the vectorised form (same operations in
+# the same order, fastmath off), so the results are bit-identical. Road look-ups use the road
+# model's tables as :class:`evoscen_sim.road.RoadModel` does (``_seg``: the last breakpoint
+# ``<= clip(s, 0, length)``).
+
+def _road_tables(road: Any) -> tuple:
+    """The road model's lane tables the kernels read (cached on the road object)."""
+    tables = getattr(road, "_evoscen_sut_tables", None)
+    if tables is None:
+        tables = (np.ascontiguousarray(road._breaks), np.ascontiguousarray(road._present),
+                  np.ascontiguousarray(road._vmax), np.ascontiguousarray(road.lane_end_s, dtype=float),
+                  np.ascontiguousarray(road._reaches_end), float(road.length_m),
+                  np.ascontiguousarray(road._w_coef), np.ascontiguousarray(road._w_origin),
+                  np.ascontiguousarray(road._off_coef), np.ascontiguousarray(road._off_origin))
+        try:
+            road._evoscen_sut_tables = tables
+        except AttributeError:  # pragma: no cover - a road object without a __dict__
+            pass
+    return tables
+
+
+@lru_cache(maxsize=64)
+def _mobil_param_array(p: MobilParams) -> np.ndarray:
+    """MOBIL parameters as one float array (the kernels' ``prm``; indices ``_P_*``)."""
+    return np.array([p.politeness, p.threshold_mps2, p.bias_mps2, p.safe_decel_mps2, float(p.asymmetric),
+                     p.critical_speed_mps, p.desired_speed_mps, p.accel_mps2, p.comfort_decel_mps2,
+                     p.time_headway_s, p.min_gap_m, p.delta, p.merge_stop_margin_m,
+                     p.merge_mandatory_distance_m, float(p.enter_ending_lane), p.settle_tolerance_m], dtype=float)
+
+
+(_P_POL, _P_THR, _P_BIAS, _P_BSAFE, _P_ASYM, _P_VCRIT, _P_V0, _P_ACC, _P_DEC, _P_T, _P_S0, _P_DELTA, _P_MARGIN,
+ _P_MAND, _P_ENTER, _P_SETTLE) = range(16)
+
+_FLOAT_MAX = float(np.finfo(np.float64).max)
+assert (RIGHT, OWN, LEFT) == (1, 2, 3)  # the kernels use neighbourhood column 2 + offset
+
+
+@kernel
+def _np_min(a, b):  # noqa: ANN001, ANN202
+    """``np.minimum`` of two floats (NaN propagates, the first NaN wins)."""
+    if np.isnan(a):
+        return a
+    if np.isnan(b):
+        return b
+    return a if a <= b else b
+
+
+@kernel
+def _np_max(a, b):  # noqa: ANN001, ANN202
+    """``np.maximum`` of two floats (NaN propagates, the first NaN wins)."""
+    if np.isnan(a):
+        return a
+    if np.isnan(b):
+        return b
+    return a if a >= b else b
+
+
+@kernel
+def _nan_to_num(x):  # noqa: ANN001, ANN202
+    """``np.nan_to_num(x, nan=0.0)`` of one float."""
+    if np.isnan(x):
+        return 0.0
+    if x == np.inf:
+        return _FLOAT_MAX
+    if x == -np.inf:
+        return -_FLOAT_MAX
+    return x
+
+
+@kernel
+def _road_seg(s, breaks, road_length):  # noqa: ANN001, ANN202
+    """``RoadModel._seg(clip(s, 0, length))``: index of the lane-table row at ``s``."""
+    sc = min(max(s, 0.0), road_length)
+    return np.searchsorted(breaks, sc, side="right") - 1
+
+
+@kernel
+def _lane_end_dist(lane, s, lane_end_s, reaches_end):  # noqa: ANN001, ANN202
+    """``RoadModel.distance_to_lane_end`` with NaN (invalid lane) mapped to ``inf``."""
+    if lane < 0 or lane >= lane_end_s.shape[0]:
+        return np.inf
+    if reaches_end[lane]:
+        return np.inf
+    return lane_end_s[lane] - s
+
+
+@kernel
+def _settled_scalar(s, d, lane, tol, breaks, road_length, w_coef, w_origin, off_coef, off_origin):  # noqa: ANN001, ANN202, PLR0913
+    """:func:`settled` for one vehicle: ``RoadModel.lane_center_d`` (``_bounds_all``) at ``max(s, 0)``."""
+    nl = w_coef.shape[1]
+    if lane < 0 or lane >= nl:
+        return False  # NaN centre
+    sc = min(max(max(s, 0.0), 0.0), road_length)
+    j = np.searchsorted(breaks, sc, side="right") - 1
+    do = sc - off_origin[j]
+    oc = off_coef[j]
+    off = oc[0] + do * (oc[1] + do * (oc[2] + do * oc[3]))
+    cs = 0.0
+    w_lane = 0.0
+    for q in range(nl - 1, lane - 1, -1):  # cs[lane] = cumsum of the widths from the last lane
+        c = w_coef[j, q]
+        x = sc - w_origin[j, q]
+        w = max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0)
+        cs = w if q == nl - 1 else cs + w
+        w_lane = w
+    d_right = off - cs
+    d_left = d_right + w_lane
+    centre = 0.5 * (d_right + d_left)
+    return abs(d - centre) <= tol
+
+
+@kernel
+def _idm_p(v, v0, gap, v_lead, prm):  # noqa: ANN001, ANN202
+    """MOBIL's IDM (:func:`_idm`) for one vehicle."""
+    return idm_scalar(v, v0, gap, v_lead, prm[_P_T], prm[_P_S0], prm[_P_ACC], prm[_P_DEC], prm[_P_DELTA],
+                      IDM_MAX_DECEL_MPS2)
+
+
+@kernel
+def _argmax_first(x):  # noqa: ANN001, ANN202
+    """``np.argmax`` of a 1-d float array (the first maximum; the first NaN if any)."""
+    best = 0
+    bv = x[0]
+    if np.isnan(bv):
+        return 0
+    for q in range(1, x.shape[0]):
+        if np.isnan(x[q]):
+            return q
+        if x[q] > bv:
+            best = q
+            bv = x[q]
+    return best
+
+
+@kernel
+def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear,  # noqa: ANN001, ANN202, PLR0913, PLR0915
+                  follower, follower_speed, breaks, present, vmax, lane_end_s, reaches_end, road_length, prm):
+    """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`MobilEvaluation`."""
+    k = idx.shape[0]
+    n = s.shape[0]
+    nl = present.shape[1]
+    exists = np.zeros((k, 3), dtype=np.bool_)
+    acc_ego = np.empty((k, 3))
+    gain_n = np.empty((k, 3))
+    gain_o = np.empty((k, 1))
+    at_n = np.empty((k, 3))
+    inc = np.zeros((k, 3))
+    safe = np.empty((k, 3), dtype=np.bool_)
+    mandatory = np.empty(k, dtype=np.bool_)
+    moving = np.empty(n, dtype=np.int64)  # vehicles changing into another lane
+    m = 0
+    for j in range(n):
+        if target_lane[j] != lane[j]:
+            moving[m] = j
+            m += 1
+    end_gap = np.empty(3)
+    ending = np.empty(3, dtype=np.bool_)
+    v0 = np.empty(3)
+    gap_f = np.empty(3)
+    v_f = np.empty(3)
+    gap_r = np.empty(3)
+    has_r = np.empty(3, dtype=np.bool_)
+    v_r = np.empty(3)
+    margin = prm[_P_MARGIN]
+    b_safe = prm[_P_BSAFE]
+    for r in range(k):
+        i = idx[r]
+        si = s[i]
+        vi = v[i]
+        li = lane[i]
+        half = 0.5 * length[i]
+        seg = _road_seg(si, breaks, road_length)
+        # candidate lanes: exist at s; lane-end gaps (inf where not existing)
+        for c in range(3):
+            ln = li + c - 1
+            ex = ln >= 0 and ln < nl and present[seg, ln]
+            exists[r, c] = ex
+            lq = ln if ex else li
+            eg = _lane_end_dist(lq, si, lane_end_s, reaches_end) - margin - half
+            end_gap[c] = eg if ex else np.inf
+            ending[c] = np.isfinite(end_gap[c])
+        if prm[_P_ENTER] == 0.0:
+            exists[r, 0] = exists[r, 0] and not ending[0]
+            exists[r, 2] = exists[r, 2] and not ending[2]
+        for c in range(3):
+            ln = li + c - 1
+            lq = ln if exists[r, c] else li
+            limit = vmax[seg, lq] if (lq >= 0 and lq < nl) else np.nan
+            if not np.isfinite(limit):
+                limit = speed_limit[i]
+            v0[c] = _np_min(prm[_P_V0], limit)
+            col = 1 + c
+            gap_f[c] = gap_front[i, col]
+            v_f[c] = _nan_to_num(leader_speed[i, col])
+            gap_r[c] = gap_rear[i, col]
+            has_r[c] = follower[i, col] >= 0
+            v_r[c] = _nan_to_num(follower_speed[i, col]) if has_r[c] else 0.0
+        # ego: a_c and ã_c, each with the lane end as an obstacle
+        for c in range(3):
+            a = _idm_p(vi, v0[c], gap_f[c], v_f[c], prm)
+            if ending[c]:
+                a = _np_min(a, _idm_p(vi, v0[c], end_gap[c], 0.0, prm))
+            acc_ego[r, c] = a
+        a_c = acc_ego[r, 1]
+        # new follower n
+        for c in range(3):
+            gap_through = gap_r[c] + length[i] + gap_f[c]
+            if has_r[c]:
+                a_n = _idm_p(v_r[c], v0[c], gap_through, v_f[c], prm)
+                atn = _idm_p(v_r[c], v0[c], gap_r[c], vi, prm)
+            else:
+                a_n = 0.0
+                atn = 0.0
+            at_n[r, c] = atn
+            gain_n[r, c] = atn - a_n
+        # old follower o
+        if has_r[1]:
+            a_o = _idm_p(v_r[1], v0[1], gap_r[1], vi, prm)
+            at_o = _idm_p(v_r[1], v0[1], gap_r[1] + length[i] + gap_f[1], v_f[1], prm)
+            g_o = at_o - a_o
+        else:
+            g_o = 0.0
+        gain_o[r, 0] = g_o
+        pol = prm[_P_POL]
+        thr = prm[_P_THR]
+        bias = prm[_P_BIAS]
+        if prm[_P_ASYM] != 0.0:
+            at_c0 = acc_ego[r, 0]
+            if vi > prm[_P_VCRIT]:
+                at_c0 = _np_min(at_c0, a_c)
+            inc[r, 0] = at_c0 - a_c + pol * g_o - (thr - bias)
+            left_thr = thr - bias if ending[1] else thr + bias
+            inc[r, 2] = acc_ego[r, 2] - a_c + pol * gain_n[r, 2] - left_thr
+        else:
+            for c in (0, 2):
+                inc[r, c] = acc_ego[r, c] - a_c + pol * (gain_n[r, c] + g_o) - thr
+        # safety criteria, also against the vehicles changing into each candidate lane
+        for c in range(3):
+            ok = at_n[r, c] >= -b_safe and acc_ego[r, c] >= -b_safe
+            if ok:
+                ln = li + c - 1
+                for q in range(m):
+                    j = moving[q]
+                    if j == i or target_lane[j] != ln:
+                        continue
+                    ds = s[j] - si
+                    gap = abs(ds) - 0.5 * (length[j] + length[i])
+                    if ds > 0.0:
+                        acc = _idm_p(vi, v0[c], gap, v[j], prm)
+                    else:
+                        acc = _idm_p(v[j], v0[c], gap, vi, prm)
+                    if acc < -b_safe:
+                        ok = False
+                        break
+            safe[r, c] = ok
+        safe[r, 1] = True
+        mandatory[r] = ending[1] and end_gap[1] < prm[_P_MAND]
+    return exists, acc_ego, gain_n, gain_o, at_n, inc, safe, mandatory
+
+
+@kernel
+def _mobil_unsafe_pair(s, v, length, a, b, prm):  # noqa: ANN001, ANN202
+    """MOBIL's conflict test of the row vehicle ``a`` and the column vehicle ``b`` (world indices)."""
+    ds = s[b] - s[a]
+    gap = abs(ds) - 0.5 * (length[b] + length[a])
+    if ds > 0.0:
+        acc = _idm_p(v[a], prm[_P_V0], gap, v[b], prm)
+    else:
+        acc = _idm_p(v[b], prm[_P_V0], gap, v[a], prm)
+    return acc < -prm[_P_BSAFE]
+
+
+@kernel
+def _nilsson_unsafe_pair(s, v, length, a, b, prm):  # noqa: ANN001, ANN202
+    """Nilsson's conflict test (``prm = (safety_length_factor, safety_closing_headway_s)``)."""
+    ds = s[b] - s[a]
+    closing = v[a] - v[b] if ds > 0.0 else v[b] - v[a]
+    need = prm[0] * length[a] + prm[1] * max(closing, 0.0)
+    return abs(ds) < need
+
+
+@kernel
+def _resolve_kernel(idx, request, lane, s, v, length, nilsson_rule, prm):  # noqa: ANN001, ANN202, PLR0913
+    """:func:`resolve_conflicts` with MOBIL's (or, ``nilsson_rule``, Nilsson's) pair test."""
+    k = idx.shape[0]
+    out = request.copy()
+    cnt = 0
+    for a in range(k):
+        if request[a] != 0:
+            cnt += 1
+    if cnt < 2:
+        return out
+    for a in range(k):
+        if request[a] == 0:
+            continue
+        ia = idx[a]
+        ta = lane[ia] + request[a]
+        for b in range(k):
+            if b == a or request[b] == 0:
+                continue
+            ib = idx[b]
+            if lane[ib] + request[b] != ta:
+                continue
+            ds = s[ib] - s[ia]
+            if not (ds > 0.0 or (ds == 0.0 and ib < ia)):
+                continue
+            if nilsson_rule:
+                unsafe = _nilsson_unsafe_pair(s, v, length, ia, ib, prm)
+            else:
+                unsafe = _mobil_unsafe_pair(s, v, length, ia, ib, prm)
+            if unsafe:
+                out[a] = 0
+                break
+    return out
+
+
+@kernel
+def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
+                           leader_speed, gap_rear, follower, follower_speed, breaks, present, vmax, lane_end_s,
+                           reaches_end, road_length, w_coef, w_origin, off_coef, off_origin, prm):
+    """:func:`lane_change_decision` (evaluation, choice, settling and conflicts) in one pass."""
+    exists, acc_ego, gain_n, gain_o, at_n, inc, safe, mandatory = _mobil_kernel(
+        idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear, follower,
+        follower_speed, breaks, present, vmax, lane_end_s, reaches_end, road_length, prm)
+    k = idx.shape[0]
+    request = np.zeros(k, dtype=np.int64)
+    score = np.empty(3)
+    for r in range(k):
+        for c in range(3):
+            ok = c != 1 and exists[r, c] and safe[r, c] and (inc[r, c] > 0.0 or mandatory[r])
+            sc = inc[r, c] if ok else -np.inf
+            if ok and mandatory[r]:
+                sc = _np_max(sc, 0.0) + 1e6
+            score[c] = sc
+        best = _argmax_first(score)
+        req = best - 1 if np.isfinite(score[best]) else 0
+        i = idx[r]
+        if lane_change[i] != 0:
+            req = 0
+        if req != 0 and not mandatory[r]:
+            if not _settled_scalar(s[i], d[i], lane[i], prm[_P_SETTLE], breaks, road_length, w_coef, w_origin,
+                                   off_coef, off_origin):
+                req = 0
+        request[r] = req
+    return _resolve_kernel(idx, request, lane, s, v, length, False, prm)
+
+
+def _view_args(view: Any) -> tuple:
+    """The view's arrays the MOBIL kernels read, in their argument order (``s`` .. ``follower_speed``)."""
+    nb = view.neighborhood()
+    return (view.s, view.v, view.length, view.lane, view.target_lane, view.speed_limit_mps, nb.gap_front_m,
+            nb.leader_speed_mps, nb.gap_rear_m, nb.follower, nb.follower_speed_mps)
 
 
 def evaluate(view: Any, vehicles: np.ndarray, params: MobilParams) -> MobilEvaluation:
     """MOBIL's accelerations, incentives and safety criteria (see the module docstring)."""
-    p = params
     idx = np.asarray(vehicles, dtype=np.int64)
-    k = idx.size
-    nb = view.neighborhood()
-    road = view.road
-    v = view.v[idx]
-    s = view.s[idx]
-    length = view.length[idx]
-    lane = view.lane[idx]
-    lanes = lane[:, None] + _OFFSETS[None, :]  # (k, 3)
-
-    # candidate lanes: exist at s; ending lanes only if allowed (or if already in one)
-    exists = np.asarray(road.lane_exists(lanes, s[:, None]), dtype=bool)
-    end_gap = lane_end_gap_m(view, idx, np.where(exists, lanes, lane[:, None]), p.merge_stop_margin_m)
-    end_gap = np.where(exists, end_gap, np.inf)
-    ending = np.isfinite(end_gap)
-    if not p.enter_ending_lane:
-        exists[:, [0, 2]] &= ~ending[:, [0, 2]]
-
-    limit = np.asarray(road.speed_limit_max_mps(np.where(exists, lanes, lane[:, None]), s[:, None]), dtype=float)
-    limit = np.where(np.isfinite(limit), limit, view.speed_limit_mps[idx][:, None])
-    v0 = np.minimum(p.desired_speed_mps, limit)  # (k, 3)
-
-    gap_f = nb.gap_front_m[idx][:, _COLS]
-    v_f = np.nan_to_num(nb.leader_speed_mps[idx][:, _COLS], nan=0.0)
-    gap_r = nb.gap_rear_m[idx][:, _COLS]
-    has_r = nb.follower[idx][:, _COLS] >= 0
-    v_r = np.where(has_r, np.nan_to_num(nb.follower_speed_mps[idx][:, _COLS], nan=0.0), 0.0)
-
-    # ego: a_c (own lane, column 1) and ã_c (columns 0, 2), each with the lane end as an obstacle
-    acc_ego = _idm(p, v[:, None], v0, gap_f, v_f)
-    acc_end = _idm(p, v[:, None], v0, np.where(ending, end_gap, np.inf), np.zeros_like(end_gap))
-    acc_ego = np.where(ending, np.minimum(acc_ego, acc_end), acc_ego)
-    a_c = acc_ego[:, 1:2]
-
-    # new follower n: now behind the target lane's leader, after the change behind the ego
-    gap_through = gap_r + length[:, None] + gap_f  # inf without leader
-    a_n = _idm(p, v_r, v0, gap_through, v_f)
-    at_n = _idm(p, v_r, v0, gap_r, v[:, None])
-    a_n = np.where(has_r, a_n, 0.0)
-    at_n = np.where(has_r, at_n, 0.0)
-    gain_n = at_n - a_n
-
-    # old follower o: now behind the ego, after the change behind the ego's leader
-    a_o = _idm(p, v_r[:, 1], v0[:, 1], gap_r[:, 1], v)
-    at_o = _idm(p, v_r[:, 1], v0[:, 1], gap_through[:, 1], v_f[:, 1])
-    gain_o = np.where(has_r[:, 1], at_o - a_o, 0.0)[:, None]
-
-    at_c = acc_ego.copy()
-    inc = np.zeros((k, 3))
-    if p.asymmetric:
-        # no overtaking on the right above v_crit
-        fast = v > p.critical_speed_mps
-        at_c[:, 0] = np.where(fast, np.minimum(at_c[:, 0], a_c[:, 0]), at_c[:, 0])
-        inc[:, 0] = at_c[:, 0] - a_c[:, 0] + p.politeness * gain_o[:, 0] - (p.threshold_mps2 - p.bias_mps2)
-        own_ending = ending[:, 1]
-        # leaving an ending lane to the left: the bias points to the target (mandatory change)
-        left_thr = np.where(own_ending, p.threshold_mps2 - p.bias_mps2, p.threshold_mps2 + p.bias_mps2)
-        inc[:, 2] = at_c[:, 2] - a_c[:, 0] + p.politeness * gain_n[:, 2] - left_thr
-    else:
-        for c in (0, 2):
-            inc[:, c] = at_c[:, c] - a_c[:, 0] + p.politeness * (gain_n[:, c] + gain_o[:, 0]) - p.threshold_mps2
-
-    safe = (at_n >= -p.safe_decel_mps2) & (acc_ego >= -p.safe_decel_mps2) & _incoming_safe(view, idx, lanes, v0, p)
-    mandatory = ending[:, 1] & (end_gap[:, 1] < p.merge_mandatory_distance_m)
-    safe[:, 1] = True
+    breaks, present, vmax, lane_end_s, reaches_end, road_length = _road_tables(view.road)[:6]
+    exists, acc_ego, gain_n, gain_o, at_n, inc, safe, mandatory = _mobil_kernel(
+        idx, *_view_args(view), breaks, present, vmax, lane_end_s, reaches_end, road_length,
+        _mobil_param_array(params))
     return MobilEvaluation(exists=exists, acc_ego=acc_ego, gain_new_follower=gain_n, gain_old_follower=gain_o,
                            acc_new_follower=at_n, incentive=inc, safe=safe, mandatory=mandatory)
 
 
 def lane_change_decision(view: Any, vehicles: np.ndarray, params: MobilParams) -> np.ndarray:
-    """MOBIL's lane-change request (+1 left, −1 right, 0 keep) for each of ``vehicles``."""
+    """MOBIL's lane-change request (+1 left, −1 right, 0 keep) for each of ``vehicles``.
+
+    The lane offering the larger margin of incentive over threshold among those passing the
+    criteria (:func:`evaluate`), a mandatory change preferred; 0 while a change is in progress or
+    the vehicle has not settled (:func:`settled`, except for a mandatory change); two
+    conflicting requests of the given vehicles resolved by :func:`resolve_conflicts` with the
+    pair test "the rear vehicle's IDM deceleration (desired speed ``v0``) exceeds ``b_safe``".
+    """
     idx = np.asarray(vehicles, dtype=np.int64)
     if idx.size == 0:
         return np.zeros(0, dtype=np.int64)
-    ev = evaluate(view, idx, params)
-    ok = ev.exists & ev.safe & ((ev.incentive > 0.0) | ev.mandatory[:, None])
-    ok[:, 1] = False
-    score = np.where(ok, ev.incentive, -np.inf)
-    # a mandatory change ignores the incentive: prefer any admissible side (only left exists in practice)
-    score = np.where(ok & ev.mandatory[:, None], np.maximum(score, 0.0) + 1e6, score)
-    best = np.argmax(score, axis=1)
-    request = np.where(np.isfinite(score[np.arange(idx.size), best]), _OFFSETS[best], 0)
-    request = np.where(view.lane_change[idx] != 0, 0, request)
-    request = np.where(settled(view, idx, params.settle_tolerance_m) | ev.mandatory, request, 0)
-
-    def unsafe_pair(i: np.ndarray) -> np.ndarray:
-        # the rear vehicle of each pair behind the front one: IDM deceleration beyond b_safe
-        ds = view.s[i][None, :] - view.s[i][:, None]
-        gap = np.abs(ds) - 0.5 * (view.length[i][None, :] + view.length[i][:, None])
-        v_rear = np.where(ds > 0, view.v[i][:, None], view.v[i][None, :])
-        v_front = np.where(ds > 0, view.v[i][None, :], view.v[i][:, None])
-        return _idm(params, v_rear, params.desired_speed_mps, gap, v_front) < -params.safe_decel_mps2
-
-    return resolve_conflicts(view, idx, request.astype(np.int64), unsafe_pair)
+    nb = view.neighborhood()
+    return _mobil_decision_kernel(idx, view.s, view.d, view.v, view.length, view.lane, view.target_lane,
+                                  view.lane_change, view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps,
+                                  nb.gap_rear_m, nb.follower, nb.follower_speed_mps, *_road_tables(view.road),
+                                  _mobil_param_array(params))
 
 
 def settled(view: Any, vehicles: np.ndarray, tolerance_m: float) -> np.ndarray:
@@ -364,6 +634,12 @@ class KraussLaneChangeDriver:
 
     def acceleration(self, view: Any) -> np.ndarray:
         """Desired acceleration (m/s²) of every driven vehicle (see the class docstring)."""
+        if self._compiled_krauss():
+            return self._acceleration_throttle(view)[0]
+        return self._acceleration_generic(view)
+
+    def _acceleration_generic(self, view: Any) -> np.ndarray:
+        """:meth:`acceleration` for any car follower with ``KraussCarFollowing``'s interface."""
         from .krauss import sumo_follow_speed
 
         idx = self.vehicles
@@ -381,11 +657,99 @@ class KraussLaneChangeDriver:
             acc[stop] = np.minimum(acc[stop], (np.maximum(v_safe, 0.0) - v) / view.dt_s)
         return acc
 
+    def _compiled_krauss(self) -> bool:
+        """The car follower is exactly :class:`evoscen_sut.krauss.KraussCarFollowing` (compiled path)."""
+        from .krauss import KraussCarFollowing
+
+        return type(self.krauss) is KraussCarFollowing
+
+    def _acceleration_throttle(self, view: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(acceleration, throttle) in one compiled pass; the same numbers and random draws as
+        :meth:`_acceleration_generic` with ``KraussCarFollowing`` (one ``rng.random(m)`` for the
+        own lane, then one for the vehicles changing lanes, if any)."""
+        idx = self.vehicles
+        kr = self.krauss
+        m = idx.shape[0]
+        u = kr.rng.random(m)
+        if m == 0:
+            return np.zeros(0), np.zeros(0)
+        lane = view.lane
+        target_lane = view.target_lane
+        n_changing = _count_changing(idx, lane, target_lane)
+        u_target = kr.rng.random(n_changing) if n_changing else _NO_DRAWS
+        nb = view.neighborhood()
+        road = _road_tables(view.road)
+        return _krauss_lc_kernel(idx, u, u_target, view.s, view.v, view.length, lane, target_lane,
+                                 view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, road[3], road[4],
+                                 _krauss_param_array(kr.params, self.vehicle_params, self.stop_margin_m,
+                                                     float(kr.dt_s), float(view.dt_s)))
+
     def act(self, view: Any) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each driven vehicle."""
         request = self.decide(view, self.vehicles, self.params)
-        throttle = accel_to_throttle(self.acceleration(view), self.vehicle_params)
+        if self._compiled_krauss():
+            throttle = self._acceleration_throttle(view)[1]
+        else:
+            throttle = accel_to_throttle(self._acceleration_generic(view), self.vehicle_params)
         return throttle, request
+
+
+_NO_DRAWS = np.zeros(0)
+
+
+@lru_cache(maxsize=64)
+def _krauss_param_array(kp: Any, vp: VehicleParams, stop_margin_m: float, dt_s: float, view_dt_s: float) -> np.ndarray:
+    """Parameters of :func:`_krauss_lc_kernel` as one float array."""
+    return np.array([kp.min_gap_m, kp.accel_mps2, kp.decel_mps2, kp.emergency_decel_mps2, kp.sigma, kp.tau_s,
+                     kp.desired_speed_mps, dt_s, view_dt_s, stop_margin_m, vp.max_accel_mps2, vp.max_brake_mps2],
+                    dtype=float)
+
+
+@kernel
+def _count_changing(idx, lane, target_lane):  # noqa: ANN001, ANN202
+    """How many of the vehicles ``idx`` are changing lanes (``target_lane != lane``)."""
+    cnt = 0
+    for q in range(idx.shape[0]):
+        i = idx[q]
+        if target_lane[i] != lane[i]:
+            cnt += 1
+    return cnt
+
+
+@kernel
+def _krauss_lc_kernel(idx, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
+                      leader_speed, lane_end_s, reaches_end, prm):
+    """:class:`KraussLaneChangeDriver`'s acceleration and throttle (class docstring)."""
+    min_gap, accel, decel, emergency, sigma, tau = prm[0], prm[1], prm[2], prm[3], prm[4], prm[5]
+    desired, dt, view_dt, margin, max_accel, max_brake = prm[6], prm[7], prm[8], prm[9], prm[10], prm[11]
+    m = idx.shape[0]
+    acc = np.empty(m)
+    throttle = np.empty(m)
+    q = 0
+    for k in range(m):
+        i = idx[k]
+        vi = v[i]
+        lim = speed_limit[i]
+        v_max = desired if np.isnan(lim) else (lim if np.isnan(desired) else min(lim, desired))  # np.fmin
+        v_next = next_speed_scalar(vi, v_max, gap_front[i, 2] - min_gap, leader_speed[i, 2], u[k], accel, decel,
+                                   emergency, sigma, tau, dt)
+        a = (v_next - vi) / dt
+        offset = min(max(target_lane[i] - lane[i], -1), 1)
+        if offset != 0:
+            col = 2 + offset
+            v_next = next_speed_scalar(vi, v_max, gap_front[i, col] - min_gap, leader_speed[i, col], u_target[q],
+                                       accel, decel, emergency, sigma, tau, dt)
+            q += 1
+            a = _np_min(a, (v_next - vi) / dt)
+        else:
+            end_gap = _lane_end_dist(lane[i], s[i], lane_end_s, reaches_end) - margin - 0.5 * length[i]
+            if np.isfinite(end_gap):
+                v_safe = follow_speed_scalar(end_gap - min_gap, vi, 0.0, decel, emergency, tau, view_dt)
+                a = _np_min(a, (_np_max(v_safe, 0.0) - vi) / view_dt)
+        acc[k] = a
+        cmd = _np_max(a, 0.0) * (1.0 / max_accel) + _np_min(a, 0.0) * (1.0 / max_brake)  # accel_to_throttle
+        throttle[k] = _np_min(_np_max(cmd, -1.0), 1.0)
+    return acc, throttle
 
 
 def krauss_for(config: Any, rng: np.random.Generator) -> Any:

@@ -77,19 +77,26 @@ change, and a stop before the end of the merge lane).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
 from evoscen_sim.config import number
+from evoscen_sim.jit import kernel
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.scenario_params import vehicle_params_from_config
 
 from .mobil import (
     KraussLaneChangeDriver,
+    _argmax_first,
+    _lane_end_dist,
+    _np_max,
+    _np_min,
+    _resolve_kernel,
+    _road_seg,
+    _road_tables,
+    _settled_scalar,
     krauss_for,
-    lane_end_gap_m,
-    resolve_conflicts,
-    settled,
 )
 
 
@@ -160,127 +167,192 @@ class NilssonEvaluation:
     """(k,) the own lane may be kept (False: an ending lane within the mandatory distance)."""
 
 
-def _lane_neighbours(view: Any, idx: np.ndarray, num_lanes: int, view_range_m: float) -> tuple[np.ndarray, ...]:
-    """Nearest vehicle ahead / behind each ego in every lane: (front, rear) indices (k, L), -1 if none."""
-    n = view.n
-    s = np.asarray(view.s, dtype=float)
-    lane_all = np.asarray(view.lane, dtype=np.int64)
-    ds = s[None, :] - s[idx][:, None]  # (k, n)
-    j = np.arange(n)
-    other = j[None, :] != idx[:, None]
-    visible = other & (np.abs(ds) <= view_range_m)
-    same = lane_all[None, :] == lane_all[idx][:, None]
-    ahead = (ds > 0.0) | ((ds == 0.0) & same & (j[None, :] > idx[:, None]))  # as evoscen_sim.neighbors
-    in_lane = lane_all[None, :, None] == np.arange(num_lanes)[None, None, :]  # (1, n, L)
-    m_front = (visible & ahead)[:, :, None] & in_lane
-    m_rear = (visible & ~ahead)[:, :, None] & in_lane
-    d_front = np.where(m_front, ds[:, :, None], np.inf)
-    d_rear = np.where(m_rear, -ds[:, :, None], np.inf)
-    front = np.argmin(d_front, axis=1)  # lowest index wins a tie
-    rear = np.argmin(d_rear[:, ::-1, :], axis=1)
-    rear = n - 1 - rear  # highest index wins a tie (as evoscen_sim.neighbors)
-    front = np.where(np.isfinite(np.min(d_front, axis=1)), front, -1)
-    rear = np.where(np.isfinite(np.min(d_rear, axis=1)), rear, -1)
-    return front, rear
+@lru_cache(maxsize=64)
+def _param_array(p: NilssonParams) -> np.ndarray:
+    """Nilsson parameters as one float array (the kernels' ``prm``; indices ``_P_*``)."""
+    return np.array([p.desired_speed_mps, p.look_ahead_time_s, p.min_speed_mps, p.speed_weight_slow,
+                     p.speed_weight_fast, p.time_gap_weight, p.desired_time_gap_s, p.time_gap_factor,
+                     p.lane_end_weight, p.keep_right_bias, p.hysteresis, p.safety_length_factor,
+                     p.safety_closing_headway_s, p.view_range_m, p.merge_stop_margin_m,
+                     p.merge_mandatory_distance_m, p.settle_tolerance_m], dtype=float)
+
+
+(_P_VDES, _P_BETA, _P_VMIN, _P_W_SLOW, _P_W_FAST, _P_W_TG, _P_TDES, _P_ALPHA, _P_W_LD, _P_BIAS, _P_HYST, _P_SLF,
+ _P_SCH, _P_RANGE, _P_MARGIN, _P_MAND, _P_SETTLE) = range(17)
+
+
+@kernel
+def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax, lane_end_s, reaches_end,  # noqa: ANN001, ANN202, PLR0913, PLR0915
+                    road_length, prm):
+    """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`NilssonEvaluation`.
+
+    The nearest vehicle ahead / behind in every lane (within ``view_range_m``): ahead means a
+    larger ``s``, or the same ``s`` in the same lane and a larger index (as
+    :mod:`evoscen_sim.neighbors`); the lowest index wins a tie ahead, the highest behind.
+    """
+    k = idx.shape[0]
+    n = s.shape[0]
+    nl = present.shape[1]
+    utility = np.empty((k, nl))
+    speed = np.empty((k, nl))
+    time_gap = np.empty((k, nl))
+    score = np.empty((k, nl))
+    target = np.empty(k, dtype=np.int64)
+    step_safe = np.empty(k, dtype=np.bool_)
+    own_candidate = np.empty(k, dtype=np.bool_)
+    front = np.empty(nl, dtype=np.int64)
+    rear = np.empty(nl, dtype=np.int64)
+    d_front = np.empty(nl)
+    d_rear = np.empty(nl)
+    candidate = np.empty(nl, dtype=np.bool_)
+    others = np.empty(nl)
+    v_des_max = prm[_P_VDES]
+    beta = prm[_P_BETA]
+    v_min = prm[_P_VMIN]
+    sat = prm[_P_ALPHA] * prm[_P_TDES]
+    view_range = prm[_P_RANGE]
+    for r in range(k):
+        i = idx[r]
+        si = s[i]
+        vi = v[i]
+        li = lane[i]
+        half = 0.5 * length[i]
+        seg = _road_seg(si, breaks, road_length)
+        # nearest vehicle ahead / behind in every lane
+        for ln in range(nl):
+            front[ln] = -1
+            rear[ln] = -1
+            d_front[ln] = np.inf
+            d_rear[ln] = np.inf
+        for j in range(n):
+            if j == i:
+                continue
+            ds = s[j] - si
+            if not (abs(ds) <= view_range):
+                continue
+            lj = lane[j]
+            if lj < 0 or lj >= nl:
+                continue
+            if ds > 0.0 or (ds == 0.0 and lj == li and j > i):
+                if ds < d_front[lj]:  # strict: the lowest index wins a tie
+                    d_front[lj] = ds
+                    front[lj] = j
+            elif -ds <= d_rear[lj]:  # non-strict: the highest index wins a tie
+                d_rear[lj] = -ds
+                rear[lj] = j
+        # lane utilities
+        for ln in range(nl):
+            exists = present[seg, ln]
+            limit = vmax[seg, ln]
+            v_des = _np_min(v_des_max, limit if np.isfinite(limit) else v_des_max)
+            fj = front[ln]
+            bj = rear[ln]
+            if fj >= 0:
+                v_bar = 0.5 * (v[fj] + v[bj]) if bj >= 0 else v[fj]
+                gap_f = s[fj] - si - 0.5 * (length[fj] + length[i])
+                t_front = gap_f / _np_max(vi, v_min)
+            else:
+                v_bar = v_des
+                t_front = np.inf
+            if bj >= 0:
+                gap_r = si - s[bj] - 0.5 * (length[bj] + length[i])
+                t_rear = gap_r / _np_max(v[bj], v_min)
+            else:
+                t_rear = np.inf
+            t_gap = _np_min(_np_min(t_front, t_rear), sat)
+            u_v = -beta * abs(1.0 - v_des / _np_max(v_min, v_bar))
+            n_v = beta * abs(1.0 - v_des / v_min)
+            w_v = prm[_P_W_SLOW] if v_bar <= v_des else prm[_P_W_FAST]
+            u_tg = _np_min(sat, t_gap) / sat
+            d_max = v_des * beta
+            d_end = _lane_end_dist(ln, si, lane_end_s, reaches_end)
+            u_ld = -_np_max(0.0, d_max - d_end) / d_max
+            u = w_v * u_v / n_v + prm[_P_W_TG] * u_tg + prm[_P_W_LD] * u_ld
+            utility[r, ln] = u if exists else -np.inf
+            speed[r, ln] = v_bar
+            time_gap[r, ln] = t_gap
+            # candidates: existing lanes whose stop point is not within the mandatory distance
+            stop_gap = d_end - prm[_P_MARGIN] - half
+            candidate[ln] = exists and not (np.isfinite(stop_gap) and stop_gap < prm[_P_MAND])
+        u_ego = utility[r, li]
+        for ln in range(nl):
+            if ln == li:
+                sc = u_ego
+            else:
+                sc = utility[r, ln] - prm[_P_HYST] * abs(u_ego) + prm[_P_BIAS] * float(li - ln)
+            sc = sc if candidate[ln] else -np.inf
+            score[r, ln] = sc
+            others[ln] = -np.inf if ln == li else sc
+        best_other = _argmax_first(others)
+        best_score = others[best_other]
+        own_ok = candidate[li]
+        change = np.isfinite(best_score) and ((not own_ok) or best_score > u_ego)
+        tgt = best_other if change else li
+        target[r] = tgt
+        own_candidate[r] = own_ok
+        # safety of the adjacent step
+        step = 1 if tgt > li else (-1 if tgt < li else 0)
+        next_lane = li + step
+        blocked = False
+        for j in range(n):
+            if j == i or not (lane[j] == next_lane or target_lane[j] == next_lane):
+                continue
+            ds = s[j] - si
+            dv_closing = v[j] - vi if ds < 0.0 else vi - v[j]
+            need = prm[_P_SLF] * length[i] + prm[_P_SCH] * _np_max(dv_closing, 0.0)
+            if abs(ds) < need:
+                blocked = True
+                break
+        step_safe[r] = step == 0 or not blocked
+    return utility, speed, time_gap, score, target, step_safe, own_candidate
+
+
+@kernel
+def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, breaks, present, vmax, lane_end_s,  # noqa: ANN001, ANN202, PLR0913
+                     reaches_end, road_length, w_coef, w_origin, off_coef, off_origin, prm):
+    """:func:`lane_change_decision` (evaluation, safety, settling and conflicts) in one pass."""
+    utility, speed, time_gap, score, target, step_safe, own_candidate = _nilsson_kernel(
+        idx, s, v, length, lane, target_lane, breaks, present, vmax, lane_end_s, reaches_end, road_length, prm)
+    k = idx.shape[0]
+    request = np.zeros(k, dtype=np.int64)
+    for r in range(k):
+        i = idx[r]
+        diff = target[r] - lane[i]
+        req = (1 if diff > 0 else (-1 if diff < 0 else 0)) if step_safe[r] else 0
+        if lane_change[i] != 0:
+            req = 0
+        if req != 0 and own_candidate[r]:  # not leaving an ending lane: only once settled
+            if not _settled_scalar(s[i], d[i], lane[i], prm[_P_SETTLE], breaks, road_length, w_coef, w_origin,
+                                   off_coef, off_origin):
+                req = 0
+        request[r] = req
+    return _resolve_kernel(idx, request, lane, s, v, length, True, prm[_P_SLF:_P_SCH + 1])
 
 
 def evaluate(view: Any, vehicles: np.ndarray, params: NilssonParams) -> NilssonEvaluation:
     """Lane utilities, scores, target lane and safety of the step (module docstring)."""
-    p = params
     idx = np.asarray(vehicles, dtype=np.int64)
-    k = idx.size
-    road = view.road
-    num_lanes = int(road.num_lanes)
-    lanes = np.arange(num_lanes)
-    s = view.s[idx]
-    v = view.v[idx]
-    length = view.length[idx]
-    lane = view.lane[idx]
-    rows = np.arange(k)
-
-    exists = np.asarray(road.lane_exists(lanes[None, :], s[:, None]), dtype=bool)  # (k, L)
-    limit = np.asarray(road.speed_limit_max_mps(lanes[None, :], s[:, None]), dtype=float)
-    v_des = np.minimum(p.desired_speed_mps, np.where(np.isfinite(limit), limit, p.desired_speed_mps))
-
-    front, rear = _lane_neighbours(view, idx, num_lanes, p.view_range_m)
-    has_f = front >= 0
-    has_r = rear >= 0
-    fi = np.where(has_f, front, 0)
-    ri = np.where(has_r, rear, 0)
-    v_f, v_r = view.v[fi], view.v[ri]
-    # bumper gaps the ego has (own lane) or would have (other lanes) at its s
-    gap_f = view.s[fi] - s[:, None] - 0.5 * (view.length[fi] + length[:, None])
-    gap_r = s[:, None] - view.s[ri] - 0.5 * (view.length[ri] + length[:, None])
-
-    sat = p.time_gap_factor * p.desired_time_gap_s
-    v_bar = np.where(has_f, np.where(has_r, 0.5 * (v_f + v_r), v_f), v_des)
-    t_front = np.where(has_f, gap_f / np.maximum(v[:, None], p.min_speed_mps), np.inf)
-    t_rear = np.where(has_r, gap_r / np.maximum(v_r, p.min_speed_mps), np.inf)
-    t_gap = np.minimum(np.minimum(t_front, t_rear), sat)
-
-    beta = p.look_ahead_time_s
-    u_v = -beta * np.abs(1.0 - v_des / np.maximum(p.min_speed_mps, v_bar))  # d_max/v_des = β
-    n_v = beta * np.abs(1.0 - v_des / p.min_speed_mps)
-    w_v = np.where(v_bar <= v_des, p.speed_weight_slow, p.speed_weight_fast)
-    u_tg = np.minimum(sat, t_gap) / sat
-    d_max = v_des * beta
-    d_end = np.asarray(road.distance_to_lane_end(lanes[None, :], s[:, None]), dtype=float)
-    d_end = np.where(np.isnan(d_end), np.inf, d_end)
-    u_ld = -np.maximum(0.0, d_max - d_end) / d_max  # (U_ld / N_ld)
-    utility = w_v * u_v / n_v + p.time_gap_weight * u_tg + p.lane_end_weight * u_ld
-    utility = np.where(exists, utility, -np.inf)
-
-    # candidates: existing lanes whose stop point is not within the mandatory distance
-    stop_gap = lane_end_gap_m(view, idx, np.broadcast_to(lanes, (k, num_lanes)), p.merge_stop_margin_m)
-    closing_end = np.isfinite(stop_gap) & (stop_gap < p.merge_mandatory_distance_m)
-    candidate = exists & ~closing_end
-    u_ego = utility[rows, lane]
-    score = utility - p.hysteresis * np.abs(u_ego)[:, None] + p.keep_right_bias * (lane[:, None] - lanes[None, :])
-    score[rows, lane] = u_ego
-    score = np.where(candidate, score, -np.inf)
-    others = score.copy()
-    others[rows, lane] = -np.inf
-    best_other = np.argmax(others, axis=1)
-    best_score = others[rows, best_other]
-    own_ok = candidate[rows, lane]
-    change = np.isfinite(best_score) & (~own_ok | (best_score > u_ego))
-    target = np.where(change, best_other, lane)
-
-    # safety of the adjacent step
-    step = np.sign(target - lane)
-    next_lane = lane + step
-    ds = view.s[None, :] - s[:, None]  # (k, n)
-    dv_closing = np.where(ds < 0.0, view.v[None, :] - v[:, None], v[:, None] - view.v[None, :])
-    need = p.safety_length_factor * length[:, None] + p.safety_closing_headway_s * np.maximum(dv_closing, 0.0)
-    # a vehicle counts in the lane it is in and in the lane it is changing into
-    occupies = (view.lane[None, :] == next_lane[:, None]) | (view.target_lane[None, :] == next_lane[:, None])
-    in_next = occupies & (np.arange(view.n)[None, :] != idx[:, None])
-    blocked = np.any(in_next & (np.abs(ds) < need), axis=1)
-    step_safe = (step == 0) | ~blocked
-    return NilssonEvaluation(utility=utility, speed=v_bar, time_gap=t_gap, score=score, target=target,
-                             step_safe=step_safe, own_candidate=own_ok)
+    breaks, present, vmax, lane_end_s, reaches_end, road_length = _road_tables(view.road)[:6]
+    utility, speed, time_gap, score, target, step_safe, own_candidate = _nilsson_kernel(
+        idx, view.s, view.v, view.length, view.lane, view.target_lane, breaks, present, vmax, lane_end_s,
+        reaches_end, road_length, _param_array(params))
+    return NilssonEvaluation(utility=utility, speed=speed, time_gap=time_gap, score=score, target=target,
+                             step_safe=step_safe, own_candidate=own_candidate)
 
 
 def lane_change_decision(view: Any, vehicles: np.ndarray, params: NilssonParams) -> np.ndarray:
-    """Nilsson's lane-change request (+1 left, −1 right, 0 keep) for each of ``vehicles``."""
+    """Nilsson's lane-change request (+1 left, −1 right, 0 keep) for each of ``vehicles``.
+
+    One step towards :func:`evaluate`'s target lane if that step is safe; 0 while a change is in
+    progress or the vehicle has not settled (:func:`evoscen_sut.mobil.settled`, except when it
+    must leave an ending lane); two conflicting requests of the given vehicles resolved by
+    :func:`evoscen_sut.mobil.resolve_conflicts` with the safety distance as the pair test.
+    """
     idx = np.asarray(vehicles, dtype=np.int64)
     if idx.size == 0:
         return np.zeros(0, dtype=np.int64)
-    ev = evaluate(view, idx, params)
-    lane = view.lane[idx]
-    request = np.where(ev.step_safe, np.sign(ev.target - lane), 0)
-    request = np.where(view.lane_change[idx] != 0, 0, request)
-    leaving_end = ~ev.own_candidate
-    request = np.where(settled(view, idx, params.settle_tolerance_m) | leaving_end, request, 0)
-
-    def unsafe_pair(i: np.ndarray) -> np.ndarray:
-        ds = view.s[i][None, :] - view.s[i][:, None]
-        closing = np.where(ds > 0, view.v[i][:, None] - view.v[i][None, :], view.v[i][None, :] - view.v[i][:, None])
-        need = params.safety_length_factor * view.length[i][:, None] + params.safety_closing_headway_s * np.maximum(
-            closing, 0.0)
-        return np.abs(ds) < need
-
-    return resolve_conflicts(view, idx, request.astype(np.int64), unsafe_pair)
+    return _decision_kernel(idx, view.s, view.d, view.v, view.length, view.lane, view.target_lane,
+                            view.lane_change, *_road_tables(view.road), _param_array(params))
 
 
 def make_driver(vehicles: np.ndarray, params: NilssonParams | None, config: Any,

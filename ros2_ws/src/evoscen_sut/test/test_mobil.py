@@ -369,3 +369,40 @@ def test_default_scenario_as_bv_driver() -> None:
     _collisions, changes = _run(sc, 1000, sc.bv_indices)
     assert changes >= 1
     assert np.all(np.isfinite(sc.world.v))
+
+
+# ------------------------------------------------------------------ compiled kernels vs the numpy helpers
+def test_compiled_settled_matches_the_road_model(road) -> None:
+    # the kernels' settling test re-evaluates RoadModel.lane_center_d: same result everywhere,
+    # including the merge lane's taper and s outside the road
+    rng = np.random.default_rng(3)
+    s = np.concatenate([rng.uniform(-20.0, road.length_m + 20.0, 400), [0.0, 600.0, 960.0, road.length_m]])
+    lane = rng.integers(0, road.num_lanes, s.size)
+    centre = road.lane_center_d(lane, np.maximum(s, 0.0))
+    d = np.where(np.isfinite(centre), centre, 0.0) + rng.uniform(-1.0, 1.0, s.size)
+    tables = mobil._road_tables(road)
+    breaks, road_length, w_coef, w_origin, off_coef, off_origin = (tables[0], tables[5], *tables[6:])
+    for tol in (0.0, 0.3, 0.5):
+        expected = np.abs(d - centre) <= tol
+        got = [mobil._settled_scalar(s[k], d[k], lane[k], tol, breaks, road_length, w_coef, w_origin, off_coef,
+                                     off_origin) for k in range(s.size)]
+        np.testing.assert_array_equal(got, expected)
+
+
+def test_compiled_krauss_command_matches_the_generic_path(road) -> None:
+    # the driver's compiled Krauss + lane-end stop + throttle mapping == the numpy composition
+    # (KraussCarFollowing.acceleration twice, sumo_follow_speed, accel_to_throttle), random draws included
+    from evoscen_sim.vehicle import accel_to_throttle
+
+    w = hand_built_world(road, s=[800.0, 812.0, 790.0, 300.0, 345.0, 900.0], lane=[0, 1, 1, 3, 2, 0],
+                         speed=[20.0, 25.0, 30.0, 30.0, 22.0, 5.0])
+    w.step(np.zeros(6), np.array([0, 0, 1, -1, 0, 0]))
+    assert np.count_nonzero(w.target_lane != w.lane) >= 2
+    vehicles = np.arange(6)
+    fast = _driver(vehicles, sigma=0.5)
+    slow = _driver(vehicles, sigma=0.5)
+    for _ in range(3):
+        acc_fast, thr_fast = fast._acceleration_throttle(w)
+        acc_slow = slow._acceleration_generic(w)
+        np.testing.assert_array_equal(acc_fast, acc_slow)
+        np.testing.assert_array_equal(thr_fast, accel_to_throttle(acc_slow, VehicleParams()))

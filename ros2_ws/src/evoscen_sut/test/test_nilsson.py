@@ -302,3 +302,28 @@ def test_default_scenario_as_bv_driver() -> None:
     _collisions, changes = _run(sc, 1000, sc.bv_indices)
     assert changes >= 1
     assert np.all(np.isfinite(sc.world.v))
+
+
+def test_compiled_neighbour_search_matches_the_neighbourhood(road) -> None:
+    # the kernel's nearest front / rear vehicle per lane (unlimited view) is the simulator's
+    # neighbourhood (ties at equal s included): v̄ and the time gap follow from it
+    rng = np.random.default_rng(5)
+    p = replace(P, view_range_m=2500.0)
+    for _ in range(20):
+        n = 16
+        s = np.round(rng.uniform(100.0, 400.0, n) / 4.0) * 4.0  # many vehicles level with each other
+        lane = rng.integers(1, 5, n)
+        w = hand_built_world(road, s=list(s), lane=list(lane), speed=list(rng.uniform(5.0, 33.0, n)))
+        nb = w.neighborhood()
+        ev = evaluate(w, np.arange(n), p)
+        for i in range(n):
+            for ln in range(1, 5):
+                col = ln - lane[i] + 2
+                if not 0 <= col <= 4:
+                    continue
+                fj, rj = nb.leader[i, col], nb.follower[i, col]
+                v_bar = (0.5 * (w.v[fj] + w.v[rj]) if rj >= 0 else w.v[fj]) if fj >= 0 else V0
+                assert ev.speed[i, ln] == v_bar
+                t_front = nb.gap_front_m[i, col] / max(w.v[i], 2.0) if fj >= 0 else np.inf
+                t_rear = nb.gap_rear_m[i, col] / max(w.v[rj], 2.0) if rj >= 0 else np.inf
+                assert ev.time_gap[i, ln] == min(t_front, t_rear, 4.0)
