@@ -230,7 +230,7 @@ def _np_min(a, b):  # noqa: ANN001, ANN202
         return a
     if np.isnan(b):
         return b
-    return a if a <= b else b
+    return min(a, b)
 
 
 @kernel
@@ -240,7 +240,7 @@ def _np_max(a, b):  # noqa: ANN001, ANN202
         return a
     if np.isnan(b):
         return b
-    return a if a >= b else b
+    return max(a, b)
 
 
 @kernel
@@ -507,7 +507,7 @@ def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change,
                            leader_speed, gap_rear, follower, follower_speed, breaks, present, vmax, lane_end_s,
                            reaches_end, road_length, w_coef, w_origin, off_coef, off_origin, prm):
     """:func:`lane_change_decision` (evaluation, choice, settling and conflicts) in one pass."""
-    exists, acc_ego, gain_n, gain_o, at_n, inc, safe, mandatory = _mobil_kernel(
+    exists, _acc_ego, _gain_n, _gain_o, _at_n, inc, safe, mandatory = _mobil_kernel(
         idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear, follower,
         follower_speed, breaks, present, vmax, lane_end_s, reaches_end, road_length, prm)
     k = idx.shape[0]
@@ -525,10 +525,9 @@ def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change,
         i = idx[r]
         if lane_change[i] != 0:
             req = 0
-        if req != 0 and not mandatory[r]:
-            if not _settled_scalar(s[i], d[i], lane[i], prm[_P_SETTLE], breaks, road_length, w_coef, w_origin,
-                                   off_coef, off_origin):
-                req = 0
+        if req != 0 and not mandatory[r] and not _settled_scalar(
+                s[i], d[i], lane[i], prm[_P_SETTLE], breaks, road_length, w_coef, w_origin, off_coef, off_origin):
+            req = 0
         request[r] = req
     return _resolve_kernel(idx, request, lane, s, v, length, False, prm)
 

@@ -311,7 +311,7 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax,
 def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, breaks, present, vmax, lane_end_s,  # noqa: ANN001, ANN202, PLR0913
                      reaches_end, road_length, w_coef, w_origin, off_coef, off_origin, prm):
     """:func:`lane_change_decision` (evaluation, safety, settling and conflicts) in one pass."""
-    utility, speed, time_gap, score, target, step_safe, own_candidate = _nilsson_kernel(
+    _utility, _speed, _time_gap, _score, target, step_safe, own_candidate = _nilsson_kernel(
         idx, s, v, length, lane, target_lane, breaks, present, vmax, lane_end_s, reaches_end, road_length, prm)
     k = idx.shape[0]
     request = np.zeros(k, dtype=np.int64)
@@ -321,10 +321,10 @@ def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, break
         req = (1 if diff > 0 else (-1 if diff < 0 else 0)) if step_safe[r] else 0
         if lane_change[i] != 0:
             req = 0
-        if req != 0 and own_candidate[r]:  # not leaving an ending lane: only once settled
-            if not _settled_scalar(s[i], d[i], lane[i], prm[_P_SETTLE], breaks, road_length, w_coef, w_origin,
-                                   off_coef, off_origin):
-                req = 0
+        # not leaving an ending lane: only once settled
+        if req != 0 and own_candidate[r] and not _settled_scalar(
+                s[i], d[i], lane[i], prm[_P_SETTLE], breaks, road_length, w_coef, w_origin, off_coef, off_origin):
+            req = 0
         request[r] = req
     return _resolve_kernel(idx, request, lane, s, v, length, True, prm[_P_SLF:_P_SCH + 1])
 
