@@ -358,15 +358,19 @@ class VehicleMarkersEncoder:
         return pad4(bytes(out))
 
 
+def events_count(data: bytes) -> int:
+    """Number of statuses in serialized ``diagnostic_msgs/DiagnosticArray`` bytes."""
+    (n,) = struct.unpack_from("<I", data, 12)  # header.frame_id length
+    return struct.unpack_from("<I", data, 16 + n + (-(12 + n) % 4))[0]
+
+
 def is_run_end(data: bytes) -> bool:
     """Whether serialized ``/evoscen/events`` bytes hold the ``evoscen/run_end`` event.
 
     Cheap for the common case: an empty array (a step without events) is recognised from its
     status count without deserializing.
     """
-    (n,) = struct.unpack_from("<I", data, 12)  # header.frame_id length
-    (count,) = struct.unpack_from("<I", data, 16 + n + (-(12 + n) % 4))
-    if count == 0:
+    if events_count(data) == 0:
         return False
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.serialization import deserialize_message

@@ -26,7 +26,7 @@ import time
 
 from evoscen_contract import graph
 from evoscen_contract import topics as T
-from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table, is_run_end
+from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table, events_count, is_run_end
 from evoscen_sim.errors import InputError
 from evoscen_sim.node_params import scenario_from_node
 
@@ -74,6 +74,8 @@ class EvaluatorNode:
                 taken += 1
                 t_ns = _stamp_ns(topic, data)
                 canonical = topic in _CANONICAL_TOPICS
+                if topic == T.EVENTS.name and events_count(data) == 0:
+                    canonical = True  # a step without events: the simulation's canonical template
                 if topic in _TABLE_TOPICS:
                     if t_ns >= self.cfg.steps * self.dt_ns or (self.run_end_ns is not None and t_ns >= self.run_end_ns):
                         continue  # an answer to the final state: no step follows it, the simulation ignores it
