@@ -44,6 +44,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="ROS_AUTOMATIC_DISCOVERY_RANGE: SUBNET lets ROS 2 machines on the network see the topics")
     g.add_argument("--deadline", type=float, default=2.0, help="per-step controller deadline in seconds (default 2.0)")
     g.add_argument("--max-misses", type=int, default=5, help="consecutive missed deadlines that abort (default 5)")
+    g.add_argument("--wait-for", nargs="+", default=[], metavar="NODE",
+                   help="node names of your own nodes (a monitor, a bridge) to wait for before step 0, "
+                        "so they receive every step")
     g.add_argument("--external-sut", action="store_true",
                    help="do not start evoscen's SUT node: your own node answers on /evoscen/commands/sut "
                         "(see examples/README.md)")
@@ -78,7 +81,8 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> i
 
     domain = args.domain_id if args.domain_id is not None else random.SystemRandom().randint(1, 100)
     opts = GraphOptions(domain_id=domain, discovery_range=args.discovery_range,
-                        deadline_s=args.deadline, max_misses=args.max_misses, external_sut=args.external_sut)
+                        deadline_s=args.deadline, max_misses=args.max_misses, external_sut=args.external_sut,
+                        wait_for=tuple(args.wait_for))
     print(f"graph: ROS_DOMAIN_ID={domain}, discovery {opts.discovery_range}; parameter files in {out / 'params'}",
           file=sys.stderr)
     if args.external_sut:

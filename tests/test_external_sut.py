@@ -44,7 +44,7 @@ def start_graph_with_external_sut(out: Path, *, steps: int, example_args: list[s
 
     out.mkdir(parents=True, exist_ok=True)
     cfg = load_scenario_config(None, {"steps": steps, "seed": SEED})
-    params = write_parameter_files(cfg, out, out / "bag", GraphOptions(startup_timeout_s=60.0))
+    params = write_parameter_files(cfg, out, out / "bag", GraphOptions(startup_timeout_s=60.0, external_sut=True))
     domain_id = random.SystemRandom().randint(101, 232)  # apart from the launcher's 1..100
     env = node_environment(domain_id, "LOCALHOST")
     commands = {

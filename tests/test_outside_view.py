@@ -255,7 +255,8 @@ def observed(tmp_path_factory):
             time.sleep(0.05)
         t0 = time.monotonic()
         run = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--steps", str(STEPS),
-                              "--seed", "7", "--domain-id", str(domain_id), "--out", str(tmp / "run")],
+                              "--seed", "7", "--domain-id", str(domain_id), "--out", str(tmp / "run"),
+                              "--wait-for", "user_observer"],  # a user's monitor: receives every step
                              cwd=REPO, capture_output=True, text=True, timeout=150, check=False)
         launcher_s = time.monotonic() - t0
         _out, err = observer.communicate(timeout=60)
@@ -287,7 +288,8 @@ def test_observer_receives_every_step(observed):
     counts = {name: v["count"] for name, v in s.items() if isinstance(v, dict) and "count" in v}
 
     world = s["/evoscen/world"]
-    assert world["count"] == STEPS + 1, counts
+    missing = sorted(set(range(STEPS + 1)) - {stamp // dt_ns for stamp in world["stamps"]})
+    assert world["count"] == STEPS + 1, (counts, "missing world steps", missing)
     assert sorted(world["stamps"]) == [k * dt_ns for k in range(STEPS + 1)]
     assert world["columns"] == columns["/evoscen/world"]
     assert world["rows"] == [N_VEHICLES] and world["ids"] == list(range(N_VEHICLES)) and world["all_finite"]

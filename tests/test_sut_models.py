@@ -5,8 +5,8 @@
 * Node graph (``scripts/run_scenario.py --mode graph --sut NAME``, the SUT in its own
   process): the run completes, and its bag is byte-identical to the in-process bag of the
   same scenario (every decision of the model, made from the world table on the wire, equals
-  the one made in-process). The graph runs have GRAPH_STEPS steps (1,000: three graph runs of
-  3,000 steps cost over a minute on the 2-core development machine); the three run at once, next to the in-process tests.
+  the one made in-process). The graph runs have 3,000 steps too; the three run at once, next
+  to the in-process tests.
 * The SUT node with an unknown model name: a one-line error listing the valid choices.
 """
 
@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 SCRIPT = "scripts/run_scenario.py"
 MODELS = ("nilsson", "mobil", "stackelberg")
 INPROCESS_STEPS = 3000
-GRAPH_STEPS = 1000
+GRAPH_STEPS = 3000
 SEED = 0
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")

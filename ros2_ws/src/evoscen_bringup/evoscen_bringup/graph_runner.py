@@ -62,6 +62,8 @@ class GraphOptions:
     """How long the launcher waits for a node to end by itself before signalling it."""
     node_args: dict[str, dict] = field(default_factory=dict)
     """Extra parameters per node name (tests)."""
+    wait_for: tuple[str, ...] = ()
+    """Users' node names the simulation waits for before step 0 (so they see every step)."""
     external_sut: bool = False
     """Do not start evoscen's SUT node: a user's own node answers on ``/evoscen/commands/sut``
     (the simulation node waits for it at start-up like for any controller)."""
@@ -85,11 +87,17 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
     controllers = (["evoscen_bv"] if cfg.bvs.count > 0 else []) + ["evoscen_sut"]
     own = {
         "evoscen_sim": {"deadline_s": opts.deadline_s, "max_misses": opts.max_misses,
-                        "startup_timeout_s": opts.startup_timeout_s, "controllers": controllers, "recorder": True},
+                        "startup_timeout_s": opts.startup_timeout_s, "controllers": controllers, "recorder": True,
+                        "external_sut": opts.external_sut,
+                        # a parameter file cannot type an empty list: only when there are nodes to wait for
+                        **({"wait_for_nodes": list(opts.wait_for)} if opts.wait_for else {})},
         "evoscen_bv": {"startup_timeout_s": opts.startup_timeout_s, "use_sim_time": True},
         "evoscen_sut": {"startup_timeout_s": opts.startup_timeout_s, "use_sim_time": True},
         "evoscen_eval": {"bag_dir": str(bag_dir), "use_sim_time": True},
     }
+    if opts.wait_for:  # the controllers wait for users' nodes too (a parameter file cannot type [])
+        for name in ("evoscen_bv", "evoscen_sut"):
+            own[name]["wait_for_nodes"] = list(opts.wait_for)
     paths = {}
     for name, _ in NODES:
         params = {**own[name], **opts.node_args.get(name, {}), "scenario": scenario}

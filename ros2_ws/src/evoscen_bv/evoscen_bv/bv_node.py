@@ -4,7 +4,7 @@
 
 The driver is ``scenario.bvs.driver`` from the model registry (level-0 now), built for all
 BVs with the same seeded stream as in-process, so the commands are the same bytes.
-Parameters: ``scenario.*``, ``command_subscribers`` [2], ``startup_timeout_s`` [30],
+Parameters: ``scenario.*``, ``command_subscribers`` [[evoscen_sim, evoscen_eval]], ``startup_timeout_s`` [30],
 ``idle_timeout_s`` [60] (see :mod:`evoscen_sim.controller_node`).
 """
 

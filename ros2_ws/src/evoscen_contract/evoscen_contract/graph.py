@@ -120,3 +120,41 @@ def shutdown() -> None:
     """``rclpy.shutdown`` if the context is still up."""
     if rclpy.ok():
         rclpy.shutdown()
+
+
+def exit_now(status: int) -> None:
+    """End the process at once with ``status``, without tearing down the middleware.
+
+    Fast DDS can busy-wait forever while destroying a participant under load (seen: a finished
+    simulation node spinning in ``DomainParticipant::set_listener`` inside ``rmw_destroy_node``).
+    Our nodes have finished their work by then — publications acknowledged
+    (``wait_for_all_acked``), the bag closed — so nothing is lost by letting the OS clean up.
+    """
+    import os
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
+
+
+def peers_missing(node: Node, topic: str, kind: str, matched: int, required: Iterable[str] = (),
+                  at_least: int = 1) -> str | None:
+    """Why ``topic`` is not ready yet (None when it is), for start-up waits.
+
+    ``kind`` is ``"subscribers"`` (we publish: ``matched`` = the publisher's matched
+    subscriptions) or ``"publishers"`` (we subscribe). Ready means: every ``required`` node
+    has an endpoint on the topic, at least ``at_least`` endpoints exist, and every discovered
+    endpoint is matched — counting alone is not enough, since a user's own node on the topic
+    could stand in for a missing one of ours.
+    """
+    infos = (node.get_subscriptions_info_by_topic(topic) if kind == "subscribers"
+             else node.get_publishers_info_by_topic(topic))
+    names = {info.node_name for info in infos}
+    lacking = [name for name in required if name not in names]
+    if lacking:
+        return f"{topic}: no {kind[:-1]} from {', '.join(lacking)}"
+    if len(infos) < at_least:
+        return f"{topic}: needs {at_least} {kind}, has {len(infos)}"
+    if matched < len(infos):
+        return f"{topic}: {len(infos) - matched} discovered {kind} not matched yet"
+    return None

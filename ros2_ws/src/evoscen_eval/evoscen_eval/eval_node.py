@@ -163,10 +163,8 @@ def main(args: list[str] | None = None) -> int:
         except (InputError, graph.NodeParameterError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
-        try:
-            return node.run()
-        finally:
-            node.node.destroy_node()
+        # no destroy_node/shutdown: the middleware's teardown can hang (see graph.exit_now)
+        graph.exit_now(node.run())
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
     finally:

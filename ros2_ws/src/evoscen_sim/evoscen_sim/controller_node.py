@@ -4,8 +4,8 @@ The BV node (:mod:`evoscen_bv.bv_node`) and the SUT node (:mod:`evoscen_sut.sut_
 this loop with a different driver: take ``/evoscen/world`` at t_k, rebuild a
 :class:`~evoscen_sim.view.WorldView`, ask the driver, publish one command table stamped
 t_k. Before answering the first world message the node waits until its command publisher
-is matched with the simulation node and the recorder (``command_subscribers``, default 2),
-so no command is lost. It ends on the ``run_end`` event, on Ctrl-C, or after
+is matched with the simulation node and the recorder (``command_subscribers``: their node
+names, default ``[evoscen_sim, evoscen_eval]``), so no command is lost. It ends on the ``run_end`` event, on Ctrl-C, or after
 ``idle_timeout_s`` without a world message (the simulation is gone).
 """
 
@@ -46,12 +46,18 @@ class ControllerNode:
         params = graph.node_parameters(self.node)
         self.cfg = scenario_from_node(params, name)
         p = lambda *a, **k: graph.own_parameter(params, name, *a, **k)  # noqa: E731
-        self.command_subscribers = p("command_subscribers", 2, int, check=lambda v: v >= 1,
-                                     expected="expected an integer >= 1 (the simulation node and the recorder)")
+        self.command_subscribers = p("command_subscribers", [T.NODE_SIM, T.NODE_EVAL], list,
+                                     check=lambda v: all(isinstance(x, str) and x for x in v),
+                                     expected="expected a list of node names (the simulation node and the recorder)")
         self.startup_timeout_s = p("startup_timeout_s", 30.0, float, check=lambda v: v > 0,
                                    expected="expected a number > 0 (s)")
         self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
                                 expected="expected a number > 0 (s)")
+        self.wait_for_nodes = p("wait_for_nodes", [], list, check=lambda v: all(isinstance(x, str) and x for x in v),
+                                expected="expected a list of node names")
+        self.discovery_settle_s = p("discovery_settle_s", 0.5, float, check=lambda v: v >= 0,
+                                    expected="expected a number >= 0 (s)")
+        self._first_seen: dict[str, float] = {}
         self.driver, self.vehicles = build(params, self.cfg)
         self.road = load_road(self.cfg.map)
         self.msgs = WorldMessages(self.cfg.dt_s)
@@ -62,7 +68,23 @@ class ControllerNode:
         self.pump = graph.MessagePump(self.node, [self.world_sub, self.events_sub])
 
     def _ready(self) -> bool:
-        return self.pub.get_subscription_count() >= self.command_subscribers
+        """Every required subscriber (by node name) has an endpoint on our topic, all matched.
+
+        A node of ``wait_for_nodes`` (a user's monitor) must also have been discovered for
+        ``discovery_settle_s``, so that its subscriptions, if it has any on our topic, are
+        matched before the first command.
+        """
+        now = time.monotonic()
+        if self.wait_for_nodes:
+            known = set(self.node.get_node_names())
+            for name in self.wait_for_nodes:
+                if name in known:
+                    self._first_seen.setdefault(name, now)
+            if any(now - self._first_seen.get(name, now) < self.discovery_settle_s or name not in self._first_seen
+                   for name in self.wait_for_nodes):
+                return False
+        return graph.peers_missing(self.node, self.pub.topic_name, "subscribers", self.pub.get_subscription_count(),
+                                   self.command_subscribers, at_least=len(self.command_subscribers)) is None
 
     def answer(self, data: bytes) -> None:
         """Publish the commands answering one serialized world message (not the final state)."""
@@ -87,7 +109,7 @@ class ControllerNode:
                         last_world = time.monotonic()
                 elif time.monotonic() - started > self.startup_timeout_s:
                     print(f"error: {self.name}: start-up: {self.pub.topic_name} not matched with "
-                          f"{self.command_subscribers} subscribers after {self.startup_timeout_s:g} s", file=sys.stderr)
+                          f"{', '.join(self.command_subscribers)} after {self.startup_timeout_s:g} s", file=sys.stderr)
                     return EXIT_FAULT
                 while (ev := graph.MessagePump.take(self.events_sub)) is not None:
                     if is_run_end(ev):
@@ -117,10 +139,8 @@ def run_controller(name: str, command_spec: T.TopicSpec, build: Callable, args: 
         except (InputError, graph.NodeParameterError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
-        try:
-            return node.run()
-        finally:
-            node.node.destroy_node()
+        # no destroy_node/shutdown: the middleware's teardown can hang (see graph.exit_now)
+        graph.exit_now(node.run())
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
     finally:

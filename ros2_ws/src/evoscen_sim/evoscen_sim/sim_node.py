@@ -20,11 +20,17 @@ error naming the controller, exit status 3. Ctrl-C ends the run after the curren
 
 Parameters: ``scenario.*`` (the scenario configuration, validated like the YAML file),
 ``deadline_s`` [2.0], ``startup_timeout_s`` [30.0], ``max_misses`` [5], ``controllers``
-[``["evoscen_bv", "evoscen_sut"]``], ``recorder`` [true]: wait for the evaluator node.
+[``["evoscen_bv", "evoscen_sut"]``], ``recorder`` [true]: wait for the evaluator node,
+``external_sut`` [false]: the SUT's commands come from a user's node (any name),
+``stats_file`` [""]: write the lockstep rate there (JSON), ``discovery_settle_s`` [0.5]: at
+start-up, how long discovery must stay quiet (all endpoints matched) before step 0,
+``wait_for_nodes`` [[]]: names of users' nodes (a monitor, a bridge) that must have
+subscribed to an evoscen topic before step 0 — so they get every step.
 """
 
 from __future__ import annotations
 
+import signal
 import sys
 import time
 
@@ -66,6 +72,11 @@ class SimulationNode:
                              expected=f"expected a non-empty list of distinct names from {sorted(CONTROLLER_TOPICS)}")
         self.recorder = p("recorder", True, bool, expected="expected true or false")
         self.stats_file = p("stats_file", "", str, expected="expected a file path or ''")
+        self.external_sut = p("external_sut", False, bool, expected="expected true or false")
+        self.wait_for_nodes = p("wait_for_nodes", [], list, check=lambda v: all(isinstance(x, str) and x for x in v),
+                                expected="expected a list of node names")
+        self.discovery_settle_s = p("discovery_settle_s", 0.5, float, check=lambda v: v >= 0,
+                                    expected="expected a number >= 0 (s)")
 
         self.world = build_world(self.cfg)
         self.msgs = WorldMessages(self.cfg.dt_s)
@@ -79,6 +90,17 @@ class SimulationNode:
         self.lane_change = np.zeros(self.world.n, dtype=np.int64)
         self.misses = dict.fromkeys(self.controllers, 0)
         self._published_ns: int | None = None
+        # Ctrl-C / SIGTERM take effect at step boundaries (never between two publications of a step)
+        self._interrupted = False
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._on_signal)
+
+    def _on_signal(self, signum, frame) -> None:  # noqa: ANN001
+        self._interrupted = True
+
+    def _check_interrupt(self) -> None:
+        if self._interrupted:
+            raise KeyboardInterrupt
 
     # ------------------------------------------------------------------ publishing
     def _publish(self, spec: T.TopicSpec, data: bytes) -> None:
@@ -110,31 +132,61 @@ class SimulationNode:
 
     # ------------------------------------------------------------------ start-up
     def _unmatched(self) -> list[str]:
-        expected_world = len(self.controllers) + (1 if self.recorder else 0)
+        """What start-up still waits for (empty when every peer is matched on every topic)."""
+        ours = [c for c in self.controllers if not (c == T.NODE_SUT and self.external_sut)]
+        recorder = [T.NODE_EVAL] if self.recorder else []
         missing = []
-        if self.pub[T.WORLD.name].get_subscription_count() < expected_world:
-            missing.append(f"{T.WORLD.name} (needs {expected_world} subscribers: {', '.join(self.controllers)}"
-                           f"{', evoscen_eval' if self.recorder else ''})")
-        if self.recorder:
-            missing += [f"{name} (needs the recorder evoscen_eval)" for name in (T.CLOCK.name, T.SUT_ODOM.name,
-                        T.EVENTS.name, T.ROSTER.name, T.MARKERS.name, T.MAP_MARKERS.name)
-                        if self.pub[name].get_subscription_count() < 1]
-        missing += [f"{CONTROLLER_TOPICS[c].name} (needs its publisher {c})"
-                    for c, sub in self.subs.items() if sub.get_publisher_count() < 1]
+        for name, pub in self.pub.items():
+            required = recorder + (ours if name == T.WORLD.name else [])
+            at_least = len(required) + (1 if name == T.WORLD.name and self.external_sut else 0)
+            why = graph.peers_missing(self.node, name, "subscribers", pub.get_subscription_count(), required,
+                                      at_least=at_least) if at_least else None
+            if why:
+                missing.append(why)
+        if self.wait_for_nodes:  # users' nodes asked for: each subscribed to one of our topics at least
+            subscribed = {info.node_name for name in self.pub for info in self.node.get_subscriptions_info_by_topic(name)}
+            missing += [f"{name}: waiting for this node (wait_for_nodes) to subscribe to an evoscen topic"
+                        for name in self.wait_for_nodes if name not in subscribed]
+        for c, sub in self.subs.items():
+            required = [] if (c == T.NODE_SUT and self.external_sut) else [c]
+            why = graph.peers_missing(self.node, sub.topic_name, "publishers", sub.get_publisher_count(), required)
+            if why:
+                missing.append(why)
         return missing
 
     def wait_for_graph(self) -> None:
         """Block until every peer is matched; RunAborted after ``startup_timeout_s``.
 
-        Also refuses a domain where another simulation node already publishes the world: two
-        graphs on one ROS_DOMAIN_ID would take each other's commands and record each other.
+        Every discovered endpoint must be matched and discovery must have been quiet for
+        ``discovery_settle_s``, so a user's node that is already running when the run starts
+        (a monitor, Foxglove bridge) gets the first step too. Also refuses a domain where
+        another simulation node already publishes the world: two graphs on one ROS_DOMAIN_ID
+        would take each other's commands and record each other.
         """
         deadline = time.monotonic() + self.startup_timeout_s
-        while missing := self._unmatched():
+        settled_since, last_seen = None, None
+        while True:
+            missing = self._unmatched()
+            seen = self._discovered()
+            now = time.monotonic()
+            if missing:
+                settled_since, last_seen = None, seen
+            elif settled_since is None or seen != last_seen:
+                settled_since, last_seen = now, seen  # all matched: now discovery must stay quiet
+            elif now - settled_since >= self.discovery_settle_s:
+                return
             self._check_alone()
-            if time.monotonic() > deadline:
-                raise RunAborted(f"start-up: not matched after {self.startup_timeout_s:g} s: {'; '.join(missing)}")
+            self._check_interrupt()
+            if now > deadline:
+                why = "; ".join(missing) or "discovery did not settle"
+                raise RunAborted(f"start-up: not matched after {self.startup_timeout_s:g} s: {why}")
             time.sleep(0.02)
+
+    def _discovered(self) -> tuple:
+        """Every endpoint discovered on our topics (to see discovery settle)."""
+        n = self.node
+        return tuple(sorted((name, len(n.get_subscriptions_info_by_topic(name)), len(n.get_publishers_info_by_topic(name)))
+                            for name in [*self.pub, *(s.topic_name for s in self.subs.values())]))
 
     # ------------------------------------------------------------------ lockstep
     def _collect_commands(self, step: int, timeout_s: float) -> None:
@@ -160,6 +212,7 @@ class SimulationNode:
             remaining = deadline - time.monotonic()
             if not pending or remaining <= 0:
                 break
+            self._check_interrupt()
             self.pump.wait(min(remaining, 0.1))
         for c in self.controllers:
             if c not in pending:
@@ -197,6 +250,7 @@ class SimulationNode:
             self.wait_for_graph()
             loop_start = time.perf_counter()
             for k in range(self.cfg.steps):
+                self._check_interrupt()
                 self._publish_state(roster=(k == 0), events=events)
                 events = None
                 self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
@@ -245,10 +299,8 @@ def main(args: list[str] | None = None) -> int:
         except (InputError, graph.NodeParameterError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
-        try:
-            return sim.run()
-        finally:
-            sim.node.destroy_node()
+        # no destroy_node/shutdown: the middleware's teardown can hang (see graph.exit_now)
+        graph.exit_now(sim.run())
     except KeyboardInterrupt:
         return EXIT_INTERRUPTED
     finally:

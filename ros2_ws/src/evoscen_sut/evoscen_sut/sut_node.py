@@ -5,7 +5,7 @@
 ``model`` (default: ``scenario.sut.model``) names a model of the registry
 (:mod:`evoscen_sim.models`: built-ins and ``evoscen.sut`` entry points); an unknown name is a
 one-line error listing the valid choices (exit 2). Other parameters: ``scenario.*``,
-``command_subscribers`` [2], ``startup_timeout_s`` [30], ``idle_timeout_s`` [60].
+``command_subscribers`` [[evoscen_sim, evoscen_eval]], ``startup_timeout_s`` [30], ``idle_timeout_s`` [60].
 """
 
 from __future__ import annotations
