@@ -14,7 +14,7 @@ on Ctrl-C; or after ``idle_timeout_s`` without any message. The per-step topics 
 keep-all (see the contract), so a recorder lagging behind the simulation loses nothing.
 
 Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory),
-``drain_s`` [0.5], ``idle_timeout_s`` [60], ``batch_s`` [0.005]:
+``nice`` [10] (CPU priority below the lockstep nodes), ``drain_s`` [0.5], ``idle_timeout_s`` [60], ``batch_s`` [0.005]:
 after taking messages the node sleeps this long so that several steps' messages are taken
 per wake-up (it is outside the lockstep loop; fewer wake-ups leave more CPU to the loop).
 """
@@ -51,6 +51,13 @@ class EvaluatorNode:
         bag_dir = p("bag_dir", "", str, check=bool, expected="expected the path of a new or empty bag directory")
         self.drain_s = p("drain_s", 0.5, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
         self.batch_s = p("batch_s", 0.005, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
+        self.nice = p("nice", 10, int, check=lambda v: 0 <= v <= 19, expected="expected an integer in [0, 19]")
+        if self.nice:
+            # outside the lockstep loop, and the topics are keep-all: lagging costs memory, never data,
+            # so the recorder yields the CPU to the loop (measurable on a 2-core machine)
+            import os
+
+            os.nice(self.nice)
         self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
                                 expected="expected a number > 0 (s)")
         self.dt_ns = round(self.cfg.dt_s * 1e9)

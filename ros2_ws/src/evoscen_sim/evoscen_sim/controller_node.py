@@ -101,9 +101,10 @@ class ControllerNode:
         """Answer world messages until the run ends; returns the exit status."""
         started = time.monotonic()
         last_world = started
+        ready = False  # checked (a graph query) until true, then never again: the hot loop stays cheap
         try:
             while True:
-                if self._ready():
+                if ready or (ready := self._ready()):
                     while (msg := graph.MessagePump.take(self.world_sub)) is not None:
                         self.answer(msg)
                         last_world = time.monotonic()
