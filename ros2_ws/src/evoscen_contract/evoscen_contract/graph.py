@@ -158,3 +158,10 @@ def peers_missing(node: Node, topic: str, kind: str, matched: int, required: Ite
     if matched < len(infos):
         return f"{topic}: {len(infos) - matched} discovered {kind} not matched yet"
     return None
+
+
+def duration(seconds: float):  # noqa: ANN201
+    """An ``rclpy.duration.Duration`` of ``seconds``."""
+    from rclpy.duration import Duration
+
+    return Duration(nanoseconds=int(seconds * 1e9))

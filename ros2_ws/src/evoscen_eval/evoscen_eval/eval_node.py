@@ -27,8 +27,7 @@ import time
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table, events_count, is_run_end
-from evoscen_sim.errors import InputError
-from evoscen_sim.node_params import scenario_from_node
+from evoscen_sim.node_params import run_node, scenario_from_node
 
 from .recorder import BagRecorder, OrderedBag
 
@@ -92,7 +91,7 @@ class EvaluatorNode:
                     self.latest[topic] = max(self.latest[topic], t_ns)
                 elif topic == T.MARKERS.name:
                     self.latest_markers = max(self.latest_markers, t_ns)
-                if topic == T.EVENTS.name and _is_run_end(data):
+                if topic == T.EVENTS.name and is_run_end(data):
                     self.run_end_ns = t_ns
         # every per-step topic has one message per step, each topic in order: all messages
         # before the oldest of the topics' latest stamps are in, so that much can be written
@@ -157,25 +156,9 @@ def _stamp_ns(topic: str, data: bytes) -> int:
     return sec * 1_000_000_000 + nanosec
 
 
-def _is_run_end(data: bytes) -> bool:
-    return is_run_end(data)
-
-
 def main(args: list[str] | None = None) -> int:
     """Entry point: one-line errors for bad parameters (exit 2)."""
-    graph.init(args)
-    try:
-        try:
-            node = EvaluatorNode()
-        except (InputError, graph.NodeParameterError) as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        # no destroy_node/shutdown: the middleware's teardown can hang (see graph.exit_now)
-        graph.exit_now(node.run())
-    except KeyboardInterrupt:
-        return EXIT_INTERRUPTED
-    finally:
-        graph.shutdown()
+    return run_node(EvaluatorNode, args)
 
 
 if __name__ == "__main__":

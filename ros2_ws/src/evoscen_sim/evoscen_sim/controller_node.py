@@ -22,8 +22,7 @@ from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
 from evoscen_contract.cdr import decode_table, is_run_end
 
-from .errors import InputError
-from .node_params import scenario_from_node
+from .node_params import run_node, scenario_from_node
 from .road import load_road
 from .view import WorldView
 
@@ -114,7 +113,7 @@ class ControllerNode:
                     return EXIT_FAULT
                 while (ev := graph.MessagePump.take(self.events_sub)) is not None:
                     if is_run_end(ev):
-                        self.pub.wait_for_all_acked(_duration(2.0))
+                        self.pub.wait_for_all_acked(graph.duration(2.0))
                         return EXIT_OK
                 if time.monotonic() - last_world > self.idle_timeout_s:
                     print(f"error: {self.name}: no world message for {self.idle_timeout_s:g} s; "
@@ -125,24 +124,6 @@ class ControllerNode:
             return EXIT_INTERRUPTED
 
 
-def _duration(seconds: float):  # noqa: ANN202
-    from rclpy.duration import Duration
-
-    return Duration(nanoseconds=int(seconds * 1e9))
-
-
 def run_controller(name: str, command_spec: T.TopicSpec, build: Callable, args: list[str] | None) -> int:
     """``main`` of a controller node: one-line errors for bad parameters (exit 2)."""
-    graph.init(args)
-    try:
-        try:
-            node = ControllerNode(name, command_spec, build)
-        except (InputError, graph.NodeParameterError) as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        # no destroy_node/shutdown: the middleware's teardown can hang (see graph.exit_now)
-        graph.exit_now(node.run())
-    except KeyboardInterrupt:
-        return EXIT_INTERRUPTED
-    finally:
-        graph.shutdown()
+    return run_node(lambda: ControllerNode(name, command_spec, build), args)

@@ -5,9 +5,16 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+import sys
+from collections.abc import Callable
+
+from evoscen_contract import graph
 from evoscen_contract.graph import NodeParameterError
 
 from .config import ScenarioConfig, config_from_dict, config_to_dict
+from .errors import InputError
+
+EXIT_BAD_INPUT, EXIT_INTERRUPTED = 2, 130
 
 
 def scenario_from_node(params: Mapping[str, Any], node_name: str) -> ScenarioConfig:
@@ -37,3 +44,25 @@ def scenario_parameters(cfg: ScenarioConfig) -> dict[str, Any]:
         return value
 
     return prune(config_to_dict(cfg))
+
+
+def run_node(make: Callable[[], object], args: list[str] | None) -> int:
+    """``main`` of an evoscen node: ``make()`` builds it (after ``rclpy.init``), ``.run()`` runs it.
+
+    Bad parameters (InputError, NodeParameterError) are one line ``error: ...`` and exit 2;
+    Ctrl-C before the run is 130. After the run the process ends at once with its status,
+    without middleware teardown (see :func:`evoscen_contract.graph.exit_now`).
+    """
+    graph.init(args)
+    try:
+        try:
+            node = make()
+        except (InputError, NodeParameterError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        graph.exit_now(node.run())
+    except KeyboardInterrupt:
+        return EXIT_INTERRUPTED
+    finally:
+        graph.shutdown()
+    return 0  # not reached: exit_now ends the process

@@ -41,8 +41,7 @@ from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
 from evoscen_contract.cdr import TableDecodeError, decode_table
 
-from .errors import InputError
-from .node_params import scenario_from_node
+from .node_params import run_node, scenario_from_node
 from .events import fault_event, run_end_event, step_events
 from .scenario import SUT_INDEX, build_world
 
@@ -268,7 +267,7 @@ class SimulationNode:
             self._publish_state(roster=(w.step_index == 0), events=events)
         self._publish_events([run_end_event(w, end_kind, end_text)])
         for pub in self.pub.values():  # a dead reader would hold this for the whole timeout: keep it short
-            pub.wait_for_all_acked(rclpy_duration(1.0))
+            pub.wait_for_all_acked(graph.duration(1.0))
         return status
 
 
@@ -283,28 +282,9 @@ class SimulationNode:
                 json.dump({"steps": steps, "loop_wall_s": seconds, "steps_per_s": rate}, f)
 
 
-def rclpy_duration(seconds: float):  # noqa: ANN201
-    """An rclpy Duration of ``seconds``."""
-    from rclpy.duration import Duration
-
-    return Duration(nanoseconds=int(seconds * 1e9))
-
-
 def main(args: list[str] | None = None) -> int:
     """Entry point: run the node; one-line errors for bad parameters (exit 2)."""
-    graph.init(args)
-    try:
-        try:
-            sim = SimulationNode()
-        except (InputError, graph.NodeParameterError) as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        # no destroy_node/shutdown: the middleware's teardown can hang (see graph.exit_now)
-        graph.exit_now(sim.run())
-    except KeyboardInterrupt:
-        return EXIT_INTERRUPTED
-    finally:
-        graph.shutdown()
+    return run_node(SimulationNode, args)
 
 
 if __name__ == "__main__":
