@@ -764,12 +764,24 @@ def krauss_for(config: Any, rng: np.random.Generator) -> Any:
     return krauss.KraussCarFollowing(kp, rng, config.dt_s)
 
 
-def make_driver(vehicles: np.ndarray, params: MobilParams | None, config: Any,
-                rng: np.random.Generator) -> KraussLaneChangeDriver:
-    """Factory of the ``mobil`` model (:class:`evoscen_sim.models.ModelSpec`)."""
-    params = MobilParams() if params is None else params
-    return KraussLaneChangeDriver(vehicles, lane_change_decision, params, krauss_for(config, rng),
-                                  vehicle_params_from_config(config), params.merge_stop_margin_m)
+def lane_change_factory(decision: Any, params_type: type) -> Any:
+    """A :class:`evoscen_sim.models.ModelSpec` factory: ``decision`` plus Krauss car following.
+
+    Shared by the rule-based models (MOBIL, Nilsson), which differ only in their decision.
+    """
+    def make_driver(vehicles: np.ndarray, params: Any, config: Any,
+                    rng: np.random.Generator) -> KraussLaneChangeDriver:
+        params = params_type() if params is None else params
+        return KraussLaneChangeDriver(vehicles, decision, params, krauss_for(config, rng),
+                                      vehicle_params_from_config(config), params.merge_stop_margin_m)
+
+    make_driver.__module__ = decision.__module__  # the factory belongs to its model's module
+    make_driver.__qualname__ = "make_driver"
+    return make_driver
+
+
+make_driver = lane_change_factory(lane_change_decision, MobilParams)
+"""Factory of the ``mobil`` model (:class:`evoscen_sim.models.ModelSpec`)."""
 
 
 SPEC = ModelSpec(

@@ -84,10 +84,8 @@ import numpy as np
 from evoscen_sim.config import number
 from evoscen_sim.jit import kernel
 from evoscen_sim.models import ModelSpec
-from evoscen_sim.scenario_params import vehicle_params_from_config
 
 from .mobil import (
-    KraussLaneChangeDriver,
     _argmax_first,
     _lane_end_dist,
     _np_max,
@@ -96,7 +94,7 @@ from .mobil import (
     _road_seg,
     _road_tables,
     _settled_scalar,
-    krauss_for,
+    lane_change_factory,
 )
 
 
@@ -355,12 +353,8 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: NilssonParams)
                             view.lane_change, *_road_tables(view.road), _param_array(params))
 
 
-def make_driver(vehicles: np.ndarray, params: NilssonParams | None, config: Any,
-                rng: np.random.Generator) -> KraussLaneChangeDriver:
-    """Factory of the ``nilsson`` model (:class:`evoscen_sim.models.ModelSpec`)."""
-    params = NilssonParams() if params is None else params
-    return KraussLaneChangeDriver(vehicles, lane_change_decision, params, krauss_for(config, rng),
-                                  vehicle_params_from_config(config), params.merge_stop_margin_m)
+make_driver = lane_change_factory(lane_change_decision, NilssonParams)
+"""Factory of the ``nilsson`` model (:class:`evoscen_sim.models.ModelSpec`)."""
 
 
 SPEC = ModelSpec(

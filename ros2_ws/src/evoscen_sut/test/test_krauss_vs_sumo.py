@@ -28,7 +28,6 @@ found (``pip install eclipse-sumo libsumo``; tested with 1.28.0).
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 
@@ -51,29 +50,22 @@ PARAMS = KraussParams(sigma=0.0, desired_speed_mps=SPEED_LIMIT)
 FREE_PARAMS = KraussParams(desired_speed_mps=SPEED_LIMIT)  # SUMO defaults, sigma 0.5
 
 
-def _sumo_home() -> str | None:
-    try:
-        import sumo  # eclipse-sumo wheel
+def _sumo_baseline():  # noqa: ANN202
+    """The repository's SUMO discovery (scripts/sumo_baseline.py), shared with the benchmark."""
+    scripts = os.path.join(os.path.dirname(__file__), *([os.pardir] * 4), "scripts")
+    if scripts not in sys.path:
+        sys.path.insert(0, os.path.abspath(scripts))
+    import sumo_baseline
 
-        home = getattr(sumo, "SUMO_HOME", None) or os.path.dirname(sumo.__file__)
-        if home and os.path.isdir(home):
-            return home
-    except Exception:  # noqa: BLE001, S110 - a missing or broken wheel: fall back to SUMO_HOME
-        pass
-    home = os.environ.get("SUMO_HOME")
-    return home if home and os.path.isdir(home) else None
+    return sumo_baseline
+
+
+def _sumo_home() -> str | None:
+    return _sumo_baseline()._sumo_home()
 
 
 def _netconvert() -> str | None:
-    home = _sumo_home()
-    if home:
-        cand = os.path.join(home, "bin", "netconvert")
-        if os.path.isfile(cand) and os.access(cand, os.X_OK):
-            return cand
-    cand = os.path.join(os.path.dirname(sys.executable), "netconvert")
-    if os.path.isfile(cand) and os.access(cand, os.X_OK):
-        return cand
-    return shutil.which("netconvert")
+    return _sumo_baseline()._find_netconvert()
 
 
 def leader_speed_profile(t: float) -> float:
