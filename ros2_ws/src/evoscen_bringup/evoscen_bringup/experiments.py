@@ -126,7 +126,9 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
 
 def _brief(result: dict[str, Any]) -> str:
     r = result["report"]
-    return f"{result['label']} seed {result['seed']}: I={r['intelligence']['score']:.3f}"
+    c = r["complexity"]["score"]
+    return (f"{result['label']} seed {result['seed']}: I={r['intelligence']['score']:.3f}"
+            + ("" if c is None else f" C={c:.3f}"))
 
 
 def mean_ci(values: Sequence[float]) -> tuple[float, float]:
