@@ -83,7 +83,8 @@ def _f(x: Any, digits: int = 4) -> str:
 
 def _table(rows: list[tuple[str, Any, str]]) -> str:
     lines = ["| quantity | value | meaning |", "|---|---|---|"]
-    lines += [f"| {name} | {_f(value)} | {meaning} |" for name, value, meaning in rows]
+    esc = lambda text: str(text).replace("|", "\\|")  # noqa: E731 - a literal | would end the cell
+    lines += [f"| {esc(name)} | {_f(value)} | {esc(meaning)} |" for name, value, meaning in rows]
     return "\n".join(lines) + "\n"
 
 
