@@ -318,12 +318,16 @@ def load_tracks(path: Path, columns: tuple[str, ...] = EXTRACTION_COLUMNS,
     with _open_text(path) as f:
         names = _header(path, f.readline(), columns, TRACK_COLUMNS)
         idx = [names.index(c) for c in columns]
+        commas = len(names) - 1
         parts: list[np.ndarray] = []
         line_no = 2
         while True:
             lines = list(islice(f, chunk_lines))
             if not lines:
                 break
+            ragged = next((j for j, line in enumerate(lines) if line.count(",") != commas and line.strip()), None)
+            if ragged is not None:
+                raise _locate_bad_value(path, lines[ragged:ragged + 1], line_no + ragged, names, columns, idx)
             try:
                 block = np.loadtxt(lines, delimiter=",", usecols=idx, dtype=np.float64, ndmin=2, comments=None)
             except ValueError:
@@ -344,7 +348,7 @@ def load_tracks(path: Path, columns: tuple[str, ...] = EXTRACTION_COLUMNS,
         if c in INT_TRACK_COLUMNS:
             bad = np.flatnonzero(col != np.round(col))
             if bad.size:
-                raise InputError(f"{path}: line {bad[0] + 2}: column {c!r}: {col[bad[0]]!r} is not an integer")
+                raise InputError(f"{path}: line {bad[0] + 2}: column {c!r}: {col[bad[0]]:g} is not an integer")
             out[c] = col.astype(np.int32)
         else:
             out[c] = col.copy()
