@@ -1,10 +1,11 @@
 #!/usr/bin/env python3
-"""Run an evoscen scenario and record it as a rosbag2 (MCAP) bag.
+"""Run an evoscen scenario, record it as a rosbag2 (MCAP) bag and score it.
 
     python scripts/run_scenario.py --mode inprocess [--config FILE] [--steps N] [--seed S]
                                    [--sut NAME] [--bvs N] [--mix C:M:K] [--out DIR]
 
-The bag goes to ``DIR/bag/`` and the resolved configuration to ``DIR/scenario.yaml``.
+The bag goes to ``DIR/bag/``, the report (report.json, report.md, plots) to ``DIR/report/``
+and the resolved configuration to ``DIR/scenario.yaml``.
 ``--config`` defaults to the shipped scenario; ``--steps``, ``--seed``, ``--sut``,
 ``--bvs`` and ``--mix`` override the config's keys (with the same validation). Bad input
 prints one line ``error: ...`` and exits with status 2.
@@ -36,7 +37,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--mix", help="policy mix competitive:mutual:cooperative, e.g. 4:3:3 (overrides 'bvs.mix')")
     ap.add_argument("--out", type=Path, default=Path("runs/latest"), help="output directory (default runs/latest)")
     ap.add_argument("--no-record", action="store_true", help="do not record a bag")
-    ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag")
+    ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag and report in OUT/report")
+    ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only, no PNG plots")
     ap.add_argument("--quiet", action="store_true", help="no progress bar (inprocess)")
     g = ap.add_argument_group("graph mode")
     g.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID of the nodes (default: random in 1..100)")
@@ -53,19 +55,21 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def prepare_output(out: Path, bag_dir: Path | None, *, overwrite: bool) -> None:
-    """Create ``out``; make sure ``bag_dir`` is free (removing an old bag only with ``overwrite``)."""
+def prepare_output(out: Path, bag_dir: Path | None, report_dir: Path | None = None, *, overwrite: bool) -> None:
+    """Create ``out``; make sure ``bag_dir`` and ``report_dir`` are free (removing old ones only with ``overwrite``)."""
     from evoscen_sim.errors import InputError
 
     try:
         out.mkdir(parents=True, exist_ok=True)
-        if bag_dir is not None and (bag_dir.exists() or bag_dir.is_symlink()):
-            if not bag_dir.is_dir() or bag_dir.is_symlink():
-                raise InputError(f"--out {out}: {bag_dir} exists and is not a bag directory; remove it or choose another --out")
-            if any(bag_dir.iterdir()):
+        for path, what in ((bag_dir, "a bag"), (report_dir, "a report")):
+            if path is None or not (path.exists() or path.is_symlink()):
+                continue
+            if not path.is_dir() or path.is_symlink():
+                raise InputError(f"--out {out}: {path} exists and is not a directory; remove it or choose another --out")
+            if any(path.iterdir()):
                 if not overwrite:
-                    raise InputError(f"--out {out}: {bag_dir} already holds a bag; choose another --out or pass --overwrite")
-                shutil.rmtree(bag_dir)
+                    raise InputError(f"--out {out}: {path} already holds {what}; choose another --out or pass --overwrite")
+                shutil.rmtree(path)
         probe = out / ".evoscen-write-test"
         probe.write_bytes(b"")
         probe.unlink()
@@ -73,7 +77,26 @@ def prepare_output(out: Path, bag_dir: Path | None, *, overwrite: bool) -> None:
         raise InputError(f"--out {out}: cannot write the output directory: {exc.strerror or exc}") from None
 
 
-def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> int:  # noqa: ANN001
+def print_scores(report_dir: Path) -> None:
+    """One line of scores from ``report_dir/report.json`` and where the report is."""
+    import json
+
+    path = report_dir / "report.json"
+    if not path.is_file():
+        print(f"error: no report was written ({path} is missing)", file=sys.stderr)
+        return
+    r = json.loads(path.read_text(encoding="utf-8"))
+    w, c = r["intelligence"]["weighted"], r["complexity"]["score"]
+    print(f"intelligence: {r['intelligence']['score']:.4f} (weighted safety {w['safety']:.4f}, efficiency "
+          f"{w['efficiency']:.4f}, interaction {w['interaction']:.4f})  complexity: "
+          + ("-" if c is None else f"{c:.4f}")
+          + f"  SUT collisions: {r['safety']['collisions']}  exposures: {r['safety']['exposures']}")
+    for warning in r["warnings"]:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(f"report: {report_dir / 'report.md'}")
+
+
+def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, report_dir: Path) -> int:  # noqa: ANN001
     """Run the node graph; print the outcome; return its status."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
     from evoscen_eval.recorder import open_bag_reader
@@ -82,7 +105,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> i
     domain = args.domain_id if args.domain_id is not None else random.SystemRandom().randint(1, 100)
     opts = GraphOptions(domain_id=domain, discovery_range=args.discovery_range,
                         deadline_s=args.deadline, max_misses=args.max_misses, external_sut=args.external_sut,
-                        wait_for=tuple(args.wait_for))
+                        wait_for=tuple(args.wait_for), report_dir=report_dir, report_plots=not args.no_plots)
     print(f"graph: ROS_DOMAIN_ID={domain}, discovery {opts.discovery_range}; parameter files in {out / 'params'}",
           file=sys.stderr)
     if args.external_sut:
@@ -101,6 +124,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path) -> i
           f"nodes: " + ", ".join(f"{n}={s}" for n, s in result.node_status.items()))
     size = sum(f.stat().st_size for f in bag_dir.iterdir())
     print(f"bag: {bag_dir}  ({sum(counts.values())} messages, {size / 1e6:.2f} MB)")
+    print_scores(report_dir)
     return result.status
 
 
@@ -135,18 +159,19 @@ def main(argv: list[str] | None = None) -> int:
         if args.mode == "graph" and bag_dir is None:
             raise InputError("--mode graph always records (the evaluator node is part of the graph): "
                              "drop --no-record / recording.enabled: false, or use --mode inprocess")
-        prepare_output(out, bag_dir, overwrite=args.overwrite)
+        report_dir = out / "report"
+        prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
         dump_config(cfg, out / "scenario.yaml")
         if args.mode == "graph":
-            return run_graph_mode(args, cfg, out, bag_dir)
+            return run_graph_mode(args, cfg, out, bag_dir, report_dir)
         bar = None
         if not args.quiet:
             from tqdm import tqdm
 
             bar = tqdm(total=cfg.steps, unit="step", desc=f"{cfg.name} ({args.mode})", file=sys.stderr, mininterval=0.5)
         try:
-            summary = run_inprocess(cfg, bag_dir=bag_dir, scenario=scenario,
-                                    progress=(lambda k: bar.update(1)) if bar else None)
+            summary = run_inprocess(cfg, bag_dir=bag_dir, scenario=scenario, report_dir=report_dir,
+                                    plots=not args.no_plots, progress=(lambda k: bar.update(1)) if bar else None)
         finally:
             if bar is not None:
                 bar.close()
@@ -159,6 +184,7 @@ def main(argv: list[str] | None = None) -> int:
           f"off-road: {summary.off_road}")
     if summary.bag_dir is not None:
         print(f"bag: {summary.bag_dir}  ({summary.message_count} messages, {summary.bag_bytes / 1e6:.2f} MB)")
+    print_scores(report_dir)
     return 0
 
 

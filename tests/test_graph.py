@@ -18,6 +18,7 @@ never by name alone (other graphs may run on the same machine).
 
 from __future__ import annotations
 
+import json
 import os
 import random
 import re
@@ -195,6 +196,23 @@ def test_graph_bag_equals_inprocess_bag(graph_200):
             assert a == b, f"{topic} at t = {t / 1e9:g} s: graph and in-process messages differ"
     assert (g_dir / "metadata.yaml").read_bytes() == (i_dir / "metadata.yaml").read_bytes(), "metadata.yaml differs"
     assert (g_dir / "bag_0.mcap").read_bytes() == (i_dir / "bag_0.mcap").read_bytes(), "bag_0.mcap differs"
+
+
+def test_live_report_equals_offline_and_inprocess(graph_200, tmp_path):
+    """The evaluator node's report.json (live) = evaluate.py on the bag (offline) = the in-process runner's."""
+    assert graph_200["res"].returncode == 0, graph_200["res"].stderr
+    live = json.loads((graph_200["out"] / "report" / "report.json").read_text())
+    inproc = json.loads((graph_200["inproc_out"] / "report" / "report.json").read_text())
+    res = subprocess.run([sys.executable, "scripts/evaluate.py", str(graph_200["out"] / "bag"), "--out",
+                          str(tmp_path / "offline"), "--no-plots"], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    offline = json.loads((tmp_path / "offline" / "report.json").read_text())
+    offline["run"].pop("source")
+    assert live == offline == inproc
+    assert live["run"]["steps"] == 200 and live["run"]["complete"] is True and live["complexity"]["windows"] == 2
+    for name in ("report.md", "ttc.png", "speed.png", "timeline.png"):
+        assert (graph_200["out"] / "report" / name).stat().st_size > 0, name
+    assert "intelligence:" in graph_200["res"].stdout
 
 
 def test_parameter_files_written_and_load_back(graph_200):

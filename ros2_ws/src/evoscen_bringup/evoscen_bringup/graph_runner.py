@@ -64,6 +64,10 @@ class GraphOptions:
     """Extra parameters per node name (tests)."""
     wait_for: tuple[str, ...] = ()
     """Users' node names the simulation waits for before step 0 (so they see every step)."""
+    report_dir: Path | None = None
+    """Where the evaluator writes the report (report.json, report.md, plots); None = no report."""
+    report_plots: bool = True
+    """Draw the report's PNG plots."""
     external_sut: bool = False
     """Do not start evoscen's SUT node: a user's own node answers on ``/evoscen/commands/sut``
     (the simulation node waits for it at start-up like for any controller)."""
@@ -93,7 +97,9 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
                         **({"wait_for_nodes": list(opts.wait_for)} if opts.wait_for else {})},
         "evoscen_bv": {"startup_timeout_s": opts.startup_timeout_s, "use_sim_time": True},
         "evoscen_sut": {"startup_timeout_s": opts.startup_timeout_s, "use_sim_time": True},
-        "evoscen_eval": {"bag_dir": str(bag_dir), "use_sim_time": True},
+        "evoscen_eval": {"bag_dir": str(bag_dir), "use_sim_time": True,
+                         **({"report_dir": str(opts.report_dir), "report_plots": opts.report_plots}
+                            if opts.report_dir is not None else {})},
     }
     if opts.wait_for:  # the controllers wait for users' nodes too (a parameter file cannot type [])
         for name in ("evoscen_bv", "evoscen_sut"):

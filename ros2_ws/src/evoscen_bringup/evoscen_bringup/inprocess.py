@@ -29,7 +29,7 @@ from typing import Callable
 
 from evoscen_sim.config import ScenarioConfig
 
-from evoscen_sim.events import run_end_event, step_events
+from evoscen_sim.events import ExposureMonitor, run_end_event, step_events
 
 from .scenario import Scenario, build_scenario
 
@@ -48,6 +48,8 @@ class RunSummary:
     off_road: int = 0
     message_count: int = 0
     bag_bytes: int = 0
+    report: dict | None = None
+    """The evaluation report (``report.json``'s content) when the run was evaluated."""
 
     @property
     def steps_per_s(self) -> float:
@@ -65,8 +67,11 @@ class _Recorder:
 
         self.T = T
         self.msgs = WorldMessages(cfg.dt_s)
+        from evoscen_eval.rundata import SCENARIO_METADATA, scenario_metadata
+
         bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
-                          chunk_size=cfg.recording.chunk_size_bytes)
+                          chunk_size=cfg.recording.chunk_size_bytes,
+                          metadata={SCENARIO_METADATA: scenario_metadata(cfg)})
         self.bag = OrderedBag(bag, T.CONTRACT)
         self.road = road
         self.markers_every = cfg.recording.markers_every
@@ -100,8 +105,16 @@ def run_inprocess(
     steps: int | None = None,
     progress: Callable[[int], None] | None = None,
     scenario: Scenario | None = None,
+    report_dir: Path | None = None,
+    evaluate: bool = False,
+    plots: bool = True,
 ) -> RunSummary:
     """Run ``steps`` (default ``cfg.steps``) steps; record to ``bag_dir`` unless it is None.
+
+    With ``report_dir`` the run is scored and ``report.json``/``report.md`` (and, with
+    ``plots``, the PNGs) are written there (:mod:`evoscen_eval.report`); with ``evaluate``
+    alone the report is only returned (``RunSummary.report``). Either way the scores are the
+    ones an offline evaluation of the bag gives.
 
     Ctrl-C (KeyboardInterrupt) ends the run after the current step: the bag is finished
     (``run_end`` event of kind ``interrupted``) and the interrupt is raised again.
@@ -110,6 +123,14 @@ def run_inprocess(
     n_steps = cfg.steps if steps is None else steps
     world = sc.world
     rec = _Recorder(bag_dir, cfg, world.road) if bag_dir is not None else None
+    acc = None
+    if report_dir is not None or evaluate:
+        from evoscen_eval.rundata import RunAccumulator
+
+        acc = RunAccumulator()
+        acc.add_map(world.road)
+    exposures = ExposureMonitor(cfg.evaluation, world.role)
+    initial = exposures.observe(world)  # an exposure in the initial state goes out with the first events
     bv_ids = world.ids[sc.bv_indices]
     sut_ids = world.ids[[sc.sut_index]]
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
@@ -119,6 +140,8 @@ def run_inprocess(
         for k in range(n_steps):
             if rec is not None:
                 rec.world_state(world, sc.sut_index, roster=(k == 0))
+            if acc is not None:
+                acc.add_world_columns(world.columns(), world.time_ns)
             bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
             if rec is not None:
                 t_ns = world.time_ns
@@ -129,8 +152,12 @@ def run_inprocess(
             summary.lane_changes += len(result.lane_changes_completed)
             summary.reentries += len(result.reentries)
             summary.off_road += len(result.off_road)
+            events = initial + step_events(world, result) + exposures.observe(world)
+            initial = []
             if rec is not None:
-                rec.events(step_events(world, result), world.time_ns)  # every step, as the sim node
+                rec.events(events, world.time_ns)  # every step, as the sim node
+            if acc is not None:
+                acc.add_events(events)
             if progress is not None:
                 progress(k + 1)
         end_kind, end_message = "completed", f"run completed: {world.step_index} steps"
@@ -138,11 +165,32 @@ def run_inprocess(
         summary.wall_time_s = time.perf_counter() - t0
         summary.steps = world.step_index
         summary.sim_time_s = world.time_s
+        end = [run_end_event(world, end_kind, end_message)]
         if rec is not None:
             if rec.last_state_ns != world.time_ns:  # the final state, unless recorded already (Ctrl-C)
                 rec.world_state(world, sc.sut_index, roster=(world.step_index == 0))
-            rec.events([run_end_event(world, end_kind, end_message)], world.time_ns)
+            rec.events(end, world.time_ns)
             rec.bag.close()
             summary.message_count = rec.bag.message_count
             summary.bag_bytes = sum(f.stat().st_size for f in Path(bag_dir).iterdir())
+        if acc is not None:
+            if acc.states == world.step_index:  # the final state, unless collected already (Ctrl-C)
+                acc.add_world_columns(world.columns(), world.time_ns)
+            acc.add_events(end)
+    if acc is not None:
+        summary.report = _report(acc, cfg, report_dir, plots)
     return summary
+
+
+def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool) -> dict:  # noqa: ANN001
+    """Score the accumulated run exactly as the bag would be scored (same scenario dict)."""
+    import yaml
+
+    from evoscen_eval.metrics import evaluate
+    from evoscen_eval.report import evaluation_settings, write_report
+    from evoscen_eval.rundata import SCENARIO_KEY, scenario_metadata
+
+    run = acc.run_data(scenario=yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY]))
+    if report_dir is None:
+        return evaluate(run, evaluation_settings(run))
+    return write_report(run, report_dir, plots=plots)

@@ -126,9 +126,11 @@ EVENT_REENTRY: str = "evoscen/reentry"
 EVENT_FAULT: str = "evoscen/fault"
 EVENT_OFF_ROAD: str = "evoscen/off_road"
 EVENT_RUN_END: str = "evoscen/run_end"
+EVENT_EXPOSURE: str = "evoscen/exposure"
 #: All event names allowed on ``/evoscen/events``.
 EVENT_NAMES: tuple[str, ...] = (
     EVENT_COLLISION, EVENT_LANE_CHANGE, EVENT_REENTRY, EVENT_OFF_ROAD, EVENT_FAULT, EVENT_RUN_END,
+    EVENT_EXPOSURE,
 )
 
 #: ``diagnostic_msgs/DiagnosticStatus`` levels (OK, WARN, ERROR, STALE).
@@ -141,6 +143,7 @@ DEFAULT_EVENT_LEVELS: dict[str, int] = {
     EVENT_OFF_ROAD: LEVEL_ERROR,
     EVENT_FAULT: LEVEL_ERROR,
     EVENT_RUN_END: LEVEL_OK,
+    EVENT_EXPOSURE: LEVEL_WARN,
 }
 #: ``hardware_id`` of every event status.
 EVENT_HARDWARE_ID: str = "evoscen"
@@ -160,8 +163,10 @@ EVENT_KEY_TYPES: dict[str, str] = {
     "to_lane": "int",  # lane index after
     "misses": "int",  # consecutive missed controller deadlines (fault)
     "controller": "str",  # node name of the controller concerned (fault)
-    "kind": "str",  # sub-kind: fault "deadline"/"abort"; lane_change "completed"/"aborted"; run_end "completed"/"aborted"/"interrupted"
-    "steps": "int",  # steps simulated (run_end)
+    "kind": "str",  # sub-kind: fault "deadline"/"abort"; lane_change "completed"/"aborted"; run_end "completed"/"aborted"/"interrupted"; exposure "start"/"end"
+    "steps": "int",  # steps simulated (run_end); states an exposure lasted (exposure end)
+    "ttc_s": "float",  # the SUT's time to collision with the vehicle ahead in its path (exposure start; inf if none)
+    "accel_mps2": "float",  # the SUT's acceleration (exposure start)
 }
 
 _RESERVED_EVENT_KEYS = ("name", "level", "message")

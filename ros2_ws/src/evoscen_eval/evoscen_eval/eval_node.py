@@ -1,4 +1,4 @@
-"""The evaluator node: records every contract topic into a rosbag2 (MCAP) bag.
+"""The evaluator node: records every contract topic into a rosbag2 (MCAP) bag and scores the run.
 
     python -m evoscen_eval.eval_node --ros-args --params-file eval.yaml -p bag_dir:=runs/x/bag
 
@@ -13,7 +13,15 @@ and the final world state (same stamp) have arrived and nothing more came for ``
 on Ctrl-C; or after ``idle_timeout_s`` without any message. The per-step topics are
 keep-all (see the contract), so a recorder lagging behind the simulation loses nothing.
 
-Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory),
+Scoring: the world tables, events and map markers the node writes into the bag also go, in
+the same order, into a :class:`~evoscen_eval.rundata.RunAccumulator`; when the run ends the
+node writes ``report.json``, ``report.md`` and the plots into ``report_dir``
+(:mod:`evoscen_eval.report`) — the very numbers ``scripts/evaluate.py`` computes from the bag.
+The SUT's exposures go out live as ``evoscen/exposure`` events from the simulation node (same
+definitions, :mod:`evoscen_sim.safety`).
+
+Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory), ``report_dir``
+[""; empty = no report], ``report_plots`` [true],
 ``nice`` [10] (CPU priority below the lockstep nodes), ``drain_s`` [0.5], ``idle_timeout_s`` [60], ``batch_s`` [0.005]:
 after taking messages the node sleeps this long so that several steps' messages are taken
 per wake-up (it is outside the lockstep loop; fewer wake-ups leave more CPU to the loop).
@@ -30,6 +38,7 @@ from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table, e
 from evoscen_sim.node_params import run_node, scenario_from_node
 
 from .recorder import BagRecorder, OrderedBag
+from .rundata import SCENARIO_METADATA, RunAccumulator, scenario_metadata
 
 NODE_NAME = T.NODE_EVAL
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
@@ -59,10 +68,17 @@ class EvaluatorNode:
             os.nice(self.nice)
         self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
                                 expected="expected a number > 0 (s)")
+        self.report_dir = p("report_dir", "", str, expected="expected a directory path or ''")
+        self.report_plots = p("report_plots", True, bool, expected="expected true or false")
+        self.acc = RunAccumulator() if self.report_dir else None
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         rec = self.cfg.recording
         self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,
-                                          chunk_size=rec.chunk_size_bytes), T.CONTRACT)
+                                          chunk_size=rec.chunk_size_bytes,
+                                          metadata={SCENARIO_METADATA: scenario_metadata(self.cfg)}),
+                              T.CONTRACT)
+        if self.acc is not None:  # the scores see exactly what the bag gets, in the bag's order
+            self.bag.on_write = self.acc.add_bytes
         self.subs = {spec.name: graph.subscription(self.node, spec, raw=True) for spec in T.CONTRACT}
         self.pump = graph.MessagePump(self.node, self.subs.values())
         self._encoders: dict = {}
@@ -139,6 +155,25 @@ class EvaluatorNode:
             status = EXIT_INTERRUPTED
         finally:
             self.bag.close()
+        if self.acc is not None and status != EXIT_INTERRUPTED:
+            status = self._write_report(status)
+        return status
+
+    def _write_report(self, status: int) -> int:
+        """Score the run and write the report (a failure is reported, the bag is kept)."""
+        import yaml
+
+        from evoscen_sim.errors import InputError
+
+        from .report import write_report
+        from .rundata import SCENARIO_KEY
+
+        try:
+            run = self.acc.run_data(scenario=yaml.safe_load(scenario_metadata(self.cfg)[SCENARIO_KEY]))
+            write_report(run, self.report_dir, plots=self.report_plots)
+        except (InputError, ValueError) as exc:
+            print(f"error: {NODE_NAME}: no report: {exc}", file=sys.stderr)
+            return status or EXIT_FAULT
         return status
 
 

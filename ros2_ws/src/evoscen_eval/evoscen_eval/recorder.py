@@ -42,7 +42,7 @@ evaluation and replay).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -141,6 +141,9 @@ class BagRecorder:
         chunk_size: target uncompressed chunk size in bytes (default 1 MiB).
         canonicalize: zero the CDR padding of every message (default True; needed for
             byte-identical bags, see the module docstring).
+        metadata: MCAP metadata records ``{name: {key: value}}`` written right after the
+            channels, before any message (evoscen records the resolved scenario
+            configuration, see :mod:`evoscen_eval.rundata`).
 
     Raises:
         InputError: ``bag_dir`` exists and is not an empty directory, or cannot be
@@ -157,6 +160,7 @@ class BagRecorder:
         compression: str = "zstd",
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         canonicalize: bool = True,
+        metadata: Mapping[str, Mapping[str, str]] | None = None,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
         if compression not in _COMPRESSIONS:
@@ -212,6 +216,8 @@ class BagRecorder:
                 },
             )
             self._topics[spec.name] = _TopicState(spec=spec, channel_id=channel_id)
+        for name, record in (metadata or {}).items():
+            self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
         self._start_ns: int | None = None
         self._end_ns: int | None = None
         self._message_count = 0
@@ -545,12 +551,16 @@ class OrderedBag:
         self._seq = 0
         self._flushed_before = -1
         self.late_messages = 0
+        self.on_write: Callable[[str, bytes], None] | None = None
+        """Called with ``(topic, data)`` for every message, in the order written (the live scores)."""
 
     def add(self, topic: str, data: bytes, log_time_ns: int, *, canonical: bool = False) -> None:
         """Queue one serialized message (see :meth:`BagRecorder.write`)."""
         if log_time_ns < self._flushed_before:
             self.late_messages += 1
             self.bag.write(topic, data, log_time_ns, canonical=canonical)
+            if self.on_write is not None:
+                self.on_write(topic, data)
             return
         self._seq += 1
         self._pending.append((log_time_ns, self._rank[topic], self._seq, topic, data, canonical))
@@ -565,6 +575,8 @@ class OrderedBag:
             self._pending = [m for m in self._pending if m[0] >= time_ns]
             for t, _, _, topic, data, canonical in sorted(ready):
                 self.bag.write(topic, data, t, canonical=canonical)
+                if self.on_write is not None:
+                    self.on_write(topic, data)
         self._flushed_before = max(self._flushed_before, time_ns)
 
     def close(self) -> None:

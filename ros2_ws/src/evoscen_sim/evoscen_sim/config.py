@@ -463,6 +463,64 @@ class RecordingConfig:
     The map markers go out once whatever the value."""
 
 
+EFFICIENCY_DENSITY_FORMS = ("literal", "normalised")
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """Scoring of the SUT and of the scenario (SPEC 5.1-5.2; see :mod:`evoscen_eval.metrics`).
+
+    Every **[choice]** the method leaves open is a key here, defaults as documented in the
+    README ("Evaluation").
+    """
+
+    ttc_threshold_s: float = field(default=2.0, metadata=_POSITIVE)
+    """A state is dangerous when the SUT's time to collision with the vehicle ahead in its
+    path is below this (s)."""
+    hard_brake_mps2: float = field(default=6.0, metadata=_POSITIVE)
+    """... or when the SUT's acceleration is below minus this (m/s^2)."""
+    view_behind_m: float = field(default=20.0, metadata=_NON_NEGATIVE)
+    """The SUT's view: this far behind its reference point (m), all lanes."""
+    view_ahead_m: float = field(default=100.0, metadata=_POSITIVE)
+    """... to this far ahead (m)."""
+    view_lanes: int = field(default=5, metadata=_check(_Int(1, 20)))
+    """Lanes counted in H (the most vehicles that fit in the view)."""
+    min_spacing_m: float = field(default=6.8, metadata=_POSITIVE)
+    """Minimum spacing (length + standstill gap, m) used for H = view_lanes *
+    floor((view_behind_m + view_ahead_m) / min_spacing_m)."""
+    v_max_mps: float = field(default=33.33, metadata=_POSITIVE)
+    """v_max of the efficiency score (m/s)."""
+    efficiency_density: str = field(default="literal", metadata=_check(_Str(lambda: EFFICIENCY_DENSITY_FORMS)))
+    """Density-speed term of I_e: literal = sqrt(h)*v/(H*v_max) as the SPEC writes it;
+    normalised = sqrt(h/H)*v/v_max (in [0, 1])."""
+    lane_change_time_scale_s: float = field(default=3.0, metadata=_POSITIVE)
+    """The 3 of e^(-T_l/3) (s)."""
+    no_lane_change_time_s: float = field(default=0.0, metadata=_NON_NEGATIVE)
+    """T_l when the SUT completed no lane change (s): no time was spent changing lanes."""
+    collision_cap: int = field(default=10, metadata=_check(_Int(1)))
+    """C_max of the safety score."""
+    dv_max_mps: float = field(default=5.0, metadata=_POSITIVE)
+    """Normaliser of the BVs' speed fluctuation |v~| (m/s)."""
+    da_max_mps2: float = field(default=3.0, metadata=_POSITIVE)
+    """Normaliser of the BVs' acceleration fluctuation |a~| (m/s^2)."""
+    weight_safety: float = field(default=0.6, metadata=_NON_NEGATIVE)
+    """i_s of I = i_s*I_s + i_e*I_e + i_i*I_i."""
+    weight_efficiency: float = field(default=0.2, metadata=_NON_NEGATIVE)
+    """i_e."""
+    weight_interaction: float = field(default=0.2, metadata=_NON_NEGATIVE)
+    """i_i."""
+    window_steps: int = field(default=100, metadata=_check(_Int(1)))
+    """Complexity window (steps); only whole windows count."""
+    accel_activity_mps2: float = field(default=0.1, metadata=_NON_NEGATIVE)
+    """AD counts vehicle-steps with |acceleration| above this (m/s^2)."""
+    k_exposure: float = field(default=25.0, metadata=_POSITIVE)
+    """k1 of the complexity score."""
+    k_lane_change: float = field(default=8.0, metadata=_POSITIVE)
+    """k2."""
+    k_accel: float = field(default=1400.0, metadata=_POSITIVE)
+    """k3."""
+
+
 @dataclass(frozen=True)
 class ScenarioConfig:
     """One scenario: map, timing, population, models, control and recording."""
@@ -495,6 +553,8 @@ class ScenarioConfig:
     """Level-0 (IDM) driver parameters."""
     recording: RecordingConfig = _section(RecordingConfig)
     """Bag recording."""
+    evaluation: EvaluationConfig = _section(EvaluationConfig)
+    """Scoring (intelligence, complexity)."""
     models: dict[str, Any] = field(default_factory=dict, metadata={"models": True})
     """Parameters of driver models by model name (``models.mobil.politeness: 0.5``), each
     validated against the model's parameter dataclass (:mod:`evoscen_sim.models`); a model
@@ -692,10 +752,24 @@ def _cross_check(cfg: ScenarioConfig, ctx: _Context, explicit: set[str]) -> None
         ctx.fail("spawn.ramp_vehicles", cfg.spawn.ramp_vehicles,
                  f"expected an integer in [0, bvs.count] with {count_text}",
                  is_default="spawn.ramp_vehicles" not in explicit)
+    ev = cfg.evaluation
+    if ev.weight_safety + ev.weight_efficiency + ev.weight_interaction == 0:
+        ctx.fail("evaluation.weight_safety", ev.weight_safety,
+                 "expected weights not all 0 (evaluation.weight_safety, weight_efficiency, weight_interaction)")
     if cfg.bvs.count > 0 and sum(cfg.bvs.mix.values()) == 0:
         ctx.fail("bvs.mix", cfg.bvs.mix,
                  f"expected at least one non-zero share when {count_text}",
                  is_default="bvs.mix" not in explicit)
+
+
+def evaluation_from_dict(raw: Any, source: str) -> EvaluationConfig:
+    """Validate an ``evaluation`` section alone (e.g. from a bag's recorded scenario), as the
+    whole file would be; ``source`` names it in errors."""
+    cfg = _build(EvaluationConfig, raw, "evaluation", _Context(source, {}, set(), set()), set())
+    if cfg.weight_safety + cfg.weight_efficiency + cfg.weight_interaction == 0:
+        raise InputError(f"{source}: key 'evaluation.weight_safety' = 0: expected weights not all 0 "
+                         "(evaluation.weight_safety, weight_efficiency, weight_interaction)")
+    return cfg
 
 
 def resolve_map_path(value: str, base_dir: str | Path | None = None) -> Path:

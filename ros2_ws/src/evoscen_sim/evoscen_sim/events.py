@@ -2,10 +2,15 @@
 
 Each dict has ``name`` (``evoscen/<kind>``), optional ``level`` and ``message``, and typed
 key/values (see ``evoscen_contract.topics.EVENT_KEY_TYPES``). Order within a step is fixed:
-collisions, completed lane changes, aborted lane changes, re-entries, off-road.
+collisions, completed lane changes, aborted lane changes, re-entries, off-road, then the
+SUT's exposures (:class:`ExposureMonitor`).
 """
 
 from __future__ import annotations
+
+import numpy as np
+
+from .safety import dangerous, sut_leader, sut_ttc
 
 
 def step_events(world, result) -> list[dict]:  # noqa: ANN001
@@ -52,3 +57,40 @@ def fault_event(world, kind: str, controller: str, misses: int, message: str) ->
     return {"name": "evoscen/fault", "level": 1 if kind == "deadline" else 2, "message": message,
             "step": world.step_index, "time_s": world.time_s, "controller": controller, "misses": misses,
             "kind": kind}
+
+
+class ExposureMonitor:
+    """``evoscen/exposure`` events: the SUT's dangerous states as they happen (SPEC 5.1).
+
+    :meth:`observe` is called on every state, the initial one included; it returns a
+    ``kind: start`` event when an exposure begins (``step``/``time_s`` of the first dangerous
+    state, ``ttc_s``, ``accel_mps2``, ``ids`` = the SUT and, if any, the vehicle ahead in its
+    path) and a ``kind: end`` event when it is over (``steps`` = its length in states). The
+    definitions are :mod:`evoscen_sim.safety`'s, the evaluator's.
+    """
+
+    def __init__(self, evaluation, role: np.ndarray) -> None:  # noqa: ANN001 - an EvaluationConfig
+        self.ttc_threshold_s = evaluation.ttc_threshold_s
+        self.hard_brake_mps2 = evaluation.hard_brake_mps2
+        self.sut = int(np.flatnonzero(np.asarray(role) == 1)[0])
+        self.start_step: int | None = None
+
+    def observe(self, world) -> list[dict]:  # noqa: ANN001
+        """The exposure events of the world's current state."""
+        w, sut = world, self.sut
+        ttc = float(sut_ttc(w.s, w.d, w.v, w.length, w.width, sut))
+        accel = float(w.accel[sut])
+        danger = bool(dangerous(np.float64(ttc), np.float64(accel), self.ttc_threshold_s, self.hard_brake_mps2))
+        k, common = w.step_index, {"step": w.step_index, "time_s": w.time_s}
+        if danger and self.start_step is None:
+            self.start_step = k
+            leader = int(sut_leader(w.s, w.d, w.length, w.width, sut)[0])
+            ids = [int(w.ids[sut])] + ([int(w.ids[leader])] if leader >= 0 else [])
+            cause = f"TTC {ttc:.2f} s" if ttc < self.ttc_threshold_s else f"acceleration {accel:.2f} m/s^2"
+            return [{"name": "evoscen/exposure", "level": 1, "message": f"SUT dangerous state: {cause}",
+                     **common, "ids": ids, "kind": "start", "ttc_s": ttc, "accel_mps2": accel}]
+        if not danger and self.start_step is not None:
+            steps, self.start_step = k - self.start_step, None
+            return [{"name": "evoscen/exposure", "level": 0, "message": f"SUT exposure over after {steps} states",
+                     **common, "ids": [int(w.ids[sut])], "kind": "end", "steps": steps}]
+        return []

@@ -42,7 +42,7 @@ from evoscen_contract.messages import WorldMessages
 from evoscen_contract.cdr import TableDecodeError, decode_table
 
 from .node_params import run_node, scenario_from_node
-from .events import fault_event, run_end_event, step_events
+from .events import ExposureMonitor, fault_event, run_end_event, step_events
 from .scenario import SUT_INDEX, build_world
 
 NODE_NAME = T.NODE_SIM
@@ -78,6 +78,7 @@ class SimulationNode:
                                     expected="expected a number >= 0 (s)")
 
         self.world = build_world(self.cfg)
+        self.exposures = ExposureMonitor(self.cfg.evaluation, self.world.role)
         self.msgs = WorldMessages(self.cfg.dt_s)
         n = self.node
         self.pub = {spec.name: graph.publisher(n, spec)
@@ -245,6 +246,7 @@ class SimulationNode:
         end_kind, end_text, status = "interrupted", "run interrupted (SIGINT)", EXIT_INTERRUPTED
         loop_start = None
         events = None  # the events of the last step, published with the next state
+        initial = self.exposures.observe(w)  # an exposure in the initial state goes out with the first events
         try:
             self.wait_for_graph()
             loop_start = time.perf_counter()
@@ -254,7 +256,9 @@ class SimulationNode:
                 events = None
                 self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
                 result = w.step(self.throttle, self.lane_change)
-                events = step_events(w, result)  # published every step with the next state, [] if nothing happened
+                # published every step with the next state, [] if nothing happened
+                events = initial + step_events(w, result) + self.exposures.observe(w)
+                initial = []
             end_kind, end_text, status = "completed", f"run completed: {w.step_index} steps", EXIT_OK
         except RunAborted as exc:
             end_kind, end_text, status = "aborted", str(exc), EXIT_FAULT

@@ -1,0 +1,300 @@
+"""Scores of a run (SPEC 5.1-5.2), vectorized over the recorded states.
+
+Input: a :class:`~evoscen_eval.rundata.RunData` (``[K, V]`` arrays, K world states) and the
+scenario's :class:`~evoscen_sim.config.EvaluationConfig`. Output: the ``report.json`` dict
+(:func:`evaluate`) — every score with the inputs of its formula, so the arithmetic can be
+checked by hand.
+
+The **[choice]** points the method leaves open, as implemented (all configurable under
+``evaluation.*``; the README's "Evaluation" section repeats them):
+
+* **Dangerous state / exposure** — :mod:`evoscen_sim.safety`: TTC to the vehicle ahead in the
+  SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``; an exposure is a
+  maximal run of dangerous states; one still open at the end of the run counts (flagged
+  ``open_at_end``).
+* **Collisions C** — the ``evoscen/collision`` events involving the SUT (the simulation
+  emits one per contact, not one per overlapping step); ``collisions_all`` counts every pair.
+* **View** — every other vehicle whose reference point is from ``view_behind_m`` [20 m]
+  behind to ``view_ahead_m`` [100 m] ahead of the SUT's, all lanes.
+  h̄ = mean number of vehicles in view over the states;
+  H = ``view_lanes`` × floor((behind + ahead) / ``min_spacing_m``) [5 × floor(120/6.8) = 85].
+* **Efficiency** — v̄ = mean SUT speed over the states; T̄_l = mean duration of the SUT's
+  completed lane changes (decision → centre of mass in the new lane, from the
+  ``evoscen/lane_change`` events); without any, T̄_l = ``no_lane_change_time_s`` [0 s: no time
+  spent changing lanes]. Density-speed term ``literal`` [default]: √h̄·v̄/(H·v_max), as the
+  SPEC writes it; ``normalised``: √(h̄/H)·v̄/v_max.
+* **Interaction** — over the SUT's lane changes (maximal runs of states with the SUT's
+  ``lane_change`` column at one non-zero value; a change still in progress at the end
+  counts): for each change starting at state k0, the samples are (state k, BV j in view at
+  k) for k in the change; |v~| = mean |v_j(k) − v_j(k0)|, |a~| = mean |a_j(k) − a_j(k0)|;
+  L̄ = mean, over the BVs in view at any state of the change, of their lane-change starts
+  during it. Each change weighs equally (mean of the per-change values). A change with no
+  BV in view contributes 0 to all three; without any SUT lane change |v~| = |a~| = L̄ = 0,
+  so I_i = 1 (nothing was disturbed).
+* **Complexity** — windows of ``window_steps`` [100] consecutive states from state 0, whole
+  windows only; per window LC = lane-change starts of all vehicles (a vehicle's
+  ``lane_change`` becoming non-zero or switching direction), AD = vehicle-states with
+  |acceleration| > ``accel_activity_mps2`` [0.1 m/s²], E = SUT exposures starting in it;
+  LC, AD, E are averaged over the windows (and over rounds by the experiment) before C is
+  computed. A run shorter than one window has no complexity (``null`` and a warning).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict
+from typing import Any
+
+import numpy as np
+
+from evoscen_contract import topics as T
+from evoscen_sim.safety import dangerous, exposure_runs, sut_ttc
+
+from .rundata import RunData
+
+
+# ---------------------------------------------------------------------- formulas (scalars)
+
+
+def safety_score(collisions: int, exposures: int, collision_cap: int) -> float:
+    """I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)  (SPEC eq. 12)."""
+    return 0.7 * (1.0 - min(collisions, collision_cap) / collision_cap) + 0.3 * math.exp(-exposures)
+
+
+def efficiency_score(mean_in_view: float, max_in_view: int, mean_speed: float, v_max: float,
+                     lane_change_time: float, time_scale: float, density: str = "literal") -> tuple[float, float, float]:
+    """I_e = 0.5·(density-speed term + e^(−T̄_l/3))  (SPEC eq. 13); returns (I_e, term 1, term 2)."""
+    if density == "literal":
+        term1 = math.sqrt(mean_in_view) * mean_speed / (max_in_view * v_max)
+    elif density == "normalised":
+        term1 = math.sqrt(mean_in_view / max_in_view) * mean_speed / v_max
+    else:
+        raise ValueError(f"efficiency density form {density!r}: expected 'literal' or 'normalised'")
+    term2 = math.exp(-lane_change_time / time_scale)
+    return 0.5 * (term1 + term2), term1, term2
+
+
+def interaction_score(speed_fluct: float, accel_fluct: float, bv_lane_changes: float,
+                      dv_max: float, da_max: float) -> float:
+    """I_i = (1/3)·(2 − clip(|v~|)/Δv_max − clip(|a~|)/Δa_max + e^(−√L̄))  (SPEC eq. 14)."""
+    v_term = min(max(speed_fluct, 0.0), dv_max) / dv_max
+    a_term = min(max(accel_fluct, 0.0), da_max) / da_max
+    return (2.0 - v_term - a_term + math.exp(-math.sqrt(bv_lane_changes))) / 3.0
+
+
+def complexity_score(exposures: float, lane_changes: float, accel_decel: float,
+                     k1: float, k2: float, k3: float) -> float:
+    """C = 0.4·(1 − e^(−E/k1)) + 0.3·(2 − e^(−LC/k2) − e^(−AD/k3))  (SPEC 5.2)."""
+    return 0.4 * (1.0 - math.exp(-exposures / k1)) + 0.3 * (2.0 - math.exp(-lane_changes / k2)
+                                                            - math.exp(-accel_decel / k3))
+
+
+def max_in_view(ev) -> int:  # noqa: ANN001 - EvaluationConfig
+    """H: the most vehicles that fit in the view at minimum spacing."""
+    return ev.view_lanes * max(1, math.floor((ev.view_behind_m + ev.view_ahead_m) / ev.min_spacing_m))
+
+
+# ---------------------------------------------------------------------- per-state quantities
+
+
+def lane_change_starts(lane_change: np.ndarray) -> np.ndarray:
+    """``[K, V]`` bool: a lane change starts at state k (the column becomes non-zero or switches sign)."""
+    lc = np.asarray(lane_change)
+    prev = np.vstack([np.zeros((1,) + lc.shape[1:], dtype=lc.dtype), lc[:-1]])
+    return (lc != 0) & (lc != prev)
+
+
+def change_intervals(lane_change: np.ndarray) -> list[tuple[int, int]]:
+    """The ``[k0, k1)`` state intervals of one vehicle's lane changes (1-D column)."""
+    lc = np.asarray(lane_change)
+    starts = np.flatnonzero(lane_change_starts(lc[:, None])[:, 0])
+    out = []
+    for k0 in starts:
+        k1 = k0 + 1
+        while k1 < len(lc) and lc[k1] == lc[k0]:
+            k1 += 1
+        out.append((int(k0), int(k1)))
+    return out
+
+
+class Series:
+    """Per-state series of a run, for the scores and the plots."""
+
+    def __init__(self, run: RunData, ev) -> None:  # noqa: ANN001
+        c, sut = run.columns, run.sut_index
+        self.sut = sut
+        self.ttc = sut_ttc(c["s"], c["d"], c["speed"], c["length"], c["width"], sut)
+        self.speed = c["speed"][:, sut]
+        self.accel = c["accel"][:, sut]
+        self.lane = c["lane"][:, sut]
+        self.danger = dangerous(self.ttc, self.accel, ev.ttc_threshold_s, ev.hard_brake_mps2)
+        ds = c["s"] - c["s"][:, sut:sut + 1]
+        in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
+        in_view[:, sut] = False
+        self.in_view = in_view
+        self.starts, self.ends = exposure_runs(self.danger)
+        self.time_s = run.time_s
+
+
+# ---------------------------------------------------------------------- the report
+
+
+def _finite(x: float) -> float | None:
+    """JSON has no infinity: ``None`` for a non-finite number."""
+    return float(x) if math.isfinite(x) else None
+
+
+def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationConfig
+    """The scores of ``run`` as the ``report.json`` dict (see the module docstring)."""
+    K = run.states
+    series = Series(run, ev)
+    c, sut = run.columns, run.sut_index
+    sut_id = int(run.ids[sut])
+
+    # --- safety
+    collisions = run.events_named(T.EVENT_COLLISION)
+    sut_collisions = [e for e in collisions if sut_id in e.get("ids", [])]
+    exposures = []
+    for k0, k1 in zip(series.starts, series.ends):
+        ttc = series.ttc[k0:k1]
+        acc = series.accel[k0:k1]
+        severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -acc / ev.hard_brake_mps2)
+        worst = int(k0 + np.argmax(severity))
+        exposures.append({
+            "start_state": int(k0), "end_state": int(k1), "states": int(k1 - k0),
+            "start_time_s": float(run.time_s[k0]), "open_at_end": bool(k1 == K),
+            "min_ttc_s": _finite(float(ttc.min())), "min_accel_mps2": float(acc.min()),
+            "worst_state": worst, "severity": float(severity.max()),
+        })
+    n_exp = len(exposures)
+    i_s = safety_score(len(sut_collisions), n_exp, ev.collision_cap)
+    safety = {
+        "score": i_s,
+        "collisions": len(sut_collisions),
+        "collisions_all": len(collisions),
+        "collision_cap": ev.collision_cap,
+        "exposures": n_exp,
+        "exposures_open_at_end": sum(e["open_at_end"] for e in exposures),
+        "dangerous_states": int(series.danger.sum()),
+        "min_ttc_s": _finite(float(series.ttc.min())),
+        "min_accel_mps2": float(series.accel.min()),
+        "ttc_threshold_s": ev.ttc_threshold_s,
+        "hard_brake_mps2": ev.hard_brake_mps2,
+        "collision_list": [{"state": int(e["step"]), "time_s": float(e["time_s"]), "ids": list(e["ids"])}
+                           for e in sut_collisions],
+        "exposure_list": exposures,
+    }
+
+    # --- efficiency
+    H = max_in_view(ev)
+    h_mean = float(series.in_view.sum(axis=1).mean())
+    v_mean = float(series.speed.mean())
+    sut_changes = [e for e in run.events_named(T.EVENT_LANE_CHANGE) if e.get("ids", [None])[0] == sut_id]
+    durations = [float(e["duration_s"]) for e in sut_changes if e.get("kind") == "completed"]
+    t_l = float(np.mean(durations)) if durations else ev.no_lane_change_time_s
+    i_e, term1, term2 = efficiency_score(h_mean, H, v_mean, ev.v_max_mps, t_l,
+                                         ev.lane_change_time_scale_s, ev.efficiency_density)
+    efficiency = {
+        "score": i_e,
+        "mean_speed_mps": v_mean,
+        "mean_vehicles_in_view": h_mean,
+        "max_vehicles_in_view": H,
+        "v_max_mps": ev.v_max_mps,
+        "density_form": ev.efficiency_density,
+        "density_speed_term": term1,
+        "lane_changes": len(durations),
+        "lane_changes_aborted": sum(1 for e in sut_changes if e.get("kind") == "aborted"),
+        "mean_lane_change_time_s": t_l,
+        "lane_change_time_defined": bool(durations),
+        "lane_change_term": term2,
+    }
+
+    # --- interaction
+    intervals = change_intervals(c["lane_change"][:, sut])
+    starts_all = lane_change_starts(c["lane_change"])
+    bv = np.ones(run.ids.shape[0], dtype=bool)
+    bv[sut] = False
+    per_change = []
+    for k0, k1 in intervals:
+        view = series.in_view[k0:k1] & bv
+        if view.any():
+            dv = np.abs(c["speed"][k0:k1] - c["speed"][k0])[view]
+            da = np.abs(c["accel"][k0:k1] - c["accel"][k0])[view]
+            seen = view.any(axis=0)
+            lcs = starts_all[k0:k1][:, seen].sum(axis=0)
+            per_change.append((float(dv.mean()), float(da.mean()), float(lcs.mean()), int(seen.sum())))
+        else:
+            per_change.append((0.0, 0.0, 0.0, 0))
+    v_f = float(np.mean([p[0] for p in per_change])) if per_change else 0.0
+    a_f = float(np.mean([p[1] for p in per_change])) if per_change else 0.0
+    l_bar = float(np.mean([p[2] for p in per_change])) if per_change else 0.0
+    i_i = interaction_score(v_f, a_f, l_bar, ev.dv_max_mps, ev.da_max_mps2)
+    interaction = {
+        "score": i_i,
+        "sut_lane_changes": len(intervals),
+        "speed_fluctuation_mps": v_f,
+        "accel_fluctuation_mps2": a_f,
+        "bv_lane_changes": l_bar,
+        "dv_max_mps": ev.dv_max_mps,
+        "da_max_mps2": ev.da_max_mps2,
+        "changes": [{"start_state": k0, "end_state": k1, "speed_fluctuation_mps": p[0],
+                     "accel_fluctuation_mps2": p[1], "bv_lane_changes": p[2], "bvs_in_view": p[3]}
+                    for (k0, k1), p in zip(intervals, per_change)],
+    }
+
+    # --- intelligence
+    weights = {"safety": ev.weight_safety, "efficiency": ev.weight_efficiency, "interaction": ev.weight_interaction}
+    weighted = {"safety": ev.weight_safety * i_s, "efficiency": ev.weight_efficiency * i_e,
+                "interaction": ev.weight_interaction * i_i}
+    intelligence = {"score": weighted["safety"] + weighted["efficiency"] + weighted["interaction"],
+                    "weights": weights, "weighted": weighted}
+
+    # --- complexity
+    W = ev.window_steps
+    n_win = K // W
+    complexity: dict[str, Any] = {"window_steps": W, "windows": n_win, "accel_activity_mps2": ev.accel_activity_mps2,
+                                  "k": [ev.k_exposure, ev.k_lane_change, ev.k_accel]}
+    warnings = list(run.warnings)
+    if n_win:
+        lc_w = starts_all[: n_win * W].reshape(n_win, W, -1).sum(axis=(1, 2))
+        ad_w = (np.abs(c["accel"][: n_win * W]) > ev.accel_activity_mps2).reshape(n_win, W, -1).sum(axis=(1, 2))
+        e_w = np.bincount(series.starts[series.starts < n_win * W] // W, minlength=n_win)
+        lc, ad, e = float(lc_w.mean()), float(ad_w.mean()), float(e_w.mean())
+        complexity.update({
+            "score": complexity_score(e, lc, ad, ev.k_exposure, ev.k_lane_change, ev.k_accel),
+            "lane_changes": lc, "accel_decel": ad, "exposures": e,
+            "per_window": {"lane_changes": lc_w.tolist(), "accel_decel": ad_w.tolist(), "exposures": e_w.tolist()},
+        })
+    else:
+        complexity.update({"score": None, "lane_changes": None, "accel_decel": None, "exposures": None,
+                           "per_window": {"lane_changes": [], "accel_decel": [], "exposures": []}})
+        warnings.append(f"{K} states is shorter than one complexity window ({W} states): no complexity score")
+
+    return {
+        "run": run_info(run),
+        "settings": asdict(ev),
+        "warnings": warnings,
+        "safety": safety,
+        "efficiency": efficiency,
+        "interaction": interaction,
+        "intelligence": intelligence,
+        "complexity": complexity,
+    }
+
+
+def run_info(run: RunData) -> dict[str, Any]:
+    """What run the report is about."""
+    sc = run.scenario or {}
+    return {
+        "scenario": sc.get("name"),
+        "seed": sc.get("seed"),
+        "sut_model": (sc.get("sut") or {}).get("model"),
+        "bv_driver": (sc.get("bvs") or {}).get("driver"),
+        "bv_count": int(run.ids.shape[0] - 1),
+        "sut_id": int(run.ids[run.sut_index]),
+        "states": run.states,
+        "steps": run.states - 1,
+        "dt_s": run.dt_s,
+        "duration_s": float(run.time_s[-1] - run.time_s[0]),
+        "complete": run.complete,
+    }

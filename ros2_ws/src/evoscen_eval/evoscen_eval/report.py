@@ -1,0 +1,256 @@
+"""The evaluation report of a run: ``report.json``, ``report.md`` and PNG plots.
+
+Written the same way by the live evaluator node, by ``scripts/evaluate.py`` from a bag, and
+by the in-process runner: :func:`write_report` on a :class:`~evoscen_eval.rundata.RunData`.
+
+Plots (matplotlib, Agg): the SUT's TTC distribution (``ttc.png``) and speed distribution
+(``speed.png``); a timeline of speed, lane and TTC with exposures shaded and collisions
+marked (``timeline.png``); a bird's-eye snapshot of the scene at each SUT collision
+(``collision_<n>.png``, the first :data:`MAX_SNAPSHOTS`) and at the worst exposure
+(``worst_exposure.png``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from evoscen_sim.config import EvaluationConfig, evaluation_from_dict
+from evoscen_sim.errors import InputError
+
+from .metrics import Series, evaluate
+from .rundata import RunData
+
+MAX_SNAPSHOTS = 10
+"""Collision snapshots drawn at most (the report lists every collision)."""
+TTC_PLOT_MAX_S = 20.0
+"""TTC values above this (and infinite TTC: nothing closing ahead) are left out of the TTC plots."""
+
+
+def evaluation_settings(run: RunData, override: EvaluationConfig | None = None) -> EvaluationConfig:
+    """The evaluation settings of a run: ``override``, else the recorded scenario's, else the defaults."""
+    if override is not None:
+        return override
+    if run.scenario is not None and run.scenario.get("evaluation") is not None:
+        return evaluation_from_dict(run.scenario["evaluation"], "the bag's recorded scenario")
+    return EvaluationConfig()
+
+
+def report_of(run: RunData, override: EvaluationConfig | None = None) -> dict[str, Any]:
+    """The ``report.json`` dict of a run."""
+    return evaluate(run, evaluation_settings(run, override))
+
+
+def write_report(run: RunData, out_dir: Path | str, *, override: EvaluationConfig | None = None,
+                 plots: bool = True, source: str | None = None) -> dict[str, Any]:
+    """Score ``run`` and write ``report.json``, ``report.md`` and (``plots``) the PNGs into ``out_dir``.
+
+    Returns the report dict. InputError if ``out_dir`` cannot be written.
+    """
+    ev = evaluation_settings(run, override)
+    report = evaluate(run, ev)
+    if source is not None:
+        report["run"]["source"] = source
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        images = draw_plots(run, ev, report, out) if plots else []
+        (out / "report.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        (out / "report.md").write_text(markdown(report, images), encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"report directory {str(out)!r}: cannot write: {exc.strerror or exc}") from None
+    return report
+
+
+# ---------------------------------------------------------------------- markdown
+
+
+def _f(x: Any, digits: int = 4) -> str:
+    if x is None:
+        return "–"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, int):
+        return str(x)
+    if isinstance(x, float):
+        return f"{x:.{digits}g}" if math.isfinite(x) else str(x)
+    return str(x)
+
+
+def _table(rows: list[tuple[str, Any, str]]) -> str:
+    lines = ["| quantity | value | meaning |", "|---|---|---|"]
+    lines += [f"| {name} | {_f(value)} | {meaning} |" for name, value, meaning in rows]
+    return "\n".join(lines) + "\n"
+
+
+def markdown(report: dict[str, Any], images: list[str]) -> str:
+    """``report.md``: the scores and their inputs as tables, then the plots."""
+    r, s, e, i, g, c = (report[k] for k in ("run", "safety", "efficiency", "interaction", "intelligence", "complexity"))
+    w = g["weighted"]
+    out = [f"# Evaluation: {r.get('scenario') or 'run'} (SUT {r.get('sut_model') or '?'}, seed {r.get('seed')})\n",
+           f"{r['steps']} steps ({r['duration_s']:.1f} s simulated, dt {r['dt_s']:g} s), {r['bv_count']} BVs "
+           f"({r.get('bv_driver') or '?'}), SUT id {r['sut_id']}; run {'complete' if r['complete'] else 'INCOMPLETE'}.\n"]
+    for warning in report["warnings"]:
+        out.append(f"> **warning:** {warning}\n")
+    out += ["## Intelligence\n",
+            "| metric | score | weight | weighted term |", "|---|---|---|---|",
+            f"| safety I_s | {_f(s['score'])} | {_f(g['weights']['safety'])} | {_f(w['safety'])} |",
+            f"| efficiency I_e | {_f(e['score'])} | {_f(g['weights']['efficiency'])} | {_f(w['efficiency'])} |",
+            f"| interaction I_i | {_f(i['score'])} | {_f(g['weights']['interaction'])} | {_f(w['interaction'])} |",
+            f"| **intelligence I** | | | **{_f(g['score'])}** |\n"]
+    out += ["## Safety\n", "I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)\n", _table([
+        ("C", s["collisions"], "collisions involving the SUT (one per contact)"),
+        ("C_max", s["collision_cap"], "collision cap"),
+        ("E", s["exposures"], f"exposures (maximal runs of states with TTC < {s['ttc_threshold_s']:g} s "
+                              f"or acceleration < −{s['hard_brake_mps2']:g} m/s²)"),
+        ("open at end", s["exposures_open_at_end"], "exposures still open when the run ended (counted)"),
+        ("dangerous states", s["dangerous_states"], "states in exposures"),
+        ("min TTC (s)", s["min_ttc_s"], "lowest TTC to the vehicle ahead in the SUT's path (– = never closing)"),
+        ("min acceleration (m/s²)", s["min_accel_mps2"], "the SUT's hardest braking"),
+        ("all collisions", s["collisions_all"], "every colliding pair, BVs included"),
+    ])]
+    if s["exposure_list"]:
+        out += ["\n| exposure | start (s) | states | min TTC (s) | min accel (m/s²) |", "|---|---|---|---|---|"]
+        for n, x in enumerate(s["exposure_list"][:50], 1):
+            out.append(f"| {n} | {x['start_time_s']:.1f} | {x['states']}{' (open)' if x['open_at_end'] else ''} | "
+                       f"{_f(x['min_ttc_s'], 3)} | {_f(x['min_accel_mps2'], 3)} |")
+        if len(s["exposure_list"]) > 50:
+            out.append(f"\n… and {len(s['exposure_list']) - 50} more (report.json lists all).")
+        out.append("")
+    out += ["\n## Efficiency\n", "I_e = 0.5·(density-speed term + e^(−T̄_l/3))\n", _table([
+        ("v̄ (m/s)", e["mean_speed_mps"], "mean SUT speed"),
+        ("h̄", e["mean_vehicles_in_view"], "mean vehicles in the SUT's view"),
+        ("H", e["max_vehicles_in_view"], "most vehicles that fit in the view"),
+        ("v_max (m/s)", e["v_max_mps"], "speed normaliser"),
+        ("density-speed term", e["density_speed_term"], f"form: {e['density_form']}"),
+        ("T̄_l (s)", e["mean_lane_change_time_s"], "mean SUT lane-change time"
+         + ("" if e["lane_change_time_defined"] else " (no lane change: the configured default)")),
+        ("lane changes", e["lane_changes"], f"completed by the SUT ({e['lane_changes_aborted']} aborted)"),
+        ("e^(−T̄_l/3)", e["lane_change_term"], "lane-change term"),
+    ])]
+    out += ["\n## Interaction utility\n", "I_i = (1/3)·(2 − clip(|v~|)/Δv_max − clip(|a~|)/Δa_max + e^(−√L̄))\n",
+            _table([
+                ("SUT lane changes", i["sut_lane_changes"], "lane changes the averages run over"),
+                ("|v~| (m/s)", i["speed_fluctuation_mps"], "in-view BVs' mean |speed − speed at the change's start|"),
+                ("|a~| (m/s²)", i["accel_fluctuation_mps2"], "same for acceleration"),
+                ("L̄", i["bv_lane_changes"], "mean lane changes of in-view BVs during the SUT's changes"),
+                ("Δv_max, Δa_max", f"{i['dv_max_mps']:g}, {i['da_max_mps2']:g}", "normalisers"),
+            ])]
+    out += ["\n## Complexity\n", "C = 0.4·(1 − e^(−E/k1)) + 0.3·(2 − e^(−LC/k2) − e^(−AD/k3))\n", _table([
+        ("C", c["score"], "complexity score"),
+        ("LC", c["lane_changes"], f"lane changes (all vehicles) per {c['window_steps']}-state window"),
+        ("AD", c["accel_decel"], f"vehicle-states with |acceleration| > {c['accel_activity_mps2']:g} m/s² per window"),
+        ("E", c["exposures"], "SUT exposures per window"),
+        ("windows", c["windows"], "whole windows in the run"),
+        ("k1, k2, k3", ", ".join(f"{k:g}" for k in c["k"]), "constants"),
+    ])]
+    if images:
+        out.append("\n## Plots\n")
+        out += [f"![{Path(name).stem}]({name})\n" for name in images]
+    return "\n".join(out) + "\n"
+
+
+# ---------------------------------------------------------------------- plots
+
+
+def draw_plots(run: RunData, ev: EvaluationConfig, report: dict[str, Any], out: Path) -> list[str]:
+    """Draw the PNGs into ``out``; returns their file names."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    series = Series(run, ev)
+    names: list[str] = []
+
+    finite = series.ttc[np.isfinite(series.ttc) & (series.ttc <= TTC_PLOT_MAX_S)]
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    if finite.size:
+        ax.hist(finite, bins=np.linspace(0.0, TTC_PLOT_MAX_S, 41), color="tab:blue")
+    ax.axvline(ev.ttc_threshold_s, color="tab:red", ls="--", label=f"threshold {ev.ttc_threshold_s:g} s")
+    ax.set(xlabel="SUT TTC to the vehicle ahead in its path (s)", ylabel="states",
+           title=f"TTC distribution ({finite.size} of {series.ttc.size} states closing within {TTC_PLOT_MAX_S:g} s)")
+    ax.legend()
+    names.append(_save(fig, out, "ttc.png"))
+
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.hist(series.speed, bins=40, color="tab:green")
+    ax.set(xlabel="SUT speed (m/s)", ylabel="states", title=f"Speed distribution (mean {series.speed.mean():.2f} m/s)")
+    names.append(_save(fig, out, "speed.png"))
+
+    t = run.time_s
+    fig, axes = plt.subplots(3, 1, figsize=(10, 6.5), sharex=True)
+    axes[0].plot(t, series.speed, lw=0.8)
+    axes[0].set_ylabel("speed (m/s)")
+    axes[1].step(t, series.lane, where="post", lw=0.8)
+    axes[1].set_ylabel("lane")
+    axes[2].plot(t, np.minimum(series.ttc, TTC_PLOT_MAX_S), lw=0.8)
+    axes[2].axhline(ev.ttc_threshold_s, color="tab:red", ls="--", lw=0.8)
+    axes[2].set(ylabel=f"TTC (s, ≤{TTC_PLOT_MAX_S:g})", xlabel="time (s)")
+    for k0, k1 in zip(series.starts, series.ends):
+        for ax in axes:
+            ax.axvspan(t[k0], t[min(k1, len(t) - 1)], color="tab:orange", alpha=0.3, lw=0)
+    for col in report["safety"]["collision_list"]:
+        for ax in axes:
+            ax.axvline(col["time_s"], color="tab:red", lw=1.2)
+    axes[0].set_title(f"SUT timeline: {report['safety']['exposures']} exposures (shaded), "
+                      f"{report['safety']['collisions']} collisions (red)")
+    names.append(_save(fig, out, "timeline.png"))
+
+    for n, col in enumerate(report["safety"]["collision_list"][:MAX_SNAPSHOTS], 1):
+        k = min(int(col["state"]), run.states - 1)
+        names.append(_snapshot(plt, run, k, set(col["ids"]), f"collision {n} at t = {col['time_s']:.1f} s",
+                               out, f"collision_{n}.png"))
+    exposures = report["safety"]["exposure_list"]
+    if exposures:
+        worst = max(exposures, key=lambda x: x["severity"])
+        k = worst["worst_state"]
+        ttc = series.ttc[k]
+        names.append(_snapshot(plt, run, k, set(), f"worst exposure at t = {run.time_s[k]:.1f} s: TTC "
+                               f"{ttc:.2f} s, accel {series.accel[k]:.2f} m/s²", out, "worst_exposure.png"))
+    return names
+
+
+def _save(fig, out: Path, name: str) -> str:  # noqa: ANN001
+    fig.tight_layout()
+    fig.savefig(out / name, dpi=100)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    return name
+
+
+def _snapshot(plt, run: RunData, k: int, highlight: set[int], title: str, out: Path, name: str) -> str:  # noqa: ANN001
+    """Bird's-eye view around the SUT at state ``k``: lane lines, every vehicle as its box."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.patches import Polygon
+
+    c, sut = run.columns, run.sut_index
+    cx, cy = c["x"][k, sut], c["y"][k, sut]
+    half = 70.0
+    fig, ax = plt.subplots(figsize=(10, 4))
+    if run.lane_segments is not None and len(run.lane_segments):
+        seg = run.lane_segments
+        near = (np.abs(seg[:, :, 0] - cx).min(axis=1) < 2 * half) & (np.abs(seg[:, :, 1] - cy).min(axis=1) < 2 * half)
+        ax.add_collection(LineCollection(seg[near], colors="0.6", linewidths=0.8))
+    for j in range(run.ids.shape[0]):
+        x, y, yaw, length, width = (c[f][k, j] for f in ("x", "y", "yaw", "length", "width"))
+        if abs(x - cx) > half + 10 or abs(y - cy) > half:
+            continue
+        ca, sa = math.cos(yaw), math.sin(yaw)
+        corners = [(x + ca * u - sa * v, y + sa * u + ca * v)
+                   for u, v in ((length / 2, width / 2), (-length / 2, width / 2),
+                                (-length / 2, -width / 2), (length / 2, -width / 2))]
+        vid = int(run.ids[j])
+        color = "tab:red" if vid in highlight else ("orange" if j == sut else "tab:blue")
+        ax.add_patch(Polygon(corners, closed=True, fc=color, ec="k", lw=0.5, alpha=0.85))
+        ax.text(x, y + width, f"{vid}\n{c['speed'][k, j] * 3.6:.0f}", fontsize=6, ha="center", va="bottom")
+    ax.set_xlim(cx - half, cx + half)
+    ax.set_ylim(cy - 15, cy + 15)
+    ax.set_aspect("equal")
+    ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{title} (SUT orange; ids and km/h)")
+    return _save(fig, out, name)

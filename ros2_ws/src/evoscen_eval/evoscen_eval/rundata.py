@@ -1,0 +1,249 @@
+"""A run as arrays: what the scores, the report and the fidelity extraction read.
+
+One accumulator, three feeders, so the live evaluator, an offline evaluation of the bag and
+the in-process runner see *the same numbers*:
+
+* the evaluator node feeds it the serialized messages it records (:meth:`RunAccumulator.add_bytes`);
+* :func:`read_run` feeds it the messages of a bag, in file order (a truncated or corrupt bag:
+  the readable prefix, with a warning saying how many states were read);
+* the in-process runner feeds it the world's columns and the event dicts directly (the world
+  table's float64 values are exactly the columns; event values survive the KeyValue strings
+  exactly: ints, ``repr`` floats).
+
+The resolved scenario configuration travels in the bag as an MCAP metadata record
+(:data:`SCENARIO_METADATA`, written first, before any message), so a bag alone is
+enough to evaluate a run with the settings it ran with.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from evoscen_contract import topics as T
+from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
+from evoscen_sim.errors import InputError
+
+SCENARIO_METADATA = "evoscen"
+"""Name of the MCAP metadata record holding the scenario."""
+SCENARIO_KEY = "scenario_yaml"
+"""Key of the resolved scenario configuration (YAML text) in that record."""
+
+
+@dataclass
+class RunData:
+    """One run, state by state.
+
+    ``columns[name]`` is a float64 ``[K, V]`` array for every name of
+    :data:`evoscen_contract.topics.WORLD_FIELDS`: row k = the world state at ``time_s[k]``,
+    column v = one vehicle (the world table's row order, constant through a run).
+    """
+
+    time_s: np.ndarray
+    columns: dict[str, np.ndarray]
+    ids: np.ndarray
+    sut_index: int
+    events: list[dict]
+    dt_s: float
+    scenario: dict | None = None
+    complete: bool = False
+    warnings: list[str] = field(default_factory=list)
+    lane_segments: np.ndarray | None = None
+    """Lane lines and road edges as ``[M, 2, 2]`` map-frame segments (from the map markers)."""
+
+    @property
+    def states(self) -> int:
+        """Number of recorded world states K (a run of N steps has N + 1)."""
+        return int(self.time_s.shape[0])
+
+    def events_named(self, name: str, kind: str | None = None) -> list[dict]:
+        """The events called ``name`` (and of ``kind``, if given), in order."""
+        return [e for e in self.events if e["name"] == name and (kind is None or e.get("kind") == kind)]
+
+
+class RunAccumulator:
+    """Collects world states, events and the map of a run (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self._states: list[np.ndarray] = []
+        self._times_ns: list[int] = []
+        self.events: list[dict] = []
+        self.complete = False
+        self.lane_segments: np.ndarray | None = None
+        self._events_class: Any = None
+        self._markers_class: Any = None
+
+    # ------------------------------------------------------------------ feeding
+
+    def add_world_columns(self, columns: Mapping[str, np.ndarray], t_ns: int) -> None:
+        """A world state from the world's columns (copied)."""
+        self._add_state(np.column_stack([np.asarray(columns[f], dtype=np.float64) for f in T.WORLD_FIELDS]), t_ns)
+
+    def add_events(self, events: Iterable[Mapping[str, Any]]) -> None:
+        """Event dicts of one ``/evoscen/events`` message."""
+        for event in events:
+            self.events.append(dict(event))
+            if event["name"] == T.EVENT_RUN_END:
+                self.complete = True
+
+    def add_bytes(self, topic: str, data: bytes) -> None:
+        """One serialized message of the contract; topics the scores do not use are ignored."""
+        if topic == T.WORLD.name:
+            table = decode_table(data)
+            if table.fields != T.WORLD_FIELDS:
+                raise ValueError(f"world table columns {table.fields}, expected {T.WORLD_FIELDS}")
+            self._add_state(np.array(table.data, dtype=np.float64), table.stamp_ns)
+        elif topic == T.EVENTS.name:
+            if events_count(data):
+                from rclpy.serialization import deserialize_message
+
+                if self._events_class is None:
+                    self._events_class = T.EVENTS.msg_class
+                self.add_events(T.parse_events(deserialize_message(data, self._events_class)))
+        elif topic == T.MAP_MARKERS.name and self.lane_segments is None:
+            from rclpy.serialization import deserialize_message
+
+            self.lane_segments = lane_segments(deserialize_message(data, T.MAP_MARKERS.msg_class))
+
+    def add_map(self, road) -> None:  # noqa: ANN001 - a RoadModel
+        """The lane lines of ``road`` (what ``/evoscen/map_markers`` carries)."""
+        from evoscen_contract.markers import road_markers
+
+        self.lane_segments = lane_segments(road_markers(road))
+
+    def _add_state(self, table: np.ndarray, t_ns: int) -> None:
+        if self._states and table.shape != self._states[0].shape:
+            raise ValueError(f"world table of {table.shape[0]} vehicles at t = {t_ns} ns, "
+                             f"the run started with {self._states[0].shape[0]}")
+        self._states.append(table)
+        self._times_ns.append(int(t_ns))
+
+    # ------------------------------------------------------------------ result
+
+    @property
+    def states(self) -> int:
+        """World states collected so far."""
+        return len(self._states)
+
+    def run_data(self, *, scenario: dict | None = None, warnings: Iterable[str] = ()) -> RunData:
+        """The collected run; ValueError if no world state was collected."""
+        if not self._states:
+            raise ValueError("no world state (/evoscen/world) in the run")
+        stacked = np.stack(self._states)  # [K, V, F]
+        columns = {f: np.ascontiguousarray(stacked[:, :, j]) for j, f in enumerate(T.WORLD_FIELDS)}
+        times = np.asarray(self._times_ns, dtype=np.int64)
+        roles = columns["role"][0]
+        suts = np.flatnonzero(roles == 1)
+        if len(suts) != 1:
+            raise ValueError(f"the world table has {len(suts)} vehicles with role 1 (SUT), expected exactly 1")
+        if scenario is not None and "dt_s" in scenario:
+            dt = float(scenario["dt_s"])
+        elif len(times) > 1:
+            dt = float(times[1] - times[0]) * 1e-9
+        else:
+            dt = 0.1
+        return RunData(time_s=times * 1e-9, columns=columns, ids=columns["id"][0].astype(np.int64),
+                       sut_index=int(suts[0]), events=list(self.events), dt_s=dt, scenario=scenario,
+                       complete=self.complete, warnings=list(warnings), lane_segments=self.lane_segments)
+
+
+def lane_segments(markers: Any) -> np.ndarray:
+    """``[M, 2, 2]`` segments of the LINE_LIST markers of a map-marker array."""
+    segs = []
+    for m in markers.markers:
+        pts = np.array([(p.x, p.y) for p in m.points], dtype=np.float64)
+        if len(pts) >= 2:
+            segs.append(pts[: len(pts) // 2 * 2].reshape(-1, 2, 2))
+    return np.concatenate(segs) if segs else np.zeros((0, 2, 2))
+
+
+def scenario_metadata(cfg) -> dict[str, str]:  # noqa: ANN001 - a ScenarioConfig
+    """The metadata record content for ``cfg`` (the same YAML text in every runner)."""
+    from evoscen_sim.config import config_to_dict
+
+    return {SCENARIO_KEY: yaml.safe_dump(config_to_dict(cfg), sort_keys=False, default_flow_style=None)}
+
+
+# ---------------------------------------------------------------------- reading a bag
+
+
+_USED_TOPICS = {T.WORLD.name, T.EVENTS.name, T.MAP_MARKERS.name}
+
+
+def read_run(bag_dir: Path | str) -> RunData:
+    """The run recorded in a bag (directory or ``.mcap`` file).
+
+    Reads the file sequentially, so a bag cut short (a killed run) or corrupt part-way still
+    gives the states before the damage: :attr:`RunData.warnings` then says what was lost and
+    how many states were read. A bag without ``run_end`` is flagged the same way.
+
+    Raises:
+        InputError: no such bag, not an MCAP file, nothing readable, or no world state.
+    """
+    from mcap.records import Channel, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+
+    from .recorder import bag_file
+
+    path = bag_file(Path(bag_dir))
+    acc = RunAccumulator()
+    channels: dict[int, str] = {}
+    scenario: dict | None = None
+    warnings: list[str] = []
+    try:
+        stream = open(path, "rb")  # noqa: SIM115
+    except OSError as exc:
+        raise InputError(f"bag {str(path)!r}: cannot open: {exc.strerror or exc}") from None
+    damage: str | None = None
+    with stream:
+        try:
+            for record in StreamReader(stream, validate_crcs=True).records:
+                if isinstance(record, Message):
+                    topic = channels.get(record.channel_id)
+                    if topic in _USED_TOPICS:
+                        acc.add_bytes(topic, record.data)
+                elif isinstance(record, Channel):
+                    channels[record.id] = record.topic
+                elif isinstance(record, Metadata) and record.name == SCENARIO_METADATA:
+                    scenario = _parse_scenario(record.metadata.get(SCENARIO_KEY), path)
+                elif isinstance(record, Schema):
+                    continue
+        except InputError:
+            raise
+        except (TableDecodeError, ValueError) as exc:
+            damage = f"undecodable message ({exc})"
+        except Exception as exc:  # noqa: BLE001 - truncated or corrupt data: keep the prefix
+            damage = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    if acc.states == 0:
+        why = f" ({damage})" if damage else ""
+        raise InputError(f"bag {str(path)!r}: no readable world state (/evoscen/world){why}")
+    if damage is not None:
+        warnings.append(f"bag {str(path)!r} is truncated or corrupt ({damage}): evaluated the readable "
+                        f"prefix, {acc.states} world states ({acc.states - 1} steps)")
+    elif not acc.complete:
+        warnings.append(f"bag {str(path)!r} has no run_end event (the run did not finish): evaluated "
+                        f"{acc.states} world states ({acc.states - 1} steps)")
+    if scenario is None:
+        warnings.append(f"bag {str(path)!r} carries no scenario configuration (metadata record "
+                        f"{SCENARIO_METADATA!r}): default evaluation settings used")
+    try:
+        return acc.run_data(scenario=scenario, warnings=warnings)
+    except ValueError as exc:
+        raise InputError(f"bag {str(path)!r}: {exc}") from None
+
+
+def _parse_scenario(text: str | None, path: Path) -> dict | None:
+    if not text:
+        return None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise InputError(f"bag {str(path)!r}: the scenario metadata record is not YAML: {exc}") from None
+    if not isinstance(data, dict):
+        raise InputError(f"bag {str(path)!r}: the scenario metadata record is not a mapping")
+    return data

@@ -1,0 +1,100 @@
+"""Detection through the real simulation: scripted situations driven by the world's dynamics.
+
+Each scenario is run step by step as the runners do (world state -> scripted commands ->
+``World.step`` -> events incl. the live :class:`ExposureMonitor`), collected by the
+accumulator the runners use and scored. The expected counts are the situation's, so a wrong
+detection (per-step counting, lane- instead of path-based TTC, a collision counted per
+overlapping step) fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from evoscen_contract import topics as T
+from evoscen_eval.metrics import evaluate
+from evoscen_eval.rundata import RunAccumulator
+from evoscen_sim.config import EvaluationConfig
+from evoscen_sim.events import ExposureMonitor, step_events
+from evoscen_sim.road import load_road
+from evoscen_sim.testing import hand_built_world
+
+EV = EvaluationConfig()
+
+
+@pytest.fixture(scope="module")
+def road():
+    return load_road()
+
+
+def drive(world, command, steps):
+    """Run ``steps`` steps with ``command(k) -> (throttle, lane_change)``; returns (report, live events)."""
+    acc = RunAccumulator()
+    monitor = ExposureMonitor(EV, world.role)
+    live = monitor.observe(world)
+    acc.add_events(live)
+    for k in range(steps):
+        acc.add_world_columns(world.columns(), world.time_ns)
+        throttle, lane_change = command(k)
+        result = world.step(np.asarray(throttle, dtype=float), np.asarray(lane_change, dtype=np.int64))
+        events = step_events(world, result) + monitor.observe(world)
+        live += events
+        acc.add_events(events)
+    acc.add_world_columns(world.columns(), world.time_ns)
+    return evaluate(acc.run_data(), EV), live
+
+
+def exposure_events(live, kind):
+    return [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == kind]
+
+
+def test_scripted_cut_in_yields_exactly_one_exposure(road):
+    # SUT (id 0) at 30 m/s in lane 2; a BV 27 m ahead at 25 m/s in lane 3 cuts in at once.
+    # Its body enters the SUT's path after ~3 s with a ~7 m gap: TTC ~1.4 s. The SUT brakes
+    # moderately (-4 m/s^2, not a hard brake) until the gap opens again.
+    world = hand_built_world(road, [300.0, 327.0], [2, 3], [30.0, 25.0], roles=[1, 0])
+    report, live = drive(world, lambda k: ([-0.5 if 31 <= k < 45 else 0.0, 0.0], [0, -1 if k == 0 else 0]), 120)
+    s = report["safety"]
+    assert s["collisions_all"] == 0
+    assert s["exposures"] == 1
+    ex = s["exposure_list"][0]
+    assert 1.0 < ex["min_ttc_s"] < 2.0 and ex["min_accel_mps2"] > -6.0
+    # the live events say the same: one start (naming the cut-in vehicle), one end
+    starts, ends = exposure_events(live, "start"), exposure_events(live, "end")
+    assert len(starts) == 1 and len(ends) == 1
+    assert starts[0]["ids"] == [0, 1] and starts[0]["step"] == ex["start_state"]
+    assert ends[0]["steps"] == ex["states"]
+
+
+def test_same_situation_without_the_cut_in_has_no_exposure(road):
+    world = hand_built_world(road, [300.0, 327.0], [2, 3], [30.0, 25.0], roles=[1, 0])
+    report, live = drive(world, lambda k: ([-0.5 if 31 <= k < 45 else 0.0, 0.0], [0, 0]), 120)
+    assert report["safety"]["exposures"] == 0 and not exposure_events(live, "start")
+
+
+def test_hard_brake_yields_exactly_one_exposure(road):
+    world = hand_built_world(road, [300.0, 900.0], [2, 2], [30.0, 30.0], roles=[1, 0])
+    report, live = drive(world, lambda k: ([-1.0 if 10 <= k < 15 else 0.0, 0.0], [0, 0]), 40)
+    s = report["safety"]
+    assert s["exposures"] == 1
+    assert s["exposure_list"][0]["states"] == 5  # -8 m/s^2 in the five states after the five full-brake commands
+    assert s["min_accel_mps2"] == pytest.approx(-8.0)
+    assert len(exposure_events(live, "start")) == 1
+
+
+def test_moderate_brake_is_not_an_exposure(road):
+    world = hand_built_world(road, [300.0, 900.0], [2, 2], [30.0, 30.0], roles=[1, 0])
+    report, _ = drive(world, lambda k: ([-0.7 if 10 <= k < 15 else 0.0, 0.0], [0, 0]), 40)  # -5.6 m/s^2
+    assert report["safety"]["exposures"] == 0
+
+
+def test_collision_is_counted_once_not_per_overlapping_step(road):
+    # SUT at 30 m/s runs into a BV at 20 m/s 10 m ahead and keeps overlapping for many steps
+    world = hand_built_world(road, [300.0, 310.0], [2, 2], [30.0, 20.0], roles=[1, 0])
+    report, live = drive(world, lambda k: ([0.0, 0.0], [0, 0]), 30)
+    s = report["safety"]
+    assert s["collisions"] == 1 and s["collisions_all"] == 1
+    assert s["collision_list"][0]["ids"] == [0, 1]
+    assert s["score"] == pytest.approx(0.7 * 0.9 + 0.3 * np.exp(-s["exposures"]))
+    assert s["exposures"] == 1  # TTC fell below 2 s before the contact: one exposure, not one per step

@@ -1,0 +1,72 @@
+#!/usr/bin/env python3
+"""Score a recorded run from its bag alone: report.json, report.md and plots.
+
+    python scripts/evaluate.py BAG [--out DIR] [--config FILE] [--overwrite] [--no-plots]
+
+BAG is a bag directory (``metadata.yaml`` + ``.mcap``) or its ``.mcap`` file. The evaluation
+settings are the ones recorded in the bag (the run's scenario); ``--config FILE`` scores with
+the ``evaluation`` section of another scenario YAML instead. The scores equal the ones the
+evaluator node (or the in-process runner) wrote during the run. A truncated or corrupt bag is
+evaluated up to the damage, with a warning saying how many steps were read.
+
+``--out`` defaults to ``<the bag's directory>/../report_offline``; an existing non-empty
+directory is replaced only with ``--overwrite``. Exit status: 0 done, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="evaluate.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("bag", type=Path, help="bag directory or .mcap file")
+    ap.add_argument("--out", type=Path, help="report directory (default: BAG/../report_offline)")
+    ap.add_argument("--config", type=Path, help="scenario YAML whose 'evaluation' section to use instead of the bag's")
+    ap.add_argument("--overwrite", action="store_true", help="replace an existing report in --out")
+    ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only")
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    from evoscen_eval.report import write_report
+    from evoscen_eval.rundata import read_run
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.errors import InputError
+
+    try:
+        override = load_scenario_config(args.config).evaluation if args.config is not None else None
+        bag_path = args.bag
+        if not bag_path.exists():
+            raise InputError(f"bag {str(bag_path)!r}: no such bag directory or .mcap file")
+        run = read_run(bag_path)
+        bag_dir = bag_path if bag_path.is_dir() else bag_path.parent
+        out = args.out if args.out is not None else bag_dir.resolve().parent / "report_offline"
+        if out.exists() and (not out.is_dir() or any(out.iterdir())):
+            if not args.overwrite or not out.is_dir():
+                raise InputError(f"--out {out}: exists and is not empty; choose another --out or pass --overwrite")
+            shutil.rmtree(out)
+        for warning in run.warnings:
+            print(f"warning: {warning}", file=sys.stderr)
+        report = write_report(run, out, override=override, plots=not args.no_plots, source=str(bag_path))
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    g, c = report["intelligence"], report["complexity"]["score"]
+    w = g["weighted"]
+    print(f"{report['run']['steps']} steps; intelligence: {g['score']:.4f} (weighted safety {w['safety']:.4f}, "
+          f"efficiency {w['efficiency']:.4f}, interaction {w['interaction']:.4f})  complexity: "
+          + ("-" if c is None else f"{c:.4f}")
+          + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
+    print(f"report: {out / 'report.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,135 @@
+"""``scripts/evaluate.py``: a bag alone gives the report the run wrote; bad bags are clear errors.
+
+The in-process run of the shared fixture (``recorded_run``) wrote ``report/report.json`` while
+it ran; evaluating its bag afterwards must give exactly the same numbers. Damaged bags are
+made from copies of that bag.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def evaluate(*args: object) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "scripts/evaluate.py", *map(str, args)], cwd=REPO,
+                          capture_output=True, text=True, timeout=120, check=False)
+
+
+def error_lines(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if line.strip()]
+
+
+def test_offline_report_equals_the_runs_own(recorded_run, tmp_path):
+    live = json.loads((recorded_run.out / "report" / "report.json").read_text())
+    res = evaluate(recorded_run.bag_dir, "--out", tmp_path / "off")
+    assert res.returncode == 0, res.stderr
+    offline = json.loads((tmp_path / "off" / "report.json").read_text())
+    assert offline["run"].pop("source") == str(recorded_run.bag_dir)
+    assert offline == live
+    for key in ("safety", "efficiency", "interaction", "intelligence", "complexity"):
+        assert isinstance(offline[key]["score"], float), key
+    assert set(offline["intelligence"]["weighted"]) == {"safety", "efficiency", "interaction"}
+    for name in ("report.md", "ttc.png", "speed.png", "timeline.png"):
+        assert (tmp_path / "off" / name).stat().st_size > 0
+    md = (tmp_path / "off" / "report.md").read_text()
+    assert "| **intelligence I** |" in md and "![timeline](timeline.png)" in md
+    assert f"report: {tmp_path / 'off' / 'report.md'}" in res.stdout
+
+
+def test_default_out_and_no_silent_overwrite(recorded_run, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(recorded_run.bag_dir, run / "bag")
+    assert evaluate(run / "bag", "--no-plots").returncode == 0
+    assert (run / "report_offline" / "report.json").is_file()
+    again = evaluate(run / "bag", "--no-plots")
+    assert again.returncode == 2 and error_lines(again.stderr) == [
+        f"error: --out {run.resolve() / 'report_offline'}: exists and is not empty; choose another --out or pass --overwrite"]
+    assert evaluate(run / "bag", "--no-plots", "--overwrite").returncode == 0
+
+
+def test_config_override_changes_the_settings(recorded_run, tmp_path):
+    cfg = tmp_path / "strict.yaml"
+    cfg.write_text("evaluation: {ttc_threshold_s: 30.0, weight_safety: 1.0, weight_efficiency: 0, weight_interaction: 0}\n")
+    res = evaluate(recorded_run.bag_dir, "--out", tmp_path / "o", "--config", cfg, "--no-plots")
+    assert res.returncode == 0, res.stderr
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert rep["settings"]["ttc_threshold_s"] == 30.0
+    assert rep["intelligence"]["score"] == rep["safety"]["score"]
+
+
+@pytest.fixture(scope="module")
+def chunked_run(tmp_path_factory, cli):
+    """A 300-step run recorded in small chunks (32 KiB), so a cut file keeps whole chunks."""
+    root = tmp_path_factory.mktemp("chunked")
+    cfg = root / "small_chunks.yaml"
+    cfg.write_text("recording: {chunk_size_bytes: 32768}\n")
+    res = cli("--config", cfg, "--steps", 300, "--seed", 4, "--out", root / "run", "--quiet", "--no-plots")
+    assert res.returncode == 0, res.stderr
+    return root / "run"
+
+
+def test_truncated_bag_evaluates_the_readable_prefix_with_a_warning(chunked_run, tmp_path):
+    bag = tmp_path / "bag"
+    shutil.copytree(chunked_run / "bag", bag)
+    mcap = bag / "bag_0.mcap"
+    data = mcap.read_bytes()
+    mcap.write_bytes(data[: len(data) // 2])
+    res = evaluate(bag, "--out", tmp_path / "o", "--no-plots")
+    assert res.returncode == 0, res.stderr
+    assert "Traceback" not in res.stderr
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    steps = rep["run"]["steps"]
+    assert 0 < steps < 300 and rep["run"]["complete"] is False
+    warnings = [line for line in error_lines(res.stderr) if line.startswith("warning:")]
+    assert len(warnings) == 1 and "truncated or corrupt" in warnings[0]
+    assert f"{steps + 1} world states ({steps} steps)" in warnings[0]
+    assert rep["warnings"] == [warnings[0].removeprefix("warning: ")]
+
+
+def test_corrupt_chunk_evaluates_the_prefix(chunked_run, tmp_path):
+    bag = tmp_path / "bag"
+    shutil.copytree(chunked_run / "bag", bag)
+    mcap = bag / "bag_0.mcap"
+    data = bytearray(mcap.read_bytes())
+    at = len(data) * 2 // 3
+    data[at:at + 64] = bytes(64)  # zero out bytes in the middle of a compressed chunk
+    mcap.write_bytes(bytes(data))
+    res = evaluate(bag, "--out", tmp_path / "o", "--no-plots")
+    assert res.returncode == 0, res.stderr  # the damage is detected (CRC / decompression): the prefix counts
+    rep = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert 0 < rep["run"]["steps"] < 300
+    assert any("truncated or corrupt" in w for w in rep["warnings"])
+
+
+def test_bad_bags_are_one_line_errors(tmp_path):
+    missing = evaluate(tmp_path / "nope")
+    assert missing.returncode == 2
+    assert error_lines(missing.stderr) == [f"error: bag {str(tmp_path / 'nope')!r}: no such bag directory or .mcap file"]
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"this is not an mcap file at all" * 10)
+    res = evaluate(junk, "--out", tmp_path / "o")
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+    lines = error_lines(res.stderr)
+    assert len(lines) == 1 and lines[0].startswith(f"error: bag {str(junk)!r}: no readable world state")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = evaluate(empty)
+    assert res.returncode == 2 and len(error_lines(res.stderr)) == 1 and "expected exactly one" in res.stderr
+
+
+def test_bad_config_is_one_line_error(recorded_run, tmp_path):
+    cfg = tmp_path / "bad.yaml"
+    cfg.write_text("evaluation: {window_steps: 0}\n")
+    res = evaluate(recorded_run.bag_dir, "--out", tmp_path / "o", "--config", cfg)
+    assert res.returncode == 2
+    lines = error_lines(res.stderr)
+    assert len(lines) == 1 and "'evaluation.window_steps' = 0" in lines[0] and "integer >= 1" in lines[0]
+    assert not (tmp_path / "o").exists()
