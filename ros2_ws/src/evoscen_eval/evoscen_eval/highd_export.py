@@ -88,7 +88,8 @@ class VirtualRoad:
 
     def lane_id(self, lane_index: np.ndarray) -> np.ndarray:
         """HighD laneId of our lane indices (0 = merge lane … num_lanes − 1 = leftmost)."""
-        return (self.num_lanes + 2 + (self.num_lanes - 1 - np.asarray(lane_index))).astype(np.int32)
+        upper_markings = self.num_lanes + 1
+        return (upper_markings + 2 + (self.num_lanes - 1 - np.asarray(lane_index))).astype(np.int32)
 
 
 @dataclass(frozen=True)

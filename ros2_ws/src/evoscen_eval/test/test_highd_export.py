@@ -85,6 +85,7 @@ def test_native_rate_values_by_hand() -> None:
     assert t["y"][a[0]] == pytest.approx(21.5 + 8.75 - 0.95)
     assert (t["width"][a[0]], t["height"][a[0]]) == (LENGTH, WIDTH)
     assert t["laneId"][a].tolist() == [10] * 4 + [9] * 7
+    assert VirtualRoad().lane_id(np.array([4, 2, 0])).tolist() == [8, 10, 12]
     assert t["laneId"][b].tolist() == [10] * 11
     # t = 0: gap 130 − 2.4 − 102.4 = 25.2 m, THW 25.2/30 = 0.84 s, TTC 25.2/5 = 5.04 s
     assert t["precedingId"][a[0]] == t["id"][b[0]]
