@@ -181,24 +181,51 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
     seg_vehicle = np.array([g[2] for g in segs], dtype=np.int64)
     track = st["track"]
     frame = st["frame"]
-    starts = np.flatnonzero(np.diff(track, prepend=0) != 0)
 
     # ---- geometry and kinematics in image coordinates
-    length, width = st["length"], st["width"]
-    x_c = st["s"]
-    y_c = road.y_center(st["d"])
     cos_h, sin_h = np.cos(st["heading_rel"]), np.sin(st["heading_rel"])
-    x_vel = st["speed"] * cos_h
-    y_vel = -st["speed"] * sin_h
-    y_acc = np.zeros_like(y_vel)
-    for a, b in zip(starts, np.append(starts[1:], len(track))):
+    return build_recording(
+        frame=frame, track=track, time_s=st["t"], x_center=st["s"], y_center=road.y_center(st["d"]),
+        length=st["length"], width=st["width"], x_velocity=st["speed"] * cos_h, y_velocity=-st["speed"] * sin_h,
+        x_acceleration=st["accel"] * cos_h, direction=np.full(track.shape, 2, dtype=np.int32),
+        upper_markings=road.upper_markings(), lower_markings=road.lower_markings(), road_length_m=road.length_m,
+        recording_id=options.recording_id, frame_rate_hz=rate, speed_limit_mps=road.speed_limit_mps,
+        truck_length_m=options.truck_length_m,
+        extra_meta={"evoscenVehicleId": ids[seg_vehicle].astype(np.int32),
+                    "evoscenRole": role[seg_vehicle].astype(np.int32)},
+        source=str(getattr(run, "source", "run")), warnings=list(getattr(run, "warnings", []) or []))
+
+
+def build_recording(*, frame: np.ndarray, track: np.ndarray, time_s: np.ndarray, x_center: np.ndarray,
+                    y_center: np.ndarray, length: np.ndarray, width: np.ndarray, x_velocity: np.ndarray,
+                    y_velocity: np.ndarray, x_acceleration: np.ndarray, direction: np.ndarray,
+                    upper_markings: np.ndarray, lower_markings: np.ndarray, road_length_m: float,
+                    recording_id: int, frame_rate_hz: float, speed_limit_mps: float = -1.0,
+                    truck_length_m: float = 8.0, extra_meta: dict[str, np.ndarray] | None = None,
+                    source: str = "<memory>", warnings: list[str] | None = None) -> HighDRecording:
+    """A complete HighD recording from per-row states (rows sorted by track, then frame).
+
+    Everything HighD derives is computed here, the same way for every producer (the export,
+    the benchmark's synthetic recording): box corners, laneId from the markings, the
+    neighbour relations (:func:`~evoscen_eval.highd.find_neighbours`), ``dhw``/``thw``/``ttc``
+    and ``precedingXVelocity`` (module docstring), ``yAcceleration`` as the time derivative of
+    ``yVelocity`` along each track, sight distances (to the road's end in the direction of
+    travel and to its start), tracksMeta and recordingMeta. ``track`` numbers the tracks
+    1..N; ``direction`` is per row (1: towards −x, 2: towards +x).
+    """
+    x_c, y_c, x_vel = x_center, y_center, x_velocity
+    rate = frame_rate_hz
+    starts = np.flatnonzero(np.diff(track, prepend=track[0] - 1) != 0)
+    ends = np.append(starts[1:], len(track)) - 1
+    n_tracks = len(starts)
+    y_acc = np.zeros_like(y_velocity)
+    for a, b in zip(starts, ends + 1):
         if b - a > 1:
-            y_acc[a:b] = np.gradient(y_vel[a:b], st["t"][a:b])
-    marks = np.sort(np.concatenate([road.upper_markings(), road.lower_markings()]))
+            y_acc[a:b] = np.gradient(y_velocity[a:b], time_s[a:b])
+    marks = np.sort(np.concatenate([upper_markings, lower_markings]))
     lane_id = (1 + np.searchsorted(marks, y_c, side="right")).astype(np.int32)
 
-    # ---- HighD relations on the (resampled) frames
-    direction = np.full(track.shape, 2, dtype=np.int32)
+    # ---- HighD relations on the frames
     nb = find_neighbours(frame, lane_id, x_c, length, direction)
 
     def ids_of(rows: np.ndarray) -> np.ndarray:
@@ -207,13 +234,16 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
     p = nb.preceding
     has_p = p >= 0
     pc = np.maximum(p, 0)
+    forward = np.where(direction == 1, -1.0, 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        dhw = np.where(has_p, (x_c[pc] - 0.5 * length[pc]) - (x_c + 0.5 * length), 0.0)
+        # bumper-to-bumper gap along the direction of travel
+        dhw = np.where(has_p, forward * (x_c[pc] - x_c) - 0.5 * (length[pc] + length), 0.0)
         speed_abs = np.abs(x_vel)
         closing = speed_abs - np.abs(x_vel[pc])
         thw = np.where(has_p, np.where(speed_abs > 0, dhw / speed_abs, np.copysign(np.inf, dhw)), 0.0)
         ttc = np.where(has_p, np.where(closing != 0, dhw / closing, np.inf), 0.0)
     prec_xvel = np.where(has_p, x_vel[pc], 0.0)
+    to_end = np.where(direction == 1, x_c, road_length_m - x_c)
 
     tracks = {
         "frame": frame.astype(np.int32),
@@ -223,11 +253,11 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
         "width": length,
         "height": width,
         "xVelocity": x_vel,
-        "yVelocity": y_vel,
-        "xAcceleration": st["accel"] * cos_h,
+        "yVelocity": y_velocity,
+        "xAcceleration": x_acceleration,
         "yAcceleration": y_acc,
-        "frontSightDistance": road.length_m - x_c,
-        "backSightDistance": x_c,
+        "frontSightDistance": to_end,
+        "backSightDistance": road_length_m - to_end,
         "dhw": dhw,
         "thw": thw,
         "ttc": ttc,
@@ -244,20 +274,19 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
     }
 
     # ---- tracksMeta
-    ends = np.append(starts[1:], len(track)) - 1
-    lane_changes = np.add.reduceat((np.diff(lane_id, prepend=lane_id[0]) != 0) & (np.arange(len(track)) != 0)
-                                   & (np.diff(track, prepend=track[0]) == 0), starts)
+    same_track = np.diff(track, prepend=track[0] - 1) == 0
+    lane_changes = np.add.reduceat(same_track & (np.diff(lane_id, prepend=lane_id[0]) != 0), starts)
     track_length = length[starts]
     tracks_meta = {
-        "id": np.arange(1, n_tracks + 1, dtype=np.int32),
+        "id": track[starts].astype(np.int32),
         "width": track_length,
         "height": width[starts],
         "initialFrame": frame[starts].astype(np.int32),
         "finalFrame": frame[ends].astype(np.int32),
         "numFrames": (ends - starts + 1).astype(np.int32),
-        "class": np.where(track_length >= options.truck_length_m, "Truck", "Car"),
-        "drivingDirection": np.full(n_tracks, 2, dtype=np.int32),
-        "traveledDistance": x_c[ends] - x_c[starts],
+        "class": np.where(track_length >= truck_length_m, "Truck", "Car"),
+        "drivingDirection": direction[starts].astype(np.int32),
+        "traveledDistance": np.abs(x_c[ends] - x_c[starts]),
         "minXVelocity": np.minimum.reduceat(x_vel, starts),
         "maxXVelocity": np.maximum.reduceat(x_vel, starts),
         "meanXVelocity": np.add.reduceat(x_vel, starts) / (ends - starts + 1),
@@ -265,17 +294,16 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
         "minTHW": _reduce_per_track(thw, has_p & (thw > 0) & np.isfinite(thw), starts, "min"),
         "minTTC": _reduce_per_track(ttc, has_p & (ttc > 0) & np.isfinite(ttc), starts, "min"),
         "numLaneChanges": lane_changes.astype(np.int32),
-        "evoscenVehicleId": ids[seg_vehicle].astype(np.int32),
-        "evoscenRole": role[seg_vehicle].astype(np.int32),
+        **(extra_meta or {}),
     }
 
     n_frames = int(frame.max())
     n_trucks = int(np.sum(tracks_meta["class"] == "Truck"))
     recording_meta = {
-        "id": str(options.recording_id),
+        "id": str(recording_id),
         "frameRate": f"{rate:g}",
         "locationId": "0",
-        "speedLimit": f"{road.speed_limit_mps:.2f}",
+        "speedLimit": f"{speed_limit_mps:.2f}",
         "month": "",
         "weekDay": "",
         "startTime": "",
@@ -285,11 +313,12 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
         "numVehicles": str(n_tracks),
         "numCars": str(n_tracks - n_trucks),
         "numTrucks": str(n_trucks),
-        "upperLaneMarkings": ";".join(f"{y:.2f}" for y in road.upper_markings()),
-        "lowerLaneMarkings": ";".join(f"{y:.2f}" for y in road.lower_markings()),
+        "upperLaneMarkings": ";".join(f"{y:.2f}" for y in upper_markings),
+        "lowerLaneMarkings": ";".join(f"{y:.2f}" for y in lower_markings),
     }
     return HighDRecording(
-        recording_id=options.recording_id, frame_rate_hz=rate,
-        upper_lane_markings=road.upper_markings(), lower_lane_markings=road.lower_markings(),
+        recording_id=recording_id, frame_rate_hz=rate,
+        upper_lane_markings=np.asarray(upper_markings, dtype=np.float64),
+        lower_lane_markings=np.asarray(lower_markings, dtype=np.float64),
         recording_meta=recording_meta, tracks_meta=tracks_meta, tracks=tracks,
-        source=str(getattr(run, "source", "run")), warnings=list(getattr(run, "warnings", []) or []))
+        source=source, warnings=list(warnings or []))

@@ -132,3 +132,11 @@ def test_script_errors() -> None:
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "no/such/bag" in r.stderr
     r = script("scripts/export_highd.py", "no/such/bag", "out", "--frame-rate", "fast")
     assert r.returncode == 2 and r.stderr.startswith("error: --frame-rate 'fast'")
+
+
+def test_bench_script_small() -> None:
+    """scripts/bench_fidelity.py at a small size: generates, writes, loads and extracts in a child process."""
+    r = script("scripts/bench_fidelity.py", "--vehicles", "40", "--frames", "3000", "--rows", "20000", "--seed", "1")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("synthetic HighD recording: 20000 rows, 40 tracks")
+    assert "car-following rows" in r.stdout and r.stdout.strip().endswith("PASS")
