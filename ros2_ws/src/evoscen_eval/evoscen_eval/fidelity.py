@@ -193,7 +193,7 @@ def plot_rows(rows: list[FidelityRow], out_dir: Path) -> list[Path]:
         if len(c.axes) == 2:
             fig, axs = plt.subplots(1, 2, figsize=(11, 4.5), sharex=True, sharey=True, constrained_layout=True)
             vmax = max(c.p.max(), c.q.max())
-            for ax, pmf, name, n in ((axs[0], c.p, "HighD", c.n_p), (axs[1], c.q, "simulation (BVs)", c.n_q)):
+            for ax, pmf, name, n in ((axs[0], c.p, "HighD", c.n_p), (axs[1], c.q, "simulation", c.n_q)):
                 mesh = ax.pcolormesh(c.axes[0], c.axes[1], pmf.T, shading="auto", cmap="viridis", vmin=0, vmax=vmax)
                 ax.set_title(f"{name}, {n} samples")
                 ax.set_xlabel(r.distribution.axis_labels[0])
@@ -204,7 +204,7 @@ def plot_rows(rows: list[FidelityRow], out_dir: Path) -> list[Path]:
             x = c.axes[0]
             step = x[1] - x[0]
             ax.plot(x, c.p / step, label=f"HighD ({c.n_p})")
-            ax.plot(x, c.q / step, label=f"simulation, BVs ({c.n_q})")
+            ax.plot(x, c.q / step, label=f"simulation ({c.n_q})")
             ax.set_xlabel(r.distribution.axis_labels[0])
             ax.set_ylabel("density")
             ax.legend()
