@@ -133,3 +133,25 @@ def test_bad_config_is_one_line_error(recorded_run, tmp_path):
     lines = error_lines(res.stderr)
     assert len(lines) == 1 and "'evaluation.window_steps' = 0" in lines[0] and "integer >= 1" in lines[0]
     assert not (tmp_path / "o").exists()
+
+
+def test_exposures_go_out_as_recorded_events_matching_the_report(cli, tmp_path):
+    """A strict TTC threshold makes exposures frequent: each is an evoscen/exposure start event in the bag."""
+    from mcap_ros2.reader import read_ros2_messages
+
+    cfg = tmp_path / "strict.yaml"
+    cfg.write_text("evaluation: {ttc_threshold_s: 40.0}\n")
+    res = cli("--config", cfg, "--steps", 400, "--seed", 2, "--sut", "mobil", "--out", tmp_path / "run", "--quiet",
+              "--no-plots")
+    assert res.returncode == 0, res.stderr
+    report = json.loads((tmp_path / "run" / "report" / "report.json").read_text())
+    starts, ends = [], []
+    for m in read_ros2_messages(str(tmp_path / "run" / "bag" / "bag_0.mcap"), topics=["/evoscen/events"]):
+        for status in m.ros_msg.status:
+            if status.name == "evoscen/exposure":
+                values = {kv.key: kv.value for kv in status.values}
+                (starts if values["kind"] == "start" else ends).append(int(values["step"]))
+    exposures = report["safety"]["exposure_list"]
+    assert len(exposures) > 0
+    assert starts == [e["start_state"] for e in exposures]
+    assert ends == [e["end_state"] for e in exposures if not e["open_at_end"]]

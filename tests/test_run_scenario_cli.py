@@ -7,6 +7,7 @@ offending file / key / value (docs/CONVENTIONS.md), never a traceback.
 
 from __future__ import annotations
 
+import re
 from collections import Counter
 from pathlib import Path
 
@@ -165,7 +166,8 @@ def test_existing_bag_needs_overwrite(cli, tmp_path):
 
     replaced = cli("--steps", 7, "--seed", 1, "--out", out, "--quiet", "--overwrite")
     assert replaced.returncode == 0, replaced.stderr
-    assert replaced.stderr == ""
+    # 7 steps is less than one complexity window: the report says so, nothing else is on stderr
+    assert replaced.stderr == "warning: 8 states is shorter than one complexity window (100 states): no complexity score\n"
     assert sorted(p.name for p in bag.iterdir()) == ["bag_0.mcap", "metadata.yaml"]
     counts = _read_bag_topics(bag)
     assert counts["/clock"] == 8 and counts["/evoscen/commands/bv"] == 7  # the new run's, not 6/5
@@ -195,7 +197,12 @@ def test_successful_run_outputs(recorded_run):
     assert summary["steps"] == recorded_run.steps
     assert summary["sim_time_s"] == pytest.approx(recorded_run.steps * 0.1)
     assert Path(summary["bag"]).resolve() == (out / "bag").resolve()
-    assert sorted(p.name for p in out.iterdir()) == ["bag", "scenario.yaml"]
+    assert sorted(p.name for p in out.iterdir()) == ["bag", "report", "scenario.yaml"]
+    assert sorted(p.name for p in (out / "report").iterdir()) == [
+        "report.json", "report.md", "speed.png", "timeline.png", "ttc.png"]
+    assert re.search(r"^intelligence: [0-9.]+ \(weighted safety [0-9.]+, efficiency [0-9.]+, interaction [0-9.]+\)"
+                     r"  complexity: [0-9.]+  SUT collisions: \d+  exposures: \d+$", res.stdout, re.M), res.stdout
+    assert f"report: {out / 'report' / 'report.md'}" in res.stdout
     assert sorted(p.name for p in (out / "bag").iterdir()) == ["bag_0.mcap", "metadata.yaml"]
     assert (out / "bag" / "bag_0.mcap").stat().st_size > 0
 

@@ -50,6 +50,8 @@ class RunSummary:
     bag_bytes: int = 0
     report: dict | None = None
     """The evaluation report (``report.json``'s content) when the run was evaluated."""
+    run: object | None = None
+    """The evaluated run as arrays (:class:`evoscen_eval.rundata.RunData`), with ``report``."""
 
     @property
     def steps_per_s(self) -> float:
@@ -128,7 +130,8 @@ def run_inprocess(
         from evoscen_eval.rundata import RunAccumulator
 
         acc = RunAccumulator()
-        acc.add_map(world.road)
+        if report_dir is not None:  # the lane lines of the report's snapshots
+            acc.add_map(world.road)
     exposures = ExposureMonitor(cfg.evaluation, world.role)
     initial = exposures.observe(world)  # an exposure in the initial state goes out with the first events
     bv_ids = world.ids[sc.bv_indices]
@@ -178,11 +181,11 @@ def run_inprocess(
                 acc.add_world_columns(world.columns(), world.time_ns)
             acc.add_events(end)
     if acc is not None:
-        summary.report = _report(acc, cfg, report_dir, plots)
+        summary.run, summary.report = _report(acc, cfg, report_dir, plots)
     return summary
 
 
-def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool) -> dict:  # noqa: ANN001
+def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool):  # noqa: ANN001, ANN202
     """Score the accumulated run exactly as the bag would be scored (same scenario dict)."""
     import yaml
 
@@ -192,5 +195,5 @@ def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool) -> d
 
     run = acc.run_data(scenario=yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY]))
     if report_dir is None:
-        return evaluate(run, evaluation_settings(run))
-    return write_report(run, report_dir, plots=plots)
+        return run, evaluate(run, evaluation_settings(run))
+    return run, write_report(run, report_dir, plots=plots)

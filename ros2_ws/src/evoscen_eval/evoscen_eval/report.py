@@ -83,7 +83,8 @@ def _f(x: Any, digits: int = 4) -> str:
 
 def _table(rows: list[tuple[str, Any, str]]) -> str:
     lines = ["| quantity | value | meaning |", "|---|---|---|"]
-    lines += [f"| {name} | {_f(value)} | {meaning} |" for name, value, meaning in rows]
+    esc = lambda text: str(text).replace("|", "\\|")  # noqa: E731 - a literal | would end the cell
+    lines += [f"| {esc(name)} | {_f(value)} | {esc(meaning)} |" for name, value, meaning in rows]
     return "\n".join(lines) + "\n"
 
 
@@ -188,6 +189,9 @@ def draw_plots(run: RunData, ev: EvaluationConfig, report: dict[str, Any], out: 
     axes[0].set_ylabel("speed (m/s)")
     axes[1].step(t, series.lane, where="post", lw=0.8)
     axes[1].set_ylabel("lane")
+    from matplotlib.ticker import MaxNLocator
+
+    axes[1].yaxis.set_major_locator(MaxNLocator(integer=True))
     axes[2].plot(t, np.minimum(series.ttc, TTC_PLOT_MAX_S), lw=0.8)
     axes[2].axhline(ev.ttc_threshold_s, color="tab:red", ls="--", lw=0.8)
     axes[2].set(ylabel=f"TTC (s, ≤{TTC_PLOT_MAX_S:g})", xlabel="time (s)")
@@ -246,11 +250,12 @@ def _snapshot(plt, run: RunData, k: int, highlight: set[int], title: str, out: P
                    for u, v in ((length / 2, width / 2), (-length / 2, width / 2),
                                 (-length / 2, -width / 2), (length / 2, -width / 2))]
         vid = int(run.ids[j])
-        color = "tab:red" if vid in highlight else ("orange" if j == sut else "tab:blue")
-        ax.add_patch(Polygon(corners, closed=True, fc=color, ec="k", lw=0.5, alpha=0.85))
+        color = "orange" if j == sut else ("tab:red" if vid in highlight else "tab:blue")
+        edge, lw = ("tab:red", 2.0) if vid in highlight else ("k", 0.5)
+        ax.add_patch(Polygon(corners, closed=True, fc=color, ec=edge, lw=lw, alpha=0.85))
         ax.text(x, y + width, f"{vid}\n{c['speed'][k, j] * 3.6:.0f}", fontsize=6, ha="center", va="bottom")
     ax.set_xlim(cx - half, cx + half)
     ax.set_ylim(cy - 15, cy + 15)
     ax.set_aspect("equal")
-    ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{title} (SUT orange; ids and km/h)")
+    ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{title} (SUT orange, involved vehicles outlined red; ids, km/h)")
     return _save(fig, out, name)

@@ -237,3 +237,23 @@ def test_settings_change_the_scores():
     assert evaluate(run, replace(EV, hard_brake_mps2=4.5))["safety"]["exposures"] == 1
     rep = evaluate(run, replace(EV, weight_safety=1.0, weight_efficiency=0.0, weight_interaction=0.0))
     assert rep["intelligence"]["score"] == pytest.approx(rep["safety"]["score"])
+
+
+def test_markdown_tables_are_well_formed():
+    import re
+
+    from evoscen_eval.report import markdown
+
+    run = make_run(120, 3)
+    run.columns["lane_change"][3:8, 0] = 1
+    run.columns["accel"][20:23, 0] = -7.0
+    text = markdown(evaluate(run, EV), ["ttc.png"])
+    cells = None
+    for line in text.splitlines():
+        if not line.startswith("|"):
+            cells = None
+            continue
+        n = len(re.findall(r"(?<!\\)\|", line))  # unescaped cell separators
+        cells = n if cells is None else cells
+        assert n == cells, line
+    assert "\\|v~\\|" in text and "![ttc](ttc.png)" in text

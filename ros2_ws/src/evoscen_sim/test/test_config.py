@@ -386,3 +386,22 @@ def test_mix_counts_sum_to_count():
 
 def test_mix_counts_of_scenario_default():
     assert mix_counts(ScenarioConfig()) == {"competitive": 8, "mutual": 6, "cooperative": 6}
+
+
+def test_evaluation_section_defaults_and_errors(scenario_dir):
+    from evoscen_sim.config import EvaluationConfig, evaluation_from_dict
+
+    ev = load_scenario_config(None).evaluation
+    assert ev == EvaluationConfig()
+    assert (ev.ttc_threshold_s, ev.hard_brake_mps2, ev.collision_cap, ev.window_steps) == (2.0, 6.0, 10, 100)
+    assert (ev.weight_safety, ev.weight_efficiency, ev.weight_interaction) == (0.6, 0.2, 0.2)
+    assert (ev.k_exposure, ev.k_lane_change, ev.k_accel) == (25.0, 8.0, 1400.0)
+    message = load_error(scenario_dir, "evaluation:\n  weight_safety: 0\n  weight_efficiency: 0\n  weight_interaction: 0\n")
+    assert "'evaluation.weight_safety' = 0" in message and "not all 0" in message
+    message = load_error(scenario_dir, "evaluation: {efficiency_density: sqrt}\n")
+    assert "'evaluation.efficiency_density' = 'sqrt'" in message and "literal, normalised" in message
+    message = load_error(scenario_dir, "evaluation: {ttc_treshold_s: 3}\n")
+    assert "ttc_treshold_s" in message and "did you mean 'ttc_threshold_s'" in message
+    assert evaluation_from_dict({"ttc_threshold_s": 3}, "bag").ttc_threshold_s == 3.0
+    with pytest.raises(InputError, match=r"^bag: key 'evaluation.collision_cap' = 0: expected an integer >= 1$"):
+        evaluation_from_dict({"collision_cap": 0}, "bag")

@@ -1,0 +1,161 @@
+#!/usr/bin/env python3
+"""The complexity experiment (SPEC 6.2): one SUT in the evolving scenario and in rule-based baselines.
+
+    python scripts/experiment_complexity.py [--out DIR] [--config FILE] [--sut stackelberg]
+                                           [--scenarios evolving,nilsson,mobil] [--rounds N] [--steps N]
+                                           [--first-seed S] [--mix C:M:K] [--jobs N]
+
+Scenarios: ``evolving`` — the BVs as the scenario configuration drives them (``bvs.driver``;
+the shipped default); ``nilsson`` / ``mobil`` (any BV driver name) — every BV driven by that
+model. The SUT (default Stackelberg) is the same everywhere. Each scenario runs ``--rounds``
+rounds (seeds ``--first-seed`` …) of ``--steps`` steps in-process, in ``--jobs`` processes;
+finished rounds are saved and never recomputed. Per scenario: LC, AD and E per
+``evaluation.window_steps`` (100) states, averaged over windows and rounds (± 95 % interval
+over rounds), and the complexity score C of those averages (± the interval of the rounds'
+own C). Writes ``complexity.csv``, ``complexity.md``, ``rounds.csv`` and ``complexity.png``
+into ``--out`` and prints the table. Exit status: 0 done, 2 bad input, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from experiment_intelligence import positive_int
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="experiment_complexity.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("runs/experiment_complexity"), help="output directory")
+    ap.add_argument("--config", type=Path, help="base scenario YAML (default: the shipped default)")
+    ap.add_argument("--sut", default="stackelberg", help="SUT model (default stackelberg)")
+    ap.add_argument("--scenarios", default="evolving,nilsson,mobil",
+                    help="comma-separated: evolving (the config's BV driver) and/or BV driver names")
+    ap.add_argument("--rounds", default="20", help="rounds per scenario (default 20)")
+    ap.add_argument("--steps", default="10000", help="steps per round (default 10000)")
+    ap.add_argument("--first-seed", default="0", help="seed of the first round (default 0)")
+    ap.add_argument("--mix", default=None, help="BV policy mix of the evolving scenario (default: the config's)")
+    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="parallel processes (default: CPU count)")
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds, write_csv
+    from evoscen_eval.metrics import complexity_score
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.errors import InputError
+
+    try:
+        n_rounds = positive_int("--rounds", args.rounds)
+        first = positive_int("--first-seed", args.first_seed, 0)
+        jobs = positive_int("--jobs", args.jobs)
+        scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]
+        if not scenarios or len(set(scenarios)) != len(scenarios):
+            raise InputError(f"--scenarios {args.scenarios!r}: expected distinct comma-separated names")
+        rounds = []
+        for name in scenarios:
+            for seed in range(first, first + n_rounds):
+                overrides = {"sut.model": args.sut, "seed": str(seed), "steps": args.steps, "recording.enabled": "false"}
+                if name != "evolving":
+                    overrides["bvs.driver"] = name
+                if args.mix is not None:
+                    overrides["bvs.mix"] = args.mix
+                rounds.append(Round(name, load_scenario_config(args.config, overrides)))
+        args.out.mkdir(parents=True, exist_ok=True)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(rounds), unit="round", desc="complexity", file=sys.stderr)
+
+    def progress(done: int, total: int, text: str) -> None:
+        bar.n = done
+        bar.set_postfix_str(text)
+        bar.refresh()
+
+    try:
+        results = run_rounds(rounds, args.out, jobs=jobs, progress=progress)
+    except KeyboardInterrupt:
+        bar.close()
+        print(f"interrupted: finished rounds are kept in {args.out / 'rounds'}; run again to continue",
+              file=sys.stderr)
+        return 130
+    bar.close()
+
+    ev = rounds[0].cfg.evaluation
+    header = ["scenario", "BV driver", f"LC / {ev.window_steps}", f"AD / {ev.window_steps}", f"E / {ev.window_steps}",
+              "C", "C (rounds)", "rounds"]
+    rows, csv_rows, round_rows, bars = [], [], [], []
+    for name in scenarios:
+        rs = [results[r.key] for r in rounds if r.label == name]
+        driver = next(r.cfg.bvs.driver for r in rounds if r.label == name)
+        cx = [r["report"]["complexity"] for r in rs]
+        if any(c["score"] is None for c in cx):
+            print(f"error: --steps {args.steps}: shorter than one complexity window ({ev.window_steps} states)",
+                  file=sys.stderr)
+            return 2
+        # averaged over all windows of all rounds (every round has the same number of windows)
+        lc, ad, e = (mean_ci([c[k] for c in cx]) for k in ("lane_changes", "accel_decel", "exposures"))
+        score = complexity_score(e[0], lc[0], ad[0], ev.k_exposure, ev.k_lane_change, ev.k_accel)
+        per_round = mean_ci([c["score"] for c in cx])
+        rows.append([name, driver, fmt_ci(*lc, 2), fmt_ci(*ad, 1), fmt_ci(*e, 3), f"{score:.4f}", fmt_ci(*per_round),
+                     str(len(rs))])
+        csv_rows.append([name, driver, *lc, *ad, *e, score, *per_round, len(rs)])
+        bars.append((name, lc, ad, e, score))
+        for r, c in zip(rs, cx):
+            round_rows.append([name, r["seed"], r["steps"], c["lane_changes"], c["accel_decel"], c["exposures"],
+                               c["score"], c["windows"], r["wall_time_s"]])
+    write_csv(args.out / "complexity.csv", ["scenario", "bv_driver", "lc_mean", "lc_ci95", "ad_mean", "ad_ci95",
+                                            "e_mean", "e_ci95", "complexity", "complexity_rounds_mean",
+                                            "complexity_rounds_ci95", "rounds"], csv_rows)
+    write_csv(args.out / "rounds.csv", ["scenario", "seed", "steps", "lc", "ad", "e", "complexity", "windows",
+                                        "wall_time_s"], round_rows)
+    table = markdown_table(header, rows)
+    cfg0 = rounds[0].cfg
+    wall = sum(r["wall_time_s"] for r in results.values())
+    (args.out / "complexity.md").write_text(
+        f"# Complexity experiment\n\nSUT {args.sut}; {len(scenarios)} scenarios x {n_rounds} rounds x {cfg0.steps} "
+        f"steps, {cfg0.bvs.count} BVs; windows of {ev.window_steps} states; mean ± 95 % interval over rounds; "
+        f"C from the averaged LC, AD, E (k = {ev.k_exposure:g}, {ev.k_lane_change:g}, {ev.k_accel:g}); "
+        f"{wall:.0f} s of simulation in all.\n\n{table}\n![complexity](complexity.png)\n", encoding="utf-8")
+    plot(args.out / "complexity.png", bars, ev.window_steps)
+    print(table, end="")
+    print(f"written: {args.out / 'complexity.md'}, complexity.csv, rounds.csv, complexity.png")
+    return 0
+
+
+def plot(path: Path, bars, window: int) -> None:  # noqa: ANN001
+    """LC, AD, E per window and C per scenario, with 95 % intervals."""
+    import math
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(13, 3.5))
+    names = [b[0] for b in bars]
+    for ax, idx, title in zip(axes, (1, 2, 3), (f"LC per {window} states", f"AD per {window} states",
+                                                  f"E per {window} states")):
+        means = [b[idx][0] for b in bars]
+        errs = [0.0 if math.isnan(b[idx][1]) else b[idx][1] for b in bars]
+        ax.bar(names, means, yerr=errs, capsize=4, color="tab:blue")
+        ax.set_title(title)
+    axes[3].bar(names, [b[4] for b in bars], color="tab:red")
+    axes[3].set_title("complexity C")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

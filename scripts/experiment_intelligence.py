@@ -1,0 +1,164 @@
+#!/usr/bin/env python3
+"""The intelligence experiment (SPEC 6.1): each SUT among 20 BVs, several seeds.
+
+    python scripts/experiment_intelligence.py [--out DIR] [--config FILE] [--suts nilsson,mobil,stackelberg]
+                                             [--seeds N] [--first-seed S] [--steps N] [--mix C:M:K]
+                                             [--bvs N] [--jobs N]
+
+Every SUT runs the same seeds (same BV layout and draws) for ``--steps`` steps in-process; the
+rounds run in ``--jobs`` processes and are saved as they finish, so an interrupted experiment
+continues where it stopped (a finished round is not recomputed). Writes into ``--out``:
+``intelligence.csv`` / ``intelligence.md`` (per SUT: the weighted safety, efficiency and
+interaction terms and the intelligence score, mean ± 95 % interval over seeds, with the
+collisions and exposures), ``rounds.csv`` (every round), ``ttc.png`` and ``speed.png``
+(the SUTs' distributions overlaid, pooled over seeds); prints the table. Exit status: 0 done,
+2 bad input, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="experiment_intelligence.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("runs/experiment_intelligence"), help="output directory")
+    ap.add_argument("--config", type=Path, help="base scenario YAML (default: the shipped default)")
+    ap.add_argument("--suts", default="nilsson,mobil,stackelberg", help="comma-separated SUT models")
+    ap.add_argument("--seeds", default="5", help="number of seeds per SUT (default 5)")
+    ap.add_argument("--first-seed", default="0", help="first seed (default 0)")
+    ap.add_argument("--steps", default="3000", help="steps per round (default 3000)")
+    ap.add_argument("--mix", default="4:3:3", help="BV policy mix competitive:mutual:cooperative (default 4:3:3)")
+    ap.add_argument("--bvs", default="20", help="number of BVs (default 20)")
+    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="parallel processes (default: CPU count)")
+    return ap.parse_args(argv)
+
+
+def positive_int(name: str, text: str, lo: int = 1) -> int:
+    from evoscen_sim.errors import InputError
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = lo - 1
+    if value < lo:
+        raise InputError(f"{name} = {text!r}: expected an integer >= {lo}")
+    return value
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds, write_csv
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.errors import InputError
+
+    try:
+        seeds = positive_int("--seeds", args.seeds)
+        first = positive_int("--first-seed", args.first_seed, 0)
+        jobs = positive_int("--jobs", args.jobs)
+        suts = [s.strip() for s in args.suts.split(",") if s.strip()]
+        if not suts or len(set(suts)) != len(suts):
+            raise InputError(f"--suts {args.suts!r}: expected distinct comma-separated SUT model names")
+        rounds = []
+        for sut in suts:  # every override gets the config's validation (one-line errors)
+            for seed in range(first, first + seeds):
+                cfg = load_scenario_config(args.config, {"sut.model": sut, "seed": str(seed), "steps": args.steps,
+                                                         "bvs.mix": args.mix, "bvs.count": args.bvs,
+                                                         "recording.enabled": "false"})
+                rounds.append(Round(sut, cfg))
+        args.out.mkdir(parents=True, exist_ok=True)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
+        return 2
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(rounds), unit="round", desc="intelligence", file=sys.stderr)
+
+    def progress(done: int, total: int, text: str) -> None:
+        bar.n = done
+        bar.set_postfix_str(text)
+        bar.refresh()
+
+    try:
+        results = run_rounds(rounds, args.out, jobs=jobs, progress=progress)
+    except KeyboardInterrupt:
+        bar.close()
+        print(f"interrupted: finished rounds are kept in {args.out / 'rounds'}; run again to continue",
+              file=sys.stderr)
+        return 130
+    bar.close()
+
+    header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
+              "collisions", "exposures", "seeds"]
+    rows, csv_rows, round_rows = [], [], []
+    for sut in suts:
+        rs = [results[r.key] for r in rounds if r.label == sut]
+        reps = [r["report"] for r in rs]
+        cols = [mean_ci([x["intelligence"]["weighted"][k] for x in reps]) for k in ("safety", "efficiency", "interaction")]
+        total = mean_ci([x["intelligence"]["score"] for x in reps])
+        col = mean_ci([x["safety"]["collisions"] for x in reps])
+        exp = mean_ci([x["safety"]["exposures"] for x in reps])
+        rows.append([sut, *(fmt_ci(*c) for c in cols), fmt_ci(*total), fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
+        csv_rows.append([sut, *(v for c in (*cols, total, col, exp) for v in c), len(reps)])
+        for r in rs:
+            x = r["report"]
+            round_rows.append([sut, r["seed"], r["steps"], x["safety"]["score"], x["efficiency"]["score"],
+                               x["interaction"]["score"], x["intelligence"]["score"], x["safety"]["collisions"],
+                               x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"], r["wall_time_s"]])
+    write_csv(args.out / "intelligence.csv",
+              ["sut", *(f"{k}_{s}" for k in ("safety_weighted", "efficiency_weighted", "interaction_weighted",
+                                             "intelligence", "collisions", "exposures") for s in ("mean", "ci95")),
+               "seeds"], csv_rows)
+    write_csv(args.out / "rounds.csv", ["sut", "seed", "steps", "safety", "efficiency", "interaction", "intelligence",
+                                        "collisions", "exposures", "mean_speed_mps", "wall_time_s"], round_rows)
+    any_cfg = rounds[0].cfg
+    table = markdown_table(header, rows)
+    text = (f"# Intelligence experiment\n\n{len(suts)} SUTs x {seeds} seeds ({first}..{first + seeds - 1}), "
+            f"{any_cfg.steps} steps, {any_cfg.bvs.count} BVs ({any_cfg.bvs.driver}, mix {args.mix}); weights "
+            f"{any_cfg.evaluation.weight_safety:g}/{any_cfg.evaluation.weight_efficiency:g}/"
+            f"{any_cfg.evaluation.weight_interaction:g}; mean ± 95 % interval over seeds.\n\n{table}\n"
+            "![TTC](ttc.png)\n\n![speed](speed.png)\n")
+    (args.out / "intelligence.md").write_text(text, encoding="utf-8")
+    plot_distributions(args.out, suts, rounds, results)
+    print(table, end="")
+    print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, rounds.csv, ttc.png, speed.png")
+    return 0
+
+
+def plot_distributions(out: Path, suts: list[str], rounds, results) -> None:  # noqa: ANN001
+    """TTC and speed distributions of the SUTs, overlaid (density, pooled over seeds)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from evoscen_bringup.experiments import SPEED_BINS, TTC_BINS
+
+    for name, bins, key, xlabel, title in (
+            ("ttc.png", TTC_BINS, "ttc_hist", "SUT TTC to the vehicle ahead in its path (s)", "TTC distribution per SUT"),
+            ("speed.png", SPEED_BINS, "speed_hist", "SUT speed (m/s)", "Speed distribution per SUT")):
+        fig, ax = plt.subplots(figsize=(7, 4))
+        for sut in suts:
+            counts = np.sum([results[r.key][key] for r in rounds if r.label == sut], axis=0).astype(float)
+            if counts.sum() > 0:
+                density = counts / (counts.sum() * np.diff(bins))
+                ax.stairs(density, bins, label=f"{sut} ({int(counts.sum())} states)", lw=1.5)
+        ax.set(xlabel=xlabel, ylabel="density", title=title)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=100)
+        plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

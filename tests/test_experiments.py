@@ -1,0 +1,100 @@
+"""The method's experiments at reduced size: tables, files, intervals, resumption, bad input."""
+
+from __future__ import annotations
+
+import csv
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from scipy import stats
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def script(name: str, *args: object) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, f"scripts/{name}", *map(str, args)], cwd=REPO, capture_output=True,
+                          text=True, timeout=300, check=False)
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with path.open(newline="") as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope="module")
+def intelligence(tmp_path_factory):
+    out = tmp_path_factory.mktemp("exp") / "intel"
+    res = script("experiment_intelligence.py", "--out", out, "--seeds", 2, "--steps", 200, "--jobs", 2)
+    return out, res
+
+
+def test_intelligence_table_and_files(intelligence):
+    out, res = intelligence
+    assert res.returncode == 0, res.stderr
+    for name in ("intelligence.csv", "intelligence.md", "rounds.csv", "ttc.png", "speed.png"):
+        assert (out / name).stat().st_size > 0, name
+    table = read_csv(out / "intelligence.csv")
+    assert [r["sut"] for r in table] == ["nilsson", "mobil", "stackelberg"]
+    rounds = read_csv(out / "rounds.csv")
+    assert len(rounds) == 6 and {r["steps"] for r in rounds} == {"200"}
+    for row in table:
+        vals = [float(r["intelligence"]) for r in rounds if r["sut"] == row["sut"]]
+        mean = sum(vals) / 2
+        half = stats.t.ppf(0.975, 1) * abs(vals[0] - vals[1]) / math.sqrt(2) / math.sqrt(2)
+        assert float(row["intelligence_mean"]) == pytest.approx(mean)
+        assert float(row["intelligence_ci95"]) == pytest.approx(half)
+        # the intelligence score is the sum of the three weighted terms (each averaged over seeds)
+        total = sum(float(row[f"{k}_weighted_mean"]) for k in ("safety", "efficiency", "interaction"))
+        assert total == pytest.approx(mean)
+    assert "| mobil |" in res.stdout and "| SUT | safety (weighted)" in res.stdout
+
+
+def test_intelligence_resumes_without_recomputing(intelligence):
+    out, _ = intelligence
+    files = sorted((out / "rounds").glob("*.json"))
+    assert len(files) == 6
+    stamps = {f: f.stat().st_mtime_ns for f in files}
+    res = script("experiment_intelligence.py", "--out", out, "--seeds", 2, "--steps", 200, "--jobs", 2)
+    assert res.returncode == 0 and "6 rounds already done" in res.stderr
+    assert {f: f.stat().st_mtime_ns for f in files} == stamps
+    # a third seed runs only the three new rounds
+    res = script("experiment_intelligence.py", "--out", out, "--seeds", 3, "--steps", 200, "--jobs", 2)
+    assert res.returncode == 0 and "6 rounds already done" in res.stderr
+    assert len(list((out / "rounds").glob("*.json"))) == 9
+
+
+def test_complexity_table_and_files(tmp_path):
+    out = tmp_path / "cx"
+    res = script("experiment_complexity.py", "--out", out, "--rounds", 2, "--steps", 200, "--jobs", 2,
+                 "--scenarios", "evolving,nilsson,mobil")
+    assert res.returncode == 0, res.stderr
+    for name in ("complexity.csv", "complexity.md", "rounds.csv", "complexity.png"):
+        assert (out / name).stat().st_size > 0, name
+    table = read_csv(out / "complexity.csv")
+    assert [r["scenario"] for r in table] == ["evolving", "nilsson", "mobil"]
+    assert [r["bv_driver"] for r in table][1:] == ["nilsson", "mobil"]
+    rounds = read_csv(out / "rounds.csv")
+    assert len(rounds) == 6 and {r["windows"] for r in rounds} == {"2"}
+    for row in table:
+        rs = [r for r in rounds if r["scenario"] == row["scenario"]]
+        lc, ad, e = (sum(float(r[k]) for r in rs) / 2 for k in ("lc", "ad", "e"))
+        assert float(row["lc_mean"]) == pytest.approx(lc) and float(row["ad_mean"]) == pytest.approx(ad)
+        c = 0.4 * (1 - math.exp(-e / 25)) + 0.3 * (2 - math.exp(-lc / 8) - math.exp(-ad / 1400))
+        assert float(row["complexity"]) == pytest.approx(c)
+    assert "| evolving |" in res.stdout
+
+
+@pytest.mark.parametrize("name, args, expected", [
+    ("experiment_intelligence.py", ["--seeds", "0"], "error: --seeds = '0': expected an integer >= 1"),
+    ("experiment_intelligence.py", ["--suts", "nilsson,bogus"], "error: command line: key 'sut.model' = 'bogus'"),
+    ("experiment_complexity.py", ["--rounds", "x"], "error: --rounds = 'x': expected an integer >= 1"),
+    ("experiment_complexity.py", ["--scenarios", "evolving,nope"], "error: command line: key 'bvs.driver' = 'nope'"),
+])
+def test_bad_input_is_one_line(tmp_path, name, args, expected):
+    res = script(name, "--out", tmp_path / "o", *args)
+    assert res.returncode == 2
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith(expected), lines
