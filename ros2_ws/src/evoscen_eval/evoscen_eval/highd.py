@@ -395,7 +395,8 @@ def _write_csv_block(f: io.TextIOBase, columns: tuple[str, ...], arrays: dict[st
     fmt = ",".join(_track_format(c) for c in columns)
     for start in range(0, rows, chunk):
         stop = min(rows, start + chunk)
-        block = np.column_stack([arrays[c][start:stop].astype(np.float64) for c in columns])
+        # + 0.0 turns -0.0 into 0.0, so a zero is never written as "-0.000"
+        block = np.column_stack([arrays[c][start:stop].astype(np.float64) for c in columns]) + 0.0
         np.savetxt(f, block, fmt=fmt, delimiter=",")
 
 
