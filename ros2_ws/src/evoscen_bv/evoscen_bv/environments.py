@@ -7,7 +7,9 @@ in who drives which vehicle.
 * :class:`CarFollowingEnv` (stage ``control``): the ego follows one leader in a mainline
   lane of the real road. The leader drives a random acceleration profile (a new target
   acceleration in [-2.5, 1.5] m/s² every 2-5 s, kept between 8 and 32 m/s), the ego starts
-  5-90 m behind at ±5 m/s of the leader's speed. One step = one simulation step.
+  5-90 m behind at -5..+10 m/s of the leader's speed; in 1 of 5 episodes the leader stands
+  still 40-100 m ahead (a queue, or the end of the merge lane, which learned BVs treat as a
+  standing leader) and the ego comes at 10-30 m/s. One step = one simulation step.
 * :class:`DecisionEnv` (stages ``level1`` … ``cooperative``): a full 21-vehicle scenario
   world (the shipped default scenario, seeded per episode; the ego is a random vehicle,
   so it starts on the merge lane in about 1 of 7 episodes). The other vehicles run the
@@ -57,6 +59,8 @@ class CarFollowingEnv:
     """Car following behind a leader with a random acceleration profile (see module docstring)."""
 
     state_dim = 4
+    STANDING_SHARE = 0.2
+    """Share of episodes with a standing leader (approach and stop behind it)."""
 
     def __init__(self, road, config: TrainingConfig) -> None:  # noqa: ANN001
         self.road = road
@@ -67,10 +71,16 @@ class CarFollowingEnv:
     def reset(self, seed: int) -> np.ndarray:
         rng = np.random.default_rng(seed)
         lane = int(rng.integers(1, 5))
-        v_lead = float(rng.uniform(10.0, 28.0))
-        gap = float(rng.uniform(5.0, 90.0))
+        self.standing = bool(rng.random() < self.STANDING_SHARE)
         s0 = float(rng.uniform(100.0, 300.0))
-        v_ego = max(0.0, v_lead + float(rng.uniform(-5.0, 5.0)))
+        if self.standing:  # a standing obstacle (a queue, the end of the merge lane) ahead
+            v_lead = 0.0
+            gap = float(rng.uniform(40.0, 100.0))
+            v_ego = float(rng.uniform(10.0, 30.0))
+        else:
+            v_lead = float(rng.uniform(10.0, 28.0))
+            gap = float(rng.uniform(5.0, 90.0))
+            v_ego = max(0.0, v_lead + float(rng.uniform(-5.0, 10.0)))
         self.world = hand_built_world(self.road, s=[s0, s0 + gap + 5.0], lane=[lane, lane], speed=[v_ego, v_lead],
                                       seed=seed)
         self.rng = rng
@@ -88,6 +98,8 @@ class CarFollowingEnv:
 
     def leader_throttle(self) -> float:
         w = self.world
+        if self.standing:
+            return -1.0
         if self.t >= self.lead_until:
             self.lead_accel = float(self.rng.uniform(-2.5, 1.5))
             self.lead_until = self.t + int(self.rng.integers(20, 51))
@@ -102,7 +114,7 @@ class CarFollowingEnv:
     def ego_throttle(self, action: float) -> float:
         w = self.world
         vp = w.vehicle
-        desired = min(self.desired, float(w.speed_limit_mps[0]))
+        desired = float(np.fmin(self.desired, w.speed_limit_mps[0]))
         cap = speed_cap_throttle(w.v[:1], np.array([desired]), self.params, vp.max_accel_mps2, vp.max_brake_mps2)
         o = self.obs[None, :]
         return float(compose_throttle(np.array([action]), np.array([action]), o, o, cap)[0])

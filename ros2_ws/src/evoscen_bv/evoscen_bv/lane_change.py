@@ -20,8 +20,8 @@ else keep [choice: thresholds ±1/3].
 
 Rule constraints on the requested action (the executed action can differ; the reward's
 J_req fires when it does): a change that would leave the road becomes keep; a change into
-a lane with another vehicle within 10 m longitudinally (bumper gap to the target lane's
-leader or follower < 10 m, overlaps included) becomes keep.
+a lane with another vehicle within 10 m longitudinally (bumper-to-bumper, overlaps
+included; a vehicle changing into that lane counts as in it) becomes keep.
 
 Rewards (method §3.2), with O the drivable area — the gap to the nearest vehicle ahead
 in a lane, also bounded by the end of that lane and by the front view O_max:
@@ -84,17 +84,17 @@ class RewardParams:
     """ϑ: factor favouring lanes to the left."""
     gain_norm_m2: float = 2500.0
     """M: normaliser of the lane-change gain (m²); a 50 m gain gives 1."""
-    lane_change_penalty: float = -0.3
+    lane_change_penalty: float = -0.8
     """J_lc: added when a lane change is executed (negative)."""
     request_penalty: float = -0.5
     """J_req: added when the executed action differs from the requested one (negative)."""
-    comp_space_weight: float = 0.3
+    comp_space_weight: float = 0.1
     """u: competitive weight of the followers' drivable area."""
-    comp_brake_weight: float = 0.5
+    comp_brake_weight: float = 4.0
     """v: competitive weight of the followers' signed squared acceleration."""
     comp_brake_bound: float = 0.1
     """z: upper bound of the competitive acceleration term."""
-    coop_space_weight: float = 0.3
+    coop_space_weight: float = 1.0
     """m: cooperative weight of the followers' drivable area."""
     coop_speed_weight: float = 0.3
     """n: cooperative weight of the followers' signed squared speed."""
@@ -164,16 +164,39 @@ def _grid_kernel(idx, s, lane, v, psi, on_road, v_max, lat_scale, yaw_scale):  #
 
 
 def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.ndarray:  # noqa: ANN001
-    """The executed actions: ``requested`` with the two rule constraints applied (see module docstring)."""
+    """The executed actions: ``requested`` with the two rule constraints applied (see module docstring).
+
+    [choice] A vehicle counts as in the target lane when it is in it or changing into it
+    (its target lane), so two vehicles cannot cut into the same gap from both sides.
+    """
     idx = np.asarray(idx, dtype=np.int64)
     req = np.asarray(requested, dtype=np.int64)
-    nb = view.neighborhood()
     target = view.lane[idx] + req
     on_road = view.road.lane_exists(target, view.s[idx])
-    col = 2 + req
-    near = (nb.gap_front_m[idx, col] < CUT_IN_GAP_M) | (nb.gap_rear_m[idx, col] < CUT_IN_GAP_M)
-    ok = (req == 0) | (on_road & ~near)
-    return np.where(ok, req, 0).astype(np.int64)
+    return _constraint_kernel(idx, req, on_road, view.s, view.lane, view.target_lane, view.length, CUT_IN_GAP_M)
+
+
+@kernel
+def _constraint_kernel(idx, req, on_road, s, lane, target_lane, length, min_gap):  # noqa: ANN001, ANN202
+    m = idx.shape[0]
+    n = s.shape[0]
+    out = np.zeros(m, dtype=np.int64)
+    for k in range(m):
+        r = req[k]
+        if r == 0 or not on_road[k]:  # off-road change -> keep
+            continue
+        i = idx[k]
+        tgt = lane[i] + r
+        ok = True
+        for j in range(n):
+            if j == i or (lane[j] != tgt and target_lane[j] != tgt):
+                continue
+            if abs(s[j] - s[i]) - 0.5 * (length[i] + length[j]) < min_gap:  # cut-in within 10 m -> keep
+                ok = False
+                break
+        if ok:
+            out[k] = r
+    return out
 
 
 def drivable_area(view, idx: np.ndarray, lane_offset: np.ndarray, front_view_m: float) -> np.ndarray:  # noqa: ANN001

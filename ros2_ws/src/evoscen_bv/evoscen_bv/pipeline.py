@@ -116,6 +116,16 @@ class Pipeline:
         self.progress = progress
         self.checkpoint_every = int(checkpoint_every)
         self.out.mkdir(parents=True, exist_ok=True)
+        run_file = self.out / "run.json"
+        if run_file.is_file():
+            started = json.loads(run_file.read_text())
+            if started.get("seed") != self.seed:
+                raise InputError(f"--out {self.out}: was started with --seed {started.get('seed')}, not {self.seed}; "
+                                 f"use the same seed to resume, or another --out")
+        else:
+            run_file.write_text(json.dumps({"seed": self.seed, "command": command}))
+        self.commit = git_commit()
+        """The code's commit, taken once when the run starts (recorded in the model cards)."""
         saved = self.out / "training.yaml"
         if saved.is_file():
             # a resumed run keeps the config it started with
@@ -359,7 +369,7 @@ class Pipeline:
             f"seed: {self.seed}",
             f"wall_time_s: {r.wall_s}",
             f"steps_to_convergence: {r.steps_to_convergence}",
-            f"git_commit: {git_commit()}",
+            f"git_commit: {self.commit}",
             f"command: {json.dumps(self.command)}",
             "final_metrics:",
             *[f"  {k}: {v}" for k, v in r.metrics.items()],

@@ -52,11 +52,11 @@ class EnvParams:
 class StageSteps:
     """Training steps of each stage: simulation steps for ``control``, decisions otherwise."""
 
-    control: int = 30000
-    level1: int = 12000
-    level2: int = 12000
-    competitive: int = 12000
-    cooperative: int = 12000
+    control: int = 40000
+    level1: int = 20000
+    level2: int = 20000
+    competitive: int = 20000
+    cooperative: int = 20000
 
 
 @dataclass(frozen=True)

@@ -66,3 +66,34 @@ def test_observations_in_the_world_include_the_merge_lane_end():
     # standing obstacle at 945 m: gap 945 - 902.4 = 42.6 m, speed difference -20
     assert own[1] == pytest.approx([42.6 / 100, -20 / 33.33, 0.0, 1.0])
     assert np.array_equal(own, target)  # nobody changes lanes
+
+
+def test_fused_run_time_throttle_equals_the_pieces():
+    """The compiled run-time throttle = observations → controller → min with the speed term."""
+    pytest.importorskip("torch")
+    from evoscen_bv.car_following import learned_throttle
+    from evoscen_bv.learned import PolicyBank
+    from evoscen_bv.td3 import TD3, NumpyActor, TD3Params, export_actor
+
+    agent = TD3(4, 1, 1.0, TD3Params(hidden=16), seed=5)
+    import io
+
+    buf = io.BytesIO()
+    export_actor(agent.actor, buf)
+    buf.seek(0)
+    actor = NumpyActor(dict(np.load(buf)))
+    road = load_road()
+    # 0 behind 1; 2 changing lanes to the left towards 3's lane; 4 on the merge lane near its end; 5 alone
+    w = hand_built_world(road, s=[300, 330, 500, 540, 900, 1500], lane=[2, 2, 1, 2, 0, 3],
+                         speed=[25, 22, 28, 20, 20, 31])
+    w.step(np.zeros(6), np.array([0, 0, 1, 0, 0, 0]))
+    assert w.lane_change[2] == 1
+    idx = np.array([0, 2, 4, 5])
+    desired = np.array([30.0, 29.0, 28.0, 27.0])
+    own, target = controller_observations(w, idx, P)
+    u = actor.forward(np.vstack([own, target]))[:, 0]
+    cap = speed_cap_throttle(w.v[idx], np.minimum(desired, w.speed_limit_mps[idx]), P, 3.0, 8.0)
+    expected = compose_throttle(u[:4], u[4:], own, target, cap)
+    fused = learned_throttle(w, idx, desired, PolicyBank([actor]), P, 3.0, 8.0)
+    assert fused == pytest.approx(expected, abs=1e-12)
+    assert target[1, 3] == 1.0 and not np.array_equal(own[1], target[1])  # the target lane's leader is seen

@@ -25,6 +25,11 @@ from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
 
 V_MAX = 33.33
+HAND = RewardParams(front_view_m=100.0, theta_left=1.1, gain_norm_m2=2500.0, lane_change_penalty=-0.3,
+                    request_penalty=-0.5, comp_space_weight=0.3, comp_brake_weight=0.5, comp_brake_bound=0.1,
+                    coop_space_weight=0.3, coop_speed_weight=0.3, coop_speed_bound=1.0, accel_norm_mps2=8.0,
+                    speed_norm_mps=33.33)
+"""Coefficients of the hand computations (independent of the shipped defaults)."""
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +93,7 @@ def test_rule_constraint_off_road_change_becomes_keep(road):
     executed = apply_rule_constraints(w, np.array([0, 1, 2]), requested)
     assert executed.tolist() == [0, 0, -1]  # at s = 700 the merge lane exists
     r = individual_reward(np.full(3, 50.0), np.full(3, 50.0), np.ones(3), requested, executed, np.full(3, 50.0),
-                          RewardParams())
+                          HAND)
     # J_req = -0.5 where the request was rewritten; vehicle 2 pays J_lc = -0.3 for its executed change
     assert r == pytest.approx([-0.5 + 0.25, -0.5 + 0.25, -0.3 + 0.25])
 
@@ -103,8 +108,13 @@ def test_rule_constraint_cut_in_within_10_m_becomes_keep(road):
     assert apply_rule_constraints(level, np.array([0]), np.array([1])).tolist() == [0]
     far = hand_built_world(road, s=[300, 316], lane=[2, 3], speed=[25, 25])  # 11.2 m bumper gap
     assert apply_rule_constraints(far, np.array([0]), np.array([1])).tolist() == [1]
+    # a vehicle changing from lane 4 into lane 3, 5 m ahead, counts as in lane 3
+    merging = hand_built_world(road, s=[300, 310, 260], lane=[2, 4, 3], speed=[25, 25, 25])
+    merging.step(np.zeros(3), np.array([0, -1, 0]))
+    assert merging.target_lane[1] == 3 and merging.lane[1] == 4
+    assert apply_rule_constraints(merging, np.array([0]), np.array([1])).tolist() == [0]
     r = individual_reward(np.array([40.0]), np.array([40.0]), np.ones(1), np.array([1]), np.array([0]),
-                          np.array([40.0]), RewardParams())
+                          np.array([40.0]), HAND)
     assert r == pytest.approx([-0.5 + 0.16])
 
 
@@ -117,7 +127,7 @@ def test_drivable_area(road):
 
 
 def test_individual_reward_terms_by_hand():
-    p = RewardParams()
+    p = HAND
     # gain: ϑ O_t - O_c = 1.1·60 - 40 = 26 → 26² / 2500 = 0.2704; negative when the target is worse
     assert lane_change_gain(np.array([40.0]), np.array([60.0]), np.array([1.1]), p) == pytest.approx([0.2704])
     assert lane_change_gain(np.array([60.0]), np.array([40.0]), np.array([1.0]), p) == pytest.approx([-0.16])
@@ -132,7 +142,7 @@ def test_individual_reward_terms_by_hand():
 
 
 def test_social_terms_by_hand(road):
-    p = RewardParams()
+    p = HAND
     # ego (0) lane 2 at 300; b1 lane 2 at 290 (gap to the ego 10 - 4.8 = 5.2 m), b2 lane 3 at 285 (empty lane ahead),
     # far: lane 2 at 250 (outside the 20 m back part), ahead: lane 2 at 350 (in front: not in Ω_b)
     w = hand_built_world(road, s=[300, 290, 285, 250, 350], lane=[2, 2, 3, 2, 2], speed=[25, 20, 30, 25, 25])

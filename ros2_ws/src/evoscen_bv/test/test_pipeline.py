@@ -57,8 +57,11 @@ def test_smoke_pipeline_all_stages_produces_loadable_policies(tmp_path):
     assert controller.state_dim == 4 and sorted(decisions) == [1, 2, 3]
     assert training.td3.hidden == 16
     # a finished stage is not redone
-    again = _train(["--stage", "level1", "--out", str(out), "--quiet"])
+    again = _train(["--stage", "level1", "--out", str(out), "--seed", "7", "--quiet"])
     assert again.returncode == 0 and "level1: level1_mutual.npz, 150 steps" in again.stdout
+    # resuming with another seed is refused
+    other = _train(["--stage", "level1", "--out", str(out), "--seed", "8", "--quiet"])
+    assert other.returncode == 2 and "was started with --seed 7, not 8" in other.stderr
     # the policies drive a scenario
     from evoscen_sim.config import config_from_dict
     from evoscen_sim.scenario import build_bv_driver, build_world

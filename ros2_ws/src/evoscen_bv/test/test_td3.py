@@ -122,3 +122,18 @@ def test_seeded_td3_learns_a_toy_control_task():
     # doing nothing costs ~26.7 per episode; the optimal bang-bang policy ~1.1
     assert idle < -25.0
     assert learned > best - 1.0
+
+
+def test_policy_bank_routes_each_row_through_its_own_actor(tmp_path):
+    from evoscen_bv.learned import PolicyBank
+
+    actors = []
+    for seed in (1, 2, 3):
+        agent = TD3(state_dim=30, action_dim=1, max_action=1.0, params=TD3Params(hidden=8), seed=seed)
+        export_actor(agent.actor, tmp_path / f"{seed}.npz")
+        actors.append(NumpyActor.load(tmp_path / f"{seed}.npz"))
+    x = np.random.default_rng(0).normal(size=(9, 30))
+    x[x < 0.5] = 0.0  # sparse, like the decision grid
+    col = np.array([0, 1, 2, 2, 1, 0, 0, 2, 1])
+    expected = np.array([actors[c].forward(x[r:r + 1])[0, 0] for r, c in enumerate(col)])
+    assert PolicyBank(actors).forward(x, col) == pytest.approx(expected, abs=1e-12)
