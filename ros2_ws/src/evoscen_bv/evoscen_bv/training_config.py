@@ -46,6 +46,9 @@ class EnvParams:
     """Length of a car-following episode (steps)."""
     decision_episode_decisions: int = 60
     """Decisions per lane-change episode (about one minute of traffic)."""
+    eval_every_steps: int = 5000
+    """Evaluate the deterministic policy every this many training steps; the best evaluation
+    is the stage's policy (see :mod:`evoscen_bv.pipeline`)."""
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from evoscen_bv.td3 import NumpyActor  # noqa: E402
 REPO = Path(__file__).resolve().parents[4] if (Path(__file__).resolve().parents[4] / "scripts").is_dir() else None
 SMOKE = """
 td3: {hidden: 16, batch_size: 32, start_steps: 100}
-env: {control_episode_steps: 100, decision_episode_decisions: 20, bv_count: 8}
+env: {control_episode_steps: 100, decision_episode_decisions: 20, bv_count: 8, eval_every_steps: 100}
 steps: {control: 300, level1: 150, level2: 150, competitive: 150, cooperative: 150}
 """
 
@@ -51,6 +51,8 @@ def test_smoke_pipeline_all_stages_produces_loadable_policies(tmp_path):
         rows = (out / stage / "curve.csv").read_text().splitlines()
         assert rows[0].startswith("episode,step,return") and len(rows) > 1
         assert (out / stage / "curve.png").stat().st_size > 0
+        evals = (out / stage / "eval.csv").read_text().splitlines()
+        assert evals[0] == "step,eval_mean_return" and len(evals) >= 2
         assert not (out / stage / "checkpoint.pt").exists()
     assert (out / "control" / "gap_kde.png").stat().st_size > 0
     controller, decisions, training = load_policies(out)
@@ -86,22 +88,22 @@ def test_resume_continues_exactly(tmp_path, monkeypatch):
     cfg.write_text(SMOKE)
     straight = Pipeline(tmp_path / "a", seed=3, config_path=cfg, progress=False, checkpoint_every=100)
     straight.run_stage("control")
-    from evoscen_bv import environments
+    from evoscen_bv import td3
 
-    real_step = environments.CarFollowingEnv.step
+    real_train = td3.TD3.train
     calls = {"n": 0}
 
-    def interrupted(self, action):  # noqa: ANN001, ANN202
+    def interrupted(self, replay, rng):  # noqa: ANN001, ANN202
         calls["n"] += 1
-        if calls["n"] == 250:
+        if calls["n"] == 150:  # training step 250 (learning starts after 100)
             raise KeyboardInterrupt
-        return real_step(self, action)
+        return real_train(self, replay, rng)
 
-    monkeypatch.setattr(environments.CarFollowingEnv, "step", interrupted)
+    monkeypatch.setattr(td3.TD3, "train", interrupted)
     with pytest.raises(KeyboardInterrupt):
         Pipeline(tmp_path / "b", seed=3, config_path=cfg, progress=False, checkpoint_every=100).run_stage("control")
     assert (tmp_path / "b" / "control" / "checkpoint.pt").is_file()
-    monkeypatch.setattr(environments.CarFollowingEnv, "step", real_step)
+    monkeypatch.setattr(td3.TD3, "train", real_train)
     Pipeline(tmp_path / "b", seed=3, config_path=None, progress=False, checkpoint_every=100).run_stage("control")
     a = NumpyActor.load(tmp_path / "a" / "controller.npz")
     b = NumpyActor.load(tmp_path / "b" / "controller.npz")
