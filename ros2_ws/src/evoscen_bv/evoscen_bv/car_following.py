@@ -59,8 +59,10 @@ class CarFollowingParams:
     """C: reward -C on a collision [choice]."""
     speed_gain: float = 0.5
     """k_v: free-road speed term, throttle per (m/s) of speed error, as accel (1/s) [choice]."""
-    merge_stop_margin_m: float = 15.0
-    """The merge lane's end is a standing leader this far before the lane ends (m)."""
+    merge_stop_margin_m: float = 60.0
+    """The merge lane's end is a standing leader this far before the lane ends (m) [choice:
+    60 m = where the taper begins (900 m), so a BV that finds no gap waits at full lane width
+    instead of in the taper, where its body would reach into lane II]."""
 
 
 def leader_state(gap_m: np.ndarray, leader_speed: np.ndarray, leader_accel: np.ndarray,

@@ -236,7 +236,7 @@ class DecisionEnv:
         self.lane_changes += int(executed[0] != 0)
         self.collisions += int(collided)
         o_c_next = drivable_area(w, ego, np.zeros(1, dtype=np.int64), p.front_view_m)
-        r_i = float(individual_reward(o_c, o_t, theta, requested, executed, o_c_next, p)[0])
+        r_i = float(individual_reward(o_c, o_t, theta, requested, executed, o_c_next, p, self.kind)[0])
         space, brake, speed = social_terms(w, self.ego, p)
         reward = r_i + social_reward(self.kind, space, brake, speed, p)
         self.obs = self._observe()

@@ -37,6 +37,8 @@ J_lc applies when a change is executed, J_req when requested ≠ executed (both 
 negative numbers). The outcome terms O_c'²/O_max² and the social sums are evaluated at
 the next decision, on the vehicles then in the back part of the ego's grid (Ω_b: the
 cells behind the ego, Δs in [-20, 0), all five lanes).
+[choice] J_lc differs by type (reward shaping, SPEC §3.3): -0.4 competitive, -0.8 mutual,
+-1.2 cooperative — the equations are the method's, the coefficients per type are ours.
 [choice] ϑ favours the left lanes: ϑ = ``theta_left`` for a lane left of the ego's lane,
 else 1 (for O_t: a change to the left; for O_c^b: a vehicle b in a lane left of the ego).
 The coefficients are the ``reward`` section of the training config
@@ -85,7 +87,11 @@ class RewardParams:
     gain_norm_m2: float = 2500.0
     """M: normaliser of the lane-change gain (m²); a 50 m gain gives 1."""
     lane_change_penalty: float = -0.8
-    """J_lc: added when a lane change is executed (negative)."""
+    """J_lc of the mutual driver: added when a lane change is executed (negative)."""
+    comp_lane_change_penalty: float = -0.4
+    """J_lc of the competitive driver [choice: a smaller penalty — the type that changes most]."""
+    coop_lane_change_penalty: float = -1.2
+    """J_lc of the cooperative driver [choice: a larger penalty — every change disturbs others]."""
     request_penalty: float = -0.5
     """J_req: added when the executed action differs from the requested one (negative)."""
     comp_space_weight: float = 0.1
@@ -94,7 +100,7 @@ class RewardParams:
     """v: competitive weight of the followers' signed squared acceleration."""
     comp_brake_bound: float = 0.1
     """z: upper bound of the competitive acceleration term."""
-    coop_space_weight: float = 1.0
+    coop_space_weight: float = 0.3
     """m: cooperative weight of the followers' drivable area."""
     coop_speed_weight: float = 0.3
     """n: cooperative weight of the followers' signed squared speed."""
@@ -217,10 +223,17 @@ def lane_change_gain(o_current: np.ndarray, o_target: np.ndarray, theta: np.ndar
     return np.sign(x) * x**2 / p.gain_norm_m2
 
 
+def lane_change_penalty(kind: str, p: RewardParams) -> float:
+    """J_lc of the driver type ``kind`` (mutual, competitive, cooperative)."""
+    return {"mutual": p.lane_change_penalty, "competitive": p.comp_lane_change_penalty,
+            "cooperative": p.coop_lane_change_penalty}[kind]
+
+
 def individual_reward(o_current: np.ndarray, o_target: np.ndarray, theta: np.ndarray, requested: np.ndarray,
-                      executed: np.ndarray, o_current_next: np.ndarray, p: RewardParams) -> np.ndarray:
-    """r_i = gain + J_lc + J_req + O_c'²/O_max² (method §3.2, individual reward)."""
-    j_lc = np.where(np.asarray(executed) != 0, p.lane_change_penalty, 0.0)
+                      executed: np.ndarray, o_current_next: np.ndarray, p: RewardParams,
+                      kind: str = "mutual") -> np.ndarray:
+    """r_i = gain + J_lc + J_req + O_c'²/O_max² (method §3.2, individual reward); J_lc of ``kind``."""
+    j_lc = np.where(np.asarray(executed) != 0, lane_change_penalty(kind, p), 0.0)
     j_req = np.where(np.asarray(requested) != np.asarray(executed), p.request_penalty, 0.0)
     return (lane_change_gain(o_current, o_target, theta, p) + j_lc + j_req
             + np.asarray(o_current_next) ** 2 / p.front_view_m**2)

@@ -152,6 +152,8 @@ def load_training_config(path: Path | str | None = None) -> TrainingConfig:
               for name, f in sections.items()}
     cfg = TrainingConfig(**kwargs)
     for name, value in (("reward.lane_change_penalty", cfg.reward.lane_change_penalty),
+                        ("reward.comp_lane_change_penalty", cfg.reward.comp_lane_change_penalty),
+                        ("reward.coop_lane_change_penalty", cfg.reward.coop_lane_change_penalty),
                         ("reward.request_penalty", cfg.reward.request_penalty)):
         if value > 0:
             raise InputError(f"{path}: '{name}' = {value}: expected a number <= 0 (a penalty)")

@@ -59,12 +59,12 @@ def test_throttle_is_the_minimum_over_leaders_and_the_speed_cap():
 
 def test_observations_in_the_world_include_the_merge_lane_end():
     road = load_road()
-    # 0 follows 1 in lane 2; 2 drives alone on the merge lane 900 m (its end is 960 - 15 margin)
-    w = hand_built_world(road, s=[300, 340, 900], lane=[2, 2, 0], speed=[25, 22, 20])
+    # 0 follows 1 in lane 2; 2 drives alone on the merge lane at 850 m (its end 960 m - 60 m margin)
+    w = hand_built_world(road, s=[300, 340, 850], lane=[2, 2, 0], speed=[25, 22, 20])
     own, target = controller_observations(w, np.array([0, 2]), P)
     assert own[0] == pytest.approx([35.2 / 100, -3 / 33.33, 0.0, 1.0])
-    # standing obstacle at 945 m: gap 945 - 902.4 = 42.6 m, speed difference -20
-    assert own[1] == pytest.approx([42.6 / 100, -20 / 33.33, 0.0, 1.0])
+    # standing obstacle at 900 m (where the taper begins): gap 900 - 852.4 = 47.6 m, speed difference -20
+    assert own[1] == pytest.approx([47.6 / 100, -20 / 33.33, 0.0, 1.0])
     assert np.array_equal(own, target)  # nobody changes lanes
 
 

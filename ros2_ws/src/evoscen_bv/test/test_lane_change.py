@@ -141,6 +141,14 @@ def test_individual_reward_terms_by_hand():
     assert r == pytest.approx([0.09])
 
 
+def test_lane_change_penalty_differs_by_type():
+    p = RewardParams(lane_change_penalty=-0.8, comp_lane_change_penalty=-0.4, coop_lane_change_penalty=-1.2)
+    args = (np.array([50.0]), np.array([50.0]), np.ones(1), np.array([1]), np.array([1]), np.array([0.0]), p)
+    assert individual_reward(*args, "mutual") == pytest.approx([-0.8])
+    assert individual_reward(*args, "competitive") == pytest.approx([-0.4])
+    assert individual_reward(*args, "cooperative") == pytest.approx([-1.2])
+
+
 def test_social_terms_by_hand(road):
     p = HAND
     # ego (0) lane 2 at 300; b1 lane 2 at 290 (gap to the ego 10 - 4.8 = 5.2 m), b2 lane 3 at 285 (empty lane ahead),
