@@ -113,10 +113,12 @@ def speed_cap_throttle(speed: np.ndarray, desired_speed: np.ndarray, params: Car
 
 
 def merge_end_gap(world, idx: np.ndarray, params: CarFollowingParams) -> np.ndarray:  # noqa: ANN001
-    """Gap (m) of vehicles ``idx`` to the merge lane's standing end, ``inf`` off the merge lane."""
+    """Gap (m) of vehicles ``idx`` to the merge lane's standing end; ``inf`` off the merge lane and
+    while changing lanes (as for level-0 traffic: a vehicle that stopped at the line mid-change
+    would stand across two lanes, since a vehicle at rest cannot move sideways)."""
     end_s = float(world.road.lane_end_s[0])
     gap = end_s - params.merge_stop_margin_m - (world.s[idx] + 0.5 * world.length[idx])
-    return np.where(world.lane[idx] == 0, gap, np.inf)
+    return np.where((world.lane[idx] == 0) & (world.lane_change[idx] == 0), gap, np.inf)
 
 
 def controller_observations(world, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
@@ -211,7 +213,7 @@ def _learned_throttle_kernel(idx, s, v, a, lane, lane_change, length, speed_limi
         for which in range(2):
             if which == 0:
                 gap, vl, al = gap_front[i, 2], v_front[i, 2], a_front[i, 2]
-                if lane[i] == 0:  # the merge lane's end is a standing leader
+                if lane[i] == 0 and lane_change[i] == 0:  # the merge lane's end is a standing leader
                     end_gap = merge_stop_s - (s[i] + 0.5 * length[i])
                     if end_gap < gap:
                         gap, vl, al = end_gap, 0.0, 0.0

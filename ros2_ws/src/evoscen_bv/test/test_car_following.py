@@ -97,3 +97,14 @@ def test_fused_run_time_throttle_equals_the_pieces():
     fused = learned_throttle(w, idx, desired, PolicyBank([actor]), P, 3.0, 8.0)
     assert fused == pytest.approx(expected, abs=1e-12)
     assert target[1, 3] == 1.0 and not np.array_equal(own[1], target[1])  # the target lane's leader is seen
+
+
+def test_merge_lane_end_is_not_a_leader_while_changing_out_of_the_merge_lane():
+    road = load_road()
+    w = hand_built_world(road, s=[880.0], lane=[0], speed=[15.0])
+    own, _ = controller_observations(w, np.array([0]), P)
+    assert own[0, 3] == 1.0  # waiting for a gap: the line at 900 m is ahead
+    w.step(np.zeros(1), np.array([1]))
+    assert w.lane_change[0] == 1
+    own, target = controller_observations(w, np.array([0]), P)
+    assert own[0, 3] == 0.0 and target[0, 3] == 0.0  # merging: nothing ahead, it must not stop across the lanes
