@@ -17,6 +17,10 @@ BV, SUT, evaluator; 1 SUT + 20 BVs; the rate of the simulation node's stepping l
 start-up) for ``--graph-steps`` steps, and beside it the in-process rate of the same
 scenario with recording on (the graph always records) and off.
 
+With ``--learned``: the learned BVs' cost — the in-process rate of the default scenario
+with ``bvs.driver: learned`` vs ``level0``, the driver's time per step, and one batched
+decision forward pass for all BVs in numpy and in torch (same weights, their max difference).
+
 With ``--sut-models``: the per-decision cost of every registered SUT model (median over a
 run of the default scenario) and the in-process rate with it as the SUT.
 
@@ -108,6 +112,95 @@ def sut_model_costs(steps: int) -> dict[str, dict]:
     return out
 
 
+def learned_bv_costs(steps: int, repeats: int) -> dict:
+    """Batched learned-BV inference per step (torch vs numpy forward) and the in-process step rate
+    of the default scenario with ``bvs.driver`` learned vs level0 (recording off)."""
+    import numpy as np
+
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_bv.lane_change import OBS_DIM, observation_grid
+    from evoscen_sim.config import load_scenario_config
+
+    out: dict = {}
+    for driver in ("level0", "learned"):
+        cfg = load_scenario_config(None, {"bvs.driver": driver})
+        rates = []
+        for _ in range(repeats):
+            sc = build_scenario(cfg)
+            for _ in range(300):
+                sc.step()
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                sc.step()
+            rates.append(steps / (time.perf_counter() - t0))
+        out[f"{driver}_steps_per_s"] = statistics.median(rates)
+        if driver == "learned":
+            drv = sc.bv_driver
+            while sc.world.step_index % drv.config.env.decision_interval_steps:
+                sc.step()  # act() below then times a decision step (the world does not advance)
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                drv.act(sc.world)
+            out["learned_act_us"] = (time.perf_counter() - t0) / steps * 1e6
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                drv.throttle(sc.world)
+            out["learned_throttle_us"] = (time.perf_counter() - t0) / steps * 1e6
+            idx = drv.vehicles
+            t0 = time.perf_counter()
+            for _ in range(200):
+                grid = observation_grid(sc.world, idx, drv.config.grid).reshape(idx.size, OBS_DIM)
+            out["grid_us"] = (time.perf_counter() - t0) / 200 * 1e6
+            out.update(_forward_costs(drv, sc.world, grid))
+    out["learned_added_percent"] = 100.0 * (out["level0_steps_per_s"] / out["learned_steps_per_s"] - 1.0)
+    return out
+
+
+def _forward_costs(drv, world, grid) -> dict:  # noqa: ANN001
+    """One batched decision forward pass for all BVs (each through its own policy): the compiled
+    kernel used at run time, plain numpy matmuls, and torch (same weights); max differences."""
+    import numpy as np
+
+    col = drv.policy_columns(world, drv.vehicles)
+    rows = [np.flatnonzero(col == p) for p in range(len(drv.decision_actors))]
+    reps = 1000
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        ref = drv.stack.forward(grid, col)
+    out = {"kernel_forward_us": (time.perf_counter() - t0) / reps * 1e6, "batch": int(grid.shape[0])}
+    y = np.empty(grid.shape[0])
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        for p, actor in enumerate(drv.decision_actors):
+            y[rows[p]] = actor.forward(grid[rows[p]])[:, 0]
+    out["numpy_forward_us"] = (time.perf_counter() - t0) / reps * 1e6
+    out["max_abs_diff_numpy_kernel"] = float(np.max(np.abs(y - ref)))
+    try:
+        import torch
+
+        from evoscen_bv.td3 import build_actor
+    except ImportError:
+        return out
+    torch.set_num_threads(1)
+    nets = []
+    for a in drv.decision_actors:
+        net = build_actor(a.state_dim, 1, a.max_action, a.W1.shape[1])
+        with torch.no_grad():
+            for layer, w, b in ((net.l1, a.W1, a.b1), (net.l2, a.W2, a.b2), (net.l3, a.W3, a.b3)):
+                layer.weight.copy_(torch.as_tensor(w.T))
+                layer.bias.copy_(torch.as_tensor(b))
+        nets.append(net)
+    x = torch.as_tensor(grid, dtype=torch.float32)
+    with torch.no_grad():
+        t0 = time.perf_counter()
+        for _ in range(reps):
+            for p, net in enumerate(nets):
+                y[rows[p]] = net(x[rows[p]]).numpy()[:, 0]
+        out["torch_forward_us"] = (time.perf_counter() - t0) / reps * 1e6
+    out["max_abs_diff_torch_kernel"] = float(np.max(np.abs(y - ref)))
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="bench.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--steps", type=int, default=5000, help="timed steps per repeat (default 5000)")
@@ -118,6 +211,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="graph: also the lockstep rate of the node graph (default: in-process only)")
     ap.add_argument("--graph-steps", type=int, default=5000, help="steps of the graph run (default 5000)")
     ap.add_argument("--sut-models", action="store_true", help="also the per-decision cost of every SUT model")
+    ap.add_argument("--learned", action="store_true",
+                    help="also the learned BVs' inference cost and the in-process rate with learned vs level-0 BVs")
     ap.add_argument("--json", action="store_true", help="also print the figures as one JSON line")
     args = ap.parse_args(argv)
     for name in ("steps", "repeats", "bag_steps", "graph_steps"):
@@ -151,6 +246,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"SUT models (in-process, 20 level-0 BVs, {args.steps} steps; target >= 3000 steps/s each):")
         for name, c in costs.items():
             print(f"  {name:12s} {c['decision_us']:7.1f} us/decision   {c['steps_per_s']:8.0f} steps/s")
+    if args.learned:
+        lc = learned_bv_costs(args.steps, args.repeats)
+        out["learned"] = lc
+        print(f"learned BVs (shipped policies, 20 BVs, one batched forward per step; {args.steps} steps x {args.repeats}):")
+        print(f"  in-process {lc['learned_steps_per_s']:8.0f} steps/s learned vs {lc['level0_steps_per_s']:8.0f} level-0: "
+              f"+{lc['learned_added_percent']:.0f} % step time   (target <= 50 %)")
+        print(f"  controller (every step) {lc['learned_throttle_us']:.1f} us; a decision step (every 10th: grid, forward, "
+              f"rule constraints, controller) {lc['learned_act_us']:.1f} us, of which the grid {lc['grid_us']:.1f} us")
+        line = (f"  decision forward pass, {lc['batch']} BVs, 3 policies: compiled kernel {lc['kernel_forward_us']:.1f} us, "
+                f"numpy {lc['numpy_forward_us']:.1f} us")
+        if "torch_forward_us" in lc:
+            line += f", torch {lc['torch_forward_us']:.1f} us"
+        print(line)
+        print(f"  max |difference| to the kernel: numpy {lc['max_abs_diff_numpy_kernel']:.1e}"
+              + (f", torch (float32) {lc['max_abs_diff_torch_kernel']:.1e}" if "torch_forward_us" in lc else ""))
     if not args.no_sumo:
         sys.path.insert(0, str(Path(__file__).resolve().parent))
         from sumo_baseline import measure_sumo_steps_per_second, sumo_available

@@ -2,18 +2,56 @@
 
 * ``level0`` (roles ``bv`` and ``sut``): the level-0 driver (:mod:`evoscen_bv.level0`),
   parameters from the scenario's ``level0`` section.
+* ``learned`` (role ``bv``): the TD3-trained social drivers (:mod:`evoscen_bv.learned`) —
+  every BV drives with the trained car-following controller and decides lane changes with
+  the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
+  Parameters ``models.learned``: ``policy_dir`` and ``on_missing`` (:class:`LearnedParams`).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+
+from evoscen_sim.config import text
+from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec, register_model
 from evoscen_sim.scenario_params import vehicle_params_from_config
 
 from .level0 import Level0Driver, level0_params_from_config
 
+SHIPPED = "shipped"
+
+
+@dataclass(frozen=True)
+class LearnedParams:
+    """Parameters of the ``learned`` BV driver (scenario YAML ``models.learned``)."""
+
+    policy_dir: str = text(SHIPPED)
+    """Directory of trained policies (``controller.npz``, ``mutual.npz``, ``competitive.npz``,
+    ``cooperative.npz``, ``training.yaml``), as written by ``scripts/train_bv.py --out``;
+    ``shipped`` (default) = the policies shipped in ``share/evoscen_bv/policies``. A relative
+    path is relative to the working directory."""
+    on_missing: str = text("error", ("error", "level0"))
+    """What to do when the policy directory lacks policies: ``error`` (one-line error, the
+    default) or ``level0`` (drive every BV with the level-0 driver instead)."""
+
 
 def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
     return Level0Driver(vehicles, level0_params_from_config(config), rng, vehicle_params_from_config(config))
+
+
+def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN202
+    from .learned import LearnedDriver, load_policies, shipped_policy_dir
+
+    directory = shipped_policy_dir() if params.policy_dir == SHIPPED else Path(params.policy_dir)
+    try:
+        controller, decisions, training = load_policies(directory)
+    except InputError as exc:
+        if params.on_missing == "level0":
+            return _level0(vehicles, None, config, rng)
+        raise InputError(f"models.learned.policy_dir = {params.policy_dir}: {exc}") from None
+    return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config))
 
 
 LEVEL0 = ModelSpec(
@@ -23,3 +61,12 @@ LEVEL0 = ModelSpec(
     description="level-0 traffic: IDM, keep lane, forced merges only (SPEC 3.3)",
 )
 register_model(LEVEL0)
+
+LEARNED = ModelSpec(
+    name="learned",
+    roles=("bv",),
+    factory=_learned,
+    params_type=LearnedParams,
+    description="TD3-trained social drivers: competitive, mutual, cooperative by bvs.mix (SPEC 3)",
+)
+register_model(LEARNED)

@@ -149,10 +149,10 @@ def test_merge_lane_end_is_a_stop_when_lane1_blocked(road: RoadModel) -> None:
 
 # ---------------------------------------------------------------- default scenario
 def test_default_scenario_level0_traffic() -> None:
-    """3,000 steps of the default scenario (all level-0): lane changes only from the merge lane
-    into lane 1, every merging vehicle leaves lane 0 before 960 m, nobody leaves the road, no
-    collisions."""
-    sc = build_scenario(load_scenario_config(None))
+    """3,000 steps of the default scenario with level-0 BVs: lane changes only from the merge
+    lane into lane 1, every merging vehicle leaves lane 0 before 960 m, nobody leaves the road,
+    no collisions."""
+    sc = build_scenario(load_scenario_config(None, {"bvs.driver": "level0"}))
     w = sc.world
     changes = []
     executed = 0
@@ -177,15 +177,17 @@ def test_default_scenario_level0_traffic() -> None:
 
 
 # ---------------------------------------------------------------- same decisions from the wire
-def test_level0_decides_identically_on_the_world_and_on_its_table_view():
-    """A node sees only the world table: rebuilt into a WorldView it must give the same commands."""
+@pytest.mark.parametrize("driver", ["level0", "learned"])
+def test_bv_driver_decides_identically_on_the_world_and_on_its_table_view(driver: str):
+    """A node sees only the world table: rebuilt into a WorldView it must give the same commands
+    (level-0 and the learned BVs, which the graph/in-process bag identity relies on)."""
     from evoscen_bringup.scenario import build_scenario
     from evoscen_contract.tables import table_columns, table_message
     from evoscen_contract.topics import MAP_FRAME, WORLD_FIELDS
     from evoscen_sim.config import load_scenario_config
     from evoscen_sim.view import WorldView
 
-    sc = build_scenario(load_scenario_config(None))
+    sc = build_scenario(load_scenario_config(None, {"bvs.driver": driver}))
     for _ in range(1500):  # through merges, lane changes and re-entries
         w = sc.world
         cols = w.columns()

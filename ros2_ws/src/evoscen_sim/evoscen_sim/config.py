@@ -302,6 +302,11 @@ def flag(default: bool) -> Any:
     return field(default=default, metadata=_check(_Bool()))
 
 
+def text(default: str, choices: tuple[str, ...] | None = None) -> Any:
+    """A non-empty string parameter, optionally one of ``choices``."""
+    return field(default=default, metadata=_check(_Str(None if choices is None else (lambda: choices))))
+
+
 def number_range(default: tuple[float, float], lo: float, hi: float, *, lo_open: bool = False) -> Any:
     """A ``[lo, hi]`` pair parameter within bounds."""
     return field(default=default, metadata=_check(_Range(lo, hi, lo_open=lo_open)))

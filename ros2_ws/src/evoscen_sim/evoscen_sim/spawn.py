@@ -79,6 +79,8 @@ def spawn_layout(
         s_list.append(s)
         lane_list.append(lane)
     s_bv = np.array(s_list, dtype=float) + rng.uniform(-jitter, jitter, size=n_bv)
+    # the jitter must not move a ramp vehicle's centre before the merge lane starts
+    s_bv[:ramp_vehicles] = np.maximum(s_bv[:ramp_vehicles], start + 0.5 * vehicle_length_m)
     v_bv = rng.uniform(speed_range_mps[0], speed_range_mps[1], size=n_bv)
     return InitialState(
         ids=np.arange(n_bv + 1, dtype=np.int64),

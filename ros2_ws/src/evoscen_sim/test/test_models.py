@@ -68,5 +68,5 @@ def test_bad_model_parameters_are_one_line_errors(models, expected):
 def test_unknown_model_names_the_key_and_lists_choices():
     with pytest.raises(InputError, match=r"key 'sut.model' = 'nosuch': expected one of .*level0.*toy_sut"):
         config_from_dict({"sut": {"model": "nosuch"}}, source="s.yaml")
-    with pytest.raises(InputError, match=r"unknown bvs.driver 'toy_sut': expected one of level0"):
+    with pytest.raises(InputError, match=r"unknown bvs.driver 'toy_sut': expected one of learned, level0"):
         get_model("toy_sut", "bv")

@@ -280,3 +280,13 @@ def test_spawn_layout_too_many_ramp_vehicles(road: RoadModel) -> None:
         spawn_layout(road, ramp_vehicles=9, rng=np.random.default_rng(0), **kwargs)
     with pytest.raises(InputError):
         spawn_layout(road, **{**kwargs, "sut_lane": 0}, ramp_vehicles=0, rng=np.random.default_rng(0))
+
+
+def test_spawn_jitter_never_puts_a_ramp_vehicle_before_the_merge_lane(road: RoadModel) -> None:
+    # the first ramp slot is 604.8 m; a jitter of -5 m would put its centre at 599.8 m, before the
+    # merge lane starts (600 m): it is held at 600 + L/2 (this seed drew such a jitter: a World error before)
+    kwargs = dict(bv_policies=np.zeros(20, dtype=np.int64), sut_policy=4, sut_lane=2, sut_s_m=300.0,
+                  sut_speed_mps=27.0, mainline_gap_m=40.0, speed_range_mps=(24.0, 30.0), jitter_m=5.0,
+                  vehicle_length_m=L, ramp_vehicles=3)
+    lowest = min(spawn_layout(road, rng=np.random.default_rng(seed), **kwargs).s_m[1] for seed in range(200))
+    assert lowest == pytest.approx(600.0 + L / 2)

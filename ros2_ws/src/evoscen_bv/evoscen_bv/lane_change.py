@@ -1,0 +1,274 @@
+"""The lane-change decision model (SPEC §3.2): grid observation, action, rule constraints, rewards.
+
+Observation Ω_d of vehicle ``i``: a grid of 5 lanes (row ``r`` = lane offset ``r - 2`` from
+the ego's lane, +1 = left) by 25 longitudinal cells of 5 m (cell ``c`` holds centre offsets
+Δs = s_j - s_i in [-20 + 5c, -15 + 5c) m, i.e. 20 m behind to 105 m ahead) by 4 layers:
+
+* P: 1 where another vehicle's centre is in the cell, -1 where the cell is off the road
+  (the lane does not exist there: beyond the road edges, the merge lane before its start
+  and after its end), else 0;
+* Δv_s = (v_j - v_i) / v_max, the relative longitudinal speed;
+* Δv_d = (v_j sin ψ_j - v_i sin ψ_i) / lateral_speed_scale, the relative lateral speed;
+* Δe = (ψ_j - ψ_i) / yaw_scale, the relative yaw (ψ relative to the road).
+
+The ego itself is not in its grid. Two vehicles in one cell: the one nearer the ego
+longitudinally is shown. The grid is built for all deciding vehicles in one compiled pass;
+the flattened order is (lane row, cell, layer), 500 values.
+
+Action: one continuous output a ∈ [-1, 1] → right (-1) if a < -1/3, left (+1) if a > 1/3,
+else keep [choice: thresholds ±1/3].
+
+Rule constraints on the requested action (the executed action can differ; the reward's
+J_req fires when it does): a change that would leave the road becomes keep; a change into
+a lane with another vehicle within 10 m longitudinally (bumper-to-bumper, overlaps
+included; a vehicle changing into that lane counts as in it) becomes keep.
+
+Rewards (method §3.2), with O the drivable area — the gap to the nearest vehicle ahead
+in a lane, also bounded by the end of that lane and by the front view O_max:
+
+* individual: r_i = sgn(ϑO_t - O_c)(ϑO_t - O_c)²/M + J_lc + J_req + O_c'²/O_max²
+* mutual: r = r_i
+* competitive: r = r_i - u Σ_b (ϑO_c^b)²/O_max² - v Σ_b min(s̈_b|s̈_b|/s̈_max², z)
+* cooperative: r = r_i + m Σ_b (ϑO_c^b)²/O_max² + n Σ_b min(ṡ_b|ṡ_b|/ṡ_max², y)
+
+[choice] timing: the lane-change gain (O_c, O_t) and the penalties are evaluated at the
+decision (O_t is the lane of the *executed* action; for keep O_t = O_c and the gain is 0);
+J_lc applies when a change is executed, J_req when requested ≠ executed (both are
+negative numbers). The outcome terms O_c'²/O_max² and the social sums are evaluated at
+the next decision, on the vehicles then in the back part of the ego's grid (Ω_b: the
+cells behind the ego, Δs in [-20, 0), all five lanes).
+[choice] J_lc differs by type (reward shaping, SPEC §3.3): -0.4 competitive, -0.8 mutual,
+-1.2 cooperative — the equations are the method's, the coefficients per type are ours.
+[choice] ϑ favours the left lanes: ϑ = ``theta_left`` for a lane left of the ego's lane,
+else 1 (for O_t: a change to the left; for O_c^b: a vehicle b in a lane left of the ego).
+The coefficients are the ``reward`` section of the training config
+(``share/evoscen_bv/config/training.yaml``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from evoscen_sim.jit import kernel
+
+LANES = 5
+CELLS = 25
+LAYERS = 4
+CELL_M = 5.0
+BEHIND_M = 20.0
+OBS_DIM = LANES * CELLS * LAYERS
+BACK_CELLS = int(BEHIND_M / CELL_M)
+"""Cells 0..3 are behind the ego (Ω_b)."""
+ACTION_THRESHOLD = 1.0 / 3.0
+CUT_IN_GAP_M = 10.0
+
+
+@dataclass(frozen=True)
+class GridParams:
+    """Normalisers of the grid layers."""
+
+    v_max_mps: float = 33.33
+    lateral_speed_scale_mps: float = 2.0
+    """[choice] lateral speeds of a lane change are 0.5-1.5 m/s."""
+    yaw_scale_rad: float = 0.2
+    """[choice] headings relative to the road stay within ±0.1 rad."""
+
+
+@dataclass(frozen=True)
+class RewardParams:
+    """Coefficients of the decision rewards (method §3.2) [choice: values are ours]."""
+
+    front_view_m: float = 100.0
+    """O_max: the front view bounding the drivable area (m)."""
+    theta_left: float = 1.1
+    """ϑ: factor favouring lanes to the left."""
+    gain_norm_m2: float = 2500.0
+    """M: normaliser of the lane-change gain (m²); a 50 m gain gives 1."""
+    lane_change_penalty: float = -0.8
+    """J_lc of the mutual driver: added when a lane change is executed (negative)."""
+    comp_lane_change_penalty: float = -0.4
+    """J_lc of the competitive driver [choice: a smaller penalty — the type that changes most]."""
+    coop_lane_change_penalty: float = -1.2
+    """J_lc of the cooperative driver [choice: a larger penalty — every change disturbs others]."""
+    request_penalty: float = -0.5
+    """J_req: added when the executed action differs from the requested one (negative)."""
+    comp_space_weight: float = 0.1
+    """u: competitive weight of the followers' drivable area."""
+    comp_brake_weight: float = 4.0
+    """v: competitive weight of the followers' signed squared acceleration."""
+    comp_brake_bound: float = 0.1
+    """z: upper bound of the competitive acceleration term."""
+    coop_space_weight: float = 0.3
+    """m: cooperative weight of the followers' drivable area."""
+    coop_speed_weight: float = 0.3
+    """n: cooperative weight of the followers' signed squared speed."""
+    coop_speed_bound: float = 1.0
+    """y: upper bound of the cooperative speed term."""
+    accel_norm_mps2: float = 8.0
+    """s̈_max (m/s²)."""
+    speed_norm_mps: float = 33.33
+    """ṡ_max (m/s)."""
+
+
+def action_to_lane_change(a: np.ndarray) -> np.ndarray:
+    """Continuous actions → requests {-1 right, 0 keep, +1 left} (thresholds ±1/3)."""
+    a = np.asarray(a, dtype=float)
+    return np.where(a > ACTION_THRESHOLD, 1, np.where(a < -ACTION_THRESHOLD, -1, 0)).astype(np.int64)
+
+
+def cell_centres_m() -> np.ndarray:
+    """Longitudinal offset of every cell's centre from the ego (m)."""
+    return -BEHIND_M + CELL_M * (np.arange(CELLS) + 0.5)
+
+
+def observation_grid(view, idx: np.ndarray, params: GridParams = GridParams()) -> np.ndarray:  # noqa: ANN001
+    """Ω_d of vehicles ``idx`` in ``view`` (a world or world view): shape ``(m, 5, 25, 4)``."""
+    idx = np.asarray(idx, dtype=np.int64)
+    m = idx.size
+    # off-road cells: lane lane_i + offset does not exist at s_i + cell centre
+    lanes = view.lane[idx][:, None, None] + np.arange(-2, 3)[None, :, None]
+    s_cell = view.s[idx][:, None, None] + cell_centres_m()[None, None, :]
+    lanes, s_cell = np.broadcast_arrays(lanes, s_cell)
+    on_road = view.road.lane_exists(lanes.reshape(-1), s_cell.reshape(-1)).reshape(m, LANES, CELLS)
+    return _grid_kernel(idx, view.s, view.lane, view.v, view.psi, on_road,
+                        params.v_max_mps, params.lateral_speed_scale_mps, params.yaw_scale_rad)
+
+
+@kernel
+def _grid_kernel(idx, s, lane, v, psi, on_road, v_max, lat_scale, yaw_scale):  # noqa: ANN001, ANN202
+    m = idx.shape[0]
+    n = s.shape[0]
+    grid = np.zeros((m, 5, 25, 4))
+    nearest = np.full((m, 5, 25), np.inf)
+    for k in range(m):
+        i = idx[k]
+        for r in range(5):
+            for c in range(25):
+                if not on_road[k, r, c]:
+                    grid[k, r, c, 0] = -1.0
+        vlat_i = v[i] * np.sin(psi[i])
+        for j in range(n):
+            if j == i:
+                continue
+            r = lane[j] - lane[i] + 2
+            if r < 0 or r > 4:
+                continue
+            ds = s[j] - s[i]
+            c = int(np.floor((ds + 20.0) / 5.0))
+            if c < 0 or c > 24:
+                continue
+            if abs(ds) >= nearest[k, r, c]:
+                continue
+            nearest[k, r, c] = abs(ds)
+            grid[k, r, c, 0] = 1.0
+            grid[k, r, c, 1] = (v[j] - v[i]) / v_max
+            grid[k, r, c, 2] = (v[j] * np.sin(psi[j]) - vlat_i) / lat_scale
+            grid[k, r, c, 3] = (psi[j] - psi[i]) / yaw_scale
+    return grid
+
+
+def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    """The executed actions: ``requested`` with the two rule constraints applied (see module docstring).
+
+    [choice] A vehicle counts as in the target lane when it is in it or changing into it
+    (its target lane), so two vehicles cannot cut into the same gap from both sides.
+    """
+    idx = np.asarray(idx, dtype=np.int64)
+    req = np.asarray(requested, dtype=np.int64)
+    target = view.lane[idx] + req
+    on_road = view.road.lane_exists(target, view.s[idx])
+    return _constraint_kernel(idx, req, on_road, view.s, view.lane, view.target_lane, view.length, CUT_IN_GAP_M)
+
+
+@kernel
+def _constraint_kernel(idx, req, on_road, s, lane, target_lane, length, min_gap):  # noqa: ANN001, ANN202
+    m = idx.shape[0]
+    n = s.shape[0]
+    out = np.zeros(m, dtype=np.int64)
+    for k in range(m):
+        r = req[k]
+        if r == 0 or not on_road[k]:  # off-road change -> keep
+            continue
+        i = idx[k]
+        tgt = lane[i] + r
+        ok = True
+        for j in range(n):
+            if j == i or (lane[j] != tgt and target_lane[j] != tgt):
+                continue
+            if abs(s[j] - s[i]) - 0.5 * (length[i] + length[j]) < min_gap:  # cut-in within 10 m -> keep
+                ok = False
+                break
+        if ok:
+            out[k] = r
+    return out
+
+
+def drivable_area(view, idx: np.ndarray, lane_offset: np.ndarray, front_view_m: float) -> np.ndarray:  # noqa: ANN001
+    """O: gap to the nearest vehicle ahead in lane ``lane[i] + offset``, bounded by that lane's end and O_max."""
+    idx = np.asarray(idx, dtype=np.int64)
+    off = np.asarray(lane_offset, dtype=np.int64)
+    nb = view.neighborhood()
+    gap = nb.gap_front_m[idx, 2 + off]
+    lane = view.lane[idx] + off
+    to_end = view.road.distance_to_lane_end(lane, view.s[idx]) - 0.5 * view.length[idx]
+    to_end = np.where(np.isnan(to_end), 0.0, to_end)
+    return np.clip(np.minimum(gap, to_end), 0.0, front_view_m)
+
+
+def lane_change_gain(o_current: np.ndarray, o_target: np.ndarray, theta: np.ndarray, p: RewardParams) -> np.ndarray:
+    """sgn(ϑO_t - O_c)(ϑO_t - O_c)²/M (method §3.2, individual reward, first term)."""
+    x = theta * o_target - o_current
+    return np.sign(x) * x**2 / p.gain_norm_m2
+
+
+def lane_change_penalty(kind: str, p: RewardParams) -> float:
+    """J_lc of the driver type ``kind`` (mutual, competitive, cooperative)."""
+    return {"mutual": p.lane_change_penalty, "competitive": p.comp_lane_change_penalty,
+            "cooperative": p.coop_lane_change_penalty}[kind]
+
+
+def individual_reward(o_current: np.ndarray, o_target: np.ndarray, theta: np.ndarray, requested: np.ndarray,
+                      executed: np.ndarray, o_current_next: np.ndarray, p: RewardParams,
+                      kind: str = "mutual") -> np.ndarray:
+    """r_i = gain + J_lc + J_req + O_c'²/O_max² (method §3.2, individual reward); J_lc of ``kind``."""
+    j_lc = np.where(np.asarray(executed) != 0, lane_change_penalty(kind, p), 0.0)
+    j_req = np.where(np.asarray(requested) != np.asarray(executed), p.request_penalty, 0.0)
+    return (lane_change_gain(o_current, o_target, theta, p) + j_lc + j_req
+            + np.asarray(o_current_next) ** 2 / p.front_view_m**2)
+
+
+def back_vehicles(view, i: int) -> np.ndarray:  # noqa: ANN001
+    """Ω_b of vehicle ``i``: indices of the vehicles in the back part of its grid."""
+    ds = view.s - view.s[i]
+    dl = view.lane - view.lane[i]
+    mask = (ds >= -BEHIND_M) & (ds < 0.0) & (np.abs(dl) <= 2)
+    mask[i] = False
+    return np.flatnonzero(mask)
+
+
+def social_terms(view, i: int, p: RewardParams) -> tuple[float, float, float]:  # noqa: ANN001
+    """Σ_b (ϑO_c^b)²/O_max², Σ_b min(s̈_b|s̈_b|/s̈_max², z), Σ_b min(ṡ_b|ṡ_b|/ṡ_max², y) over Ω_b of ``i``."""
+    b = back_vehicles(view, i)
+    if b.size == 0:
+        return 0.0, 0.0, 0.0
+    o_b = drivable_area(view, b, np.zeros(b.size, dtype=np.int64), p.front_view_m)
+    theta = np.where(view.lane[b] > view.lane[i], p.theta_left, 1.0)
+    space = float(np.sum((theta * o_b) ** 2) / p.front_view_m**2)
+    a = view.accel[b]
+    brake = float(np.sum(np.minimum(a * np.abs(a) / p.accel_norm_mps2**2, p.comp_brake_bound)))
+    v = view.v[b]
+    speed = float(np.sum(np.minimum(v * np.abs(v) / p.speed_norm_mps**2, p.coop_speed_bound)))
+    return space, brake, speed
+
+
+def social_reward(kind: str, space: float, brake: float, speed: float, p: RewardParams) -> float:
+    """The social part of the reward of ``kind`` (mutual: 0; method §3.2)."""
+    if kind == "mutual":
+        return 0.0
+    if kind == "competitive":
+        return -p.comp_space_weight * space - p.comp_brake_weight * brake
+    if kind == "cooperative":
+        return p.coop_space_weight * space + p.coop_speed_weight * speed
+    raise ValueError(f"unknown reward kind {kind!r}: expected mutual, competitive or cooperative")

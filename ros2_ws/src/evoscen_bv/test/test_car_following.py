@@ -1,0 +1,110 @@
+"""The car-following controller's observation, reward and throttle composition, by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from evoscen_bv.car_following import (
+    CarFollowingParams,
+    car_following_reward,
+    compose_throttle,
+    controller_observations,
+    gap_value,
+    leader_state,
+    speed_cap_throttle,
+)
+from evoscen_sim.road import load_road
+from evoscen_sim.testing import hand_built_world
+
+P = CarFollowingParams()
+
+
+def test_observation_normalised_by_view_speed_and_accel():
+    obs = leader_state(np.array([30.0, np.inf, 120.0]), np.array([20.0, np.nan, 20.0]), np.array([1.0, np.nan, 0.0]),
+                       np.array([25.0, 25.0, 25.0]), np.array([-1.0, 0.0, 0.0]), P)
+    # [Δs / o_smax, (v_l - v) / v_max, (a_l - a) / a_max, λ]
+    assert obs[0] == pytest.approx([0.3, -5 / 33.33, 2 / 8.0, 1.0])
+    assert obs[1].tolist() == [0.0, 0.0, 0.0, 0.0]  # no leader
+    assert obs[2].tolist() == [0.0, 0.0, 0.0, 0.0]  # leader beyond the 100 m view
+
+
+def test_reward_by_hand():
+    s = leader_state(np.array([30.0]), np.array([20.0]), np.array([0.0]), np.array([25.0]), np.array([0.0]), P)
+    s2 = leader_state(np.array([27.0]), np.array([20.0]), np.array([0.0]), np.array([25.0]), np.array([0.0]), P)
+    # V(s) = -(30 - 25)² / 100² = -0.0025, V(s') = -(27 - 25)² / 100² = -0.0004
+    assert gap_value(s, P) == pytest.approx([-0.0025])
+    assert gap_value(s2, P) == pytest.approx([-0.0004])
+    # r = μ V(s') + k (V(s') - V(s)) = -0.0004 + 10 · 0.0021 = 0.0206
+    assert car_following_reward(s, s2, np.array([False]), P) == pytest.approx([0.0206])
+    # moving away from the target gap is penalised
+    assert car_following_reward(s2, s, np.array([False]), P) == pytest.approx([-0.0025 - 0.021])
+    # collision: -C
+    assert car_following_reward(s, s2, np.array([True]), P) == pytest.approx([-10.0])
+
+
+def test_throttle_is_the_minimum_over_leaders_and_the_speed_cap():
+    seen = np.array([[0.3, 0.0, 0.0, 1.0]] * 3)
+    none = np.zeros((3, 4))
+    u = compose_throttle(np.array([0.5, -0.2, 0.9]), np.array([0.1, 0.0, 0.0]), seen, np.vstack([seen[:2], none[:1]]),
+                         np.array([1.0, 1.0, 0.2]))
+    assert u.tolist() == pytest.approx([0.1, -0.2, 0.2])
+    # free road: only the speed term k_v (v_des - v): 0.5 · (30 - 24) = 3 m/s² → full throttle (3 m/s²)
+    free = compose_throttle(np.array([-1.0]), np.array([-1.0]), none[:1], none[:1],
+                            speed_cap_throttle(np.array([24.0]), np.array([30.0]), P, 3.0, 8.0))
+    assert free.tolist() == pytest.approx([1.0])
+    # above the desired speed it brakes: 0.5 · (30 - 34) = -2 m/s² → -2/8
+    assert speed_cap_throttle(np.array([34.0]), np.array([30.0]), P, 3.0, 8.0) == pytest.approx([-0.25])
+
+
+def test_observations_in_the_world_include_the_merge_lane_end():
+    road = load_road()
+    # 0 follows 1 in lane 2; 2 drives alone on the merge lane at 850 m (its end 960 m - 60 m margin)
+    w = hand_built_world(road, s=[300, 340, 850], lane=[2, 2, 0], speed=[25, 22, 20])
+    own, target = controller_observations(w, np.array([0, 2]), P)
+    assert own[0] == pytest.approx([35.2 / 100, -3 / 33.33, 0.0, 1.0])
+    # standing obstacle at 900 m (where the taper begins): gap 900 - 852.4 = 47.6 m, speed difference -20
+    assert own[1] == pytest.approx([47.6 / 100, -20 / 33.33, 0.0, 1.0])
+    assert np.array_equal(own, target)  # nobody changes lanes
+
+
+def test_fused_run_time_throttle_equals_the_pieces():
+    """The compiled run-time throttle = observations → controller → min with the speed term."""
+    pytest.importorskip("torch")
+    from evoscen_bv.car_following import learned_throttle
+    from evoscen_bv.learned import PolicyBank
+    from evoscen_bv.td3 import TD3, NumpyActor, TD3Params, export_actor
+
+    agent = TD3(4, 1, 1.0, TD3Params(hidden=16), seed=5)
+    import io
+
+    buf = io.BytesIO()
+    export_actor(agent.actor, buf)
+    buf.seek(0)
+    actor = NumpyActor(dict(np.load(buf)))
+    road = load_road()
+    # 0 behind 1; 2 changing lanes to the left towards 3's lane; 4 on the merge lane near its end; 5 alone
+    w = hand_built_world(road, s=[300, 330, 500, 540, 900, 1500], lane=[2, 2, 1, 2, 0, 3],
+                         speed=[25, 22, 28, 20, 20, 31])
+    w.step(np.zeros(6), np.array([0, 0, 1, 0, 0, 0]))
+    assert w.lane_change[2] == 1
+    idx = np.array([0, 2, 4, 5])
+    desired = np.array([30.0, 29.0, 28.0, 27.0])
+    own, target = controller_observations(w, idx, P)
+    u = actor.forward(np.vstack([own, target]))[:, 0]
+    cap = speed_cap_throttle(w.v[idx], np.minimum(desired, w.speed_limit_mps[idx]), P, 3.0, 8.0)
+    expected = compose_throttle(u[:4], u[4:], own, target, cap)
+    fused = learned_throttle(w, idx, desired, PolicyBank([actor]), P, 3.0, 8.0)
+    assert fused == pytest.approx(expected, abs=1e-12)
+    assert target[1, 3] == 1.0 and not np.array_equal(own[1], target[1])  # the target lane's leader is seen
+
+
+def test_merge_lane_end_is_not_a_leader_while_changing_out_of_the_merge_lane():
+    road = load_road()
+    w = hand_built_world(road, s=[880.0], lane=[0], speed=[15.0])
+    own, _ = controller_observations(w, np.array([0]), P)
+    assert own[0, 3] == 1.0  # waiting for a gap: the line at 900 m is ahead
+    w.step(np.zeros(1), np.array([1]))
+    assert w.lane_change[0] == 1
+    own, target = controller_observations(w, np.array([0]), P)
+    assert own[0, 3] == 0.0 and target[0, 3] == 0.0  # merging: nothing ahead, it must not stop across the lanes
