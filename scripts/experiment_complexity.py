@@ -44,7 +44,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds, write_csv
+    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds_with_bar, write_csv
     from evoscen_eval.metrics import complexity_score
     from evoscen_sim.config import load_scenario_config
     from evoscen_sim.errors import InputError
@@ -73,23 +73,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
         return 2
 
-    from tqdm import tqdm
-
-    bar = tqdm(total=len(rounds), unit="round", desc="complexity", file=sys.stderr)
-
-    def progress(done: int, total: int, text: str) -> None:
-        bar.n = done
-        bar.set_postfix_str(text)
-        bar.refresh()
-
-    try:
-        results = run_rounds(rounds, args.out, jobs=jobs, progress=progress)
-    except KeyboardInterrupt:
-        bar.close()
-        print(f"interrupted: finished rounds are kept in {args.out / 'rounds'}; run again to continue",
-              file=sys.stderr)
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="complexity")
+    if results is None:
         return 130
-    bar.close()
 
     ev = rounds[0].cfg.evaluation
     header = ["scenario", "BV driver", f"LC / {ev.window_steps}", f"AD / {ev.window_steps}", f"E / {ev.window_steps}",

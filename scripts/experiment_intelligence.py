@@ -53,7 +53,7 @@ def positive_int(name: str, text: str, lo: int = 1) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds, write_csv
+    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds_with_bar, write_csv
     from evoscen_sim.config import load_scenario_config
     from evoscen_sim.errors import InputError
 
@@ -79,23 +79,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
         return 2
 
-    from tqdm import tqdm
-
-    bar = tqdm(total=len(rounds), unit="round", desc="intelligence", file=sys.stderr)
-
-    def progress(done: int, total: int, text: str) -> None:
-        bar.n = done
-        bar.set_postfix_str(text)
-        bar.refresh()
-
-    try:
-        results = run_rounds(rounds, args.out, jobs=jobs, progress=progress)
-    except KeyboardInterrupt:
-        bar.close()
-        print(f"interrupted: finished rounds are kept in {args.out / 'rounds'}; run again to continue",
-              file=sys.stderr)
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="intelligence")
+    if results is None:
         return 130
-    bar.close()
 
     header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
               "collisions", "exposures", "seeds"]

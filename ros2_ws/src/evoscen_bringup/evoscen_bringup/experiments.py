@@ -95,13 +95,11 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     todo: list[tuple[Round, str]] = []
     for rnd in rounds:
         path = rounds_dir / f"{rnd.key}.json"
-        if path.is_file():
-            try:
-                results[rnd.key] = json.loads(path.read_text(encoding="utf-8"))
-                continue
-            except (OSError, json.JSONDecodeError):
-                pass  # unreadable: run the round again
-        todo.append((rnd, str(path)))
+        saved = _saved_result(path)
+        if saved is not None:
+            results[rnd.key] = saved
+        else:
+            todo.append((rnd, str(path)))
     total = len(rounds)
     if progress is not None:
         progress(len(results), total, f"{len(results)} rounds already done")
@@ -122,6 +120,39 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
             if progress is not None:
                 progress(len(results), total, _brief(result))
     return results
+
+
+def _saved_result(path: Path) -> dict[str, Any] | None:
+    """A finished round's saved result; None if there is none or it cannot be read (the round runs again)."""
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError):
+        return None
+
+
+def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, desc: str
+                        ) -> dict[str, dict[str, Any]] | None:
+    """:func:`run_rounds` behind a tqdm progress bar (stderr); None after Ctrl-C (finished rounds are kept)."""
+    import sys
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(rounds), unit="round", desc=desc, file=sys.stderr)
+
+    def progress(done: int, total: int, text: str) -> None:
+        bar.n = done
+        bar.set_postfix_str(text)
+        bar.refresh()
+
+    try:
+        return run_rounds(rounds, out_dir, jobs=jobs, progress=progress)
+    except KeyboardInterrupt:
+        bar.close()
+        print(f"interrupted: finished rounds are kept in {out_dir / 'rounds'}; run again to continue",
+              file=sys.stderr)
+        return None
+    finally:
+        bar.close()
 
 
 def _brief(result: dict[str, Any]) -> str:
