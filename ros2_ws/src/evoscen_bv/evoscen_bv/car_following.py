@@ -24,6 +24,22 @@ road and caps the speed behind a fast leader. Training uses the same composition
 
 The end of the merge lane counts as a standing leader (as for level-0 traffic), so a BV
 that finds no gap waits there instead of running off the road.
+
+[choice] Leaders. A BV follows the nearest vehicle ahead *occupying* its lane: in it, or
+changing lanes into it — a merging vehicle's body reaches into the target lane before its
+centre crosses, and a follower there must see it (without this, most collisions among
+learned BVs were vehicles in lane II running into a merging vehicle that had stopped
+half-way). While changing lanes it also follows the target lane's leader.
+
+[choice] Emergency brake. The method's controller regulates the gap to a target; trained
+on 2 CPU cores it brakes too late for a standing queue met at highway speed (from 31 m/s it
+hit a standing vehicle first seen 95 m ahead). Every learned BV therefore also bounds its
+throttle by an emergency brake: with closing speed Δv = v - v_leader > 0 and gap Δs, the
+constant deceleration that matches the leader's speed at a margin m is
+b = Δv² / (2 (Δs - m)); when b ≥ ``emergency_decel_mps2`` (4 m/s², MOBIL's b_safe) the
+throttle is at most -b / b_max. It acts only where the policy's own braking is too weak;
+the benchmark and the model cards report how often (``emergency share``). Training uses
+the same composition.
 """
 
 from __future__ import annotations
@@ -63,6 +79,11 @@ class CarFollowingParams:
     """The merge lane's end is a standing leader this far before the lane ends (m) [choice:
     60 m = where the taper begins (900 m), so a BV that finds no gap waits at full lane width
     instead of in the taper, where its body would reach into lane II]."""
+    emergency_decel_mps2: float = 4.0
+    """The emergency brake acts when matching the leader's speed before the margin needs at
+    least this constant deceleration (m/s²) [choice: MOBIL's safe braking b_safe]."""
+    emergency_margin_m: float = 2.0
+    """Bumper gap the emergency brake keeps to a slower leader (m) [choice]."""
 
 
 def leader_state(gap_m: np.ndarray, leader_speed: np.ndarray, leader_accel: np.ndarray,
@@ -121,34 +142,139 @@ def merge_end_gap(world, idx: np.ndarray, params: CarFollowingParams) -> np.ndar
     return np.where((world.lane[idx] == 0) & (world.lane_change[idx] == 0), gap, np.inf)
 
 
+def leaders(view, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+    """The leaders a learned BV follows: ``(gap, speed, accel)``, each ``(m, 2)``.
+
+    A vehicle *occupies* a lane when its centre is in it, when it is changing lanes into it
+    (its target lane), or when its body reaches into it (the lateral extent
+    ½(W cos ψ + L |sin ψ|) around its centre crosses the lane's border by more than
+    ``OCCUPY_TOLERANCE_M``: a vehicle straddling two lanes, mid-change or just after).
+    Column 0: the nearest vehicle ahead occupying the BV's lane; on the merge lane, the
+    lane's standing end when nearer (not while changing lanes, see :func:`merge_end_gap`).
+    Column 1: the same for the BV's second lane — its target lane while changing lanes,
+    else the neighbouring lane its own body reaches into, else column 0 again. "Ahead":
+    larger ``s``, or equal ``s`` and a larger index (as the neighbourhood's). No leader: gap
+    ``inf``, speed and acceleration ``nan``.
+    """
+    lk = view.lane_lookup()
+    return _leaders_kernel(np.asarray(idx, dtype=np.int64), view.s, view.d, view.psi, view.v, view.accel, view.lane,
+                           view.lane_change, view.target_lane, view.length, view.width,
+                           lk.d_right, lk.d_left, lk.present,
+                           float(view.road.lane_end_s[0]) - params.merge_stop_margin_m)
+
+
+OCCUPY_TOLERANCE_M = 0.1
+"""A body must cross a lane's border by more than this to occupy the lane (m)."""
+
+
+@kernel
+def _occupies(j, q, d, psi, length, width, lane, lane_change, target_lane, d_right, d_left, present):  # noqa: ANN001, ANN202
+    tol = 0.1  # OCCUPY_TOLERANCE_M
+    if lane[j] == q or (lane_change[j] != 0 and target_lane[j] == q):
+        return True
+    if q < 0 or q >= present.shape[1] or not present[j, q]:
+        return False
+    e = 0.5 * (width[j] * np.cos(psi[j]) + length[j] * abs(np.sin(psi[j])))
+    return d[j] + e > d_right[j, q] + tol and d[j] - e < d_left[j, q] - tol
+
+
+@kernel
+def _leader_occupying(i, q, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+                      d_right, d_left, present):
+    """(gap, speed, accel) of the nearest vehicle ahead of ``i`` occupying lane ``q``."""
+    n = s.shape[0]
+    best = -1
+    best_ds = np.inf
+    for j in range(n):
+        if j == i:
+            continue
+        ds = s[j] - s[i]
+        if ds < 0.0 or (ds == 0.0 and j < i) or ds >= best_ds:
+            continue
+        if _occupies(j, q, d, psi, length, width, lane, lane_change, target_lane, d_right, d_left, present):
+            best_ds = ds
+            best = j
+    if best < 0:
+        return np.inf, np.nan, np.nan
+    return best_ds - 0.5 * (length[i] + length[best]), v[best], a[best]
+
+
+@kernel
+def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+                    d_right, d_left, present, merge_stop_s):
+    m = idx.shape[0]
+    gap = np.full((m, 2), np.inf)
+    vl = np.full((m, 2), np.nan)
+    al = np.full((m, 2), np.nan)
+    for k in range(m):
+        i = idx[k]
+        g, sv, sa = _leader_occupying(i, lane[i], s, d, psi, v, a, lane, lane_change, target_lane, length, width,
+                                      d_right, d_left, present)
+        if lane[i] == 0 and lane_change[i] == 0:  # the merge lane's end is a standing leader
+            end_gap = merge_stop_s - (s[i] + 0.5 * length[i])
+            if end_gap < g:
+                g, sv, sa = end_gap, 0.0, 0.0
+        gap[k, 0], vl[k, 0], al[k, 0] = g, sv, sa
+        second = lane[i]
+        if lane_change[i] != 0:
+            second = target_lane[i]
+        else:
+            for q in (lane[i] - 1, lane[i] + 1):
+                if _occupies(i, q, d, psi, length, width, lane, lane_change, target_lane, d_right, d_left, present):
+                    second = q
+        if second != lane[i]:
+            g, sv, sa = _leader_occupying(i, second, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
+                                          d_right, d_left, present)
+        gap[k, 1], vl[k, 1], al[k, 1] = g, sv, sa
+    return gap, vl, al
+
+
 def controller_observations(world, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
     """Controller observations of vehicles ``idx``: own lane (with the merge end) and target lane.
 
-    Returns ``(own, target)``, each ``(m, 4)``; ``target`` equals ``own`` for vehicles not
-    changing lanes. While a vehicle changes lanes its throttle is the smaller of the two
-    commands (it follows the nearer-braking leader, as level-0 traffic does).
+    Returns ``(own, target)``, each ``(m, 4)``, of the leaders of :func:`leaders`; ``target``
+    equals ``own`` for vehicles not changing lanes. While a vehicle changes lanes its throttle
+    is the smaller of the two commands (it follows the nearer-braking leader, as level-0
+    traffic does).
     """
-    nb = world.neighborhood()
-    own_gap = nb.gap_front_m[idx, 2]
-    end_gap = merge_end_gap(world, idx, params)
-    use_end = end_gap < own_gap
-    gap = np.where(use_end, end_gap, own_gap)
-    v_lead = np.where(use_end, 0.0, nb.leader_speed_mps[idx, 2])
-    a_lead = np.where(use_end, 0.0, nb.leader_accel_mps2[idx, 2])
+    gap, vl, al = leaders(world, idx, params)
     v, a = world.v[idx], world.accel[idx]
-    own = leader_state(gap, v_lead, a_lead, v, a, params)
-    col = 2 + world.lane_change[idx]
-    rows = idx
-    target = leader_state(nb.gap_front_m[rows, col], nb.leader_speed_mps[rows, col], nb.leader_accel_mps2[rows, col],
-                          v, a, params)
-    changing = world.lane_change[idx] != 0
-    target[~changing] = own[~changing]
+    own = leader_state(gap[:, 0], vl[:, 0], al[:, 0], v, a, params)
+    target = leader_state(gap[:, 1], vl[:, 1], al[:, 1], v, a, params)
     return own, target
+
+
+def emergency_brake_throttle(gap_m: np.ndarray, leader_speed: np.ndarray, speed: np.ndarray,
+                             params: CarFollowingParams, max_brake: float) -> np.ndarray:
+    """The emergency-brake bound on the throttle (1 where it does not act), see the module docstring."""
+    gap = np.asarray(gap_m, float)
+    vl = np.asarray(leader_speed, float)
+    v = np.asarray(speed, float)
+    out = np.ones(np.broadcast(gap, vl, v).shape)
+    for k in np.ndindex(out.shape):
+        out[k] = _emergency_one(float(np.broadcast_to(gap, out.shape)[k]), float(np.broadcast_to(vl, out.shape)[k]),
+                                float(np.broadcast_to(v, out.shape)[k]), params.emergency_decel_mps2,
+                                params.emergency_margin_m, max_brake)
+    return out
+
+
+@kernel
+def _emergency_one(gap, vl, v, trigger, margin, max_brake):  # noqa: ANN001, ANN202
+    """Throttle bound of the emergency brake for one leader (1.0: not acting)."""
+    if np.isnan(vl) or v <= vl:
+        return 1.0
+    closing = v - vl
+    room = max(gap - margin, 0.05)
+    need = closing * closing / (2.0 * room)  # constant deceleration that matches the leader's speed at the margin
+    if need < trigger:
+        return 1.0
+    return -min(need / max_brake, 1.0)
 
 
 def compose_throttle(policy_own: np.ndarray, policy_target: np.ndarray, own_obs: np.ndarray,
                      target_obs: np.ndarray, cap: np.ndarray) -> np.ndarray:
-    """Throttle = min over the leaders in view of the policy's command, and the speed cap."""
+    """Throttle = min over the leaders in view of the policy's command, and the speed cap
+    (pass the emergency-brake bound folded into ``cap``)."""
     big = np.inf
     u_own = np.where(own_obs[:, 3] > 0.5, policy_own, big)
     u_tgt = np.where(target_obs[:, 3] > 0.5, policy_target, big)
@@ -160,17 +286,19 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
     """The run-time throttle of vehicles ``idx``, fused into one compiled pass.
 
     The same quantities as :func:`controller_observations`, the controller's forward pass
-    (``bank``: a one-actor :class:`evoscen_bv.learned.PolicyBank`), :func:`speed_cap_throttle`
-    and :func:`compose_throttle` (a test checks they agree); fused because for ~20 vehicles
-    numpy's per-call overhead, not arithmetic, would dominate the step.
+    (``bank``: a one-actor :class:`evoscen_bv.learned.PolicyBank`), :func:`speed_cap_throttle`,
+    :func:`emergency_brake_throttle` and :func:`compose_throttle` (a test checks they agree);
+    fused because for ~20 vehicles numpy's per-call overhead, not arithmetic, would dominate
+    the step.
     """
-    nb = view.neighborhood()
+    lk = view.lane_lookup()
     return _learned_throttle_kernel(
-        np.asarray(idx, dtype=np.int64), view.s, view.v, view.accel, view.lane, view.lane_change, view.length,
+        np.asarray(idx, dtype=np.int64), view.s, view.d, view.psi, view.v, view.accel, view.lane, view.lane_change,
+        view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
         view.speed_limit_mps, np.asarray(desired_speed, dtype=float),
-        nb.gap_front_m, nb.leader_speed_mps, nb.leader_accel_mps2,
         float(view.road.lane_end_s[0]) - params.merge_stop_margin_m,
-        params.view_m, params.v_max_mps, params.a_max_mps2, params.speed_gain, max_accel, max_brake,
+        params.view_m, params.v_max_mps, params.a_max_mps2, params.speed_gain,
+        params.emergency_decel_mps2, params.emergency_margin_m, max_accel, max_brake,
         bank.W1[0], bank.b1[0], bank.W2[0], bank.b2[0], bank.W3[0], float(bank.b3[0]), float(bank.max_action[0]),
     )
 
@@ -197,12 +325,14 @@ def _mlp_one(x, W1, b1, W2, b2, W3, b3, max_action):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _learned_throttle_kernel(idx, s, v, a, lane, lane_change, length, speed_limit, desired,  # noqa: ANN001, ANN202, PLR0913
-                             gap_front, v_front, a_front, merge_stop_s, view, v_max, a_max, speed_gain,
+def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
+                             d_right, d_left, present, speed_limit, desired, merge_stop_s, view, v_max, a_max, speed_gain, em_trigger, em_margin,
                              max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action):
     m = idx.shape[0]
     out = np.empty(m)
     x = np.zeros(4)
+    gap_all, vl_all, al_all = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
+                                              d_right, d_left, present, merge_stop_s)
     for k in range(m):
         i = idx[k]
         # free-road speed term, capped by the lane's limit (none past a lane's end: NaN)
@@ -211,22 +341,15 @@ def _learned_throttle_kernel(idx, s, v, a, lane, lane_change, length, speed_limi
         u = acc / max_accel if acc >= 0.0 else acc / max_brake
         u = min(max(u, -1.0), 1.0)
         for which in range(2):
-            if which == 0:
-                gap, vl, al = gap_front[i, 2], v_front[i, 2], a_front[i, 2]
-                if lane[i] == 0 and lane_change[i] == 0:  # the merge lane's end is a standing leader
-                    end_gap = merge_stop_s - (s[i] + 0.5 * length[i])
-                    if end_gap < gap:
-                        gap, vl, al = end_gap, 0.0, 0.0
-            else:
-                if lane_change[i] == 0:
-                    break
-                c = 2 + lane_change[i]
-                gap, vl, al = gap_front[i, c], v_front[i, c], a_front[i, c]
+            if which == 1 and gap_all[k, 1] == gap_all[k, 0] and vl_all[k, 1] == vl_all[k, 0]:
+                break  # one lane (or the same leader twice)
+            gap, vl, al = gap_all[k, which], vl_all[k, which], al_all[k, which]
             if gap <= view and not np.isnan(vl):  # a leader in view: the controller's command
                 x[0] = gap / view
                 x[1] = (vl - v[i]) / v_max
                 x[2] = (al - a[i]) / a_max
                 x[3] = 1.0
                 u = min(u, _mlp_one(x, W1, b1, W2, b2, W3, b3, max_action))
+            u = min(u, _emergency_one(gap, vl, v[i], em_trigger, em_margin, max_brake))
         out[k] = min(max(u, -1.0), 1.0)
     return out

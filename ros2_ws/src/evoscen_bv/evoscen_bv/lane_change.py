@@ -21,7 +21,13 @@ else keep [choice: thresholds ±1/3].
 Rule constraints on the requested action (the executed action can differ; the reward's
 J_req fires when it does): a change that would leave the road becomes keep; a change into
 a lane with another vehicle within 10 m longitudinally (bumper-to-bumper, overlaps
-included; a vehicle changing into that lane counts as in it) becomes keep.
+included; a vehicle changing into that lane, or whose body reaches into it, counts as in
+it: :func:`evoscen_bv.car_following.leaders`) becomes keep.
+[choice] The 10 m grow with the closing speed, as level-0's merge rule: a vehicle ahead in
+the target lane must be at least 10 m + h·max(0, v_i - v_j) away, one behind at least
+10 m + h·max(0, v_j - v_i), h = 1.5 s (``CUT_IN_CLOSING_HEADWAY_S``). With the method's
+plain 10 m, a merge from standstill in front of traffic at 30 m/s was "legal" and most
+lane-change collisions were such cut-ins.
 
 Rewards (method §3.2), with O the drivable area — the gap to the nearest vehicle ahead
 in a lane, also bounded by the end of that lane and by the front view O_max:
@@ -38,7 +44,7 @@ negative numbers). The outcome terms O_c'²/O_max² and the social sums are eval
 the next decision, on the vehicles then in the back part of the ego's grid (Ω_b: the
 cells behind the ego, Δs in [-20, 0), all five lanes).
 [choice] J_lc differs by type (reward shaping, SPEC §3.3): -0.4 competitive, -0.8 mutual,
--1.2 cooperative — the equations are the method's, the coefficients per type are ours.
+-2.0 cooperative — the equations are the method's, the coefficients per type are ours.
 [choice] ϑ favours the left lanes: ϑ = ``theta_left`` for a lane left of the ego's lane,
 else 1 (for O_t: a change to the left; for O_c^b: a vehicle b in a lane left of the ego).
 The coefficients are the ``reward`` section of the training config
@@ -53,6 +59,8 @@ import numpy as np
 
 from evoscen_sim.jit import kernel
 
+from .car_following import _occupies
+
 LANES = 5
 CELLS = 25
 LAYERS = 4
@@ -63,6 +71,8 @@ BACK_CELLS = int(BEHIND_M / CELL_M)
 """Cells 0..3 are behind the ego (Ω_b)."""
 ACTION_THRESHOLD = 1.0 / 3.0
 CUT_IN_GAP_M = 10.0
+CUT_IN_CLOSING_HEADWAY_S = 1.5
+"""[choice] Seconds of closing speed added to the 10 m cut-in gap (level-0's ``merge_closing_headway_s``)."""
 
 
 @dataclass(frozen=True)
@@ -90,8 +100,10 @@ class RewardParams:
     """J_lc of the mutual driver: added when a lane change is executed (negative)."""
     comp_lane_change_penalty: float = -0.4
     """J_lc of the competitive driver [choice: a smaller penalty — the type that changes most]."""
-    coop_lane_change_penalty: float = -1.2
-    """J_lc of the cooperative driver [choice: a larger penalty — every change disturbs others]."""
+    coop_lane_change_penalty: float = -2.0
+    """J_lc of the cooperative driver [choice: a larger penalty — every change disturbs others;
+    at -1.2 the trained cooperative BVs still changed lanes more often than the mutual ones, as
+    the followers' space term rewards moving out of their way]."""
     request_penalty: float = -0.5
     """J_req: added when the executed action differs from the requested one (negative)."""
     comp_space_weight: float = 0.1
@@ -179,11 +191,15 @@ def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.n
     req = np.asarray(requested, dtype=np.int64)
     target = view.lane[idx] + req
     on_road = view.road.lane_exists(target, view.s[idx])
-    return _constraint_kernel(idx, req, on_road, view.s, view.lane, view.target_lane, view.length, CUT_IN_GAP_M)
+    lk = view.lane_lookup()
+    return _constraint_kernel(idx, req, on_road, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
+                              view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
+                              CUT_IN_GAP_M, CUT_IN_CLOSING_HEADWAY_S)
 
 
 @kernel
-def _constraint_kernel(idx, req, on_road, s, lane, target_lane, length, min_gap):  # noqa: ANN001, ANN202
+def _constraint_kernel(idx, req, on_road, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+                       d_right, d_left, present, min_gap, closing_headway):
     m = idx.shape[0]
     n = s.shape[0]
     out = np.zeros(m, dtype=np.int64)
@@ -195,9 +211,13 @@ def _constraint_kernel(idx, req, on_road, s, lane, target_lane, length, min_gap)
         tgt = lane[i] + r
         ok = True
         for j in range(n):
-            if j == i or (lane[j] != tgt and target_lane[j] != tgt):
+            if j == i or not (target_lane[j] == tgt or _occupies(j, tgt, d, psi, length, width, lane, lane_change,
+                                                                 target_lane, d_right, d_left, present)):
                 continue
-            if abs(s[j] - s[i]) - 0.5 * (length[i] + length[j]) < min_gap:  # cut-in within 10 m -> keep
+            ds = s[j] - s[i]
+            closing = v[i] - v[j] if ds > 0.0 else v[j] - v[i]  # how fast the gap to j shrinks
+            need = min_gap + closing_headway * max(closing, 0.0)
+            if abs(ds) - 0.5 * (length[i] + length[j]) < need:  # cut-in within 10 m (+ closing) -> keep
                 ok = False
                 break
         if ok:

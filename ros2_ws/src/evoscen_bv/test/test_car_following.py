@@ -10,7 +10,9 @@ from evoscen_bv.car_following import (
     car_following_reward,
     compose_throttle,
     controller_observations,
+    emergency_brake_throttle,
     gap_value,
+    leaders,
     leader_state,
     speed_cap_throttle,
 )
@@ -93,10 +95,42 @@ def test_fused_run_time_throttle_equals_the_pieces():
     own, target = controller_observations(w, idx, P)
     u = actor.forward(np.vstack([own, target]))[:, 0]
     cap = speed_cap_throttle(w.v[idx], np.minimum(desired, w.speed_limit_mps[idx]), P, 3.0, 8.0)
+    gap, v_lead, _ = leaders(w, idx, P)
+    cap = np.minimum(cap, emergency_brake_throttle(gap, v_lead, w.v[idx][:, None], P, 8.0).min(axis=1))
     expected = compose_throttle(u[:4], u[4:], own, target, cap)
     fused = learned_throttle(w, idx, desired, PolicyBank([actor]), P, 3.0, 8.0)
     assert fused == pytest.approx(expected, abs=1e-12)
     assert target[1, 3] == 1.0 and not np.array_equal(own[1], target[1])  # the target lane's leader is seen
+    assert fused[2] == -1.0  # 4 is past the merge lane's standing end at 20 m/s: the emergency brake, full
+
+
+def test_emergency_brake_by_hand():
+    # 20 m/s towards a standing leader 47.6 m ahead: b = 20² / (2 (47.6 - 2)) = 4.386 m/s² >= 4 -> throttle -b / 8
+    # 15 m/s: b = 225 / 91.2 = 2.47 m/s² < 4 -> not acting (1); leader faster, or none: not acting
+    u = emergency_brake_throttle(np.array([47.6, 47.6, 47.6, np.inf, 1.0]), np.array([0.0, 0.0, 25.0, np.nan, 0.0]),
+                                 np.array([20.0, 15.0, 20.0, 30.0, 20.0]), P, 8.0)
+    assert u.tolist() == pytest.approx([-400.0 / 91.2 / 8.0, 1.0, 1.0, 1.0, -1.0])
+
+
+def test_leaders_see_vehicles_changing_into_or_reaching_into_the_lane():
+    road = load_road()
+    # 0 in lane 2; 1 ahead in lane 1 about to change left into lane 2; 2 further ahead in lane 2
+    w = hand_built_world(road, s=[1200.0, 1230.0, 1300.0], lane=[2, 1, 2], speed=[25.0, 25.0, 25.0])
+    gap, v_lead, _ = leaders(w, np.array([0]), P)
+    assert gap[0, 0] == pytest.approx(100.0 - w.length[0])  # 2 (bumper gap: centre distance - one length)
+    w.step(np.zeros(3), np.array([0, 1, 0]))
+    assert w.lane[1] == 1 and w.lane_change[1] == 1
+    gap, _, _ = leaders(w, np.array([0]), P)
+    assert gap[0, 0] == pytest.approx(w.s[1] - w.s[0] - w.length[0])  # 1, changing into lane 2, is 0's leader now
+    # 1's body reaching into lane 2 without a lane change in progress (heading towards it): still 0's leader
+    w2 = hand_built_world(road, s=[1200.0, 1230.0], lane=[2, 1], speed=[25.0, 0.0])
+    lk = w2.lane_lookup()
+    w2.d[1] = lk.d_left[1, 1] - 0.5  # centre 0.5 m inside lane 1, body (1.8 m wide) 0.4 m into lane 2
+    gap, v_lead, _ = leaders(w2, np.array([0]), P)
+    assert gap[0, 0] == pytest.approx(30.0 - w2.length[0]) and v_lead[0, 0] == 0.0
+    w2.d[1] = lk.d_left[1, 1] - 1.0  # fully in lane 1 (0.1 m clear): not a leader in lane 2
+    gap, _, _ = leaders(w2, np.array([0]), P)
+    assert gap[0, 0] == np.inf
 
 
 def test_merge_lane_end_is_not_a_leader_while_changing_out_of_the_merge_lane():

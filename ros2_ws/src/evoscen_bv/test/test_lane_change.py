@@ -118,6 +118,21 @@ def test_rule_constraint_cut_in_within_10_m_becomes_keep(road):
     assert r == pytest.approx([-0.5 + 0.16])
 
 
+def test_rule_constraint_gap_grows_with_the_closing_speed(road):
+    # [choice] the 10 m grow by 1.5 s of closing speed. Ego at 10 m/s; the follower in lane 3 is 30.2 m behind
+    # (bumper) at 25 m/s: needed 10 + 1.5 * 15 = 32.5 m > 30.2 -> keep; at 35.2 m behind -> change
+    close = hand_built_world(road, s=[300, 265], lane=[2, 3], speed=[10, 25])
+    assert apply_rule_constraints(close, np.array([0]), np.array([1])).tolist() == [0]
+    enough = hand_built_world(road, s=[300, 260], lane=[2, 3], speed=[10, 25])
+    assert apply_rule_constraints(enough, np.array([0]), np.array([1])).tolist() == [1]
+    # a slower vehicle ahead in the target lane: ego 25 m/s, leader 15 m/s 20.2 m ahead: needed 25 m -> keep
+    slow_ahead = hand_built_world(road, s=[300, 325], lane=[2, 3], speed=[25, 15])
+    assert apply_rule_constraints(slow_ahead, np.array([0]), np.array([1])).tolist() == [0]
+    # the same leader faster than the ego: no closing speed, 10 m suffice
+    fast_ahead = hand_built_world(road, s=[300, 325], lane=[2, 3], speed=[15, 25])
+    assert apply_rule_constraints(fast_ahead, np.array([0]), np.array([1])).tolist() == [1]
+
+
 def test_drivable_area(road):
     # ego lane 2 at 300, leader at 340 (gap 40 - 4.8 = 35.2 m); lane 3 empty (O_max = 100); merge lane near its end
     w = hand_built_world(road, s=[300, 340, 900], lane=[2, 2, 0], speed=[25, 25, 25])

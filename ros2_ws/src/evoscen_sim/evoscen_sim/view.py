@@ -53,6 +53,8 @@ class TrafficView(Protocol):
 
     def neighborhood(self) -> Neighborhood: ...  # pragma: no cover - protocol
 
+    def lane_lookup(self): ...  # noqa: ANN201  # pragma: no cover - protocol
+
 
 _INT_COLUMNS = ("id", "role", "policy", "lane", "target_lane", "lane_change")
 
@@ -94,6 +96,13 @@ class WorldView:
         self.n = int(self.s.shape[0])
         self._neighborhood: Neighborhood | None = None
         self._speed_limit: np.ndarray | None = None
+        self._lanes = None
+
+    def lane_lookup(self):  # noqa: ANN201 - evoscen_sim.road.LaneLookup
+        """Lane data (borders, existence, limits) at every vehicle's position (cached)."""
+        if self._lanes is None:
+            self._lanes = self.road.lane_lookup(np.maximum(self.s, 0.0), self.d)
+        return self._lanes
 
     @property
     def time_s(self) -> float:
@@ -104,8 +113,7 @@ class WorldView:
     def speed_limit_mps(self) -> np.ndarray:
         """Maximum speed of every vehicle's lane at its position (m/s)."""
         if self._speed_limit is None:
-            lookup = self.road.lane_lookup(np.maximum(self.s, 0.0), self.d)
-            self._speed_limit = lookup.max_speed_mps[np.arange(self.n), self.lane]
+            self._speed_limit = self.lane_lookup().max_speed_mps[np.arange(self.n), self.lane]
         return self._speed_limit
 
     def neighborhood(self) -> Neighborhood:

@@ -157,6 +157,10 @@ class World:
         self._lanes = self.road.lane_lookup(np.maximum(self.s, 0.0), self.d)
         self._speed_limit: np.ndarray | None = None
 
+    def lane_lookup(self):  # noqa: ANN201 - evoscen_sim.road.LaneLookup
+        """Lane data (borders, existence, limits) at every vehicle's position (cached per step)."""
+        return self._lanes
+
     @property
     def speed_limit_mps(self) -> np.ndarray:
         """Maximum speed of every vehicle's lane at its position (m/s)."""
