@@ -168,64 +168,64 @@ OCCUPY_TOLERANCE_M = 0.1
 
 
 @kernel
-def _occupies(j, q, d, psi, length, width, lane, lane_change, target_lane, d_right, d_left, present):  # noqa: ANN001, ANN202
-    tol = 0.1  # OCCUPY_TOLERANCE_M
-    if lane[j] == q or (lane_change[j] != 0 and target_lane[j] == q):
-        return True
-    if q < 0 or q >= present.shape[1] or not present[j, q]:
-        return False
-    e = 0.5 * (width[j] * np.cos(psi[j]) + length[j] * abs(np.sin(psi[j])))
-    return d[j] + e > d_right[j, q] + tol and d[j] - e < d_left[j, q] - tol
-
-
-@kernel
-def _leader_occupying(i, q, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
-                      d_right, d_left, present):
-    """(gap, speed, accel) of the nearest vehicle ahead of ``i`` occupying lane ``q``."""
-    n = s.shape[0]
-    best = -1
-    best_ds = np.inf
+def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present):  # noqa: ANN001, ANN202
+    """occ[j, q]: vehicle ``j`` occupies lane ``q`` (see :func:`leaders`; one pass, no sub-calls:
+    numba reference-counts every array handed to a sub-function, which cost more than the test)."""
+    n, num_lanes = present.shape
+    occ = np.zeros((n, num_lanes), dtype=np.bool_)
     for j in range(n):
-        if j == i:
-            continue
-        ds = s[j] - s[i]
-        if ds < 0.0 or (ds == 0.0 and j < i) or ds >= best_ds:
-            continue
-        if _occupies(j, q, d, psi, length, width, lane, lane_change, target_lane, d_right, d_left, present):
-            best_ds = ds
-            best = j
-    if best < 0:
-        return np.inf, np.nan, np.nan
-    return best_ds - 0.5 * (length[i] + length[best]), v[best], a[best]
+        occ[j, lane[j]] = True
+        if lane_change[j] != 0:
+            occ[j, target_lane[j]] = True
+        e = 0.5 * (width[j] * np.cos(psi[j]) + length[j] * abs(np.sin(psi[j])))
+        for q in (lane[j] - 1, lane[j] + 1):
+            if 0 <= q < num_lanes and present[j, q] and d[j] + e > d_right[j, q] + OCCUPY_TOLERANCE_M \
+                    and d[j] - e < d_left[j, q] - OCCUPY_TOLERANCE_M:
+                occ[j, q] = True
+    return occ
 
 
 @kernel
 def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
                     d_right, d_left, present, merge_stop_s):
     m = idx.shape[0]
+    n, num_lanes = present.shape
     gap = np.full((m, 2), np.inf)
     vl = np.full((m, 2), np.nan)
     al = np.full((m, 2), np.nan)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
     for k in range(m):
         i = idx[k]
-        g, sv, sa = _leader_occupying(i, lane[i], s, d, psi, v, a, lane, lane_change, target_lane, length, width,
-                                      d_right, d_left, present)
-        if lane[i] == 0 and lane_change[i] == 0:  # the merge lane's end is a standing leader
-            end_gap = merge_stop_s - (s[i] + 0.5 * length[i])
-            if end_gap < g:
-                g, sv, sa = end_gap, 0.0, 0.0
-        gap[k, 0], vl[k, 0], al[k, 0] = g, sv, sa
         second = lane[i]
         if lane_change[i] != 0:
             second = target_lane[i]
         else:
             for q in (lane[i] - 1, lane[i] + 1):
-                if _occupies(i, q, d, psi, length, width, lane, lane_change, target_lane, d_right, d_left, present):
+                if 0 <= q < num_lanes and occ[i, q]:
                     second = q
-        if second != lane[i]:
-            g, sv, sa = _leader_occupying(i, second, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
-                                          d_right, d_left, present)
-        gap[k, 1], vl[k, 1], al[k, 1] = g, sv, sa
+        for slot in range(2):
+            q = lane[i] if slot == 0 else second
+            if slot == 1 and q == lane[i]:  # one lane: column 1 = column 0
+                gap[k, 1], vl[k, 1], al[k, 1] = gap[k, 0], vl[k, 0], al[k, 0]
+                break
+            best = -1
+            best_ds = np.inf
+            for j in range(n):  # the nearest vehicle ahead occupying lane q
+                if j == i or not occ[j, q]:
+                    continue
+                ds = s[j] - s[i]
+                if ds < 0.0 or (ds == 0.0 and j < i) or ds >= best_ds:
+                    continue
+                best_ds = ds
+                best = j
+            if best >= 0:
+                gap[k, slot] = best_ds - 0.5 * (length[i] + length[best])
+                vl[k, slot] = v[best]
+                al[k, slot] = a[best]
+            if slot == 0 and lane[i] == 0 and lane_change[i] == 0:  # the merge lane's end is a standing leader
+                end_gap = merge_stop_s - (s[i] + 0.5 * length[i])
+                if end_gap < gap[k, 0]:
+                    gap[k, 0], vl[k, 0], al[k, 0] = end_gap, 0.0, 0.0
     return gap, vl, al
 
 
@@ -304,35 +304,17 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
 
 
 @kernel
-def _mlp_one(x, W1, b1, W2, b2, W3, b3, max_action):  # noqa: ANN001, ANN202
-    """max_action · tanh(W3 relu(W2 relu(W1 x + b1) + b2) + b3) for one input vector."""
-    h = W1.shape[1]
-    h1 = b1.copy()
-    for k in range(x.shape[0]):
-        if x[k] != 0.0:
-            for u in range(h):
-                h1[u] += x[k] * W1[k, u]
-    h2 = b2.copy()
-    for k in range(h):
-        hk = max(h1[k], 0.0)
-        if hk != 0.0:
-            for u in range(h):
-                h2[u] += hk * W2[k, u]
-    z = b3
-    for u in range(h):
-        z += max(h2[u], 0.0) * W3[u]
-    return max_action * np.tanh(z)
-
-
-@kernel
 def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
-                             d_right, d_left, present, speed_limit, desired, merge_stop_s, view, v_max, a_max, speed_gain, em_trigger, em_margin,
-                             max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action):
+                             d_right, d_left, present, speed_limit, desired, merge_stop_s, view, v_max, a_max,
+                             speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action):
     m = idx.shape[0]
-    out = np.empty(m)
-    x = np.zeros(4)
     gap_all, vl_all, al_all = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                                               d_right, d_left, present, merge_stop_s)
+    out = np.empty(m)
+    h = W1.shape[1]
+    h1 = np.empty(h)
+    h2 = np.empty(h)
+    x = np.zeros(4)
     for k in range(m):
         i = idx[k]
         # free-road speed term, capped by the lane's limit (none past a lane's end: NaN)
@@ -340,16 +322,39 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
         acc = speed_gain * (v_des - v[i])
         u = acc / max_accel if acc >= 0.0 else acc / max_brake
         u = min(max(u, -1.0), 1.0)
-        for which in range(2):
-            if which == 1 and gap_all[k, 1] == gap_all[k, 0] and vl_all[k, 1] == vl_all[k, 0]:
-                break  # one lane (or the same leader twice)
-            gap, vl, al = gap_all[k, which], vl_all[k, which], al_all[k, which]
+        for slot in range(2):
+            gap, vl, al = gap_all[k, slot], vl_all[k, slot], al_all[k, slot]
+            if slot == 1 and gap == gap_all[k, 0] and vl == vl_all[k, 0] and al == al_all[k, 0]:
+                break  # one lane, or the same leader twice
             if gap <= view and not np.isnan(vl):  # a leader in view: the controller's command
                 x[0] = gap / view
                 x[1] = (vl - v[i]) / v_max
                 x[2] = (al - a[i]) / a_max
                 x[3] = 1.0
-                u = min(u, _mlp_one(x, W1, b1, W2, b2, W3, b3, max_action))
-            u = min(u, _emergency_one(gap, vl, v[i], em_trigger, em_margin, max_brake))
+                # max_action · tanh(W3 relu(W2 relu(W1 x + b1) + b2) + b3), inline (as PolicyBank's kernel)
+                for q in range(h):
+                    h1[q] = b1[q]
+                for c in range(4):
+                    if x[c] != 0.0:
+                        for q in range(h):
+                            h1[q] += x[c] * W1[c, q]
+                for q in range(h):
+                    h2[q] = b2[q]
+                for c in range(h):
+                    hc = max(h1[c], 0.0)
+                    if hc != 0.0:
+                        for q in range(h):
+                            h2[q] += hc * W2[c, q]
+                z = b3
+                for q in range(h):
+                    z += max(h2[q], 0.0) * W3[q]
+                u = min(u, max_action * np.tanh(z))
+            # emergency brake (as _emergency_one)
+            if not np.isnan(vl) and v[i] > vl:
+                closing = v[i] - vl
+                room = max(gap - em_margin, 0.05)
+                need = closing * closing / (2.0 * room)
+                if need >= em_trigger:
+                    u = min(u, -min(need / max_brake, 1.0))
         out[k] = min(max(u, -1.0), 1.0)
     return out

@@ -59,7 +59,7 @@ import numpy as np
 
 from evoscen_sim.jit import kernel
 
-from .car_following import _occupies
+from .car_following import _occupancy
 
 LANES = 5
 CELLS = 25
@@ -138,27 +138,26 @@ def cell_centres_m() -> np.ndarray:
 def observation_grid(view, idx: np.ndarray, params: GridParams = GridParams()) -> np.ndarray:  # noqa: ANN001
     """Ω_d of vehicles ``idx`` in ``view`` (a world or world view): shape ``(m, 5, 25, 4)``."""
     idx = np.asarray(idx, dtype=np.int64)
-    m = idx.size
-    # off-road cells: lane lane_i + offset does not exist at s_i + cell centre
-    lanes = view.lane[idx][:, None, None] + np.arange(-2, 3)[None, :, None]
-    s_cell = view.s[idx][:, None, None] + cell_centres_m()[None, None, :]
-    lanes, s_cell = np.broadcast_arrays(lanes, s_cell)
-    on_road = view.road.lane_exists(lanes.reshape(-1), s_cell.reshape(-1)).reshape(m, LANES, CELLS)
-    return _grid_kernel(idx, view.s, view.lane, view.v, view.psi, on_road,
+    breaks, present, length_m = view.road.existence_table()
+    return _grid_kernel(idx, view.s, view.lane, view.v, view.psi, breaks, present, length_m,
                         params.v_max_mps, params.lateral_speed_scale_mps, params.yaw_scale_rad)
 
 
 @kernel
-def _grid_kernel(idx, s, lane, v, psi, on_road, v_max, lat_scale, yaw_scale):  # noqa: ANN001, ANN202
+def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_scale, yaw_scale):  # noqa: ANN001, ANN202
     m = idx.shape[0]
     n = s.shape[0]
+    num_lanes = present.shape[1]
     grid = np.zeros((m, 5, 25, 4))
     nearest = np.full((m, 5, 25), np.inf)
     for k in range(m):
         i = idx[k]
-        for r in range(5):
-            for c in range(25):
-                if not on_road[k, r, c]:
+        for c in range(25):  # off-road cells: lane lane_i + offset does not exist at s_i + the cell's centre
+            sc = min(max(s[i] - 20.0 + 5.0 * (c + 0.5), 0.0), length_m)
+            seg = np.searchsorted(breaks, sc, side="right") - 1
+            for r in range(5):
+                q = lane[i] + r - 2
+                if q < 0 or q >= num_lanes or not present[seg, q]:
                     grid[k, r, c, 0] = -1.0
         vlat_i = v[i] * np.sin(psi[i])
         for j in range(n):
@@ -203,6 +202,7 @@ def _constraint_kernel(idx, req, on_road, s, d, psi, v, lane, lane_change, targe
     m = idx.shape[0]
     n = s.shape[0]
     out = np.zeros(m, dtype=np.int64)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
     for k in range(m):
         r = req[k]
         if r == 0 or not on_road[k]:  # off-road change -> keep
@@ -211,8 +211,7 @@ def _constraint_kernel(idx, req, on_road, s, d, psi, v, lane, lane_change, targe
         tgt = lane[i] + r
         ok = True
         for j in range(n):
-            if j == i or not (target_lane[j] == tgt or _occupies(j, tgt, d, psi, length, width, lane, lane_change,
-                                                                 target_lane, d_right, d_left, present)):
+            if j == i or not (target_lane[j] == tgt or occ[j, tgt]):
                 continue
             ds = s[j] - s[i]
             closing = v[i] - v[j] if ds > 0.0 else v[j] - v[i]  # how fast the gap to j shrinks

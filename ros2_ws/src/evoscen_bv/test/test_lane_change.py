@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from evoscen_bv.lane_change import (
+    cell_centres_m,
     RewardParams,
     action_to_lane_change,
     apply_rule_constraints,
@@ -189,3 +190,18 @@ def test_social_terms_by_hand(road):
     assert social_terms(w, 0, p)[1] == pytest.approx(0.1 + 0.0625)
     with pytest.raises(ValueError, match="unknown reward kind"):
         social_reward("selfish", 0, 0, 0, p)
+
+
+def test_grid_off_road_cells_equal_the_roads_lane_existence(road):
+    # vehicles along the whole road, every lane: the compiled grid's off-road marks (-1) are exactly the cells
+    # whose lane does not exist at the cell centre (RoadModel.lane_exists), incl. the merge lane's start and end
+    s = np.array([5.0, 590.0, 620.0, 880.0, 905.0, 955.0, 1500.0, 2380.0])
+    lane = np.array([1, 1, 0, 0, 1, 0, 4, 2])
+    w = hand_built_world(road, s=s, lane=lane, speed=[20.0] * s.size)
+    g = observation_grid(w, np.arange(s.size))
+    lanes = lane[:, None, None] + np.arange(-2, 3)[None, :, None]
+    cells = s[:, None, None] + cell_centres_m()[None, None, :]
+    lanes, cells = np.broadcast_arrays(lanes, cells)
+    exists = road.lane_exists(lanes, cells)
+    assert np.array_equal(g[..., 0] == -1.0, ~exists)
+    assert (~exists).any() and exists.any()

@@ -360,6 +360,12 @@ class RoadModel:
         return li, np.clip(s_a, 0.0, self.length_m), valid, s_a
 
     # ------------------------------------------------------------------ lanes
+    def existence_table(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(breaks, present, length_m)`` for compiled kernels: lane ``l`` exists at ``s`` iff
+        ``0 <= l < num_lanes`` and ``present[searchsorted(breaks, clip(s, 0, length_m), 'right') - 1, l]``
+        (what :meth:`lane_exists` computes; the arrays are read-only)."""
+        return self._breaks, self._present, self.length_m
+
     def lane_exists(self, lane: ArrayLike, s: ArrayLike) -> np.ndarray:
         """True where lane index ``lane`` exists at ``s`` (s clamped to [0, length])."""
         li, sc, valid, _ = self._lane_s(lane, s)
