@@ -281,31 +281,36 @@ def compose_throttle(policy_own: np.ndarray, policy_target: np.ndarray, own_obs:
     return np.clip(np.minimum(np.minimum(u_own, u_tgt), cap), -1.0, 1.0)
 
 
+def throttle_constants(bank, params: CarFollowingParams, road, max_accel: float, max_brake: float) -> tuple:  # noqa: ANN001
+    """The run-time throttle's per-driver constants (computed once per driver, see :func:`learned_throttle`)."""
+    return (float(road.lane_end_s[0]) - params.merge_stop_margin_m,
+            params.view_m, params.v_max_mps, params.a_max_mps2, params.speed_gain,
+            params.emergency_decel_mps2, params.emergency_margin_m, float(max_accel), float(max_brake),
+            bank.W1[0], bank.b1[0], bank.W2[0], bank.b2[0], bank.W3[0], float(bank.b3[0]), float(bank.max_action[0]))
+
+
 def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, params: CarFollowingParams,  # noqa: ANN001
-                     max_accel: float, max_brake: float) -> np.ndarray:
+                     max_accel: float, max_brake: float, constants: tuple | None = None) -> np.ndarray:
     """The run-time throttle of vehicles ``idx``, fused into one compiled pass.
 
     The same quantities as :func:`controller_observations`, the controller's forward pass
     (``bank``: a one-actor :class:`evoscen_bv.learned.PolicyBank`), :func:`speed_cap_throttle`,
     :func:`emergency_brake_throttle` and :func:`compose_throttle` (a test checks they agree);
     fused because for ~20 vehicles numpy's per-call overhead, not arithmetic, would dominate
-    the step.
+    the step. ``constants``: :func:`throttle_constants` of these arguments, if the caller keeps them.
     """
+    if constants is None:
+        constants = throttle_constants(bank, params, view.road, max_accel, max_brake)
     lk = view.lane_lookup()
     return _learned_throttle_kernel(
         np.asarray(idx, dtype=np.int64), view.s, view.d, view.psi, view.v, view.accel, view.lane, view.lane_change,
-        view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
-        view.speed_limit_mps, np.asarray(desired_speed, dtype=float),
-        float(view.road.lane_end_s[0]) - params.merge_stop_margin_m,
-        params.view_m, params.v_max_mps, params.a_max_mps2, params.speed_gain,
-        params.emergency_decel_mps2, params.emergency_margin_m, max_accel, max_brake,
-        bank.W1[0], bank.b1[0], bank.W2[0], bank.b2[0], bank.W3[0], float(bank.b3[0]), float(bank.max_action[0]),
-    )
+        view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present, lk.max_speed_mps,
+        np.asarray(desired_speed, dtype=float), *constants)
 
 
 @kernel
 def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
-                             d_right, d_left, present, speed_limit, desired, merge_stop_s, view, v_max, a_max,
+                             d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max,
                              speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action):
     m = idx.shape[0]
     gap_all, vl_all, al_all = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
@@ -318,7 +323,8 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
     for k in range(m):
         i = idx[k]
         # free-road speed term, capped by the lane's limit (none past a lane's end: NaN)
-        v_des = desired[k] if np.isnan(speed_limit[i]) else min(desired[k], speed_limit[i])
+        limit = max_speed[i, lane[i]]
+        v_des = desired[k] if np.isnan(limit) else min(desired[k], limit)
         acc = speed_gain * (v_des - v[i])
         u = acc / max_accel if acc >= 0.0 else acc / max_brake
         u = min(max(u, -1.0), 1.0)

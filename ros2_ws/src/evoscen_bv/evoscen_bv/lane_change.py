@@ -188,16 +188,15 @@ def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.n
     """
     idx = np.asarray(idx, dtype=np.int64)
     req = np.asarray(requested, dtype=np.int64)
-    target = view.lane[idx] + req
-    on_road = view.road.lane_exists(target, view.s[idx])
+    breaks, present_at, length_m = view.road.existence_table()
     lk = view.lane_lookup()
-    return _constraint_kernel(idx, req, on_road, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
+    return _constraint_kernel(idx, req, breaks, present_at, length_m, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
                               view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
                               CUT_IN_GAP_M, CUT_IN_CLOSING_HEADWAY_S)
 
 
 @kernel
-def _constraint_kernel(idx, req, on_road, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+def _constraint_kernel(idx, req, breaks, present_at, length_m, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
                        d_right, d_left, present, min_gap, closing_headway):
     m = idx.shape[0]
     n = s.shape[0]
@@ -205,10 +204,13 @@ def _constraint_kernel(idx, req, on_road, s, d, psi, v, lane, lane_change, targe
     occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
     for k in range(m):
         r = req[k]
-        if r == 0 or not on_road[k]:  # off-road change -> keep
+        if r == 0:
             continue
         i = idx[k]
         tgt = lane[i] + r
+        seg = np.searchsorted(breaks, min(max(s[i], 0.0), length_m), side="right") - 1
+        if tgt < 0 or tgt >= present_at.shape[1] or not present_at[seg, tgt]:  # off-road change -> keep
+            continue
         ok = True
         for j in range(n):
             if j == i or not (target_lane[j] == tgt or occ[j, tgt]):

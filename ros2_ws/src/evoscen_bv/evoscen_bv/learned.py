@@ -31,7 +31,7 @@ import numpy as np
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 
-from .car_following import learned_throttle
+from .car_following import learned_throttle, throttle_constants
 from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, observation_grid
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
@@ -156,15 +156,21 @@ class LearnedDriver:
         self.default_column = int(self.column_of_code[default_code]) if decision_actors else -1
         lo, hi = config.env.desired_speed_mps
         self.desired_speed_mps = rng.uniform(lo, hi, size=self.vehicles.size)
+        self._throttle_constants: tuple | None = None
+        self._throttle_road = None
         self.last_request = np.zeros(self.vehicles.size, dtype=np.int64)
         """Requested (pre-constraint) actions of the last decision, for training and tests."""
 
     def throttle(self, view) -> np.ndarray:  # noqa: ANN001
         """The controller's throttle for every hosted vehicle (one compiled pass, see
         :func:`evoscen_bv.car_following.learned_throttle`)."""
-        vp = self.vehicle_params
+        if self._throttle_constants is None or self._throttle_road is not view.road:
+            vp = self.vehicle_params
+            self._throttle_road = view.road
+            self._throttle_constants = throttle_constants(self.controller_bank, self.config.car_following, view.road,
+                                                          vp.max_accel_mps2, vp.max_brake_mps2)
         return learned_throttle(view, self.vehicles, self.desired_speed_mps, self.controller_bank,
-                                self.config.car_following, vp.max_accel_mps2, vp.max_brake_mps2)
+                                self.config.car_following, 0.0, 0.0, self._throttle_constants)
 
     def policy_columns(self, view, idx: np.ndarray) -> np.ndarray:  # noqa: ANN001
         """Column of :attr:`stack` (decision policy) of every vehicle in ``idx``, from its policy code."""
