@@ -36,8 +36,6 @@ from .car_following import (
     car_following_reward,
     compose_throttle,
     controller_observations,
-    emergency_brake_throttle,
-    leaders,
     speed_cap_throttle,
 )
 from .lane_change import (
@@ -118,9 +116,6 @@ class CarFollowingEnv:
         vp = w.vehicle
         desired = float(np.fmin(self.desired, w.speed_limit_mps[0]))
         cap = speed_cap_throttle(w.v[:1], np.array([desired]), self.params, vp.max_accel_mps2, vp.max_brake_mps2)
-        gap, v_lead, _ = leaders(w, np.array([0]), self.params)
-        cap = np.minimum(cap, emergency_brake_throttle(gap[:, 0], v_lead[:, 0], w.v[:1], self.params,
-                                                       vp.max_brake_mps2))
         o = self.obs[None, :]
         return float(compose_throttle(np.array([action]), np.array([action]), o, o, cap)[0])
 

@@ -112,8 +112,10 @@ class RewardParams:
     """v: competitive weight of the followers' signed squared acceleration."""
     comp_brake_bound: float = 0.1
     """z: upper bound of the competitive acceleration term."""
-    coop_space_weight: float = 0.3
-    """m: cooperative weight of the followers' drivable area."""
+    coop_space_weight: float = 0.1
+    """m: cooperative weight of the followers' drivable area [choice: as u; at 0.3, summed over
+    every later decision, moving out of the followers' way paid far more than J_lc cost, and
+    cooperative BVs changed lanes more often than mutual ones]."""
     coop_speed_weight: float = 0.3
     """n: cooperative weight of the followers' signed squared speed."""
     coop_speed_bound: float = 1.0
