@@ -329,8 +329,9 @@ class BvConfig:
     """Policy mix ratio competitive:mutual:cooperative (always all three keys, in that order);
     split into counts by :func:`mix_counts`. YAML accepts a mapping (missing policies = 0) or
     the string ``"4:3:3"``. Must not be all zero when ``count > 0``."""
-    driver: str = field(default="level0", metadata=_check(_Str(lambda: BV_DRIVERS)))
-    """BV driver implementation, one of :data:`BV_DRIVERS`."""
+    driver: str = field(default="learned", metadata=_check(_Str(lambda: BV_DRIVERS)))
+    """BV driver implementation, one of :data:`BV_DRIVERS`: ``learned`` (default; the shipped
+    TD3 policies of ``evoscen_bv``, the mix applies), ``level0``, ..."""
 
 
 @dataclass(frozen=True)
