@@ -7,6 +7,7 @@ offending file / key / value (docs/CONVENTIONS.md), never a traceback.
 
 from __future__ import annotations
 
+import json
 import re
 from collections import Counter
 from pathlib import Path
@@ -198,8 +199,13 @@ def test_successful_run_outputs(recorded_run):
     assert summary["sim_time_s"] == pytest.approx(recorded_run.steps * 0.1)
     assert Path(summary["bag"]).resolve() == (out / "bag").resolve()
     assert sorted(p.name for p in out.iterdir()) == ["bag", "report", "scenario.yaml"]
-    assert sorted(p.name for p in (out / "report").iterdir()) == [
-        "report.json", "report.md", "speed.png", "timeline.png", "ttc.png"]
+    names = {p.name for p in (out / "report").iterdir()}
+    assert {"report.json", "report.md", "speed.png", "timeline.png", "ttc.png"} <= names
+    report = json.loads((out / "report" / "report.json").read_text())
+    # plus a snapshot at the worst exposure (if any) and at each SUT collision (numbered)
+    extra = names - {"report.json", "report.md", "speed.png", "timeline.png", "ttc.png"}
+    assert ("worst_exposure.png" in extra) == bool(report["safety"]["exposures"]), extra
+    assert all(re.fullmatch(r"collision_\d+\.png", n) for n in extra - {"worst_exposure.png"}), extra
     assert re.search(r"^intelligence: [0-9.]+ \(weighted safety [0-9.]+, efficiency [0-9.]+, interaction [0-9.]+\)"
                      r"  complexity: [0-9.]+  SUT collisions: \d+  exposures: \d+$", res.stdout, re.M), res.stdout
     assert f"report: {out / 'report' / 'report.md'}" in res.stdout
@@ -289,13 +295,14 @@ def test_overrides_bvs_mix_sut(cli, tmp_path, summary_of):
     r = roster[0]
     assert r["role"][r["id"] == 0].tolist() == [T.ROLE_SUT]
     assert r["policy"][r["id"] == 0].tolist() == [T.POLICY_CODES["sut"]]
-    # with the level-0 BV driver every BV drives (and is recorded as) level0; the mix only
-    # takes effect with learned drivers (evoscen_bringup.scenario.bv_policy_codes)
-    bv_policies = Counter(int(p) for p, role in zip(r["policy"], r["role"]) if role == T.ROLE_BV)
-    assert bv_policies == Counter({T.POLICY_CODES["level0"]: 5})
+    # the default learned BV driver: the mix decides each BV's policy (evoscen_bringup.scenario.bv_policy_codes)
     from evoscen_sim.config import mix_counts
 
+    assert cfg.bvs.driver == "learned"
     assert mix_counts(cfg) == {"competitive": 2, "mutual": 2, "cooperative": 1}  # 5 at 1:1:1
+    bv_policies = Counter(int(p) for p, role in zip(r["policy"], r["role"]) if role == T.ROLE_BV)
+    assert bv_policies == Counter({T.POLICY_CODES["competitive"]: 2, T.POLICY_CODES["mutual"]: 2,
+                                   T.POLICY_CODES["cooperative"]: 1})
 
 
 # --------------------------------------------------------------------------- determinism

@@ -31,7 +31,8 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def scenario_config(model: str, steps: int):  # noqa: ANN201
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None, {"sut.model": model, "steps": steps, "seed": SEED})
+    # the SUT models are compared among level-0 traffic (predictable BVs: a SUT collision is the SUT's doing)
+    cfg = load_scenario_config(None, {"sut.model": model, "steps": steps, "seed": SEED, "bvs.driver": "level0"})
     assert cfg.bvs.count == 20 and cfg.bvs.driver == "level0"
     return cfg
 

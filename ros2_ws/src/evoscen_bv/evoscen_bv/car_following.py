@@ -31,13 +31,21 @@ centre crosses, and a follower there must see it (without this, most collisions 
 learned BVs were vehicles in lane II running into a merging vehicle that had stopped
 half-way). While changing lanes it also follows the target lane's leader.
 
+[choice] Committed lane changes. While a BV changes lanes the controller regulates the gap
+to the *target* lane's leader only; the leader in the lane it leaves only bounds the
+throttle through the emergency brake below. A vehicle at rest cannot move sideways: with
+the gap regulator on the old lane's leader (target gap 25 m), a BV that began to merge
+behind a queue stopped ~18 m behind it, half in each lane, for good — and the lanes
+behind it jammed.
+
 [choice] Emergency brake. The method's controller regulates the gap to a target; trained
 on 2 CPU cores it brakes too late for a standing queue met at highway speed (from 31 m/s it
 hit a standing vehicle first seen 95 m ahead). Every learned BV therefore also bounds its
 throttle by an emergency brake: with closing speed Δv = v - v_leader > 0 and gap Δs, the
 constant deceleration that matches the leader's speed at a margin m is
-b = Δv² / (2 (Δs - m)); when b ≥ ``emergency_decel_mps2`` (4 m/s², MOBIL's b_safe) the
-throttle is at most -b / b_max. It acts only where the policy's own braking is too weak;
+b = Δv² / (2 (Δs - m)) — and behind a braking leader (deceleration b_l) the one that stops
+behind the point where it stops, v² / (2 (Δs - m + v_l² / (2 b_l))), if larger; when b ≥
+``emergency_decel_mps2`` (4 m/s², MOBIL's b_safe) the throttle is at most -b / b_max. It acts only where the policy's own braking is too weak;
 it is part of the run-time driver, so the decision policies are trained with it; the
 controller itself is trained without it (trained with it, it leaned on it: a tenth of its
 evaluation gaps fell under 2 m).
@@ -246,38 +254,51 @@ def controller_observations(world, idx: np.ndarray, params: CarFollowingParams) 
 
 
 def emergency_brake_throttle(gap_m: np.ndarray, leader_speed: np.ndarray, speed: np.ndarray,
-                             params: CarFollowingParams, max_brake: float) -> np.ndarray:
+                             params: CarFollowingParams, max_brake: float,
+                             leader_accel: np.ndarray | float = 0.0) -> np.ndarray:
     """The emergency-brake bound on the throttle (1 where it does not act), see the module docstring."""
-    gap = np.asarray(gap_m, float)
-    vl = np.asarray(leader_speed, float)
-    v = np.asarray(speed, float)
-    out = np.ones(np.broadcast(gap, vl, v).shape)
+    gap, vl, v, al = np.broadcast_arrays(np.asarray(gap_m, float), np.asarray(leader_speed, float),
+                                         np.asarray(speed, float), np.asarray(leader_accel, float))
+    out = np.ones(gap.shape)
     for k in np.ndindex(out.shape):
-        out[k] = _emergency_one(float(np.broadcast_to(gap, out.shape)[k]), float(np.broadcast_to(vl, out.shape)[k]),
-                                float(np.broadcast_to(v, out.shape)[k]), params.emergency_decel_mps2,
-                                params.emergency_margin_m, max_brake)
+        out[k] = _emergency_one(float(gap[k]), float(vl[k]), float(al[k]), float(v[k]),
+                                params.emergency_decel_mps2, params.emergency_margin_m, max_brake)
     return out
 
 
 @kernel
-def _emergency_one(gap, vl, v, trigger, margin, max_brake):  # noqa: ANN001, ANN202
-    """Throttle bound of the emergency brake for one leader (1.0: not acting)."""
-    if np.isnan(vl) or v <= vl:
-        return 1.0
-    closing = v - vl
+def _emergency_need(gap, vl, al, v, margin):  # noqa: ANN001, ANN202
+    """The constant deceleration the emergency brake asks for (0: none), scalars only."""
     room = max(gap - margin, 0.05)
-    need = closing * closing / (2.0 * room)  # constant deceleration that matches the leader's speed at the margin
+    need = 0.0
+    if v > vl:  # match the leader's speed before the margin
+        need = (v - vl) * (v - vl) / (2.0 * room)
+    if al < 0.0 and v > 0.0:  # a braking leader: stop behind the point where it stops
+        need = max(need, v * v / (2.0 * (room + vl * vl / (2.0 * -al))))
+    return need
+
+
+@kernel
+def _emergency_one(gap, vl, al, v, trigger, margin, max_brake):  # noqa: ANN001, ANN202
+    """Throttle bound of the emergency brake for one leader (1.0: not acting)."""
+    if np.isnan(vl):
+        return 1.0
+    need = _emergency_need(gap, vl, 0.0 if np.isnan(al) else al, v, margin)
     if need < trigger:
         return 1.0
     return -min(need / max_brake, 1.0)
 
 
 def compose_throttle(policy_own: np.ndarray, policy_target: np.ndarray, own_obs: np.ndarray,
-                     target_obs: np.ndarray, cap: np.ndarray) -> np.ndarray:
+                     target_obs: np.ndarray, cap: np.ndarray, changing: np.ndarray | None = None) -> np.ndarray:
     """Throttle = min over the leaders in view of the policy's command, and the speed cap
-    (pass the emergency-brake bound folded into ``cap``)."""
+    (pass the emergency-brake bound folded into ``cap``); where ``changing``, the own (old)
+    lane's leader is not regulated to (see the module docstring)."""
     big = np.inf
-    u_own = np.where(own_obs[:, 3] > 0.5, policy_own, big)
+    own_seen = own_obs[:, 3] > 0.5
+    if changing is not None:
+        own_seen = own_seen & ~np.asarray(changing, bool)
+    u_own = np.where(own_seen, policy_own, big)
     u_tgt = np.where(target_obs[:, 3] > 0.5, policy_target, big)
     return np.clip(np.minimum(np.minimum(u_own, u_tgt), cap), -1.0, 1.0)
 
@@ -333,7 +354,8 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
             gap, vl, al = gap_all[k, slot], vl_all[k, slot], al_all[k, slot]
             if slot == 1 and gap == gap_all[k, 0] and vl == vl_all[k, 0] and al == al_all[k, 0]:
                 break  # one lane, or the same leader twice
-            if gap <= view and not np.isnan(vl):  # a leader in view: the controller's command
+            regulate = slot == 1 or lane_change[i] == 0  # changing lanes: the old lane's leader only bounds (see leaders)
+            if regulate and gap <= view and not np.isnan(vl):  # a leader in view: the controller's command
                 x[0] = gap / view
                 x[1] = (vl - v[i]) / v_max
                 x[2] = (al - a[i]) / a_max
@@ -357,10 +379,8 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
                     z += max(h2[q], 0.0) * W3[q]
                 u = min(u, max_action * np.tanh(z))
             # emergency brake (as _emergency_one)
-            if not np.isnan(vl) and v[i] > vl:
-                closing = v[i] - vl
-                room = max(gap - em_margin, 0.05)
-                need = closing * closing / (2.0 * room)
+            if not np.isnan(vl):
+                need = _emergency_need(gap, vl, al, v[i], em_margin)
                 if need >= em_trigger:
                     u = min(u, -min(need / max_brake, 1.0))
         out[k] = min(max(u, -1.0), 1.0)

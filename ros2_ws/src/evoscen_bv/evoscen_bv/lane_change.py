@@ -28,6 +28,9 @@ the target lane must be at least 10 m + h·max(0, v_i - v_j) away, one behind at
 10 m + h·max(0, v_j - v_i), h = 1.5 s (``CUT_IN_CLOSING_HEADWAY_S``). With the method's
 plain 10 m, a merge from standstill in front of traffic at 30 m/s was "legal" and most
 lane-change collisions were such cut-ins.
+[choice] A change into a lane that ends within 200 m ahead (the merge lane, seen from lane
+II) becomes keep, like a change off the road: trained BVs moved into the ending merge lane
+behind the vehicles waiting at its end, stopped half-way and blocked both lanes.
 
 Rewards (method §3.2), with O the drivable area — the gap to the nearest vehicle ahead
 in a lane, also bounded by the end of that lane and by the front view O_max:
@@ -71,6 +74,8 @@ BACK_CELLS = int(BEHIND_M / CELL_M)
 """Cells 0..3 are behind the ego (Ω_b)."""
 ACTION_THRESHOLD = 1.0 / 3.0
 CUT_IN_GAP_M = 10.0
+LANE_END_MARGIN_M = 200.0
+"""[choice] A change into a lane that ends less than this far ahead becomes keep (m)."""
 CUT_IN_CLOSING_HEADWAY_S = 1.5
 """[choice] Seconds of closing speed added to the 10 m cut-in gap (level-0's ``merge_closing_headway_s``)."""
 
@@ -192,13 +197,14 @@ def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.n
     req = np.asarray(requested, dtype=np.int64)
     breaks, present_at, length_m = view.road.existence_table()
     lk = view.lane_lookup()
-    return _constraint_kernel(idx, req, breaks, present_at, length_m, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
+    lane_end_s = np.asarray(view.road.lane_end_s, dtype=float)
+    return _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, LANE_END_MARGIN_M, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
                               view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
                               CUT_IN_GAP_M, CUT_IN_CLOSING_HEADWAY_S)
 
 
 @kernel
-def _constraint_kernel(idx, req, breaks, present_at, length_m, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+def _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, end_margin, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
                        d_right, d_left, present, min_gap, closing_headway):
     m = idx.shape[0]
     n = s.shape[0]
@@ -212,6 +218,8 @@ def _constraint_kernel(idx, req, breaks, present_at, length_m, s, d, psi, v, lan
         tgt = lane[i] + r
         seg = np.searchsorted(breaks, min(max(s[i], 0.0), length_m), side="right") - 1
         if tgt < 0 or tgt >= present_at.shape[1] or not present_at[seg, tgt]:  # off-road change -> keep
+            continue
+        if lane_end_s[tgt] < length_m and lane_end_s[tgt] - s[i] < end_margin:  # into a lane about to end -> keep
             continue
         ok = True
         for j in range(n):

@@ -95,9 +95,9 @@ def test_fused_run_time_throttle_equals_the_pieces():
     own, target = controller_observations(w, idx, P)
     u = actor.forward(np.vstack([own, target]))[:, 0]
     cap = speed_cap_throttle(w.v[idx], np.minimum(desired, w.speed_limit_mps[idx]), P, 3.0, 8.0)
-    gap, v_lead, _ = leaders(w, idx, P)
-    cap = np.minimum(cap, emergency_brake_throttle(gap, v_lead, w.v[idx][:, None], P, 8.0).min(axis=1))
-    expected = compose_throttle(u[:4], u[4:], own, target, cap)
+    gap, v_lead, a_lead = leaders(w, idx, P)
+    cap = np.minimum(cap, emergency_brake_throttle(gap, v_lead, w.v[idx][:, None], P, 8.0, a_lead).min(axis=1))
+    expected = compose_throttle(u[:4], u[4:], own, target, cap, changing=w.lane_change[idx] != 0)
     fused = learned_throttle(w, idx, desired, PolicyBank([actor]), P, 3.0, 8.0)
     assert fused == pytest.approx(expected, abs=1e-12)
     assert target[1, 3] == 1.0 and not np.array_equal(own[1], target[1])  # the target lane's leader is seen
@@ -110,6 +110,11 @@ def test_emergency_brake_by_hand():
     u = emergency_brake_throttle(np.array([47.6, 47.6, 47.6, np.inf, 1.0]), np.array([0.0, 0.0, 25.0, np.nan, 0.0]),
                                  np.array([20.0, 15.0, 20.0, 30.0, 20.0]), P, 8.0)
     assert u.tolist() == pytest.approx([-400.0 / 91.2 / 8.0, 1.0, 1.0, 1.0, -1.0])
+    # a leader braking at 8 m/s², both at 20 m/s, 25 m apart: it stops in 400 / 16 = 25 m; stopping behind that
+    # point needs 400 / (2 (23 + 25)) = 4.17 m/s² >= 4 -> acts; braking at 2 m/s² (stops in 100 m) -> not acting
+    u = emergency_brake_throttle(np.array([25.0, 25.0]), np.array([20.0, 20.0]), np.array([20.0, 20.0]), P, 8.0,
+                                 np.array([-8.0, -2.0]))
+    assert u.tolist() == pytest.approx([-400.0 / 96.0 / 8.0, 1.0])
 
 
 def test_leaders_see_vehicles_changing_into_or_reaching_into_the_lane():
@@ -142,3 +147,27 @@ def test_merge_lane_end_is_not_a_leader_while_changing_out_of_the_merge_lane():
     assert w.lane_change[0] == 1
     own, target = controller_observations(w, np.array([0]), P)
     assert own[0, 3] == 0.0 and target[0, 3] == 0.0  # merging: nothing ahead, it must not stop across the lanes
+
+
+def test_a_bv_changing_lanes_creeps_past_a_standing_leader_in_the_old_lane():
+    """Committed lane changes: the old lane's leader only bounds the throttle (emergency brake), so a BV that
+    began a change 18 m behind a standing vehicle moves on (at rest it could not move sideways)."""
+    from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
+
+    controller, _, training = load_policies(shipped_policy_dir())
+    road = load_road()
+    w = hand_built_world(road, s=[1200.0, 1177.0], lane=[2, 2], speed=[0.0, 2.0])  # bumper gap 23 - length
+    bv = LearnedDriver(np.array([1]), controller, {}, training, np.random.default_rng(0), w.vehicle)
+    w.step(np.array([-1.0, 0.0]), np.array([0, 1]))
+    assert w.lane_change[1] == 1
+    for _ in range(200):
+        w.step(np.concatenate([[-1.0], bv.throttle(w)]), np.zeros(2, dtype=np.int64))
+    assert w.lane[1] == 3 and w.lane_change[1] == 0  # the change completed
+    assert w.s[1] < w.s[0] or w.lane[1] != w.lane[0]  # without touching the standing vehicle
+    assert not overlapping(w)
+
+
+def overlapping(w) -> bool:  # noqa: ANN001
+    from evoscen_sim.collision import overlapping_pairs
+
+    return len(overlapping_pairs(w.s, w.d, w.psi, w.length, w.width)) > 0

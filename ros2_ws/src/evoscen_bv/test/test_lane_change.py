@@ -205,3 +205,10 @@ def test_grid_off_road_cells_equal_the_roads_lane_existence(road):
     exists = road.lane_exists(lanes, cells)
     assert np.array_equal(g[..., 0] == -1.0, ~exists)
     assert (~exists).any() and exists.any()
+
+
+def test_rule_constraint_no_change_into_a_lane_about_to_end(road):
+    # the merge lane (0) ends at 960 m: from lane 1 at 800 m (160 m before its end, < 200 m) a change right becomes
+    # keep; at 700 m (260 m before) it is allowed
+    w = hand_built_world(road, s=[800.0, 700.0], lane=[1, 1], speed=[20.0, 20.0])
+    assert apply_rule_constraints(w, np.array([0, 1]), np.array([-1, -1])).tolist() == [0, -1]
