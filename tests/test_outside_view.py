@@ -135,6 +135,7 @@ class Observer(Node):
         elif typ == "nav_msgs/msg/Odometry":
             s["child_frame_id"] = msg.child_frame_id
             s["last_speed"] = msg.twist.twist.linear.x
+            s["max_odom_speed"] = max(s.get("max_odom_speed", 0.0), msg.twist.twist.linear.x)
             q = msg.pose.pose.orientation
             s["unit_quaternion"] = s.get("unit_quaternion", True) and abs(q.x**2 + q.y**2 + q.z**2 + q.w**2 - 1) < 1e-9
 
@@ -309,7 +310,8 @@ def test_observer_receives_every_step(observed):
     odom = s["/evoscen/sut/odom"]
     assert odom["count"] == STEPS + 1, counts
     assert odom["frame_ids"] == ["map"] and odom["child_frame_id"] == "sut/base_link" and odom["unit_quaternion"]
-    assert 20 < odom["last_speed"] < 40
+    # the SUT starts at 27 m/s; later it may be slowed by traffic (learned BVs queue at the merge)
+    assert 20 < odom["max_odom_speed"] < 40 and 0.0 <= odom["last_speed"] < 40
 
     roster = s["/evoscen/roster"]
     assert roster["count"] == 1, counts
