@@ -28,12 +28,13 @@ SEED = 0
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 
-def scenario_config(model: str, steps: int):  # noqa: ANN201
+def scenario_config(model: str, steps: int, bv_driver: str = "level0"):  # noqa: ANN201
+    """The default scenario with SUT ``model``; by default among level-0 traffic (predictable BVs: a SUT
+    collision is then the SUT's doing); ``bv_driver="learned"`` is the shipped default."""
     from evoscen_sim.config import load_scenario_config
 
-    # the SUT models are compared among level-0 traffic (predictable BVs: a SUT collision is the SUT's doing)
-    cfg = load_scenario_config(None, {"sut.model": model, "steps": steps, "seed": SEED, "bvs.driver": "level0"})
-    assert cfg.bvs.count == 20 and cfg.bvs.driver == "level0"
+    cfg = load_scenario_config(None, {"sut.model": model, "steps": steps, "seed": SEED, "bvs.driver": bv_driver})
+    assert cfg.bvs.count == 20 and cfg.bvs.driver == bv_driver
     return cfg
 
 
@@ -92,7 +93,8 @@ def test_graph_bag_equals_inprocess_bag(model: str, graph_runs: dict, tmp_path: 
     assert "Traceback" not in res.stderr, res.stderr
     assert f"steps: {GRAPH_STEPS} " in res.stdout, res.stdout
     assert "evoscen_sut=0" in res.stdout and "evoscen_sim=0" in res.stdout, res.stdout
-    summary = run_inprocess(scenario_config(model, GRAPH_STEPS), bag_dir=tmp_path / "bag")
+    # the graph runs use the shipped default: learned BVs (one batched policy pass in the BV node)
+    summary = run_inprocess(scenario_config(model, GRAPH_STEPS, "learned"), bag_dir=tmp_path / "bag")
     assert summary.steps == GRAPH_STEPS
     graph_bag = (out / "bag" / "bag_0.mcap").read_bytes()
     inprocess_bag = (tmp_path / "bag" / "bag_0.mcap").read_bytes()

@@ -325,10 +325,10 @@ def _scenario(role: str, seed: int = 0):
     """Default scenario with MOBIL as SUT (via sut.model once registered) or as every BV's driver."""
     key = "sut.model" if role == "sut" else "bvs.driver"
     try:
-        cfg = load_scenario_config(overrides={key: "mobil", "recording.enabled": False, "seed": seed})
+        cfg = load_scenario_config(overrides={"bvs.driver": "level0", key: "mobil", "recording.enabled": False, "seed": seed})
         sc = build_scenario(cfg)
     except InputError:  # not registered yet: build the driver with the model's factory
-        cfg = load_scenario_config(overrides={"recording.enabled": False, "seed": seed})
+        cfg = load_scenario_config(overrides={"recording.enabled": False, "seed": seed, "bvs.driver": "level0"})
         sc = build_scenario(cfg)
         rng = np.random.default_rng(seed + 1)
         if role == "sut":

@@ -258,10 +258,10 @@ def test_merge_in_closed_loop(road) -> None:
 def _scenario(role: str, seed: int = 0):
     key = "sut.model" if role == "sut" else "bvs.driver"
     try:
-        cfg = load_scenario_config(overrides={key: "nilsson", "recording.enabled": False, "seed": seed})
+        cfg = load_scenario_config(overrides={"bvs.driver": "level0", key: "nilsson", "recording.enabled": False, "seed": seed})
         sc = build_scenario(cfg)
     except InputError:  # not registered yet: build the driver with the model's factory
-        cfg = load_scenario_config(overrides={"recording.enabled": False, "seed": seed})
+        cfg = load_scenario_config(overrides={"recording.enabled": False, "seed": seed, "bvs.driver": "level0"})
         sc = build_scenario(cfg)
         rng = np.random.default_rng(seed + 1)
         if role == "sut":
