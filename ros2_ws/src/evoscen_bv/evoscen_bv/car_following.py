@@ -142,15 +142,6 @@ def speed_cap_throttle(speed: np.ndarray, desired_speed: np.ndarray, params: Car
     return np.clip(np.where(acc >= 0.0, acc / max_accel, acc / max_brake), -1.0, 1.0)
 
 
-def merge_end_gap(world, idx: np.ndarray, params: CarFollowingParams) -> np.ndarray:  # noqa: ANN001
-    """Gap (m) of vehicles ``idx`` to the merge lane's standing end; ``inf`` off the merge lane and
-    while changing lanes (as for level-0 traffic: a vehicle that stopped at the line mid-change
-    would stand across two lanes, since a vehicle at rest cannot move sideways)."""
-    end_s = float(world.road.lane_end_s[0])
-    gap = end_s - params.merge_stop_margin_m - (world.s[idx] + 0.5 * world.length[idx])
-    return np.where((world.lane[idx] == 0) & (world.lane_change[idx] == 0), gap, np.inf)
-
-
 def leaders(view, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
     """The leaders a learned BV follows: ``(gap, speed, accel)``, each ``(m, 2)``.
 
@@ -159,7 +150,8 @@ def leaders(view, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarr
     ½(W cos ψ + L |sin ψ|) around its centre crosses the lane's border by more than
     ``OCCUPY_TOLERANCE_M``: a vehicle straddling two lanes, mid-change or just after).
     Column 0: the nearest vehicle ahead occupying the BV's lane; on the merge lane, the
-    lane's standing end when nearer (not while changing lanes, see :func:`merge_end_gap`).
+    lane's standing end when nearer (not while changing lanes: a vehicle that stopped at the line
+    mid-change would stand across two lanes).
     Column 1: the same for the BV's second lane — its target lane while changing lanes,
     else the neighbouring lane its own body reaches into, else column 0 again. "Ahead":
     larger ``s``, or equal ``s`` and a larger index (as the neighbourhood's). No leader: gap
@@ -378,10 +370,6 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
                 for q in range(h):
                     z += max(h2[q], 0.0) * W3[q]
                 u = min(u, max_action * np.tanh(z))
-            # emergency brake (as _emergency_one)
-            if not np.isnan(vl):
-                need = _emergency_need(gap, vl, al, v[i], em_margin)
-                if need >= em_trigger:
-                    u = min(u, -min(need / max_brake, 1.0))
+            u = min(u, _emergency_one(gap, vl, al, v[i], em_trigger, em_margin, max_brake))  # scalars only
         out[k] = min(max(u, -1.0), 1.0)
     return out
