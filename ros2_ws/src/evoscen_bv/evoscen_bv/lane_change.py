@@ -47,7 +47,7 @@ negative numbers). The outcome terms O_c'²/O_max² and the social sums are eval
 the next decision, on the vehicles then in the back part of the ego's grid (Ω_b: the
 cells behind the ego, Δs in [-20, 0), all five lanes).
 [choice] J_lc differs by type (reward shaping, SPEC §3.3): -0.4 competitive, -0.8 mutual,
--2.0 cooperative — the equations are the method's, the coefficients per type are ours.
+-3.0 cooperative — the equations are the method's, the coefficients per type are ours.
 [choice] ϑ favours the left lanes: ϑ = ``theta_left`` for a lane left of the ego's lane,
 else 1 (for O_t: a change to the left; for O_c^b: a vehicle b in a lane left of the ego).
 The coefficients are the ``reward`` section of the training config
@@ -105,7 +105,7 @@ class RewardParams:
     """J_lc of the mutual driver: added when a lane change is executed (negative)."""
     comp_lane_change_penalty: float = -0.4
     """J_lc of the competitive driver [choice: a smaller penalty — the type that changes most]."""
-    coop_lane_change_penalty: float = -2.0
+    coop_lane_change_penalty: float = -3.0
     """J_lc of the cooperative driver [choice: a larger penalty — every change disturbs others;
     at -1.2 the trained cooperative BVs still changed lanes more often than the mutual ones, as
     the followers' space term rewards moving out of their way]."""

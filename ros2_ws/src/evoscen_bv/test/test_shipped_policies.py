@@ -3,9 +3,9 @@
 * Free car following: a column of learned BVs behind a leader at constant speed holds a
   mean gap in the designed band g ± 5 m = [20, 30] m (g = 25 m) with no rear-end collision.
 * The 20-BV default scenario with learned BVs (mix 4:3:3, seeds 1-4, 300 s each = 6.7
-  vehicle-hours): the competitive BVs change lanes most (per vehicle-hour) and collisions
-  among learned BVs are rare (README "Learned background vehicles": 1 in 6.7 vehicle-hours).
-  NOT met by the shipped set: mutual > cooperative (mutual 99, cooperative 120 per vehicle-hour).
+  vehicle-hours): lane changes per vehicle-hour order as competitive > mutual > cooperative
+  (SPEC 3.3) and collisions among learned BVs are rare (at most 2; README "Learned background
+  vehicles" gives the measured rate).
 
 ``EVOSCEN_POLICY_DIR`` points the tests at another policy directory (a training output).
 """
@@ -85,7 +85,7 @@ def test_competitive_changes_lanes_most_and_collisions_are_rare():
         collisions += coll
         vehicle_hours += vh
     mutual, competitive, cooperative = rates[1], rates[2], rates[3]
-    # measured: competitive 213, cooperative 120, mutual 99 lane changes per vehicle-hour
-    assert competitive > 1.5 * max(mutual, cooperative), rates
+    # the method's order (SPEC 3.3): competitive changes lanes most, cooperative rarely, mutual in between
+    assert competitive > mutual > cooperative, rates
     # rare: at most two collisions among learned BVs in the 6.7 vehicle-hours (measured: one, at 3 m/s)
     assert collisions <= 2, (collisions, vehicle_hours)
