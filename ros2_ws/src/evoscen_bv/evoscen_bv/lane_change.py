@@ -78,6 +78,9 @@ LANE_END_MARGIN_M = 200.0
 """[choice] A change into a lane that ends less than this far ahead becomes keep (m)."""
 CUT_IN_CLOSING_HEADWAY_S = 1.5
 """[choice] Seconds of closing speed added to the 10 m cut-in gap (level-0's ``merge_closing_headway_s``)."""
+FORCED_MERGE_M = 120.0
+"""[choice] Run time: on the last this-many metres of a lane that ends, a learned BV requests the
+change towards the lane that goes on, whatever its policy says (:func:`forced_merge_requests`)."""
 
 
 @dataclass(frozen=True)
@@ -185,6 +188,32 @@ def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_sca
             grid[k, r, c, 2] = (v[j] * np.sin(psi[j]) - vlat_i) / lat_scale
             grid[k, r, c, 3] = (psi[j] - psi[i]) / yaw_scale
     return grid
+
+
+def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:  # noqa: ANN001
+    """``requested`` with the road's mandatory changes: a vehicle in a lane that ends less than
+    ``within_m`` ahead requests the change to the neighbouring lane that ends later (left if
+    both do), like level-0's merge rule "except where the road forces a change" (SPEC 3.3).
+
+    [choice] A run-time rule of the scenario's learned BVs, not of the training
+    environments (the shipped policies were trained without it, as without the emergency
+    brake): a policy that keeps its lane at the end of the merge lane — the cooperative
+    one, with J_lc -3.0 — otherwise stood there for good, and a BV that had just merged
+    beside it, its body still reaching into the merge lane, stood behind it: both lanes
+    blocked. The rule constraints still apply to the forced request (it waits for a gap).
+    """
+    idx = np.asarray(idx, dtype=np.int64)
+    out = np.asarray(requested, dtype=np.int64).copy()
+    end = np.asarray(view.road.lane_end_s, dtype=float)
+    lanes = end.size
+    lane = np.asarray(view.lane)[idx]
+    for k in np.flatnonzero(end[lane] - np.asarray(view.s)[idx] < within_m):  # a few vehicles at most
+        q = int(lane[k])
+        for r in (1, -1):
+            if 0 <= q + r < lanes and end[q + r] > end[q]:
+                out[k] = r
+                break
+    return out
 
 
 def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.ndarray:  # noqa: ANN001

@@ -32,7 +32,7 @@ from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 
 from .car_following import learned_throttle, throttle_constants
-from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, observation_grid
+from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, forced_merge_requests, observation_grid
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
 
@@ -139,11 +139,16 @@ class LearnedDriver:
         rng: draws each vehicle's desired speed.
         vehicle_params: the scenario's :class:`evoscen_sim.vehicle.VehicleParams`.
         default_code: policy code used for vehicles with an unknown code.
+        forced_merge: apply the run-time forced merge
+            (:func:`evoscen_bv.lane_change.forced_merge_requests`): scenario BVs yes, the
+            training environments' traffic no (the policies were trained without it).
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
-                 config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1) -> None:
+                 config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
+                 forced_merge: bool = False) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
+        self.forced_merge = forced_merge
         self.controller = controller
         self.controller_bank = PolicyBank([controller])
         self.config = config
@@ -182,6 +187,8 @@ class LearnedDriver:
         idx = self.vehicles[positions]
         obs = observation_grid(view, idx, self.config.grid).reshape(idx.size, OBS_DIM)
         requested = action_to_lane_change(self.stack.forward(obs, self.policy_columns(view, idx)))
+        if self.forced_merge:
+            requested = forced_merge_requests(view, idx, requested)
         executed = apply_rule_constraints(view, idx, requested)
         return obs, requested, executed
 

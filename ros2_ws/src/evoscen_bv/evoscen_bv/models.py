@@ -51,7 +51,8 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
         if params.on_missing == "level0":
             return _level0(vehicles, None, config, rng)
         raise InputError(f"models.learned.policy_dir = {params.policy_dir}: {exc}") from None
-    return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config))
+    return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config),
+                         forced_merge=True)
 
 
 LEVEL0 = ModelSpec(

@@ -16,6 +16,7 @@ from evoscen_bv.lane_change import (
     apply_rule_constraints,
     back_vehicles,
     drivable_area,
+    forced_merge_requests,
     individual_reward,
     lane_change_gain,
     observation_grid,
@@ -97,6 +98,23 @@ def test_rule_constraint_off_road_change_becomes_keep(road):
                           HAND)
     # J_req = -0.5 where the request was rewritten; vehicle 2 pays J_lc = -0.3 for its executed change
     assert r == pytest.approx([-0.5 + 0.25, -0.5 + 0.25, -0.3 + 0.25])
+
+
+def test_forced_merge_on_the_last_120_m_of_the_merge_lane(road):
+    # the merge lane (0) ends at s = 960; the mainline lanes 1-4 all end at the road's end (2393.76)
+    assert road.lane_end_s[0] == pytest.approx(960.0)
+    w = hand_built_world(road, s=[850, 830, 900, 900, 2300, 880, 884], lane=[0, 0, 0, 1, 4, 0, 1],
+                         speed=[5, 5, 0, 25, 25, 0, 10])
+    idx = np.arange(7)
+    requested = np.array([0, 0, -1, -1, 0, 0, 0])
+    forced = forced_merge_requests(w, idx, requested)
+    # 110 m before the end: left; 130 m: the policy's keep; 60 m, asking right (off the road): left;
+    # lane 1 and lane 4 near the road's end: no neighbouring lane goes on further -> unchanged
+    assert forced.tolist() == [1, 0, 1, -1, 0, 1, 0]
+    assert requested.tolist() == [0, 0, -1, -1, 0, 0, 0]  # not modified in place
+    # the rule constraints still apply: vehicle 5 (s 880) has vehicle 6 (lane 1, s 884) beside it
+    executed = apply_rule_constraints(w, idx, forced)
+    assert executed[5] == 0 and executed[0] == 1
 
 
 def test_rule_constraint_cut_in_within_10_m_becomes_keep(road):
