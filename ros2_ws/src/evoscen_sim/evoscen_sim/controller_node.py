@@ -65,6 +65,24 @@ class ControllerNode:
         self.events_sub = graph.subscription(self.node, T.EVENTS, raw=True)
         self.pub = graph.publisher(self.node, command_spec)
         self.pump = graph.MessagePump(self.node, [self.world_sub, self.events_sub])
+        self._warm_up(build, params)  # while discovery runs in the middleware's threads
+
+    def _warm_up(self, build: Callable, params: dict) -> None:
+        """Answer the initial world once with a spare driver, so that step 0 is not the slow one.
+
+        The compiled kernels (road look-up, neighbourhood, the driver's own) are loaded from
+        numba's cache on first use, a few hundred ms on the 2-core VM that would otherwise
+        fall into the first lockstep step. The spare driver is built like the real one and
+        thrown away: the real one (its random stream included) is untouched.
+        """
+        from .scenario import build_world
+
+        world = build_world(self.cfg)
+        spare, _ = build(params, self.cfg)
+        table = decode_table(self.msgs.world(world.columns(), world.time_ns))
+        throttle, lane_change = spare.act(WorldView(self.road, table.columns(), 0, self.cfg.dt_s))
+        WorldMessages(self.cfg.dt_s).commands(table.data[self.vehicles, 0], np.asarray(throttle, float),
+                                              np.asarray(lane_change, float), 0)
 
     def _ready(self) -> bool:
         """Every required subscriber (by node name) has an endpoint on our topic, all matched.

@@ -85,15 +85,34 @@ class SimulationNode:
                     for spec in (T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.ROSTER, T.MARKERS, T.MAP_MARKERS)}
         self.subs = {c: graph.subscription(n, CONTROLLER_TOPICS[c], raw=True) for c in self.controllers}
         self.pump = graph.MessagePump(n, self.subs.values())
+        self._warm_up()  # while discovery runs in the middleware's threads
         # commands held for a controller that misses a deadline: its last throttle, no lane change
         self.throttle = np.zeros(self.world.n)
         self.lane_change = np.zeros(self.world.n, dtype=np.int64)
         self.misses = dict.fromkeys(self.controllers, 0)
         self._published_ns: int | None = None
+        self._stepped = None  # the result of the last step, until its events go out with the next state
+        self._initial_events: list[dict] = []
         # Ctrl-C / SIGTERM take effect at step boundaries (never between two publications of a step)
         self._interrupted = False
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, self._on_signal)
+
+    def _warm_up(self) -> None:
+        """Run one step's kernels on a copy of the world, so that step 0 is not the slow one.
+
+        The compiled kernels are loaded from numba's cache on first use (about a second on the
+        2-core VM); without this, that second falls into the first lockstep step, where the
+        controllers wait for it. The copy leaves the world (its random stream included) and
+        the exposure monitor as they were.
+        """
+        import copy
+
+        world = copy.deepcopy(self.world)
+        result = world.step(np.zeros(world.n), np.zeros(world.n, dtype=np.int64))
+        step_events(world, result)
+        copy.deepcopy(self.exposures).observe(world)
+        self.msgs.__class__(self.cfg.dt_s).vehicle_markers(world.columns(), world.time_ns)
 
     def _on_signal(self, signum, frame) -> None:  # noqa: ANN001
         self._interrupted = True
@@ -106,11 +125,13 @@ class SimulationNode:
     def _publish(self, spec: T.TopicSpec, data: bytes) -> None:
         self.pub[spec.name].publish(data)
 
-    def _publish_state(self, *, roster: bool, events: list[dict] | None = None) -> None:
+    def _publish_state(self, *, roster: bool) -> None:
         """The world at t_k first (what the controllers wait for), then the rest of the step.
 
-        The bag's order does not depend on the publishing order: the recorder writes each
-        step in canonical order.
+        The rest — the events of the step that led to t_k (worked out only now, while the
+        controllers compute), ``/clock``, odometry, markers — is off the critical path. The
+        bag's order does not depend on the publishing order: the recorder writes each step in
+        canonical order.
         """
         w, m, t_ns = self.world, self.msgs, self.world.time_ns
         cols = w.columns()
@@ -119,8 +140,9 @@ class SimulationNode:
         if roster:
             self._publish(T.ROSTER, m.roster(cols, t_ns))
             self._publish(T.MAP_MARKERS, m.map_markers(w.road, t_ns))
-        if events is not None:  # what happened in the step that led to t_k
-            self._publish_events(events)
+        if self._stepped is not None:  # what happened in the step that led to t_k
+            self._publish_events(self._initial_events + step_events(w, self._stepped) + self.exposures.observe(w))
+            self._stepped, self._initial_events = None, []
         self._publish(T.CLOCK, m.clock(t_ns))
         self._publish(T.SUT_ODOM, m.odometry(cols, SUT_INDEX, t_ns))
         every = self.cfg.recording.markers_every
@@ -245,20 +267,17 @@ class SimulationNode:
         w = self.world
         end_kind, end_text, status = "interrupted", "run interrupted (SIGINT)", EXIT_INTERRUPTED
         loop_start = None
-        events = None  # the events of the last step, published with the next state
-        initial = self.exposures.observe(w)  # an exposure in the initial state goes out with the first events
+        # an exposure in the initial state goes out with the first events
+        self._initial_events = self.exposures.observe(w)
         try:
             self.wait_for_graph()
             loop_start = time.perf_counter()
             for k in range(self.cfg.steps):
                 self._check_interrupt()
-                self._publish_state(roster=(k == 0), events=events)
-                events = None
+                self._publish_state(roster=(k == 0))
                 self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
-                result = w.step(self.throttle, self.lane_change)
-                # published every step with the next state, [] if nothing happened
-                events = initial + step_events(w, result) + self.exposures.observe(w)
-                initial = []
+                # its events go out with the next state (every step, [] if nothing happened)
+                self._stepped = w.step(self.throttle, self.lane_change)
             end_kind, end_text, status = "completed", f"run completed: {w.step_index} steps", EXIT_OK
         except RunAborted as exc:
             end_kind, end_text, status = "aborted", str(exc), EXIT_FAULT
@@ -268,12 +287,11 @@ class SimulationNode:
         if loop_start is not None:
             self._report(w.step_index, time.perf_counter() - loop_start)
         if w.time_ns != self._published_ns:  # the final state, unless it went out already (abort, Ctrl-C)
-            self._publish_state(roster=(w.step_index == 0), events=events)
+            self._publish_state(roster=(w.step_index == 0))
         self._publish_events([run_end_event(w, end_kind, end_text)])
         for pub in self.pub.values():  # a dead reader would hold this for the whole timeout: keep it short
             pub.wait_for_all_acked(graph.duration(1.0))
         return status
-
 
     def _report(self, steps: int, seconds: float) -> None:
         """Lockstep rate to stderr and, if asked, to ``stats_file`` (never into the bag: wall time)."""
