@@ -95,9 +95,12 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
                         "external_sut": opts.external_sut,
                         # a parameter file cannot type an empty list: only when there are nodes to wait for
                         **({"wait_for_nodes": list(opts.wait_for)} if opts.wait_for else {})},
-        "evoscen_bv": {"startup_timeout_s": opts.startup_timeout_s, "use_sim_time": True},
-        "evoscen_sut": {"startup_timeout_s": opts.startup_timeout_s, "use_sim_time": True},
-        "evoscen_eval": {"bag_dir": str(bag_dir), "use_sim_time": True,
+        # no use_sim_time: the nodes take simulation time from the stamps of the messages they
+        # answer or record; rclpy's time source would add a /clock reader per node that nothing
+        # reads (no executor spins), and every step's /clock would be delivered to it
+        "evoscen_bv": {"startup_timeout_s": opts.startup_timeout_s},
+        "evoscen_sut": {"startup_timeout_s": opts.startup_timeout_s},
+        "evoscen_eval": {"bag_dir": str(bag_dir),
                          **({"report_dir": str(opts.report_dir), "report_plots": opts.report_plots}
                             if opts.report_dir is not None else {})},
     }
