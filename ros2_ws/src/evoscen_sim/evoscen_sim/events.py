@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .safety import dangerous, sut_leader, sut_ttc
+from .safety import dangerous, sut_leader_ttc_state
 
 
 def step_events(world, result) -> list[dict]:  # noqa: ANN001
@@ -78,13 +78,14 @@ class ExposureMonitor:
     def observe(self, world) -> list[dict]:  # noqa: ANN001
         """The exposure events of the world's current state."""
         w, sut = world, self.sut
-        ttc = float(sut_ttc(w.s, w.d, w.v, w.length, w.width, sut))
+        leader, ttc = sut_leader_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = sut_leader, sut_ttc
+        ttc = float(ttc)
         accel = float(w.accel[sut])
         danger = bool(dangerous(np.float64(ttc), np.float64(accel), self.ttc_threshold_s, self.hard_brake_mps2))
         k, common = w.step_index, {"step": w.step_index, "time_s": w.time_s}
         if danger and self.start_step is None:
             self.start_step = k
-            leader = int(sut_leader(w.s, w.d, w.length, w.width, sut)[0])
+            leader = int(leader)
             ids = [int(w.ids[sut])] + ([int(w.ids[leader])] if leader >= 0 else [])
             cause = f"TTC {ttc:.2f} s" if ttc < self.ttc_threshold_s else f"acceleration {accel:.2f} m/s^2"
             return [{"name": "evoscen/exposure", "level": 1, "message": f"SUT dangerous state: {cause}",
