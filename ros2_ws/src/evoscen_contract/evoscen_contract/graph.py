@@ -130,30 +130,6 @@ class MessagePump:
         ws.wait(max(0, int(timeout_s * 1e9)))
 
 
-def lower_priority(nice: int) -> None:
-    """Raise the nice value of every thread of this process by ``nice`` (0 = leave it).
-
-    ``os.nice`` changes the calling thread only (Linux): the middleware's threads, started
-    with the node, would keep competing with the lockstep nodes on equal terms — the
-    receive thread of a recorder wakes for every message. Where ``/proc/self/task`` is not
-    there (not Linux), only the calling thread is lowered.
-    """
-    import os
-
-    if not nice:
-        return
-    try:
-        tids = [int(t) for t in os.listdir("/proc/self/task")]
-    except OSError:
-        os.nice(nice)
-        return
-    for tid in tids:
-        try:
-            os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + nice))
-        except (ProcessLookupError, PermissionError):
-            continue  # a thread that ended meanwhile, or one we may not change: leave it
-
-
 def shutdown() -> None:
     """``rclpy.shutdown`` if the context is still up."""
     if rclpy.ok():

@@ -60,6 +60,12 @@ class EvaluatorNode:
         self.drain_s = p("drain_s", 0.5, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
         self.batch_s = p("batch_s", 0.005, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
         self.nice = p("nice", 10, int, check=lambda v: 0 <= v <= 19, expected="expected an integer in [0, 19]")
+        if self.nice:
+            # outside the lockstep loop, and the topics are keep-all: lagging costs memory, never data,
+            # so the recorder yields the CPU to the loop (measurable on a 2-core machine)
+            import os
+
+            os.nice(self.nice)
         self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
                                 expected="expected a number > 0 (s)")
         self.report_dir = p("report_dir", "", str, expected="expected a directory path or ''")
@@ -75,10 +81,6 @@ class EvaluatorNode:
             self.bag.on_write = self.acc.add_bytes
         self.subs = {spec.name: graph.subscription(self.node, spec, raw=True) for spec in T.CONTRACT}
         self.pump = graph.MessagePump(self.node, self.subs.values())
-        # outside the lockstep loop, and the topics are keep-all: lagging costs memory, never data,
-        # so the recorder yields the CPU to the loop (measurable on a 2-core machine) — all its
-        # threads, the middleware's receive threads included
-        graph.lower_priority(self.nice)
         self._encoders: dict = {}
         per_step = [T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.COMMANDS_SUT] + ([T.COMMANDS_BV] if self.cfg.bvs.count else [])
         self.latest = {spec.name: -1 for spec in per_step}
