@@ -3,7 +3,9 @@
 
     python scripts/bench.py [--mode inprocess|graph] [--steps 5000] [--repeats 5] [--bag-steps 10000] [--no-sumo]
 
-Prints, for the shipped default scenario (1 SUT + 20 BVs, level-0 drivers, dt 0.1 s):
+Prints, for the shipped default scenario (1 SUT + 20 BVs, dt 0.1 s) with the BV drivers of
+``--bv-driver`` (default ``level0``, the rule-based drivers SUMO is compared with; ``learned``:
+the shipped policies, the scenario's default):
 
 * in-process steps/s with recording off (best and median of ``--repeats`` timed runs of
   ``--steps`` steps after a warm-up; the JIT kernels are compiled before timing);
@@ -42,12 +44,12 @@ from pathlib import Path
 import _bootstrap  # noqa: F401
 
 
-def time_inprocess(steps: int, repeats: int, warmup: int = 300) -> list[float]:
+def time_inprocess(steps: int, repeats: int, driver: str, warmup: int = 300) -> list[float]:
     """Steps/s of ``repeats`` timed runs (fresh scenario each, recording off)."""
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None)
+    cfg = load_scenario_config(None, {"bvs.driver": driver})
     rates = []
     for _ in range(repeats):
         sc = build_scenario(cfg)
@@ -60,24 +62,24 @@ def time_inprocess(steps: int, repeats: int, warmup: int = 300) -> list[float]:
     return rates
 
 
-def recorded_run(steps: int) -> dict:
+def recorded_run(steps: int, driver: str) -> dict:
     """One recorded run of ``steps`` steps: steps/s and bag size."""
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None, {"steps": steps})
+    cfg = load_scenario_config(None, {"steps": steps, "bvs.driver": driver})
     with tempfile.TemporaryDirectory() as tmp:
         summary = run_inprocess(cfg, bag_dir=Path(tmp) / "bag")
         return {"steps": summary.steps, "steps_per_s": summary.steps_per_s,
                 "bag_mb": summary.bag_bytes / 1e6, "messages": summary.message_count}
 
 
-def graph_run(steps: int) -> dict:
+def graph_run(steps: int, driver: str) -> dict:
     """One graph run of ``steps`` steps: the simulation node's lockstep rate."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None, {"steps": steps})
+    cfg = load_scenario_config(None, {"steps": steps, "bvs.driver": driver})
     with tempfile.TemporaryDirectory() as tmp:
         stats = Path(tmp) / "stats.json"
         result = run_graph(cfg, Path(tmp), Path(tmp) / "bag",
@@ -89,7 +91,7 @@ def graph_run(steps: int) -> dict:
         return out
 
 
-def sut_model_costs(steps: int) -> dict[str, dict]:
+def sut_model_costs(steps: int, driver: str) -> dict[str, dict]:
     """Per-decision cost (median µs) and in-process steps/s of every SUT model."""
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
@@ -97,7 +99,7 @@ def sut_model_costs(steps: int) -> dict[str, dict]:
 
     out = {}
     for name in model_names("sut"):
-        sc = build_scenario(load_scenario_config(None, {"sut.model": name}))
+        sc = build_scenario(load_scenario_config(None, {"sut.model": name, "bvs.driver": driver}))
         for _ in range(200):
             sc.step()
         costs = []
@@ -213,6 +215,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sut-models", action="store_true", help="also the per-decision cost of every SUT model")
     ap.add_argument("--learned", action="store_true",
                     help="also the learned BVs' inference cost and the in-process rate with learned vs level-0 BVs")
+    ap.add_argument("--bv-driver", choices=("level0", "learned"), default="level0",
+                    help="the BVs' drivers in every figure but --learned's (default level0)")
     ap.add_argument("--json", action="store_true", help="also print the figures as one JSON line")
     args = ap.parse_args(argv)
     for name in ("steps", "repeats", "bag_steps", "graph_steps"):
@@ -220,30 +224,31 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: --{name.replace('_', '-')} = {getattr(args, name)}: expected a positive integer", file=sys.stderr)
             return 2
 
-    out: dict = {"python": sys.version.split()[0]}
-    rates = time_inprocess(args.steps, args.repeats)
+    drv = args.bv_driver
+    out: dict = {"python": sys.version.split()[0], "bv_driver": drv}
+    rates = time_inprocess(args.steps, args.repeats, drv)
     out["inprocess_best_steps_per_s"] = max(rates)
     out["inprocess_median_steps_per_s"] = statistics.median(rates)
-    print(f"evoscen in-process, 1 SUT + 20 BVs (level-0), recording off, {args.steps} steps x {args.repeats}:")
+    print(f"evoscen in-process, 1 SUT + 20 BVs ({drv}), recording off, {args.steps} steps x {args.repeats}:")
     print(f"  best {max(rates):8.0f} steps/s   median {statistics.median(rates):8.0f} steps/s   "
           f"(target >= 5000)")
     if args.bag_steps:
-        rec = recorded_run(args.bag_steps)
+        rec = recorded_run(args.bag_steps, drv)
         out["recorded"] = rec
-        print(f"evoscen in-process, recording on, {rec['steps']} steps:")
+        print(f"evoscen in-process ({drv} BVs), recording on, {rec['steps']} steps:")
         print(f"  {rec['steps_per_s']:8.0f} steps/s   bag {rec['bag_mb']:.2f} MB, {rec['messages']} messages   (target <= 25 MB)")
     if args.mode == "graph":
-        g = graph_run(args.graph_steps)
+        g = graph_run(args.graph_steps, drv)
         out["graph"] = g
-        print(f"evoscen node graph (sim, BV, SUT, evaluator processes; lockstep; recording), {g['steps']} steps:")
+        print(f"evoscen node graph (sim, BV, SUT, evaluator processes; {drv} BVs; lockstep; recording), {g['steps']} steps:")
         print(f"  {g['steps_per_s']:8.0f} steps/s lockstep   (target >= 1000; {g['wall_with_startup_s']:.1f} s with start-up)")
-        rec = out.get("recorded") or recorded_run(args.graph_steps)
+        rec = out.get("recorded") or recorded_run(args.graph_steps, drv)
         print(f"  same scenario in-process: {rec['steps_per_s']:8.0f} steps/s recording on, "
               f"{out['inprocess_median_steps_per_s']:8.0f} steps/s recording off")
     if args.sut_models:
-        costs = sut_model_costs(args.steps)
+        costs = sut_model_costs(args.steps, drv)
         out["sut_models"] = costs
-        print(f"SUT models (in-process, 20 level-0 BVs, {args.steps} steps; target >= 3000 steps/s each):")
+        print(f"SUT models (in-process, 20 {drv} BVs, {args.steps} steps; target >= 3000 steps/s each):")
         for name, c in costs.items():
             print(f"  {name:12s} {c['decision_us']:7.1f} us/decision   {c['steps_per_s']:8.0f} steps/s")
     if args.learned:

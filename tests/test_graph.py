@@ -293,7 +293,13 @@ def test_killed_controller_aborts_cleanly(killed_bv):
     sut = set(_steps(_stamps(bag, "/evoscen/commands/sut")))
     assert set(range(k)) <= sut <= set(range(k + 1))
     bv = _steps(_stamps(bag, "/evoscen/commands/bv"))
-    assert bv == list(range(k - 2)), "BV commands: expected steps 0 .. K-3 (it died before answering K-2)"
+    # It died before its answer to K-2 reached the simulation node: either before publishing it
+    # (commands 0 .. K-3), or while publishing it - the shared-memory transport hands a sample to
+    # each reader in turn, so a process killed mid-publication can leave its last answer with the
+    # recorder but not with the simulation node, which rightly counts K-2 as missed. The bag keeps
+    # what was sent (never lost data) - but never an answer to a step after K-2.
+    assert bv in (list(range(k - 2)), list(range(k - 1))), \
+        f"BV commands: expected steps 0 .. K-3 or 0 .. K-2 (K = {k}), got {bv[-5:]}"
     assert len(bag["/evoscen/roster"]) == 1
 
 
