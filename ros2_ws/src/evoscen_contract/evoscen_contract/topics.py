@@ -292,7 +292,7 @@ EVENTS = TopicSpec(
         "one DiagnosticStatus per event: " + ", ".join(EVENT_NAMES)
         + "; key/values " + ", ".join(EVENT_KEY_TYPES)
     ),
-    subscribers=(NODE_BV, NODE_SUT, NODE_EVAL),
+    subscribers=(NODE_EVAL,),
 )
 ROSTER = TopicSpec(
     name="/evoscen/roster",
