@@ -40,7 +40,7 @@ $(BENCH_STAMP): requirements-bench.txt $(REQ_STAMP)
 	touch $@
 
 bench: setup $(BENCH_STAMP)
-	$(RUN) python scripts/bench.py
+	$(RUN) python scripts/bench.py --mode graph --sut-models --learned
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log runs
