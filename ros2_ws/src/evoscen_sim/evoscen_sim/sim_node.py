@@ -112,7 +112,7 @@ class SimulationNode:
         result = world.step(np.zeros(world.n), np.zeros(world.n, dtype=np.int64))
         step_events(world, result)
         copy.deepcopy(self.exposures).observe(world)
-        self.msgs.__class__(self.cfg.dt_s).vehicle_markers(world.columns(), world.time_ns)
+        type(self.msgs)(self.cfg.dt_s).vehicle_markers(world.columns(), world.time_ns)  # a spare encoder
 
     def _on_signal(self, signum, frame) -> None:  # noqa: ANN001
         self._interrupted = True
