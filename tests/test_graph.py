@@ -264,6 +264,9 @@ def killed_bv(tmp_path_factory):
 def test_killed_controller_aborts_cleanly(killed_bv):
     rc, stderr, bag_dir = killed_bv["rc"], killed_bv["stderr"], killed_bv["out"] / "bag"
     print(f"\nBV killed: launcher ended {killed_bv['after_kill']:.1f} s after the kill")
+    # 3 deadlines of 0.5 s, then the nodes end: the controllers as soon as the simulation node has
+    # withdrawn its publishers - not when its participant's lease runs out (20 s: was 22 s here)
+    assert killed_bv["after_kill"] < 15.0, f"the graph took {killed_bv['after_kill']:.1f} s to end after the kill"
     assert rc == 3, f"exit status {rc}, expected 3 (controller fault)\n{stderr}"
     assert "Traceback" not in stderr, stderr
     errors = _error_lines(stderr)
@@ -275,11 +278,13 @@ def test_killed_controller_aborts_cleanly(killed_bv):
     assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())
     events = _events(bag)
     faults = [ev for _, ev in events if ev["name"] == "evoscen/fault"]
-    # the last three: the dead controller's consecutive misses (an earlier isolated miss of a live
-    # controller on a loaded machine would be a 'deadline' fault that did not abort)
-    assert [(f["kind"], f["controller"], f["misses"]) for f in faults[-3:]] == [
-        ("deadline", "evoscen_bv", 1), ("deadline", "evoscen_bv", 2), ("abort", "evoscen_bv", 3)], faults
-    assert all(f["kind"] == "deadline" for f in faults[:-3]), faults
+    # The run ends on the dead controller's third consecutive miss. A live controller may miss a
+    # deadline on a loaded machine too - at any step, even beside the dead one's misses (seen on
+    # CI: the SUT node at K-2) - which is a 'deadline' fault that holds its command, never an abort.
+    assert faults and faults[-1]["kind"] == "abort", faults
+    assert all(f["kind"] == "deadline" for f in faults[:-1]), faults
+    faults = [f for f in faults if f["controller"] == "evoscen_bv"]
+    assert [(f["kind"], f["misses"]) for f in faults[-3:]] == [("deadline", 1), ("deadline", 2), ("abort", 3)], faults
     faults = faults[-3:]
     k = faults[-1]["step"]  # the step at which the run stopped (world t_K published, never integrated)
     assert [f["step"] for f in faults] == [k - 2, k - 1, k]
