@@ -1,0 +1,37 @@
+"""``scripts/bench.py``: bad arguments are one-line errors before anything is measured.
+
+The benchmark's figures are not asserted (shared, noisy machines); its argument checks are.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def bench(*args: object) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "scripts/bench.py", *map(str, args)], cwd=REPO,
+                          capture_output=True, text=True, timeout=60, check=False)
+
+
+@pytest.mark.parametrize("flag, value, expected", [
+    ("--graph-repeats", 0, "a positive integer"), ("--graph-steps", -5, "a positive integer"),
+    ("--steps", 0, "a positive integer"), ("--repeats", -1, "a positive integer"),
+    ("--bag-steps", -1, "an integer >= 0 (0 = skip)")])
+def test_out_of_range_counts_are_refused(flag, value, expected):
+    res = bench(flag, value)
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert lines == [f"error: {flag} = {value}: expected {expected}"], res.stderr
+    assert "steps/s" not in res.stdout  # refused before measuring
+
+
+def test_unknown_bv_driver_is_refused():
+    res = bench("--bv-driver", "sumo")
+    assert res.returncode == 2
+    assert "--bv-driver: invalid choice: 'sumo'" in res.stderr
