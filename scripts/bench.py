@@ -102,8 +102,10 @@ def graph_figures(steps: int, repeats: int, driver: str) -> dict:
 
     A shared machine's load changes from minute to minute; the in-process rate timed right
     after each graph run shows what the machine gave at that moment, and the ratio of the two
-    is a figure that depends much less on it. The in-process run has ``INPROCESS_PER_GRAPH_STEP``
-    times the steps, so that it lasts about as long as the graph run and sees the same load.
+    is a second figure to compare runs by (it moves less than either, though the latency-bound
+    graph suffers more from a busy machine than the in-process runner does). The in-process run
+    has ``INPROCESS_PER_GRAPH_STEP`` times the steps, so that it lasts about as long as the graph
+    run and sees the same load.
     """
     runs = []
     for _ in range(repeats):
