@@ -148,3 +148,15 @@ def test_answering_the_final_state_too_leaves_one_command_per_step(runs: dict) -
         assert res[name][0] == 0, f"{name}: {res[name][1]}"
     assert f"answered {FINAL_STEPS + 1} world messages" in res["external_sut"][1]
     assert len(read_bag(res["bag_dir"])["/evoscen/commands/sut"]) == FINAL_STEPS
+
+
+def test_bag_and_report_name_the_sut_external(external_run: dict) -> None:
+    """The configuration's sut.model drove nothing in this run: the bag's metadata says the SUT was
+    external, and a report made from the bag names it so rather than the configured model."""
+    from evoscen_eval.metrics import run_info
+    from evoscen_eval.rundata import read_run
+
+    run = read_run(external_run["bag_dir"])
+    assert run.external_sut is True
+    assert run.scenario["sut"]["model"] != "external"  # the configuration itself is recorded unchanged
+    assert run_info(run)["sut_model"] == "external"

@@ -100,7 +100,7 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
         # reads (no executor spins), and every step's /clock would be delivered to it
         "evoscen_bv": {"startup_timeout_s": opts.startup_timeout_s},
         "evoscen_sut": {"startup_timeout_s": opts.startup_timeout_s},
-        "evoscen_eval": {"bag_dir": str(bag_dir),
+        "evoscen_eval": {"bag_dir": str(bag_dir), "external_sut": opts.external_sut,
                          **({"report_dir": str(opts.report_dir), "report_plots": opts.report_plots}
                             if opts.report_dir is not None else {})},
     }

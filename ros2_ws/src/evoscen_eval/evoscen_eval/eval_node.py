@@ -22,7 +22,8 @@ definitions, :mod:`evoscen_sim.safety`).
 
 Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory), ``report_dir``
 [""; empty = no report], ``report_plots`` [true],
-``nice`` [10] (CPU priority below the lockstep nodes), ``drain_s`` [0.5], ``idle_timeout_s`` [60], ``batch_s`` [0.005]:
+``external_sut`` [false] (the SUT is a user's node: the bag's metadata and the report say so
+rather than name the configuration's ``sut.model``), ``nice`` [10] (CPU priority below the lockstep nodes), ``drain_s`` [0.5], ``idle_timeout_s`` [60], ``batch_s`` [0.005]:
 after taking messages the node sleeps this long so that several steps' messages are taken
 per wake-up (it is outside the lockstep loop; fewer wake-ups leave more CPU to the loop).
 """
@@ -70,12 +71,14 @@ class EvaluatorNode:
                                 expected="expected a number > 0 (s)")
         self.report_dir = p("report_dir", "", str, expected="expected a directory path or ''")
         self.report_plots = p("report_plots", True, bool, expected="expected true or false")
+        self.external_sut = p("external_sut", False, bool, expected="expected true or false")
         self.acc = RunAccumulator() if self.report_dir else None
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         rec = self.cfg.recording
         self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,
                                           chunk_size=rec.chunk_size_bytes,
-                                          metadata={SCENARIO_METADATA: scenario_metadata(self.cfg)}),
+                                          metadata={SCENARIO_METADATA: scenario_metadata(
+                                              self.cfg, external_sut=self.external_sut)}),
                               T.CONTRACT)
         if self.acc is not None:  # the scores see exactly what the bag gets, in the bag's order
             self.bag.on_write = self.acc.add_bytes
@@ -169,7 +172,8 @@ class EvaluatorNode:
         from .rundata import SCENARIO_KEY
 
         try:
-            run = self.acc.run_data(scenario=yaml.safe_load(scenario_metadata(self.cfg)[SCENARIO_KEY]))
+            run = self.acc.run_data(scenario=yaml.safe_load(scenario_metadata(self.cfg)[SCENARIO_KEY]),
+                                    external_sut=self.external_sut)
             write_report(run, self.report_dir, plots=self.report_plots)
         except (InputError, ValueError) as exc:
             print(f"error: {NODE_NAME}: no report: {exc}", file=sys.stderr)

@@ -50,7 +50,7 @@ import numpy as np
 from evoscen_contract import topics as T
 from evoscen_sim.safety import dangerous, exposure_runs, sut_ttc
 
-from .rundata import RunData
+from .rundata import EXTERNAL_SUT, RunData
 
 
 # ---------------------------------------------------------------------- formulas (scalars)
@@ -288,7 +288,7 @@ def run_info(run: RunData) -> dict[str, Any]:
     return {
         "scenario": sc.get("name"),
         "seed": sc.get("seed"),
-        "sut_model": (sc.get("sut") or {}).get("model"),
+        "sut_model": EXTERNAL_SUT if run.external_sut else (sc.get("sut") or {}).get("model"),
         "bv_driver": (sc.get("bvs") or {}).get("driver"),
         "bv_count": int(run.ids.shape[0] - 1),
         "sut_id": int(run.ids[run.sut_index]),

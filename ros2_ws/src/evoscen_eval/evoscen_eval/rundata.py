@@ -33,6 +33,9 @@ SCENARIO_METADATA = "evoscen"
 """Name of the MCAP metadata record holding the scenario."""
 SCENARIO_KEY = "scenario_yaml"
 """Key of the resolved scenario configuration (YAML text) in that record."""
+SUT_SOURCE_KEY = "sut_source"
+"""Key present (value ``external``) when the SUT was a user's node, not the configured model."""
+EXTERNAL_SUT = "external"
 
 
 @dataclass
@@ -53,6 +56,8 @@ class RunData:
     scenario: dict | None = None
     complete: bool = False
     warnings: list[str] = field(default_factory=list)
+    external_sut: bool = False
+    """The SUT was a user's node (``--external-sut``), not the scenario's ``sut.model``."""
     lane_segments: np.ndarray | None = None
     """Lane lines and road edges as ``[M, 2, 2]`` map-frame segments (from the map markers)."""
 
@@ -130,7 +135,8 @@ class RunAccumulator:
         """World states collected so far."""
         return len(self._states)
 
-    def run_data(self, *, scenario: dict | None = None, warnings: Iterable[str] = ()) -> RunData:
+    def run_data(self, *, scenario: dict | None = None, warnings: Iterable[str] = (),
+                 external_sut: bool = False) -> RunData:
         """The collected run; ValueError if no world state was collected."""
         if not self._states:
             raise ValueError("no world state (/evoscen/world) in the run")
@@ -149,7 +155,8 @@ class RunAccumulator:
             dt = 0.1
         return RunData(time_s=times * 1e-9, columns=columns, ids=columns["id"][0].astype(np.int64),
                        sut_index=int(suts[0]), events=list(self.events), dt_s=dt, scenario=scenario,
-                       complete=self.complete, warnings=list(warnings), lane_segments=self.lane_segments)
+                       complete=self.complete, warnings=list(warnings), lane_segments=self.lane_segments,
+                       external_sut=external_sut)
 
 
 def lane_segments(markers: Any) -> np.ndarray:
@@ -162,11 +169,19 @@ def lane_segments(markers: Any) -> np.ndarray:
     return np.concatenate(segs) if segs else np.zeros((0, 2, 2))
 
 
-def scenario_metadata(cfg) -> dict[str, str]:  # noqa: ANN001 - a ScenarioConfig
-    """The metadata record content for ``cfg`` (the same YAML text in every runner)."""
+def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # noqa: ANN001 - a ScenarioConfig
+    """The metadata record content for ``cfg`` (the same YAML text in every runner).
+
+    With ``external_sut`` the record also says that the SUT was a user's node, whatever the
+    configuration's ``sut.model`` (which then drove nothing); without it the record is only the
+    configuration, so a graph run's bag stays equal to the in-process one.
+    """
     from evoscen_sim.config import config_to_dict
 
-    return {SCENARIO_KEY: yaml.safe_dump(config_to_dict(cfg), sort_keys=False, default_flow_style=None)}
+    meta = {SCENARIO_KEY: yaml.safe_dump(config_to_dict(cfg), sort_keys=False, default_flow_style=None)}
+    if external_sut:
+        meta[SUT_SOURCE_KEY] = EXTERNAL_SUT
+    return meta
 
 
 # ---------------------------------------------------------------------- reading a bag
@@ -194,6 +209,7 @@ def read_run(bag_dir: Path | str) -> RunData:
     acc = RunAccumulator()
     channels: dict[int, str] = {}
     scenario: dict | None = None
+    external_sut = False
     warnings: list[str] = []
     try:
         stream = open(path, "rb")  # noqa: SIM115
@@ -211,6 +227,7 @@ def read_run(bag_dir: Path | str) -> RunData:
                     channels[record.id] = record.topic
                 elif isinstance(record, Metadata) and record.name == SCENARIO_METADATA:
                     scenario = _parse_scenario(record.metadata.get(SCENARIO_KEY), path)
+                    external_sut = _parse_sut_source(record.metadata.get(SUT_SOURCE_KEY), path)
                 elif isinstance(record, Schema):
                     continue
         except InputError:
@@ -232,9 +249,19 @@ def read_run(bag_dir: Path | str) -> RunData:
         warnings.append(f"bag {str(path)!r} carries no scenario configuration (metadata record "
                         f"{SCENARIO_METADATA!r}): default evaluation settings used")
     try:
-        return acc.run_data(scenario=scenario, warnings=warnings)
+        return acc.run_data(scenario=scenario, warnings=warnings, external_sut=external_sut)
     except ValueError as exc:
         raise InputError(f"bag {str(path)!r}: {exc}") from None
+
+
+def _parse_sut_source(value: str | None, path: Path) -> bool:
+    """True when the metadata record says the SUT was a user's node."""
+    if value is None:
+        return False
+    if value != EXTERNAL_SUT:
+        raise InputError(f"bag {str(path)!r}: metadata record {SCENARIO_METADATA!r}: key {SUT_SOURCE_KEY!r} = "
+                         f"{value!r}: expected {EXTERNAL_SUT!r} (or no such key)")
+    return True
 
 
 def _parse_scenario(text: str | None, path: Path) -> dict | None:

@@ -350,3 +350,26 @@ def test_truncated_bag_is_input_error(bag: Path, tmp_path: Path) -> None:
     (trunc / "trunc_0.mcap").write_bytes(data[: len(data) // 2])
     with pytest.raises(InputError, match=str(trunc)):
         list(open_bag_reader(trunc))
+
+
+def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_path: Path) -> None:
+    from evoscen_eval.metrics import run_info
+    from evoscen_eval.rundata import SCENARIO_METADATA, read_run, scenario_metadata
+    from evoscen_sim.config import load_scenario_config
+
+    cfg = load_scenario_config(None)
+    plain = scenario_metadata(cfg)
+    external = scenario_metadata(cfg, external_sut=True)
+    assert set(plain) == {"scenario_yaml"}  # a run with evoscen's own SUT: the configuration only
+    assert external == {**plain, "sut_source": "external"}
+
+    run = read_run(record(tmp_path / "own", metadata={SCENARIO_METADATA: plain}))
+    assert run.external_sut is False and run_info(run)["sut_model"] == cfg.sut.model
+    run = read_run(record(tmp_path / "ext", metadata={SCENARIO_METADATA: external}))
+    assert run.external_sut is True and run_info(run)["sut_model"] == "external"
+
+    bad = record(tmp_path / "bad", metadata={SCENARIO_METADATA: {**plain, "sut_source": "remote"}})
+    with pytest.raises(InputError) as info:
+        read_run(bad)
+    assert str(info.value) == (f"bag {str(bad / 'bad_0.mcap')!r}: metadata record 'evoscen': key 'sut_source' = "
+                               "'remote': expected 'external' (or no such key)")
