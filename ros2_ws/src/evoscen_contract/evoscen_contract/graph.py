@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import array
 import sys
-from pathlib import Path
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 from typing import Any
 
 import rclpy

@@ -72,13 +72,13 @@ class EvaluatorNode:
         self.report_dir = p("report_dir", "", str, expected="expected a directory path or ''")
         self.report_plots = p("report_plots", True, bool, expected="expected true or false")
         self.external_sut = p("external_sut", False, bool, expected="expected true or false")
+        self.metadata = scenario_metadata(self.cfg, external_sut=self.external_sut)  # the bag's; the report reads it too
         self.acc = RunAccumulator() if self.report_dir else None
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         rec = self.cfg.recording
         self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,
                                           chunk_size=rec.chunk_size_bytes,
-                                          metadata={SCENARIO_METADATA: scenario_metadata(
-                                              self.cfg, external_sut=self.external_sut)}),
+                                          metadata={SCENARIO_METADATA: self.metadata}),
                               T.CONTRACT)
         if self.acc is not None:  # the scores see exactly what the bag gets, in the bag's order
             self.bag.on_write = self.acc.add_bytes
@@ -172,7 +172,7 @@ class EvaluatorNode:
         from .rundata import SCENARIO_KEY
 
         try:
-            run = self.acc.run_data(scenario=yaml.safe_load(scenario_metadata(self.cfg)[SCENARIO_KEY]),
+            run = self.acc.run_data(scenario=yaml.safe_load(self.metadata[SCENARIO_KEY]),
                                     external_sut=self.external_sut)
             write_report(run, self.report_dir, plots=self.report_plots)
         except (InputError, ValueError) as exc:
