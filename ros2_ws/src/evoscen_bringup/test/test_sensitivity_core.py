@@ -1,0 +1,63 @@
+"""Paired differences, detection and seeds needed (evoscen_bringup.sensitivity), values by hand."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from evoscen_bringup.sensitivity import mutation_score, paired, score_of, seeds_needed
+
+T975_DF1 = 12.706204736   # Student-t 0.975 quantile, 1 degree of freedom
+T975_DF2 = 4.302652730    # 2 degrees of freedom
+
+
+def test_paired_two_seeds_by_hand() -> None:
+    # d = [1.0, 1.1]: mean 1.05, sd = 0.1/sqrt(2), half = t(1) * sd / sqrt(2) = t(1) * 0.05
+    p = paired({0: 3.0, 1: 3.1}, {0: 2.0, 1: 2.0})
+    assert p.n == 2
+    assert p.mean == pytest.approx(1.05)
+    assert p.half == pytest.approx(T975_DF1 * 0.05, rel=1e-9)
+    assert p.above_zero
+
+
+def test_paired_uses_only_shared_seeds_and_is_not_detected_when_interval_straddles_zero() -> None:
+    # shared seeds 0, 1, 2: d = [1, 1, 2]; mean 4/3, sd = sqrt(1/3), half = t(2) * sqrt(1/3) / sqrt(3) = t(2) / 3
+    p = paired({0: 1.0, 1: 2.0, 2: 3.0, 7: 9.0}, {0: 0.0, 1: 1.0, 2: 1.0, 8: 0.0})
+    assert p.n == 3
+    assert p.mean == pytest.approx(4.0 / 3.0)
+    assert p.half == pytest.approx(T975_DF2 / 3.0, rel=1e-9)
+    assert p.low == pytest.approx(4.0 / 3.0 - T975_DF2 / 3.0)
+    assert not p.above_zero  # 1.333 - 1.434 < 0
+
+
+def test_paired_degenerate_cases() -> None:
+    one = paired({0: 2.0}, {0: 1.0})
+    assert one.n == 1 and one.mean == 1.0 and math.isnan(one.half) and not one.above_zero
+    none = paired({0: 2.0}, {1: 1.0})
+    assert none.n == 0 and math.isnan(none.mean) and not none.above_zero
+    # identical values: zero spread, zero half-width, mean 0 -> not above zero
+    same = paired({0: 1.0, 1: 1.0}, {0: 1.0, 1: 1.0})
+    assert same.mean == 0.0 and same.half == 0.0 and not same.above_zero
+
+
+def test_seeds_needed_counts_only_a_settled_detection() -> None:
+    # d = [1, 1.1, -2, 1 x 9]: the first 2 seeds are detected (1.05 - 0.635 > 0), seeds 3..9 are not
+    # (the -2 widens the interval), from 10 on every prefix is (10: mean 0.71, half 0.68)
+    d = [1.0, 1.1, -2.0] + [1.0] * 9
+    intact = {s: v for s, v in enumerate(d)}
+    mutant = dict.fromkeys(range(len(d)), 0.0)
+    assert seeds_needed(intact, mutant) == 10
+    assert seeds_needed({0: 1.0, 1: 1.1}, {0: 0.0, 1: 0.0}) == 2
+    assert seeds_needed({0: 1.0, 1: 1.0, 2: 2.0}, {0: 0.0, 1: 0.0, 2: 0.0}) is None  # not detected with all
+    assert seeds_needed({0: 1.0}, {0: 0.0}) is None
+
+
+def test_mutation_score_and_score_of() -> None:
+    assert mutation_score([True, False, True, True]) == 0.75
+    assert math.isnan(mutation_score([]))
+    rep = {"intelligence": {"score": 0.7}, "safety": {"score": 0.9}, "efficiency": {"score": 0.2},
+           "interaction": {"score": 0.5}}
+    assert score_of(rep, "safety") == 0.9
+    with pytest.raises(ValueError, match="score 'bogus': expected one of intelligence"):
+        score_of(rep, "bogus")
