@@ -34,7 +34,9 @@ The **[choice]** points the method leaves open, as implemented (all configurable
 * **Complexity** — windows of ``window_steps`` [100] consecutive states from state 0, whole
   windows only; per window LC = lane-change starts of all vehicles (a vehicle's
   ``lane_change`` becoming non-zero or switching direction), AD = vehicle-states with
-  |acceleration| > ``accel_activity_mps2`` [0.1 m/s²], E = SUT exposures starting in it;
+  |acceleration| > ``accel_activity_mps2`` [0.1 m/s²] — by default the acceleration averaged
+  over the trailing ``accel_activity_window_s`` [1 s] (``accel_activity_form: smoothed``,
+  manoeuvres rather than per-step noise; ``literal``: per step), E = SUT exposures starting in it;
   LC, AD, E are averaged over the windows (and over rounds by the experiment) before C is
   computed. A run shorter than one window has no complexity (``null`` and a warning).
 """
@@ -115,6 +117,29 @@ def change_intervals(lane_change: np.ndarray) -> list[tuple[int, int]]:
             k1 += 1
         out.append((int(k0), int(k1)))
     return out
+
+
+def activity_accel(accel: np.ndarray, dt_s: float, form: str, window_s: float) -> np.ndarray:
+    """The ``[K, V]`` acceleration AD compares with its threshold (docs/evaluation.md, "AD").
+
+    ``literal``: the per-state acceleration as recorded. ``smoothed``: at state k the mean of
+    the last ``n = max(1, round(window_s / dt_s))`` states' accelerations (k−n+1..k; fewer at
+    the start of the run) — the speed change over the window divided by its length, so
+    per-step noise that averages out (Krauss dawdling: i.i.d. speed draws just below the
+    desired speed) is not counted as activity, while a manoeuvre (braking or accelerating
+    for a second or more) is.
+    """
+    a = np.asarray(accel, dtype=float)
+    if form == "literal":
+        return a
+    if form != "smoothed":
+        raise ValueError(f"accel_activity_form {form!r}: expected 'smoothed' or 'literal'")
+    n = max(1, int(round(window_s / dt_s)))
+    csum = np.cumsum(np.vstack([np.zeros((1,) + a.shape[1:]), a]), axis=0)
+    k = np.arange(1, a.shape[0] + 1)
+    lo = np.maximum(k - n, 0)
+    count = (k - lo).reshape((-1,) + (1,) * (a.ndim - 1))
+    return (csum[k] - csum[lo]) / count
 
 
 class Series:
@@ -253,11 +278,14 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     W = ev.window_steps
     n_win = K // W
     complexity: dict[str, Any] = {"window_steps": W, "windows": n_win, "accel_activity_mps2": ev.accel_activity_mps2,
+                                  "accel_activity_form": ev.accel_activity_form,
+                                  "accel_activity_window_s": ev.accel_activity_window_s,
                                   "k": [ev.k_exposure, ev.k_lane_change, ev.k_accel]}
     warnings = list(run.warnings)
     if n_win:
         lc_w = starts_all[: n_win * W].reshape(n_win, W, -1).sum(axis=(1, 2))
-        ad_w = (np.abs(c["accel"][: n_win * W]) > ev.accel_activity_mps2).reshape(n_win, W, -1).sum(axis=(1, 2))
+        ad_acc = activity_accel(c["accel"], run.dt_s, ev.accel_activity_form, ev.accel_activity_window_s)
+        ad_w = (np.abs(ad_acc[: n_win * W]) > ev.accel_activity_mps2).reshape(n_win, W, -1).sum(axis=(1, 2))
         e_w = np.bincount(series.starts[series.starts < n_win * W] // W, minlength=n_win)
         lc, ad, e = float(lc_w.mean()), float(ad_w.mean()), float(e_w.mean())
         complexity.update({

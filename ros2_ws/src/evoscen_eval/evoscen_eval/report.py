@@ -144,7 +144,9 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
     out += ["\n## Complexity\n", "C = 0.4·(1 − e^(−E/k1)) + 0.3·(2 − e^(−LC/k2) − e^(−AD/k3))\n", _table([
         ("C", c["score"], "complexity score"),
         ("LC", c["lane_changes"], f"lane changes (all vehicles) per {c['window_steps']}-state window"),
-        ("AD", c["accel_decel"], f"vehicle-states with |acceleration| > {c['accel_activity_mps2']:g} m/s² per window"),
+        ("AD", c["accel_decel"], f"vehicle-states with |acceleration| > {c['accel_activity_mps2']:g} m/s² per window"
+                + (f" (acceleration averaged over the trailing {c['accel_activity_window_s']:g} s)"
+                   if c.get("accel_activity_form") == "smoothed" else "")),
         ("E", c["exposures"], "SUT exposures per window"),
         ("windows", c["windows"], "whole windows in the run"),
         ("k1, k2, k3", ", ".join(f"{k:g}" for k in c["k"]), "constants"),

@@ -214,7 +214,9 @@ def test_complexity_windows_by_hand():
     c["accel"][0:100, 1] = 0.5  # 100 active vehicle-states in window 0
     c["accel"][0:100, 2] = 0.1  # not above the 0.1 threshold
     c["accel"][120:122, 0] = -7.0  # an exposure starting in window 1 (2 more active states)
-    cx = evaluate(run, EV)["complexity"]
+    from dataclasses import replace
+
+    cx = evaluate(run, replace(EV, accel_activity_form="literal"))["complexity"]  # per-step accelerations
     assert cx["windows"] == 2
     assert cx["per_window"] == {"lane_changes": [2, 1], "accel_decel": [100, 2], "exposures": [0, 1]}
     assert (cx["lane_changes"], cx["accel_decel"], cx["exposures"]) == (1.5, 51.0, 0.5)

@@ -470,6 +470,7 @@ class RecordingConfig:
 
 
 EFFICIENCY_DENSITY_FORMS = ("literal", "normalised")
+ACCEL_ACTIVITY_FORMS = ("smoothed", "literal")
 
 
 @dataclass(frozen=True)
@@ -519,6 +520,12 @@ class EvaluationConfig:
     """Complexity window (steps); only whole windows count."""
     accel_activity_mps2: float = field(default=0.1, metadata=_NON_NEGATIVE)
     """AD counts vehicle-steps with |acceleration| above this (m/s^2)."""
+    accel_activity_form: str = field(default="smoothed", metadata=_check(_Str(lambda: ACCEL_ACTIVITY_FORMS)))
+    """Acceleration AD compares with the threshold: smoothed = the mean over the trailing
+    ``accel_activity_window_s`` (manoeuvres, not per-step car-following noise such as Krauss
+    dawdling; docs/evaluation.md); literal = the per-step acceleration."""
+    accel_activity_window_s: float = field(default=1.0, metadata=_POSITIVE)
+    """Trailing window of the smoothed AD acceleration (s)."""
     k_exposure: float = field(default=25.0, metadata=_POSITIVE)
     """k1 of the complexity score."""
     k_lane_change: float = field(default=8.0, metadata=_POSITIVE)
