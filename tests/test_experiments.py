@@ -52,6 +52,23 @@ def test_intelligence_table_and_files(intelligence):
     assert "| mobil |" in res.stdout and "| SUT | safety (weighted)" in res.stdout
 
 
+def test_intelligence_paired_comparisons(intelligence):
+    out, res = intelligence
+    assert res.returncode == 0, res.stderr
+    rounds = read_csv(out / "rounds.csv")
+    score = {(r["sut"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+    pairs = read_csv(out / "paired.csv")
+    assert [(p["sut_a"], p["sut_b"]) for p in pairs] == [("nilsson", "mobil"), ("nilsson", "stackelberg"),
+                                                         ("mobil", "stackelberg")]
+    for p in pairs:
+        d = [score[(p["sut_a"], s)] - score[(p["sut_b"], s)] for s in (0, 1)]
+        half = stats.t.ppf(0.975, 1) * abs(d[0] - d[1]) / math.sqrt(2) / math.sqrt(2)
+        assert float(p["d_intelligence_mean"]) == pytest.approx(sum(d) / 2)
+        assert float(p["d_intelligence_ci95"]) == pytest.approx(half)
+        assert p["seeds"] == "2" and p["significant"] == str(int(abs(sum(d) / 2) > half))
+    assert "paired by seed" in (out / "intelligence.md").read_text()
+
+
 def test_intelligence_resumes_without_recomputing(intelligence):
     out, _ = intelligence
     files = sorted((out / "rounds").glob("*.json"))
