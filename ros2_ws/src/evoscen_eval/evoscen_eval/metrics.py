@@ -6,12 +6,21 @@ scenario's :class:`~evoscen_sim.config.EvaluationConfig`. Output: the ``report.j
 checked by hand.
 
 The **[choice]** points the method leaves open, as implemented (all configurable under
-``evaluation.*``; the README's "Evaluation" section repeats them):
+``evaluation.*``; docs/evaluation.md states them with their reasons):
 
 * **Dangerous state / exposure** — :mod:`evoscen_sim.safety`: TTC to the vehicle ahead in the
-  SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``; an exposure is a
-  maximal run of dangerous states; one still open at the end of the run counts (flagged
-  ``open_at_end``).
+  SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``, or a rear
+  conflict attributed to the SUT (``rear_conflicts`` [after_lane_change]: the follower in its
+  path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2``, from the start of
+  a SUT lane change to ``rear_attribution_s`` [5 s] after it); an exposure is a maximal run of
+  dangerous states; one still open at the end of the run counts (flagged ``open_at_end``).
+* **Conflicts** (``safety.conflicts``, reported only) — follower TTC, DRAC of the SUT and of
+  its follower (SUMO SSM's definitions; states above ``drac_threshold_mps2`` [3 m/s²]), and
+  a lane-change PET per SUT lane change (:func:`lane_change_pet`).
+* **Undefined terms** (``undefined_terms`` [exclude]) — without a completed SUT lane change
+  T̄_l is undefined and I_e is the density-speed term alone; without any SUT lane change I_i
+  is undefined (``null``) and I renormalises the remaining weights. ``literal``: the old
+  arithmetic (T̄_l = ``no_lane_change_time_s``, I_i = 1).
 * **Collisions C** — the ``evoscen/collision`` events involving the SUT (the simulation
   emits one per contact, not one per overlapping step); ``collisions_all`` counts every pair.
 * **View** — every other vehicle whose reference point is from ``view_behind_m`` [20 m]
@@ -20,8 +29,8 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   H = ``view_lanes`` × floor((behind + ahead) / ``min_spacing_m``) [5 × floor(120/6.8) = 85].
 * **Efficiency** — v̄ = mean SUT speed over the states; T̄_l = mean duration of the SUT's
   completed lane changes (decision → centre of mass in the new lane, from the
-  ``evoscen/lane_change`` events); without any, T̄_l = ``no_lane_change_time_s`` [0 s: no time
-  spent changing lanes]. Density-speed term ``literal`` [default]: √h̄·v̄/(H·v_max), as the
+  ``evoscen/lane_change`` events); without any, undefined (above; ``literal``: T̄_l =
+  ``no_lane_change_time_s`` [0 s]). Density-speed term ``literal`` [default]: √h̄·v̄/(H·v_max), as the
   SPEC writes it; ``normalised``: √(h̄/H)·v̄/v_max.
 * **Interaction** — over the SUT's lane changes (maximal runs of states with the SUT's
   ``lane_change`` column at one non-zero value; a change still in progress at the end
@@ -29,8 +38,8 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   k) for k in the change; |v~| = mean |v_j(k) − v_j(k0)|, |a~| = mean |a_j(k) − a_j(k0)|;
   L̄ = mean, over the BVs in view at any state of the change, of their lane-change starts
   during it. Each change weighs equally (mean of the per-change values). A change with no
-  BV in view contributes 0 to all three; without any SUT lane change |v~| = |a~| = L̄ = 0,
-  so I_i = 1 (nothing was disturbed).
+  BV in view contributes 0 to all three; without any SUT lane change I_i is undefined
+  (``literal``: |v~| = |a~| = L̄ = 0, so I_i = 1).
 * **Complexity** — windows of ``window_steps`` [100] consecutive states from state 0, whole
   windows only; per window LC = lane-change starts of all vehicles (a vehicle's
   ``lane_change`` becoming non-zero or switching direction), AD = vehicle-states with

@@ -480,8 +480,8 @@ UNDEFINED_TERM_RULES = ("exclude", "literal")
 class EvaluationConfig:
     """Scoring of the SUT and of the scenario (SPEC 5.1-5.2; see :mod:`evoscen_eval.metrics`).
 
-    Every **[choice]** the method leaves open is a key here, defaults as documented in the
-    README ("Evaluation").
+    Every **[choice]** the method leaves open is a key here, defaults as documented in
+    docs/evaluation.md and the README ("Evaluation").
     """
 
     ttc_threshold_s: float = field(default=2.0, metadata=_POSITIVE)
@@ -506,7 +506,7 @@ class EvaluationConfig:
     lane_change_time_scale_s: float = field(default=3.0, metadata=_POSITIVE)
     """The 3 of e^(-T_l/3) (s)."""
     no_lane_change_time_s: float = field(default=0.0, metadata=_NON_NEGATIVE)
-    """T_l when the SUT completed no lane change (s): no time was spent changing lanes."""
+    """T_l when the SUT completed no lane change (s), used only with undefined_terms: literal."""
     collision_cap: int = field(default=10, metadata=_check(_Int(1)))
     """C_max of the safety score."""
     dv_max_mps: float = field(default=5.0, metadata=_POSITIVE)
