@@ -118,7 +118,7 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
     ])]
     cf = s.get("conflicts")
     if cf:
-        out += [f"\n### Conflicts on either side of the SUT (docs/evaluation.md)\n", _table([
+        out += ["\n### Conflicts on either side of the SUT (docs/evaluation.md)\n", _table([
             ("rear conflicts", cf["rear_conflicts"], f"which follower conflicts are the SUT's (window "
                                                       f"{cf['rear_attribution_s']:g} s after a SUT lane change)"),
             ("rear conflict states", cf["rear_conflict_states"], "follower in the path: TTC below threshold or hard brake"),
