@@ -6,12 +6,21 @@ scenario's :class:`~evoscen_sim.config.EvaluationConfig`. Output: the ``report.j
 checked by hand.
 
 The **[choice]** points the method leaves open, as implemented (all configurable under
-``evaluation.*``; the README's "Evaluation" section repeats them):
+``evaluation.*``; docs/evaluation.md states them with their reasons):
 
 * **Dangerous state / exposure** — :mod:`evoscen_sim.safety`: TTC to the vehicle ahead in the
-  SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``; an exposure is a
-  maximal run of dangerous states; one still open at the end of the run counts (flagged
-  ``open_at_end``).
+  SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``, or a rear
+  conflict attributed to the SUT (``rear_conflicts`` [after_lane_change]: the follower in its
+  path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2``, from the start of
+  a SUT lane change to ``rear_attribution_s`` [5 s] after it); an exposure is a maximal run of
+  dangerous states; one still open at the end of the run counts (flagged ``open_at_end``).
+* **Conflicts** (``safety.conflicts``, reported only) — follower TTC, DRAC of the SUT and of
+  its follower (SUMO SSM's definitions; states above ``drac_threshold_mps2`` [3 m/s²]), and
+  a lane-change PET per SUT lane change (:func:`lane_change_pet`).
+* **Undefined terms** (``undefined_terms`` [exclude]) — without a completed SUT lane change
+  T̄_l is undefined and I_e is the density-speed term alone; without any SUT lane change I_i
+  is undefined (``null``) and I renormalises the remaining weights. ``literal``: the old
+  arithmetic (T̄_l = ``no_lane_change_time_s``, I_i = 1).
 * **Collisions C** — the ``evoscen/collision`` events involving the SUT (the simulation
   emits one per contact, not one per overlapping step); ``collisions_all`` counts every pair.
 * **View** — every other vehicle whose reference point is from ``view_behind_m`` [20 m]
@@ -20,8 +29,8 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   H = ``view_lanes`` × floor((behind + ahead) / ``min_spacing_m``) [5 × floor(120/6.8) = 85].
 * **Efficiency** — v̄ = mean SUT speed over the states; T̄_l = mean duration of the SUT's
   completed lane changes (decision → centre of mass in the new lane, from the
-  ``evoscen/lane_change`` events); without any, T̄_l = ``no_lane_change_time_s`` [0 s: no time
-  spent changing lanes]. Density-speed term ``literal`` [default]: √h̄·v̄/(H·v_max), as the
+  ``evoscen/lane_change`` events); without any, undefined (above; ``literal``: T̄_l =
+  ``no_lane_change_time_s`` [0 s]). Density-speed term ``literal`` [default]: √h̄·v̄/(H·v_max), as the
   SPEC writes it; ``normalised``: √(h̄/H)·v̄/v_max.
 * **Interaction** — over the SUT's lane changes (maximal runs of states with the SUT's
   ``lane_change`` column at one non-zero value; a change still in progress at the end
@@ -29,8 +38,8 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   k) for k in the change; |v~| = mean |v_j(k) − v_j(k0)|, |a~| = mean |a_j(k) − a_j(k0)|;
   L̄ = mean, over the BVs in view at any state of the change, of their lane-change starts
   during it. Each change weighs equally (mean of the per-change values). A change with no
-  BV in view contributes 0 to all three; without any SUT lane change |v~| = |a~| = L̄ = 0,
-  so I_i = 1 (nothing was disturbed).
+  BV in view contributes 0 to all three; without any SUT lane change I_i is undefined
+  (``literal``: |v~| = |a~| = L̄ = 0, so I_i = 1).
 * **Complexity** — windows of ``window_steps`` [100] consecutive states from state 0, whole
   windows only; per window LC = lane-change starts of all vehicles (a vehicle's
   ``lane_change`` becoming non-zero or switching direction), AD = vehicle-states with
@@ -50,7 +59,8 @@ from typing import Any
 import numpy as np
 
 from evoscen_contract import topics as T
-from evoscen_sim.safety import dangerous, exposure_runs, sut_ttc
+from evoscen_sim.safety import (attribution_steps, dangerous, drac, exposure_runs, follower_ttc, rear_attributed,
+                                rear_dangerous, sut_follower, sut_leader, sut_ttc)
 
 from .rundata import EXTERNAL_SUT, RunData
 
@@ -142,6 +152,45 @@ def activity_accel(accel: np.ndarray, dt_s: float, form: str, window_s: float) -
     return (csum[k] - csum[lo]) / count
 
 
+def lane_change_pet(run: RunData, intervals: list[tuple[int, int]], after_steps: int) -> list[dict[str, Any]]:
+    """The lane-change PET equivalent of each SUT lane change (docs/evaluation.md).
+
+    For a change over states ``[k0, k1)`` into target lane T (the SUT's ``target_lane`` at
+    k0), over the states k0 <= k < k1 + ``after_steps`` (and < K): the *new follower* at k is
+    the nearest vehicle j != SUT with lane_j(k) = T, centre behind the SUT's and body
+    overlapping the SUT's laterally (in its path: the SUT's body has entered lane T);
+    PET(k) = max(gap, 0) / v_j, gap = s_sut − s_j − (l_sut + l_j)/2 (bumper to bumper), the
+    time until the follower's front reaches the point the SUT's rear occupies, at its
+    current speed (``inf`` when v_j <= 0). The change's PET is the minimum over those
+    states; ``None`` when no state has a new follower.
+    """
+    c, sut, K = run.columns, run.sut_index, run.states
+    out = []
+    for k0, k1 in intervals:
+        k_end = min(k1 + after_steps, K)
+        target = int(c["target_lane"][k0, sut])
+        s, d, v = c["s"][k0:k_end], c["d"][k0:k_end], c["speed"][k0:k_end]
+        length, width, lane = c["length"][k0:k_end], c["width"][k0:k_end], c["lane"][k0:k_end]
+        back = s[:, sut:sut + 1] - s
+        cand = (back > 0.0) & (np.abs(d - d[:, sut:sut + 1]) < 0.5 * (width + width[:, sut:sut + 1])) \
+            & (lane == target)
+        cand[:, sut] = False
+        j = np.argmin(np.where(cand, back, np.inf), axis=1)
+        rows = np.arange(k_end - k0)
+        has = cand[rows, j]
+        gap = back[rows, j] - 0.5 * (length[rows, j] + length[:, sut])
+        vj = v[rows, j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pet = np.where(has & (vj > 0.0), np.maximum(gap, 0.0) / vj, np.inf)
+        entry: dict[str, Any] = {"start_state": k0, "end_state": k1, "window_end_state": k_end,
+                                 "target_lane": target, "pet_s": None, "state": None, "follower_id": None}
+        if has.any():
+            m = int(np.argmin(pet))
+            entry.update({"pet_s": _finite(float(pet[m])), "state": k0 + m, "follower_id": int(run.ids[j[m]])})
+        out.append(entry)
+    return out
+
+
 class Series:
     """Per-state series of a run, for the scores and the plots."""
 
@@ -152,7 +201,25 @@ class Series:
         self.speed = c["speed"][:, sut]
         self.accel = c["accel"][:, sut]
         self.lane = c["lane"][:, sut]
-        self.danger = dangerous(self.ttc, self.accel, ev.ttc_threshold_s, ev.hard_brake_mps2)
+        self.front_danger = dangerous(self.ttc, self.accel, ev.ttc_threshold_s, ev.hard_brake_mps2)
+        # the rear (docs/evaluation.md): follower in the SUT's path, attribution window
+        self.follower, self.follower_ttc = follower_ttc(c["s"], c["d"], c["speed"], c["length"], c["width"], sut)
+        has_f = self.follower >= 0
+        rows = np.arange(run.states)
+        self.follower_accel = np.where(has_f, c["accel"][rows, np.maximum(self.follower, 0)], 0.0)
+        self.after_steps = attribution_steps(ev.rear_attribution_s, run.dt_s)
+        self.attributed = rear_attributed(c["lane_change"][:, sut], ev.rear_conflicts, self.after_steps)
+        self.rear_conflict = rear_dangerous(self.follower_ttc, self.follower_accel, ev.ttc_threshold_s,
+                                            ev.hard_brake_mps2)
+        self.rear_danger = self.rear_conflict & self.attributed
+        self.danger = self.front_danger | self.rear_danger
+        # DRAC of the SUT behind its leader and of the follower behind the SUT (reported only)
+        leader, gap = sut_leader(c["s"], c["d"], c["length"], c["width"], sut)
+        l_speed = np.where(leader >= 0, c["speed"][rows, np.maximum(leader, 0)], np.nan)
+        self.drac_sut = drac(gap, self.speed, l_speed)
+        _, f_gap = sut_follower(c["s"], c["d"], c["length"], c["width"], sut)
+        f_speed = np.where(has_f, c["speed"][rows, np.maximum(self.follower, 0)], np.nan)
+        self.drac_follower = drac(f_gap, f_speed, self.speed)
         ds = c["s"] - c["s"][:, sut:sut + 1]
         in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
         in_view[:, sut] = False
@@ -172,6 +239,7 @@ def _finite(x: float) -> float | None:
 def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationConfig
     """The scores of ``run`` as the ``report.json`` dict (see the module docstring)."""
     K = run.states
+    warnings_extra: list[str] = []
     series = Series(run, ev)
     c, sut = run.columns, run.sut_index
     sut_id = int(run.ids[sut])
@@ -184,12 +252,18 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
         ttc = series.ttc[k0:k1]
         acc = series.accel[k0:k1]
         severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -acc / ev.hard_brake_mps2)
+        rear = series.rear_danger[k0:k1]
+        if rear.any():  # an attributed rear conflict is as severe as the same TTC/braking ahead
+            f_sev = np.maximum(ev.ttc_threshold_s / np.maximum(series.follower_ttc[k0:k1], 1e-3),
+                               -series.follower_accel[k0:k1] / ev.hard_brake_mps2)
+            severity = np.where(rear, np.maximum(severity, f_sev), severity)
         worst = int(k0 + np.argmax(severity))
         exposures.append({
             "start_state": int(k0), "end_state": int(k1), "states": int(k1 - k0),
             "start_time_s": float(run.time_s[k0]), "open_at_end": bool(k1 == K),
             "min_ttc_s": _finite(float(ttc.min())), "min_accel_mps2": float(acc.min()),
             "worst_state": worst, "severity": float(severity.max()),
+            "rear_states": int(rear.sum()),
         })
     n_exp = len(exposures)
     i_s = safety_score(len(sut_collisions), n_exp, ev.collision_cap)
@@ -210,15 +284,47 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
         "exposure_list": exposures,
     }
 
+    # --- conflicts on either side of the SUT (docs/evaluation.md), reported on their own
+    intervals = change_intervals(c["lane_change"][:, sut])
+    pets = lane_change_pet(run, intervals, series.after_steps)
+    pet_values = [p["pet_s"] for p in pets if p["pet_s"] is not None]
+    att = series.attributed
+    thr = ev.drac_threshold_mps2
+    safety["conflicts"] = {
+        "rear_conflicts": ev.rear_conflicts,
+        "rear_attribution_s": ev.rear_attribution_s,
+        "attribution_states": int(att.sum()),
+        "front_dangerous_states": int(series.front_danger.sum()),
+        "rear_conflict_states": int(series.rear_conflict.sum()),
+        "rear_conflict_states_attributed": int(series.rear_danger.sum()),
+        "rear_only_dangerous_states": int((series.rear_danger & ~series.front_danger).sum()),
+        "min_follower_ttc_s": _finite(float(series.follower_ttc.min())),
+        "min_follower_ttc_attributed_s": (_finite(float(series.follower_ttc[att].min())) if att.any() else None),
+        "min_follower_accel_mps2": (float(series.follower_accel[series.follower >= 0].min())
+                                    if (series.follower >= 0).any() else None),
+        "drac_threshold_mps2": thr,
+        "max_drac_sut_mps2": _finite(float(series.drac_sut.max())),
+        "max_drac_follower_mps2": _finite(float(series.drac_follower.max())),
+        "drac_sut_states": int((series.drac_sut > thr).sum()),
+        "drac_follower_states": int((series.drac_follower > thr).sum()),
+        "drac_follower_states_attributed": int(((series.drac_follower > thr) & att).sum()),
+        "lane_change_pet": pets,
+        "min_pet_s": min(pet_values) if pet_values else None,
+    }
+
     # --- efficiency
     H = max_in_view(ev)
     h_mean = float(series.in_view.sum(axis=1).mean())
     v_mean = float(series.speed.mean())
     sut_changes = [e for e in run.events_named(T.EVENT_LANE_CHANGE) if e.get("ids", [None])[0] == sut_id]
     durations = [float(e["duration_s"]) for e in sut_changes if e.get("kind") == "completed"]
+    exclude = ev.undefined_terms == "exclude"
     t_l = float(np.mean(durations)) if durations else ev.no_lane_change_time_s
     i_e, term1, term2 = efficiency_score(h_mean, H, v_mean, ev.v_max_mps, t_l,
                                          ev.lane_change_time_scale_s, ev.efficiency_density)
+    lc_term_used = bool(durations) or not exclude
+    if not lc_term_used:  # T̄_l undefined: I_e is the density-speed term alone (its weight renormalised)
+        i_e, t_l, term2 = term1, None, None
     efficiency = {
         "score": i_e,
         "mean_speed_mps": v_mean,
@@ -232,10 +338,10 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
         "mean_lane_change_time_s": t_l,
         "lane_change_time_defined": bool(durations),
         "lane_change_term": term2,
+        "lane_change_term_used": lc_term_used,
     }
 
     # --- interaction
-    intervals = change_intervals(c["lane_change"][:, sut])
     starts_all = lane_change_starts(c["lane_change"])
     bv = np.ones(run.ids.shape[0], dtype=bool)
     bv[sut] = False
@@ -254,8 +360,12 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     a_f = float(np.mean([p[1] for p in per_change])) if per_change else 0.0
     l_bar = float(np.mean([p[2] for p in per_change])) if per_change else 0.0
     i_i = interaction_score(v_f, a_f, l_bar, ev.dv_max_mps, ev.da_max_mps2)
+    i_i_defined = bool(intervals) or not exclude
+    if not i_i_defined:  # no SUT lane change: nothing to measure, left out of I
+        i_i = None
     interaction = {
         "score": i_i,
+        "defined": i_i_defined,
         "sut_lane_changes": len(intervals),
         "speed_fluctuation_mps": v_f,
         "accel_fluctuation_mps2": a_f,
@@ -269,10 +379,24 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
 
     # --- intelligence
     weights = {"safety": ev.weight_safety, "efficiency": ev.weight_efficiency, "interaction": ev.weight_interaction}
-    weighted = {"safety": ev.weight_safety * i_s, "efficiency": ev.weight_efficiency * i_e,
-                "interaction": ev.weight_interaction * i_i}
-    intelligence = {"score": weighted["safety"] + weighted["efficiency"] + weighted["interaction"],
-                    "weights": weights, "weighted": weighted}
+    scores = {"safety": i_s, "efficiency": i_e, "interaction": i_i}
+    defined = {k: v is not None for k, v in scores.items()}
+    total_w = sum(w for k, w in weights.items() if defined[k])
+    if all(defined.values()):  # the SPEC's arithmetic, unchanged
+        effective = dict(weights)
+        weighted = {k: weights[k] * scores[k] for k in weights}
+        score: float | None = weighted["safety"] + weighted["efficiency"] + weighted["interaction"]
+    elif total_w > 0:
+        effective = {k: (weights[k] / total_w if defined[k] else 0.0) for k in weights}
+        weighted = {k: (effective[k] * scores[k] if defined[k] else 0.0) for k in weights}
+        score = weighted["safety"] + weighted["efficiency"] + weighted["interaction"]
+    else:
+        effective = {k: 0.0 for k in weights}
+        weighted = {k: 0.0 for k in weights}
+        score = None
+        warnings_extra.append("no defined intelligence term has a non-zero weight: no intelligence score")
+    intelligence = {"score": score, "weights": weights, "weighted": weighted,
+                    "undefined_terms": ev.undefined_terms, "defined": defined, "effective_weights": effective}
 
     # --- complexity
     W = ev.window_steps
@@ -281,7 +405,7 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
                                   "accel_activity_form": ev.accel_activity_form,
                                   "accel_activity_window_s": ev.accel_activity_window_s,
                                   "k": [ev.k_exposure, ev.k_lane_change, ev.k_accel]}
-    warnings = list(run.warnings)
+    warnings = list(run.warnings) + warnings_extra
     if n_win:
         lc_w = starts_all[: n_win * W].reshape(n_win, W, -1).sum(axis=(1, 2))
         ad_acc = activity_accel(c["accel"], run.dt_s, ev.accel_activity_form, ev.accel_activity_window_s)

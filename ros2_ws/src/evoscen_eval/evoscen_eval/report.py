@@ -92,16 +92,18 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
     """``report.md``: the scores and their inputs as tables, then the plots."""
     r, s, e, i, g, c = (report[k] for k in ("run", "safety", "efficiency", "interaction", "intelligence", "complexity"))
     w = g["weighted"]
+    ew = g.get("effective_weights", g["weights"])
     out = [f"# Evaluation: {r.get('scenario') or 'run'} (SUT {r.get('sut_model') or '?'}, seed {r.get('seed')})\n",
            f"{r['steps']} steps ({r['duration_s']:.1f} s simulated, dt {r['dt_s']:g} s), {r['bv_count']} BVs "
            f"({r.get('bv_driver') or '?'}), SUT id {r['sut_id']}; run {'complete' if r['complete'] else 'INCOMPLETE'}.\n"]
     for warning in report["warnings"]:
         out.append(f"> **warning:** {warning}\n")
     out += ["## Intelligence\n",
-            "| metric | score | weight | weighted term |", "|---|---|---|---|",
-            f"| safety I_s | {_f(s['score'])} | {_f(g['weights']['safety'])} | {_f(w['safety'])} |",
-            f"| efficiency I_e | {_f(e['score'])} | {_f(g['weights']['efficiency'])} | {_f(w['efficiency'])} |",
-            f"| interaction I_i | {_f(i['score'])} | {_f(g['weights']['interaction'])} | {_f(w['interaction'])} |",
+            "| metric | score | weight (effective) | weighted term |", "|---|---|---|---|",
+            f"| safety I_s | {_f(s['score'])} | {_f(ew['safety'])} | {_f(w['safety'])} |",
+            f"| efficiency I_e | {_f(e['score'])} | {_f(ew['efficiency'])} | {_f(w['efficiency'])} |",
+            f"| interaction I_i | {_f(i['score'])}{'' if i.get('defined', True) else ' (undefined: no SUT lane change, left out)'}"
+            f" | {_f(ew['interaction'])} | {_f(w['interaction'])} |",
             f"| **intelligence I** | | | **{_f(g['score'])}** |\n"]
     out += ["## Safety\n", "I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)\n", _table([
         ("C", s["collisions"], "collisions involving the SUT (one per contact)"),
@@ -114,6 +116,20 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
         ("min acceleration (m/s²)", s["min_accel_mps2"], "the SUT's hardest braking"),
         ("all collisions", s["collisions_all"], "every colliding pair, BVs included"),
     ])]
+    cf = s.get("conflicts")
+    if cf:
+        out += ["\n### Conflicts on either side of the SUT (docs/evaluation.md)\n", _table([
+            ("rear conflicts", cf["rear_conflicts"], f"which follower conflicts are the SUT's (window "
+                                                      f"{cf['rear_attribution_s']:g} s after a SUT lane change)"),
+            ("rear conflict states", cf["rear_conflict_states"], "follower in the path: TTC below threshold or hard brake"),
+            ("... attributed", cf["rear_conflict_states_attributed"], "of them in the attribution window (dangerous)"),
+            ("min follower TTC (s)", cf["min_follower_ttc_s"], "follower onto the SUT (– = never closing)"),
+            ("max DRAC SUT (m/s²)", cf["max_drac_sut_mps2"], "SUT behind its leader (– = infinite)"),
+            ("max DRAC follower (m/s²)", cf["max_drac_follower_mps2"], "follower behind the SUT (– = infinite)"),
+            (f"DRAC > {cf['drac_threshold_mps2']:g} states", f"{cf['drac_sut_states']} / {cf['drac_follower_states']}",
+             "SUT / follower"),
+            ("min lane-change PET (s)", cf["min_pet_s"], f"over {len(cf['lane_change_pet'])} SUT lane changes"),
+        ])]
     if s["exposure_list"]:
         out += ["\n| exposure | start (s) | states | min TTC (s) | min accel (m/s²) |", "|---|---|---|---|---|"]
         for n, x in enumerate(s["exposure_list"][:50], 1):
@@ -129,7 +145,9 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
         ("v_max (m/s)", e["v_max_mps"], "speed normaliser"),
         ("density-speed term", e["density_speed_term"], f"form: {e['density_form']}"),
         ("T̄_l (s)", e["mean_lane_change_time_s"], "mean SUT lane-change time"
-         + ("" if e["lane_change_time_defined"] else " (no lane change: the configured default)")),
+         + ("" if e["lane_change_time_defined"] else (" (no lane change: the configured default)"
+                                                     if e.get("lane_change_term_used", True)
+                                                     else " (no lane change: undefined, term left out of I_e)"))),
         ("lane changes", e["lane_changes"], f"completed by the SUT ({e['lane_changes_aborted']} aborted)"),
         ("e^(−T̄_l/3)", e["lane_change_term"], "lane-change term"),
     ])]

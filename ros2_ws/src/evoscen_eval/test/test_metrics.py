@@ -27,6 +27,8 @@ from evoscen_eval.rundata import RunData
 from evoscen_sim.config import EvaluationConfig
 
 EV = EvaluationConfig()
+#: the SPEC's arithmetic taken literally for undefined terms (T_l = 0 s, I_i = 1 without a lane change)
+EV_LIT = EvaluationConfig(undefined_terms="literal")
 
 
 def make_run(states: int, vehicles: int, events: list[dict] | None = None) -> RunData:
@@ -107,7 +109,7 @@ def test_cut_in_is_one_exposure_and_ttc_uses_the_vehicle_in_the_path():
     c["speed"][:, 1] = 25.0  # closing at 5 m/s: TTC 1.6 s once in the path
     c["d"][:, 1] = 3.5  # the next lane: not in the path
     c["d"][10:20, 1] = 0.5  # cut in (bodies overlap laterally: 0.5 < 1.9) for states 10..19
-    rep = evaluate(run, EV)
+    rep = evaluate(run, EV_LIT)
     s = rep["safety"]
     assert s["exposures"] == 1 and s["dangerous_states"] == 10
     ex = s["exposure_list"][0]
@@ -164,7 +166,7 @@ def test_collisions_only_with_the_sut_count_and_above_the_cap():
 
 def test_zero_vehicles_in_view():
     run = make_run(20, 3)  # BVs 500 m and 550 m ahead
-    e = evaluate(run, EV)["efficiency"]
+    e = evaluate(run, EV_LIT)["efficiency"]
     assert e["mean_vehicles_in_view"] == 0.0 and e["density_speed_term"] == 0.0
     assert e["score"] == pytest.approx(0.5)
 

@@ -471,14 +471,18 @@ class RecordingConfig:
 
 EFFICIENCY_DENSITY_FORMS = ("literal", "normalised")
 ACCEL_ACTIVITY_FORMS = ("smoothed", "literal")
+#: ``evaluation.rear_conflicts`` values (see :mod:`evoscen_sim.safety`).
+REAR_CONFLICT_MODES = ("after_lane_change", "all", "none")
+#: ``evaluation.undefined_terms`` values.
+UNDEFINED_TERM_RULES = ("exclude", "literal")
 
 
 @dataclass(frozen=True)
 class EvaluationConfig:
     """Scoring of the SUT and of the scenario (SPEC 5.1-5.2; see :mod:`evoscen_eval.metrics`).
 
-    Every **[choice]** the method leaves open is a key here, defaults as documented in the
-    README ("Evaluation").
+    Every **[choice]** the method leaves open is a key here, defaults as documented in
+    docs/evaluation.md and the README ("Evaluation").
     """
 
     ttc_threshold_s: float = field(default=2.0, metadata=_POSITIVE)
@@ -503,7 +507,7 @@ class EvaluationConfig:
     lane_change_time_scale_s: float = field(default=3.0, metadata=_POSITIVE)
     """The 3 of e^(-T_l/3) (s)."""
     no_lane_change_time_s: float = field(default=0.0, metadata=_NON_NEGATIVE)
-    """T_l when the SUT completed no lane change (s): no time was spent changing lanes."""
+    """T_l when the SUT completed no lane change (s), used only with undefined_terms: literal."""
     collision_cap: int = field(default=10, metadata=_check(_Int(1)))
     """C_max of the safety score."""
     dv_max_mps: float = field(default=5.0, metadata=_POSITIVE)
@@ -532,6 +536,20 @@ class EvaluationConfig:
     """k2."""
     k_accel: float = field(default=1400.0, metadata=_POSITIVE)
     """k3."""
+    rear_conflicts: str = field(default="after_lane_change", metadata=_check(_Str(lambda: REAR_CONFLICT_MODES)))
+    """Rear conflicts (the follower in the SUT's path closing with TTC < ttc_threshold_s or
+    braking harder than hard_brake_mps2) make a state dangerous: after_lane_change = from the
+    start of a SUT lane change until rear_attribution_s after it ends; all = always; none =
+    never (the SUT's own front and braking only). See docs/evaluation.md."""
+    rear_attribution_s: float = field(default=5.0, metadata=_NON_NEGATIVE)
+    """Attribution window after a SUT lane change ends (s); also the window after the change
+    over which its lane-change PET is taken."""
+    drac_threshold_mps2: float = field(default=3.0, metadata=_POSITIVE)
+    """Reported counts of states whose DRAC exceeds this (m/s^2; SUMO SSM's default 3)."""
+    undefined_terms: str = field(default="exclude", metadata=_check(_Str(lambda: UNDEFINED_TERM_RULES)))
+    """A score term undefined in the run (T_l without a completed SUT lane change; I_i without
+    any SUT lane change): exclude = left out and the remaining weights renormalised;
+    literal = T_l = no_lane_change_time_s and I_i = 1 (the SPEC's arithmetic taken literally)."""
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .safety import dangerous, sut_leader_ttc_state
+from .safety import RearAttribution, attribution_steps, dangerous, rear_dangerous, sut_follower_ttc_state, sut_leader_ttc_state
 
 
 def step_events(world, result) -> list[dict]:  # noqa: ANN001
@@ -64,30 +64,54 @@ class ExposureMonitor:
 
     :meth:`observe` is called on every state, the initial one included; it returns a
     ``kind: start`` event when an exposure begins (``step``/``time_s`` of the first dangerous
-    state, ``ttc_s``, ``accel_mps2``, ``ids`` = the SUT and, if any, the vehicle ahead in its
-    path) and a ``kind: end`` event when it is over (``steps`` = its length in states). The
-    definitions are :mod:`evoscen_sim.safety`'s, the evaluator's.
+    state, ``ttc_s``, ``accel_mps2``, ``ids`` = the SUT, the vehicle ahead in its path if any,
+    and the follower in its path when a rear conflict attributed to the SUT makes the state
+    dangerous) and a ``kind: end`` event when it is over (``steps`` = its length in states).
+    The definitions are :mod:`evoscen_sim.safety`'s, the evaluator's; the rear-conflict
+    attribution window (``evaluation.rear_conflicts``, docs/evaluation.md) is the one state
+    this monitor keeps besides the open exposure, fed the SUT's ``lane_change`` column of
+    every state as the evaluator reads it from the recorded world table.
     """
 
     def __init__(self, evaluation, role: np.ndarray) -> None:  # noqa: ANN001 - an EvaluationConfig
         self.ttc_threshold_s = evaluation.ttc_threshold_s
         self.hard_brake_mps2 = evaluation.hard_brake_mps2
+        self.rear_conflicts = evaluation.rear_conflicts
+        self.rear_attribution_s = evaluation.rear_attribution_s
         self.sut = int(np.flatnonzero(np.asarray(role) == 1)[0])
         self.start_step: int | None = None
+        self._rear: RearAttribution | None = None
 
     def observe(self, world) -> list[dict]:  # noqa: ANN001
         """The exposure events of the world's current state."""
         w, sut = world, self.sut
+        if self._rear is None:
+            self._rear = RearAttribution(self.rear_conflicts, attribution_steps(self.rear_attribution_s, w.dt_s))
         leader, ttc = sut_leader_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = sut_leader, sut_ttc
         ttc = float(ttc)
         accel = float(w.accel[sut])
         danger = bool(dangerous(np.float64(ttc), np.float64(accel), self.ttc_threshold_s, self.hard_brake_mps2))
         k, common = w.step_index, {"step": w.step_index, "time_s": w.time_s}
+        rear = False
+        if self._rear.observe(k, int(w.lane_change[sut])):
+            follower, f_ttc = sut_follower_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = follower_ttc
+            f_ttc, follower = float(f_ttc), int(follower)
+            f_accel = float(w.accel[follower]) if follower >= 0 else 0.0
+            rear = bool(rear_dangerous(np.float64(f_ttc), np.float64(f_accel), self.ttc_threshold_s,
+                                       self.hard_brake_mps2))
+            danger = danger or rear
         if danger and self.start_step is None:
             self.start_step = k
             leader = int(leader)
             ids = [int(w.ids[sut])] + ([int(w.ids[leader])] if leader >= 0 else [])
-            cause = f"TTC {ttc:.2f} s" if ttc < self.ttc_threshold_s else f"acceleration {accel:.2f} m/s^2"
+            if ttc < self.ttc_threshold_s:
+                cause = f"TTC {ttc:.2f} s"
+            elif accel < -self.hard_brake_mps2:
+                cause = f"acceleration {accel:.2f} m/s^2"
+            else:
+                cause = f"follower {int(w.ids[follower])}: TTC {f_ttc:.2f} s, acceleration {f_accel:.2f} m/s^2"
+            if rear:
+                ids.append(int(w.ids[follower]))
             return [{"name": "evoscen/exposure", "level": 1, "message": f"SUT dangerous state: {cause}",
                      **common, "ids": ids, "kind": "start", "ttc_s": ttc, "accel_mps2": accel}]
         if not danger and self.start_step is not None:

@@ -1,18 +1,25 @@
 """The SUT's dangerous states (SPEC 5.1): one definition for the live events and the scores.
 
-A state is **dangerous** when
+Definitions, choices and their reasons: docs/evaluation.md. A state is **dangerous** when
 
 * the SUT's time to collision with the vehicle ahead *in its path* is below
   ``evaluation.ttc_threshold_s`` [2 s], or
-* the SUT's acceleration is below ``-evaluation.hard_brake_mps2`` [-6 m/s²].
+* the SUT's acceleration is below ``-evaluation.hard_brake_mps2`` [-6 m/s²], or
+* **[choice]** (``evaluation.rear_conflicts``) there is a *rear conflict attributed to the
+  SUT*: the follower in the SUT's path (:func:`sut_follower`) closes on it with TTC below the
+  threshold or brakes harder than ``hard_brake_mps2``, in a state from the start of a SUT
+  lane change until ``rear_attribution_s`` [5 s] after it ends (``after_lane_change``,
+  default; :func:`rear_attributed`), in every state (``all``) or never (``none``: the
+  definition before rear conflicts, exactly).
 
 **[choice]** "in its path": another vehicle whose body overlaps the SUT's laterally
 (|d_j - d_sut| < (w_j + w_sut)/2 in road coordinates) and whose centre is ahead
-(s_j > s_sut). The nearest such vehicle is the leader; TTC = bumper-to-bumper gap / closing
-speed while closing, else infinite (:func:`evoscen_sim.neighbors.time_to_collision`). Lateral
-overlap rather than lane membership makes a cut-in count from the moment the other body
-enters the SUT's path, not when its centre crosses the lane line, and follows the SUT
-through its own lane changes.
+(s_j > s_sut) — behind (s_j < s_sut) for the follower. The nearest such vehicle is the
+leader (follower); TTC = bumper-to-bumper gap / closing speed while closing, else infinite
+(:func:`evoscen_sim.neighbors.time_to_collision`). Lateral overlap rather than lane
+membership makes a cut-in count from the moment the other body enters the SUT's path, not
+when its centre crosses the lane line, and follows the SUT through its own lane changes.
+DRAC (:func:`drac`) is reported, not part of the definition.
 
 An **exposure** is a maximal run of consecutive dangerous states (events are counted, not
 steps). The simulation node publishes an ``evoscen/exposure`` event when one starts; the
@@ -20,13 +27,15 @@ evaluator recomputes the same states from the recorded world table with the same
 so the live events and the scores cannot disagree.
 
 Every function broadcasts over leading axes: one state (``[V]`` arrays) in the simulation,
-a whole run (``[K, V]``) in the evaluator, with identical floating-point results.
+a whole run (``[K, V]``) in the evaluator, with identical floating-point results; the
+compiled one-state kernels are bit-identical to them.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from .config import REAR_CONFLICT_MODES
 from .jit import kernel
 from .neighbors import time_to_collision
 
@@ -96,8 +105,132 @@ def sut_leader_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length
 
 def dangerous(ttc: np.ndarray, sut_accel: np.ndarray, ttc_threshold_s: float, hard_brake_mps2: float
               ) -> np.ndarray:
-    """Whether each state is dangerous (see the module docstring)."""
+    """Whether each state is dangerous at the SUT's front (see the module docstring)."""
     return (ttc < ttc_threshold_s) | (sut_accel < -hard_brake_mps2)
+
+
+# ---------------------------------------------------------------------- the SUT's rear
+
+
+def sut_follower(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarray, sut: int
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Index and bumper-to-bumper gap of the vehicle behind in the SUT's path (mirror of :func:`sut_leader`).
+
+    "In the path, behind": lateral body overlap (|d_j - d_sut| < (w_j + w_sut)/2) and centre
+    behind (s_j < s_sut); the nearest such vehicle is the follower. Returns ``(follower,
+    gap)``, shape ``[...]``: -1 / ``inf`` if none; the gap is negative if the bodies overlap
+    longitudinally.
+    """
+    back = s[..., sut:sut + 1] - s
+    half_widths = 0.5 * (width + width[..., sut:sut + 1])
+    in_path = (back > 0.0) & (np.abs(d - d[..., sut:sut + 1]) < half_widths)
+    in_path[..., sut] = False
+    gaps = np.where(in_path, back - 0.5 * (length + length[..., sut:sut + 1]), np.inf)
+    follower = np.argmin(np.where(in_path, back, np.inf), axis=-1)
+    gap = np.take_along_axis(gaps, follower[..., None], axis=-1)[..., 0]
+    follower = np.where(np.isfinite(gap), follower, -1)
+    return follower, gap
+
+
+def follower_ttc(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length: np.ndarray, width: np.ndarray,
+                 sut: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(follower, ttc)``: the follower in the SUT's path and its TTC onto the SUT (s; ``inf``
+    if none or not closing), the same :func:`~evoscen_sim.neighbors.time_to_collision` as ahead."""
+    follower, gap = sut_follower(s, d, length, width, sut)
+    f_speed = np.take_along_axis(speed, np.maximum(follower, 0)[..., None], axis=-1)[..., 0]
+    ttc = time_to_collision(gap, np.where(follower >= 0, f_speed, np.nan), speed[..., sut])
+    return follower, ttc
+
+
+@kernel
+def sut_follower_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length: np.ndarray, width: np.ndarray,
+                           sut: int) -> tuple[int, float]:
+    """:func:`follower_ttc` of ONE state (``[V]`` arrays), compiled; bit-identical to it as
+    :func:`sut_leader_ttc_state` is to :func:`sut_ttc` (a test compares them on many states).
+
+    Returns:
+        ``(follower, ttc)``: the follower's index (-1 if none) and its TTC onto the SUT (s;
+        ``inf`` if none or not closing).
+    """
+    s0, d0, w0, l0 = s[sut], d[sut], width[sut], length[sut]
+    follower, best = -1, np.inf
+    for j in range(s.shape[0]):
+        back = s0 - s[j]
+        if j != sut and back > 0.0 and abs(d[j] - d0) < 0.5 * (width[j] + w0) and back < best:
+            follower, best = j, back
+    if follower < 0:
+        return -1, np.inf
+    gap = (s0 - s[follower]) - 0.5 * (length[follower] + l0)
+    if not np.isfinite(gap):
+        return -1, np.inf
+    closing = speed[follower] - speed[sut]
+    if closing > 0.0:
+        return follower, (gap if gap >= 0.0 else 0.0) / closing
+    return follower, np.inf
+
+
+def drac(gap_m: np.ndarray, speed_mps: np.ndarray, leader_speed_mps: np.ndarray) -> np.ndarray:
+    """Deceleration rate to avoid a crash (m/s^2), SUMO SSM's DRAC (docs/evaluation.md):
+    (v - v_leader)^2 / (2 gap) while closing, else 0; ``inf`` while closing at a gap <= 0;
+    0 without a leader (``nan`` speed or ``inf`` gap)."""
+    closing = speed_mps - leader_speed_mps
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(closing > 0.0, np.where(gap_m > 0.0, closing * closing / (2.0 * gap_m), np.inf), 0.0)
+    return np.where(np.isfinite(gap_m), out, 0.0)
+
+
+def rear_dangerous(follower_ttc_s: np.ndarray, follower_accel: np.ndarray, ttc_threshold_s: float,
+                   hard_brake_mps2: float) -> np.ndarray:
+    """A conflict at the SUT's rear: the follower in its path closes with TTC below the
+    threshold or brakes harder than ``hard_brake_mps2`` (``follower_accel`` 0 without one)."""
+    return (follower_ttc_s < ttc_threshold_s) | (follower_accel < -hard_brake_mps2)
+
+
+
+
+def attribution_steps(rear_attribution_s: float, dt_s: float) -> int:
+    """The attribution window after a SUT lane change in states: floor(rear_attribution_s / dt + 1e-9)."""
+    return int(np.floor(rear_attribution_s / dt_s + 1e-9))
+
+
+def rear_attributed(sut_lane_change: np.ndarray, mode: str, after_steps: int) -> np.ndarray:
+    """Whether a rear conflict in each state is the SUT's (1-D, one entry per state from state 0).
+
+    ``after_lane_change``: from the first state of a SUT lane change (its ``lane_change``
+    column non-zero) until ``after_steps`` states after the last one (the column back to 0:
+    completed or aborted), both ends included: k - k_last <= after_steps, k_last the latest
+    state <= k with the column non-zero. ``all``: every state. ``none``: no state.
+    """
+    lc = np.asarray(sut_lane_change)
+    k = np.arange(lc.shape[0])
+    if mode == "all":
+        return np.ones(lc.shape[0], dtype=bool)
+    if mode == "none":
+        return np.zeros(lc.shape[0], dtype=bool)
+    if mode != "after_lane_change":
+        raise ValueError(f"rear_conflicts {mode!r}: expected one of {', '.join(REAR_CONFLICT_MODES)}")
+    last = np.maximum.accumulate(np.where(lc != 0, k, -1)) if lc.size else np.zeros(0, dtype=np.int64)
+    return (last >= 0) & (k - last <= after_steps)
+
+
+class RearAttribution:
+    """:func:`rear_attributed` one state at a time (the live monitor): feed every state in order."""
+
+    def __init__(self, mode: str, after_steps: int) -> None:
+        if mode not in REAR_CONFLICT_MODES:
+            raise ValueError(f"rear_conflicts {mode!r}: expected one of {', '.join(REAR_CONFLICT_MODES)}")
+        self.mode, self.after_steps = mode, int(after_steps)
+        self.last: int | None = None
+
+    def observe(self, k: int, sut_lane_change: int) -> bool:
+        """Whether state ``k`` is attributed, given the SUT's ``lane_change`` column there."""
+        if self.mode == "all":
+            return True
+        if self.mode == "none":
+            return False
+        if sut_lane_change != 0:
+            self.last = k
+        return self.last is not None and k - self.last <= self.after_steps
 
 
 def exposure_runs(danger: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -405,3 +405,20 @@ def test_evaluation_section_defaults_and_errors(scenario_dir):
     assert evaluation_from_dict({"ttc_threshold_s": 3}, "bag").ttc_threshold_s == 3.0
     with pytest.raises(InputError, match=r"^bag: key 'evaluation.collision_cap' = 0: expected an integer >= 1$"):
         evaluation_from_dict({"collision_cap": 0}, "bag")
+
+
+def test_evaluation_conflict_and_undefined_term_keys(scenario_dir):
+    ev = load_scenario_config(None).evaluation
+    assert (ev.rear_conflicts, ev.rear_attribution_s, ev.drac_threshold_mps2, ev.undefined_terms) == \
+        ("after_lane_change", 5.0, 3.0, "exclude")
+    message = load_error(scenario_dir, "evaluation: {rear_conflicts: always}\n")
+    assert "'evaluation.rear_conflicts' = 'always'" in message and "after_lane_change, all, none" in message
+    message = load_error(scenario_dir, "evaluation: {undefined_terms: zero}\n")
+    assert "'evaluation.undefined_terms' = 'zero'" in message and "exclude, literal" in message
+    message = load_error(scenario_dir, "evaluation: {rear_attribution_s: -1}\n")
+    assert "'evaluation.rear_attribution_s' = -1" in message
+    message = load_error(scenario_dir, "evaluation: {drac_threshold_mps2: 0}\n")
+    assert "'evaluation.drac_threshold_mps2' = 0" in message
+    assert "\n" not in message.strip()
+    ok = load_scenario_config(None, {"evaluation.rear_conflicts": "none", "evaluation.undefined_terms": "literal"})
+    assert (ok.evaluation.rear_conflicts, ok.evaluation.undefined_terms) == ("none", "literal")

@@ -13,7 +13,18 @@ import math
 import numpy as np
 import pytest
 
-from evoscen_sim.safety import sut_leader, sut_leader_ttc_state, sut_ttc
+from evoscen_sim.safety import (
+    RearAttribution,
+    attribution_steps,
+    drac,
+    follower_ttc,
+    rear_attributed,
+    sut_follower,
+    sut_follower_ttc_state,
+    sut_leader,
+    sut_leader_ttc_state,
+    sut_ttc,
+)
 
 
 def _numpy(s, d, v, length, width, sut):  # noqa: ANN001, ANN202
@@ -85,3 +96,88 @@ def test_every_state_of_a_run() -> None:
         leaders.add(_same(w.s, w.d, w.v, w.length, w.width, SUT_INDEX)[0])
         sc.step()
     assert len(leaders) > 1  # the SUT had leaders (and maybe none) during the run
+
+
+# ---------------------------------------------------------------------- the follower (rear conflicts)
+
+
+def _same_follower(s, d, v, length, width, sut) -> tuple[int, float]:  # noqa: ANN001
+    arrays = [np.ascontiguousarray(x, dtype=float) for x in (s, d, v, length, width)]
+    f, ttc = follower_ttc(*arrays, sut)
+    want = int(f), float(ttc)
+    assert want[0] == int(sut_follower(arrays[0], arrays[1], arrays[3], arrays[4], sut)[0])
+    got = sut_follower_ttc_state(*arrays, sut)
+    assert got[0] == want[0], f"follower {got[0]} != {want[0]}"
+    assert np.float64(got[1]).tobytes() == np.float64(want[1]).tobytes(), f"ttc {got[1]!r} != {want[1]!r}"
+    return want
+
+
+@pytest.mark.parametrize("case, svd, follower, ttc", [
+    # the SUT is vehicle 0
+    ("no one behind", ([0.0, 10.0], [0.0, 0.0], [20.0, 30.0]), -1, math.inf),
+    # SUT at s=100 v=25, follower at s=90 v=30 (length 4.8): gap 10 - 4.8 = 5.2 m, TTC 5.2 / 5 = 1.04 s
+    ("brief's example", ([100.0, 90.0], [0.0, 0.0], [25.0, 30.0]), 1, 1.04),
+    ("behind, falling back", ([100.0, 90.0], [0.0, 0.0], [25.0, 20.0]), 1, math.inf),
+    ("bodies overlap: gap < 0 -> 0", ([100.0, 98.0], [0.0, 0.0], [25.0, 30.0]), 1, 0.0),
+    ("beside, no lateral overlap", ([100.0, 90.0], [0.0, 1.9], [25.0, 30.0]), -1, math.inf),
+    ("level is not behind", ([100.0, 100.0], [0.0, 0.0], [25.0, 30.0]), -1, math.inf),
+    ("nearest of several", ([100.0, 60.0, 80.0, 70.0], [0.0, 0.0, 0.5, -0.5], [20.0, 40.0, 30.0, 40.0]), 2, 1.52),
+    ("equal distances: the first", ([100.0, 80.0, 80.0], [0.0, 0.4, -0.4], [20.0, 30.0, 40.0]), 1, 1.52),
+])
+def test_follower_edge_cases(case: str, svd: tuple, follower: int, ttc: float) -> None:
+    s, d, v = (np.array(x) for x in svd)
+    got = _same_follower(s, d, v, np.full(s.size, 4.8), np.full(s.size, 1.9), 0)
+    assert got[0] == follower, case
+    assert got[1] == pytest.approx(ttc), case
+
+
+def test_follower_random_dense_states() -> None:
+    rng = np.random.default_rng(11)
+    for _ in range(3000):
+        n = int(rng.integers(2, 30))
+        s = np.round(rng.uniform(0.0, 120.0, n), int(rng.integers(0, 3)))
+        d = rng.choice([-3.75, 0.0, 3.75], n) + rng.normal(0.0, 0.8, n)
+        v = rng.uniform(0.0, 35.0, n)
+        length = rng.uniform(3.5, 12.0, n)
+        width = rng.uniform(1.6, 2.6, n)
+        _same_follower(s, d, v, length, width, int(rng.integers(0, n)))
+    s = np.array([30.0, 0.0, 24.5, np.nan])  # nan positions never count
+    assert _same_follower(s, np.array([0.0, 0.0, 0.2, 0.0]), np.full(4, 20.0), np.full(4, L), np.full(4, W), 0)[0] == 2
+
+
+def test_follower_every_state_of_a_run() -> None:
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.scenario import SUT_INDEX
+
+    sc = build_scenario(load_scenario_config(None, {"steps": 800}))
+    w = sc.world
+    followers = set()
+    for _ in range(800):
+        followers.add(_same_follower(w.s, w.d, w.v, w.length, w.width, SUT_INDEX)[0])
+        sc.step()
+    assert len(followers) > 1
+
+
+def test_drac_by_hand() -> None:
+    # SUT at s=100 v=25 followed at s=90 by v=30: gap 5.2 m, DRAC = 5^2 / (2 * 5.2) = 2.4038 m/s^2
+    assert float(drac(np.float64(5.2), np.float64(30.0), np.float64(25.0))) == pytest.approx(25.0 / 10.4)
+    assert float(drac(np.float64(5.2), np.float64(20.0), np.float64(25.0))) == 0.0  # opening
+    assert float(drac(np.float64(0.0), np.float64(30.0), np.float64(25.0))) == math.inf  # closing at gap 0
+    assert float(drac(np.float64(np.inf), np.float64(30.0), np.float64(np.nan))) == 0.0  # nobody
+
+
+def test_rear_attribution_window_edges() -> None:
+    lc = np.zeros(30, dtype=np.int64)
+    lc[5:9] = 1  # a SUT lane change over states 5..8: attributed 5 .. 8 + 3 = 11 with 3 states after
+    want = np.zeros(30, dtype=bool)
+    want[5:12] = True
+    assert (rear_attributed(lc, "after_lane_change", 3) == want).all()
+    assert rear_attributed(lc, "all", 3).all() and not rear_attributed(lc, "none", 3).any()
+    lc[20:22] = -1  # a second change: its own window 20..24
+    want[20:25] = True
+    assert (rear_attributed(lc, "after_lane_change", 3) == want).all()
+    assert (rear_attributed(lc, "after_lane_change", 0) == (lc != 0)).all()
+    live = RearAttribution("after_lane_change", 3)  # the monitor's one-state-at-a-time version agrees
+    assert [live.observe(k, int(x)) for k, x in enumerate(lc)] == want.tolist()
+    assert attribution_steps(5.0, 0.1) == 50 and attribution_steps(0.3, 0.1) == 3 and attribution_steps(0.0, 0.1) == 0

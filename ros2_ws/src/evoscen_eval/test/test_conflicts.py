@@ -1,0 +1,250 @@
+"""Conflicts on either side of the SUT and undefined score terms (docs/evaluation.md).
+
+Hand-built runs (every number below follows from the definitions by hand) and scripted
+situations driven by the world's dynamics, where the live ``evoscen/exposure`` events of
+:class:`~evoscen_sim.events.ExposureMonitor` must equal the evaluator's recomputation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from evoscen_contract import topics as T
+from evoscen_eval.metrics import evaluate
+from evoscen_eval.rundata import RunAccumulator, RunData
+from evoscen_sim.config import EvaluationConfig
+from evoscen_sim.events import ExposureMonitor, step_events
+from evoscen_sim.road import load_road
+from evoscen_sim.testing import hand_built_world
+
+EV = EvaluationConfig()
+
+
+def rear_run(states: int = 40) -> RunData:
+    """SUT (vehicle 0) at s = 100 m, 25 m/s, lane 2 (d = 0) changing left into lane 3 (d = 3.5)
+    over states 5..9 (d = 0.7, 1.4, ..., 3.5); vehicle 1 in lane 3 at s = 90 m, 30 m/s, d = 3.5
+    all along. Bodies 4.8 x 1.9 m: vehicle 1 is in the SUT's path (|Δd| < 1.9) from state 7
+    (d_sut = 2.1); gap 10 − 4.8 = 5.2 m, TTC = 5.2 / 5 = 1.04 s, DRAC = 5² / (2·5.2) = 2.4038 m/s²,
+    PET = 5.2 / 30 = 0.17333 s. dt = 0.1 s."""
+    c = {f: np.zeros((states, 2)) for f in T.WORLD_FIELDS}
+    c["id"][:] = np.arange(2)
+    c["role"][:, 0] = 1
+    c["length"][:] = 4.8
+    c["width"][:] = 1.9
+    c["s"][:, 0], c["s"][:, 1] = 100.0, 90.0
+    c["speed"][:, 0], c["speed"][:, 1] = 25.0, 30.0
+    c["lane"][:, 0], c["lane"][:, 1] = 2, 3
+    c["target_lane"][:] = c["lane"]
+    c["d"][:, 1] = 3.5
+    c["d"][5:10, 0] = 0.7 * np.arange(1, 6)
+    c["d"][10:, 0] = 3.5
+    c["lane_change"][5:10, 0] = 1
+    c["target_lane"][5:, 0] = 3
+    c["lane"][8:, 0] = 3  # centre over the line at state 8
+    events = [{"name": T.EVENT_LANE_CHANGE, "step": 10, "time_s": 1.0, "ids": [0], "duration_s": 0.5,
+               "kind": "completed"}]
+    return RunData(time_s=np.arange(states) * 0.1, columns=c, ids=np.arange(2), sut_index=0,
+                   events=events, dt_s=0.1, complete=True)
+
+
+# ---------------------------------------------------------------------- hand-built runs
+
+
+def test_rear_conflict_after_a_lane_change_by_hand():
+    ev = replace(EV, rear_attribution_s=1.0)  # 10 states after the change's last state (9): 5..19 attributed
+    rep = evaluate(rear_run(), ev)
+    s, cf = rep["safety"], rep["safety"]["conflicts"]
+    assert cf["attribution_states"] == 15
+    assert cf["rear_conflict_states"] == 33 and cf["rear_conflict_states_attributed"] == 13  # 7..39, 7..19
+    assert cf["front_dangerous_states"] == 0
+    assert s["exposures"] == 1 and s["dangerous_states"] == 13
+    ex = s["exposure_list"][0]
+    assert (ex["start_state"], ex["end_state"], ex["rear_states"], ex["open_at_end"]) == (7, 20, 13, False)
+    assert ex["min_ttc_s"] is None  # nothing ahead of the SUT
+    assert ex["severity"] == pytest.approx(2.0 / 1.04)
+    assert cf["min_follower_ttc_s"] == pytest.approx(1.04) and cf["min_follower_ttc_attributed_s"] == pytest.approx(1.04)
+    assert cf["max_drac_follower_mps2"] == pytest.approx(25.0 / 10.4) and cf["max_drac_sut_mps2"] == 0.0
+    assert cf["drac_follower_states"] == 0  # 2.40 < 3
+    assert evaluate(rear_run(), replace(ev, drac_threshold_mps2=2.0))["safety"]["conflicts"]["drac_follower_states"] == 33
+    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))
+    # PET: the change over states [5, 10), window to state 19; the new follower (lane 3, in path) from state 7
+    pet = cf["lane_change_pet"]
+    assert len(pet) == 1
+    assert (pet[0]["start_state"], pet[0]["end_state"], pet[0]["window_end_state"], pet[0]["target_lane"]) == (5, 10, 20, 3)
+    assert pet[0]["pet_s"] == pytest.approx(5.2 / 30.0) and pet[0]["state"] == 7 and pet[0]["follower_id"] == 1
+    assert cf["min_pet_s"] == pytest.approx(5.2 / 30.0)
+
+
+def test_attribution_window_edges():
+    # rear_attribution_s = 0: only the states of the change itself (7..9 in the path)
+    s = evaluate(rear_run(), replace(EV, rear_attribution_s=0.0))["safety"]
+    assert [(e["start_state"], e["end_state"]) for e in s["exposure_list"]] == [(7, 10)]
+    # 0.3 s = 3 states: the last attributed state is 9 + 3 = 12
+    s = evaluate(rear_run(), replace(EV, rear_attribution_s=0.3))["safety"]
+    assert [(e["start_state"], e["end_state"]) for e in s["exposure_list"]] == [(7, 13)]
+    # the default 5 s outlasts this 40-state run: open at the end
+    s = evaluate(rear_run(), EV)["safety"]
+    assert [(e["start_state"], e["end_state"], e["open_at_end"]) for e in s["exposure_list"]] == [(7, 40, True)]
+    # all: every state with a rear conflict; none: the SUT's front and braking only (no exposure here)
+    assert [(e["start_state"], e["end_state"]) for e in
+            evaluate(rear_run(), replace(EV, rear_conflicts="all"))["safety"]["exposure_list"]] == [(7, 40)]
+    none = evaluate(rear_run(), replace(EV, rear_conflicts="none"))["safety"]
+    assert none["exposures"] == 0 and none["score"] == pytest.approx(1.0)
+    assert none["conflicts"]["rear_conflict_states"] == 33 and none["conflicts"]["rear_conflict_states_attributed"] == 0
+
+
+def test_tailgater_behind_a_lane_keeping_sut_is_not_its_fault():
+    run = rear_run()
+    c = run.columns
+    c["d"][:, :] = 0.0  # both in lane 2, no lane change: vehicle 1 tailgates at TTC 1.04 s all run
+    c["lane"][:] = 2
+    c["target_lane"][:] = 2
+    c["lane_change"][:] = 0
+    run.events.clear()
+    assert evaluate(run, EV)["safety"]["exposures"] == 0
+    assert evaluate(run, replace(EV, rear_conflicts="all"))["safety"]["exposures"] == 1
+    # a follower braking harder than hard_brake_mps2 in the window counts too (TTC opening here)
+    run = rear_run()
+    run.columns["speed"][:, 1] = 20.0
+    run.columns["accel"][12:15, 1] = -7.0
+    s = evaluate(run, EV)["safety"]
+    assert [(e["start_state"], e["end_state"], e["min_accel_mps2"]) for e in s["exposure_list"]] == [(12, 15, 0.0)]
+    assert s["conflicts"]["min_follower_accel_mps2"] == -7.0
+
+
+def lane_keeper_run() -> RunData:
+    """SUT 30 m/s, no lane change, one BV in view in the next lane all along (h = 1)."""
+    states = 40
+    c = {f: np.zeros((states, 2)) for f in T.WORLD_FIELDS}
+    c["id"][:] = np.arange(2)
+    c["role"][:, 0] = 1
+    c["length"][:] = 4.8
+    c["width"][:] = 1.9
+    c["speed"][:] = 30.0
+    c["lane"][:, 0], c["lane"][:, 1] = 2, 3
+    c["s"][:, 0], c["s"][:, 1] = 1000.0, 1012.8
+    c["d"][:, 1] = 3.5
+    return RunData(time_s=np.arange(states) * 0.1, columns=c, ids=np.arange(2), sut_index=0, events=[], dt_s=0.1,
+                   complete=True)
+
+
+def test_no_free_credit_for_a_sut_that_never_changes_lanes():
+    term1 = math.sqrt(1.0) * 30.0 / (85 * 33.33)  # 0.0105891
+    rep = evaluate(lane_keeper_run(), EV)
+    e, i, g = rep["efficiency"], rep["interaction"], rep["intelligence"]
+    assert rep["safety"]["score"] == pytest.approx(1.0)
+    # T_l undefined: I_e = the density-speed term alone
+    assert e["lane_change_term_used"] is False and e["lane_change_term"] is None and e["mean_lane_change_time_s"] is None
+    assert e["score"] == pytest.approx(term1)
+    # no SUT lane change: I_i undefined, I = (0.6 I_s + 0.2 I_e) / 0.8
+    assert i["defined"] is False and i["score"] is None
+    assert g["defined"] == {"safety": True, "efficiency": True, "interaction": False}
+    assert g["effective_weights"] == pytest.approx({"safety": 0.75, "efficiency": 0.25, "interaction": 0.0})
+    assert g["score"] == pytest.approx((0.6 * 1.0 + 0.2 * term1) / 0.8)
+    assert g["score"] == pytest.approx(0.7526473, abs=1e-6)
+    assert sum(g["weighted"].values()) == pytest.approx(g["score"])
+    # literal: the old arithmetic exactly (T_l = 0 -> e^0 = 1, I_i = 1)
+    lit = evaluate(lane_keeper_run(), replace(EV, undefined_terms="literal"))
+    assert lit["efficiency"]["score"] == pytest.approx(0.5 * (term1 + 1.0))
+    assert lit["interaction"]["score"] == pytest.approx(1.0)
+    assert lit["intelligence"]["score"] == pytest.approx(0.6 + 0.2 * 0.5 * (term1 + 1.0) + 0.2)
+    assert lit["intelligence"]["score"] == pytest.approx(0.9010589, abs=1e-6)
+    assert lit["intelligence"]["effective_weights"] == lit["intelligence"]["weights"]
+
+
+def test_a_lane_change_in_progress_defines_interaction_but_not_lane_change_time():
+    run = lane_keeper_run()
+    run.columns["lane_change"][30:, 0] = 1  # still changing at the end: no completed change
+    rep = evaluate(run, EV)
+    assert rep["interaction"]["defined"] is True and rep["interaction"]["sut_lane_changes"] == 1
+    assert rep["efficiency"]["lane_change_term_used"] is False
+    g = rep["intelligence"]
+    assert g["effective_weights"] == g["weights"]
+    assert g["score"] == pytest.approx(0.6 * rep["safety"]["score"] + 0.2 * rep["efficiency"]["score"]
+                                       + 0.2 * rep["interaction"]["score"])
+
+
+def test_only_undefined_terms_weighted_gives_no_intelligence():
+    rep = evaluate(lane_keeper_run(), replace(EV, weight_safety=0.0, weight_efficiency=0.0, weight_interaction=1.0))
+    assert rep["intelligence"]["score"] is None
+    assert any("no defined intelligence term" in w for w in rep["warnings"])
+
+
+# ---------------------------------------------------------------------- through the real simulation
+
+
+@pytest.fixture(scope="module")
+def road():
+    return load_road()
+
+
+def drive(world, command, steps, ev):
+    acc = RunAccumulator()
+    monitor = ExposureMonitor(ev, world.role)
+    live = monitor.observe(world)
+    acc.add_events(live)
+    for k in range(steps):
+        acc.add_world_columns(world.columns(), world.time_ns)
+        throttle, lane_change = command(k)
+        result = world.step(np.asarray(throttle, dtype=float), np.asarray(lane_change, dtype=np.int64))
+        events = step_events(world, result) + monitor.observe(world)
+        live += events
+        acc.add_events(events)
+    acc.add_world_columns(world.columns(), world.time_ns)
+    return evaluate(acc.run_data(), ev), live
+
+
+def _cut_in_front_of_follower(k):
+    # SUT (25 m/s, lane 2) changes left at once into lane 3, where vehicle 1 comes at 30 m/s from
+    # 28 m behind; the follower brakes (-0.6) from step 32 when the SUT's body is in its path
+    return [0.0, -0.6 if 32 <= k < 55 else 0.0], [1 if k == 0 else 0, 0]
+
+
+@pytest.mark.parametrize("mode, expected", [("after_lane_change", 1), ("all", 1), ("none", 0)])
+def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, expected):
+    ev = replace(EV, rear_conflicts=mode)
+    world = hand_built_world(road, [300.0, 272.0], [2, 3], [25.0, 30.0], roles=[1, 0])
+    report, live = drive(world, _cut_in_front_of_follower, 150, ev)
+    s = report["safety"]
+    assert s["collisions_all"] == 0
+    starts = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "start"]
+    ends = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "end"]
+    assert s["exposures"] == len(starts) == expected
+    assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
+    assert [e["steps"] for e in ends] == [x["states"] for x in s["exposure_list"] if not x["open_at_end"]]
+    if expected:
+        ex = s["exposure_list"][0]
+        assert ex["rear_states"] == ex["states"] and ex["min_ttc_s"] is None  # all from the rear
+        assert starts[0]["ids"] == [0, 1] and "follower 1" in starts[0]["message"]
+        assert s["conflicts"]["min_follower_ttc_attributed_s"] < 2.0
+    cf = s["conflicts"]
+    assert cf["rear_conflict_states"] > 0 and len(cf["lane_change_pet"]) == 1
+    assert cf["lane_change_pet"][0]["follower_id"] == 1 and 0.0 < cf["min_pet_s"] < 1.0
+
+
+def test_live_monitor_equals_the_evaluator_on_a_simulated_run():
+    """800 steps of the default scenario with a lane-changing SUT (Nilsson) and a 4 s threshold,
+    so that rear conflicts attributed to the SUT occur: live exposure events == the evaluator's."""
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.config import load_scenario_config
+
+    cfg = load_scenario_config(None, {"steps": 800, "sut.model": "nilsson", "evaluation.ttc_threshold_s": 4.0})
+    sc = build_scenario(cfg)
+    w = sc.world
+    acc = RunAccumulator()
+    monitor = ExposureMonitor(cfg.evaluation, w.role)
+    live = monitor.observe(w)
+    for _ in range(800):
+        acc.add_world_columns(w.columns(), w.time_ns)
+        sc.step()
+        live += monitor.observe(w)
+    acc.add_world_columns(w.columns(), w.time_ns)
+    s = evaluate(acc.run_data(), cfg.evaluation)["safety"]
+    assert sum(x["rear_states"] for x in s["exposure_list"]) > 0  # the rear term took part
+    assert [e["step"] for e in live if e["kind"] == "start"] == [x["start_state"] for x in s["exposure_list"]]
+    assert [e["steps"] for e in live if e["kind"] == "end"] == [x["states"] for x in s["exposure_list"]
+                                                                  if not x["open_at_end"]]
