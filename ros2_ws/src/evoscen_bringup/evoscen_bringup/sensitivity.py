@@ -59,10 +59,17 @@ def t_half_width(x: np.ndarray) -> float:
     return float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
 
 
-def paired(intact: Mapping[int, float], mutant: Mapping[int, float]) -> Paired:
-    """``intact − mutant`` over the seeds both have (seed → value maps)."""
+def _shared(intact: Mapping[int, float], mutant: Mapping[int, float]) -> np.ndarray:
+    """``intact − mutant`` over the seeds (sorted) where both values are defined (finite)."""
     seeds = sorted(set(intact) & set(mutant))
     d = np.array([intact[s] - mutant[s] for s in seeds], dtype=float)
+    return d[np.isfinite(d)]
+
+
+def paired(intact: Mapping[int, float], mutant: Mapping[int, float]) -> Paired:
+    """``intact − mutant`` over the seeds both have and where both are defined (seed → value maps;
+    an undefined score — e.g. I_i of a run without SUT lane changes — is ``nan``)."""
+    d = _shared(intact, mutant)
     if d.size == 0:
         return Paired(math.nan, math.nan, 0)
     return Paired(float(d.mean()), t_half_width(d), int(d.size))
@@ -73,8 +80,7 @@ def seeds_needed(intact: Mapping[int, float], mutant: Mapping[int, float]) -> in
 
     ``None`` when the full set is not detected.
     """
-    seeds = sorted(set(intact) & set(mutant))
-    d = np.array([intact[s] - mutant[s] for s in seeds], dtype=float)
+    d = _shared(intact, mutant)
     needed = None
     for m in range(d.size, 1, -1):  # walk back from the full set while detection holds
         half = t_half_width(d[:m])
@@ -91,7 +97,9 @@ def mutation_score(detected: Sequence[bool]) -> float:
 
 
 def score_of(report: Mapping, name: str) -> float:
-    """The score ``name`` (one of :data:`SCORES`) of a ``report.json`` dict."""
+    """The score ``name`` (one of :data:`SCORES`) of a ``report.json`` dict; ``nan`` when the
+    report leaves it undefined (``null``, docs/evaluation.md "Undefined score terms")."""
     if name not in SCORES:
         raise ValueError(f"score {name!r}: expected one of {', '.join(SCORES)}")
-    return float(report[name]["score"])
+    value = report[name]["score"]
+    return math.nan if value is None else float(value)

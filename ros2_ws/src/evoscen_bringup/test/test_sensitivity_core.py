@@ -31,6 +31,12 @@ def test_paired_uses_only_shared_seeds_and_is_not_detected_when_interval_straddl
     assert not p.above_zero  # 1.333 - 1.434 < 0
 
 
+def test_paired_skips_seeds_where_a_score_is_undefined() -> None:
+    # seed 1's mutant value is undefined (nan): d over seeds 0 and 2 = [1.0, 1.1]
+    p = paired({0: 3.0, 1: 5.0, 2: 3.1}, {0: 2.0, 1: math.nan, 2: 2.0})
+    assert p.n == 2 and p.mean == pytest.approx(1.05) and p.half == pytest.approx(T975_DF1 * 0.05, rel=1e-9)
+
+
 def test_paired_degenerate_cases() -> None:
     one = paired({0: 2.0}, {0: 1.0})
     assert one.n == 1 and one.mean == 1.0 and math.isnan(one.half) and not one.above_zero
@@ -59,5 +65,6 @@ def test_mutation_score_and_score_of() -> None:
     rep = {"intelligence": {"score": 0.7}, "safety": {"score": 0.9}, "efficiency": {"score": 0.2},
            "interaction": {"score": 0.5}}
     assert score_of(rep, "safety") == 0.9
+    assert math.isnan(score_of({**rep, "interaction": {"score": None}}, "interaction"))  # undefined I_i
     with pytest.raises(ValueError, match="score 'bogus': expected one of intelligence"):
         score_of(rep, "bogus")
