@@ -25,14 +25,16 @@ Operators (parameters in brackets; see docs/mutants.md for the reasons of the de
   - ``ignores_new_follower``: the lane-change request is decided on a view without the
     vehicles behind the SUT in the two adjacent lanes; the throttle on the full view.
   - ``late_lane_change`` [``delay_steps``]: a lane-change request is executed ``delay_steps``
-    steps after it was decided (the throttle is current).
+    steps after it was decided (the throttle is current; no request in the first
+    ``delay_steps`` steps).
   - ``over_eager`` [``retune``]: the base model's own parameters re-tuned to change lanes
     eagerly (:data:`EAGER_PRESETS` for ``mobil``, ``nilsson``, ``stackelberg``; for any model,
     ``retune: "name=value, ..."`` names parameters of ``models.<base>`` to replace).
 
 * control —
 
-  - ``reaction_time`` [``delay_steps``]: both commands pass a delay line of ``delay_steps`` steps.
+  - ``reaction_time`` [``delay_steps``]: both commands pass a delay line of ``delay_steps`` steps
+    (filled at the start with the first throttle and no lane change).
   - ``weak_braking`` [``brake_factor``]: braking commands (throttle < 0) scaled by ``brake_factor``.
   - ``late_braking`` [``brake_onset``]: braking weaker than ``brake_onset`` (throttle in
     (−brake_onset, 0)) is not applied (coasting), so braking starts later and harder.
@@ -230,9 +232,13 @@ class MutantDriver:
             throttle = np.asarray(throttle, dtype=float)
             lane_change = np.asarray(lane_change)
         if op == "late_lane_change":
+            if not self._requests:  # before the first decision: no request
+                self._requests.extend([np.zeros_like(lane_change)] * p.delay_steps)
             self._requests.append(lane_change.copy())
             lane_change = self._requests[0].copy()
         elif op == "reaction_time":
+            if not self._commands:  # before the first command: the first throttle, no lane change
+                self._commands.extend([(throttle.copy(), np.zeros_like(lane_change))] * p.delay_steps)
             self._commands.append((throttle.copy(), lane_change.copy()))
             throttle, lane_change = (x.copy() for x in self._commands[0])
         elif op == "weak_braking":
