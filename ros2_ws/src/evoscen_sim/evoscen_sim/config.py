@@ -302,9 +302,13 @@ def flag(default: bool) -> Any:
     return field(default=default, metadata=_check(_Bool()))
 
 
-def text(default: str, choices: tuple[str, ...] | None = None) -> Any:
-    """A non-empty string parameter, optionally one of ``choices``."""
-    return field(default=default, metadata=_check(_Str(None if choices is None else (lambda: choices))))
+def text(default: str, choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None) -> Any:
+    """A non-empty string parameter, optionally one of ``choices`` (a tuple, or a callable
+    returning one at validation time, e.g. the registered SUT models)."""
+    if choices is None or callable(choices):
+        return field(default=default, metadata=_check(_Str(choices)))
+    fixed = tuple(choices)
+    return field(default=default, metadata=_check(_Str(lambda: fixed)))
 
 
 def number_range(default: tuple[float, float], lo: float, hi: float, *, lo_open: bool = False) -> Any:

@@ -5,7 +5,9 @@ model (:mod:`evoscen_sut.krauss`), through the same PID low-level control as eve
 
 * ``nilsson`` (SUT and BV driver): lane utilities of Nilsson et al. (:mod:`evoscen_sut.nilsson`);
 * ``mobil`` (SUT and BV driver): MOBIL with IDM accelerations (:mod:`evoscen_sut.mobil`);
-* ``stackelberg`` (SUT): a leader/followers game (:mod:`evoscen_sut.stackelberg`).
+* ``stackelberg`` (SUT): a leader/followers game (:mod:`evoscen_sut.stackelberg`);
+* ``mutant`` (SUT): any registered SUT model with one deliberate defect
+  (:mod:`evoscen_sut.mutant`, docs/mutants.md).
 
 Their parameters are the scenario YAML's ``models.<name>`` sections.
 """
@@ -14,7 +16,7 @@ from __future__ import annotations
 
 from evoscen_sim.models import register_model
 
-from . import mobil, nilsson, stackelberg
+from . import mobil, mutant, nilsson, stackelberg
 
-for _spec in (nilsson.SPEC, mobil.SPEC, stackelberg.SPEC):
+for _spec in (nilsson.SPEC, mobil.SPEC, stackelberg.SPEC, mutant.SPEC):
     register_model(_spec)

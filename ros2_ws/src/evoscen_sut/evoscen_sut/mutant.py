@@ -1,0 +1,317 @@
+"""SUT mutants: an intact SUT model with one deliberate, documented defect (SPEC §7; docs/mutants.md).
+
+The model ``mutant`` (role ``sut``) wraps the driver of any registered SUT model — a built-in
+or a user's ``evoscen.sut`` plug-in — named by ``models.mutant.base``, and degrades it with one
+*operator* (``models.mutant.operator``)::
+
+    sut:
+      model: mutant
+    models:
+      mutant: {base: mobil, operator: blind_behind}
+
+Operators (parameters in brackets; see docs/mutants.md for the reasons of the defaults):
+
+* perception — the base driver decides on a *filtered view*: a
+  :class:`evoscen_sim.view.WorldView` holding the SUT in row 0 and the other vehicles it
+  perceives after it, in their world order; the base driver is built for row 0.
+
+  - ``blind_behind``: vehicles whose centre is behind the SUT's (all lanes) are invisible.
+  - ``short_view`` [``view_m``]: vehicles more than ``view_m`` ahead (centre distance) are invisible.
+  - ``stale`` [``delay_steps``]: the other vehicles are seen as they were ``delay_steps`` steps
+    ago (the SUT's own state is current).
+
+* decision —
+
+  - ``ignores_new_follower``: the lane-change request is decided on a view without the
+    vehicles behind the SUT in the two adjacent lanes; the throttle on the full view.
+  - ``late_lane_change`` [``delay_steps``]: a lane-change request is executed ``delay_steps``
+    steps after it was decided (the throttle is current; no request in the first
+    ``delay_steps`` steps).
+  - ``over_eager`` [``retune``]: the base model's own parameters re-tuned to change lanes
+    eagerly (:data:`EAGER_PRESETS` for ``mobil``, ``nilsson``, ``stackelberg``; for any model,
+    ``retune: "name=value, ..."`` names parameters of ``models.<base>`` to replace).
+
+* control —
+
+  - ``reaction_time`` [``delay_steps``]: both commands pass a delay line of ``delay_steps`` steps
+    (filled at the start with the first throttle and no lane change).
+  - ``weak_braking`` [``brake_factor``]: braking commands (throttle < 0) scaled by ``brake_factor``.
+  - ``late_braking`` [``brake_onset``]: braking weaker than ``brake_onset`` (throttle in
+    (−brake_onset, 0)) is not applied (coasting), so braking starts later and harder.
+  - ``tailgating`` [``extra_gap_m``]: for the throttle, every vehicle ahead in the own lane
+    appears ``extra_gap_m`` farther than it is, so the car follower closes up; the
+    lane-change decision sees the true traffic.
+
+Where the throttle and the lane change come from different views (``ignores_new_follower``,
+``tailgating``) the mutant runs two instances of the base driver, the second with a copy of the
+random generator taken at construction: both draw the same numbers, so the throttle path
+consumes the scenario's ``sut`` stream exactly as the intact model does.
+
+Determinism: the only random draws are the base driver's, from the ``rng`` passed in; the
+delay lines and snapshots are per driver instance.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+from collections import deque
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import yaml
+from evoscen_sim import config as _config
+from evoscen_sim.config import integer, number, text
+from evoscen_sim.errors import InputError
+from evoscen_sim.models import ModelSpec, get_model, model_names
+from evoscen_sim.view import WorldView
+
+NAME = "mutant"
+
+PERCEPTION = ("blind_behind", "short_view", "stale")
+DECISION = ("ignores_new_follower", "late_lane_change", "over_eager")
+CONTROL = ("reaction_time", "weak_braking", "late_braking", "tailgating")
+OPERATORS = PERCEPTION + DECISION + CONTROL
+"""Every operator, by class: perception, decision, control."""
+
+EAGER_PRESETS: dict[str, dict[str, Any]] = {
+    "mobil": {"threshold_mps2": 0.0, "bias_mps2": 0.0, "safe_decel_mps2": 9.0},
+    "nilsson": {"hysteresis": 0.0, "keep_right_bias": 0.0, "safety_length_factor": 1.0,
+                "safety_closing_headway_s": 0.0},
+    "stackelberg": {"lane_change_threshold_m": 0.0, "time_headway_s": 0.0, "min_gap_m": 0.0},
+}
+"""``over_eager`` re-tunings of the built-in models (docs/mutants.md): no incentive threshold or
+hysteresis, no keep-right bias, and the safety margin towards the new follower cut to what
+only an emergency manoeuvre can honour (MOBIL b_safe 9 m/s² ≈ full braking; Nilsson's
+safety distance one ego length, no closing-speed term; Stackelberg's U_neg without headway
+and minimum gap)."""
+
+
+def _base_choices() -> tuple[str, ...]:
+    return tuple(n for n in _config.SUT_MODELS if n != NAME)
+
+
+@dataclass(frozen=True)
+class MutantParams:
+    """The ``mutant`` model's parameters (``models.mutant``; docs/mutants.md)."""
+
+    base: str = text("mobil", _base_choices)
+    """The intact SUT model (any registered SUT model but ``mutant``). Its own parameters are
+    ``models.<base>`` as usual."""
+    operator: str = text("blind_behind", OPERATORS)
+    """The defect, one of :data:`OPERATORS`."""
+    view_m: float = number(50.0, 0.0, 10000.0, lo_open=True)
+    """``short_view``: perception range ahead (m, centre distance). Default 50 m: the visibility
+    at which fog forces 50 km/h on German roads (StVO §3(1)), a sensor range well below the
+    ~100–150 m the intact models look ahead."""
+    delay_steps: int = integer(10, 1, 1000)
+    """``stale``, ``late_lane_change``, ``reaction_time``: delay in simulation steps. Default 10
+    (1 s at 0.1 s): a human-like reaction time, several times an automated system's latency."""
+    brake_factor: float = number(0.4, 0.0, 1.0)
+    """``weak_braking``: braking commands are multiplied by this. Default 0.4 (worn brakes or a
+    controller that saturates at 40 % of the braking it asks for)."""
+    brake_onset: float = number(0.25, 0.0, 1.0, lo_open=True)
+    """``late_braking``: braking commands weaker than this (throttle in (−onset, 0)) are
+    dropped. Default 0.25, i.e. 2 m/s² with the default 8 m/s² full brake: gentle anticipatory
+    braking disappears."""
+    extra_gap_m: float = number(15.0, 0.0, 500.0)
+    """``tailgating``: the vehicles ahead in the own lane appear this much farther (m). Default
+    15 m: the Krauss follower's ~1 s headway at highway speed (25–33 m/s) shrinks to ~0.5 s."""
+    retune: str = text("preset")
+    """``over_eager``: ``preset`` (:data:`EAGER_PRESETS` of the base model) or
+    ``"name=value, ..."``: parameters of ``models.<base>`` to replace (applied on top of the
+    preset, if the base has one)."""
+
+
+# ------------------------------------------------------------------------------- views
+_COLUMNS = ("id", "role", "policy", "s", "d", "heading_rel", "speed", "accel", "steer", "lane",
+            "target_lane", "lane_change", "length", "width")
+
+
+def view_columns(view: Any) -> dict[str, np.ndarray]:
+    """The world-table columns a :class:`WorldView` needs, copied from any traffic view."""
+    return {
+        "id": np.array(view.ids), "role": np.array(view.role), "policy": np.array(view.policy),
+        "s": np.array(view.s, dtype=float), "d": np.array(view.d, dtype=float),
+        "heading_rel": np.array(view.psi, dtype=float), "speed": np.array(view.v, dtype=float),
+        "accel": np.array(view.accel, dtype=float), "steer": np.array(view.steer, dtype=float),
+        "lane": np.array(view.lane), "target_lane": np.array(view.target_lane),
+        "lane_change": np.array(view.lane_change), "length": np.array(view.length, dtype=float),
+        "width": np.array(view.width, dtype=float),
+    }
+
+
+def subview(view: Any, ego: int, others: np.ndarray, *, source: dict[str, np.ndarray] | None = None,
+            s_shift: np.ndarray | None = None) -> WorldView:
+    """A view with the ego (row ``ego`` of ``view``) in row 0, then the rows ``others`` of
+    ``source`` (default: ``view``'s columns) in their order; ``s_shift`` (per row of ``others``)
+    is added to those vehicles' ``s``."""
+    own = view_columns(view)
+    src = own if source is None else source
+    rows = np.asarray(others, dtype=np.int64)
+    cols: dict[str, np.ndarray] = {}
+    for c in _COLUMNS:
+        cols[c] = np.concatenate([own[c][ego:ego + 1], src[c][rows]])
+    if s_shift is not None:
+        cols["s"][1:] += s_shift
+    return WorldView(view.road, cols, view.step_index, view.dt_s)
+
+
+def _others(view: Any, ego: int) -> np.ndarray:
+    idx = np.arange(view.n)
+    return idx[idx != ego]
+
+
+# ------------------------------------------------------------------------------- driver
+class MutantDriver:
+    """A base SUT driver with one defect (module docstring). Drives exactly one vehicle.
+
+    Args:
+        params: the :class:`MutantParams`.
+        ego: the SUT's world index.
+        make_base: ``make_base(vehicles, rng) -> driver`` builds an instance of the base driver.
+        rng: the scenario's SUT random generator (handed to the base driver).
+    """
+
+    def __init__(self, params: MutantParams, ego: int, make_base: Any, rng: np.random.Generator) -> None:
+        self.params = params
+        self.ego = int(ego)
+        self.vehicles = np.array([self.ego], dtype=np.int64)
+        op = params.operator
+        self._filtered = op in PERCEPTION or op in ("ignores_new_follower", "tailgating")
+        two = op in ("ignores_new_follower", "tailgating")
+        twin_rng = copy.deepcopy(rng) if two else None  # before the base driver draws anything
+        self.base = make_base(np.array([0]) if self._filtered else self.vehicles, rng)
+        self.decider = make_base(np.array([0]), twin_rng) if two else None
+        self._snapshots: deque[dict[str, np.ndarray]] = deque(maxlen=params.delay_steps + 1)
+        self._commands: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=params.delay_steps + 1)
+        self._requests: deque[np.ndarray] = deque(maxlen=params.delay_steps + 1)
+
+    # -- the views of the perception and decision operators
+    def perceived(self, view: Any) -> WorldView:
+        """The view the base driver perceives (perception operators), the full view otherwise."""
+        ego, op = self.ego, self.params.operator
+        others = _others(view, ego)
+        if op == "blind_behind":
+            return subview(view, ego, others[view.s[others] >= view.s[ego]])
+        if op == "short_view":
+            return subview(view, ego, others[view.s[others] - view.s[ego] <= self.params.view_m])
+        if op == "stale":
+            self._snapshots.append(view_columns(view))
+            old = self._snapshots[0]  # delay_steps ago, or the oldest seen
+            ego_id = view.ids[ego]
+            rows = np.flatnonzero(old["id"] != ego_id)
+            return subview(view, ego, rows, source=old)
+        return subview(view, ego, others)
+
+    def _without_new_followers(self, view: Any) -> WorldView:
+        ego = self.ego
+        others = _others(view, ego)
+        beside = np.abs(view.lane[others] - view.lane[ego]) == 1
+        behind = view.s[others] < view.s[ego]
+        return subview(view, ego, others[~(beside & behind)])
+
+    def _tailgate(self, view: Any) -> WorldView:
+        ego = self.ego
+        others = _others(view, ego)
+        ahead = (view.lane[others] == view.lane[ego]) & (view.s[others] > view.s[ego])
+        return subview(view, ego, others, s_shift=np.where(ahead, self.params.extra_gap_m, 0.0))
+
+    def act(self, view: Any) -> tuple[np.ndarray, np.ndarray]:
+        """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} of the SUT."""
+        p, op = self.params, self.params.operator
+        if op == "ignores_new_follower":
+            throttle = np.asarray(self.base.act(self.perceived(view))[0], dtype=float)
+            lane_change = np.asarray(self.decider.act(self._without_new_followers(view))[1])
+        elif op == "tailgating":
+            throttle = np.asarray(self.base.act(self._tailgate(view))[0], dtype=float)
+            lane_change = np.asarray(self.decider.act(self.perceived(view))[1])
+        else:
+            throttle, lane_change = self.base.act(self.perceived(view) if self._filtered else view)
+            throttle = np.asarray(throttle, dtype=float)
+            lane_change = np.asarray(lane_change)
+        if op == "late_lane_change":
+            if not self._requests:  # before the first decision: no request
+                self._requests.extend([np.zeros_like(lane_change)] * p.delay_steps)
+            self._requests.append(lane_change.copy())
+            lane_change = self._requests[0].copy()
+        elif op == "reaction_time":
+            if not self._commands:  # before the first command: the first throttle, no lane change
+                self._commands.extend([(throttle.copy(), np.zeros_like(lane_change))] * p.delay_steps)
+            self._commands.append((throttle.copy(), lane_change.copy()))
+            throttle, lane_change = (x.copy() for x in self._commands[0])
+        elif op == "weak_braking":
+            throttle = np.where(throttle < 0.0, throttle * p.brake_factor, throttle)
+        elif op == "late_braking":
+            throttle = np.where((throttle < 0.0) & (throttle > -p.brake_onset), 0.0, throttle)
+        return throttle, lane_change.astype(np.int64)
+
+
+# ------------------------------------------------------------------------------- factory
+def _retuned(base: str, base_params: Any, retune: str) -> Any:
+    """The base parameters with the ``over_eager`` re-tuning (InputError naming the key)."""
+    key = "models.mutant.retune"
+    changes = dict(EAGER_PRESETS.get(base, {}))
+    if retune != "preset":
+        for item in (x.strip() for x in retune.split(",")):
+            if not item:
+                continue
+            name, sep, raw = item.partition("=")
+            if not sep:
+                raise InputError(f"{key} = '{retune}': expected 'preset' or 'name=value, ...'")
+            changes[name.strip()] = yaml.safe_load(raw.strip())
+    if base_params is None or not dataclasses.is_dataclass(base_params):
+        raise InputError(f"{key}: base model '{base}' has no parameters to re-tune")
+    if not changes:
+        raise InputError(f"{key} = '{retune}': base model '{base}' has no built-in over-eager preset "
+                         "(presets: " + ", ".join(EAGER_PRESETS) + "); expected 'name=value, ...'")
+    fields = {f.name: f for f in dataclasses.fields(base_params)}
+    checked: dict[str, Any] = {}
+    for name, value in changes.items():
+        f = fields.get(name)
+        if f is None:
+            raise InputError(f"{key}: '{name}' is not a parameter of models.{base} "
+                             f"(expected one of {', '.join(fields)})")
+        check = f.metadata.get("check")
+        if check is not None:
+            try:
+                value = check(value)
+            except Exception as exc:  # noqa: BLE001 - the checker's own message
+                raise InputError(f"{key}: models.{base}.{name} = {value!r}: {exc}") from None
+        checked[name] = value
+    return dataclasses.replace(base_params, **checked)
+
+
+def make_driver(vehicles: np.ndarray, params: MutantParams | None, config: Any,
+                rng: np.random.Generator) -> MutantDriver:
+    """Factory of the ``mutant`` model (:class:`evoscen_sim.models.ModelSpec`)."""
+    params = MutantParams() if params is None else params
+    if params.base == NAME or params.base not in model_names("sut"):
+        raise InputError(f"models.mutant.base '{params.base}': expected one of "
+                         + ", ".join(n for n in model_names("sut") if n != NAME))
+    vehicles = np.asarray(vehicles, dtype=np.int64)
+    if vehicles.shape != (1,):
+        raise InputError(f"model 'mutant' drives one vehicle (the SUT), got {vehicles.size}")
+    spec = get_model(params.base, "sut")
+    base_params = None
+    if spec.params_type is not None:
+        base_params = config.models.get(params.base) if hasattr(config, "models") else None
+        if base_params is None:
+            base_params = spec.params_type()
+    if params.operator == "over_eager":
+        base_params = _retuned(params.base, base_params, params.retune)
+
+    def make_base(rows: np.ndarray, generator: np.random.Generator) -> Any:
+        return spec.factory(np.asarray(rows, dtype=np.int64), base_params, config, generator)
+
+    return MutantDriver(params, int(vehicles[0]), make_base, rng)
+
+
+SPEC = ModelSpec(
+    name=NAME,
+    roles=("sut",),
+    factory=make_driver,
+    params_type=MutantParams,
+    description="a registered SUT model with one deliberate defect (SPEC 7, docs/mutants.md)",
+)
