@@ -104,7 +104,45 @@ def test_complexity_table_and_files(tmp_path):
     assert "| evolving |" in res.stdout
 
 
+def test_sensitivity_paired_by_seed_tables_and_resumption(tmp_path):
+    out = tmp_path / "sens"
+    args = ("--out", out, "--seeds", 3, "--steps", 300, "--jobs", 2, "--base", "mobil",
+            "--mutants", "stale,weak_braking", "--scenarios", "evolving,level0")
+    res = script("experiment_sensitivity.py", *args)
+    assert res.returncode == 0, res.stderr
+    for name in ("sensitivity.md", "sensitivity.csv", "mutation_scores.csv", "rounds.csv", "sensitivity.png"):
+        assert (out / name).stat().st_size > 0, name
+    rounds = read_csv(out / "rounds.csv")
+    assert len(rounds) == 2 * 3 * 3  # scenarios x (intact + 2 mutants) x seeds
+    val = {(r["scenario"], r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+    t2 = stats.t.ppf(0.975, 2)
+    rows = read_csv(out / "sensitivity.csv")
+    assert [(r["scenario"], r["mutant"]) for r in rows] == [("evolving", "stale"), ("evolving", "weak_braking"),
+                                                            ("level0", "stale"), ("level0", "weak_braking")]
+    for r in rows:
+        d = [val[(r["scenario"], "intact", s)] - val[(r["scenario"], r["mutant"], s)] for s in (0, 1, 2)]
+        mean = sum(d) / 3
+        sd = math.sqrt(sum((x - mean) ** 2 for x in d) / 2)
+        half = t2 * sd / math.sqrt(3)
+        assert float(r["d_intelligence_mean"]) == pytest.approx(mean)
+        assert float(r["d_intelligence_ci95"]) == pytest.approx(half)
+        assert r["detected"] == str(int(mean - half > 0)) and r["seeds"] == "3"
+        assert r["class"] == {"stale": "perception", "weak_braking": "control"}[r["mutant"]]
+    scores = read_csv(out / "mutation_scores.csv")
+    for sc in scores:
+        hits = [r for r in rows if r["scenario"] == sc["scenario"] and r["detected"] == "1"]
+        assert int(sc["detected"]) == len(hits) and sc["mutants"] == "2"
+        assert float(sc["mutation_score"]) == pytest.approx(len(hits) / 2)
+    assert "| evolving | learned | mobil |" in res.stdout
+    res = script("experiment_sensitivity.py", *args)  # resumable: nothing recomputed
+    assert res.returncode == 0 and "18 rounds already done" in res.stderr
+
+
 @pytest.mark.parametrize("name, args, expected", [
+    ("experiment_sensitivity.py", ["--mutants", "stale,bogus"], "error: --mutants: unknown mutant 'bogus'"),
+    ("experiment_sensitivity.py", ["--base", "mobil,mobil"], "error: --base 'mobil,mobil': expected distinct"),
+    ("experiment_sensitivity.py", ["--seeds", "-1"], "error: --seeds = '-1': expected an integer >= 1"),
+    ("experiment_sensitivity.py", ["--scenarios", "evolving,nope"], "error: command line: key 'bvs.driver' = 'nope'"),
     ("experiment_intelligence.py", ["--seeds", "0"], "error: --seeds = '0': expected an integer >= 1"),
     ("experiment_intelligence.py", ["--suts", "nilsson,bogus"], "error: command line: key 'sut.model' = 'bogus'"),
     ("experiment_complexity.py", ["--rounds", "x"], "error: --rounds = 'x': expected an integer >= 1"),
