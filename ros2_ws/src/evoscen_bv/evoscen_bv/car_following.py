@@ -382,9 +382,11 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
 
     ``seen[k, j, q]``: consecutive steps (capped at N + 1) vehicle ``j`` has occupied lane
     ``q`` ahead of hosted vehicle ``k``; ``j`` is perceived in lane ``q`` when it reaches
-    N + 1 (it occupied the lane ahead at steps t - N … t). ``em_count[k]``: consecutive
-    steps the emergency brake's trigger held on the leaders actually there; the brake acts
-    when it reaches N + 1. Both advance only when ``update`` (once per simulation step).
+    N + 1 (it occupied the lane ahead at steps t - N … t). ``em_count[k]``: steps since the
+    driver was alerted — the emergency brake's trigger held on the leaders actually there —
+    counting on while it still closes in on one of them (need > 0) and reset to 0 when it no
+    longer does; the brake acts (with its usual trigger, on the perceived leaders) once the
+    count reaches N + 1. Both advance only when ``update`` (once per simulation step).
     """
     m = idx.shape[0]
     n, num_lanes = present.shape
@@ -403,13 +405,15 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
         gap_a, vl_a, al_a = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                                             d_right, d_left, present, merge_stop_s)
         for k in range(m):
-            trig = False
+            need = 0.0
             for slot in range(2):
                 if not np.isnan(vl_a[k, slot]):
                     al = 0.0 if np.isnan(al_a[k, slot]) else al_a[k, slot]
-                    if _emergency_need(gap_a[k, slot], vl_a[k, slot], al, v[idx[k]], em_margin) >= em_trigger:
-                        trig = True
-            em_count[k] = min(em_count[k] + 1, full) if trig else 0
+                    need = max(need, _emergency_need(gap_a[k, slot], vl_a[k, slot], al, v[idx[k]], em_margin))
+            if need >= em_trigger or (em_count[k] > 0 and need > 0.0):  # alerted, and still closing in
+                em_count[k] = min(em_count[k] + 1, full)
+            else:
+                em_count[k] = 0
     gap_all, vl_all, al_all = _perceived_leaders_kernel(idx, s, v, a, lane, lane_change, target_lane, length, present,
                                                         merge_stop_s, occ, seen, full)
     em_on = np.empty(m, dtype=np.bool_)

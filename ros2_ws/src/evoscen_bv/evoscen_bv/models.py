@@ -37,7 +37,7 @@ class LearnedParams:
     default) or ``level0`` (drive every BV with the level-0 driver instead)."""
     profile: str = text("driver", ("driver", "safety_net"))
     """The BVs' run-time rule profile (docs/bv-profiles.md): ``driver`` (default: a reaction
-    time of 1 s and braking bounded at 6 m/s², so a reckless SUT can cause a conflict) or
+    time of 1 s and braking bounded at 7 m/s², so a reckless SUT can cause a conflict) or
     ``safety_net`` (instant, full-brake reactions to any leader: the rules the shipped
     policies were trained with, every SUT mistake absorbed)."""
 

@@ -50,10 +50,11 @@ PROFILES: dict[str, BVProfile] = {
     # [choice] τ = 1.0 s: highway brake reaction times of alerted-to-surprised drivers are
     # ~0.7-1.5 s (Green 2000, "How long does it take to stop?", Transp. Human Factors 2(3));
     # Treiber & Kesting (Traffic Flow Dynamics, 2013, ch. 12) use ~1 s for human drivers.
-    # [choice] 6 m/s²: drivers braking for a surprise obstacle reach about 0.55 g on average
-    # (Fambro et al. 1997, NCHRP Report 400), well below a car's ~8-9 m/s² limit.
+    # [choice] 7 m/s²: drivers braking hard for a surprise obstacle reach 0.55-0.7 g (Fambro et
+    # al. 1997, NCHRP Report 400), below the simulated car's 8 m/s² full brake; at 6 m/s² the
+    # shipped policies' BV-BV collisions rose (docs/bv-profiles.md, measurements).
     # [choice] h = 1.5 s kept: BV-BV realism (docs/bv-profiles.md, measurements).
-    "driver": BVProfile("driver", reaction_time_s=1.0, max_decel_mps2=6.0,
+    "driver": BVProfile("driver", reaction_time_s=1.0, max_decel_mps2=7.0,
                         cut_in_closing_headway_s=CUT_IN_CLOSING_HEADWAY_S),
     "safety_net": BVProfile("safety_net", reaction_time_s=0.0, max_decel_mps2=None,
                             cut_in_closing_headway_s=CUT_IN_CLOSING_HEADWAY_S),
