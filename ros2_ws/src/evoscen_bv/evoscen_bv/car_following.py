@@ -49,6 +49,15 @@ behind the point where it stops, v² / (2 (Δs - m + v_l² / (2 b_l))), if large
 it is part of the run-time driver, so the decision policies are trained with it; the
 controller itself is trained without it (trained with it, it leaned on it: a tenth of its
 evaluation gaps fell under 2 m).
+
+Profiles (``models.learned.profile``; docs/bv-profiles.md). The above is the ``safety_net``
+profile: every leader is followed from the first step it occupies the lane, and the
+emergency brake acts at once, up to the full brake. The ``driver`` profile
+(:class:`ReactionState`, :func:`_driver_throttle_kernel`) gives the BV a driver's limits:
+a vehicle is perceived as a leader in a lane only once it has occupied that lane ahead of
+the BV for the reaction time τ (N = round(τ/dt) steps), the emergency brake acts only once
+the BV has been alerted (trigger reached on the leaders actually there) for N steps, and
+every braking command is bounded by ``max_decel_mps2``.
 """
 
 from __future__ import annotations

@@ -27,7 +27,8 @@ it: :func:`evoscen_bv.car_following.leaders`) becomes keep.
 the target lane must be at least 10 m + h·max(0, v_i - v_j) away, one behind at least
 10 m + h·max(0, v_j - v_i), h = 1.5 s (``CUT_IN_CLOSING_HEADWAY_S``). With the method's
 plain 10 m, a merge from standstill in front of traffic at 30 m/s was "legal" and most
-lane-change collisions were such cut-ins.
+lane-change collisions were such cut-ins. h is a parameter of the BV profile (both profiles
+keep 1.5 s; docs/bv-profiles.md gives the measurements).
 [choice] A change into a lane that ends within 200 m ahead (the merge lane, seen from lane
 II) becomes keep, like a change off the road: trained BVs moved into the ending merge lane
 behind the vehicles waiting at its end, stopped half-way and blocked both lanes.
