@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         figures = []
         for seed in args.seeds:
             overrides = {"bvs.driver": "learned", "seed": seed, "steps": args.steps,
-                         "models": {"learned": {"profile": profile}}}
+                         "models.learned.profile": profile}
             if args.sut:
                 overrides["sut.model"] = args.sut
             try:

@@ -327,8 +327,9 @@ class ReactionState:
         self.cap_frac = float(cap_frac)
         self.hosted = int(hosted)
         self.seen: np.ndarray | None = None
-        self.em_count = np.full(self.hosted, self.n_react, dtype=np.int64)
-        """At the first step every situation counts as having persisted (nothing is new)."""
+        self.em_count = np.full(self.hosted, -1, dtype=np.int64)
+        """-1 until the first step; there every situation already present counts as having
+        persisted (nothing is new at the start of a run)."""
         self.last_step: int | None = None
 
     def advance(self, view) -> bool:  # noqa: ANN001
@@ -419,7 +420,9 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
                 if not np.isnan(vl_a[k, slot]):
                     al = 0.0 if np.isnan(al_a[k, slot]) else al_a[k, slot]
                     need = max(need, _emergency_need(gap_a[k, slot], vl_a[k, slot], al, v[idx[k]], em_margin))
-            if need >= em_trigger or (em_count[k] > 0 and need > 0.0):  # alerted, and still closing in
+            if em_count[k] < 0:  # the first step: a situation already there has persisted
+                em_count[k] = full if need >= em_trigger else 0
+            elif need >= em_trigger or (em_count[k] > 0 and need > 0.0):  # alerted, and still closing in
                 em_count[k] = min(em_count[k] + 1, full)
             else:
                 em_count[k] = 0
