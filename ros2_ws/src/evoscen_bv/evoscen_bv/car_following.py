@@ -49,6 +49,15 @@ behind the point where it stops, v² / (2 (Δs - m + v_l² / (2 b_l))), if large
 it is part of the run-time driver, so the decision policies are trained with it; the
 controller itself is trained without it (trained with it, it leaned on it: a tenth of its
 evaluation gaps fell under 2 m).
+
+Profiles (``models.learned.profile``; docs/bv-profiles.md). The above is the ``safety_net``
+profile: every leader is followed from the first step it occupies the lane, and the
+emergency brake acts at once, up to the full brake. The ``driver`` profile
+(:class:`ReactionState`, :func:`_driver_throttle_kernel`) gives the BV a driver's limits:
+a vehicle is perceived as a leader in a lane only once it has occupied that lane ahead of
+the BV for the reaction time τ (N = round(τ/dt) steps), the emergency brake acts only once
+the BV has been alerted (trigger reached on the leaders actually there) for N steps, and
+every braking command is bounded by ``max_decel_mps2``.
 """
 
 from __future__ import annotations
@@ -303,8 +312,41 @@ def throttle_constants(bank, params: CarFollowingParams, road, max_accel: float,
             bank.W1[0], bank.b1[0], bank.W2[0], bank.b2[0], bank.W3[0], float(bank.b3[0]), float(bank.max_action[0]))
 
 
+class ReactionState:
+    """The ``driver`` profile's memory of one driver (docs/bv-profiles.md, "reaction time").
+
+    Args:
+        hosted: number of hosted vehicles.
+        reaction_steps: N = round(τ / dt); a situation must hold at steps t - N … t.
+        cap_frac: bound on braking as a fraction of the full brake (max_decel / max_brake;
+            1.0: no bound).
+    """
+
+    def __init__(self, hosted: int, reaction_steps: int, cap_frac: float) -> None:
+        self.n_react = int(reaction_steps)
+        self.cap_frac = float(cap_frac)
+        self.hosted = int(hosted)
+        self.seen: np.ndarray | None = None
+        self.em_count = np.full(self.hosted, -1, dtype=np.int64)
+        """-1 until the first step; there every situation already present counts as having
+        persisted (nothing is new at the start of a run)."""
+        self.last_step: int | None = None
+
+    def advance(self, view) -> bool:  # noqa: ANN001
+        """True once per simulation step (the first call at a new ``step_index``)."""
+        n, lanes = view.lane_lookup().present.shape
+        if self.seen is None or self.seen.shape[1] != n:
+            self.seen = np.full((self.hosted, n, lanes), self.n_react, dtype=np.int64)
+        step = int(view.step_index)
+        if step == self.last_step:
+            return False
+        self.last_step = step
+        return True
+
+
 def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, params: CarFollowingParams,  # noqa: ANN001
-                     max_accel: float, max_brake: float, constants: tuple | None = None) -> np.ndarray:
+                     max_accel: float, max_brake: float, constants: tuple | None = None,
+                     reaction: ReactionState | None = None) -> np.ndarray:
     """The run-time throttle of vehicles ``idx``, fused into one compiled pass.
 
     The same quantities as :func:`controller_observations`, the controller's forward pass
@@ -312,23 +354,137 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
     :func:`emergency_brake_throttle` and :func:`compose_throttle` (a test checks they agree);
     fused because for ~20 vehicles numpy's per-call overhead, not arithmetic, would dominate
     the step. ``constants``: :func:`throttle_constants` of these arguments, if the caller keeps them.
+    ``reaction``: the ``driver`` profile's state (:class:`ReactionState`; docs/bv-profiles.md);
+    ``None``: the ``safety_net`` profile (instant reaction, braking up to the full brake).
     """
     if constants is None:
         constants = throttle_constants(bank, params, view.road, max_accel, max_brake)
     lk = view.lane_lookup()
-    return _learned_throttle_kernel(
-        np.asarray(idx, dtype=np.int64), view.s, view.d, view.psi, view.v, view.accel, view.lane, view.lane_change,
-        view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present, lk.max_speed_mps,
-        np.asarray(desired_speed, dtype=float), *constants)
+    args = (np.asarray(idx, dtype=np.int64), view.s, view.d, view.psi, view.v, view.accel, view.lane, view.lane_change,
+            view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present, lk.max_speed_mps,
+            np.asarray(desired_speed, dtype=float), *constants)
+    if reaction is None:  # the safety_net profile
+        return _learned_throttle_kernel(*args)
+    update = reaction.advance(view)
+    return _driver_throttle_kernel(*args, np.int64(reaction.n_react), reaction.seen, reaction.em_count, update,
+                                   reaction.cap_frac)
 
 
 @kernel
 def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
                              d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max,
                              speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action):
-    m = idx.shape[0]
+    """The ``safety_net`` profile: every leader at once, the emergency brake at once and uncapped."""
     gap_all, vl_all, al_all = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                                               d_right, d_left, present, merge_stop_s)
+    em_on = np.ones(idx.shape[0], dtype=np.bool_)
+    return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
+                                  v_max, a_max, speed_gain, em_trigger, em_margin, max_accel, max_brake,
+                                  W1, b1, W2, b2, W3, b3, max_action, em_on, 1.0)
+
+
+@kernel
+def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
+                            d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max,
+                            speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
+                            n_react, seen, em_count, update, cap_frac):
+    """The ``driver`` profile (docs/bv-profiles.md): reaction time and bounded braking.
+
+    ``seen[k, j, q]``: consecutive steps (capped at N + 1) vehicle ``j`` has occupied lane
+    ``q`` ahead of hosted vehicle ``k``; ``j`` is perceived in lane ``q`` when it reaches
+    N + 1 (it occupied the lane ahead at steps t - N … t). ``em_count[k]``: steps since the
+    driver was alerted — the emergency brake's trigger held on the leaders actually there —
+    counting on while it still closes in on one of them (need > 0) and reset to 0 when it no
+    longer does; the brake acts (with its usual trigger, on the perceived leaders) once the
+    count reaches N + 1. Both advance only when ``update`` (once per simulation step).
+    """
+    m = idx.shape[0]
+    n, num_lanes = present.shape
+    full = n_react + 1
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    if update:
+        for k in range(m):
+            i = idx[k]
+            for j in range(n):
+                ahead = j != i and (s[j] > s[i] or (s[j] == s[i] and j > i))
+                for q in range(num_lanes):
+                    if ahead and occ[j, q]:
+                        seen[k, j, q] = min(seen[k, j, q] + 1, full)
+                    else:
+                        seen[k, j, q] = 0
+        gap_a, vl_a, al_a = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
+                                            d_right, d_left, present, merge_stop_s)
+        for k in range(m):
+            need = 0.0
+            for slot in range(2):
+                if not np.isnan(vl_a[k, slot]):
+                    al = 0.0 if np.isnan(al_a[k, slot]) else al_a[k, slot]
+                    need = max(need, _emergency_need(gap_a[k, slot], vl_a[k, slot], al, v[idx[k]], em_margin))
+            if em_count[k] < 0:  # the first step: a situation already there has persisted
+                em_count[k] = full if need >= em_trigger else 0
+            elif need >= em_trigger or (em_count[k] > 0 and need > 0.0):  # alerted, and still closing in
+                em_count[k] = min(em_count[k] + 1, full)
+            else:
+                em_count[k] = 0
+    gap_all, vl_all, al_all = _perceived_leaders_kernel(idx, s, v, a, lane, lane_change, target_lane, length, present,
+                                                        merge_stop_s, occ, seen, full)
+    em_on = np.empty(m, dtype=np.bool_)
+    for k in range(m):
+        em_on[k] = em_count[k] >= full
+    return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
+                                  v_max, a_max, speed_gain, em_trigger, em_margin, max_accel, max_brake,
+                                  W1, b1, W2, b2, W3, b3, max_action, em_on, cap_frac)
+
+
+@kernel
+def _perceived_leaders_kernel(idx, s, v, a, lane, lane_change, target_lane, length, present,  # noqa: ANN001, ANN202
+                              merge_stop_s, occ, seen, full):
+    """:func:`_leaders_kernel` over the perceived vehicles only (``seen[k, j, q] >= full``)."""
+    m = idx.shape[0]
+    n, num_lanes = present.shape
+    gap = np.full((m, 2), np.inf)
+    vl = np.full((m, 2), np.nan)
+    al = np.full((m, 2), np.nan)
+    for k in range(m):
+        i = idx[k]
+        second = lane[i]
+        if lane_change[i] != 0:
+            second = target_lane[i]
+        else:
+            for q in (lane[i] - 1, lane[i] + 1):
+                if 0 <= q < num_lanes and occ[i, q]:
+                    second = q
+        for slot in range(2):
+            q = lane[i] if slot == 0 else second
+            if slot == 1 and q == lane[i]:
+                gap[k, 1], vl[k, 1], al[k, 1] = gap[k, 0], vl[k, 0], al[k, 0]
+                break
+            best = -1
+            best_ds = np.inf
+            for j in range(n):
+                if j == i or not occ[j, q] or seen[k, j, q] < full:
+                    continue
+                ds = s[j] - s[i]
+                if ds < 0.0 or (ds == 0.0 and j < i) or ds >= best_ds:
+                    continue
+                best_ds = ds
+                best = j
+            if best >= 0:
+                gap[k, slot] = best_ds - 0.5 * (length[i] + length[best])
+                vl[k, slot] = v[best]
+                al[k, slot] = a[best]
+            if slot == 0 and lane[i] == 0 and lane_change[i] == 0:
+                end_gap = merge_stop_s - (s[i] + 0.5 * length[i])
+                if end_gap < gap[k, 0]:
+                    gap[k, 0], vl[k, 0], al[k, 0] = end_gap, 0.0, 0.0
+    return gap, vl, al
+
+
+@kernel
+def _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired,  # noqa: ANN001, ANN202, PLR0913
+                           view, v_max, a_max, speed_gain, em_trigger, em_margin, max_accel, max_brake,
+                           W1, b1, W2, b2, W3, b3, max_action, em_on, cap_frac):
+    m = idx.shape[0]
     out = np.empty(m)
     h = W1.shape[1]
     h1 = np.empty(h)
@@ -370,6 +526,9 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
                 for q in range(h):
                     z += max(h2[q], 0.0) * W3[q]
                 u = min(u, max_action * np.tanh(z))
-            u = min(u, _emergency_one(gap, vl, al, v[i], em_trigger, em_margin, max_brake))  # scalars only
+            if em_on[k]:
+                u = min(u, _emergency_one(gap, vl, al, v[i], em_trigger, em_margin, max_brake))  # scalars only
+        if cap_frac < 1.0:  # the driver profile's bounded braking
+            u = max(u, -cap_frac)
         out[k] = min(max(u, -1.0), 1.0)
     return out

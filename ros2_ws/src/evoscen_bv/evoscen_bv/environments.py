@@ -19,6 +19,9 @@ in who drives which vehicle.
   until the next decision point (``step_index % N == 0`` with the ego not changing lanes).
   [choice] An ego collision ends the episode (terminal); the rewards have no collision
   term of their own (the rule constraints prevent cut-ins within 10 m).
+  The run-time rules of every learned driver here (ego and traffic: reaction time, bounded
+  braking, emergency brake, cut-in gap) are those of the config's ``env.profile``
+  (docs/bv-profiles.md), so the policies learn with the driver they will run with.
 
 Every episode is built from its own seed (the pipeline derives it from the stage seed and
 the episode index), so an episode can be replayed alone and a resumed run continues
@@ -49,6 +52,7 @@ from .lane_change import (
     social_terms,
 )
 from .learned import LearnedDriver
+from .profile import get_profile
 from .td3 import NumpyActor
 from .training_config import TrainingConfig
 
@@ -158,6 +162,8 @@ class DecisionEnv:
         self.frozen_policy = frozen_policy
         self._config_from_dict = config_from_dict
         social_reward(kind, 0.0, 0.0, 0.0, config.reward)  # validates kind
+        self.profile = get_profile(config.env.profile)
+        """The run-time rule profile every learned driver here drives with (docs/bv-profiles.md)."""
 
     def reset(self, seed: int) -> np.ndarray:
         from evoscen_bv.level0 import Level0Driver, level0_params_from_config
@@ -227,7 +233,7 @@ class DecisionEnv:
         p = self.config.reward
         ego = np.array([self.ego])
         requested = action_to_lane_change(np.asarray(action, dtype=float)[:1])
-        executed = apply_rule_constraints(w, ego, requested)
+        executed = apply_rule_constraints(w, ego, requested, self.profile.cut_in_closing_headway_s)
         o_c = drivable_area(w, ego, np.zeros(1, dtype=np.int64), p.front_view_m)
         o_t = drivable_area(w, ego, executed, p.front_view_m)
         theta = np.where(executed > 0, p.theta_left, 1.0)

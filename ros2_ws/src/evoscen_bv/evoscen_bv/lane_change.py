@@ -27,7 +27,8 @@ it: :func:`evoscen_bv.car_following.leaders`) becomes keep.
 the target lane must be at least 10 m + h·max(0, v_i - v_j) away, one behind at least
 10 m + h·max(0, v_j - v_i), h = 1.5 s (``CUT_IN_CLOSING_HEADWAY_S``). With the method's
 plain 10 m, a merge from standstill in front of traffic at 30 m/s was "legal" and most
-lane-change collisions were such cut-ins.
+lane-change collisions were such cut-ins. h is a parameter of the BV profile (both profiles
+keep 1.5 s; docs/bv-profiles.md gives the measurements).
 [choice] A change into a lane that ends within 200 m ahead (the merge lane, seen from lane
 II) becomes keep, like a change off the road: trained BVs moved into the ending merge lane
 behind the vehicles waiting at its end, stopped half-way and blocked both lanes.
@@ -216,8 +217,12 @@ def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m
     return out
 
 
-def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.ndarray:  # noqa: ANN001
+def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa: ANN001
+                           closing_headway_s: float = CUT_IN_CLOSING_HEADWAY_S) -> np.ndarray:
     """The executed actions: ``requested`` with the two rule constraints applied (see module docstring).
+
+    ``closing_headway_s``: h of the cut-in gap 10 m + h·closing speed (0: the method's plain
+    10 m); the BV profile's value (docs/bv-profiles.md).
 
     [choice] A vehicle counts as in the target lane when it is in it or changing into it
     (its target lane), so two vehicles cannot cut into the same gap from both sides.
@@ -229,7 +234,7 @@ def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray) -> np.n
     lane_end_s = np.asarray(view.road.lane_end_s, dtype=float)
     return _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, LANE_END_MARGIN_M, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
                               view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
-                              CUT_IN_GAP_M, CUT_IN_CLOSING_HEADWAY_S)
+                              CUT_IN_GAP_M, float(closing_headway_s))
 
 
 @kernel

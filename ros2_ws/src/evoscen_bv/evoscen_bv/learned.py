@@ -31,8 +31,9 @@ import numpy as np
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 
-from .car_following import learned_throttle, throttle_constants
+from .car_following import ReactionState, learned_throttle, throttle_constants
 from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, forced_merge_requests, observation_grid
+from .profile import get_profile
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
 
@@ -142,12 +143,17 @@ class LearnedDriver:
         forced_merge: apply the run-time forced merge
             (:func:`evoscen_bv.lane_change.forced_merge_requests`): scenario BVs yes, the
             training environments' traffic no (the policies were trained without it).
+        profile: the run-time rule profile (:mod:`evoscen_bv.profile`, docs/bv-profiles.md):
+            ``driver`` or ``safety_net``; ``None``: the training config's ``env.profile``.
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
                  config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
-                 forced_merge: bool = False) -> None:
+                 forced_merge: bool = False, profile: str | None = None) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
+        self.profile = get_profile(config.env.profile if profile is None else profile)
+        self.reaction: ReactionState | None = None
+        """The driver profile's state, made at the first step (N needs the step length); None: safety_net."""
         self.forced_merge = forced_merge
         self.controller = controller
         self.controller_bank = PolicyBank([controller])
@@ -169,13 +175,18 @@ class LearnedDriver:
     def throttle(self, view) -> np.ndarray:  # noqa: ANN001
         """The controller's throttle for every hosted vehicle (one compiled pass, see
         :func:`evoscen_bv.car_following.learned_throttle`)."""
+        if self.reaction is None and self.profile.name != "safety_net":
+            p = self.profile
+            brake = float(self.vehicle_params.max_brake_mps2)
+            cap = 1.0 if p.max_decel_mps2 is None else min(p.max_decel_mps2 / brake, 1.0)
+            self.reaction = ReactionState(self.vehicles.size, p.reaction_steps(float(view.dt_s)), cap)
         if self._throttle_constants is None or self._throttle_road is not view.road:
             vp = self.vehicle_params
             self._throttle_road = view.road
             self._throttle_constants = throttle_constants(self.controller_bank, self.config.car_following, view.road,
                                                           vp.max_accel_mps2, vp.max_brake_mps2)
         return learned_throttle(view, self.vehicles, self.desired_speed_mps, self.controller_bank,
-                                self.config.car_following, 0.0, 0.0, self._throttle_constants)
+                                self.config.car_following, 0.0, 0.0, self._throttle_constants, self.reaction)
 
     def policy_columns(self, view, idx: np.ndarray) -> np.ndarray:  # noqa: ANN001
         """Column of :attr:`stack` (decision policy) of every vehicle in ``idx``, from its policy code."""
@@ -189,7 +200,7 @@ class LearnedDriver:
         requested = action_to_lane_change(self.stack.forward(obs, self.policy_columns(view, idx)))
         if self.forced_merge:
             requested = forced_merge_requests(view, idx, requested)
-        executed = apply_rule_constraints(view, idx, requested)
+        executed = apply_rule_constraints(view, idx, requested, self.profile.cut_in_closing_headway_s)
         return obs, requested, executed
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001

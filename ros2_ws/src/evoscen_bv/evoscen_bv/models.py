@@ -5,7 +5,7 @@
 * ``learned`` (role ``bv``): the TD3-trained social drivers (:mod:`evoscen_bv.learned`) —
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
-  Parameters ``models.learned``: ``policy_dir`` and ``on_missing`` (:class:`LearnedParams`).
+  Parameters ``models.learned``: ``policy_dir``, ``on_missing`` and ``profile`` (:class:`LearnedParams`).
 """
 
 from __future__ import annotations
@@ -35,6 +35,11 @@ class LearnedParams:
     on_missing: str = text("error", ("error", "level0"))
     """What to do when the policy directory lacks policies: ``error`` (one-line error, the
     default) or ``level0`` (drive every BV with the level-0 driver instead)."""
+    profile: str = text("driver", ("driver", "safety_net"))
+    """The BVs' run-time rule profile (docs/bv-profiles.md): ``driver`` (default: a reaction
+    time of 1 s and braking bounded at 7 m/s², so a reckless SUT can cause a conflict) or
+    ``safety_net`` (instant, full-brake reactions to any leader: the rules the shipped
+    policies were trained with, every SUT mistake absorbed)."""
 
 
 def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
@@ -52,7 +57,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
             return _level0(vehicles, None, config, rng)
         raise InputError(f"models.learned.policy_dir = {params.policy_dir}: {exc}") from None
     return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config),
-                         forced_merge=True)
+                         forced_merge=True, profile=params.profile)
 
 
 LEVEL0 = ModelSpec(

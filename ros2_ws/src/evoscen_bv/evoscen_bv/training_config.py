@@ -49,6 +49,10 @@ class EnvParams:
     eval_every_steps: int = 5000
     """Evaluate the deterministic policy every this many training steps; the best evaluation
     is the stage's policy (see :mod:`evoscen_bv.pipeline`)."""
+    profile: str = "driver"
+    """The BV run-time rule profile of the decision environments' drivers (``driver`` or
+    ``safety_net``, :mod:`evoscen_bv.profile`, docs/bv-profiles.md); the copy of this file
+    in a policy directory records what its policies were trained with."""
 
 
 @dataclass(frozen=True)
@@ -115,6 +119,11 @@ def _convert(section_type: type, raw: Any, where: str, path: str) -> Any:
             ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
             expected = "a finite number"
             value = float(value) if ok else value
+        elif isinstance(default, str):
+            from .profile import PROFILE_NAMES
+
+            ok = value in PROFILE_NAMES
+            expected = "one of " + ", ".join(PROFILE_NAMES)
         elif isinstance(default, tuple):
             ok = (isinstance(value, list) and len(value) == 2
                   and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)

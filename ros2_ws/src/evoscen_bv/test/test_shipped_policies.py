@@ -3,7 +3,7 @@
 * Free car following: a column of learned BVs behind a leader at constant speed holds a
   mean gap in the designed band g ± 5 m = [20, 30] m (g = 25 m) with no rear-end collision.
 * The 20-BV default scenario with learned BVs (mix 4:3:3, seeds 1-4, 300 s each = 6.7
-  vehicle-hours): lane changes per vehicle-hour order as competitive > mutual > cooperative
+  vehicle-hours; the run-time rule profile the policies were trained with, docs/bv-profiles.md): lane changes per vehicle-hour order as competitive > mutual > cooperative
   (SPEC 3.3) and collisions among learned BVs are rare (at most 2; README "Learned background
   vehicles" gives the measured rate).
 
@@ -56,8 +56,11 @@ def _lane_changes_and_collisions(seed: int, steps: int) -> tuple[dict[int, float
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
+    # the run-time rule profile the policies were trained with (their training.yaml's env.profile;
+    # the shipped ones: safety_net): the policies are checked under the rules they were designed for
+    trained_with = load_policies(POLICY_DIR)[2].env.profile
     cfg = load_scenario_config(None, {"bvs.driver": "learned", "seed": seed,
-                                      "models": {"learned": {"policy_dir": str(POLICY_DIR)}}})
+                                      "models": {"learned": {"policy_dir": str(POLICY_DIR), "profile": trained_with}}})
     sc = build_scenario(cfg)
     w = sc.world
     bvs = np.arange(1, w.n)

@@ -1,0 +1,197 @@
+"""BV run-time rule profiles (docs/bv-profiles.md): reaction time, bounded braking, the old rules kept exactly."""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from evoscen_bv.lane_change import apply_rule_constraints
+from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
+from evoscen_bv.profile import PROFILES, get_profile
+from evoscen_sim.road import load_road
+from evoscen_sim.testing import hand_built_world
+
+N = 10
+"""Reaction steps of the driver profile: τ / dt = 1.0 s / 0.1 s."""
+CAP = 7.0 / 8.0
+"""Its braking bound as a throttle: 7 m/s² of the vehicle's 8 m/s² full brake."""
+
+
+@pytest.fixture(scope="module")
+def road():
+    return load_road()
+
+
+@pytest.fixture(scope="module")
+def policies():
+    return load_policies(shipped_policy_dir())
+
+
+def _driver(policies, world, vehicles, profile):  # noqa: ANN001, ANN202
+    controller, _, training = policies
+    return LearnedDriver(np.asarray(vehicles), controller, {}, training, np.random.default_rng(0), world.vehicle,
+                         profile=profile)
+
+
+def test_profile_parameters():
+    assert get_profile("driver").reaction_steps(0.1) == N
+    assert get_profile("driver").max_decel_mps2 == 7.0
+    assert get_profile("safety_net").reaction_time_s == 0.0 and get_profile("safety_net").max_decel_mps2 is None
+    assert {p.cut_in_closing_headway_s for p in PROFILES.values()} == {1.5}
+    with pytest.raises(ValueError, match="unknown BV profile 'nice': expected one of driver, safety_net"):
+        get_profile("nice")
+
+
+def _cut_in(road, policies, profile: str, cut_in: bool, steps: int) -> tuple[list[float], list[int]]:  # noqa: ANN001
+    """BV 0 at 25 m/s in lane 2; vehicle 1 at 20 m/s in lane 3, its rear bumper 8 m ahead of the BV's
+    front (closing 5 m/s), changes into lane 2 after the first step when ``cut_in``. Returns the BV's
+    throttles from the first step on which vehicle 1 occupies lane 2, and vehicle 1's lane-change flags."""
+    w = hand_built_world(road, s=[300.0, 312.8], lane=[2, 3], speed=[25.0, 20.0])  # 12.8 m - 4.8 m of length = 8 m
+    assert w.s[1] - w.s[0] - 0.5 * (w.length[0] + w.length[1]) == pytest.approx(8.0)
+    bv = _driver(policies, w, [0], profile)
+    w.step(np.array([bv.throttle(w)[0], 0.0]), np.array([0, -1 if cut_in else 0]))  # the first call: before the cut-in
+    out, changing = [], []
+    for _ in range(steps):
+        u = float(bv.throttle(w)[0])
+        out.append(u)
+        changing.append(int(w.lane_change[1]))
+        w.step(np.array([u, 0.0]), np.zeros(2, dtype=np.int64))
+    return out, changing
+
+
+def test_safety_net_brakes_at_once_for_a_cut_in(road, policies):
+    cut, changing = _cut_in(road, policies, "safety_net", True, 3)
+    free, _ = _cut_in(road, policies, "safety_net", False, 3)
+    assert changing[0] == -1  # vehicle 1 is changing into lane 2 from the first step on
+    assert cut[0] < 0.0 < free[0]  # the BV brakes on step 0 of the cut-in (without it, it would accelerate)
+
+
+def test_driver_keeps_its_throttle_for_the_reaction_time_then_brakes_at_most_at_the_cap(road, policies):
+    cut, changing = _cut_in(road, policies, "driver", True, N + 5)
+    free, _ = _cut_in(road, policies, "driver", False, N + 5)
+    assert changing[0] == -1
+    # steps 0 … N-1: the cut-in vehicle is not perceived yet, the BV drives exactly as without it
+    assert cut[:N] == free[:N]
+    assert free[0] > 0.0
+    # step N (1 s): it responds, braking, but never harder than the driver's 7 m/s²
+    assert cut[N] < 0.0 and cut[N] < free[N]
+    assert min(cut) >= -CAP - 1e-12
+
+
+def test_bounded_braking_for_a_standing_vehicle(road, policies):
+    """BV at 30 m/s, a standing vehicle 20.2 m ahead (bumper gap) from the start: the emergency brake wants
+    30² / (2 (20.2 - 2)) = 24.7 m/s²: full brake (-1) with safety_net, the 7 m/s² bound (-0.875) with driver
+    (at the first step every situation counts as having persisted)."""
+    for profile, expected in (("safety_net", -1.0), ("driver", -CAP)):
+        w = hand_built_world(road, s=[400.0, 425.0], lane=[2, 2], speed=[30.0, 0.0])
+        bv = _driver(policies, w, [0], profile)
+        assert bv.throttle(w)[0] == pytest.approx(expected), profile
+        # a second call at the same step changes nothing (the reaction state advances once per step)
+        assert bv.throttle(w)[0] == pytest.approx(expected), profile
+
+
+def test_driver_emergency_brake_waits_for_the_reaction_time(road, policies):
+    """A leader 30.2 m ahead at the BV's speed (25 m/s) brakes at the world's full 8 m/s² from step 0 on.
+    From step 1 its deceleration is visible and the emergency brake asks for b ≈ 4.85 m/s² (stop behind
+    the point where the leader stops) >= the 4 m/s² trigger. safety_net: the throttle is -b/8 at step 1.
+    driver: the trigger holds from step 1, so the emergency brake acts from step 1 + N on (at -b/8, b < 7);
+    before that the BV brakes only as its controller does, less than -b/8."""
+    from evoscen_bv.car_following import _emergency_need
+
+    res, needs = {}, {}
+    for profile in ("safety_net", "driver"):
+        w = hand_built_world(road, s=[400.0, 435.0], lane=[2, 2], speed=[25.0, 25.0])
+        bv = _driver(policies, w, [0], profile)
+        us, bs = [], []
+        for _ in range(N + 3):
+            gap = w.s[1] - w.s[0] - 0.5 * (w.length[0] + w.length[1])
+            bs.append(_emergency_need(gap, w.v[1], w.accel[1], w.v[0], 2.0))
+            u = float(bv.throttle(w)[0])
+            us.append(u)
+            w.step(np.array([u, -1.0]), np.zeros(2, dtype=np.int64))
+        res[profile], needs[profile] = us, bs
+    sn, dr, b = res["safety_net"], res["driver"], needs["driver"]
+    assert needs["safety_net"][0] == 0.0 and needs["safety_net"][1] >= 4.0
+    assert sn[1] == pytest.approx(-needs["safety_net"][1] / 8.0)  # at once
+    assert all(b[k] >= 4.0 for k in range(1, N + 3))
+    assert all(dr[k] > -b[k] / 8.0 + 1e-9 for k in range(1, N + 1))  # steps 1 … N: not yet
+    assert dr[N + 1] == pytest.approx(-min(b[N + 1], 7.0) / 8.0)  # step N + 1: the trigger held at steps 1 … N + 1
+    assert min(dr) >= -CAP - 1e-12
+
+
+def _commands_digest(cfg_overrides: dict, steps: int) -> str:
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.config import load_scenario_config
+
+    cfg = load_scenario_config(None, {"bvs.driver": "learned", "seed": 3, "sut.model": "mobil", **cfg_overrides})
+    sc = build_scenario(cfg)
+    h = hashlib.sha256()
+    for _ in range(steps):
+        bt, bl, st, sl = sc.commands()
+        for x in (bt, bl, st, sl):
+            h.update(np.ascontiguousarray(np.asarray(x, dtype=np.float64)).tobytes())
+        sc.apply(bt, bl, st, sl)
+    return h.hexdigest()
+
+
+OLD_COMMANDS_SHA256 = "c156b9b4e8f8b032f478a0f2ef18fa95e8884facaf2f9a9c8df1081f4edb08fb"
+"""Every BV and SUT command of 400 steps of the default scenario with learned BVs, seed 3, SUT mobil,
+computed with the code before profiles existed (commit 33305ed) on the development machine."""
+
+
+def test_safety_net_reproduces_the_old_commands_exactly():
+    assert _commands_digest({"models": {"learned": {"profile": "safety_net"}}}, 400) == OLD_COMMANDS_SHA256
+    # the default (driver) profile drives differently
+    assert _commands_digest({}, 400) != OLD_COMMANDS_SHA256
+
+
+def test_cut_in_gap_headway_is_a_parameter(road):
+    """Vehicle 0 (25 m/s, lane 1) asks to move left; vehicle 1 in lane 2 is 12.2 m ahead (bumper gap) at 20 m/s:
+    closing 5 m/s. h = 1.5 s needs 10 + 7.5 = 17.5 m → keep; the method's plain 10 m (h = 0) → change."""
+    w = hand_built_world(road, s=[300.0, 317.0], lane=[1, 2], speed=[25.0, 20.0])
+    assert apply_rule_constraints(w, np.array([0]), np.array([1])).tolist() == [0]
+    assert apply_rule_constraints(w, np.array([0]), np.array([1]), 1.5).tolist() == [0]
+    assert apply_rule_constraints(w, np.array([0]), np.array([1]), 0.0).tolist() == [1]
+
+
+def test_profile_config_errors_are_one_line(tmp_path):
+    from evoscen_bv.training_config import load_training_config
+    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.errors import InputError
+
+    with pytest.raises(InputError, match=r"models\.learned\.profile.*expected one of driver, safety_net") as e:
+        config_from_dict({"models": {"learned": {"profile": "nice"}}})
+    assert "\n" not in str(e.value)
+    bad = tmp_path / "t.yaml"
+    bad.write_text("env: {profile: nice}\n")
+    with pytest.raises(InputError, match=r"'env\.profile' = 'nice': expected one of driver, safety_net") as e:
+        load_training_config(bad)
+    assert "\n" not in str(e.value)
+
+
+def test_training_config_records_the_profile(tmp_path, policies):
+    from evoscen_bv.training_config import load_training_config
+
+    assert load_training_config().env.profile == "driver"  # new trainings: the driver profile
+    assert policies[2].env.profile == "safety_net"  # the shipped policies were trained with the old rules
+    (tmp_path / "t.yaml").write_text("env: {profile: safety_net}\n")
+    cfg = load_training_config(tmp_path / "t.yaml")
+    assert cfg.to_dict()["env"]["profile"] == "safety_net"
+    w = hand_built_world(load_road(), s=[300.0], lane=[2], speed=[25.0])
+    controller, _, _ = policies
+    # the training environments' drivers take the config's profile; the scenario's key overrides it at run time
+    assert LearnedDriver(np.array([0]), controller, {}, cfg, np.random.default_rng(0), w.vehicle).profile.name == "safety_net"
+    assert LearnedDriver(np.array([0]), controller, {}, cfg, np.random.default_rng(0), w.vehicle,
+                         profile="driver").profile.name == "driver"
+
+
+def test_scenario_default_profile_is_driver():
+    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.scenario import build_bv_driver
+
+    drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}}))
+    assert drv.profile.name == "driver"
+    drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": {"learned": {"profile": "safety_net"}}}))
+    assert drv.profile.name == "safety_net"

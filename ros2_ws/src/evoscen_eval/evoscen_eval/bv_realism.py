@@ -1,0 +1,115 @@
+"""Realism figures of a run's background vehicles, to set beside naturalistic (HighD) data.
+
+:func:`bv_realism` reads a :class:`evoscen_eval.rundata.RunData` (a recorded bag, or an
+in-process run's ``RunSummary.run``) and reports, over the background vehicles (role BV):
+
+* ``bv_vehicle_hours``: Σ over recorded states k < K-1 and BVs of dt (each state stands for
+  the step that follows it);
+* ``bv_vehicle_km``: Σ over the same of speed·dt / 1000 (distance driven);
+* ``bv_bv_collisions`` and ``bv_bv_collisions_per_vehicle_hour``: collision events between
+  two BVs (``evoscen/collision``), per BV vehicle-hour;
+* ``sut_collisions``: collision events involving the SUT;
+* ``bv_lane_changes`` and ``bv_lane_changes_per_vehicle_km``: completed lane changes
+  (``evoscen/lane_change``, kind ``completed``) of BVs, per BV vehicle-km (HighD: about
+  0.12 per vehicle-km);
+* ``thw_samples``, ``thw_median_s``, ``thw_share_below_1s``, ``thw_share_below_0_5s``:
+  the BVs' time headway THW = bumper-to-bumper gap to the nearest vehicle ahead in the
+  same lane (any role) / own speed, over the states where the BV drives at least
+  ``min_speed_mps`` (5 m/s, as :class:`evoscen_eval.behaviour.BehaviourConfig`) and the
+  gap is at most ``leader_range_m`` (100 m). HighD's ``thw`` is likewise gap / speed.
+
+``scripts/bv_realism.py`` runs a few seeds in process and prints these for each BV profile.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+ROLE_BV = 0
+"""``evoscen_sim.world.ROLE_BV`` (the world table's ``role`` column)."""
+
+
+def time_headways(s: np.ndarray, lane: np.ndarray, speed: np.ndarray, length: np.ndarray, bv: np.ndarray,
+                  min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -> np.ndarray:
+    """THW samples (s) of the BVs (``bv``: bool ``[V]``) over states ``[K, V]`` (see module docstring)."""
+    out = []
+    for k in range(s.shape[0]):
+        for i in np.flatnonzero(bv):
+            if speed[k, i] < min_speed_mps:
+                continue
+            ahead = (lane[k] == lane[k, i]) & (s[k] > s[k, i])
+            ahead[i] = False
+            if not ahead.any():
+                continue
+            j = np.flatnonzero(ahead)[np.argmin(s[k, ahead])]
+            gap = s[k, j] - s[k, i] - 0.5 * (length[k, i] + length[k, j])
+            if gap <= leader_range_m:
+                out.append(max(gap, 0.0) / speed[k, i])
+    return np.asarray(out, dtype=float)
+
+
+def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -> dict[str, Any]:  # noqa: ANN001
+    """The BV realism figures of ``run`` (a RunData; see the module docstring)."""
+    c = run.columns
+    role = c["role"]
+    bv = role[0] == ROLE_BV
+    ids = c["id"][0].astype(np.int64)
+    bv_ids = set(ids[bv].tolist())
+    sut_ids = set(ids[~bv].tolist())
+    dt = float(run.dt_s)
+    body = slice(0, max(run.states - 1, 0))
+    hours = float(bv.sum()) * (run.states - 1) * dt / 3600.0 if run.states > 1 else 0.0
+    km = float(np.sum(c["speed"][body][:, bv]) * dt / 1000.0)
+    bvbv = sut_coll = 0
+    for e in run.events_named("evoscen/collision"):
+        pair = [int(x) for x in e.get("ids", [])]
+        if pair and all(x in bv_ids for x in pair):
+            bvbv += 1
+        if any(x in sut_ids for x in pair):
+            sut_coll += 1
+    lcs = sum(1 for e in run.events_named("evoscen/lane_change", "completed")
+              if int(e.get("ids", [-1])[0]) in bv_ids)
+    thw = time_headways(c["s"], c["lane"], c["speed"], c["length"], bv, min_speed_mps, leader_range_m)
+    return {
+        "bv_vehicle_hours": hours,
+        "bv_vehicle_km": km,
+        "bv_bv_collisions": bvbv,
+        "bv_bv_collisions_per_vehicle_hour": bvbv / hours if hours > 0 else float("nan"),
+        "sut_collisions": sut_coll,
+        "bv_lane_changes": lcs,
+        "bv_lane_changes_per_vehicle_km": lcs / km if km > 0 else float("nan"),
+        "thw_samples": int(thw.size),
+        "thw_median_s": float(np.median(thw)) if thw.size else float("nan"),
+        "thw_share_below_1s": float(np.mean(thw < 1.0)) if thw.size else float("nan"),
+        "thw_share_below_0_5s": float(np.mean(thw < 0.5)) if thw.size else float("nan"),
+    }
+
+
+def combine(figures: list[dict[str, Any]]) -> dict[str, Any]:
+    """Pool the figures of several runs: counts and exposures summed, rates recomputed;
+    THW statistics are sample-weighted means of the runs' (the median: of the runs' medians)."""
+    hours = sum(f["bv_vehicle_hours"] for f in figures)
+    km = sum(f["bv_vehicle_km"] for f in figures)
+    bvbv = sum(f["bv_bv_collisions"] for f in figures)
+    lcs = sum(f["bv_lane_changes"] for f in figures)
+    n = sum(f["thw_samples"] for f in figures)
+
+    def wmean(key: str) -> float:
+        return sum(f[key] * f["thw_samples"] for f in figures if f["thw_samples"]) / n if n else float("nan")
+
+    return {
+        "runs": len(figures),
+        "bv_vehicle_hours": hours,
+        "bv_vehicle_km": km,
+        "bv_bv_collisions": bvbv,
+        "bv_bv_collisions_per_vehicle_hour": bvbv / hours if hours > 0 else float("nan"),
+        "sut_collisions": sum(f["sut_collisions"] for f in figures),
+        "bv_lane_changes": lcs,
+        "bv_lane_changes_per_vehicle_km": lcs / km if km > 0 else float("nan"),
+        "thw_samples": n,
+        "thw_median_s": float(np.median([f["thw_median_s"] for f in figures if f["thw_samples"]])) if n else float("nan"),
+        "thw_share_below_1s": wmean("thw_share_below_1s"),
+        "thw_share_below_0_5s": wmean("thw_share_below_0_5s"),
+    }

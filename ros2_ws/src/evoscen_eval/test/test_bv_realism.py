@@ -1,0 +1,73 @@
+"""BV realism figures (evoscen_eval.bv_realism) on a hand-built run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from evoscen_contract import topics as T
+from evoscen_eval.bv_realism import bv_realism, combine, time_headways
+from evoscen_eval.rundata import RunData
+
+
+def _run() -> RunData:
+    """Vehicles 10 (SUT), 11, 12, 13 (BVs); three states 0.5 s apart, nothing moves in the table.
+
+    Lane 2: SUT at s = 100, BV 11 at 70 (20 m/s), BV 12 at 60 (10 m/s); lane 3: BV 13 at 80 (25 m/s), alone.
+    Lengths 5 m: BV 11's gap to the SUT is 25 m (THW 1.25 s), BV 12's to BV 11 is 5 m (THW 0.5 s)."""
+    k, v = 3, 4
+    base = {name: np.zeros((k, v)) for name in T.WORLD_FIELDS}
+    base["id"][:] = [10, 11, 12, 13]
+    base["role"][:] = [1, 0, 0, 0]
+    base["s"][:] = [100.0, 70.0, 60.0, 80.0]
+    base["lane"][:] = [2, 2, 2, 3]
+    base["speed"][:] = [30.0, 20.0, 10.0, 25.0]
+    base["length"][:] = 5.0
+    events = [
+        {"name": "evoscen/collision", "ids": [11, 12]},
+        {"name": "evoscen/collision", "ids": [10, 11]},
+        {"name": "evoscen/lane_change", "kind": "completed", "ids": [11]},
+        {"name": "evoscen/lane_change", "kind": "completed", "ids": [10]},  # the SUT's: not counted
+        {"name": "evoscen/lane_change", "kind": "aborted", "ids": [12]},  # not completed: not counted
+    ]
+    return RunData(time_s=np.array([0.0, 0.5, 1.0]), columns=base, ids=base["id"][0].astype(np.int64), sut_index=0,
+                   events=events, dt_s=0.5)
+
+
+def test_figures_by_hand():
+    f = bv_realism(_run())
+    # 3 BVs x 2 steps x 0.5 s = 3 s; (20 + 10 + 25) m/s x 1 s = 55 m
+    assert f["bv_vehicle_hours"] == pytest.approx(3.0 / 3600.0)
+    assert f["bv_vehicle_km"] == pytest.approx(0.055)
+    assert f["bv_bv_collisions"] == 1 and f["sut_collisions"] == 1
+    assert f["bv_bv_collisions_per_vehicle_hour"] == pytest.approx(1200.0)
+    assert f["bv_lane_changes"] == 1
+    assert f["bv_lane_changes_per_vehicle_km"] == pytest.approx(1.0 / 0.055)
+    # THW samples: 1.25 and 0.5 at each of the 3 states (BV 13 has no leader)
+    assert f["thw_samples"] == 6
+    assert f["thw_median_s"] == pytest.approx(0.875)
+    assert f["thw_share_below_1s"] == pytest.approx(0.5)
+    assert f["thw_share_below_0_5s"] == 0.0  # 0.5 is not below 0.5
+
+
+def test_thw_filters_slow_vehicles_and_far_leaders():
+    s = np.array([[0.0, 105.0 + 5.0, 200.0]])
+    lane = np.array([[1, 1, 2]])
+    speed = np.array([[4.0, 20.0, 20.0]])
+    length = np.full((1, 3), 5.0)
+    bv = np.array([True, True, True])
+    # vehicle 0: 4 m/s < 5 m/s, no sample; vehicle 1 has no leader in lane 1; vehicle 2 none in lane 2
+    assert time_headways(s, lane, speed, length, bv).size == 0
+    speed[0, 0] = 10.0  # now it counts, but its leader is 105 m away (> 100 m)
+    assert time_headways(s, lane, speed, length, bv).size == 0
+    s[0, 1] = 105.0  # gap 100 m: within range, THW 100 / 10 = 10 s
+    assert time_headways(s, lane, speed, length, bv).tolist() == pytest.approx([10.0])
+
+
+def test_combine_pools_counts_and_recomputes_rates():
+    f = bv_realism(_run())
+    c = combine([f, f])
+    assert c["runs"] == 2 and c["bv_bv_collisions"] == 2 and c["bv_lane_changes"] == 2
+    assert c["bv_bv_collisions_per_vehicle_hour"] == pytest.approx(1200.0)
+    assert c["bv_lane_changes_per_vehicle_km"] == pytest.approx(1.0 / 0.055)
+    assert c["thw_samples"] == 12 and c["thw_share_below_1s"] == pytest.approx(0.5)

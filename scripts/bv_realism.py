@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""Realism figures of learned BVs per run-time profile (docs/bv-profiles.md).
+
+    python scripts/bv_realism.py [--profiles driver safety_net] [--seeds 1 2 3 4 5]
+                                 [--steps 3000] [--sut level0] [--config FILE] [--json OUT]
+                                 [--cut-in-headway H]
+
+Runs every (profile, seed) in process (``bvs.driver: learned``, no bag) and prints, per
+profile, the pooled figures of :func:`evoscen_eval.bv_realism.bv_realism`: BV lane changes
+per vehicle-km (HighD: ~0.12), BV-BV collisions per vehicle-hour, SUT collisions, and the
+BVs' time-headway distribution. Bad input prints one line ``error: ...`` and exits 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+
+KEYS = (("bv_lane_changes_per_vehicle_km", "BV lane changes / veh-km", "{:.3f}"),
+        ("bv_bv_collisions_per_vehicle_hour", "BV-BV collisions / veh-h", "{:.3f}"),
+        ("bv_bv_collisions", "BV-BV collisions", "{}"),
+        ("sut_collisions", "SUT collisions (all runs)", "{}"),
+        ("thw_median_s", "THW median (s)", "{:.2f}"),
+        ("thw_share_below_1s", "share THW < 1 s", "{:.3f}"),
+        ("thw_share_below_0_5s", "share THW < 0.5 s", "{:.3f}"),
+        ("bv_vehicle_hours", "BV vehicle-hours", "{:.2f}"),
+        ("bv_vehicle_km", "BV vehicle-km", "{:.1f}"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="bv_realism.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--profiles", nargs="+", default=["driver", "safety_net"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[1, 2, 3, 4, 5])
+    ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--sut", default=None, help="SUT model (default: the config's)")
+    ap.add_argument("--config", type=Path, default=None, help="scenario YAML (default: the shipped default)")
+    ap.add_argument("--cut-in-headway", type=float, default=None, metavar="H",
+                    help="measure with the profiles' cut-in closing headway h replaced by H s (0: the method's plain 10 m)")
+    ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
+    args = ap.parse_args(argv)
+
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_eval.bv_realism import bv_realism, combine
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.errors import InputError
+
+    if args.cut_in_headway is not None:  # a what-if knob for the measurement only (docs/bv-profiles.md)
+        import dataclasses
+
+        from evoscen_bv import profile as prof
+
+        for name, p in list(prof.PROFILES.items()):
+            prof.PROFILES[name] = dataclasses.replace(p, cut_in_closing_headway_s=args.cut_in_headway)
+    out: dict[str, dict] = {}
+    for profile in args.profiles:
+        figures = []
+        for seed in args.seeds:
+            overrides = {"bvs.driver": "learned", "seed": seed, "steps": args.steps,
+                         "models.learned.profile": profile}
+            if args.sut:
+                overrides["sut.model"] = args.sut
+            try:
+                cfg = load_scenario_config(args.config, overrides)
+            except InputError as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                return 2
+            t0 = time.perf_counter()
+            summary = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False)
+            f = bv_realism(summary.run)
+            figures.append(f)
+            print(f"{profile} seed {seed}: {f['bv_lane_changes']} BV lane changes, {f['bv_bv_collisions']} BV-BV "
+                  f"and {f['sut_collisions']} SUT collisions ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
+        out[profile] = combine(figures)
+    width = max(len(label) for _, label, _ in KEYS)
+    print(" " * width + "".join(f"  {p:>12}" for p in out))
+    for key, label, fmt in KEYS:
+        print(label.ljust(width) + "".join(f"  {fmt.format(out[p][key]):>12}" for p in out))
+    if args.json:
+        args.json.write_text(json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
+                                                  for k, v in vars(args).items()}, "figures": out}, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
