@@ -115,8 +115,15 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     def counts(key: tuple[str, str, str], section: str, field: str) -> dict[int, float]:
         return {s: float(r[section][field]) for s, r in reports[key].items()}
 
+    def min_pet(key: tuple[str, str, str]) -> dict[int, float]:
+        out = {}
+        for s, r in reports[key].items():
+            v = (r["safety"].get("conflicts") or {}).get("min_pet_s")
+            out[s] = math.nan if v is None else float(v)
+        return out
+
     header = ["mutant", "class", "ΔI (intact − mutant)", "ΔI_s", "ΔI_e", "ΔI_i", "Δ collisions (mutant − intact)",
-              "Δ exposures", "detected", "seeds needed"]
+              "Δ exposures", "Δ min PET (s)", "detected", "seeds needed"]
     csv_rows, score_rows, md_parts, plot_data = [], [], [], []
     round_rows = []
     for scenario in scenarios:
@@ -129,16 +136,17 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
                 diffs = {name: paired(per_seed(intact_key, name), per_seed(key, name)) for name in SCORES}
                 d_col = paired(counts(key, "safety", "collisions"), counts(intact_key, "safety", "collisions"))
                 d_exp = paired(counts(key, "safety", "exposures"), counts(intact_key, "safety", "exposures"))
+                d_pet = paired(min_pet(intact_key), min_pet(key))
                 need = seeds_needed(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
                 hit = diffs["intelligence"].above_zero
                 detected.append(hit)
                 points.append((m, diffs["intelligence"]))
                 rows.append([m, LIBRARY[m].klass, *(fmt_ci(diffs[n].mean, diffs[n].half) for n in SCORES),
                              fmt_ci(d_col.mean, d_col.half, 2), fmt_ci(d_exp.mean, d_exp.half, 2),
-                             "yes" if hit else "no", "–" if need is None else str(need)])
+                             fmt_ci(d_pet.mean, d_pet.half, 2), "yes" if hit else "no", "–" if need is None else str(need)])
                 csv_rows.append([scenario, driver, base, m, LIBRARY[m].klass,
                                  *(v for n in SCORES for v in (diffs[n].mean, diffs[n].half)),
-                                 d_col.mean, d_col.half, d_exp.mean, d_exp.half, int(hit),
+                                 d_col.mean, d_col.half, d_exp.mean, d_exp.half, d_pet.mean, d_pet.half, int(hit),
                                  "" if need is None else need, diffs["intelligence"].n])
             score = mutation_score(detected)
             intact_i = mean_ci(list(per_seed(intact_key, "intelligence").values()))
@@ -158,7 +166,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     write_csv(args.out / "sensitivity.csv",
               ["scenario", "bv_driver", "base", "mutant", "class",
                *(f"d_{n}_{s}" for n in SCORES for s in ("mean", "ci95")),
-               "d_collisions_mean", "d_collisions_ci95", "d_exposures_mean", "d_exposures_ci95", "detected",
+               "d_collisions_mean", "d_collisions_ci95", "d_exposures_mean", "d_exposures_ci95", "d_min_pet_mean",
+               "d_min_pet_ci95", "detected",
                "seeds_needed", "seeds"], csv_rows)
     write_csv(args.out / "mutation_scores.csv", ["scenario", "bv_driver", "base", "detected", "mutants",
                                                  "mutation_score", "intact_intelligence_mean",
@@ -173,7 +182,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     text = (f"# Sensitivity experiment (SUT mutation analysis)\n\n{len(bases)} base SUT(s) x {len(mutants)} mutants "
             f"x {len(scenarios)} scenarios x {seeds} seeds ({first}..{first + seeds - 1}), {cfg0.steps} steps, "
             f"{cfg0.bvs.count} BVs; paired by seed (common random numbers); differences intact − mutant of the "
-            f"unweighted scores (Δ collisions/exposures: mutant − intact), mean ± 95 % interval over seeds; "
+            f"unweighted scores (Δ collisions/exposures: mutant − intact; Δ min PET: intact − mutant of the run's "
+            f"smallest lane-change PET, > 0 when the mutant cuts in closer), mean ± 95 % interval over seeds; "
             f"detected: the intelligence interval lies above 0; {wall:.0f} s of simulation in all.\n\n"
             f"{score_table}\n" + "\n".join(md_parts) + "\n![sensitivity](sensitivity.png)\n")
     (args.out / "sensitivity.md").write_text(text, encoding="utf-8")
