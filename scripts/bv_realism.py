@@ -80,6 +80,11 @@ def main(argv: list[str] | None = None) -> int:
     print(" " * width + "".join(f"  {p:>12}" for p in out))
     for key, label, fmt in KEYS:
         print(label.ljust(width) + "".join(f"  {fmt.format(out[p][key]):>12}" for p in out))
+    from evoscen_eval.bv_realism import lane_changes_per_km_by_policy
+
+    for name in ("competitive", "mutual", "cooperative"):
+        rates = [lane_changes_per_km_by_policy(out[p]).get(name, float("nan")) for p in out]
+        print(f"LC / veh-km, {name}".ljust(width) + "".join(f"  {r:>12.3f}" for r in rates))
     if args.json:
         args.json.write_text(json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
                                                   for k, v in vars(args).items()}, "figures": out}, indent=2))

@@ -12,6 +12,10 @@ in-process run's ``RunSummary.run``) and reports, over the background vehicles (
 * ``bv_lane_changes`` and ``bv_lane_changes_per_vehicle_km``: completed lane changes
   (``evoscen/lane_change``, kind ``completed``) of BVs, per BV vehicle-km (HighD: about
   0.12 per vehicle-km);
+* ``by_policy``: per social type present (the ``policy`` column: mutual, competitive,
+  cooperative), its BVs' completed lane changes and vehicle-km
+  (:func:`lane_changes_per_km_by_policy`: the method's order is competitive > mutual >
+  cooperative);
 * ``thw_samples``, ``thw_median_s``, ``thw_share_below_1s``, ``thw_share_below_0_5s``:
   the BVs' time headway THW = bumper-to-bumper gap to the nearest vehicle ahead in the
   same lane (any role) / own speed, over the states where the BV drives at least
@@ -29,6 +33,8 @@ import numpy as np
 
 ROLE_BV = 0
 """``evoscen_sim.world.ROLE_BV`` (the world table's ``role`` column)."""
+POLICY_NAMES = {1: "mutual", 2: "competitive", 3: "cooperative"}
+"""The world table's ``policy`` codes of the learned BVs' social types (``evoscen_sim.scenario.POLICY_CODES``)."""
 
 
 def time_headways(s: np.ndarray, lane: np.ndarray, speed: np.ndarray, length: np.ndarray, bv: np.ndarray,
@@ -72,6 +78,16 @@ def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -
     lcs = sum(1 for e in run.events_named("evoscen/lane_change", "completed")
               if int(e.get("ids", [-1])[0]) in bv_ids)
     thw = time_headways(c["s"], c["lane"], c["speed"], c["length"], bv, min_speed_mps, leader_range_m)
+    # per social type (the policy column): completed lane changes and km of the BVs of that type
+    policy = c["policy"][0].astype(np.int64)
+    code_of = dict(zip(ids.tolist(), policy.tolist()))
+    by_type: dict[str, dict[str, float]] = {}
+    for code, name in POLICY_NAMES.items():
+        cols = bv & (policy == code)
+        if cols.any():
+            n = sum(1 for e in run.events_named("evoscen/lane_change", "completed")
+                    if int(e.get("ids", [-1])[0]) in bv_ids and code_of.get(int(e["ids"][0])) == code)
+            by_type[name] = {"lane_changes": n, "vehicle_km": float(np.sum(c["speed"][body][:, cols]) * dt / 1000.0)}
     return {
         "bv_vehicle_hours": hours,
         "bv_vehicle_km": km,
@@ -84,7 +100,14 @@ def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -
         "thw_median_s": float(np.median(thw)) if thw.size else float("nan"),
         "thw_share_below_1s": float(np.mean(thw < 1.0)) if thw.size else float("nan"),
         "thw_share_below_0_5s": float(np.mean(thw < 0.5)) if thw.size else float("nan"),
+        "by_policy": by_type,
     }
+
+
+def lane_changes_per_km_by_policy(figures: dict[str, Any]) -> dict[str, float]:
+    """Completed lane changes per vehicle-km of each social type present (pooled figures or one run's)."""
+    return {name: (f["lane_changes"] / f["vehicle_km"] if f["vehicle_km"] > 0 else float("nan"))
+            for name, f in figures.get("by_policy", {}).items()}
 
 
 def combine(figures: list[dict[str, Any]]) -> dict[str, Any]:
@@ -95,6 +118,12 @@ def combine(figures: list[dict[str, Any]]) -> dict[str, Any]:
     bvbv = sum(f["bv_bv_collisions"] for f in figures)
     lcs = sum(f["bv_lane_changes"] for f in figures)
     n = sum(f["thw_samples"] for f in figures)
+    by_type: dict[str, dict[str, float]] = {}
+    for f in figures:
+        for name, t in f.get("by_policy", {}).items():
+            acc = by_type.setdefault(name, {"lane_changes": 0, "vehicle_km": 0.0})
+            acc["lane_changes"] += t["lane_changes"]
+            acc["vehicle_km"] += t["vehicle_km"]
 
     def wmean(key: str) -> float:
         return sum(f[key] * f["thw_samples"] for f in figures if f["thw_samples"]) / n if n else float("nan")
@@ -112,4 +141,5 @@ def combine(figures: list[dict[str, Any]]) -> dict[str, Any]:
         "thw_median_s": float(np.median([f["thw_median_s"] for f in figures if f["thw_samples"]])) if n else float("nan"),
         "thw_share_below_1s": wmean("thw_share_below_1s"),
         "thw_share_below_0_5s": wmean("thw_share_below_0_5s"),
+        "by_policy": by_type,
     }

@@ -23,6 +23,7 @@ def _run() -> RunData:
     base["lane"][:] = [2, 2, 2, 3]
     base["speed"][:] = [30.0, 20.0, 10.0, 25.0]
     base["length"][:] = 5.0
+    base["policy"][:] = [0, 2, 3, 2]  # BVs 11 and 13 competitive, 12 cooperative
     events = [
         {"name": "evoscen/collision", "ids": [11, 12]},
         {"name": "evoscen/collision", "ids": [10, 11]},
@@ -48,6 +49,14 @@ def test_figures_by_hand():
     assert f["thw_median_s"] == pytest.approx(0.875)
     assert f["thw_share_below_1s"] == pytest.approx(0.5)
     assert f["thw_share_below_0_5s"] == 0.0  # 0.5 is not below 0.5
+    # per type: competitive = BVs 11 + 13, (20 + 25) m/s x 1 s = 45 m, one change (BV 11); cooperative = BV 12, 10 m
+    assert f["by_policy"] == {"competitive": {"lane_changes": 1, "vehicle_km": pytest.approx(0.045)},
+                              "cooperative": {"lane_changes": 0, "vehicle_km": pytest.approx(0.010)}}
+    from evoscen_eval.bv_realism import lane_changes_per_km_by_policy
+
+    assert lane_changes_per_km_by_policy(f) == {"competitive": pytest.approx(1.0 / 0.045), "cooperative": 0.0}
+    assert lane_changes_per_km_by_policy(combine([f, f])) == {"competitive": pytest.approx(1.0 / 0.045),
+                                                              "cooperative": 0.0}
 
 
 def test_thw_filters_slow_vehicles_and_far_leaders():
