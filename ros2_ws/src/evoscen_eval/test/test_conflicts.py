@@ -226,13 +226,17 @@ def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, expected)
     assert cf["lane_change_pet"][0]["follower_id"] == 1 and 0.0 < cf["min_pet_s"] < 1.0
 
 
-def test_live_monitor_equals_the_evaluator_on_a_simulated_run():
-    """800 steps of the default scenario with a lane-changing SUT (Nilsson) and a 4 s threshold,
-    so that rear conflicts attributed to the SUT occur: live exposure events == the evaluator's."""
+@pytest.mark.parametrize("mode", ["all", "after_lane_change"])
+def test_live_monitor_equals_the_evaluator_on_a_simulated_run(mode):
+    """800 steps of the default scenario with a lane-changing SUT (Nilsson) and a 4 s threshold:
+    live exposure events == the evaluator's. With ``all`` rear conflicts must take part (a
+    follower within 4 s TTC or braking hard somewhere in 80 s of dense traffic); with
+    ``after_lane_change`` whether they do depends on the traffic, the equality must hold anyway."""
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None, {"steps": 800, "sut.model": "nilsson", "evaluation.ttc_threshold_s": 4.0})
+    cfg = load_scenario_config(None, {"steps": 800, "sut.model": "nilsson", "evaluation.ttc_threshold_s": 4.0,
+                                      "evaluation.rear_conflicts": mode})
     sc = build_scenario(cfg)
     w = sc.world
     acc = RunAccumulator()
@@ -244,7 +248,8 @@ def test_live_monitor_equals_the_evaluator_on_a_simulated_run():
         live += monitor.observe(w)
     acc.add_world_columns(w.columns(), w.time_ns)
     s = evaluate(acc.run_data(), cfg.evaluation)["safety"]
-    assert sum(x["rear_states"] for x in s["exposure_list"]) > 0  # the rear term took part
+    if mode == "all":
+        assert sum(x["rear_states"] for x in s["exposure_list"]) > 0  # the rear term took part
     assert [e["step"] for e in live if e["kind"] == "start"] == [x["start_state"] for x in s["exposure_list"]]
     assert [e["steps"] for e in live if e["kind"] == "end"] == [x["states"] for x in s["exposure_list"]
                                                                   if not x["open_at_end"]]
