@@ -428,6 +428,9 @@ class ControlConfig:
     """Heading-error PID derivative gain (dimensionless)."""
     max_lateral_speed_mps: float = field(default=0.6, metadata=_POSITIVE)
     """Cap on the commanded lateral speed while changing lanes (m/s), > 0."""
+    max_heading_ref_rad: float = field(default=0.2, metadata=_check(_Float(0.0, 1.5, lo_open=True)))
+    """Cap on the heading reference of the lateral loop (rad), (0, 1.5]; binds only below
+    max_lateral_speed_mps / sin(cap) (~3 m/s), see evoscen_sim.control."""
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,12 @@ line, producing steering". Our reading, vectorized over vehicles:
    ``w = kp_d e_d + ki_d ∫e_d + kd_d de_d/dt`` (m/s), saturated at
    ``±max_lateral_speed_mps``; the heading reference is ``psi_ref = asin(w / v)``. The
    saturation sets how long a lane change takes: ~0.6 m/s moves the centre of mass the
-   1.75 m to the lane boundary in about 3.5 s at any speed.
+   1.75 m to the lane boundary in about 3.5 s at any speed above ~3 m/s.
+   [choice] ``psi_ref`` is capped at ``±max_heading_ref_rad`` [0.2 rad, 11.5°]: below
+   ``max_lateral_speed / sin(0.2)`` ≈ 3 m/s the demanded lateral speed would otherwise
+   turn a crawling car 30–90° across its lane, and when it accelerated again it swung over
+   the far lane line (a learned BV merging in stop-and-go traffic left the road this way).
+   Above ~3 m/s the cap never binds, so highway-speed behaviour is unchanged to the bit.
 2. Heading PID (inner loop). ``e_psi = psi_ref - psi`` gives a heading-rate demand
    ``r = kp_psi e_psi + ki_psi ∫e_psi + kd_psi de_psi/dt`` (1/s), turned into steering
    with the bicycle relation ``delta = atan(L (r / v + kappa))`` — the ``kappa`` term is
@@ -38,6 +43,7 @@ class ControlParams:
     head_ki: float = 0.0
     head_kd: float = 0.0
     max_lateral_speed_mps: float = 0.6
+    max_heading_ref_rad: float = 0.2
 
 
 _MIN_SPEED_MPS = 1.0  # below this the speed scheduling uses 1 m/s (avoids division by ~0)
@@ -73,25 +79,25 @@ class DualPidController:
         return _dual_pid_kernel(
             d, psi, v, d_target, kappa, self.int_d, self.int_psi, self.prev_e_d, self.prev_e_psi, self.fresh,
             p.lat_kp, p.lat_ki, p.lat_kd, p.head_kp, p.head_ki, p.head_kd, p.max_lateral_speed_mps,
-            self.wheelbase_m, self.dt_s,
+            p.max_heading_ref_rad, self.wheelbase_m, self.dt_s,
         )
 
 
 @kernel
 def _dual_pid_kernel(d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,  # noqa: ANN001, ANN202
-                     lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, wheelbase, dt):
+                     lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading, wheelbase, dt):
     n = d.shape[0]
     steer = np.empty(n)
     for i in range(n):
         steer[i] = dual_pid_one(i, d[i], psi[i], v[i], d_target[i], kappa[i], int_d, int_psi, prev_e_d,
                                 prev_e_psi, fresh, lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd,
-                                max_lat_speed, wheelbase, dt)
+                                max_lat_speed, max_heading, wheelbase, dt)
     return steer
 
 
 @kernel
 def dual_pid_one(i, d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,  # noqa: ANN001, ANN201
-                 lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, wheelbase, dt):
+                 lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading, wheelbase, dt):
     """Steering request of vehicle ``i`` (compiled; updates the loop memory arrays at ``i``)."""
     v_eff = max(v, _MIN_SPEED_MPS)
     # outer loop: lateral offset -> lateral-speed demand -> heading reference
@@ -101,6 +107,7 @@ def dual_pid_one(i, d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e
     w = lat_kp * e_d + lat_ki * int_d[i] + lat_kd * de_d
     w = min(max(w, -max_lat_speed), max_lat_speed)
     psi_ref = np.arcsin(min(max(w / v_eff, -1.0), 1.0))
+    psi_ref = min(max(psi_ref, -max_heading), max_heading)  # [choice] a car needs forward motion to move sideways
     # inner loop: heading error -> heading-rate demand -> steering (+ curvature feed-forward)
     e_psi = psi_ref - psi
     int_psi[i] += e_psi * dt

@@ -33,6 +33,7 @@ def control_params_from_config(cfg) -> ControlParams:
         head_ki=c.head_ki,
         head_kd=c.head_kd,
         max_lateral_speed_mps=c.max_lateral_speed_mps,
+        max_heading_ref_rad=c.max_heading_ref_rad,
     )
 
 

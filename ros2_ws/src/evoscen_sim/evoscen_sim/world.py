@@ -221,7 +221,7 @@ class World:
             self.s, self.d, self.psi, self.v, self.accel, self.steer,
             c.int_d, c.int_psi, c.prev_e_d, c.prev_e_psi, c.fresh,
             cp.lat_kp, cp.lat_ki, cp.lat_kd, cp.head_kp, cp.head_ki, cp.head_kd, cp.max_lateral_speed_mps,
-            vp.wheelbase_m, vp.max_speed_mps, vp.max_accel_mps2, vp.max_brake_mps2,
+            cp.max_heading_ref_rad, vp.wheelbase_m, vp.max_speed_mps, vp.max_accel_mps2, vp.max_brake_mps2,
             vp.max_steer_rad, vp.max_steer_rate_radps * self.dt_s, self.dt_s,
         )
         self.step_index += 1
@@ -323,7 +323,7 @@ class World:
 def _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, lane_change_start_s,  # noqa: ANN001, ANN202, PLR0913
                     d_right, d_left, present, kappa, s, d, psi, v, accel, steer,
                     int_d, int_psi, prev_e_d, prev_e_psi, fresh,
-                    lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed,
+                    lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading,
                     wheelbase, max_speed, max_accel, max_brake, max_steer, max_steer_step, dt):
     """Steps 1 and 2 of :meth:`World.step` for every vehicle, state updated in place."""
     n = s.shape[0]
@@ -348,7 +348,8 @@ def _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, l
         tl = target_lane[i]
         d_target = 0.5 * (d_right[i, tl] + d_left[i, tl])
         cmd = dual_pid_one(i, d[i], psi[i], v[i], d_target, kappa[i], int_d, int_psi, prev_e_d, prev_e_psi,
-                           fresh, lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, wheelbase, dt)
+                           fresh, lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading,
+                           wheelbase, dt)
         delta = steer[i] + min(max(cmd - steer[i], -max_steer_step), max_steer_step)
         steer[i] = min(max(delta, -max_steer), max_steer)
         # throttle/brake command -> acceleration (as evoscen_sim.vehicle.throttle_to_accel)

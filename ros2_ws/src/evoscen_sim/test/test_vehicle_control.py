@@ -307,3 +307,18 @@ def test_lane_change_into_ending_lane_is_not_left_pending(road: RoadModel) -> No
     assert abs(w.d[0] - CENTRE[1]) < 0.05
     res = w.step(np.zeros(1), np.array([1]))
     assert res.executed_lane_change[0] == 1
+
+
+def test_heading_reference_is_capped_at_low_speed_only() -> None:
+    """psi_ref = asin(w / v) capped at max_heading_ref_rad (evoscen_sim.control): by hand, one step, P gains only."""
+    import math
+
+    p = ControlParams()  # kp_d 0.8, kp_psi 3.0, w cap 0.6 m/s, heading cap 0.2 rad
+    L = 2.9
+    # 2 m off the target line -> w = min(0.8 * 2, 0.6) = 0.6 m/s
+    for v, psi_ref in ((1.0, 0.2),                       # asin(0.6) = 0.6435 > 0.2: capped
+                       (2.0, 0.2),                       # asin(0.3) = 0.3047: capped
+                       (30.0, math.asin(0.6 / 30.0))):   # 0.0200: unchanged
+        c = DualPidController(1, p, L, 0.1)
+        steer = c.steering(np.array([0.0]), np.array([0.0]), np.array([v]), np.array([2.0]), np.array([0.0]))
+        assert steer[0] == pytest.approx(math.atan(L * (3.0 * psi_ref / v)), rel=1e-12)
