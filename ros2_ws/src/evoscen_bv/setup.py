@@ -1,4 +1,5 @@
 
+import os
 from glob import glob
 
 from setuptools import find_packages, setup
@@ -14,7 +15,9 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", ["evoscen_bv/config/training.yaml"]),
-        ("share/" + package_name + "/policies", sorted(glob("policies/*"))),
+        ("share/" + package_name + "/policies", sorted(f for f in glob("policies/*") if os.path.isfile(f))),
+        # the round-1 set (trained at 40k/20k steps under the safety_net rules), selectable as policy_dir: round1
+        ("share/" + package_name + "/policies/round1", sorted(glob("policies/round1/*"))),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -21,6 +21,10 @@ from evoscen_sim.scenario_params import vehicle_params_from_config
 from .level0 import Level0Driver, level0_params_from_config
 
 SHIPPED = "shipped"
+SHIPPED_SETS = {SHIPPED: "", "round1": "round1"}
+"""``policy_dir`` keywords of the shipped policy sets: ``shipped`` = the current set (trained at
+the method's scale under the ``driver`` profile), ``round1`` = round 1's set (40k controller /
+20k decision steps, trained under the ``safety_net`` rules), kept selectable."""
 
 
 @dataclass(frozen=True)
@@ -30,8 +34,9 @@ class LearnedParams:
     policy_dir: str = text(SHIPPED)
     """Directory of trained policies (``controller.npz``, ``mutual.npz``, ``competitive.npz``,
     ``cooperative.npz``, ``training.yaml``), as written by ``scripts/train_bv.py --out``;
-    ``shipped`` (default) = the policies shipped in ``share/evoscen_bv/policies``. A relative
-    path is relative to the working directory."""
+    ``shipped`` (default) = the policies shipped in ``share/evoscen_bv/policies``, ``round1`` =
+    round 1's set in ``policies/round1`` (:data:`SHIPPED_SETS`). A relative path is relative to
+    the working directory."""
     on_missing: str = text("error", ("error", "level0"))
     """What to do when the policy directory lacks policies: ``error`` (one-line error, the
     default) or ``level0`` (drive every BV with the level-0 driver instead)."""
@@ -49,7 +54,10 @@ def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
 def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN202
     from .learned import LearnedDriver, load_policies, shipped_policy_dir
 
-    directory = shipped_policy_dir() if params.policy_dir == SHIPPED else Path(params.policy_dir)
+    if params.policy_dir in SHIPPED_SETS:
+        directory = shipped_policy_dir() / SHIPPED_SETS[params.policy_dir]
+    else:
+        directory = Path(params.policy_dir)
     try:
         controller, decisions, training = load_policies(directory)
     except InputError as exc:

@@ -92,3 +92,19 @@ def test_competitive_changes_lanes_most_and_collisions_are_rare():
     assert competitive > mutual > cooperative, rates
     # rare: at most two collisions among learned BVs in the 6.7 vehicle-hours (measured: one, at 3 m/s)
     assert collisions <= 2, (collisions, vehicle_hours)
+
+
+def test_round1_set_is_selectable_and_records_its_training_profile():
+    """``policy_dir: round1`` loads round 1's set (kept selectable); it was trained under safety_net."""
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.config import load_scenario_config
+
+    round1 = shipped_policy_dir() / "round1"
+    assert load_policies(round1)[2].env.profile == "safety_net"
+    assert load_policies(shipped_policy_dir())[2].env.profile == "driver"
+    cfg = load_scenario_config(None, {"steps": 20, "bvs.driver": "learned", "models.learned.policy_dir": "round1",
+                                      "models.learned.profile": "safety_net"})
+    sc = build_scenario(cfg)
+    for _ in range(20):
+        sc.step()
+    assert sc.world.step_index == 20
