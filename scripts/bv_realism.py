@@ -2,7 +2,7 @@
 """Realism figures of learned BVs per run-time profile (docs/bv-profiles.md).
 
     python scripts/bv_realism.py [--profiles driver safety_net] [--seeds 1 2 3 4 5]
-                                 [--steps 3000] [--sut level0] [--config FILE] [--json OUT]
+                                 [--steps 3000] [--sut level0] [--config FILE] [--policy-dir DIR] [--json OUT]
                                  [--cut-in-headway H]
 
 Runs every (profile, seed) in process (``bvs.driver: learned``, no bag) and prints, per
@@ -39,6 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--sut", default=None, help="SUT model (default: the config's)")
     ap.add_argument("--config", type=Path, default=None, help="scenario YAML (default: the shipped default)")
+    ap.add_argument("--policy-dir", default=None,
+                    help="models.learned.policy_dir: shipped (default), round1, or a train_bv.py --out directory")
     ap.add_argument("--cut-in-headway", type=float, default=None, metavar="H",
                     help="measure with the profiles' cut-in closing headway h replaced by H s (0: the method's plain 10 m)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
@@ -64,13 +66,19 @@ def main(argv: list[str] | None = None) -> int:
                          "models.learned.profile": profile}
             if args.sut:
                 overrides["sut.model"] = args.sut
+            if args.policy_dir:
+                overrides["models.learned.policy_dir"] = args.policy_dir
             try:
                 cfg = load_scenario_config(args.config, overrides)
             except InputError as exc:
                 print(f"error: {exc}", file=sys.stderr)
                 return 2
             t0 = time.perf_counter()
-            summary = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False)
+            try:
+                summary = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False)
+            except InputError as exc:  # e.g. a policy directory that cannot be loaded
+                print(f"error: {exc}", file=sys.stderr)
+                return 2
             f = bv_realism(summary.run)
             figures.append(f)
             print(f"{profile} seed {seed}: {f['bv_lane_changes']} BV lane changes, {f['bv_bv_collisions']} BV-BV "
