@@ -142,9 +142,12 @@ computed with the code before profiles existed (commit 33305ed) on the developme
 
 
 def test_safety_net_reproduces_the_old_commands_exactly():
-    assert _commands_digest({"models": {"learned": {"profile": "safety_net"}}}, 400) == OLD_COMMANDS_SHA256
-    # the default (driver) profile drives differently
-    assert _commands_digest({}, 400) != OLD_COMMANDS_SHA256
+    # the old commands came from round 1's policies (shipped then; kept as policy_dir: round1) and a
+    # lateral loop without the heading-reference cap (evoscen_sim.control; 1.5 rad never binds: asin(0.6) < 0.65)
+    old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "round1"}}, "control.max_heading_ref_rad": 1.5}
+    assert _commands_digest(old, 400) == OLD_COMMANDS_SHA256
+    # the driver profile drives differently
+    assert _commands_digest({"models": {"learned": {"policy_dir": "round1"}}}, 400) != OLD_COMMANDS_SHA256
 
 
 def test_cut_in_gap_headway_is_a_parameter(road):
@@ -175,7 +178,8 @@ def test_training_config_records_the_profile(tmp_path, policies):
     from evoscen_bv.training_config import load_training_config
 
     assert load_training_config().env.profile == "driver"  # new trainings: the driver profile
-    assert policies[2].env.profile == "safety_net"  # the shipped policies were trained with the old rules
+    assert policies[2].env.profile == "driver"  # the shipped (round-2) policies were trained under driver
+    assert load_policies(shipped_policy_dir() / "round1")[2].env.profile == "safety_net"  # round 1's: the old rules
     (tmp_path / "t.yaml").write_text("env: {profile: safety_net}\n")
     cfg = load_training_config(tmp_path / "t.yaml")
     assert cfg.to_dict()["env"]["profile"] == "safety_net"
