@@ -221,7 +221,7 @@ def load_policies(directory: Path | str) -> tuple[NumpyActor, dict[int, NumpyAct
     """Controller, decision actors by policy code, and training config from a policy directory."""
     directory = Path(directory)
     if not directory.is_dir():
-        raise InputError(f"models.learned.policy_dir: {directory} is not a directory")
+        raise InputError(f"{directory} is not a directory")
     cfg_path = directory / "training.yaml"
     if not cfg_path.is_file():
         raise InputError(f"{directory}: no training.yaml (the training config the policies were trained with)")

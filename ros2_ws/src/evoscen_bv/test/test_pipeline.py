@@ -138,6 +138,11 @@ def test_bad_policy_dir_is_one_line(tmp_path):
     scen = config_from_dict({"bvs": {"driver": "learned"}, "models": {"learned": {"policy_dir": str(tmp_path)}}})
     with pytest.raises(InputError, match=r"models\.learned\.policy_dir = .*no training\.yaml"):
         build_bv_driver(scen)
+    missing = tmp_path / "nowhere"
+    scen = config_from_dict({"bvs": {"driver": "learned"}, "models": {"learned": {"policy_dir": str(missing)}}})
+    with pytest.raises(InputError) as e:
+        build_bv_driver(scen)
+    assert str(e.value) == f"models.learned.policy_dir = {missing}: {missing} is not a directory"
     fallback = config_from_dict({"bvs": {"driver": "learned"},
                                  "models": {"learned": {"policy_dir": str(tmp_path), "on_missing": "level0"}}})
     from evoscen_bv.level0 import Level0Driver
