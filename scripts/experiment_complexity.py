@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from experiment_intelligence import positive_int
+from experiment_intelligence import distinct_names, positive_int
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -53,9 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         n_rounds = positive_int("--rounds", args.rounds)
         first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
-        scenarios = [s.strip() for s in args.scenarios.split(",") if s.strip()]
-        if not scenarios or len(set(scenarios)) != len(scenarios):
-            raise InputError(f"--scenarios {args.scenarios!r}: expected distinct comma-separated names")
+        scenarios = distinct_names("--scenarios", args.scenarios)
         rounds = []
         for name in scenarios:
             for seed in range(first, first + n_rounds):

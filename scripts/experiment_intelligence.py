@@ -52,6 +52,16 @@ def positive_int(name: str, text: str, lo: int = 1) -> int:
     return value
 
 
+def distinct_names(option: str, text: str, what: str = "names") -> list[str]:
+    """The comma-separated ``text`` of ``option`` as a list: non-empty, no name twice (else a one-line InputError)."""
+    from evoscen_sim.errors import InputError
+
+    names = [s.strip() for s in text.split(",") if s.strip()]
+    if not names or len(set(names)) != len(names):
+        raise InputError(f"{option} {text!r}: expected distinct comma-separated {what}")
+    return names
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds_with_bar, write_csv
@@ -62,9 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         seeds = positive_int("--seeds", args.seeds)
         first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
-        suts = [s.strip() for s in args.suts.split(",") if s.strip()]
-        if not suts or len(set(suts)) != len(suts):
-            raise InputError(f"--suts {args.suts!r}: expected distinct comma-separated SUT model names")
+        suts = distinct_names("--suts", args.suts, "SUT model names")
         rounds = []
         for sut in suts:  # every override gets the config's validation (one-line errors)
             for seed in range(first, first + seeds):

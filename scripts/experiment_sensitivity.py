@@ -28,7 +28,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from experiment_intelligence import positive_int
+from experiment_intelligence import distinct_names, positive_int
 
 INTACT = "intact"
 
@@ -48,15 +48,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def _names(option: str, text: str) -> list[str]:
-    from evoscen_sim.errors import InputError
-
-    names = [s.strip() for s in text.split(",") if s.strip()]
-    if not names or len(set(names)) != len(names):
-        raise InputError(f"{option} {text!r}: expected distinct comma-separated names")
-    return names
-
-
 def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear report
     args = parse_args(argv)
     from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds_with_bar, write_csv
@@ -69,9 +60,9 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
         seeds = positive_int("--seeds", args.seeds)
         first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
-        bases = _names("--base", args.base)
-        scenarios = _names("--scenarios", args.scenarios)
-        mutants = list(LIBRARY) if args.mutants.strip() == "all" else _names("--mutants", args.mutants)
+        bases = distinct_names("--base", args.base)
+        scenarios = distinct_names("--scenarios", args.scenarios)
+        mutants = list(LIBRARY) if args.mutants.strip() == "all" else distinct_names("--mutants", args.mutants)
         unknown = [m for m in mutants if m not in LIBRARY]
         if unknown:
             raise InputError(f"--mutants: unknown mutant {unknown[0]!r}: expected 'all' or names from "
