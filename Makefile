@@ -16,7 +16,7 @@ PYTEST_ARGS ?=
 
 setup: $(REQ_STAMP) build
 
-$(REQ_STAMP): requirements.txt
+$(REQ_STAMP): requirements.txt requirements-runtime.txt
 	@$(PYTHON_BOOT) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null || { \
 	    echo "error: Python 3.11 not found (PYTHON_BOOT='$(PYTHON_BOOT)'); the ROS 2 Jazzy wheels need CPython 3.11: install it or run make PYTHON_BOOT=/path/to/python3.11"; exit 2; }
 	test -x $(PY) || $(PYTHON_BOOT) -m venv $(VENV)
@@ -44,3 +44,20 @@ bench: setup $(BENCH_STAMP)
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log runs
+
+# --- containers (docs/docker.md): docker or podman, whichever is installed --------------------------
+.PHONY: docker-build docker-test docker-demo
+DOCKER_DEMO_OUT ?= runs/docker-demo
+
+docker-build:
+	bash docker/build.sh test runtime user-sut
+
+# the whole suite inside the test image, no network (loopback only: DDS stays inside the container)
+docker-test:
+	bash docker/build.sh test
+	bash -c '. docker/engine.sh && $$ENGINE run --rm --network none --shm-size=256m localhost/evoscen-test:latest make test'
+
+# the default scenario as a compose graph (one container per node); bag and report in DOCKER_DEMO_OUT
+docker-demo:
+	bash docker/build.sh runtime
+	bash docker/compose-run.sh --out $(DOCKER_DEMO_OUT) -- --steps 3000 --seed 0

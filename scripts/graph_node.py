@@ -1,0 +1,106 @@
+#!/usr/bin/env python3
+"""Run ONE node of the evoscen graph in this process (for containers: one node per container).
+
+    python scripts/graph_node.py NODE [--config FILE] [--steps N] [--seed S] [--sut NAME]
+                                 [--bvs N] [--mix C:M:K] [--out DIR] [--overwrite] [--no-plots]
+                                 [--external-sut] [--deadline S] [--max-misses N]
+                                 [--startup-timeout S]
+
+NODE is ``sim``, ``bv``, ``sut`` or ``eval``. Every container of a graph must get the same
+scenario options: each writes the same parameter files that ``run_scenario.py --mode graph``
+writes (``evoscen_bringup.graph_runner.write_parameter_files``) and then becomes its node
+(``python -m <package>.<node> --ros-args --params-file ...``), so the bag is the one the
+one-machine graph writes. ``ROS_DOMAIN_ID`` comes from the environment (required);
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` too (default LOCALHOST); ``EVOSCEN_GRAPH_ARGS`` (shell words) is
+appended to the arguments, so one variable gives every container the same scenario options. The evaluator writes the bag to
+``DIR/bag`` and the report to ``DIR/report``. Exit status: the node's (docs/docker.md).
+Bad input prints one line ``error: ...`` and exits 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import sys
+import tempfile
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+
+NODE_NAMES = {"sim": "evoscen_sim", "bv": "evoscen_bv", "sut": "evoscen_sut", "eval": "evoscen_eval"}
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="graph_node.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("node", choices=sorted(NODE_NAMES), help="the node this process becomes")
+    ap.add_argument("--config", type=Path, default=None, help="scenario YAML (default: the shipped default)")
+    ap.add_argument("--steps", help="number of steps (overrides 'steps')")
+    ap.add_argument("--seed", help="random seed (overrides 'seed')")
+    ap.add_argument("--sut", help="SUT model name (overrides 'sut.model')")
+    ap.add_argument("--bvs", help="number of background vehicles (overrides 'bvs.count')")
+    ap.add_argument("--mix", help="policy mix competitive:mutual:cooperative (overrides 'bvs.mix')")
+    ap.add_argument("--out", type=Path, default=Path("/data/run"), help="output directory of the evaluator")
+    ap.add_argument("--overwrite", action="store_true", help="eval: replace an existing bag and report in DIR")
+    ap.add_argument("--no-plots", action="store_true", help="eval: report.json and report.md only")
+    ap.add_argument("--external-sut", action="store_true", help="a user's node answers on /evoscen/commands/sut")
+    ap.add_argument("--deadline", type=float, default=2.0, help="per-step controller deadline (s)")
+    ap.add_argument("--max-misses", type=int, default=5, help="consecutive missed deadlines that abort")
+    ap.add_argument("--startup-timeout", type=float, default=60.0, help="how long the nodes wait for each other (s)")
+    return ap.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:  # the graph's scenario options, shared by every container (docker/compose.yaml)
+        argv += shlex.split(os.environ.get("EVOSCEN_GRAPH_ARGS", ""))
+    except ValueError as exc:
+        print(f"error: EVOSCEN_GRAPH_ARGS: {exc} (expected shell words, e.g. '--steps 3000 --seed 0')",
+              file=sys.stderr)
+        return 2
+    args = parse_args(argv)
+    from evoscen_bringup.graph_runner import NODES, GraphOptions, node_environment, write_parameter_files
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.errors import InputError
+
+    name = NODE_NAMES[args.node]
+    domain = os.environ.get("ROS_DOMAIN_ID", "")
+    if not domain.isdigit() or not 0 <= int(domain) <= 232:
+        print(f"error: ROS_DOMAIN_ID = {domain!r}: expected an integer in [0, 232] in the environment "
+              "(every node of the graph needs the same one)", file=sys.stderr)
+        return 2
+    discovery = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    for flag, value, ok, allowed in (("--deadline", args.deadline, args.deadline > 0, "a number > 0 (s)"),
+                                     ("--max-misses", args.max_misses, args.max_misses >= 1, "an integer >= 1"),
+                                     ("--startup-timeout", args.startup_timeout, args.startup_timeout > 0,
+                                      "a number > 0 (s)")):
+        if not ok:
+            print(f"error: {flag} = {value}: expected {allowed}", file=sys.stderr)
+            return 2
+    overrides = {key: value for key, value in (
+        ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
+        ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+    try:
+        cfg = load_scenario_config(args.config, overrides)
+        out = args.out
+        bag_dir, report_dir = out / "bag", out / "report"
+        if name == "evoscen_eval":
+            from run_scenario import prepare_output  # the same checks as run_scenario.py (free bag dir)
+
+            prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    opts = GraphOptions(domain_id=int(domain), discovery_range=discovery, deadline_s=args.deadline,
+                        max_misses=args.max_misses, startup_timeout_s=args.startup_timeout,
+                        external_sut=args.external_sut, report_dir=report_dir, report_plots=not args.no_plots)
+    params = write_parameter_files(cfg, Path(tempfile.mkdtemp(prefix="evoscen-params-")), bag_dir, opts)
+    module = dict(NODES)[name]
+    env = node_environment(int(domain), discovery)
+    print(f"graph_node: {name} (ROS_DOMAIN_ID={domain}, discovery {discovery})", file=sys.stderr, flush=True)
+    os.execve(sys.executable, [sys.executable, "-m", module, "--ros-args", "--params-file", str(params[name])], env)
+    return 0  # not reached
+
+
+if __name__ == "__main__":
+    sys.exit(main())
