@@ -145,6 +145,8 @@ class TableDecodeError(ValueError):
 
 
 _FIELDS_CACHE: dict[int, list[tuple[bytes, tuple[str, ...], int]]] = {}
+#: Field-list blocks remembered per offset: a flood of tables with ever new columns cannot grow the cache.
+_FIELDS_CACHE_MAX: int = 8
 
 
 class DecodedTable(NamedTuple):
@@ -170,10 +172,12 @@ def decode_table(data: bytes | memoryview) -> DecodedTable:
     (rclpy's, ours, with any frame id). The array is a read-only view of ``data``.
 
     Raises:
-        TableDecodeError: not little-endian CDR, not a table, or inconsistent sizes.
+        TableDecodeError: not little-endian CDR, not a table, or inconsistent sizes — for any
+            input bytes, never another exception (text that is not UTF-8, a message cut short
+            and a negative size all end here).
     """
     buf = bytes(data)
-    if len(buf) < 16 or buf[1] != 1:
+    if len(buf) < 16 or buf[0] != 0 or buf[1] != 1:
         raise TableDecodeError("not little-endian CDR")
     sec, nanosec = struct.unpack_from("<iI", buf, 4)
     pos = 12
@@ -209,15 +213,19 @@ def decode_table(data: bytes | memoryview) -> DecodedTable:
                     raise TableDecodeError(f"field {name!r} is not the FLOAT64 column {k}")
                 names.append(name)
             cached = (tuple(names), pos)
-            _FIELDS_CACHE.setdefault(start, []).append((buf[start:pos], *cached))
+            if len(_FIELDS_CACHE.get(start, ())) < _FIELDS_CACHE_MAX:
+                _FIELDS_CACHE.setdefault(start, []).append((buf[start:pos], *cached))
         fields, pos = cached
-        if buf[pos] != 0:
+        (big_endian,) = struct.unpack_from("<B", buf, pos)
+        if big_endian != 0:
             raise TableDecodeError("big-endian table")
         pos = align(pos + 1, 4)
         point_step, row_step, n_data = struct.unpack_from("<III", buf, pos)
         pos += 12
     except struct.error as exc:
         raise TableDecodeError(f"truncated message ({exc})") from None
+    except UnicodeDecodeError as exc:
+        raise TableDecodeError(f"text is not UTF-8 ({exc.reason} at byte {exc.start})") from None
     nf = len(fields)
     if point_step != CELL_BYTES * nf or row_step != point_step * width or n_data != row_step * height \
             or pos + n_data > len(buf):

@@ -179,3 +179,166 @@ def duration(seconds: float):  # noqa: ANN201
     from rclpy.duration import Duration
 
     return Duration(nanoseconds=int(seconds * 1e9))
+
+
+# --------------------------------------------------------------------------- message sources
+
+GID_BYTES = 16
+"""Bytes of a publisher GID compared (``RMW_GID_STORAGE_SIZE`` in Jazzy)."""
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
+"""What the graph shows for an endpoint whose node is not (yet) known."""
+
+
+class _Rcl:
+    """``rcl_take_serialized_message`` through ctypes: rclpy (Jazzy) hands a raw subscription the
+    bytes, the timestamps and sequence numbers of a message, but not its ``publisher_gid``; rcl
+    does (``rmw_message_info_t``). Loaded once; :attr:`error` says why not when it cannot be."""
+
+    _instance = None
+
+    def __init__(self) -> None:
+        import ctypes
+
+        self.ctypes = ctypes
+        self.error = ""
+
+        class Alloc(ctypes.Structure):
+            _fields_ = [("allocate", ctypes.c_void_p), ("deallocate", ctypes.c_void_p),
+                        ("reallocate", ctypes.c_void_p), ("zero_allocate", ctypes.c_void_p),
+                        ("state", ctypes.c_void_p)]
+
+        class U8Array(ctypes.Structure):
+            _fields_ = [("buffer", ctypes.c_void_p), ("buffer_length", ctypes.c_size_t),
+                        ("buffer_capacity", ctypes.c_size_t), ("allocator", Alloc)]
+
+        class Gid(ctypes.Structure):
+            _fields_ = [("implementation_identifier", ctypes.c_char_p), ("data", ctypes.c_uint8 * GID_BYTES)]
+
+        class Info(ctypes.Structure):
+            _fields_ = [("source_timestamp", ctypes.c_int64), ("received_timestamp", ctypes.c_int64),
+                        ("publication_sequence_number", ctypes.c_uint64),
+                        ("reception_sequence_number", ctypes.c_uint64),
+                        ("publisher_gid", Gid), ("from_intra_process", ctypes.c_bool)]
+
+        self.U8Array, self.Info, self.Alloc = U8Array, Info, Alloc
+        try:
+            rcl = ctypes.CDLL("librcl.so")  # already loaded by rclpy: the same library
+            rcutils = ctypes.CDLL("librcutils.so")
+            rcutils.rcutils_get_default_allocator.restype = Alloc
+            rcutils.rcutils_uint8_array_init.argtypes = [ctypes.POINTER(U8Array), ctypes.c_size_t,
+                                                         ctypes.POINTER(Alloc)]
+            rcl.rcl_take_serialized_message.argtypes = [ctypes.c_void_p, ctypes.POINTER(U8Array),
+                                                        ctypes.POINTER(Info), ctypes.c_void_p]
+            rcl.rcl_take_serialized_message.restype = ctypes.c_int32
+            self.rcl, self.rcutils = rcl, rcutils
+        except (OSError, AttributeError) as exc:
+            self.error = f"rcl not reachable through ctypes ({exc})"
+
+    @classmethod
+    def get(cls) -> _Rcl:
+        if cls._instance is None:
+            cls._instance = cls()
+        return cls._instance
+
+
+RCL_RET_OK, RCL_RET_SUBSCRIPTION_TAKE_FAILED = 0, 401
+
+
+class SourceTaker:
+    """Takes the messages of one raw subscription together with their publisher's GID.
+
+    :meth:`take` returns ``(bytes, gid)`` — ``gid`` the 16 bytes of the publishing endpoint,
+    equal to ``TopicEndpointInfo.endpoint_gid`` of that publisher in the graph — or None when
+    nothing is waiting. Where rcl cannot be reached through ctypes (:attr:`per_message` False)
+    it falls back to rclpy's take with ``gid`` None; the callers then check publisher counts.
+    """
+
+    def __init__(self, sub) -> None:  # noqa: ANN001
+        self.sub = sub
+        rcl = _Rcl.get()
+        self.per_message = not rcl.error
+        self.why_not = rcl.error
+        if self.per_message:
+            self._rcl = rcl
+            self._ptr = sub.handle.pointer
+            self._msg = rcl.U8Array()
+            self._info = rcl.Info()
+            alloc = rcl.rcutils.rcutils_get_default_allocator()
+            if rcl.rcutils.rcutils_uint8_array_init(rcl.ctypes.byref(self._msg), 1024, rcl.ctypes.byref(alloc)):
+                self.per_message, self.why_not = False, "rcutils_uint8_array_init failed"
+
+    def take(self) -> tuple[bytes, bytes | None] | None:
+        if not self.per_message:
+            data = MessagePump.take(self.sub)
+            return None if data is None else (data, None)
+        c = self._rcl.ctypes
+        ret = self._rcl.rcl.rcl_take_serialized_message(self._ptr, c.byref(self._msg), c.byref(self._info), None)
+        if ret == RCL_RET_SUBSCRIPTION_TAKE_FAILED:
+            return None
+        if ret != RCL_RET_OK:
+            raise RuntimeError(f"rcl_take_serialized_message on {self.sub.topic_name}: rcl error {ret}")
+        return c.string_at(self._msg.buffer, self._msg.buffer_length), bytes(self._info.publisher_gid.data)
+
+
+def gid_text(gid: bytes | None) -> str:
+    """A GID as rclpy prints endpoint GIDs (dotted hex), or ``unknown``."""
+    return ".".join(f"{b:02x}" for b in gid) if gid is not None else "unknown"
+
+
+def publisher_names(node: Node, topic: str) -> dict[bytes, str]:
+    """``{publisher GID: node name}`` of every publisher of ``topic`` the graph knows now."""
+    return {bytes(info.endpoint_gid[:GID_BYTES]): str(info.node_name)
+            for info in node.get_publishers_info_by_topic(topic)}
+
+
+class SourceGate:
+    """Which publishers a subscriber trusts on each topic: those of the nodes the contract names.
+
+    ``trusted``: ``{topic: node names}`` (None: any node but ``exclude``; the first such
+    publisher is then pinned and no other is trusted — an external SUT node). A GID is looked
+    up in the graph once (retried for up to ``resolve_s`` while its node name is not known yet,
+    as happens just after discovery) and the verdict kept.
+    """
+
+    def __init__(self, node: Node, trusted: Mapping[str, Iterable[str] | None], *,
+                 exclude: Iterable[str] = (), resolve_s: float = 2.0) -> None:
+        self.node = node
+        self.trusted = {t: (None if names is None else frozenset(names)) for t, names in trusted.items()}
+        self.exclude = frozenset(exclude)
+        self.resolve_s = resolve_s
+        self._verdicts: dict[tuple[str, bytes], bool] = {}
+        self._pinned: dict[str, bytes] = {}
+        self._names: dict[tuple[str, bytes], str] = {}
+
+    def name_of(self, topic: str, gid: bytes | None) -> str:
+        """The publisher as text: its GID and, when known, its node name."""
+        name = self._names.get((topic, gid)) if gid is not None else None
+        return gid_text(gid) + (f" (node '{name}')" if name and name != UNKNOWN_NODE else "")
+
+    def allows(self, topic: str, gid: bytes | None) -> bool:
+        """Whether a message of ``topic`` from ``gid`` is trusted (None: no per-message GID: yes)."""
+        if gid is None or topic not in self.trusted:
+            return True
+        key = (topic, gid)
+        verdict = self._verdicts.get(key)
+        if verdict is None:
+            import time
+
+            end = time.monotonic() + self.resolve_s
+            while True:
+                name = publisher_names(self.node, topic).get(gid)
+                if (name is not None and name != UNKNOWN_NODE) or time.monotonic() > end:
+                    break
+                time.sleep(0.01)
+            self._names[key] = name or UNKNOWN_NODE
+            names = self.trusted[topic]
+            if names is None:
+                ok = name is not None and name != UNKNOWN_NODE and name not in self.exclude
+                if ok and topic in self._pinned:
+                    ok = False
+                if ok:
+                    self._pinned[topic] = gid
+            else:
+                ok = name in names
+            verdict = self._verdicts[key] = ok
+        return verdict

@@ -13,6 +13,15 @@ and the final world state (same stamp) have arrived and nothing more came for ``
 on Ctrl-C; or after ``idle_timeout_s`` without any message. The per-step topics are
 keep-all (see the contract), so a recorder lagging behind the simulation loses nothing.
 
+Trusted sources (docs/wire.md): a message is recorded only if its publisher (GID, looked up once
+in the graph) belongs to the node the contract names for its topic — ``evoscen_sim`` for the
+world, events, clock, odometry, roster and markers; ``evoscen_bv``/``evoscen_sut`` for the
+commands (with ``external_sut``: the first node other than evoscen's own that sends a SUT
+command) — so a forged ``run_end`` or collision event never reaches the bag or the report. A
+command message is recorded only if it is a table stamped at a step time of the run. Everything
+refused is counted, logged (at most ``MAX_WARNINGS`` lines) and not recorded; no message ends
+the node with a traceback.
+
 Scoring: the world tables, events and map markers the node writes into the bag also go, in
 the same order, into a :class:`~evoscen_eval.rundata.RunAccumulator`; when the run ends the
 node writes ``report.json``, ``report.md`` and the plots into ``report_dir``
@@ -35,7 +44,7 @@ import time
 
 from evoscen_contract import graph
 from evoscen_contract import topics as T
-from evoscen_contract.cdr import TableDecodeError, TableEncoder, decode_table, events_count, is_run_end
+from evoscen_contract.cdr import TableEncoder, decode_table, events_count, is_run_end
 from evoscen_sim.node_params import run_node, scenario_from_node
 
 from .recorder import BagRecorder, OrderedBag
@@ -47,6 +56,8 @@ EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 _CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name, T.MARKERS.name}
 # tables from any publisher (a user's SUT node may serialize with rclpy): re-encoded canonically
 _TABLE_TOPICS = {T.COMMANDS_BV.name, T.COMMANDS_SUT.name}
+MAX_WARNINGS = 20
+"""Refused messages logged (one line each); the rest are counted."""
 
 
 class EvaluatorNode:
@@ -83,6 +94,12 @@ class EvaluatorNode:
         if self.acc is not None:  # the scores see exactly what the bag gets, in the bag's order
             self.bag.on_write = self.acc.add_bytes
         self.subs = {spec.name: graph.subscription(self.node, spec, raw=True) for spec in T.CONTRACT}
+        self.takers = {name: graph.SourceTaker(sub) for name, sub in self.subs.items()}
+        trusted = {spec.name: [T.NODE_SIM] for spec in T.CONTRACT if spec.publisher == T.NODE_SIM}
+        trusted[T.COMMANDS_BV.name] = [T.NODE_BV]
+        trusted[T.COMMANDS_SUT.name] = None if self.external_sut else [T.NODE_SUT]
+        self.gate = graph.SourceGate(self.node, trusted, exclude=[T.NODE_SIM, T.NODE_BV, T.NODE_EVAL])
+        self.refused = 0
         self.pump = graph.MessagePump(self.node, self.subs.values())
         self._encoders: dict = {}
         per_step = [T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.COMMANDS_SUT] + ([T.COMMANDS_BV] if self.cfg.bvs.count else [])
@@ -94,24 +111,17 @@ class EvaluatorNode:
     def _take_all(self) -> int:
         """Take every available message; returns how many."""
         taken = 0
-        for topic, sub in self.subs.items():
-            while (data := graph.MessagePump.take(sub)) is not None:
+        for topic, taker in self.takers.items():
+            while (got := taker.take()) is not None:
                 taken += 1
-                t_ns = _stamp_ns(topic, data)
-                canonical = topic in _CANONICAL_TOPICS
-                if topic == T.EVENTS.name and events_count(data) == 0:
-                    canonical = True  # a step without events: the simulation's canonical template
-                if topic in _TABLE_TOPICS:
-                    if t_ns >= self.cfg.steps * self.dt_ns or (self.run_end_ns is not None and t_ns >= self.run_end_ns):
-                        continue  # an answer to the final state: no step follows it, the simulation ignores it
-                    data, canonical = self._canonical_table(data), True
-                self.bag.add(topic, data, t_ns, canonical=canonical)
-                if topic in self.latest:
-                    self.latest[topic] = max(self.latest[topic], t_ns)
-                elif topic == T.MARKERS.name:
-                    self.latest_markers = max(self.latest_markers, t_ns)
-                if topic == T.EVENTS.name and is_run_end(data):
-                    self.run_end_ns = t_ns
+                data, gid = got
+                if not self.gate.allows(topic, gid):
+                    self._refuse(topic, gid, "not from the publisher the contract names")
+                    continue
+                try:
+                    self._record(topic, data)
+                except Exception as exc:  # noqa: BLE001 - no message may end the recorder
+                    self._refuse(topic, gid, f"unreadable ({exc!r:.200})")
         # every per-step topic has one message per step, each topic in order: all messages
         # before the oldest of the topics' latest stamps are in, so that much can be written
         complete = min(self.latest.values())
@@ -122,12 +132,38 @@ class EvaluatorNode:
         self.bag.flush_before(complete)
         return taken
 
+    def _record(self, topic: str, data: bytes) -> None:
+        """Queue one trusted message for the bag (ValueError & co. for bytes that do not parse)."""
+        t_ns = _stamp_ns(topic, data)
+        if t_ns < 0:
+            raise ValueError(f"negative stamp {t_ns} ns")
+        canonical = topic in _CANONICAL_TOPICS
+        if topic == T.EVENTS.name and events_count(data) == 0:
+            canonical = True  # a step without events: the simulation's canonical template
+        if topic in _TABLE_TOPICS:
+            if t_ns >= self.cfg.steps * self.dt_ns or (self.run_end_ns is not None and t_ns >= self.run_end_ns):
+                return  # an answer to the final state: no step follows it, the simulation ignores it
+            if t_ns % self.dt_ns:
+                raise ValueError(f"stamp {t_ns} ns is not a step time")
+            data, canonical = self._canonical_table(data), True
+        run_end = topic == T.EVENTS.name and is_run_end(data)  # parses (raises) before anything is queued
+        self.bag.add(topic, data, t_ns, canonical=canonical)
+        if topic in self.latest:
+            self.latest[topic] = max(self.latest[topic], t_ns)
+        elif topic == T.MARKERS.name:
+            self.latest_markers = max(self.latest_markers, t_ns)
+        if run_end:
+            self.run_end_ns = t_ns
+
+    def _refuse(self, topic: str, gid: bytes | None, reason: str) -> None:
+        self.refused += 1
+        if self.refused <= MAX_WARNINGS:
+            print(f"warning: {NODE_NAME}: {topic}: message from {self.gate.name_of(topic, gid)} not recorded: {reason}"
+                  + (" (further ones are only counted)" if self.refused == MAX_WARNINGS else ""), file=sys.stderr)
+
     def _canonical_table(self, data: bytes) -> bytes:
         """A command table in canonical CDR (any publisher's encoding), via decode + re-encode."""
-        try:
-            t = decode_table(data)
-        except TableDecodeError:
-            return data  # not a table: the recorder's generic canonicalization reports it
+        t = decode_table(data)  # TableDecodeError (a ValueError): not recorded
         encoder = self._encoders.get((t.fields, t.frame_id))
         if encoder is None:
             encoder = self._encoders[(t.fields, t.frame_id)] = TableEncoder(t.fields, t.frame_id)
@@ -158,6 +194,9 @@ class EvaluatorNode:
             status = EXIT_INTERRUPTED
         finally:
             self.bag.close()
+        if self.refused:
+            print(f"warning: {NODE_NAME}: {self.refused} message(s) not recorded (untrusted or unreadable)",
+                  file=sys.stderr)
         if self.acc is not None and status != EXIT_INTERRUPTED:
             status = self._write_report(status)
         return status

@@ -12,6 +12,11 @@ It ends when the run does: on the final state of a completed run (the world stam
 simulation node has left the graph (no publisher of ``/evoscen/world`` any more, checked
 only after ``END_CHECK_S`` without a world message); on Ctrl-C; or after ``idle_timeout_s``
 without a world message (the simulation node is gone without leaving the graph: killed).
+A world message counts only if it comes from the simulation node's publisher (its GID, looked
+up once, must belong to the node ``evoscen_sim``) and is a well-formed world table
+(:func:`evoscen_contract.wire.check_world`: the world's columns and row count, a stamp on the step
+grid); anything else is ignored with a warning (at most ``MAX_WARNINGS``), never answered and never
+fatal (docs/wire.md).
 [choice] Controllers do not subscribe to ``/evoscen/events`` for its ``run_end`` event:
 that topic goes out every step, and its delivery woke both controllers a second time per
 step, on the lockstep's critical path (the lockstep ran 763/989/1025 steps/s with it,
@@ -29,6 +34,7 @@ import numpy as np
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
+from evoscen_contract import wire
 from evoscen_contract.cdr import decode_table
 
 from .node_params import run_node, scenario_from_node
@@ -36,6 +42,8 @@ from .road import load_road
 from .view import WorldView
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
+MAX_WARNINGS = 20
+"""Refused world messages logged (one line each); the rest are counted silently."""
 END_CHECK_S = 0.1
 """Seconds without a world message after which a controller asks whether the simulation node left."""
 
@@ -73,6 +81,9 @@ class ControllerNode:
         self.msgs = WorldMessages(self.cfg.dt_s)
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         self.world_sub = graph.subscription(self.node, T.WORLD, raw=True)
+        self.world_taker = graph.SourceTaker(self.world_sub)
+        self.gate = graph.SourceGate(self.node, {T.WORLD.name: [T.NODE_SIM]})
+        self.refused = 0
         self.pub = graph.publisher(self.node, command_spec)
         self.pump = graph.MessagePump(self.node, [self.world_sub])
         self.final_ns = self.cfg.steps * self.dt_ns  # the final state of a completed run
@@ -89,6 +100,7 @@ class ControllerNode:
         from .scenario import build_world
 
         world = build_world(self.cfg)
+        self.n_vehicles = world.n
         spare, _ = build(params, self.cfg)
         table = decode_table(self.msgs.world(world.columns(), world.time_ns))
         throttle, lane_change = spare.act(WorldView(self.road, table.columns(), 0, self.cfg.dt_s))
@@ -114,10 +126,29 @@ class ControllerNode:
         return graph.peers_missing(self.node, self.pub.topic_name, "subscribers", self.pub.get_subscription_count(),
                                    self.command_subscribers, at_least=len(self.command_subscribers)) is None
 
-    def answer(self, data: bytes) -> bool:
+    def _accept(self, data: bytes, gid: bytes | None) -> wire.Check | None:
+        """The world table if the message is the simulation node's and well formed, else None."""
+        topic = T.WORLD.name
+        if not self.gate.allows(topic, gid):
+            reason = "not from the simulation node's publisher"
+        else:
+            check = wire.check_world(data, T.WORLD_FIELDS, self.n_vehicles, self.dt_ns, self.final_ns)
+            if check.status == wire.OK:
+                return check
+            reason = check.reason
+        self.refused += 1
+        if self.refused <= MAX_WARNINGS:
+            print(f"warning: {self.name}: {topic}: message from {self.gate.name_of(topic, gid)} ignored: {reason}"
+                  + (" (further ones are not logged)" if self.refused == MAX_WARNINGS else ""), file=sys.stderr)
+        return None
+
+    def answer(self, data: bytes, gid: bytes | None = None) -> bool:
         """Publish the commands answering one serialized world message; False for the final state
-        of a completed run (no answer: the run is over)."""
-        table = decode_table(data)
+        of a completed run (no answer: the run is over). A refused message is not answered (True)."""
+        check = self._accept(data, gid)
+        if check is None:
+            return True
+        table = check.table
         t_ns = table.stamp_ns
         if t_ns >= self.final_ns:
             return False
@@ -141,9 +172,9 @@ class ControllerNode:
         try:
             while True:
                 if ready or (ready := self._ready()):
-                    while (msg := graph.MessagePump.take(self.world_sub)) is not None:
+                    while (got := self.world_taker.take()) is not None:
                         seen_world, last_world = True, time.monotonic()
-                        if not self.answer(msg):
+                        if not self.answer(*got):
                             return self._finish()
                 elif time.monotonic() - started > self.startup_timeout_s:
                     print(f"error: {self.name}: start-up: {self.pub.topic_name} not matched with "

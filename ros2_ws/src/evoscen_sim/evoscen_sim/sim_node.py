@@ -39,7 +39,7 @@ import numpy as np
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
-from evoscen_contract.cdr import TableDecodeError, decode_table
+from evoscen_contract import wire
 
 from .node_params import run_node, scenario_from_node
 from .events import ExposureMonitor, fault_event, run_end_event, step_events
@@ -49,6 +49,10 @@ NODE_NAME = T.NODE_SIM
 CONTROLLER_TOPICS = {T.NODE_BV: T.COMMANDS_BV, T.NODE_SUT: T.COMMANDS_SUT}
 EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 LEAVE_ANNOUNCE_S = 0.05  # see SimulationNode._leave
+WIRE_EVENTS_PER_STEP = 4
+"""At most this many wire ``fault`` events per step (distinct topic/publisher/reason; the rest are counted)."""
+WIRE_EVENTS_PER_RUN = 200
+"""At most this many wire ``fault`` events per run; the last one says that further ones are suppressed."""
 
 
 class RunAborted(RuntimeError):
@@ -85,7 +89,15 @@ class SimulationNode:
         self.pub = {spec.name: graph.publisher(n, spec)
                     for spec in (T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.ROSTER, T.MARKERS, T.MAP_MARKERS)}
         self.subs = {c: graph.subscription(n, CONTROLLER_TOPICS[c], raw=True) for c in self.controllers}
+        self.takers = {c: graph.SourceTaker(sub) for c, sub in self.subs.items()}
         self.pump = graph.MessagePump(n, self.subs.values())
+        ids = self.world.columns()["id"]
+        self.expected_ids = {c: np.array(ids[self._rows_of(c)], dtype=np.float64) for c in self.controllers}
+        self.sources: dict[str, dict[bytes, str]] = {}  # per controller: registered publisher GID -> node name
+        self._wire_faults: dict[tuple[str, str, str, str], int] = {}  # this step's: (controller, topic, publisher, reason) -> messages
+        self._wire_events = 0
+        self._wire_logged: set = set()
+        self._foreign_names: dict = {}  # (topic, GID) -> node name (None: not in the graph)
         self._warm_up()  # while discovery runs in the middleware's threads
         # commands held for a controller that misses a deadline: its last throttle, no lane change
         self.throttle = np.zeros(self.world.n)
@@ -197,6 +209,7 @@ class SimulationNode:
             elif settled_since is None or seen != last_seen:
                 settled_since, last_seen = now, seen  # all matched: now discovery must stay quiet
             elif now - settled_since >= self.discovery_settle_s:
+                self._register_sources()
                 return
             self._check_alone()
             self._check_interrupt()
@@ -204,6 +217,23 @@ class SimulationNode:
                 why = "; ".join(missing) or "discovery did not settle"
                 raise RunAborted(f"start-up: not matched after {self.startup_timeout_s:g} s: {why}")
             time.sleep(0.02)
+
+    def _register_sources(self) -> None:
+        """Pin each controller's command publishers (GIDs) as the graph shows them now.
+
+        A controller's publishers are the endpoints on its command topic of the node named like
+        it (``evoscen_bv``, ``evoscen_sut``); with ``external_sut``, every publisher of the SUT's
+        command topic present at start-up (the user's node may have any name). Any other
+        publisher is foreign for the whole run (see docs/wire.md).
+        """
+        for c in self.controllers:
+            topic = CONTROLLER_TOPICS[c].name
+            anyone = c == T.NODE_SUT and self.external_sut
+            self.sources[c] = {gid: name for gid, name in graph.publisher_names(self.node, topic).items()
+                               if anyone or name == c}
+        if not all(t.per_message for t in self.takers.values()):
+            self.node.get_logger().warning(f"no per-message publisher GIDs ({self.takers[self.controllers[0]].why_not}): "
+                                           "foreign command publishers are only counted")
 
     def _discovered(self) -> tuple:
         """Every endpoint discovered on our topics (to see discovery settle)."""
@@ -213,44 +243,120 @@ class SimulationNode:
 
     # ------------------------------------------------------------------ lockstep
     def _collect_commands(self, step: int, timeout_s: float) -> None:
-        """Take the commands stamped for this step from every controller (or count a miss)."""
+        """Take the commands stamped for this step from every controller (or count a miss).
+
+        A message counts only if it comes from the controller's registered publisher and
+        :func:`evoscen_contract.wire.check_commands` finds it well formed. The first message of
+        the registered publisher stamped ``t_k`` decides the step: well formed, it is applied;
+        malformed, the controller's vehicles hold their last throttle (no lane change), as on a
+        missed deadline. Everything else — foreign publishers, wrong stamps, garbage — is
+        ignored for control and reported as a ``fault`` event (kind ``wire``).
+        """
         t_ns = self.world.time_ns
         pending = set(self.controllers)
+        malformed: set[str] = set()
         deadline = time.monotonic() + timeout_s
         while True:
-            for c in list(pending):
-                sub = self.subs[c]
-                while (data := graph.MessagePump.take(sub)) is not None:
-                    try:
-                        stamp, _frame, fields, table = decode_table(data)
-                    except TableDecodeError as exc:
-                        self.node.get_logger().error(f"{CONTROLLER_TOPICS[c].name}: not a command table ({exc})")
-                        continue
-                    if stamp != t_ns or fields != T.COMMAND_FIELDS:
-                        continue  # a late answer to an earlier step (or a malformed one)
-                    rows = table[:, 0].astype(np.int64)  # ids are world indices
-                    self.throttle[rows] = table[:, 1]
-                    self.lane_change[rows] = table[:, 2].astype(np.int64)
-                    pending.discard(c)
+            for c in self.controllers:
+                taker, topic = self.takers[c], CONTROLLER_TOPICS[c].name
+                while (got := taker.take()) is not None:
+                    data, gid = got
+                    self._one_command(c, topic, data, gid, t_ns, pending, malformed)
             remaining = deadline - time.monotonic()
             if not pending or remaining <= 0:
                 break
             self._check_interrupt()
             self.pump.wait(min(remaining, 0.1))
         for c in self.controllers:
-            if c not in pending:
+            if c not in pending and c not in malformed:
                 self.misses[c] = 0
                 continue
             self.misses[c] += 1
             rows = self._rows_of(c)
             self.lane_change[rows] = 0
             kind = "abort" if self.misses[c] >= self.max_misses else "deadline"
-            text = (f"controller '{c}' missed {self.misses[c]} consecutive deadline(s) of {timeout_s:g} s "
-                    f"at step {step}" + ("; run aborted" if kind == "abort" else "; holding its last throttle"))
+            what = (f"sent malformed commands or missed deadlines {self.misses[c]} consecutive times"
+                    if c in malformed else f"missed {self.misses[c]} consecutive deadline(s) of {timeout_s:g} s")
+            text = (f"controller '{c}' {what} at step {step}"
+                    + ("; run aborted" if kind == "abort" else "; holding its last throttle"))
+            if c in malformed and kind == "deadline":
+                continue  # its wire fault event says it; the throttle is held
+            self._flush_wire_faults()
             self._publish_events([fault_event(self.world, kind, c, self.misses[c], text)])
             self.node.get_logger().warning(text)
             if kind == "abort":
                 raise RunAborted(text)
+        self._flush_wire_faults()
+
+    def _one_command(self, c: str, topic: str, data: bytes, gid: bytes | None, t_ns: int,
+                     pending: set, malformed: set) -> None:
+        """Apply or refuse one message of controller ``c``'s topic (see :meth:`_collect_commands`)."""
+        sources = self.sources.get(c, {})
+        if gid is not None and gid not in sources:
+            self._wire_fault(c, topic, gid, f"not from a registered publisher of {c}")
+            return
+        if gid is None and self.subs[c].get_publisher_count() > len(sources):
+            self._wire_fault(c, topic, gid, f"{self.subs[c].get_publisher_count()} publishers on the topic, "
+                                            f"{len(sources)} registered (no per-message GIDs)")
+        check = wire.check_commands(data, t_ns, self.expected_ids[c])
+        if check.status == wire.STALE:
+            return  # a late answer to an earlier step (after a missed deadline)
+        at_step = check.table is not None and check.table.stamp_ns == t_ns
+        if c not in pending and at_step:
+            self._wire_fault(c, topic, gid, f"a second message for the step at {t_ns} ns")
+            return
+        if check.status == wire.BAD:
+            self._wire_fault(c, topic, gid, check.reason)
+            if at_step:
+                pending.discard(c)
+                malformed.add(c)
+            return
+        table = check.table.data
+        rows = table[:, 0].astype(np.int64)  # ids are world indices
+        self.throttle[rows] = table[:, 1]
+        self.lane_change[rows] = table[:, 2].astype(np.int64)
+        pending.discard(c)
+
+    def _wire_fault(self, c: str, topic: str, gid: bytes | None, reason: str) -> None:
+        name = self.sources.get(c, {}).get(gid) if gid is not None else None
+        if gid is not None and name is None:
+            if (topic, gid) not in self._foreign_names and len(self._foreign_names) < 1000:
+                self._foreign_names[(topic, gid)] = graph.publisher_names(self.node, topic).get(gid)
+            name = self._foreign_names.get((topic, gid))
+        publisher = graph.gid_text(gid) + (f" (node '{name}')" if name and name != graph.UNKNOWN_NODE else "")
+        key = (c, topic, publisher, reason)
+        self._wire_faults[key] = self._wire_faults.get(key, 0) + 1
+        if key not in self._wire_logged and len(self._wire_logged) < 1000:
+            self._wire_logged.add(key)
+            self.node.get_logger().warning(f"{topic}: message from {publisher} refused: {reason}")
+
+    def _flush_wire_faults(self) -> None:
+        """This step's wire faults as ``fault`` events (rate-limited: WIRE_EVENTS_PER_STEP/PER_RUN)."""
+        if not self._wire_faults:
+            return
+        faults, self._wire_faults = list(self._wire_faults.items()), {}
+        events = []
+        for k, ((c, topic, publisher, reason), count) in enumerate(faults):
+            if self._wire_events >= WIRE_EVENTS_PER_RUN:
+                break
+            last_of_run = self._wire_events == WIRE_EVENTS_PER_RUN - 1
+            if k == WIRE_EVENTS_PER_STEP - 1 and len(faults) > WIRE_EVENTS_PER_STEP or last_of_run:
+                rest = sum(n for _, n in faults[k:])
+                why = "per step" if not last_of_run else "per run; no more wire fault events in this run"
+                text = (f"{rest} refused message(s) from {len(faults) - k} topic/publisher/reason(s), "
+                        f"events capped at {WIRE_EVENTS_PER_STEP if not last_of_run else WIRE_EVENTS_PER_RUN} {why}")
+                ev = fault_event(self.world, "wire", c, self.misses.get(c, 0), f"{topic}: {text}")
+                ev.update(topic=topic, publisher=publisher, reason=text, messages=rest)
+                events.append(ev)
+                self._wire_events += 1
+                break
+            ev = fault_event(self.world, "wire", c, self.misses.get(c, 0),
+                             f"{topic}: {count} message(s) from {publisher} refused: {reason}")
+            ev.update(topic=topic, publisher=publisher, reason=reason, messages=count)
+            events.append(ev)
+            self._wire_events += 1
+        if events:
+            self._publish_events(events)
 
     def _check_alone(self) -> None:
         others = self.node.count_publishers(T.WORLD.name) - 1
