@@ -297,11 +297,15 @@ class SourceGate:
     ``trusted``: ``{topic: node names}`` (None: any node but ``exclude``; the first such
     publisher is then pinned and no other is trusted — an external SUT node). A GID is looked
     up in the graph once (retried for up to ``resolve_s`` while its node name is not known yet,
-    as happens just after discovery) and the verdict kept.
+    as happens just after discovery) and the verdict kept. ``resolve_s`` is 10 s: a node's name
+    reaches the graph cache later than its endpoints; with 2 s, one graph test on a loaded machine
+    (two cores, other suites in parallel) recorded "messages not recorded (untrusted)" and a bag that
+    differed from the in-process one (a late name is the one cause known; not reproduced since). A
+    publisher whose name never resolves costs this wait once.
     """
 
     def __init__(self, node: Node, trusted: Mapping[str, Iterable[str] | None], *,
-                 exclude: Iterable[str] = (), resolve_s: float = 2.0) -> None:
+                 exclude: Iterable[str] = (), resolve_s: float = 10.0) -> None:
         self.node = node
         self.trusted = {t: (None if names is None else frozenset(names)) for t, names in trusted.items()}
         self.exclude = frozenset(exclude)
