@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Run the node graph as containers (docker/compose.yaml) and end with the graph's exit status.
-#   docker/compose-run.sh [--out DIR] [--domain-id N] [--user-sut] [--keep] [-- SCENARIO-OPTIONS...]
+#   docker/compose-run.sh [--out DIR] [--domain-id N] [--project NAME] [--user-sut] [--keep] [-- SCENARIO-OPTIONS...]
 # SCENARIO-OPTIONS are graph_node.py's (run_scenario.py's): --steps N --seed S --sut NAME --bvs N
 # --mix C:M:K --config FILE (a path inside the image) --no-plots ... (default: --steps 3000 --seed 0).
 # --user-sut: the SUT is the container built from examples/ instead of evoscen's SUT node.
@@ -13,15 +13,16 @@ if [ -z "$COMPOSE" ]; then
   echo "error: no compose tool for $ENGINE: install podman-compose (docker/setup-podman.sh does) or the docker compose plugin" >&2
   exit 2
 fi
-out=$root/runs/compose; domain=$(( (RANDOM % 100) + 1 )); user_sut=0; keep=0; scen=()
+out=$root/runs/compose; domain=$(( (RANDOM % 100) + 1 )); user_sut=0; keep=0; scen=(); proj=
 while [ $# -gt 0 ]; do
   case $1 in
     --out) out=$(realpath -m "$2"); shift 2 ;;
     --domain-id) domain=$2; shift 2 ;;
+    --project) proj=$2; shift 2 ;;
     --user-sut) user_sut=1; shift ;;
     --keep) keep=1; shift ;;
     --) shift; scen=("$@"); break ;;
-    *) echo "error: docker/compose-run.sh: unknown option '$1' (expected --out, --domain-id, --user-sut, --keep, -- ...)" >&2; exit 2 ;;
+    *) echo "error: docker/compose-run.sh: unknown option '$1' (expected --out, --domain-id, --project, --user-sut, --keep, -- ...)" >&2; exit 2 ;;
   esac
 done
 [ ${#scen[@]} -eq 0 ] && scen=(--steps 3000 --seed 0)
@@ -31,7 +32,7 @@ if [ $user_sut = 1 ]; then profile=user-sut; scen+=(--external-sut); fi
 mkdir -p "$out"
 uid=$(id -u); gid=$(id -g)
 if [ "$uid" = 0 ]; then uid=10001; gid=10001; chown "$uid:$gid" "$out"; fi  # the nodes never run as root
-proj=evoscen-$domain-$$
+[ -n "$proj" ] || proj=evoscen-$domain-$$
 shm=$(mktemp -d /dev/shm/evoscen-shm-XXXXXX); chmod 1777 "$shm"   # this graph's shared memory (compose.yaml)
 export EVOSCEN_SHM_DIR=$shm EVOSCEN_OUT=$out EVOSCEN_DOMAIN_ID=$domain EVOSCEN_UID=$uid EVOSCEN_GID=$gid EVOSCEN_STEPS=$steps
 export EVOSCEN_GRAPH_ARGS="${scen[*]}"

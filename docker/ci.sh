@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# The container job of CI (.ci/run runs it after the native suite; .github/workflows/ci.yml too):
+#   1. the engine: docker when its daemon answers, else podman (docker/setup-podman.sh: installs and
+#      configures it and makes the base image from the Debian mirror: no image registry needed)
+#   2. the images: test, runtime, user-sut
+#   3. the whole suite inside the test image, no network
+#   4. a compose graph (one container per node) whose bag equals the in-process bag of the same
+#      configuration and seed, byte for byte (in-process run in the runtime image)
+#   5. the BV container killed mid-run: the graph ends with the controller fault (status 3) and a
+#      readable bag whose last fault is the BV node's abort
+#   6. a user's SUT container built only from examples/ drives the SUT in a compose graph
+# Needs the project's .venv on the host (make setup) for the bag checks (docker/check_bag.py).
+set -euo pipefail
+here=$(cd "$(dirname "$0")" && pwd); root=$(dirname "$here"); cd "$root"
+T0=$(date +%s)
+stage() { echo "=== container job: $* ($(( $(date +%s) - T0 )) s)"; }
+if ! { command -v docker >/dev/null && docker info >/dev/null 2>&1; }; then
+  stage "podman set-up"; bash docker/setup-podman.sh
+fi
+. docker/engine.sh
+PY=$root/.venv/bin/python
+out=$root/runs/ci-container; rm -rf "$out"; mkdir -p "$out"
+
+stage "images ($ENGINE)"
+bash docker/build.sh test runtime user-sut
+
+stage "suite in the test image"
+$ENGINE run --rm --network none --shm-size=256m localhost/evoscen-test:latest make test PYTEST_ARGS="-q -p no:cacheprovider"
+
+stage "compose graph vs in-process bag"
+bash docker/compose-run.sh --out "$out/graph" -- --steps 600 --seed 3 --no-plots
+mkdir -p "$out/inprocess"; [ "$(id -u)" = 0 ] && chown 10001:10001 "$out/inprocess"
+$ENGINE run --rm -v "$out/inprocess:/data" localhost/evoscen:latest --mode inprocess --steps 600 --seed 3 --no-plots \
+  --quiet --out /data --overwrite >/dev/null
+$PY docker/check_bag.py equal "$out/graph/bag" "$out/inprocess/bag"
+
+stage "BV container killed mid-run"
+proj=evoscen-ci-kill-$$
+bash docker/compose-run.sh --out "$out/kill" --project "$proj" -- --steps 20000 --seed 5 --deadline 0.5 --max-misses 3 \
+  --no-plots &
+run=$!
+for _ in $(seq 1 240); do  # until the run is under way: the bag grows past its first chunk
+  size=$(stat -c %s "$out/kill/bag/bag_0.mcap" 2>/dev/null || echo 0)
+  [ "$size" -gt 200000 ] && break
+  sleep 0.5
+done
+bv=$($ENGINE ps -q --filter "label=com.docker.compose.project=$proj" --filter "label=com.docker.compose.service=bv")
+[ -n "$bv" ] || { echo "error: no running BV container to kill"; exit 1; }
+$ENGINE kill "$bv" >/dev/null
+rc=0; wait $run || rc=$?
+echo "graph status after the BV kill: $rc (expected 3: a controller fault)"
+[ "$rc" = 3 ] || exit 1
+$PY docker/check_bag.py aborted "$out/kill/bag" evoscen_bv
+
+stage "a user's SUT container (examples/)"
+bash docker/compose-run.sh --out "$out/user-sut" --user-sut -- --steps 300 --seed 1 --no-plots
+$PY docker/check_bag.py complete "$out/user-sut/bag" 300
+stage "done"
