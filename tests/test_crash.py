@@ -65,10 +65,13 @@ def test_sigterm_to_evaluator_finishes_the_bag(tmp_path):
     assert (bag_dir / "metadata.yaml").is_file()
     bag = _read_bag(bag_dir)
     assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())
-    steps = _steps(_stamps(bag, "/evoscen/world"))
-    assert steps == list(range(len(steps))) and len(steps) > 10  # every step up to the end, in order
-    for topic in PER_STEP_STATE:
-        assert _steps(_stamps(bag, topic)) == steps, topic
+    # every step received up to the end, in order; the last step may be partial (its world table
+    # not yet in when SIGTERM came, its odometry already): the bag holds what was received
+    per_topic = {topic: _steps(_stamps(bag, topic)) for topic in PER_STEP_STATE}
+    k = min(len(v) for v in per_topic.values())
+    assert k > 10
+    for topic, steps in per_topic.items():
+        assert steps == list(range(len(steps))) and len(steps) <= k + 1, topic
     from rosbags.rosbag2 import Reader
 
     with Reader(bag_dir) as reader:

@@ -257,9 +257,13 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     node_status = {name: p.returncode for name, p in procs.items()}
     status = graph_status(node_status, died, interrupted)
     if status == EXIT_NODE_DIED:
-        first = next(iter(died))
-        print(f"error: graph: node {first} {died[first]}; the run ended early (exit status {EXIT_NODE_DIED})",
-              file=sys.stderr)
+        if died:
+            first = next(iter(died))
+            what = f"node {first} {died[first]}; the run ended early"
+        else:  # every node outlived the run, but one ended badly (e.g. stopped by the launcher)
+            what = "; ".join(f"node {n} ended with {describe_status(s)}" for n, s in node_status.items()
+                             if s not in (0, None))
+        print(f"error: graph: {what} (exit status {EXIT_NODE_DIED})", file=sys.stderr)
     return GraphResult(status=status, node_status=node_status, domain_id=domain_id,
                        wall_time_s=time.monotonic() - t0, died=died)
 

@@ -28,7 +28,8 @@ start-up, how long discovery must stay quiet (all endpoints matched) before step
 subscribed to an evoscen topic before step 0 — so they get every step.
 ``recorder_lag_steps`` [50]: flow control towards the recorder (and every other reader): every
 this many steps, before publishing the next state, the node waits until every sample it has
-published is acknowledged by all matched readers — however long that takes (a stalled recorder
+published on the topics the controllers do not read (all but ``/evoscen/world``) is
+acknowledged by all matched readers — however long that takes (a stalled recorder
 holds the lockstep; the wait is not a controller deadline), checking Ctrl-C every 0.1 s. So no
 writer's history (the simulation's or a controller's) ever holds more than about this many
 unacknowledged samples, far below the middleware's resource limits (``fastdds_profiles.xml``):
@@ -265,8 +266,16 @@ class SimulationNode:
                 raise RunAborted(text)
 
     def _wait_acked(self) -> None:
-        """Flow control: until every matched reader has acknowledged every sample published."""
-        for pub in self.pub.values():
+        """Flow control: until every matched reader has acknowledged every sample published.
+
+        Not on ``/evoscen/world``: the controllers read it, and a dead controller (matched until
+        its lease runs out, 20 s) would hold this wait instead of missing its deadlines. The
+        recorder reads every topic and takes them together, so the per-step topics it alone
+        reads (clock, odometry, events) bound its lag just as well.
+        """
+        for name, pub in self.pub.items():
+            if name == T.WORLD.name:
+                continue
             while not pub.wait_for_all_acked(graph.duration(0.1)):
                 self._check_interrupt()
 
