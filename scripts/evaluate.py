@@ -1,13 +1,14 @@
 #!/usr/bin/env python3
 """Score a recorded run from its bag alone: report.json, report.md and plots.
 
-    python scripts/evaluate.py BAG [--out DIR] [--config FILE] [--overwrite] [--no-plots]
+    python scripts/evaluate.py BAG [--out DIR] [--config FILE] [--overwrite] [--no-plots] [--reindex]
 
 BAG is a bag directory (``metadata.yaml`` + ``.mcap``) or its ``.mcap`` file. The evaluation
 settings are the ones recorded in the bag (the run's scenario); ``--config FILE`` scores with
 the ``evaluation`` section of another scenario YAML instead. The scores equal the ones the
 evaluator node (or the in-process runner) wrote during the run. A truncated or corrupt bag is
-evaluated up to the damage, with a warning saying how many steps were read.
+evaluated up to the damage, with one warning saying how many steps were read and naming the
+command that rebuilds such a bag (``scripts/reindex.py BAG``); ``--reindex`` runs it first.
 
 ``--out`` defaults to ``<the bag's directory>/../report_offline``; an existing non-empty
 directory is replaced only with ``--overwrite``. Exit status: 0 done, 2 bad input.
@@ -30,6 +31,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--config", type=Path, help="scenario YAML whose 'evaluation' section to use instead of the bag's")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing report in --out")
     ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only")
+    ap.add_argument("--reindex", action="store_true",
+                    help="first rebuild the bag's summary and metadata.yaml (scripts/reindex.py), e.g. after a killed recorder")
     return ap.parse_args(argv)
 
 
@@ -45,7 +48,20 @@ def main(argv: list[str] | None = None) -> int:
         bag_path = args.bag
         if not bag_path.exists():
             raise InputError(f"bag {str(bag_path)!r}: no such bag directory or .mcap file")
+        if args.reindex:
+            from evoscen_eval.reindex import reindex_bag
+
+            r = reindex_bag(bag_path)
+            print(f"reindexed: {r.messages} messages, {r.steps} world states recovered", file=sys.stderr)
         run = read_run(bag_path)
+        if not args.reindex and not _finished(bag_path):
+            hint = f"; to rebuild its summary and metadata.yaml: python scripts/reindex.py {bag_path} (or --reindex)"
+            damaged = [k for k, w in enumerate(run.warnings) if "truncated or corrupt" in w]
+            if damaged:
+                run.warnings[damaged[0]] += hint
+            else:
+                run.warnings.append(f"bag {str(bag_path)!r} is not finished (no summary section or no "
+                                    f"metadata.yaml: the recorder was killed?)" + hint)
         bag_dir = bag_path if bag_path.is_dir() else bag_path.parent
         out = args.out if args.out is not None else bag_dir.resolve().parent / "report_offline"
         if out.exists() and (not out.is_dir() or any(out.iterdir())):
@@ -66,6 +82,20 @@ def main(argv: list[str] | None = None) -> int:
           + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
     print(f"report: {out / 'report.md'}")
     return 0
+
+
+def _finished(bag_path: Path) -> bool:
+    """The bag has its metadata.yaml (for a directory) and its MCAP summary: readers open it."""
+    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_sim.errors import InputError
+
+    if bag_path.is_dir() and not (bag_path / "metadata.yaml").is_file():
+        return False
+    try:
+        open_bag_reader(bag_path).close()
+    except InputError:
+        return False
+    return True
 
 
 if __name__ == "__main__":

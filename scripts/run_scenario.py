@@ -113,11 +113,15 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
               f"(ROS_DOMAIN_ID={domain})", file=sys.stderr)
     result = run_graph(cfg, out, bag_dir, opts)
     counts: dict[str, int] = {}
+    if not any(bag_dir.glob("*.mcap")) if bag_dir.is_dir() else True:
+        print(f"error: no bag was written in {bag_dir} (the run ended during start-up)", file=sys.stderr)
+        return result.status or 3
     try:
         for topic, _type, _t, _data in open_bag_reader(bag_dir):
             counts[topic] = counts.get(topic, 0) + 1
     except InputError as exc:
-        print(f"error: the bag is not readable: {exc}", file=sys.stderr)
+        print(f"error: the bag is not readable ({exc}); if the recorder was killed, recover what it wrote with: "
+              f"python scripts/reindex.py {bag_dir}", file=sys.stderr)
         return result.status or 3
     steps = max(counts.get("/evoscen/world", 1) - 1, 0)
     print(f"steps: {steps}  domain: {result.domain_id}  wall: {result.wall_time_s:.2f} s  "

@@ -10,8 +10,16 @@ processes (``python -m <pkg>.<node> --ros-args --params-file ...``), and supervi
   controllers exit on ``run_end`` too (or are stopped the same way);
 * Ctrl-C (SIGINT/SIGTERM to the launcher) is forwarded to the simulation node only, which
   ends the run after the current step, so the bag is finished in every case;
-* a node that dies is reported with its exit status; the run's status is non-zero if any
-  node failed (the simulation node's status first: 3 = a controller fault, 130 = interrupted).
+* a node that dies is named on stderr with how it ended (``graph: evoscen_eval ended early
+  (killed by SIGKILL (signal 9))``), and the graph ends within seconds: the evaluator's death or
+  any death during start-up (before the simulation node's ``ready_file`` exists) stops the
+  simulation node at once (SIGINT); a controller's death in the lockstep is left to the
+  simulation's deadline abort (status 3), with a SIGINT after ``deadline_s`` · ``max_misses`` + 5 s
+  as a backstop; the simulation node's death sends SIGTERM to the evaluator (which finishes the
+  bag) and SIGINT to the controllers, SIGKILL after 5 s;
+* the exit status is one of :data:`EXIT_OK` 0, :data:`EXIT_BAD_INPUT` 2, :data:`EXIT_FAULT` 3,
+  :data:`EXIT_NODE_DIED` 4, :data:`EXIT_INTERRUPTED` 130 (:func:`graph_status`), never a raw
+  signal number.
 
 Environment of the nodes: ``ROS_DOMAIN_ID`` (random in 1..100 unless given), the Fast DDS
 middleware with synchronous publication (``RMW_FASTRTPS_PUBLICATION_MODE``), and
@@ -21,6 +29,7 @@ middleware with synchronous publication (``RMW_FASTRTPS_PUBLICATION_MODE``), and
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import random
 import signal
@@ -42,6 +51,14 @@ NODES = (
     ("evoscen_sim", "evoscen_sim.sim_node"),
 )
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_NODE_DIED, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
+"""The launcher's exit statuses (docs/recording.md): 0 completed, 2 bad input, 3 a controller
+fault (the simulation node aborted the run), 4 a node died or ended before the run did (named
+on stderr), 130 interrupted."""
+DOCUMENTED_NODE_STATUS = (0, 2, 3, 130)
+"""Statuses with which the simulation node ends by itself; anything else (a signal, 1) is a death."""
+STOP_GRACE_S = 5.0
+"""How long nodes get to end by themselves when the run ended before step 0 or the simulation died."""
 
 
 @dataclass
@@ -81,6 +98,8 @@ class GraphResult:
     node_status: dict[str, int | None]
     domain_id: int
     wall_time_s: float
+    died: dict[str, str] = field(default_factory=dict)
+    """Nodes that died or ended before the run did, with how (``killed by SIGKILL (signal 9)``)."""
 
 
 def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOptions) -> dict[str, Path]:
@@ -132,17 +151,36 @@ def node_environment(domain_id: int, discovery_range: str) -> dict[str, str]:
     return env
 
 
+def describe_status(returncode: int | None) -> str:
+    """A process's end in words: ``exit status 1``, ``killed by SIGKILL (signal 9)``."""
+    if returncode is None:
+        return "still running"
+    if returncode < 0:
+        try:
+            name = signal.Signals(-returncode).name
+        except ValueError:
+            name = f"signal {-returncode}"
+        return f"killed by {name} (signal {-returncode})"
+    return f"exit status {returncode}"
+
+
 def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOptions | None = None) -> GraphResult:
     """Run the scenario as a node graph (see the module docstring)."""
     opts = opts or GraphOptions()
     domain_id = opts.domain_id if opts.domain_id is not None else random.SystemRandom().randint(1, 100)
+    ready_file = out_dir / "params" / ".evoscen_sim.ready"
+    opts = dataclasses.replace(opts, node_args={
+        **opts.node_args, "evoscen_sim": {"ready_file": str(ready_file), **opts.node_args.get("evoscen_sim", {})}})
     params = write_parameter_files(cfg, out_dir, bag_dir, opts)
+    ready_file.unlink(missing_ok=True)
     env = node_environment(domain_id, opts.discovery_range)
     wanted = [(name, module) for name, module in NODES
               if (name != "evoscen_bv" or cfg.bvs.count > 0) and (name != "evoscen_sut" or not opts.external_sut)]
     procs: dict[str, subprocess.Popen] = {}
     t0 = time.monotonic()
     interrupted = False
+    died: dict[str, str] = {}  # node -> how it ended, for nodes that ended before the run did
+    signalled: set[str] = set()  # nodes the launcher stopped itself
 
     def forward(signum, frame):  # noqa: ANN001, ANN202
         nonlocal interrupted
@@ -150,6 +188,10 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
         sim = procs.get("evoscen_sim")
         if sim is not None and sim.poll() is None:
             sim.send_signal(signal.SIGINT)
+
+    def note(name: str, why: str) -> None:
+        died[name] = why
+        print(f"graph: {name} {why} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
 
     old = {sig: signal.signal(sig, forward) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -159,13 +201,51 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 env=env, start_new_session=True,  # Ctrl-C reaches the launcher only; it decides
             )
         sim = procs["evoscen_sim"]
+        fault_wait_s = opts.deadline_s * opts.max_misses + 5.0
+        stop_sim_at: float | None = None
         while sim.poll() is None:
-            early = [n for n, p in procs.items() if n != "evoscen_sim" and p.poll() not in (None, 0)]
-            if "evoscen_eval" in early:  # no recorder: stop the run now, nothing would be recorded
-                sim.send_signal(signal.SIGINT)
+            for name, p in procs.items():
+                if name == "evoscen_sim" or name in died or p.poll() in (None, 0):
+                    continue  # 0: a controller answered the final state, the recorder got run_end
+                started = ready_file.exists()
+                note(name, f"ended early ({describe_status(p.returncode)})"
+                     + ("" if started else " during start-up"))
+                if name == "evoscen_eval" or not started:
+                    # no recorder: nothing would be recorded; during start-up: the simulation would
+                    # wait out its start-up timeout for the dead node. Stop the run now.
+                    stop_sim_at = time.monotonic()
+                elif stop_sim_at is None:
+                    # a controller in the lockstep: the simulation's deadline misses abort the run
+                    # (status 3, fault events in the bag); stop it if that does not happen in time
+                    stop_sim_at = time.monotonic() + fault_wait_s
+            if stop_sim_at is not None and time.monotonic() >= stop_sim_at:
+                # SIGTERM before step 0: a node still importing its modules would print a
+                # KeyboardInterrupt traceback on SIGINT (the simulation handles both alike)
+                sim.send_signal(signal.SIGINT if ready_file.exists() else signal.SIGTERM)
+                signalled.add("evoscen_sim")
+                stop_sim_at = float("inf")  # once
             time.sleep(0.05)
-        for name in ("evoscen_eval", *[n for n in procs if n not in ("evoscen_eval", "evoscen_sim")]):
-            _stop(procs[name], opts.shutdown_grace_s)
+        started = ready_file.exists()
+        sim_died = sim.returncode not in DOCUMENTED_NODE_STATUS and not (
+            "evoscen_sim" in signalled and sim.returncode == -signal.SIGTERM)
+        if sim_died:
+            note("evoscen_sim", f"died ({describe_status(sim.returncode)})")
+        if sim_died or not started:
+            # nobody will end the run for the others (the simulation died), or they never saw
+            # step 0 and would wait out their start-up timeouts: stop them all now, together.
+            # The evaluator finishes the bag on SIGTERM; SIGTERM before step 0 (a node still
+            # importing would print a KeyboardInterrupt traceback on SIGINT); SIGKILL after 5 s.
+            alive = [n for n in procs if n != "evoscen_sim" and procs[n].poll() is None]
+            for name in alive:
+                use_int = started and name != "evoscen_eval"
+                procs[name].send_signal(signal.SIGINT if use_int else signal.SIGTERM)
+                signalled.add(name)
+            end = time.monotonic() + STOP_GRACE_S
+            for name in alive:
+                _stop(procs[name], max(end - time.monotonic(), 0.0), signals=(signal.SIGKILL,))
+        else:
+            for name in ("evoscen_eval", *[n for n in procs if n not in ("evoscen_eval", "evoscen_sim")]):
+                _stop(procs[name], opts.shutdown_grace_s)
     finally:
         for p in procs.values():
             if p.poll() is None:
@@ -173,19 +253,47 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 p.wait()
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        ready_file.unlink(missing_ok=True)
     node_status = {name: p.returncode for name, p in procs.items()}
-    sim_status = node_status["evoscen_sim"]
-    others = [s for n, s in node_status.items() if n != "evoscen_sim" and s not in (0, None)]
-    status = sim_status if sim_status != 0 else (others[0] if others else 0)
-    if interrupted and status == 0:
-        status = 130
+    status = graph_status(node_status, died, interrupted)
+    if status == EXIT_NODE_DIED:
+        if died:
+            first = next(iter(died))
+            what = f"node {first} {died[first]}; the run ended early"
+        else:  # every node outlived the run, but one ended badly (e.g. stopped by the launcher)
+            what = "; ".join(f"node {n} ended with {describe_status(s)}" for n, s in node_status.items()
+                             if s not in (0, None))
+        print(f"error: graph: {what} (exit status {EXIT_NODE_DIED})", file=sys.stderr)
     return GraphResult(status=status, node_status=node_status, domain_id=domain_id,
-                       wall_time_s=time.monotonic() - t0)
+                       wall_time_s=time.monotonic() - t0, died=died)
 
 
-def _stop(proc: subprocess.Popen, grace_s: float) -> None:
-    """Let ``proc`` end by itself for ``grace_s``, then SIGINT, then SIGKILL."""
-    for sig, wait_s in ((None, grace_s), (signal.SIGINT, 10.0), (signal.SIGKILL, 10.0)):
+def graph_status(node_status: dict[str, int | None], died: dict[str, str], interrupted: bool) -> int:
+    """The launcher's exit status (table in docs/recording.md).
+
+    The simulation node's own verdict first (2 bad input, 3 a controller fault: it ended the
+    run cleanly and said why), then a node that died (4), then an interruption (130), then any
+    other node's failure (2 as it is, anything else 4); 0 only if every node ended with 0.
+    """
+    sim = node_status.get("evoscen_sim")
+    if sim in (EXIT_BAD_INPUT, EXIT_FAULT):
+        return sim
+    others = [s for n, s in node_status.items() if n != "evoscen_sim" and s not in (0, None)]
+    if EXIT_BAD_INPUT in others:
+        return EXIT_BAD_INPUT
+    if died:
+        return EXIT_NODE_DIED
+    if interrupted or sim == EXIT_INTERRUPTED:
+        return EXIT_INTERRUPTED
+    if others:
+        return EXIT_FAULT if all(s == EXIT_FAULT for s in others) else EXIT_NODE_DIED
+    return EXIT_OK if sim == 0 else EXIT_NODE_DIED
+
+
+def _stop(proc: subprocess.Popen, grace_s: float,
+          signals: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGKILL)) -> None:
+    """Let ``proc`` end by itself for ``grace_s``, then each of ``signals`` in turn (10 s each)."""
+    for sig, wait_s in ((None, grace_s), *((s, 10.0) for s in signals)):
         if sig is not None and proc.poll() is None:
             proc.send_signal(sig)
         try:

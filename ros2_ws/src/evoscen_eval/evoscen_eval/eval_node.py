@@ -10,7 +10,11 @@ publishers in no fixed order; every per-step topic carries exactly one message p
 order, so a step is complete once every such topic has delivered a later one — it is then
 written in canonical order (no timing assumption). The bag is finished once the ``run_end`` event
 and the final world state (same stamp) have arrived and nothing more came for ``drain_s``;
-on Ctrl-C; or after ``idle_timeout_s`` without any message. The per-step topics are
+on SIGINT or SIGTERM (the bag is finished with everything received so far: summary and
+``metadata.yaml``, exit status 130, no report); or after ``idle_timeout_s`` without any message.
+The bag's chunks span at most 1 s of simulated time and each is handed to the OS when closed,
+so even SIGKILL loses at most the last second recorded; ``scripts/reindex.py`` rebuilds the
+summary and ``metadata.yaml`` of such a bag (see docs/recording.md). The per-step topics are
 keep-all (see the contract), so a recorder lagging behind the simulation loses nothing.
 
 Trusted sources (docs/wire.md): a message is recorded only if its publisher (GID, looked up once
@@ -39,6 +43,7 @@ per wake-up (it is outside the lockstep loop; fewer wake-ups leave more CPU to t
 
 from __future__ import annotations
 
+import signal
 import sys
 import time
 
@@ -64,6 +69,11 @@ class EvaluatorNode:
     """The recorder (see the module docstring)."""
 
     def __init__(self) -> None:
+        # SIGINT and SIGTERM finish the bag (checked between batches of messages, never in the
+        # middle of a write); set first, so that a signal during start-up is not lost either
+        self._stop_signal: int | None = None
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(sig, self._on_signal)
         self.node = graph.make_node(NODE_NAME)
         params = graph.node_parameters(self.node)
         self.cfg = scenario_from_node(params, NODE_NAME)
@@ -107,6 +117,9 @@ class EvaluatorNode:
         self.markers_every = self.cfg.recording.markers_every
         self.latest_markers = -self.markers_every * self.dt_ns  # the first markers are due at t = 0
         self.run_end_ns: int | None = None
+
+    def _on_signal(self, signum, frame) -> None:  # noqa: ANN001
+        self._stop_signal = signum
 
     def _take_all(self) -> int:
         """Take every available message; returns how many."""
@@ -181,6 +194,8 @@ class EvaluatorNode:
             # until the run_end event and the final world state (same stamp) are in, and then
             # everything still in flight (drain_s without a message)
             while not self._finished(last_message):
+                if self._stop_signal is not None:
+                    raise KeyboardInterrupt
                 if self._take_all():
                     last_message = time.monotonic()
                     time.sleep(self.batch_s)  # let a few steps accumulate: fewer wake-ups, less CPU
@@ -197,6 +212,9 @@ class EvaluatorNode:
         if self.refused:
             print(f"warning: {NODE_NAME}: {self.refused} message(s) not recorded (untrusted or unreadable)",
                   file=sys.stderr)
+        if status == EXIT_INTERRUPTED:
+            name = signal.Signals(self._stop_signal or signal.SIGINT).name
+            print(f"{NODE_NAME}: {name}: bag finished with {self.bag.message_count} messages", file=sys.stderr)
         if self.acc is not None and status != EXIT_INTERRUPTED:
             status = self._write_report(status)
         return status

@@ -12,7 +12,9 @@ deserializes. The result is what ``ros2 bag record -s mcap`` (Jazzy) produces:
   concatenated message definition (:mod:`evoscen_eval.schemas`); one channel per
   topic, message encoding ``cdr``, channel metadata ``offered_qos_profiles`` (YAML
   string) and ``topic_type_hash`` (``RIHS01_...``);
-* chunked (default 1 MiB) and compressed (default zstd) chunks with message indexes,
+* chunked (default 1 MiB, and at most 1 s of log time per chunk, each closed chunk handed to
+  the OS at once: a killed recorder leaves every closed chunk readable, see
+  ``scripts/reindex.py``) and compressed (default zstd) chunks with message indexes,
   and a summary section (schemas, channels, statistics, chunk indexes, metadata
   index, summary offsets), so ``ros2 bag info/play``, Foxglove, ``mcap`` CLI,
   ``mcap_ros2`` and ``rosbags`` all open it;
@@ -70,6 +72,12 @@ METADATA_VERSION: int = 9
 ROS_DISTRO: str = "jazzy"
 #: Default chunk size (bytes, uncompressed).
 DEFAULT_CHUNK_SIZE: int = 1024 * 1024
+#: Default longest span of a chunk in log time (= simulation time), ns: a chunk is closed and
+#: handed to the OS once a message comes 1 s (simulated) or more after the chunk's first
+#: message, so a recorder killed with SIGKILL loses at most about 1 s of simulated time of the
+#: messages it had written (see docs/recording.md). Log time, not wall time: chunk boundaries
+#: depend only on the messages, so both runners still write byte-identical bags.
+DEFAULT_CHUNK_DURATION_NS: int = 1_000_000_000
 
 _COMPRESSIONS: dict[str, CompressionType] = {
     "zstd": CompressionType.ZSTD,
@@ -139,6 +147,9 @@ class BagRecorder:
         topics: contract entries of the topics to record (unique names).
         compression: chunk compression, ``"zstd"`` (default), ``"lz4"`` or ``"none"``.
         chunk_size: target uncompressed chunk size in bytes (default 1 MiB).
+        chunk_duration_ns: longest log-time span of a chunk (default 1 s): a message with a log
+            time this much or more after the open chunk's first message closes that chunk first
+            and flushes it to the OS (0 = no time bound, size only).
         canonicalize: zero the CDR padding of every message (default True; needed for
             byte-identical bags, see the module docstring).
         metadata: MCAP metadata records ``{name: {key: value}}`` written right after the
@@ -159,8 +170,10 @@ class BagRecorder:
         *,
         compression: str = "zstd",
         chunk_size: int = DEFAULT_CHUNK_SIZE,
+        chunk_duration_ns: int = DEFAULT_CHUNK_DURATION_NS,
         canonicalize: bool = True,
         metadata: Mapping[str, Mapping[str, str]] | None = None,
+        file_name: str | None = None,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
         if compression not in _COMPRESSIONS:
@@ -169,6 +182,10 @@ class BagRecorder:
             )
         if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
             raise InputError(f"BagRecorder chunk_size: {chunk_size!r} is not an integer >= 1 byte")
+        if isinstance(chunk_duration_ns, bool) or not isinstance(chunk_duration_ns, int) or chunk_duration_ns < 0:
+            raise InputError(f"BagRecorder chunk_duration_ns: {chunk_duration_ns!r} is not an integer >= 0 ns")
+        self._chunk_duration_ns = chunk_duration_ns
+        self._chunk_start_ns: int | None = None  # log time of the open chunk's first message
         names = [spec.name for spec in topics]
         dups = sorted({n for n in names if names.count(n) > 1})
         if dups:
@@ -180,7 +197,7 @@ class BagRecorder:
         )
 
         self._prepare_dir(self.bag_dir)
-        self.file_name: str = f"{self.bag_dir.name}_0.mcap"
+        self.file_name: str = file_name or f"{self.bag_dir.name}_0.mcap"
         self.mcap_path: Path = self.bag_dir / self.file_name
         self.metadata_path: Path = self.bag_dir / "metadata.yaml"
         try:
@@ -310,6 +327,12 @@ class BagRecorder:
                 raise ValueError(f"BagRecorder: topic {topic!r}: {exc}") from None
         else:
             payload = bytes(data)
+        if self._chunk_duration_ns:
+            if self._chunk_start_ns is None:
+                self._chunk_start_ns = log_time
+            elif log_time - self._chunk_start_ns >= self._chunk_duration_ns:
+                self._writer.flush()  # close the chunk, write it out and hand it to the OS
+                self._chunk_start_ns = log_time
         state.message_count += 1
         self._writer.add_message(
             channel_id=state.channel_id,
@@ -342,6 +365,7 @@ class BagRecorder:
         """Finish the current chunk and flush it to disk (smaller chunks compress worse)."""
         if not self._closed:
             self._writer.flush()
+            self._chunk_start_ns = None
 
     # ------------------------------------------------------------------ closing
 

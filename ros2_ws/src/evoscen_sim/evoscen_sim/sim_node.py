@@ -26,6 +26,16 @@ Parameters: ``scenario.*`` (the scenario configuration, validated like the YAML 
 start-up, how long discovery must stay quiet (all endpoints matched) before step 0,
 ``wait_for_nodes`` [[]]: names of users' nodes (a monitor, a bridge) that must have
 subscribed to an evoscen topic before step 0 — so they get every step.
+``recorder_lag_steps`` [50]: flow control towards the recorder (and every other reader): every
+this many steps, before publishing the next state, the node waits until every sample it has
+published on the topics the controllers do not read (all but ``/evoscen/world``) is
+acknowledged by all matched readers — however long that takes (a stalled recorder
+holds the lockstep; the wait is not a controller deadline), checking Ctrl-C every 0.1 s. So no
+writer's history (the simulation's or a controller's) ever holds more than about this many
+unacknowledged samples, far below the middleware's resource limits (``fastdds_profiles.xml``):
+before, a recorder stalled ~10 s filled a controller's history and its publish failed.
+``ready_file`` [""]: a file created once start-up is over, just before step 0 (the launcher
+reads it to tell a death during start-up from one during the lockstep).
 """
 
 from __future__ import annotations
@@ -81,6 +91,9 @@ class SimulationNode:
                                 expected="expected a list of node names")
         self.discovery_settle_s = p("discovery_settle_s", 0.5, float, check=lambda v: v >= 0,
                                     expected="expected a number >= 0 (s)")
+        self.recorder_lag_steps = p("recorder_lag_steps", 50, int, check=lambda v: v >= 0,
+                                    expected="expected an integer >= 0 (0 = no flow control)")
+        self.ready_file = p("ready_file", "", str, expected="expected a file path or ''")
 
         self.world = build_world(self.cfg)
         self.exposures = ExposureMonitor(self.cfg.evaluation, self.world.role)
@@ -358,6 +371,20 @@ class SimulationNode:
         if events:
             self._publish_events(events)
 
+    def _wait_acked(self) -> None:
+        """Flow control: until every matched reader has acknowledged every sample published.
+
+        Not on ``/evoscen/world``: the controllers read it, and a dead controller (matched until
+        its lease runs out, 20 s) would hold this wait instead of missing its deadlines. The
+        recorder reads every topic and takes them together, so the per-step topics it alone
+        reads (clock, odometry, events) bound its lag just as well.
+        """
+        for name, pub in self.pub.items():
+            if name == T.WORLD.name:
+                continue
+            while not pub.wait_for_all_acked(graph.duration(0.1)):
+                self._check_interrupt()
+
     def _check_alone(self) -> None:
         others = self.node.count_publishers(T.WORLD.name) - 1
         if others > 0:
@@ -378,9 +405,15 @@ class SimulationNode:
         self._initial_events = self.exposures.observe(w)
         try:
             self.wait_for_graph()
+            if self.ready_file:
+                with open(self.ready_file, "w", encoding="utf-8"):
+                    pass
             loop_start = time.perf_counter()
+            lag = self.recorder_lag_steps
             for k in range(self.cfg.steps):
                 self._check_interrupt()
+                if lag and k and k % lag == 0:
+                    self._wait_acked()
                 self._publish_state(roster=(k == 0))
                 self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
                 # its events go out with the next state (every step, [] if nothing happened)
@@ -396,8 +429,9 @@ class SimulationNode:
         if w.time_ns != self._published_ns:  # the final state, unless it went out already (abort, Ctrl-C)
             self._publish_state(roster=(w.step_index == 0))
         self._publish_events([run_end_event(w, end_kind, end_text)])
-        for pub in self.pub.values():  # a dead reader would hold this for the whole timeout: keep it short
-            pub.wait_for_all_acked(graph.duration(1.0))
+        end = time.monotonic() + 1.0  # a dead reader would hold this for the whole timeout: 1 s in all
+        for pub in self.pub.values():
+            pub.wait_for_all_acked(graph.duration(max(end - time.monotonic(), 0.0)))
         self._leave()
         return status
 

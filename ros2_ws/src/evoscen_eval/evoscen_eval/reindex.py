@@ -1,0 +1,178 @@
+"""Recover a bag whose recorder did not finish it (killed, power cut): ``scripts/reindex.py``.
+
+rosbag2's ``ros2 bag reindex`` rebuilds ``metadata.yaml``; an MCAP file cut short also lacks
+its summary section (schemas, channels, chunk indexes, statistics) and footer, so neither
+``rosbags`` nor the ``mcap`` reader opens it. :func:`reindex_bag` reads such a file record by
+record from its start (``mcap.stream_reader.StreamReader``: no summary needed), keeps every
+*complete* chunk and stops at the first record that is cut short or corrupt (a chunk with a
+bad CRC is dropped, with everything after it), and writes a new MCAP with the same schemas,
+channels, metadata records and messages (same bytes, same times, file order) through
+:class:`~evoscen_eval.recorder.BagRecorder` — so the result is what the recorder would have
+written had it been closed after the last complete chunk — plus ``metadata.yaml``.
+
+The damaged file is kept beside the new one as ``<file>.orig`` (no reader looks at it;
+delete it once the reindexed bag is checked). A complete bag reindexes to a byte-identical
+file.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from evoscen_contract import topics as T
+from evoscen_sim.errors import InputError
+
+from .recorder import DEFAULT_CHUNK_SIZE, BagRecorder
+
+WORLD_TOPIC = T.WORLD.name
+
+
+@dataclass
+class ReindexResult:
+    """What :func:`reindex_bag` recovered."""
+
+    mcap_path: Path
+    messages: int = 0
+    topic_counts: dict[str, int] = field(default_factory=dict)
+    steps: int = 0
+    """Distinct stamps of ``/evoscen/world`` (the states t_0 .. t_K: K + 1 for a run of K steps)."""
+    last_step_ns: int | None = None
+    chunks: int = 0
+    stopped: str = ""
+    """Why reading stopped before the file's footer ('' = the file was complete)."""
+    original: Path | None = None
+
+
+def _mcap_of(bag: Path) -> Path:
+    if bag.is_file():
+        return bag
+    if not bag.is_dir():
+        raise InputError(f"bag {str(bag)!r}: no such bag directory or .mcap file")
+    mcaps = sorted(bag.glob("*.mcap"))
+    if len(mcaps) != 1:
+        raise InputError(f"bag {str(bag)!r}: {len(mcaps)} .mcap files (expected exactly one)")
+    return mcaps[0]
+
+
+def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult:
+    """Rebuild the MCAP summary and ``metadata.yaml`` of ``bag`` (a bag directory or its .mcap).
+
+    Raises:
+        InputError: no bag there, the file is not MCAP at all (bad magic), or it holds no
+            schema/channel records (nothing to rebuild from); the message names the file.
+    """
+    from mcap.exceptions import McapError
+    from mcap.records import Channel, Chunk, Footer, Header, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    path = _mcap_of(Path(bag))
+    bag_dir = path.parent
+    result = ReindexResult(mcap_path=path)
+    schemas: dict[int, Schema] = {}
+    channels: dict[int, Channel] = {}
+    metadata: dict[str, dict[str, str]] = {}
+    messages: list[Message] = []
+    header_seen = False
+    try:
+        stream = open(path, "rb")  # noqa: SIM115
+    except OSError as exc:
+        raise InputError(f"bag {str(path)!r}: cannot open: {exc.strerror or exc}") from None
+    with stream:
+        reader = StreamReader(stream, emit_chunks=True, validate_crcs=True)
+        records = reader.records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                break
+            except (McapError, EOFError, ValueError, KeyError, IndexError, OSError) as exc:
+                if not header_seen:
+                    raise InputError(f"bag {str(path)!r}: not an MCAP file ({exc})") from None
+                result.stopped = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+                break
+            except Exception as exc:  # noqa: BLE001 - any decoder failure ends the readable part
+                if not header_seen:
+                    raise InputError(f"bag {str(path)!r}: not an MCAP file ({exc!r})") from None
+                result.stopped = repr(exc)
+                break
+            header_seen = True
+            inner = [record]
+            if isinstance(record, Chunk):
+                try:
+                    inner = list(breakup_chunk(record, validate_crc=True))
+                except Exception as exc:  # noqa: BLE001 - a corrupt chunk: stop before it
+                    result.stopped = f"corrupt chunk: {exc!r}"
+                    break
+                result.chunks += 1
+            for rec in inner:
+                if isinstance(rec, Schema):
+                    schemas.setdefault(rec.id, rec)
+                elif isinstance(rec, Channel):
+                    channels.setdefault(rec.id, rec)
+                elif isinstance(rec, Message):
+                    messages.append(rec)
+                elif isinstance(rec, Metadata) and rec.name != "rosbag2":
+                    metadata.setdefault(rec.name, dict(rec.metadata))
+                elif isinstance(rec, (Header, Footer)):
+                    pass
+    if not channels:
+        raise InputError(f"bag {str(path)!r}: no channel records readable; nothing to recover")
+    specs = {spec.name: spec for spec in T.CONTRACT}
+    topics = []
+    for cid in sorted(channels):
+        ch = channels[cid]
+        spec = specs.get(ch.topic)
+        if spec is None:
+            raise InputError(f"bag {str(path)!r}: channel {ch.topic!r} is not an evoscen contract topic; "
+                             "only evoscen bags can be reindexed")
+        schema = schemas.get(ch.schema_id)
+        if schema is not None and schema.name != spec.type_name:
+            raise InputError(f"bag {str(path)!r}: channel {ch.topic!r} has type {schema.name!r}, "
+                             f"the contract says {spec.type_name!r}")
+        topics.append(spec)
+    topic_of = {cid: channels[cid].topic for cid in channels}
+
+    tmp = Path(tempfile.mkdtemp(prefix=".reindex-", dir=bag_dir))
+    try:
+        rec = BagRecorder(tmp / "bag", topics, compression=_compression_of(path), chunk_size=DEFAULT_CHUNK_SIZE,
+                          canonicalize=False, metadata=metadata, file_name=path.name)
+        world_stamps: set[int] = set()
+        for m in messages:
+            topic = topic_of.get(m.channel_id)
+            if topic is None:
+                continue  # a message of a channel whose record was lost: cannot be typed
+            rec.write(topic, m.data, m.log_time, m.publish_time, canonical=True)
+            if topic == WORLD_TOPIC:
+                world_stamps.add(m.log_time)
+        rec.close()
+        result.topic_counts = rec.topic_message_counts()
+        result.messages = rec.message_count
+        result.steps = len(world_stamps)
+        result.last_step_ns = max(world_stamps) if world_stamps else None
+        if keep_original:
+            result.original = path.with_name(path.name + ".orig")
+            os.replace(path, result.original)
+        os.replace(tmp / "bag" / path.name, path)
+        os.replace(tmp / "bag" / "metadata.yaml", bag_dir / "metadata.yaml")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return result
+
+
+def _compression_of(path: Path) -> str:
+    """The compression of the file's first chunk (what the recorder was told), zstd if none."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+
+    try:
+        with open(path, "rb") as f:
+            for record in StreamReader(f, emit_chunks=True).records:
+                if isinstance(record, Chunk):
+                    return {"zstd": "zstd", "lz4": "lz4", "": "none"}.get(record.compression, "zstd")
+    except Exception:  # noqa: BLE001 - a damaged file: the default
+        pass
+    return "zstd"
