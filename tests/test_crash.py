@@ -166,7 +166,10 @@ def test_kill_during_startup_ends_the_graph_quickly(tmp_path):
 
 
 def test_stalled_recorder_kills_nothing_and_loses_nothing(tmp_path):
-    stall_s = 15.0  # before: ~10 s killed a controller ("Failed to publish"); 30 s measured by hand
+    # before: ~10 s killed a controller ("Failed to publish"); with flow control but the default 20 s
+    # participant lease, a stall beyond 20 s unmatched the recorder and the lockstep ran on (data
+    # lost); 25 s fails on both. 30 s measured by hand (docs/recording.md).
+    stall_s = float(os.environ.get("EVOSCEN_STALL_S", "25"))
     steps = 3000
     out = tmp_path / "run"
     launcher = _launch("--steps", steps, "--seed", 5, "--out", out, "--no-plots")
