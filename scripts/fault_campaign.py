@@ -1,0 +1,469 @@
+#!/usr/bin/env python3
+"""Fault-and-fuzz campaign: kills, stalls and hostile messages in node graphs; fuzzed inputs.
+
+    python scripts/fault_campaign.py [--graph-runs N] [--fuzz N] [--steps S] [--seed SEED]
+                                     [--out DIR] [--json FILE]
+
+Graph runs (``run_scenario.py --mode graph``, deadline 0.5 s, 3 misses), one fault each, the
+fault classes taken in turn and their timing drawn from a generator seeded by ``--seed``:
+
+* SIGKILL or SIGTERM to each node (simulation, BV, SUT, evaluator), during start-up or during
+  the lockstep (16 classes);
+* the evaluator stalled (SIGSTOP) for 2-30 s, then resumed;
+* a hostile node on the run's domain (``tests/wire_intruder.py``: foreign and malformed
+  commands, garbage world messages, forged events) — the world table must equal a clean
+  in-process run of the same seed byte for byte.
+
+For each run: the exit status (documented: 0, 2, 3, 4, 130), seconds from the fault to the end
+of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, whether the bag opens (after
+``reindex`` if it has to), and steps lost (world states published by the simulation but missing
+from the bag; ≤ 10 = 1 s allowed after a SIGKILLed evaluator, 0 otherwise).
+
+Fuzzed inputs (in this process, each with a 20 s alarm), from the shipped files mutated by the
+same generator: scenario YAML (``load_scenario_config`` + ``build_scenario``), OpenDRIVE maps
+(``load_road``), bags (``evaluate.py``), HighD recordings (``load_recording``) and CLI values
+(``run_scenario.py``, ``evaluate.py``, ``replay.py``, ``export_highd.py``). Each must end in
+success or a one-line error (``InputError`` / exit 2), never a traceback or a hang.
+
+Prints one line per run and the summary table; exit 0 when every acceptance figure holds, 1 if
+not, 2 on bad arguments. Full size (issue 16): ``--graph-runs 100 --fuzz 300``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import os
+import random
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPTS = REPO / "scripts"
+DOCUMENTED_EXIT = (0, 2, 3, 4, 130)
+NODES = {"sim": "evoscen_sim.sim_node", "bv": "evoscen_bv.bv_node", "sut": "evoscen_sut.sut_node",
+         "eval": "evoscen_eval.eval_node"}
+END_LIMIT_S = 10.0
+HANG_S = 120.0
+DT_NS = 100_000_000
+
+
+@dataclass
+class GraphResult:
+    fault: str
+    seed: int
+    status: int | None
+    end_s: float | None
+    hang: bool
+    traceback: bool
+    bag_readable: bool
+    reindexed: bool
+    steps_lost: int | None
+    world_identical: bool | None = None
+    problems: list[str] = field(default_factory=list)
+
+
+def _fault_classes() -> list[tuple]:
+    kills = [("kill", sig, node, phase) for phase in ("lockstep", "startup") for node in NODES
+             for sig in ("SIGKILL", "SIGTERM")]
+    return kills + [("stall",), ("inject",)]
+
+
+def _children(launcher: subprocess.Popen, module: str) -> list[int]:
+    out = subprocess.run(["pgrep", "-P", str(launcher.pid), "-f", rf"\s-m {re.escape(module)}(\s|$)"],
+                         capture_output=True, text=True, check=False).stdout
+    return [int(p) for p in out.split()]
+
+
+def _world_steps(bag: Path) -> list[int] | None:
+    from evoscen_eval.recorder import open_bag_reader
+
+    try:
+        return sorted({t // DT_NS for topic, _type, t, _d in open_bag_reader(bag) if topic == "/evoscen/world"})
+    except Exception:  # noqa: BLE001 - unreadable, whatever the reason
+        return None
+
+
+def _world_bytes(bag: Path) -> list[bytes]:
+    from evoscen_eval.recorder import open_bag_reader
+
+    return [d for topic, _type, _t, d in open_bag_reader(bag) if topic == "/evoscen/world"]
+
+
+def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path, clean_world: dict) -> GraphResult:
+    """One graph run with ``fault``; see the module docstring."""
+    out = work / f"run-{seed}"
+    domain = rng.randint(101, 200)
+    args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--mode", "graph", "--steps", str(steps),
+            "--seed", str(seed), "--out", str(out), "--no-plots", "--deadline", "0.5", "--max-misses", "3",
+            "--domain-id", str(domain), "--overwrite"]
+    launcher = subprocess.Popen(args, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    intruder = None
+    t_fault = None
+    kind = fault[0]
+    problems: list[str] = []
+    mcap = out / "bag" / "bag_0.mcap"
+
+    def running(timeout: float = 90.0) -> bool:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and launcher.poll() is None:
+            if mcap.exists() and mcap.stat().st_size > 0:
+                return True
+            time.sleep(0.05)
+        return False
+
+    try:
+        if kind == "kill":
+            _, sig, node, phase = fault
+            if phase == "startup":
+                end = time.monotonic() + 60
+                while not _children(launcher, NODES[node]) and time.monotonic() < end and launcher.poll() is None:
+                    time.sleep(0.02)
+                time.sleep(rng.uniform(0.0, 1.0))
+            elif running():
+                time.sleep(rng.uniform(0.0, 1.0))
+            pids = _children(launcher, NODES[node])
+            if pids:
+                os.kill(pids[0], getattr(signal, sig))
+                t_fault = time.monotonic()
+            else:
+                problems.append(f"no {node} process to signal")
+        elif kind == "stall":
+            if running():
+                time.sleep(rng.uniform(0.0, 1.0))
+                pids = _children(launcher, NODES["eval"])
+                if pids:
+                    os.kill(pids[0], signal.SIGSTOP)
+                    time.sleep(rng.uniform(2.0, 30.0))
+                    os.kill(pids[0], signal.SIGCONT)
+                    t_fault = time.monotonic()
+        elif kind == "inject":
+            env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                       RMW_IMPLEMENTATION="rmw_fastrtps_cpp", PYTHONPATH=os.pathsep.join(sys.path))
+            intruder = subprocess.Popen([sys.executable, str(REPO / "tests" / "wire_intruder.py"), "60"], cwd=REPO,
+                                        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            stdout, stderr = launcher.communicate(timeout=HANG_S)
+            hang = False
+        except subprocess.TimeoutExpired:
+            launcher.kill()
+            stdout, stderr = launcher.communicate()
+            hang = True
+        end_s = time.monotonic() - t_fault if t_fault is not None else None
+    finally:
+        if launcher.poll() is None:
+            launcher.kill()
+            launcher.wait()
+        for pid in subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split():
+            with contextlib.suppress(OSError):
+                os.kill(int(pid), signal.SIGKILL)
+        if intruder is not None:
+            intruder.kill()
+            _, intruder_err = intruder.communicate()
+            if "Traceback" in intruder_err:
+                problems.append("the intruder itself failed")
+    status = launcher.returncode if not hang else None
+    traceback = "Traceback" in stderr
+    readable, reindexed, lost, identical = False, False, None, None
+    if (out / "bag").exists():
+        world = _world_steps(out / "bag")
+        if world is None:
+            from evoscen_eval.reindex import reindex_bag
+
+            with contextlib.suppress(Exception):
+                reindex_bag(out / "bag", keep_original=False)
+                reindexed = True
+            world = _world_steps(out / "bag")
+        readable = world is not None
+        if world:
+            m = re.search(r"evoscen_sim: lockstep: (\d+) steps", stderr)
+            published = int(m.group(1)) + 1 if m else None  # states 0..K
+            gaps = (world[-1] + 1) - len(world)
+            lost = gaps + (max(published - len(world) - gaps, 0) if published is not None else 0)
+        elif world == []:
+            lost = 0
+        if kind == "inject" and readable:
+            if seed not in clean_world:
+                from evoscen_bringup.inprocess import run_inprocess
+                from evoscen_sim.config import load_scenario_config
+
+                cfg = load_scenario_config(None, {"steps": steps, "seed": seed})
+                run_inprocess(cfg, bag_dir=work / f"clean-{seed}" / "bag", evaluate=False)
+                clean_world[seed] = _world_bytes(work / f"clean-{seed}" / "bag")
+            identical = _world_bytes(out / "bag") == clean_world[seed]
+    allowed_loss = 10 if (kind == "kill" and fault[2] == "eval" and fault[1] == "SIGKILL") else 0
+    if hang:
+        problems.append("hang")
+    if status is not None and status not in DOCUMENTED_EXIT:
+        problems.append(f"exit status {status} not documented")
+    if traceback:
+        problems.append("traceback")
+    if (out / "bag").exists() and not readable:
+        problems.append("bag unreadable after reindex")
+    if lost is not None and lost > allowed_loss:
+        problems.append(f"{lost} steps lost (allowed {allowed_loss})")
+    if end_s is not None and kind == "kill" and end_s > END_LIMIT_S:
+        problems.append(f"ended {end_s:.1f} s after the fault")
+    if identical is False:
+        problems.append("world table differs from the clean run")
+    if kind == "inject" and status != 0:
+        problems.append(f"attacked run ended {status}, not 0")
+    shutil.rmtree(out, ignore_errors=True)
+    return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost, identical,
+                       problems)
+
+
+# --------------------------------------------------------------------------- fuzzing
+
+class _Alarm(Exception):
+    pass
+
+
+def _on_alarm(signum, frame):  # noqa: ANN001, ANN202
+    raise _Alarm
+
+
+def _mutate_text(text: str, rng: np.random.Generator) -> str:
+    """One hostile edit of a text file."""
+    lines = text.split("\n")
+    op = int(rng.integers(0, 9))
+    if op == 0:  # flip bytes
+        b = bytearray(text.encode("utf-8"))
+        for _ in range(int(rng.integers(1, 8))):
+            b[int(rng.integers(0, len(b)))] = int(rng.integers(0, 256))
+        return b.decode("utf-8", errors="surrogateescape")
+    if op == 1:  # cut short
+        return text[: int(rng.integers(0, len(text)))]
+    if op == 2:  # drop a line
+        del lines[int(rng.integers(0, len(lines)))]
+        return "\n".join(lines)
+    if op == 3:  # a value replaced by a hostile token
+        tokens = ["1e308", "-1", "0", "nan", "inf", "''", "[]", "{}", "0x10", "9" * 40, "!!python/object:os.system x",
+                  "&a [*a, *a]", "~", "true", "\u0000", "-0.0", "1e-12"]
+        i = int(rng.integers(0, len(lines)))
+        if ":" in lines[i]:
+            key, _, _ = lines[i].partition(":")
+            lines[i] = f"{key}: {tokens[int(rng.integers(0, len(tokens)))]}"
+        return "\n".join(lines)
+    if op == 4:  # deep nesting
+        depth = int(rng.integers(50, 5000))
+        return "[" * depth + "]" * depth
+    if op == 5:  # NUL bytes
+        i = int(rng.integers(0, len(text)))
+        return text[:i] + "\x00" + text[i:]
+    if op == 6:  # duplicate a line
+        i = int(rng.integers(0, len(lines)))
+        lines.insert(i, lines[i])
+        return "\n".join(lines)
+    if op == 7:  # numbers scaled wildly
+        return re.sub(r"(?<![\w.])(\d+(\.\d+)?)", lambda m: str(float(m.group(1)) * float(rng.choice([-1, 1e9, 1e-9, 0]))),
+                      text, count=int(rng.integers(1, 5)))
+    return text.replace(" ", "\t", int(rng.integers(1, 20)))  # tabs
+
+
+def _finite_at_least(text: str, low: float) -> bool:
+    """Whether ``text`` reads as a finite number >= ``low`` (Python's own float parsing)."""
+    try:
+        value = float(text)
+    except ValueError:
+        return False
+    return np.isfinite(value) and value >= low
+
+
+def _one_line_error(exc: BaseException) -> bool:
+    return "\n" not in str(exc).strip() and bool(str(exc).strip())
+
+
+def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
+    """``n`` fuzzed inputs over the five input kinds; one dict per input."""
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_eval.highd import load_recording
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.errors import InputError
+    from evoscen_sim.road import DEFAULT_MAP_PATH, load_road
+
+    default_yaml = (Path(DEFAULT_MAP_PATH).parents[1] / "config" / "default_scenario.yaml")
+    yaml_text = default_yaml.read_text(encoding="utf-8")
+    map_text = Path(DEFAULT_MAP_PATH).read_text(encoding="utf-8")
+    base_bag = work / "fuzz-base" / "bag"
+    run_inprocess(load_scenario_config(None, {"steps": 60, "seed": 1}), bag_dir=base_bag, evaluate=False)
+    highd_dir = work / "fuzz-base" / "highd"
+    sys.path.insert(0, str(SCRIPTS))
+    import evaluate as evaluate_cli
+    import export_highd as export_cli
+    import replay as replay_cli
+    import run_scenario as run_cli
+
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        export_cli.main([str(base_bag), str(highd_dir), "--recording-id", "1"])
+    highd_files = sorted(highd_dir.glob("*.csv"))
+    hostile = ["0x10", "1e300", "-1", "nan", "", " ", "１２", "1_000", "9" * 30, "--", "-0", "inf", "\x00", "3.5"]
+    kinds = ("config", "map", "bag", "highd", "cli")
+    results = []
+    old = signal.signal(signal.SIGALRM, _on_alarm)
+    cwd = os.getcwd()
+    os.chdir(work)  # a CLI value that names the current directory writes here, not into the checkout
+    try:
+        for i in range(n):
+            kind = kinds[i % len(kinds)]
+            case = work / f"fuzz-{i}"
+            case.mkdir(parents=True, exist_ok=True)
+            outcome, detail = "ok", ""
+            signal.alarm(20)
+            sink_out, sink_err = io.StringIO(), io.StringIO()
+            try:
+                with contextlib.redirect_stdout(sink_out), contextlib.redirect_stderr(sink_err):
+                    if kind == "config":
+                        p = case / "scenario.yaml"
+                        p.write_text(_mutate_text(yaml_text, rng), encoding="utf-8", errors="surrogateescape")
+                        build_scenario(load_scenario_config(p, {"steps": 5}))
+                    elif kind == "map":
+                        p = case / "map.xodr"
+                        p.write_text(_mutate_text(map_text, rng), encoding="utf-8", errors="surrogateescape")
+                        load_road(p)
+                    elif kind == "bag":
+                        bag = case / "bag"
+                        shutil.copytree(base_bag, bag)
+                        target = rng.choice(sorted(bag.iterdir()))
+                        data = bytearray(target.read_bytes())
+                        if rng.random() < 0.5:
+                            data = data[: int(rng.integers(0, len(data)))]
+                        else:
+                            for _ in range(int(rng.integers(1, 16))):
+                                data[int(rng.integers(0, len(data)))] = int(rng.integers(0, 256))
+                        target.write_bytes(bytes(data))
+                        code = evaluate_cli.main([str(bag), "--out", str(case / "report"), "--no-plots"])
+                        if code not in (0, 2):
+                            outcome, detail = "bad-exit", f"evaluate.py exit {code}"
+                    elif kind == "highd":
+                        rec = case / "highd"
+                        shutil.copytree(highd_dir, rec)
+                        target = highd_files[int(rng.integers(0, len(highd_files)))].name
+                        text = (rec / target).read_text(encoding="utf-8")
+                        (rec / target).write_text(_mutate_text(text, rng), encoding="utf-8", errors="surrogateescape")
+                        load_recording(rec, 1)
+                    else:
+                        tool = int(rng.integers(0, 4))
+                        tok = hostile[int(rng.integers(0, len(hostile)))]
+                        detail = f"tool {('run_scenario', 'evaluate', 'replay', 'export_highd')[tool]} value {tok!r}"
+                        if tool == 0:
+                            flag = str(rng.choice(["--steps", "--seed", "--bvs", "--mix", "--sut", "--out"]))
+                            argv = ["--mode", "inprocess", "--no-record", "--quiet", "--steps", "3",
+                                    "--out", str(case / "o"), flag, tok]
+                            code = run_cli.main(argv)
+                        elif tool == 1:
+                            code = evaluate_cli.main([str(base_bag), "--out", tok or str(case / "r"), "--no-plots"])
+                        elif tool == 2:
+                            flag = str(rng.choice(["--rate", "--start-delay", "--wait-timeout", "--wait-subscribers"]))
+                            if flag in ("--start-delay", "--wait-timeout") and _finite_at_least(tok, 10.0):
+                                flag = "--rate"  # a long delay or wait that is asked for is no hang
+                            code = replay_cli.main([str(base_bag), flag, tok, "--rate", "0", "--wait-timeout", "0.1"])
+                        else:
+                            flag = str(rng.choice(["--frame-rate", "--recording-id"]))
+                            code = export_cli.main([str(base_bag), str(case / "h"), flag, tok])
+                        if code not in (0, 1, 2):
+                            outcome, detail = "bad-exit", f"exit {code}"
+            except InputError as exc:
+                outcome = "error" if _one_line_error(exc) else "multi-line-error"
+                detail = str(exc)[:160]
+            except SystemExit as exc:  # argparse: usage + one error line, exit 2
+                outcome = "error" if exc.code == 2 else "bad-exit"
+                detail = f"SystemExit {exc.code}"
+            except _Alarm:
+                outcome, detail = "hang", f"no end within 20 s {detail}"
+            except BaseException as exc:  # noqa: BLE001 - a traceback: what the campaign looks for
+                outcome, detail = "traceback", f"{type(exc).__name__}: {str(exc)[:160]}"
+            finally:
+                signal.alarm(0)
+            if "Traceback" in sink_err.getvalue():
+                outcome, detail = "traceback", sink_err.getvalue().strip().splitlines()[-1][:160]
+            if outcome in ("ok", "error") and kind == "cli":
+                detail = ""
+            results.append({"case": i, "kind": kind, "outcome": outcome, "detail": detail})
+            shutil.rmtree(case, ignore_errors=True)
+    finally:
+        signal.signal(signal.SIGALRM, old)
+        os.chdir(cwd)
+    return results
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="fault_campaign.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--graph-runs", type=int, default=18, help="graph runs with a fault (default 18: each class once)")
+    ap.add_argument("--fuzz", type=int, default=50, help="fuzzed inputs (default 50)")
+    ap.add_argument("--steps", type=int, default=3000, help="steps of each graph run (default 3000)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the campaign's generator (default 0)")
+    ap.add_argument("--out", type=Path, default=None, help="working directory (default: a temporary one, removed)")
+    ap.add_argument("--json", type=Path, default=None, help="also write every result as JSON here")
+    args = ap.parse_args(argv)
+    for name, value, low in (("--graph-runs", args.graph_runs, 0), ("--fuzz", args.fuzz, 0), ("--steps", args.steps, 50)):
+        if value < low or value > 100_000:
+            print(f"error: {name} = {value}: expected an integer in [{low}, 100000]", file=sys.stderr)
+            return 2
+    work = Path(tempfile.mkdtemp(prefix="evoscen-faults-")) if args.out is None else args.out
+    work.mkdir(parents=True, exist_ok=True)
+    rng = random.Random(args.seed)
+    classes = _fault_classes()
+    graph: list[GraphResult] = []
+    clean_world: dict = {}
+    try:
+        for i in range(args.graph_runs):
+            fault = classes[i % len(classes)]
+            r = graph_run(fault, 1000 + i, args.steps, rng, work, clean_world)
+            graph.append(r)
+            print(f"graph {i + 1}/{args.graph_runs} [{r.fault}]: status {r.status}, "
+                  f"end {'-' if r.end_s is None else f'{r.end_s:.1f} s'}, lost {r.steps_lost}"
+                  + (f", world identical {r.world_identical}" if r.world_identical is not None else "")
+                  + (f"  PROBLEMS: {'; '.join(r.problems)}" if r.problems else ""), flush=True)
+        fuzzed = fuzz(args.fuzz, np.random.default_rng(args.seed), work) if args.fuzz else []
+    finally:
+        if args.out is None:
+            shutil.rmtree(work, ignore_errors=True)
+    for f in fuzzed:
+        if f["outcome"] not in ("ok", "error"):
+            print(f"fuzz {f['case']} [{f['kind']}]: {f['outcome']}: {f['detail']}")
+    ends = [r.end_s for r in graph if r.end_s is not None and r.fault.startswith("kill")]
+    rows = [
+        ("graph runs", len(graph)),
+        ("  hangs", sum(r.hang for r in graph)),
+        ("  tracebacks", sum(r.traceback for r in graph)),
+        ("  undocumented exit statuses", sum(r.status is not None and r.status not in DOCUMENTED_EXIT for r in graph)),
+        ("  exit statuses seen", " ".join(f"{s}:{n}" for s, n in sorted(
+            {s: sum(r.status == s for r in graph) for s in {r.status for r in graph}}.items(), key=str))),
+        ("  bags unreadable after reindex", sum(not r.bag_readable for r in graph)),
+        ("  bags that needed reindex", sum(r.reindexed for r in graph)),
+        ("  steps lost beyond the allowance", sum(any("steps lost" in p for p in r.problems) for r in graph)),
+        ("  slowest end after a kill (s)", f"{max(ends):.1f}" if ends else "-"),
+        ("  attacked runs with a different world", sum(r.world_identical is False for r in graph)),
+        ("  runs with a problem", sum(bool(r.problems) for r in graph)),
+        ("fuzzed inputs", len(fuzzed)),
+        ("  accepted", sum(f["outcome"] == "ok" for f in fuzzed)),
+        ("  one-line errors", sum(f["outcome"] == "error" for f in fuzzed)),
+        ("  tracebacks", sum(f["outcome"] == "traceback" for f in fuzzed)),
+        ("  hangs", sum(f["outcome"] == "hang" for f in fuzzed)),
+        ("  other (multi-line error, bad exit)", sum(f["outcome"] in ("multi-line-error", "bad-exit") for f in fuzzed)),
+    ]
+    width = max(len(k) for k, _ in rows)
+    print("\n" + "\n".join(f"{k.ljust(width)}  {v}" for k, v in rows))
+    if args.json:
+        args.json.write_text(json.dumps({"graph": [asdict(r) for r in graph], "fuzz": fuzzed}, indent=1))
+    ok = not any(r.problems for r in graph) and all(f["outcome"] in ("ok", "error") for f in fuzzed)
+    print("campaign: " + ("every figure holds" if ok else "PROBLEMS found (above)"))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
