@@ -66,11 +66,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                     help="simulated seconds per wall-clock second: 1 = real time (default), 0 = as fast as possible")
     ap.add_argument("--loop", action="store_true", help="replay again and again until Ctrl-C")
     ap.add_argument("--topics", nargs="+", metavar="T", help="replay only these topics (default: all)")
-    ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: the environment's, else 0)")
+    ap.add_argument("--domain-id", help="ROS_DOMAIN_ID (default: the environment's, else 0)")
     ap.add_argument("--discovery-range", default="LOCALHOST", choices=DISCOVERY_RANGES,
                     help="ROS_AUTOMATIC_DISCOVERY_RANGE (default LOCALHOST; SUBNET reaches other machines)")
     ap.add_argument("--start-delay", default="0", metavar="S", help="seconds to wait before the first message")
-    ap.add_argument("--wait-subscribers", type=int, default=0, metavar="N",
+    ap.add_argument("--wait-subscribers", default="0", metavar="N",
                     help="start only when every publisher has N matched subscriptions (default 0)")
     ap.add_argument("--wait-timeout", default="30", metavar="S",
                     help="give up waiting for subscribers after S s (exit 1), and for acknowledgements at the "
@@ -88,8 +88,12 @@ def validate(args: argparse.Namespace):  # noqa: ANN201
         select_topics,
     )
     from evoscen_sim.errors import InputError
+    from evoscen_sim.limits import parse_cli_int
 
     rate = parse_rate(args.rate)
+    if args.domain_id is not None:
+        args.domain_id = parse_cli_int("--domain-id", args.domain_id, 0, 232)
+    args.wait_subscribers = parse_cli_int("--wait-subscribers", args.wait_subscribers, 0, 1_000_000)
     start_delay = parse_seconds("--start-delay", args.start_delay)
     wait_timeout = parse_seconds("--wait-timeout", args.wait_timeout)
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
