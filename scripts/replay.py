@@ -103,10 +103,16 @@ def validate(args: argparse.Namespace):  # noqa: ANN201
     topics = select_topics(read_bag_topics(args.bag), args.topics, bag=f"bag {str(args.bag)!r}")
     if not topics:
         raise InputError(f"bag {str(args.bag)!r}: has no topics to replay")
+    from evoscen_contract.topics import TOPICS
+
     for t in topics:
         if t.encoding != CDR:
             raise InputError(f"bag {str(args.bag)!r}: topic {t.name!r} ({t.type_name}) is encoded as "
                              f"{t.encoding!r}, only {CDR!r} can be published; leave it out with --topics")
+        spec = TOPICS.get(t.name)
+        if spec is not None and t.type_name != spec.type_name:
+            raise InputError(f"bag {str(args.bag)!r}: topic {t.name!r} is recorded as {t.type_name!r}; the evoscen "
+                             f"contract says {spec.type_name!r}: not replayed (leave it out with --topics)")
     return rate, start_delay, wait_timeout, topics
 
 
@@ -129,6 +135,32 @@ def message_classes(topics, bag: Path) -> dict[str, type]:  # noqa: ANN001
             raise InputError(f"bag {str(bag)!r}: topic {t.name!r} has type {t.type_name!r}, which is not installed "
                              f"(no {module}.{cls}): source its package, or leave the topic out with --topics") from None
     return out
+
+
+def check_first_messages(bag: Path, topics, classes: dict[str, type]) -> None:  # noqa: ANN001
+    """Deserialize the first message of every topic with its class: InputError if one does not
+    decode (a bag whose schema does not match its data), before anything is published."""
+    from rclpy.serialization import deserialize_message
+
+    from evoscen_eval.replay import iter_replay
+    from evoscen_sim.errors import InputError
+
+    todo = {t.name for t in topics if t.message_count != 0}
+    types = {t.name: t.type_name for t in topics}
+    if not todo:
+        return
+    for topic, log_time, data in iter_replay(bag, sorted(todo)):
+        if topic not in todo:
+            continue
+        try:
+            deserialize_message(data, classes[topic])
+        except Exception as exc:  # noqa: BLE001 - any failure: the bytes are not that type
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            raise InputError(f"bag {str(bag)!r}: topic {topic!r}: the message at t = {log_time} ns does not decode "
+                             f"as its recorded type {types[topic]!r} ({reason})") from None
+        todo.discard(topic)
+        if not todo:
+            return
 
 
 def set_ros_environment(args: argparse.Namespace) -> tuple[str, Path | None]:
@@ -187,6 +219,7 @@ def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeo
     from evoscen_eval.replay import Pacer, iter_replay
 
     classes = message_classes(topics, args.bag)
+    check_first_messages(args.bag, topics, classes)
     domain, profile = set_ros_environment(args)
     node = None
     sent = 0

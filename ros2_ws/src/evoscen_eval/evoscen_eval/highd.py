@@ -441,6 +441,17 @@ def write_recording(directory: Path | str, rec: HighDRecording, *, overwrite: bo
     for c in RECORDING_META_COLUMNS:
         if c not in rec.recording_meta:
             raise ValueError(f"write_recording: the recording has no recordingMeta field {c!r}")
+    for c in TRACK_COLUMNS:
+        col = np.asarray(rec.tracks[c])
+        if col.dtype.kind == "f" and not np.isfinite(col).all():
+            i = int(np.flatnonzero(~np.isfinite(col))[0])
+            raise InputError(f"{paths['tracks']}: column {c!r} row {i + 1} (track {int(rec.tracks['id'][i])}, frame "
+                             f"{int(rec.tracks['frame'][i])}) is {col[i]}: HighD files hold finite values only; not written")
+    for c in TRACKS_META_COLUMNS:
+        col = np.asarray(rec.tracks_meta[c])
+        if col.dtype.kind == "f" and np.isnan(col).any():
+            i = int(np.flatnonzero(np.isnan(col))[0])
+            raise InputError(f"{paths['tracksMeta']}: column {c!r} row {i + 1} is nan: not written")
     if not overwrite:
         for p in paths.values():
             if p.exists():
