@@ -129,7 +129,7 @@ def run_inprocess(
     if report_dir is not None or evaluate:
         from evoscen_eval.rundata import RunAccumulator
 
-        acc = RunAccumulator()
+        acc = RunAccumulator(expected_states=n_steps + 1)
         if report_dir is not None:  # the lane lines of the report's snapshots
             acc.add_map(world.road)
     exposures = ExposureMonitor(cfg.evaluation, world.role)

@@ -28,6 +28,7 @@ import yaml
 from evoscen_contract import topics as T
 from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
 from evoscen_sim.errors import InputError
+from evoscen_sim.limits import MAX_STEPS
 
 SCENARIO_METADATA = "evoscen"
 """Name of the MCAP metadata record holding the scenario."""
@@ -76,8 +77,15 @@ class RunData:
 class RunAccumulator:
     """Collects world states, events and the map of a run (see the module docstring)."""
 
-    def __init__(self) -> None:
-        self._states: list[np.ndarray] = []
+    def __init__(self, expected_states: int | None = None) -> None:
+        # The world states live in one float64 buffer [F, capacity, V]: field j of states 0..K-1
+        # is the contiguous block buf[j, :K], which RunData.columns hands out as views, so the
+        # [K, V] columns are held once (before: a list of [V, F] arrays, then np.stack, then a
+        # contiguous copy per field: three copies at scoring). ``expected_states`` (a run of N
+        # steps has N + 1) sizes the buffer exactly; without it, or beyond it, it doubles.
+        self._expected = max(1, int(expected_states)) if expected_states else 1024
+        self._buf: np.ndarray | None = None
+        self._k = 0
         self._times_ns: list[int] = []
         self.events: list[dict] = []
         self.complete = False
@@ -86,6 +94,11 @@ class RunAccumulator:
         self._markers_class: Any = None
 
     # ------------------------------------------------------------------ feeding
+
+    def expect(self, states: int) -> None:
+        """Size the buffer for ``states`` world states (before the first one arrives)."""
+        if self._buf is None and 1 <= states <= 1 + MAX_STEPS:
+            self._expected = int(states)
 
     def add_world_columns(self, columns: Mapping[str, np.ndarray], t_ns: int) -> None:
         """A world state from the world's columns (copied)."""
@@ -124,10 +137,18 @@ class RunAccumulator:
         self.lane_segments = lane_segments(road_markers(road))
 
     def _add_state(self, table: np.ndarray, t_ns: int) -> None:
-        if self._states and table.shape != self._states[0].shape:
-            raise ValueError(f"world table of {table.shape[0]} vehicles at t = {t_ns} ns, "
-                             f"the run started with {self._states[0].shape[0]}")
-        self._states.append(table)
+        rows, n_fields = table.shape
+        if self._buf is None:
+            self._buf = np.empty((n_fields, self._expected, rows), dtype=np.float64)
+        elif self._buf.shape[2] != rows or self._buf.shape[0] != n_fields:
+            raise ValueError(f"world table of {rows} vehicles at t = {t_ns} ns, "
+                             f"the run started with {self._buf.shape[2]}")
+        if self._k == self._buf.shape[1]:
+            grown = np.empty((n_fields, 2 * self._k, rows), dtype=np.float64)
+            grown[:, : self._k] = self._buf
+            self._buf = grown
+        self._buf[:, self._k, :] = table.T
+        self._k += 1
         self._times_ns.append(int(t_ns))
 
     # ------------------------------------------------------------------ result
@@ -135,11 +156,11 @@ class RunAccumulator:
     @property
     def states(self) -> int:
         """World states collected so far."""
-        return len(self._states)
+        return self._k
 
     def last_nonfinite(self) -> tuple[int, str, float] | None:
         """``(vehicle id, field, value)`` of the first NaN/inf cell of the last state, else None."""
-        table = self._states[-1]
+        table = self._buf[:, self._k - 1, :].T
         bad = ~np.isfinite(table)
         if not bad.any():
             return None
@@ -154,10 +175,12 @@ class RunAccumulator:
     def run_data(self, *, scenario: dict | None = None, warnings: Iterable[str] = (),
                  external_sut: bool = False) -> RunData:
         """The collected run; ValueError if no world state was collected."""
-        if not self._states:
+        if not self._k:
             raise ValueError("no world state (/evoscen/world) in the run")
-        stacked = np.stack(self._states)  # [K, V, F]
-        columns = {f: np.ascontiguousarray(stacked[:, :, j]) for j, f in enumerate(T.WORLD_FIELDS)}
+        k = self._k
+        if k < self._buf.shape[1] // 2:  # a run cut short: do not keep the unused half
+            self._buf = self._buf[:, :k].copy()
+        columns = {f: self._buf[j, :k] for j, f in enumerate(T.WORLD_FIELDS)}
         times = np.asarray(self._times_ns, dtype=np.int64)
         roles = columns["role"][0]
         suts = np.flatnonzero(roles == 1)
@@ -324,6 +347,9 @@ def read_run(bag_dir: Path | str) -> RunData:
                     channels[record.id] = record.topic
                 elif isinstance(record, Metadata) and record.name == SCENARIO_METADATA:
                     scenario = _parse_scenario(record.metadata.get(SCENARIO_KEY), path)
+                    steps = (scenario or {}).get("steps")
+                    if isinstance(steps, int) and not isinstance(steps, bool):
+                        acc.expect(steps + 1)
                     external_sut = _parse_sut_source(record.metadata.get(SUT_SOURCE_KEY), path)
                 elif isinstance(record, Schema):
                     schemas[record.id] = record
