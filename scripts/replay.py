@@ -66,11 +66,11 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                     help="simulated seconds per wall-clock second: 1 = real time (default), 0 = as fast as possible")
     ap.add_argument("--loop", action="store_true", help="replay again and again until Ctrl-C")
     ap.add_argument("--topics", nargs="+", metavar="T", help="replay only these topics (default: all)")
-    ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: the environment's, else 0)")
+    ap.add_argument("--domain-id", help="ROS_DOMAIN_ID (default: the environment's, else 0)")
     ap.add_argument("--discovery-range", default="LOCALHOST", choices=DISCOVERY_RANGES,
                     help="ROS_AUTOMATIC_DISCOVERY_RANGE (default LOCALHOST; SUBNET reaches other machines)")
     ap.add_argument("--start-delay", default="0", metavar="S", help="seconds to wait before the first message")
-    ap.add_argument("--wait-subscribers", type=int, default=0, metavar="N",
+    ap.add_argument("--wait-subscribers", default="0", metavar="N",
                     help="start only when every publisher has N matched subscriptions (default 0)")
     ap.add_argument("--wait-timeout", default="30", metavar="S",
                     help="give up waiting for subscribers after S s (exit 1), and for acknowledgements at the "
@@ -88,8 +88,12 @@ def validate(args: argparse.Namespace):  # noqa: ANN201
         select_topics,
     )
     from evoscen_sim.errors import InputError
+    from evoscen_sim.limits import parse_cli_int
 
     rate = parse_rate(args.rate)
+    if args.domain_id is not None:
+        args.domain_id = parse_cli_int("--domain-id", args.domain_id, 0, 232)
+    args.wait_subscribers = parse_cli_int("--wait-subscribers", args.wait_subscribers, 0, 1_000_000)
     start_delay = parse_seconds("--start-delay", args.start_delay)
     wait_timeout = parse_seconds("--wait-timeout", args.wait_timeout)
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
@@ -99,10 +103,16 @@ def validate(args: argparse.Namespace):  # noqa: ANN201
     topics = select_topics(read_bag_topics(args.bag), args.topics, bag=f"bag {str(args.bag)!r}")
     if not topics:
         raise InputError(f"bag {str(args.bag)!r}: has no topics to replay")
+    from evoscen_contract.topics import TOPICS
+
     for t in topics:
         if t.encoding != CDR:
             raise InputError(f"bag {str(args.bag)!r}: topic {t.name!r} ({t.type_name}) is encoded as "
                              f"{t.encoding!r}, only {CDR!r} can be published; leave it out with --topics")
+        spec = TOPICS.get(t.name)
+        if spec is not None and t.type_name != spec.type_name:
+            raise InputError(f"bag {str(args.bag)!r}: topic {t.name!r} is recorded as {t.type_name!r}; the evoscen "
+                             f"contract says {spec.type_name!r}: not replayed (leave it out with --topics)")
     return rate, start_delay, wait_timeout, topics
 
 
@@ -125,6 +135,32 @@ def message_classes(topics, bag: Path) -> dict[str, type]:  # noqa: ANN001
             raise InputError(f"bag {str(bag)!r}: topic {t.name!r} has type {t.type_name!r}, which is not installed "
                              f"(no {module}.{cls}): source its package, or leave the topic out with --topics") from None
     return out
+
+
+def check_first_messages(bag: Path, topics, classes: dict[str, type]) -> None:  # noqa: ANN001
+    """Deserialize the first message of every topic with its class: InputError if one does not
+    decode (a bag whose schema does not match its data), before anything is published."""
+    from rclpy.serialization import deserialize_message
+
+    from evoscen_eval.replay import iter_replay
+    from evoscen_sim.errors import InputError
+
+    todo = {t.name for t in topics if t.message_count != 0}
+    types = {t.name: t.type_name for t in topics}
+    if not todo:
+        return
+    for topic, log_time, data in iter_replay(bag, sorted(todo)):
+        if topic not in todo:
+            continue
+        try:
+            deserialize_message(data, classes[topic])
+        except Exception as exc:  # noqa: BLE001 - any failure: the bytes are not that type
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            raise InputError(f"bag {str(bag)!r}: topic {topic!r}: the message at t = {log_time} ns does not decode "
+                             f"as its recorded type {types[topic]!r} ({reason})") from None
+        todo.discard(topic)
+        if not todo:
+            return
 
 
 def set_ros_environment(args: argparse.Namespace) -> tuple[str, Path | None]:
@@ -183,6 +219,7 @@ def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeo
     from evoscen_eval.replay import Pacer, iter_replay
 
     classes = message_classes(topics, args.bag)
+    check_first_messages(args.bag, topics, classes)
     domain, profile = set_ros_environment(args)
     node = None
     sent = 0

@@ -35,17 +35,17 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--sut", help="SUT model name (overrides 'sut.model')")
     ap.add_argument("--bvs", help="number of background vehicles (overrides 'bvs.count')")
     ap.add_argument("--mix", help="policy mix competitive:mutual:cooperative, e.g. 4:3:3 (overrides 'bvs.mix')")
-    ap.add_argument("--out", type=Path, default=Path("runs/latest"), help="output directory (default runs/latest)")
+    ap.add_argument("--out", default="runs/latest", help="output directory (default runs/latest)")
     ap.add_argument("--no-record", action="store_true", help="do not record a bag")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag and report in OUT/report")
     ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only, no PNG plots")
     ap.add_argument("--quiet", action="store_true", help="no progress bar (inprocess)")
     g = ap.add_argument_group("graph mode")
-    g.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID of the nodes (default: random in 1..100)")
+    g.add_argument("--domain-id", help="ROS_DOMAIN_ID of the nodes (default: random in 1..100)")
     g.add_argument("--discovery-range", default="LOCALHOST", choices=("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT"),
                    help="ROS_AUTOMATIC_DISCOVERY_RANGE: SUBNET lets ROS 2 machines on the network see the topics")
     g.add_argument("--deadline", type=float, default=2.0, help="per-step controller deadline in seconds (default 2.0)")
-    g.add_argument("--max-misses", type=int, default=5, help="consecutive missed deadlines that abort (default 5)")
+    g.add_argument("--max-misses", default="5", help="consecutive missed deadlines that abort (default 5)")
     g.add_argument("--wait-for", nargs="+", default=[], metavar="NODE",
                    help="node names of your own nodes (a monitor, a bridge) to wait for before step 0, "
                         "so they receive every step")
@@ -138,7 +138,16 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import dump_config, load_scenario_config
     from evoscen_sim.errors import InputError
+    from evoscen_sim.limits import parse_cli_int, parse_cli_path
 
+    try:
+        args.out = parse_cli_path("--out", args.out)
+        if args.domain_id is not None:
+            args.domain_id = parse_cli_int("--domain-id", args.domain_id, 0, 232)
+        args.max_misses = parse_cli_int("--max-misses", args.max_misses, 1, 1_000_000)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
     overrides = {key: value for key, value in (
         ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
         ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}

@@ -32,30 +32,34 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(2)
 
 
+def _strict_int(text: str, lo: int, hi: int, expected: str) -> int:
+    """Plain decimal digits only (``int()`` would also take ``1_000`` and spaces)."""
+    body = text[1:] if text[:1] in "+-" else text
+    if not body.isascii() or not body.isdigit() or len(body) > 30 or not lo <= int(text) <= hi:
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+    return int(text)
+
+
 def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+    from evoscen_sim.limits import MAX_TRAINING_STEPS
+
+    return _strict_int(text, 1, MAX_TRAINING_STEPS, f"a positive integer (decimal digits, at most {MAX_TRAINING_STEPS})")
 
 
 def _seed(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2^32), got {text!r}") from None
-    if not 0 <= value < 2**32:
-        raise argparse.ArgumentTypeError(f"expected an integer in [0, 2^32), got {text!r}")
-    return value
+    return _strict_int(text, 0, 2**32 - 1, "an integer in [0, 2^32)")
+
+
+def _out_path(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a non-empty path, got {text!r}")
+    return Path(text)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = _Parser(prog="train_bv.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--stage", required=True, choices=STAGE_CHOICES, help="stage to train, or all")
-    ap.add_argument("--out", required=True, type=Path, help="output directory (policies, curves, model cards)")
+    ap.add_argument("--out", required=True, type=_out_path, help="output directory (policies, curves, model cards)")
     ap.add_argument("--steps", type=_positive_int, help="training steps of every stage run (default: the config's)")
     ap.add_argument("--seed", type=_seed, default=1, help="random seed (default 1)")
     ap.add_argument("--config", type=Path, help="training YAML (default: the shipped one)")

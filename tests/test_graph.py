@@ -417,3 +417,21 @@ def test_bad_node_parameters_are_one_line_errors(tmp_path):
     assert "evoscen_bv" in results["bvs.count"]
     assert "'deadline_s'" in results["deadline_s"] and "evoscen_sim" in results["deadline_s"], results["deadline_s"]
     assert "> 0" in results["deadline_s"]
+
+
+def test_no_bvs_graph_bag_equals_inprocess_bag(tmp_path):
+    """``bvs.count: 0``: the graph starts no BV controller, the in-process runner writes no BV
+    commands either (it wrote one empty table per step): the two bags are byte-identical."""
+    config = tmp_path / "no_bvs.yaml"
+    config.write_text("bvs: {count: 0}\nspawn: {ramp_vehicles: 0}\n")
+    graph = _run_cli("--mode", "graph", "--config", config, "--steps", 30, "--seed", 2, "--out", tmp_path / "graph")
+    assert graph.returncode == 0, graph.stderr
+    inproc = _run_cli("--mode", "inprocess", "--config", config, "--steps", 30, "--seed", 2, "--out",
+                      tmp_path / "inproc", "--quiet", "--no-plots")
+    assert inproc.returncode == 0, inproc.stderr
+    g_dir, i_dir = tmp_path / "graph" / "bag", tmp_path / "inproc" / "bag"
+    g, i = _read_bag(g_dir), _read_bag(i_dir)
+    assert "/evoscen/commands/bv" not in g and "/evoscen/commands/bv" not in i
+    assert _steps(_stamps(i, "/evoscen/commands/sut")) == list(range(30))
+    assert (g_dir / "metadata.yaml").read_bytes() == (i_dir / "metadata.yaml").read_bytes(), "metadata.yaml differs"
+    assert (g_dir / "bag_0.mcap").read_bytes() == (i_dir / "bag_0.mcap").read_bytes(), "bag_0.mcap differs"

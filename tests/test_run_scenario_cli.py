@@ -132,7 +132,7 @@ def test_unknown_sut_lists_choices(cli, tmp_path):
 
 def test_negative_steps_names_steps(cli, tmp_path):
     res = cli("--steps", -5, "--out", tmp_path / "out", "--quiet")
-    assert_one_line_error(res, "'steps'", "-5", ">= 1", "command line")
+    assert_one_line_error(res, "'steps'", "-5", "[1, 1000000]", "command line")
 
 
 def test_output_below_regular_file_names_directory(cli, tmp_path):

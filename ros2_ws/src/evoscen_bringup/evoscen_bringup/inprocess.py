@@ -129,7 +129,7 @@ def run_inprocess(
     if report_dir is not None or evaluate:
         from evoscen_eval.rundata import RunAccumulator
 
-        acc = RunAccumulator()
+        acc = RunAccumulator(expected_states=n_steps + 1)
         if report_dir is not None:  # the lane lines of the report's snapshots
             acc.add_map(world.road)
     exposures = ExposureMonitor(cfg.evaluation, world.role)
@@ -148,7 +148,8 @@ def run_inprocess(
             bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
             if rec is not None:
                 t_ns = world.time_ns
-                rec.commands(rec.T.COMMANDS_BV.name, bv_ids, bv_thr, bv_lc, t_ns)
+                if len(bv_ids):  # no BVs, no BV controller: no BV commands (as in the node graph)
+                    rec.commands(rec.T.COMMANDS_BV.name, bv_ids, bv_thr, bv_lc, t_ns)
                 rec.commands(rec.T.COMMANDS_SUT.name, sut_ids, sut_thr, sut_lc, t_ns)
             result = sc.apply(bv_thr, bv_lc, sut_thr, sut_lc)
             summary.collisions += len(result.collisions)

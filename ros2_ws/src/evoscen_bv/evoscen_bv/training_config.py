@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 
 from evoscen_sim.errors import InputError
+from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, check_yaml_depth, read_text_limited
 
 from .car_following import CarFollowingParams
 from .lane_change import GridParams, RewardParams
@@ -113,8 +114,8 @@ def _convert(section_type: type, raw: Any, where: str, path: str) -> Any:
             ok = isinstance(value, bool)
             expected = "a boolean"
         elif isinstance(default, int):
-            ok = isinstance(value, int) and not isinstance(value, bool) and value >= 1
-            expected = "an integer >= 1"
+            ok = isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= MAX_TRAINING_STEPS
+            expected = f"an integer in [1, {MAX_TRAINING_STEPS}]"
         elif isinstance(default, float):
             ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
             expected = "a finite number"
@@ -141,10 +142,10 @@ def _convert(section_type: type, raw: Any, where: str, path: str) -> Any:
 def load_training_config(path: Path | str | None = None) -> TrainingConfig:
     """Read and validate a training YAML (``None``: the shipped one)."""
     path = Path(path) if path is not None else default_config_path()
+    text = read_text_limited(path, str(path), "training config", MAX_CONFIG_BYTES)
+    check_yaml_depth(text, str(path), "training config")
     try:
-        raw = yaml.safe_load(path.read_text())
-    except FileNotFoundError:
-        raise InputError(f"{path}: training config not found") from None
+        raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = f":{mark.line + 1}" if mark is not None else ""

@@ -94,7 +94,7 @@ class EvaluatorNode:
         self.report_plots = p("report_plots", True, bool, expected="expected true or false")
         self.external_sut = p("external_sut", False, bool, expected="expected true or false")
         self.metadata = scenario_metadata(self.cfg, external_sut=self.external_sut)  # the bag's; the report reads it too
-        self.acc = RunAccumulator() if self.report_dir else None
+        self.acc = RunAccumulator(expected_states=self.cfg.steps + 1) if self.report_dir else None
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         rec = self.cfg.recording
         self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,

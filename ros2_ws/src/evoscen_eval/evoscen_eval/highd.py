@@ -31,6 +31,7 @@ column.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import re
@@ -41,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from evoscen_sim.errors import InputError
+from evoscen_sim.limits import MAX_HIGHD_META_BYTES, MAX_HIGHD_TRACKS_BYTES, check_regular_file
 
 #: Every column of a HighD ``NN_tracks.csv``, in HighD's order.
 TRACK_COLUMNS: tuple[str, ...] = (
@@ -183,14 +185,26 @@ def recording_paths(directory: Path | str, recording: str | int) -> dict[str, Pa
     }
 
 
-def _open_text(path: Path):  # noqa: ANN202
+def _open_text(path: Path, limit: int = MAX_HIGHD_META_BYTES):  # noqa: ANN202
+    """The CSV file opened as UTF-8 text, after checking it is a regular file of at most ``limit``
+    bytes (docs/input-limits.md); read it inside :func:`_utf8_errors`."""
+    if not Path(path).exists():
+        raise InputError(f"{path}: file not found (a HighD recording needs NN_recordingMeta.csv, "
+                         "NN_tracksMeta.csv and NN_tracks.csv)")
+    check_regular_file(path, str(path), "HighD file", limit)
     try:
         return open(path, encoding="utf-8", newline="")
-    except FileNotFoundError:
-        raise InputError(f"{path}: file not found (a HighD recording needs NN_recordingMeta.csv, "
-                         "NN_tracksMeta.csv and NN_tracks.csv)") from None
     except OSError as exc:
         raise InputError(f"{path}: cannot read: {exc.strerror or exc}") from None
+
+
+@contextlib.contextmanager
+def _utf8_errors(path: Path):  # noqa: ANN202
+    """A UnicodeDecodeError while reading ``path`` (a binary file) becomes one InputError line."""
+    try:
+        yield
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path}: not UTF-8 text ({exc.reason}); expected a HighD CSV text file") from None
 
 
 def _header(path: Path, line: str, required: tuple[str, ...] | list[str], known: tuple[str, ...]) -> list[str]:
@@ -229,7 +243,7 @@ def _parse_markings(path: Path, column: str, text: str) -> np.ndarray:
 
 def load_recording_meta(path: Path) -> tuple[dict[str, str], int, float, np.ndarray, np.ndarray]:
     """Read ``NN_recordingMeta.csv``: (raw fields, id, frame rate, upper, lower markings)."""
-    with _open_text(path) as f:
+    with _open_text(path) as f, _utf8_errors(path):
         rows = list(csv.reader(f))
     if not rows:
         raise InputError(f"{path}: empty file (expected a header and one row)")
@@ -250,7 +264,7 @@ def load_recording_meta(path: Path) -> tuple[dict[str, str], int, float, np.ndar
 
 def load_tracks_meta(path: Path) -> dict[str, np.ndarray]:
     """Read ``NN_tracksMeta.csv`` (every standard column present, and evoscen's extras)."""
-    with _open_text(path) as f:
+    with _open_text(path) as f, _utf8_errors(path):
         reader = csv.reader(f)
         try:
             header = next(reader)
@@ -315,7 +329,7 @@ def load_tracks(path: Path, columns: tuple[str, ...] = EXTRACTION_COLUMNS,
     unknown = [c for c in columns if c not in TRACK_COLUMNS]
     if unknown:
         raise InputError(f"{path}: {unknown[0]!r} is not a HighD tracks column (expected one of {', '.join(TRACK_COLUMNS)})")
-    with _open_text(path) as f:
+    with _open_text(path, MAX_HIGHD_TRACKS_BYTES) as f, _utf8_errors(path):
         names = _header(path, f.readline(), columns, TRACK_COLUMNS)
         idx = [names.index(c) for c in columns]
         commas = len(names) - 1
@@ -427,6 +441,17 @@ def write_recording(directory: Path | str, rec: HighDRecording, *, overwrite: bo
     for c in RECORDING_META_COLUMNS:
         if c not in rec.recording_meta:
             raise ValueError(f"write_recording: the recording has no recordingMeta field {c!r}")
+    for c in TRACK_COLUMNS:
+        col = np.asarray(rec.tracks[c])
+        if col.dtype.kind == "f" and not np.isfinite(col).all():
+            i = int(np.flatnonzero(~np.isfinite(col))[0])
+            raise InputError(f"{paths['tracks']}: column {c!r} row {i + 1} (track {int(rec.tracks['id'][i])}, frame "
+                             f"{int(rec.tracks['frame'][i])}) is {col[i]}: HighD files hold finite values only; not written")
+    for c in TRACKS_META_COLUMNS:
+        col = np.asarray(rec.tracks_meta[c])
+        if col.dtype.kind == "f" and np.isnan(col).any():
+            i = int(np.flatnonzero(np.isnan(col))[0])
+            raise InputError(f"{paths['tracksMeta']}: column {c!r} row {i + 1} is nan: not written")
     if not overwrite:
         for p in paths.values():
             if p.exists():

@@ -465,29 +465,70 @@ def _dump_yaml(data: Any) -> str:
 # ---------------------------------------------------------------------- reading
 
 
+def read_bag_metadata(bag_dir: Path) -> dict[str, Any] | None:
+    """The ``rosbag2_bagfile_information`` mapping of ``bag_dir/metadata.yaml`` (None if absent).
+
+    Read with the limits of docs/input-limits.md (at most
+    :data:`~evoscen_sim.limits.MAX_METADATA_YAML_BYTES`, UTF-8 without NUL bytes, nesting at
+    most :data:`~evoscen_sim.limits.MAX_YAML_DEPTH`); anything else is one InputError line.
+    """
+    from evoscen_sim.limits import MAX_METADATA_YAML_BYTES, check_yaml_depth, read_text_limited
+
+    meta_path = bag_dir / "metadata.yaml"
+    if not (meta_path.exists() or meta_path.is_symlink()):
+        return None
+    label = f"bag {str(bag_dir)!r}: metadata.yaml"
+    text = read_text_limited(meta_path, label, "the file", MAX_METADATA_YAML_BYTES)
+    check_yaml_depth(text, label, "the file")
+    try:
+        meta = yaml.safe_load(text)
+        info = meta["rosbag2_bagfile_information"]
+    except (yaml.YAMLError, KeyError, TypeError) as exc:
+        reason = " ".join(str(exc).split()) or type(exc).__name__
+        raise InputError(
+            f"bag {str(bag_dir)!r}: metadata.yaml is unreadable or not rosbag2 metadata: {reason}"
+        ) from None
+    if not isinstance(info, dict):
+        raise InputError(f"bag {str(bag_dir)!r}: metadata.yaml rosbag2_bagfile_information is not a mapping")
+    return info
+
+
+def _contained_file(bag_dir: Path, name: Any) -> Path:
+    """``bag_dir / name`` if ``name`` is a relative path that stays inside ``bag_dir``."""
+    where = f"bag {str(bag_dir)!r}: metadata.yaml relative_file_paths entry {name!r}"
+    if not isinstance(name, str) or not name or "\0" in name:
+        raise InputError(f"{where}: expected a file name inside the bag directory")
+    rel = Path(name)
+    if rel.is_absolute() or ".." in rel.parts:
+        raise InputError(f"{where}: points outside the bag directory; expected a file name inside it")
+    path = bag_dir / rel
+    try:
+        inside = path.resolve().is_relative_to(bag_dir.resolve())
+    except (OSError, RuntimeError):
+        inside = False
+    if not inside:
+        raise InputError(f"{where}: resolves outside the bag directory (a link?); expected a file inside it")
+    return path
+
+
 def bag_file(bag_dir: Path) -> Path:
-    """Return the .mcap file of a bag directory (or the file itself if given one)."""
+    """Return the .mcap file of a bag directory (or the file itself if given one).
+
+    The file named by ``metadata.yaml``'s ``relative_file_paths`` must lie inside the bag
+    directory (an absolute path, ``..`` or a link leading out is refused)."""
     if bag_dir.is_file():
         return bag_dir
     if not bag_dir.is_dir():
         raise InputError(f"bag {str(bag_dir)!r}: no such bag directory or .mcap file")
-    meta_path = bag_dir / "metadata.yaml"
-    if meta_path.is_file():
-        try:
-            with meta_path.open("r", encoding="utf-8") as f:
-                meta = yaml.safe_load(f)
-            files = meta["rosbag2_bagfile_information"]["relative_file_paths"]
-        except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
-            raise InputError(
-                f"bag {str(bag_dir)!r}: metadata.yaml is unreadable or not rosbag2 "
-                f"metadata: {exc}"
-            ) from None
+    info = read_bag_metadata(bag_dir)
+    if info is not None:
+        files = info.get("relative_file_paths")
         if not isinstance(files, list) or len(files) != 1:
             raise InputError(
                 f"bag {str(bag_dir)!r}: metadata.yaml relative_file_paths {files!r}; "
                 "exactly one .mcap file is supported"
             )
-        path = bag_dir / str(files[0])
+        path = _contained_file(bag_dir, files[0])
         if not path.is_file():
             raise InputError(f"bag {str(bag_dir)!r}: file {files[0]!r} named in metadata.yaml is missing")
         return path

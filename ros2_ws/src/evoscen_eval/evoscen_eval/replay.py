@@ -32,8 +32,9 @@ from typing import Any
 import yaml
 
 from evoscen_contract.qos import QosSpec
-from evoscen_eval.recorder import bag_file, open_bag_reader
+from evoscen_eval.recorder import bag_file, open_bag_reader, read_bag_metadata
 from evoscen_sim.errors import InputError
+from evoscen_sim.limits import MAX_SECONDS_ARG
 
 #: QoS used when a topic has no recorded offer (rclcpp's default profile).
 DEFAULT_QOS = QosSpec(reliability="reliable", durability="volatile", history="keep_last", depth=10)
@@ -147,18 +148,19 @@ def parse_offered_qos(value: Any, where: str = "bag") -> QosSpec:
 
 def _metadata_topics(bag_dir: Path) -> dict[str, dict[str, Any]]:
     """``{topic: topic_metadata (+ message_count)}`` from ``metadata.yaml`` ({} if absent)."""
-    meta_path = bag_dir / "metadata.yaml" if bag_dir.is_dir() else None
-    if meta_path is None or not meta_path.is_file():
+    if not bag_dir.is_dir():
+        return {}
+    info = read_bag_metadata(bag_dir)
+    if info is None:
         return {}
     try:
-        info = yaml.safe_load(meta_path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
         out = {}
         for entry in info.get("topics_with_message_count") or []:
             md = dict(entry["topic_metadata"])
             md["message_count"] = entry.get("message_count", -1)
             out[str(md["name"])] = md
         return out
-    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError) as exc:
+    except (KeyError, TypeError, AttributeError, ValueError) as exc:
         raise InputError(f"bag {str(bag_dir)!r}: metadata.yaml is unreadable or not rosbag2 metadata: {exc}") from None
 
 
@@ -287,13 +289,14 @@ def parse_rate(text: str | float) -> float:
 
 
 def parse_seconds(name: str, text: str | float) -> float:
-    """A duration argument (``--start-delay``, ``--wait-timeout``): a finite number >= 0 (s)."""
+    """A duration argument (``--start-delay``, ``--wait-timeout``): a number of seconds in
+    [0, :data:`~evoscen_sim.limits.MAX_SECONDS_ARG`] (one day; ``time.sleep(1e300)`` overflows)."""
     try:
         value = float(text)
     except (TypeError, ValueError):
         value = math.nan
-    if not math.isfinite(value) or value < 0:
-        raise InputError(f"{name} {text}: expected a finite number of seconds >= 0")
+    if not math.isfinite(value) or not 0 <= value <= MAX_SECONDS_ARG:
+        raise InputError(f"{name} {text}: expected a number of seconds in [0, {MAX_SECONDS_ARG:g}]")
     return value
 
 

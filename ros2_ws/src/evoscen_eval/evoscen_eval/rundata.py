@@ -28,11 +28,14 @@ import yaml
 from evoscen_contract import topics as T
 from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
 from evoscen_sim.errors import InputError
+from evoscen_sim.limits import MAX_STEPS
 
 SCENARIO_METADATA = "evoscen"
 """Name of the MCAP metadata record holding the scenario."""
 SCENARIO_KEY = "scenario_yaml"
 """Key of the resolved scenario configuration (YAML text) in that record."""
+MAP_HASH_KEY = "map_sha256"
+"""Key of the SHA-256 (hex) of the map file's bytes in that record."""
 SUT_SOURCE_KEY = "sut_source"
 """Key present (value ``external``) when the SUT was a user's node, not the configured model."""
 EXTERNAL_SUT = "external"
@@ -74,8 +77,15 @@ class RunData:
 class RunAccumulator:
     """Collects world states, events and the map of a run (see the module docstring)."""
 
-    def __init__(self) -> None:
-        self._states: list[np.ndarray] = []
+    def __init__(self, expected_states: int | None = None) -> None:
+        # The world states live in one float64 buffer [F, capacity, V]: field j of states 0..K-1
+        # is the contiguous block buf[j, :K], which RunData.columns hands out as views, so the
+        # [K, V] columns are held once (before: a list of [V, F] arrays, then np.stack, then a
+        # contiguous copy per field: three copies at scoring). ``expected_states`` (a run of N
+        # steps has N + 1) sizes the buffer exactly; without it, or beyond it, it doubles.
+        self._expected = max(1, int(expected_states)) if expected_states else 1024
+        self._buf: np.ndarray | None = None
+        self._k = 0
         self._times_ns: list[int] = []
         self.events: list[dict] = []
         self.complete = False
@@ -84,6 +94,11 @@ class RunAccumulator:
         self._markers_class: Any = None
 
     # ------------------------------------------------------------------ feeding
+
+    def expect(self, states: int) -> None:
+        """Size the buffer for ``states`` world states (before the first one arrives)."""
+        if self._buf is None and 1 <= states <= 1 + MAX_STEPS:
+            self._expected = int(states)
 
     def add_world_columns(self, columns: Mapping[str, np.ndarray], t_ns: int) -> None:
         """A world state from the world's columns (copied)."""
@@ -122,10 +137,18 @@ class RunAccumulator:
         self.lane_segments = lane_segments(road_markers(road))
 
     def _add_state(self, table: np.ndarray, t_ns: int) -> None:
-        if self._states and table.shape != self._states[0].shape:
-            raise ValueError(f"world table of {table.shape[0]} vehicles at t = {t_ns} ns, "
-                             f"the run started with {self._states[0].shape[0]}")
-        self._states.append(table)
+        rows, n_fields = table.shape
+        if self._buf is None:
+            self._buf = np.empty((n_fields, self._expected, rows), dtype=np.float64)
+        elif self._buf.shape[2] != rows or self._buf.shape[0] != n_fields:
+            raise ValueError(f"world table of {rows} vehicles at t = {t_ns} ns, "
+                             f"the run started with {self._buf.shape[2]}")
+        if self._k == self._buf.shape[1]:
+            grown = np.empty((n_fields, 2 * self._k, rows), dtype=np.float64)
+            grown[:, : self._k] = self._buf
+            self._buf = grown
+        self._buf[:, self._k, :] = table.T
+        self._k += 1
         self._times_ns.append(int(t_ns))
 
     # ------------------------------------------------------------------ result
@@ -133,15 +156,31 @@ class RunAccumulator:
     @property
     def states(self) -> int:
         """World states collected so far."""
-        return len(self._states)
+        return self._k
+
+    def last_nonfinite(self) -> tuple[int, str, float] | None:
+        """``(vehicle id, field, value)`` of the first NaN/inf cell of the last state, else None."""
+        table = self._buf[:, self._k - 1, :].T
+        bad = ~np.isfinite(table)
+        if not bad.any():
+            return None
+        v, j = (int(i[0]) for i in np.nonzero(bad))
+        vid = table[v, T.WORLD_FIELDS.index("id")]
+        return (int(vid) if np.isfinite(vid) else v), T.WORLD_FIELDS[j], float(table[v, j])
+
+    def stamps_ns(self) -> list[int]:
+        """The stamps of the states collected so far (ns)."""
+        return self._times_ns
 
     def run_data(self, *, scenario: dict | None = None, warnings: Iterable[str] = (),
                  external_sut: bool = False) -> RunData:
         """The collected run; ValueError if no world state was collected."""
-        if not self._states:
+        if not self._k:
             raise ValueError("no world state (/evoscen/world) in the run")
-        stacked = np.stack(self._states)  # [K, V, F]
-        columns = {f: np.ascontiguousarray(stacked[:, :, j]) for j, f in enumerate(T.WORLD_FIELDS)}
+        k = self._k
+        if k < self._buf.shape[1] // 2:  # a run cut short: do not keep the unused half
+            self._buf = self._buf[:, :k].copy()
+        columns = {f: self._buf[j, :k] for j, f in enumerate(T.WORLD_FIELDS)}
         times = np.asarray(self._times_ns, dtype=np.int64)
         roles = columns["role"][0]
         suts = np.flatnonzero(roles == 1)
@@ -178,16 +217,87 @@ def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # 
     """
     from evoscen_sim.config import config_to_dict
 
-    meta = {SCENARIO_KEY: yaml.safe_dump(config_to_dict(cfg), sort_keys=False, default_flow_style=None)}
+    scenario = config_to_dict(cfg)
+    scenario["map"], digest = portable_map_ref(cfg.map)
+    meta = {SCENARIO_KEY: yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None),
+            MAP_HASH_KEY: digest}
     if external_sut:
         meta[SUT_SOURCE_KEY] = EXTERNAL_SUT
     return meta
+
+
+def portable_map_ref(map_path: str | Path) -> tuple[str, str]:
+    """``(reference, sha256 hex)`` of a resolved map file, with nothing machine-specific in it.
+
+    The reference is the file name (``onramp.xodr``): a config's ``map: onramp.xodr`` finds
+    it in evoscen_sim's share ``maps/`` wherever evoscen is installed, and for a map of the
+    user's the directory is left out (it names a machine: the same run from another checkout
+    gave another bag). The SHA-256 of the file's bytes identifies the map exactly (a shipped
+    map edited in place, a user's map of the same name)."""
+    import hashlib
+
+    path = Path(map_path)
+    try:
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        digest = ""
+    return path.name, digest
 
 
 # ---------------------------------------------------------------------- reading a bag
 
 
 _USED_TOPICS = {T.WORLD.name, T.EVENTS.name, T.MAP_MARKERS.name}
+_USED_TYPES = {spec.name: spec.type_name for spec in (T.WORLD, T.EVENTS, T.MAP_MARKERS)}
+
+
+def _check_channel(channel: Any, schemas: Mapping[int, Any], path: Path) -> None:
+    """InputError if a channel of a topic the scores read is not of the contract's type (CDR)."""
+    expected = _USED_TYPES[channel.topic]
+    schema = schemas.get(channel.schema_id)
+    name = schema.name if schema is not None else None
+    if name != expected or channel.message_encoding != "cdr" or (schema is not None and schema.encoding != "ros2msg"):
+        got = (f"type {name!r} (schema encoding {schema.encoding!r})" if schema is not None
+               else f"no schema (id {channel.schema_id})")
+        raise InputError(f"bag {str(path)!r}: topic {channel.topic!r} is recorded with {got}, message encoding "
+                         f"{channel.message_encoding!r}; expected {expected!r} (ros2msg) as cdr")
+
+
+def check_stamps(times_ns: list[int] | np.ndarray, dt_ns: int | None, where: str) -> list[str]:
+    """Check the world states' stamps: strictly increasing, one step ``dt_ns`` apart.
+
+    A stamp equal to or before the previous one (a duplicated or reordered state, which the
+    scores would count as extra steps) is an InputError; a stamp a whole number of steps
+    after the previous one (states missing: a gap) is reported as a warning, one line for
+    all gaps, and the run is scored as recorded (the scores then treat the states on either
+    side of a gap as consecutive); any other spacing is an InputError. Returns the warnings.
+    """
+    t = np.asarray(times_ns, dtype=np.int64)
+    if t.size < 2:
+        return []
+    d = np.diff(t)
+    back = np.flatnonzero(d <= 0)
+    if back.size:
+        k = int(back[0]) + 1
+        what = "the same stamp as" if d[k - 1] == 0 else "a stamp before"
+        raise InputError(f"{where}: world state {k} (t = {int(t[k])} ns) has {what} state {k - 1} "
+                         f"(t = {int(t[k - 1])} ns): duplicated or reordered world states; expected strictly "
+                         "increasing stamps, one per step")
+    if dt_ns is None or dt_ns <= 0:
+        dt_ns = int(d.min())
+    irregular = np.flatnonzero(d % dt_ns != 0)
+    if irregular.size:
+        k = int(irregular[0]) + 1
+        raise InputError(f"{where}: world state {k} (t = {int(t[k])} ns) is {int(d[k - 1])} ns after state {k - 1}: "
+                         f"not a whole number of steps of {dt_ns} ns")
+    gaps = np.flatnonzero(d > dt_ns)
+    if not gaps.size:
+        return []
+    missing = int((d[gaps] // dt_ns - 1).sum())
+    k = int(gaps[0])
+    return [f"{where}: {gaps.size} gap{'s' if gaps.size > 1 else ''} in the world states, {missing} step"
+            f"{'s' if missing != 1 else ''} missing (the first: {int(d[k] // dt_ns - 1)} after t = {int(t[k])} ns); "
+            f"scored as recorded: {t.size} states, the states around a gap taken as consecutive"]
 
 
 def read_run(bag_dir: Path | str) -> RunData:
@@ -208,6 +318,7 @@ def read_run(bag_dir: Path | str) -> RunData:
     path = bag_file(Path(bag_dir))
     acc = RunAccumulator()
     channels: dict[int, str] = {}
+    schemas: dict[int, Any] = {}
     scenario: dict | None = None
     external_sut = False
     warnings: list[str] = []
@@ -223,13 +334,25 @@ def read_run(bag_dir: Path | str) -> RunData:
                     topic = channels.get(record.channel_id)
                     if topic in _USED_TOPICS:
                         acc.add_bytes(topic, record.data)
+                        if topic == T.WORLD.name:
+                            bad = acc.last_nonfinite()
+                            if bad is not None:
+                                raise InputError(
+                                    f"bag {str(path)!r}: topic {topic!r}, step {acc.states - 1} "
+                                    f"(t = {acc.stamps_ns()[-1]} ns): field {bad[1]!r} of vehicle {bad[0]} is "
+                                    f"{bad[2]}; expected finite values")
                 elif isinstance(record, Channel):
+                    if record.topic in _USED_TOPICS:
+                        _check_channel(record, schemas, path)
                     channels[record.id] = record.topic
                 elif isinstance(record, Metadata) and record.name == SCENARIO_METADATA:
                     scenario = _parse_scenario(record.metadata.get(SCENARIO_KEY), path)
+                    steps = (scenario or {}).get("steps")
+                    if isinstance(steps, int) and not isinstance(steps, bool):
+                        acc.expect(steps + 1)
                     external_sut = _parse_sut_source(record.metadata.get(SUT_SOURCE_KEY), path)
                 elif isinstance(record, Schema):
-                    continue
+                    schemas[record.id] = record
         except InputError:
             raise
         except (TableDecodeError, ValueError) as exc:
@@ -245,6 +368,10 @@ def read_run(bag_dir: Path | str) -> RunData:
     elif not acc.complete:
         warnings.append(f"bag {str(path)!r} has no run_end event (the run did not finish): evaluated "
                         f"{acc.states} world states ({acc.states - 1} steps)")
+    dt_ns = None
+    if scenario is not None and isinstance(scenario.get("dt_s"), (int, float)) and scenario["dt_s"] > 0:
+        dt_ns = round(float(scenario["dt_s"]) * 1e9)
+    warnings.extend(check_stamps(acc.stamps_ns(), dt_ns, f"bag {str(path)!r}: topic {T.WORLD.name!r}"))
     if scenario is None:
         warnings.append(f"bag {str(path)!r} carries no scenario configuration (metadata record "
                         f"{SCENARIO_METADATA!r}): default evaluation settings used")
@@ -267,6 +394,9 @@ def _parse_sut_source(value: str | None, path: Path) -> bool:
 def _parse_scenario(text: str | None, path: Path) -> dict | None:
     if not text:
         return None
+    from evoscen_sim.limits import check_yaml_depth
+
+    check_yaml_depth(text, f"bag {str(path)!r}: the scenario metadata record", "the YAML text")
     try:
         data = yaml.safe_load(text)
     except yaml.YAMLError as exc:

@@ -360,7 +360,7 @@ def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_pa
     cfg = load_scenario_config(None)
     plain = scenario_metadata(cfg)
     external = scenario_metadata(cfg, external_sut=True)
-    assert set(plain) == {"scenario_yaml"}  # a run with evoscen's own SUT: the configuration only
+    assert set(plain) == {"scenario_yaml", "map_sha256"}  # own SUT: the configuration and the map's hash only
     assert external == {**plain, "sut_source": "external"}
 
     run = read_run(record(tmp_path / "own", metadata={SCENARIO_METADATA: plain}))

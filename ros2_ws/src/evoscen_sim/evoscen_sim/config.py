@@ -39,6 +39,14 @@ from typing import Any, NoReturn
 import yaml
 
 from evoscen_sim.errors import InputError
+from evoscen_sim.limits import (
+    MAX_CONFIG_BYTES,
+    MAX_DT_NS_RESIDUE,
+    MAX_STEPS,
+    MIN_DT_S,
+    check_yaml_depth,
+    read_text_limited,
+)
 
 __all__ = [
     "BV_DRIVERS",
@@ -167,6 +175,23 @@ class _Float:
         if self.lo is not None and (v < self.lo or (self.lo_open and v == self.lo)):
             raise _Bad(self.expected)
         if self.hi is not None and v > self.hi:
+            raise _Bad(self.expected)
+        return v
+
+
+class _StepSize:
+    """``dt_s``: in [MIN_DT_S, 1] s and a whole number of nanoseconds (the bag's stamps are
+    ``step * round(dt_s * 1e9)`` ns, exact only then; see docs/input-limits.md)."""
+
+    takes_str = False
+    expected = (f"expected a number of seconds in [{_fmt(MIN_DT_S)}, 1] that is a whole number of "
+                "nanoseconds (the bag's stamps are integer ns)")
+
+    def __call__(self, value: Any) -> float:
+        if not _is_number(value):
+            raise _Bad(self.expected)
+        v = float(value)
+        if not MIN_DT_S <= v <= 1.0 or abs(v * 1e9 - round(v * 1e9)) > MAX_DT_NS_RESIDUE:
             raise _Bad(self.expected)
         return v
 
@@ -569,10 +594,11 @@ class ScenarioConfig:
     """OpenDRIVE map. In the file: an absolute path, a path relative to the config file's
     directory, or a name under evoscen_sim's share ``maps/``. After loading it holds the
     resolved absolute path (see :func:`resolve_map_path`)."""
-    dt_s: float = field(default=0.1, metadata=_check(_Float(0.0, 1.0, lo_open=True)))
-    """Fixed integration step (s), (0, 1]."""
-    steps: int = field(default=3000, metadata=_check(_Int(1)))
-    """Number of simulation steps, >= 1."""
+    dt_s: float = field(default=0.1, metadata=_check(_StepSize()))
+    """Fixed integration step (s), in [1e-6, 1] and a whole number of nanoseconds (the bag's
+    stamps are integer ns; docs/input-limits.md)."""
+    steps: int = field(default=3000, metadata=_check(_Int(1, MAX_STEPS)))
+    """Number of simulation steps, 1..1,000,000 (:data:`evoscen_sim.limits.MAX_STEPS`)."""
     seed: int = field(default=0, metadata=_check(_Int(0)))
     """Seed of the scenario's numpy Generator, >= 0."""
     bvs: BvConfig = _section(BvConfig)
@@ -631,10 +657,19 @@ def _join(path: str, key: str) -> str:
     return f"{path}.{key}" if path else key
 
 
-def _record_lines(node: yaml.Node, path: str, lines: dict[str, int], label: str) -> None:
-    """Map dotted key paths to 1-based line numbers of their values; reject duplicate keys."""
+def _record_lines(node: yaml.Node, path: str, lines: dict[str, int], label: str,
+                  seen_nodes: set[int] | None = None) -> None:
+    """Map dotted key paths to 1-based line numbers of their values; reject duplicate keys.
+
+    A node reached again through an alias is not walked again (a chain of aliases would
+    otherwise cost exponential time, YAML's "billion laughs")."""
     if not isinstance(node, yaml.MappingNode):
         return
+    if seen_nodes is None:
+        seen_nodes = set()
+    if id(node) in seen_nodes:
+        return
+    seen_nodes.add(id(node))
     seen: set[str] = set()
     for key_node, value_node in node.value:
         if not isinstance(key_node, yaml.ScalarNode):
@@ -646,13 +681,15 @@ def _record_lines(node: yaml.Node, path: str, lines: dict[str, int], label: str)
                              "expected each key once")
         seen.add(key_node.value)
         lines[key_path] = line
-        _record_lines(value_node, key_path, lines, label)
+        _record_lines(value_node, key_path, lines, label, seen_nodes)
 
 
 def _parse_yaml(text: str, label: str) -> tuple[Any, dict[str, int]]:
-    loader = _Loader(text)
+    check_yaml_depth(text, label, "scenario config", _Loader)
     lines: dict[str, int] = {}
+    loader = None
     try:
+        loader = _Loader(text)  # the reader checks the characters here (YAMLError)
         node = loader.get_single_node()
         if node is None:
             return None, lines
@@ -666,15 +703,32 @@ def _parse_yaml(text: str, label: str) -> tuple[Any, dict[str, int]]:
     except yaml.YAMLError as exc:
         raise InputError(f"{label}: YAML error: {' '.join(str(exc).split())}") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
+
+
+_CLI_DECIMAL = re.compile(r"^[-+]?[0-9]+$")
+_CLI_FLOAT = re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?$")
 
 
 def _parse_cli_scalar(text: str) -> Any:
-    """Interpret an override given as text (``"200"``, ``"true"``, ``"[24, 30]"``) as YAML."""
-    try:
-        return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
-    except yaml.YAMLError:
+    """Interpret an override given as text (``"200"``, ``"true"``, ``"[24, 30]"``) as YAML.
+
+    Numbers on the command line are strict: a plain decimal integer (``16``, not ``0x10``,
+    ``0b10000`` or ``1_6``, which YAML would read as 16) or a plain decimal float; anything
+    else stays text, so the key's check rejects it naming the value as typed."""
+    if len(text) > 10_000:
         return text
+    try:
+        value = yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+    except (yaml.YAMLError, RecursionError):
+        return text
+    stripped = text.strip()
+    if isinstance(value, int) and not isinstance(value, bool) and not _CLI_DECIMAL.match(stripped):
+        return text
+    if isinstance(value, float) and not _CLI_FLOAT.match(stripped):
+        return text
+    return value
 
 
 # --------------------------------------------------------------------------------------------
@@ -950,14 +1004,7 @@ def load_scenario_config(path: str | Path | None = None,
     """
     file_path = share_path(_DEFAULT_CONFIG) if path is None else Path(path)
     label = str(path) if path is not None else str(file_path)
-    try:
-        text = file_path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{label}: scenario config file not found") from None
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{label}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise InputError(f"{label}: cannot read scenario config ({exc.strerror})") from None
+    text = read_text_limited(file_path, label, "scenario config file", MAX_CONFIG_BYTES)
     data, lines = _parse_yaml(text, label)
     if not isinstance(data, Mapping):
         what = "an empty document" if data is None else f"{type(data).__name__} {_show(data)}"

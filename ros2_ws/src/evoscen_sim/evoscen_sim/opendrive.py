@@ -953,11 +953,9 @@ def parse_opendrive_bytes(data: bytes, fname: str = "<string>") -> OpenDriveMap:
 def parse_opendrive(path: "str | os.PathLike[str]") -> OpenDriveMap:
     """Read and validate an ``.xodr`` file. Raises :class:`InputError` on any problem."""
     fname = os.fspath(path)
-    try:
-        data = Path(fname).read_bytes()
-    except OSError as exc:
-        raise InputError(f"{fname}: cannot read the OpenDRIVE file ({exc.strerror}); "
-                         "expected a readable .xodr file") from None
+    from .limits import MAX_MAP_BYTES, read_bytes_limited
+
+    data = read_bytes_limited(fname, fname, "OpenDRIVE file", MAX_MAP_BYTES)
     return parse_opendrive_bytes(data, fname)
 
 
