@@ -2,14 +2,14 @@
 """Fault-and-fuzz campaign: kills, stalls and hostile messages in node graphs; fuzzed inputs.
 
     python scripts/fault_campaign.py [--graph-runs N] [--fuzz N] [--steps S] [--seed SEED]
-                                     [--out DIR] [--json FILE]
+                                     [--classes C,C,...] [--max-stall S] [--out DIR] [--json FILE]
 
 Graph runs (``run_scenario.py --mode graph``, deadline 0.5 s, 3 misses), one fault each, the
 fault classes taken in turn and their timing drawn from a generator seeded by ``--seed``:
 
 * SIGKILL or SIGTERM to each node (simulation, BV, SUT, evaluator), during start-up or during
   the lockstep (16 classes);
-* the evaluator stalled (SIGSTOP) for 2-30 s, then resumed;
+* the evaluator stalled (SIGSTOP) for 2-30 s (``--max-stall``), then resumed;
 * a hostile node on the run's domain (``tests/wire_intruder.py``: foreign and malformed
   commands, garbage world messages, forged events) — the world table must equal a clean
   in-process run of the same seed byte for byte.
@@ -18,9 +18,12 @@ For each run: the exit status (documented: 0, 2, 3, 4, 130), seconds from the fa
 of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, whether the bag opens (after
 ``reindex`` if it has to), and steps lost (world states published by the simulation but missing
 from the bag; ≤ 10 = 1 s allowed after a SIGKILLed evaluator, 0 otherwise). To count what the
-evaluator had been sent, its kills during the lockstep freeze the simulation (SIGSTOP) first and
-resume it once the evaluator is gone; the one or two steps the simulation makes after SIGCONT,
-before the launcher's stop takes effect, are allowed on top.
+evaluator had been sent, a SIGKILL to it during the lockstep freezes the simulation (SIGSTOP)
+first and resumes it once the evaluator is gone; the one or two steps the simulation makes after
+SIGCONT, before the launcher's stop takes effect, are allowed on top. A SIGTERMed evaluator
+writes everything it received, so only gaps count there (not a frozen lockstep: an evaluator
+leaving the domain while its peer is stopped can block in the middleware's clean-up — seen once,
+60 s).
 
 Fuzzed inputs (in this process, each with a 20 s alarm), from the shipped files mutated by the
 same generator: scenario YAML (``load_scenario_config`` + ``build_scenario``), OpenDRIVE maps
@@ -105,7 +108,13 @@ def _world_bytes(bag: Path) -> list[bytes]:
     return [d for topic, _type, _t, d in open_bag_reader(bag) if topic == "/evoscen/world"]
 
 
-def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path, clean_world: dict) -> GraphResult:
+def class_name(fault: tuple) -> str:
+    """A fault class as the command line names it, e.g. ``kill:SIGKILL:eval:lockstep``, ``stall``."""
+    return ":".join(fault)
+
+
+def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path, clean_world: dict,
+              max_stall_s: float = 30.0) -> GraphResult:
     """One graph run with ``fault``; see the module docstring."""
     out = work / f"run-{seed}"
     domain = rng.randint(101, 200)
@@ -138,7 +147,8 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
             elif running():
                 time.sleep(rng.uniform(0.0, 1.0))
             pids = _children(launcher, NODES[node])
-            sim = _children(launcher, NODES["sim"]) if (node == "eval" and phase == "lockstep") else []
+            sim = _children(launcher, NODES["sim"]) if (node == "eval" and phase == "lockstep"
+                                                         and sig == "SIGKILL") else []
             if pids and sim:
                 # the evaluator: freeze the lockstep first, so that every state published reached it
                 # before the signal; the steps published are then the lockstep's count less the one
@@ -163,7 +173,7 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
                 pids = _children(launcher, NODES["eval"])
                 if pids:
                     os.kill(pids[0], signal.SIGSTOP)
-                    time.sleep(rng.uniform(2.0, 30.0))
+                    time.sleep(rng.uniform(2.0, max(max_stall_s, 2.0)))
                     os.kill(pids[0], signal.SIGCONT)
                     t_fault = time.monotonic()
         elif kind == "inject":
@@ -208,7 +218,10 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
             m = re.search(r"evoscen_sim: lockstep: (\d+) steps", stderr)
             published = int(m.group(1)) + 1 if m else None  # states 0..K
             gaps = (world[-1] + 1) - len(world)
-            lost = gaps + (max(published - len(world) - gaps, 0) if published is not None else 0)
+            tail = max(published - len(world) - gaps, 0) if published is not None else 0
+            if kind == "kill" and fault[2] == "eval" and fault[1] == "SIGTERM":
+                tail = 0  # it wrote all it had received; what came after it ended was never sent to it
+            lost = gaps + tail
         elif world == []:
             lost = 0
         if kind == "inject" and readable:
@@ -223,7 +236,7 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
     allowed_loss = 0
     if kind == "kill" and fault[2] == "eval" and fault[3] == "lockstep":
         # the open chunk (<= 1 s = 10 steps) at a SIGKILL; the steps after SIGCONT (above) either way
-        allowed_loss = (10 if fault[1] == "SIGKILL" else 0) + 2
+        allowed_loss = 10 + 2 if fault[1] == "SIGKILL" else 0
     if hang:
         problems.append("hang")
     if status is not None and status not in DOCUMENTED_EXIT:
@@ -426,6 +439,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--fuzz", type=int, default=50, help="fuzzed inputs (default 50)")
     ap.add_argument("--steps", type=int, default=3000, help="steps of each graph run (default 3000)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the campaign's generator (default 0)")
+    ap.add_argument("--classes", default=None,
+                    help="only these fault classes, comma-separated (e.g. kill:SIGKILL:eval:lockstep,stall,inject; "
+                         "default: all, in turn)")
+    ap.add_argument("--max-stall", type=float, default=30.0, help="longest evaluator stall in s (default 30)")
     ap.add_argument("--out", type=Path, default=None, help="working directory (default: a temporary one, removed)")
     ap.add_argument("--json", type=Path, default=None, help="also write every result as JSON here")
     args = ap.parse_args(argv)
@@ -433,16 +450,28 @@ def main(argv: list[str] | None = None) -> int:
         if value < low or value > 100_000:
             print(f"error: {name} = {value}: expected an integer in [{low}, 100000]", file=sys.stderr)
             return 2
+    classes = _fault_classes()
+    if args.classes is not None:
+        known = {class_name(c): c for c in classes}
+        wanted = [c.strip() for c in args.classes.split(",") if c.strip()]
+        bad = [c for c in wanted if c not in known]
+        if bad or not wanted:
+            print(f"error: --classes = {args.classes!r}: expected comma-separated names among {', '.join(known)}",
+                  file=sys.stderr)
+            return 2
+        classes = [known[c] for c in wanted]
+    if not 2.0 <= args.max_stall <= 60.0:
+        print(f"error: --max-stall = {args.max_stall}: expected a number in [2, 60] (s)", file=sys.stderr)
+        return 2
     work = Path(tempfile.mkdtemp(prefix="evoscen-faults-")) if args.out is None else args.out
     work.mkdir(parents=True, exist_ok=True)
     rng = random.Random(args.seed)
-    classes = _fault_classes()
     graph: list[GraphResult] = []
     clean_world: dict = {}
     try:
         for i in range(args.graph_runs):
             fault = classes[i % len(classes)]
-            r = graph_run(fault, 1000 + i, args.steps, rng, work, clean_world)
+            r = graph_run(fault, 1000 + i, args.steps, rng, work, clean_world, args.max_stall)
             graph.append(r)
             print(f"graph {i + 1}/{args.graph_runs} [{r.fault}]: status {r.status}, "
                   f"end {'-' if r.end_s is None else f'{r.end_s:.1f} s'}, lost {r.steps_lost}"
