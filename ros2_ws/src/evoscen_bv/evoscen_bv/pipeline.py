@@ -183,7 +183,7 @@ class Pipeline:
     def run_stage(self, stage: str) -> StageResult:
         import torch
 
-        from .td3 import TD3, ReplayBuffer, export_actor
+        from .td3 import TD3, ReplayBuffer
 
         torch.set_num_threads(1)
         policy = POLICY_OF_STAGE[stage]

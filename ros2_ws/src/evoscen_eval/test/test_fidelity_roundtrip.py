@@ -114,7 +114,7 @@ def test_export_script_and_experiment_end_to_end(bag, tmp_path) -> None:
     res = tmp_path / "fidelity"
     r = script("scripts/experiment_fidelity.py", "--highd", out, "--recordings", "07", "--bags", bag.parent, "--out", res)
     assert r.returncode == 0, r.stderr
-    rows = {row["distribution"]: row for row in csv.DictReader(open(res / "fidelity.csv", encoding="utf-8"))}
+    rows = {row["distribution"]: row for row in csv.DictReader(open(res / "fidelity.csv", encoding="utf-8"))}  # noqa: SIM115
     assert list(rows) == ["dhw_speed", "thw_speed", "mandatory_ttc", "voluntary_speed"]
     for key in ("dhw_speed", "thw_speed", "voluntary_speed"):
         assert float(rows[key]["js"]) < 5e-3 and float(rows[key]["similarity_pct"]) > 99.5
