@@ -101,6 +101,7 @@ def test_js_of_bag_and_its_export_is_zero(direct, exported) -> None:
     assert compare(a.dhw_speed, b.dhw_speed * [1.3, 1.0]).js > 0.05
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_export_script_and_experiment_end_to_end(bag, tmp_path) -> None:
     out = tmp_path / "highd"
     r = script("scripts/export_highd.py", bag, out, "--recording-id", "7")
@@ -123,6 +124,7 @@ def test_export_script_and_experiment_end_to_end(bag, tmp_path) -> None:
     assert "| Car following: DHW and speed |" in r.stdout
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_script_errors() -> None:
     r = script("scripts/experiment_fidelity.py", "--bags", "somewhere")
     assert r.returncode == 2
@@ -134,6 +136,7 @@ def test_script_errors() -> None:
     assert r.returncode == 2 and r.stderr.startswith("error: --frame-rate 'fast'")
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_bench_script_small() -> None:
     """scripts/bench_fidelity.py at a small size: generates, writes, loads and extracts in a child process."""
     r = script("scripts/bench_fidelity.py", "--vehicles", "40", "--frames", "3000", "--rows", "20000", "--seed", "1")
