@@ -1,4 +1,4 @@
-"""The level-k training pipeline (SPEC §3.3): five stages, resumable, with curves and model cards.
+"""The level-k training pipeline (docs/method.md §3.3): five stages, resumable, with curves and model cards.
 
 Stages, in order, and what each writes into the output directory ``OUT``:
 
