@@ -12,7 +12,7 @@ RUN         := . $(VENV)/bin/activate && . $(INSTALL)/setup.sh &&
 DEMO_OUT    ?= runs/demo
 PYTEST_ARGS ?=
 
-.PHONY: setup build demo test bench clean
+.PHONY: setup build demo test test-fast lint bench clean
 
 setup: $(REQ_STAMP) build
 
@@ -23,8 +23,11 @@ $(REQ_STAMP): requirements.txt requirements-runtime.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
 	touch $@
 
+# --symlink-install: the install tree links to the sources (Python modules, share files), so an
+# edited module is what the next test imports without a rebuild; rebuild after adding a file,
+# an entry point or a package.
 build: $(REQ_STAMP)
-	. $(VENV)/bin/activate && cd $(WS) && colcon --log-base log build --base-paths src \
+	. $(VENV)/bin/activate && cd $(WS) && colcon --log-base log build --symlink-install --base-paths src \
 	    --build-base build --install-base install --event-handlers console_cohesion- summary-
 
 demo: setup
@@ -32,6 +35,14 @@ demo: setup
 
 test: setup
 	$(RUN) python -m pytest $(PYTEST_ARGS)
+
+# the suite without the end-to-end tests (marker e2e: node graphs, CLI subprocesses, containers)
+test-fast: setup
+	$(RUN) python -m pytest -m "not e2e" $(PYTEST_ARGS)
+
+# ruff (pinned in requirements.txt; rules in ruff.toml); never reformats
+lint: $(REQ_STAMP)
+	$(VENV)/bin/ruff check .
 
 # Optional SUMO reference for the benchmark (not part of setup: evoscen never needs SUMO).
 BENCH_STAMP := $(VENV)/.bench-requirements-installed

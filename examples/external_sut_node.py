@@ -33,7 +33,7 @@ It exits (status 0) on the ``evoscen/run_end`` event of ``/evoscen/events``; 130
       a        = -max_brake_mps2                 if g < min_gap_m
 
   and the throttle is ``a / max_accel_mps2`` for a >= 0, ``a / max_brake_mps2`` otherwise,
-  clipped to [-1, 1] (the README's vehicle limits: +1 = +3.0 m/s², -1 = -8.0 m/s²). On the
+  clipped to [-1, 1] (docs/method.md §2, vehicle limits: +1 = +3.0 m/s², -1 = -8.0 m/s²). On the
   merge lane (lane 0) the end of the lane's full width (s = 900 m) is a standing leader.
 * lateral — request a change to the LEFT (+1) when no lane change is in progress, a left
   lane exists (lane < 4), and either the SUT is on the merge lane or its leader is closer
@@ -94,7 +94,7 @@ class PolicyParams:
     k_speed: float = 0.6        # 1/s: acceleration per m/s of speed difference to the leader
     k_free: float = 0.5         # 1/s: acceleration per m/s below the desired speed
     look_ahead_m: float = 150.0
-    max_accel_mps2: float = 3.0  # throttle +1 (README: vehicle limits)
+    max_accel_mps2: float = 3.0  # throttle +1 (docs/method.md §2: vehicle limits)
     max_brake_mps2: float = 8.0  # throttle -1
     slow_leader_mps: float = 28.0  # "X": overtake a leader slower than this ...
     overtake_gap_m: float = 60.0   # ... that is closer than this

@@ -144,7 +144,6 @@ def sut_model_costs(steps: int, driver: str) -> dict[str, dict]:
 def learned_bv_costs(steps: int, repeats: int) -> dict:
     """Batched learned-BV inference per step (torch vs numpy forward) and the in-process step rate
     of the default scenario with ``bvs.driver`` learned vs level0 (recording off)."""
-    import numpy as np
 
     from evoscen_bringup.scenario import build_scenario
     from evoscen_bv.lane_change import OBS_DIM, observation_grid

@@ -19,7 +19,6 @@ import argparse
 import json
 import subprocess
 import sys
-from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 

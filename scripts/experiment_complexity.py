@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The complexity experiment (SPEC 6.2): one SUT in the evolving scenario and in rule-based baselines.
+"""The complexity experiment (docs/method.md §6.2): one SUT in the evolving scenario and in rule-based baselines.
 
     python scripts/experiment_complexity.py [--out DIR] [--config FILE] [--sut stackelberg]
                                            [--scenarios evolving,nilsson,mobil] [--rounds N] [--steps N]

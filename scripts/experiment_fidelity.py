@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Fidelity experiment (SPEC §5.3, §6.3): our runs' BVs against naturalistic HighD traffic.
+"""Fidelity experiment (docs/method.md §5.3, §6.3): our runs' BVs against naturalistic HighD traffic.
 
     python scripts/experiment_fidelity.py --highd DIR [--recordings 01,02] --bags RUN [RUN ...]
         [--out DIR] [--overwrite] [--leader-range M] [--min-speed MPS] [--max-ttc S]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The intelligence experiment (SPEC 6.1): each SUT among 20 BVs, several seeds.
+"""The intelligence experiment (docs/method.md §6.1): each SUT among 20 BVs, several seeds.
 
     python scripts/experiment_intelligence.py [--out DIR] [--config FILE] [--suts nilsson,mobil,stackelberg]
                                              [--seeds N] [--first-seed S] [--steps N] [--mix C:M:K]

@@ -194,7 +194,7 @@ def plot(path: Path, panels) -> None:  # noqa: ANN001
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 0.45 * max(len(p[1]) for p in panels) + 1.6),
                              sharey=True, squeeze=False)
     for ax, (title, points) in zip(axes[0], panels):
-        for y, (name, d) in enumerate(points):
+        for y, (_name, d) in enumerate(points):
             half = 0.0 if math.isnan(d.half) else d.half
             color = "tab:green" if d.above_zero else "tab:red"
             ax.errorbar([d.mean], [y], xerr=[[half], [half]], fmt="o", color=color, capsize=3)

@@ -8,7 +8,7 @@ three files), so HighD tooling runs on simulated traffic. The run is drawn on a 
 virtual road (arc length s -> x, lateral offset d -> y, image coordinates, our traffic on the
 lower lanes, drivingDirection 2), resampled to ``--frame-rate`` (25 Hz, HighD's) by linear
 interpolation; a vehicle that re-enters becomes a new track; the SUT is exported like every
-vehicle and marked in tracksMeta's extra column ``evoscenRole`` (1). README "Fidelity" has
+vehicle and marked in tracksMeta's extra column ``evoscenRole`` (1). docs/experiments.md §3 has
 every convention. Exit status: 0 done, 2 bad input (one line ``error: ...``).
 """
 

@@ -99,7 +99,7 @@ def _sumo_home() -> str | None:
         home = getattr(sumo, "SUMO_HOME", None) or os.path.dirname(sumo.__file__)
         if home and os.path.isdir(home):
             return home
-    except Exception:
+    except Exception:  # noqa: BLE001 (any failure: fall back to SUMO_HOME)
         pass
     home = os.environ.get("SUMO_HOME")
     return home if home and os.path.isdir(home) else None
@@ -123,7 +123,7 @@ def sumo_available() -> tuple[bool, str]:
     """(True, description) when libsumo imports and netconvert is found, else (False, reason)."""
     try:
         import libsumo  # noqa: F401
-    except Exception as exc:  # ImportError, or a broken shared library
+    except Exception as exc:  # noqa: BLE001 -- ImportError, or a broken shared library
         return False, f"libsumo not importable ({type(exc).__name__}: {exc}); pip install eclipse-sumo libsumo"
     netconvert = _find_netconvert()
     if netconvert is None:

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Train the learned background vehicles: the level-k pipeline (SPEC §3.3) with TD3.
+"""Train the learned background vehicles: the level-k pipeline (docs/method.md §3.3) with TD3.
 
     python scripts/train_bv.py --stage control|level1|level2|competitive|cooperative|all --out DIR
                                [--steps N] [--seed S] [--config FILE] [--quiet]

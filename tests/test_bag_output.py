@@ -14,7 +14,7 @@ import pytest
 from evoscen_contract.cdr import pad4
 import yaml
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 DT_NS = 100_000_000  # dt_s = 0.1 of the shipped config
 N_VEHICLES = 21  # 20 BVs + the SUT
@@ -80,7 +80,7 @@ def test_rosbags_topics_types_and_counts(recorded_run, rosbags_messages):
     # every contract topic is declared (events too, even if empty), with the contract's type
     assert {name: c.msgtype for name, c in meta["connections"].items()} == {
         spec.name: spec.type_name for spec in T.CONTRACT}
-    for name, conn in meta["connections"].items():
+    for _name, conn in meta["connections"].items():
         assert conn.ext.serialization_format == "cdr"
     present = set(messages)
     assert ALWAYS <= present <= {spec.name for spec in T.CONTRACT}
@@ -205,7 +205,7 @@ def test_rosbags_schema_text_is_self_sufficient(recorded_run):
             embedded.register(types)
         jazzy = get_typestore(Stores.ROS2_JAZZY)
         n = 0
-        for schema, channel, message in reader.iter_messages():
+        for schema, _channel, message in reader.iter_messages():
             a = embedded.deserialize_cdr(message.data, schema.name)
             b = jazzy.deserialize_cdr(message.data, schema.name)
             # stored bytes = re-serialized bytes padded with zeros to 4 bytes (as DDS sends them)

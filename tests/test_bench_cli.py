@@ -13,6 +13,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
+pytestmark = pytest.mark.e2e
+
 
 def bench(*args: object) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "scripts/bench.py", *map(str, args)], cwd=REPO,

@@ -25,10 +25,10 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # noqa: E402 (the graph tests' helpers)
-from test_graph import DT_NS, PER_STEP_STATE, REPO, _children, _error_lines, _events, _launch, \
+from test_graph import PER_STEP_STATE, REPO, _children, _error_lines, _events, _launch, \
     _mcap_summary_count, _read_bag, _stamps, _steps, _terminate, _wait_running
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 
 def _lockstep_steps(stderr: str) -> int:

@@ -17,6 +17,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 
+pytestmark = pytest.mark.e2e
+
 
 def evaluate(*args: object) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "scripts/evaluate.py", *map(str, args)], cwd=REPO,

@@ -13,6 +13,8 @@ from scipy import stats
 
 REPO = Path(__file__).resolve().parents[1]
 
+pytestmark = pytest.mark.e2e
+
 
 def script(name: str, *args: object) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, f"scripts/{name}", *map(str, args)], cwd=REPO, capture_output=True,

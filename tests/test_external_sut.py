@@ -25,7 +25,7 @@ STEPS = 100
 FINAL_STEPS = 20
 SEED = 11
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 
 def load_example():

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import yaml
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 REPO = Path(__file__).resolve().parents[1]
 STEPS = 30

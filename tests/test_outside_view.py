@@ -25,6 +25,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.e2e
 README = REPO / "README.md"
 STEPS = 200
 N_VEHICLES = 21  # 1 SUT + 20 BVs (the shipped default scenario)

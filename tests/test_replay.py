@@ -31,6 +31,7 @@ import yaml
 from evoscen_eval.recorder import open_bag_reader
 
 REPO = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.e2e
 REPLAY = "scripts/replay.py"
 STEPS = 50
 #: Seconds a probe waits for its messages before giving up.

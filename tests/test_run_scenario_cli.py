@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")  # mcap_ros2.reader import
+pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]  # mcap_ros2.reader import
 
 # --------------------------------------------------------------------------- helpers
 

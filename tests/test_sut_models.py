@@ -25,7 +25,7 @@ INPROCESS_STEPS = 3000
 GRAPH_STEPS = 3000
 SEED = 0
 
-pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
+pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 
 def scenario_config(model: str, steps: int, bv_driver: str = "level0"):  # noqa: ANN201

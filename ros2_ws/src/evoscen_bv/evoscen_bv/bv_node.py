@@ -2,7 +2,7 @@
 
     python -m evoscen_bv.bv_node --ros-args --params-file bv.yaml   (or: ros2 run evoscen_bv bv_node ...)
 
-The driver is ``scenario.bvs.driver`` from the model registry (level-0 now), built for all
+The driver is ``scenario.bvs.driver`` from the model registry (default: learned), built for all
 BVs with the same seeded stream as in-process, so the commands are the same bytes.
 Parameters: ``scenario.*``, ``command_subscribers`` [[evoscen_sim, evoscen_eval]], ``startup_timeout_s`` [30],
 ``idle_timeout_s`` [60] (see :mod:`evoscen_sim.controller_node`).

@@ -1,4 +1,4 @@
-"""The learned car-following controller (SPEC §3.1): observation, reward, throttle.
+"""The learned car-following controller (docs/method.md §3.1): observation, reward, throttle.
 
 Observation of vehicle ``i`` (method §3.1), relative to the nearest vehicle ahead in its
 lane within the view ``o_smax``::
@@ -8,7 +8,7 @@ lane within the view ``o_smax``::
 with Δs the bumper-to-bumper gap (m), Δṡ = v_leader - v_i, Δs̈ = a_leader - a_i, λ = 1 when
 such a leader is in view, else 0 and the three differences are 0.
 
-Reward (method eqs. 6-7)::
+Reward (docs/method.md eqs. (1)-(2))::
 
     r = -C                           on a collision
     r = μ V(s') + k (V(s') - V(s))   otherwise,   V(s) = -(Δs - g)² / V_max²
@@ -129,7 +129,7 @@ def _obs_kernel(gap, v_lead, a_lead, v, a, view, v_max, a_max):  # noqa: ANN001,
 
 
 def gap_value(obs: np.ndarray, params: CarFollowingParams) -> np.ndarray:
-    """V(s) = -(Δs - g)² / V_max² (method eq. 7); 0 without a leader in view."""
+    """V(s) = -(Δs - g)² / V_max² (docs/method.md eq. (2)); 0 without a leader in view."""
     obs = np.atleast_2d(obs)
     gap = obs[:, 0] * params.view_m
     v = -((gap - params.target_gap_m) ** 2) / params.value_scale_m**2
@@ -138,7 +138,7 @@ def gap_value(obs: np.ndarray, params: CarFollowingParams) -> np.ndarray:
 
 def car_following_reward(obs: np.ndarray, next_obs: np.ndarray, collided: np.ndarray,
                          params: CarFollowingParams) -> np.ndarray:
-    """r = -C on collision, else μ V(s') + k (V(s') - V(s)) (method eq. 6)."""
+    """r = -C on collision, else μ V(s') + k (V(s') - V(s)) (docs/method.md eq. (1))."""
     v0 = gap_value(obs, params)
     v1 = gap_value(next_obs, params)
     return np.where(np.asarray(collided, bool), -params.collision_penalty, params.mu * v1 + params.k * (v1 - v0))

@@ -1,4 +1,4 @@
-"""Training environments over the simulation core (SPEC §3.3): same world, same step.
+"""Training environments over the simulation core (docs/method.md §3.3): same world, same step.
 
 Both environments step :class:`evoscen_sim.world.World` — the dynamics, PID control,
 lane-change execution, collision test and re-entry of evaluation runs — and differ only

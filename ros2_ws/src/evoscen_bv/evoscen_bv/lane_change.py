@@ -1,4 +1,4 @@
-"""The lane-change decision model (SPEC §3.2): grid observation, action, rule constraints, rewards.
+"""The lane-change decision model (docs/method.md §3.2): grid observation, action, rule constraints, rewards.
 
 Observation Ω_d of vehicle ``i``: a grid of 5 lanes (row ``r`` = lane offset ``r - 2`` from
 the ego's lane, +1 = left) by 25 longitudinal cells of 5 m (cell ``c`` holds centre offsets
@@ -47,7 +47,7 @@ J_lc applies when a change is executed, J_req when requested ≠ executed (both 
 negative numbers). The outcome terms O_c'²/O_max² and the social sums are evaluated at
 the next decision, on the vehicles then in the back part of the ego's grid (Ω_b: the
 cells behind the ego, Δs in [-20, 0), all five lanes).
-[choice] J_lc differs by type (reward shaping, SPEC §3.3): -0.4 competitive, -0.8 mutual,
+[choice] J_lc differs by type (reward shaping, docs/method.md §3.3): -0.4 competitive, -0.8 mutual,
 -3.0 cooperative — the equations are the method's, the coefficients per type are ours.
 [choice] ϑ favours the left lanes: ϑ = ``theta_left`` for a lane left of the ego's lane,
 else 1 (for O_t: a change to the left; for O_c^b: a vehicle b in a lane left of the ego).
@@ -194,7 +194,7 @@ def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_sca
 def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:  # noqa: ANN001
     """``requested`` with the road's mandatory changes: a vehicle in a lane that ends less than
     ``within_m`` ahead requests the change to the neighbouring lane that ends later (left if
-    both do), like level-0's merge rule "except where the road forces a change" (SPEC 3.3).
+    both do), like level-0's merge rule "except where the road forces a change" (docs/method.md §3.3).
 
     [choice] A run-time rule of the scenario's learned BVs, not of the training
     environments (the shipped policies were trained without it, as without the emergency

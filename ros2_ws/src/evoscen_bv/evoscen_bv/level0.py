@@ -1,4 +1,4 @@
-"""Level-0 traffic (SPEC §3.3): keep the lane, change only where the road forces it.
+"""Level-0 traffic (docs/method.md §3.3): keep the lane, change only where the road forces it.
 
 The level-0 driver is non-strategic. Longitudinally it follows the IDM
 (:mod:`evoscen_sim.car_following`) behind the nearest vehicle ahead in its lane — and,

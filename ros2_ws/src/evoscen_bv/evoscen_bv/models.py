@@ -72,7 +72,7 @@ LEVEL0 = ModelSpec(
     name="level0",
     roles=("bv", "sut"),
     factory=_level0,
-    description="level-0 traffic: IDM, keep lane, forced merges only (SPEC 3.3)",
+    description="level-0 traffic: IDM, keep lane, forced merges only (docs/method.md §3.3)",
 )
 register_model(LEVEL0)
 
@@ -81,6 +81,6 @@ LEARNED = ModelSpec(
     roles=("bv",),
     factory=_learned,
     params_type=LearnedParams,
-    description="TD3-trained social drivers: competitive, mutual, cooperative by bvs.mix (SPEC 3)",
+    description="TD3-trained social drivers: competitive, mutual, cooperative by bvs.mix (docs/method.md §3)",
 )
 register_model(LEARNED)

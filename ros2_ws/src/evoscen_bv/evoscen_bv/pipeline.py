@@ -1,4 +1,4 @@
-"""The level-k training pipeline (SPEC §3.3): five stages, resumable, with curves and model cards.
+"""The level-k training pipeline (docs/method.md §3.3): five stages, resumable, with curves and model cards.
 
 Stages, in order, and what each writes into the output directory ``OUT``:
 
@@ -183,7 +183,7 @@ class Pipeline:
     def run_stage(self, stage: str) -> StageResult:
         import torch
 
-        from .td3 import TD3, ReplayBuffer, export_actor
+        from .td3 import TD3, ReplayBuffer
 
         torch.set_num_threads(1)
         policy = POLICY_OF_STAGE[stage]

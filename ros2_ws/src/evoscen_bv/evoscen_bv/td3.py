@@ -1,4 +1,4 @@
-"""Twin Delayed DDPG (TD3, Fujimoto, van Hoof, Meger 2018; SPEC §3.4), after the authors' reference.
+"""Twin Delayed DDPG (TD3, Fujimoto, van Hoof, Meger 2018; docs/method.md §3.4), after the authors' reference.
 
 The learner reads like the algorithm (:meth:`TD3.train`): sample a batch, smooth the target
 policy with clipped noise, take the minimum of the twin target critics (clipped double-Q),
@@ -155,7 +155,7 @@ class ReplayBuffer:
 
 
 def td3_target(reward, not_done, discount: float, target_q1, target_q2):  # noqa: ANN001, ANN201
-    """Clipped double-Q target y = r + γ·(1 - done)·min(Q1', Q2') (SPEC §3.4)."""
+    """Clipped double-Q target y = r + γ·(1 - done)·min(Q1', Q2') (docs/method.md §3.4)."""
     torch = _torch()
     return reward + not_done * discount * torch.min(target_q1, target_q2)
 

@@ -28,7 +28,7 @@ from .lane_change import GridParams, RewardParams
 from .td3 import TD3Params
 
 STAGES = ("control", "level1", "level2", "competitive", "cooperative")
-"""Pipeline stages in order (SPEC §3.3)."""
+"""Pipeline stages in order (docs/method.md §3.3)."""
 
 
 @dataclass(frozen=True)

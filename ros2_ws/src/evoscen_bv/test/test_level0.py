@@ -1,4 +1,4 @@
-"""Level-0 traffic (SPEC §3.3) and the IDM it follows.
+"""Level-0 traffic (docs/method.md §3.3) and the IDM it follows.
 
 IDM (car_following.py): a = a_max [1 - (v/v0)^δ - (s*/s)²], s* = s0 + max(0, v T + v Δv / (2 √(a_max b))),
 defaults T = 1.5 s, s0 = 2 m, a_max = 1.5 m/s², b = 2 m/s², δ = 4.

@@ -37,6 +37,7 @@ def _train(args: list[str]) -> subprocess.CompletedProcess:
                           capture_output=True, text=True, timeout=600, env={**os.environ})
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_smoke_pipeline_all_stages_produces_loadable_policies(tmp_path):
     cfg = tmp_path / "smoke.yaml"
     cfg.write_text(SMOKE)
@@ -113,6 +114,7 @@ def test_resume_continues_exactly(tmp_path, monkeypatch):
     assert [r.split(",")[:4] for r in ca] == [r.split(",")[:4] for r in cb]
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 @pytest.mark.parametrize(("args", "message"), [
     (["--stage", "level9", "--out", "x"], "argument --stage: invalid choice: 'level9'"),
     (["--stage", "all"], "the following arguments are required: --out"),

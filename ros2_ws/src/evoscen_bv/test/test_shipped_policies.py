@@ -4,8 +4,8 @@
   mean gap in the designed band g ± 5 m = [20, 30] m (g = 25 m) with no rear-end collision.
 * The 20-BV default scenario with learned BVs (mix 4:3:3, seeds 1-4, 300 s each = 6.7
   vehicle-hours; the run-time rule profile the policies were trained with, docs/bv-profiles.md): lane changes per vehicle-hour order as competitive > mutual > cooperative
-  (SPEC 3.3) and collisions among learned BVs are rare (at most 2; README "Learned background
-  vehicles" gives the measured rate).
+  (docs/method.md §3.3) and collisions among learned BVs are rare (at most 2; docs/learned-bvs.md
+  gives the measured rate).
 
 ``EVOSCEN_POLICY_DIR`` points the tests at another policy directory (a training output).
 """
@@ -88,7 +88,7 @@ def test_competitive_changes_lanes_most_and_collisions_are_rare():
         collisions += coll
         vehicle_hours += vh
     mutual, competitive, cooperative = rates[1], rates[2], rates[3]
-    # the method's order (SPEC 3.3): competitive changes lanes most, cooperative rarely, mutual in between
+    # the method's order (docs/method.md §3.3): competitive changes lanes most, cooperative rarely, mutual in between
     assert competitive > mutual > cooperative, rates
     # rare: at most two collisions among learned BVs in the 6.7 vehicle-hours (measured: one, at 3 m/s)
     assert collisions <= 2, (collisions, vehicle_hours)

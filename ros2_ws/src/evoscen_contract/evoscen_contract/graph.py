@@ -4,7 +4,7 @@ Every evoscen node is an ordinary rclpy node, but none spins an executor: a lock
 simulation waits for specific messages, and rclpy's executors cost ~10× more per message
 than taking them directly. :class:`MessagePump` keeps one ``WaitSet`` over the node's
 subscriptions and takes messages with ``take_message`` (``raw`` bytes or typed), in ~10 µs.
-Consequences, documented in the README: the nodes' parameters are read once at start-up
+Consequences, documented in docs/architecture.md §4: the nodes' parameters are read once at start-up
 (no parameter services, ``ros2 param`` does not reach them), and SIGINT is handled by
 Python (``KeyboardInterrupt``) rather than by rclpy's signal handler.
 

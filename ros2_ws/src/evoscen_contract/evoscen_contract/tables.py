@@ -14,7 +14,7 @@ as a PointCloud2 that is really a table: one *row* per vehicle, one named FLOAT6
 Why PointCloud2: it is a standard type (no rosidl build), it has a header (stamp and
 frame) and self-describing named columns, and its payload is one ``uint8[]`` blob, so
 building it from numpy costs a memcpy instead of dozens of Python message objects
-(measured 2,687 vs 438 lockstep steps/s, see ARCHITECTURE.md).
+(measured 2,687 vs 438 lockstep steps/s, see docs/architecture.md §3).
 
 The readers (:func:`table_array`, :func:`table_columns`) accept any object with the
 PointCloud2 attributes: rclpy messages, ``mcap_ros2`` decoded messages and ``rosbags``

@@ -7,7 +7,7 @@ else in evoscen may spell a topic name, a table's column list or a QoS profile.
 Time: every message is stamped with *simulation* time (integer nanoseconds in the
 cores, ``builtin_interfaces/Time`` on the wire). Step ``k`` happens at ``t_k``.
 
-Lockstep (ARCHITECTURE.md "Time"): the sim publishes ``/clock`` and
+Lockstep (docs/architecture.md §4): the sim publishes ``/clock`` and
 ``/evoscen/world`` stamped ``t_k``; every controller answers on its command topic with
 a table stamped with the *same* ``t_k`` (``header.stamp`` of the world message it
 answers, ``frame_id = "map"``). The stamp alone identifies the step (the sim keeps

@@ -1,4 +1,4 @@
-"""Behaviour extraction for the fidelity comparison (SPEC §5.3): one code path for both sources.
+"""Behaviour extraction for the fidelity comparison (docs/method.md §5.3): one code path for both sources.
 
 Input is a :class:`~evoscen_eval.highd.HighDRecording` — a real HighD recording loaded by
 :func:`~evoscen_eval.highd.load_recording`, or one of our runs converted by
@@ -21,7 +21,7 @@ directions have opposite signs).
   ``max_ttc_s`` **[choice: 30 s]** are counted but not put in the distribution (a nearly
   equal speed gives an unbounded TTC that would stretch the KDE grid).
 * Our runs: the SUT's tracks (tracksMeta ``evoscenRole`` = 1) are left out unless
-  ``include_sut`` — SPEC §5.3 compares BVs with naturalistic vehicles.
+  ``include_sut`` — docs/method.md §5.3 compares BVs with naturalistic vehicles.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The fidelity experiment (SPEC §5.3, §6.3): our runs' behaviour against naturalistic HighD data.
+"""The fidelity experiment (docs/method.md §5.3, §6.3): our runs' behaviour against naturalistic HighD data.
 
 Both sides go through :func:`evoscen_eval.behaviour.extract_behaviour`: HighD recordings as
 loaded (:func:`evoscen_eval.highd.load_recording`), our bags through
@@ -127,7 +127,7 @@ def highd_samples(directory: Path | str, recordings: Iterable[str],
 
 def compare_behaviour(naturalistic: BehaviourSamples, simulated: BehaviourSamples,
                       kde: KdeConfig = KdeConfig()) -> list[FidelityRow]:
-    """JS divergence and similarity of the four distributions (SPEC §5.3)."""
+    """JS divergence and similarity of the four distributions (docs/method.md §5.3)."""
     rows = []
     for dist in DISTRIBUTIONS:
         a = getattr(naturalistic, dist.attribute)
@@ -170,7 +170,7 @@ def markdown_table(rows: list[FidelityRow], naturalistic: BehaviourSamples | Non
 
 
 def plot_rows(rows: list[FidelityRow], out_dir: Path) -> list[Path]:
-    """The four plots of SPEC §5.3 as PNG (joint KDEs side by side; 1-D KDEs overlaid)."""
+    """The four plots of docs/method.md §5.3 as PNG (joint KDEs side by side; 1-D KDEs overlaid)."""
     import matplotlib
 
     matplotlib.use("Agg")

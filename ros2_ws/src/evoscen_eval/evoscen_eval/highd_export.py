@@ -20,7 +20,7 @@ Mapping **[choice]** (HighD films a straight road from above; ours is curved):
   centre's y (1 + the number of markings above it), which is our ``lane`` column: lane V
   (index 4, leftmost) is the top lower lane, the merge lane I (index 0) the bottom one.
   With 5 lanes per carriageway: upper lanes 2..6, median 7, lower lanes 8 (V) .. 12 (I).
-* Vehicles re-enter upstream with the same id (SPEC §1): each re-entry (``s`` jumping back
+* Vehicles re-enter upstream with the same id (docs/method.md §1): each re-entry (``s`` jumping back
   by more than ``reentry_jump_m``) starts a NEW HighD track; ``evoscenVehicleId`` in
   tracksMeta keeps the simulator's id and ``evoscenRole`` marks the SUT (1) and the BVs (0)
   — two extra columns that HighD tooling, which reads columns by name, ignores. The SUT is

@@ -1,4 +1,4 @@
-"""Scores of a run (SPEC 5.1-5.2), vectorized over the recorded states.
+"""Scores of a run (docs/method.md §5.1-5.2), vectorized over the recorded states.
 
 Input: a :class:`~evoscen_eval.rundata.RunData` (``[K, V]`` arrays, K world states) and the
 scenario's :class:`~evoscen_sim.config.EvaluationConfig`. Output: the ``report.json`` dict
@@ -31,7 +31,7 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   completed lane changes (decision → centre of mass in the new lane, from the
   ``evoscen/lane_change`` events); without any, undefined (above; ``literal``: T̄_l =
   ``no_lane_change_time_s`` [0 s]). Density-speed term ``literal`` [default]: √h̄·v̄/(H·v_max), as the
-  SPEC writes it; ``normalised``: √(h̄/H)·v̄/v_max.
+  method writes it; ``normalised``: √(h̄/H)·v̄/v_max.
 * **Interaction** — over the SUT's lane changes (maximal runs of states with the SUT's
   ``lane_change`` column at one non-zero value; a change still in progress at the end
   counts): for each change starting at state k0, the samples are (state k, BV j in view at
@@ -69,13 +69,13 @@ from .rundata import EXTERNAL_SUT, RunData
 
 
 def safety_score(collisions: int, exposures: int, collision_cap: int) -> float:
-    """I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)  (SPEC eq. 12)."""
+    """I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)  (docs/method.md eq. (21))."""
     return 0.7 * (1.0 - min(collisions, collision_cap) / collision_cap) + 0.3 * math.exp(-exposures)
 
 
 def efficiency_score(mean_in_view: float, max_in_view: int, mean_speed: float, v_max: float,
                      lane_change_time: float, time_scale: float, density: str = "literal") -> tuple[float, float, float]:
-    """I_e = 0.5·(density-speed term + e^(−T̄_l/3))  (SPEC eq. 13); returns (I_e, term 1, term 2)."""
+    """I_e = 0.5·(density-speed term + e^(−T̄_l/3))  (docs/method.md eq. (22)); returns (I_e, term 1, term 2)."""
     if density == "literal":
         term1 = math.sqrt(mean_in_view) * mean_speed / (max_in_view * v_max)
     elif density == "normalised":
@@ -88,7 +88,7 @@ def efficiency_score(mean_in_view: float, max_in_view: int, mean_speed: float, v
 
 def interaction_score(speed_fluct: float, accel_fluct: float, bv_lane_changes: float,
                       dv_max: float, da_max: float) -> float:
-    """I_i = (1/3)·(2 − clip(|v~|)/Δv_max − clip(|a~|)/Δa_max + e^(−√L̄))  (SPEC eq. 14)."""
+    """I_i = (1/3)·(2 − clip(|v~|)/Δv_max − clip(|a~|)/Δa_max + e^(−√L̄))  (docs/method.md eq. (23))."""
     v_term = min(max(speed_fluct, 0.0), dv_max) / dv_max
     a_term = min(max(accel_fluct, 0.0), da_max) / da_max
     return (2.0 - v_term - a_term + math.exp(-math.sqrt(bv_lane_changes))) / 3.0
@@ -96,7 +96,7 @@ def interaction_score(speed_fluct: float, accel_fluct: float, bv_lane_changes: f
 
 def complexity_score(exposures: float, lane_changes: float, accel_decel: float,
                      k1: float, k2: float, k3: float) -> float:
-    """C = 0.4·(1 − e^(−E/k1)) + 0.3·(2 − e^(−LC/k2) − e^(−AD/k3))  (SPEC 5.2)."""
+    """C = 0.4·(1 − e^(−E/k1)) + 0.3·(2 − e^(−LC/k2) − e^(−AD/k3))  (docs/method.md §5.2)."""
     return 0.4 * (1.0 - math.exp(-exposures / k1)) + 0.3 * (2.0 - math.exp(-lane_changes / k2)
                                                             - math.exp(-accel_decel / k3))
 
@@ -382,7 +382,7 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     scores = {"safety": i_s, "efficiency": i_e, "interaction": i_i}
     defined = {k: v is not None for k, v in scores.items()}
     total_w = sum(w for k, w in weights.items() if defined[k])
-    if all(defined.values()):  # the SPEC's arithmetic, unchanged
+    if all(defined.values()):  # the method's arithmetic, unchanged
         effective = dict(weights)
         weighted = {k: weights[k] * scores[k] for k in weights}
         score: float | None = weighted["safety"] + weighted["efficiency"] + weighted["interaction"]

@@ -1,4 +1,4 @@
-"""KDE probability distributions on a common grid and their Jensen–Shannon similarity (SPEC §5.3).
+"""KDE probability distributions on a common grid and their Jensen–Shannon similarity (docs/method.md §5.3).
 
 * **KDE**: a Gaussian kernel density estimate as scipy's ``gaussian_kde`` builds it (kernel
   covariance = factor² × the sample covariance, full in 2-D). The bandwidth factor is
@@ -18,7 +18,7 @@
   spanning the pooled samples of both sources, extended on each side by ``pad_bandwidths``
   (4) kernel standard deviations (the wider of the two kernels), so the tails are on the
   grid; or fixed ``limits`` per axis. Samples outside fixed limits are left out.
-* **JS divergence** with log base 2 **[choice, SPEC §5.3]**:
+* **JS divergence** with log base 2 **[choice, docs/method.md §5.3]**:
   ``JS(P‖Q) = ½ KL(P‖M) + ½ KL(Q‖M)``, ``M = ½ (P + Q)``, so 0 ≤ JS ≤ 1; similarity
   ``S = (1 − JS) · 100 %``.
 """
@@ -181,12 +181,12 @@ def js_divergence(p: np.ndarray, q: np.ndarray) -> float:
         nz = a > 0
         return float(np.sum(a[nz] * np.log2(a[nz] / m[nz])))
 
-    js = 0.5 * (kl_to_m(p) + kl_to_m(q))  # JS = ½ KL(P‖M) + ½ KL(Q‖M), SPEC §5.3
+    js = 0.5 * (kl_to_m(p) + kl_to_m(q))  # JS = ½ KL(P‖M) + ½ KL(Q‖M), docs/method.md §5.3
     return float(min(1.0, max(0.0, js)))
 
 
 def similarity_percent(js: float) -> float:
-    """S = (1 − JS) · 100 % (SPEC §5.3)."""
+    """S = (1 − JS) · 100 % (docs/method.md §5.3)."""
     return (1.0 - js) * 100.0
 
 

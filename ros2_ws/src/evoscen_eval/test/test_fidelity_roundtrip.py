@@ -101,6 +101,7 @@ def test_js_of_bag_and_its_export_is_zero(direct, exported) -> None:
     assert compare(a.dhw_speed, b.dhw_speed * [1.3, 1.0]).js > 0.05
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_export_script_and_experiment_end_to_end(bag, tmp_path) -> None:
     out = tmp_path / "highd"
     r = script("scripts/export_highd.py", bag, out, "--recording-id", "7")
@@ -114,7 +115,7 @@ def test_export_script_and_experiment_end_to_end(bag, tmp_path) -> None:
     res = tmp_path / "fidelity"
     r = script("scripts/experiment_fidelity.py", "--highd", out, "--recordings", "07", "--bags", bag.parent, "--out", res)
     assert r.returncode == 0, r.stderr
-    rows = {row["distribution"]: row for row in csv.DictReader(open(res / "fidelity.csv", encoding="utf-8"))}
+    rows = {row["distribution"]: row for row in csv.DictReader(open(res / "fidelity.csv", encoding="utf-8"))}  # noqa: SIM115
     assert list(rows) == ["dhw_speed", "thw_speed", "mandatory_ttc", "voluntary_speed"]
     for key in ("dhw_speed", "thw_speed", "voluntary_speed"):
         assert float(rows[key]["js"]) < 5e-3 and float(rows[key]["similarity_pct"]) > 99.5
@@ -123,6 +124,7 @@ def test_export_script_and_experiment_end_to_end(bag, tmp_path) -> None:
     assert "| Car following: DHW and speed |" in r.stdout
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_script_errors() -> None:
     r = script("scripts/experiment_fidelity.py", "--bags", "somewhere")
     assert r.returncode == 2
@@ -134,6 +136,7 @@ def test_script_errors() -> None:
     assert r.returncode == 2 and r.stderr.startswith("error: --frame-rate 'fast'")
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_bench_script_small() -> None:
     """scripts/bench_fidelity.py at a small size: generates, writes, loads and extracts in a child process."""
     r = script("scripts/bench_fidelity.py", "--vehicles", "40", "--frames", "3000", "--rows", "20000", "--seed", "1")

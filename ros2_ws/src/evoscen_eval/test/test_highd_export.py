@@ -114,7 +114,7 @@ def test_lane_change_classification() -> None:
     assert lc.ttc_s[0] == pytest.approx(23.7 / 5.0)
     assert lc.speed_mps.tolist() == pytest.approx([30.0, 28.0, 25.0])
     assert (lc.from_lane.tolist(), lc.to_lane.tolist()) == ([10, 11, 8], [9, 12, 9])
-    # the SUT (A) is left out by default: SPEC §5.3 compares background vehicles
+    # the SUT (A) is left out by default: docs/method.md §5.3 compares background vehicles
     s = extract_behaviour(rec)
     assert s.num_mandatory == 0 and sorted(s.voluntary_speed_mps.tolist()) == pytest.approx([25.0, 28.0])
     s = extract_behaviour(rec, BehaviourConfig(include_sut=True))

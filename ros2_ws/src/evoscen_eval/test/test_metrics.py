@@ -1,4 +1,4 @@
-"""The scores (SPEC 5.1-5.2) against hand-computed numbers, on hand-built runs.
+"""The scores (docs/method.md §5.1-5.2) against hand-computed numbers, on hand-built runs.
 
 Each run is written down state by state (``make_run``): positions, speeds, accelerations and
 lane-change flags are set where the test says, so every expected number below follows from
@@ -27,7 +27,7 @@ from evoscen_eval.rundata import RunData
 from evoscen_sim.config import EvaluationConfig
 
 EV = EvaluationConfig()
-#: the SPEC's arithmetic taken literally for undefined terms (T_l = 0 s, I_i = 1 without a lane change)
+#: the method's arithmetic taken literally for undefined terms (T_l = 0 s, I_i = 1 without a lane change)
 EV_LIT = EvaluationConfig(undefined_terms="literal")
 
 

@@ -106,6 +106,7 @@ def _cli(*args: object) -> subprocess.CompletedProcess:
                           text=True, timeout=120, check=False)
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_cli_reports_what_it_recovered(tmp_path):
     bag = _record(tmp_path / "live", 25, close=False)
     dead = tmp_path / "dead"
@@ -117,6 +118,7 @@ def test_cli_reports_what_it_recovered(tmp_path):
     assert "Traceback" not in res.stderr
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_cli_not_mcap_is_one_error_line(tmp_path):
     bad = tmp_path / "bag"
     bad.mkdir()

@@ -1,6 +1,6 @@
 """Standard car-following models shared by drivers: the Intelligent Driver Model (IDM).
 
-IDM (Treiber, Hennecke, Helbing 2000; MODELS.md)::
+IDM (Treiber, Hennecke, Helbing 2000; docs/method.md §4.2)::
 
     a = a_max [1 - (v / v0)^δ - (s* / s)²],   s* = s0 + v T + v Δv / (2 √(a_max b))
 
@@ -20,7 +20,7 @@ from .jit import elementwise, kernel
 
 @dataclass(frozen=True)
 class IdmParams:
-    """IDM parameters; highway values from MODELS.md."""
+    """IDM parameters; highway values from docs/method.md §4.2."""
 
     time_headway_s: float = 1.5
     min_gap_m: float = 2.0

@@ -511,10 +511,10 @@ UNDEFINED_TERM_RULES = ("exclude", "literal")
 
 @dataclass(frozen=True)
 class EvaluationConfig:
-    """Scoring of the SUT and of the scenario (SPEC 5.1-5.2; see :mod:`evoscen_eval.metrics`).
+    """Scoring of the SUT and of the scenario (docs/method.md §5.1-5.2; see :mod:`evoscen_eval.metrics`).
 
     Every **[choice]** the method leaves open is a key here, defaults as documented in
-    docs/evaluation.md and the README ("Evaluation").
+    docs/evaluation.md (§7: the choices at a glance).
     """
 
     ttc_threshold_s: float = field(default=2.0, metadata=_POSITIVE)
@@ -534,7 +534,7 @@ class EvaluationConfig:
     v_max_mps: float = field(default=33.33, metadata=_POSITIVE)
     """v_max of the efficiency score (m/s)."""
     efficiency_density: str = field(default="literal", metadata=_check(_Str(lambda: EFFICIENCY_DENSITY_FORMS)))
-    """Density-speed term of I_e: literal = sqrt(h)*v/(H*v_max) as the SPEC writes it;
+    """Density-speed term of I_e: literal = sqrt(h)*v/(H*v_max) as the method writes it;
     normalised = sqrt(h/H)*v/v_max (in [0, 1])."""
     lane_change_time_scale_s: float = field(default=3.0, metadata=_POSITIVE)
     """The 3 of e^(-T_l/3) (s)."""
@@ -581,7 +581,7 @@ class EvaluationConfig:
     undefined_terms: str = field(default="exclude", metadata=_check(_Str(lambda: UNDEFINED_TERM_RULES)))
     """A score term undefined in the run (T_l without a completed SUT lane change; I_i without
     any SUT lane change): exclude = left out and the remaining weights renormalised;
-    literal = T_l = no_lane_change_time_s and I_i = 1 (the SPEC's arithmetic taken literally)."""
+    literal = T_l = no_lane_change_time_s and I_i = 1 (the method's arithmetic taken literally)."""
 
 
 @dataclass(frozen=True)

@@ -1,6 +1,6 @@
 """Low-level lateral control: a cascaded dual PID tracking the target lane's centre line.
 
-SPEC §2: "a dual PID (lateral offset and heading error) tracks the target lane's centre
+docs/method.md §2: "a dual PID (lateral offset and heading error) tracks the target lane's centre
 line, producing steering". Our reading, vectorized over vehicles:
 
 1. Lateral-offset PID (outer loop). ``e_d = d_target - d`` gives a lateral-speed demand

@@ -60,7 +60,7 @@ def fault_event(world, kind: str, controller: str, misses: int, message: str) ->
 
 
 class ExposureMonitor:
-    """``evoscen/exposure`` events: the SUT's dangerous states as they happen (SPEC 5.1).
+    """``evoscen/exposure`` events: the SUT's dangerous states as they happen (docs/method.md §5.1).
 
     :meth:`observe` is called on every state, the initial one included; it returns a
     ``kind: start`` event when an exposure begins (``step``/``time_s`` of the first dangerous

@@ -104,7 +104,7 @@ def _neighborhood_kernel(s, lane, v, a, length):  # noqa: ANN001, ANN202
 
 
 def time_to_collision(gap_m: np.ndarray, speed_mps: np.ndarray, leader_speed_mps: np.ndarray) -> np.ndarray:
-    """TTC = gap / (v - v_leader) while closing, else ``inf`` (MODELS.md, safety surrogates).
+    """TTC = gap / (v - v_leader) while closing, else ``inf`` (docs/method.md §5.1, safety surrogates).
 
     A gap ≤ 0 while closing gives 0; no leader (``nan`` speed or ``inf`` gap) gives ``inf``.
     """

@@ -51,7 +51,6 @@ import math
 import os
 import re
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Iterable, Mapping, Optional, Sequence
 from xml.parsers import expat
 

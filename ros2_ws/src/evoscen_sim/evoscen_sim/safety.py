@@ -1,4 +1,4 @@
-"""The SUT's dangerous states (SPEC 5.1): one definition for the live events and the scores.
+"""The SUT's dangerous states (docs/method.md §5.1): one definition for the live events and the scores.
 
 Definitions, choices and their reasons: docs/evaluation.md. A state is **dangerous** when
 

@@ -15,7 +15,7 @@ by ``dt_s``:
    change is complete when the centre of mass is in the target lane; its duration (the
    decision to that moment) is T_l of the efficiency score. A vehicle whose centre leaves
    the road keeps its last lane and raises one ``off_road`` event.
-4. **Re-entry** (SPEC §1 [choice]): a vehicle whose centre passes the end of the road
+4. **Re-entry** (docs/method.md §1 [choice]): a vehicle whose centre passes the end of the road
    re-enters at once, so the number of vehicles on the road never changes. With
    probability ``ramp_share`` (drawn from the scenario's seeded generator) it re-enters
    at the start of the merge lane (coming from the on-ramp), else at ``s = 0`` of the

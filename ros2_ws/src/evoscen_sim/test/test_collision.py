@@ -101,7 +101,7 @@ def _clip_area(p: np.ndarray, q: np.ndarray) -> float:
             break
 
         def side(x):
-            return (b[0] - a[0]) * (x[1] - a[1]) - (b[1] - a[1]) * (x[0] - a[0])
+            return (b[0] - a[0]) * (x[1] - a[1]) - (b[1] - a[1]) * (x[0] - a[0])  # noqa: B023 (called within the iteration)
 
         for m in range(len(inp)):
             cur, prev = inp[m], inp[m - 1]

@@ -233,7 +233,7 @@ def test_lane_change_at_30mps(road: RoadModel, lane: int, direction: int, border
     assert duration == pytest.approx(first_cross * DT - t_decision, abs=1e-9)
     assert 3.0 <= duration <= 6.0
     # lanes reported by the world: old lane before the crossing, new lane from it on
-    for res, d, lane_now, lane_of in history:
+    for res, _d, lane_now, lane_of in history:
         assert lane_of >= 0  # never off the road
         assert lane_now == (target if res.step >= first_cross else lane)
         assert lane_of == lane_now

@@ -171,7 +171,7 @@ def test_reentry_ramp_share_uses_seeded_generator(road: RoadModel) -> None:
 
 # ---------------------------------------------------------------- density over 10,000 steps
 def test_density_constant_over_10000_steps() -> None:
-    """SPEC §1: vehicles leaving the map re-enter, so the number on the road never changes.
+    """docs/method.md §1: vehicles leaving the map re-enter, so the number on the road never changes.
 
     world.py allows a re-entering vehicle on the approach (s < 0, at most min_gap_m + L
     behind s = 0) when every entry is crowded; in the default scenario that never happens,

@@ -1,4 +1,4 @@
-"""SUMO's default car-following model ``Krauss``: the longitudinal control of every SUT (SPEC §4).
+"""SUMO's default car-following model ``Krauss``: the longitudinal control of every SUT (docs/method.md §4).
 
 A port of SUMO's default ``carFollowModel="Krauss"`` with the default *semi-implicit Euler*
 position update (``--step-method.ballistic false``) and ``actionStepLength`` = the step

@@ -1,7 +1,7 @@
-"""MOBIL lane changes (SPEC §4) with SUMO-Krauss car following.
+"""MOBIL lane changes (docs/method.md §4) with SUMO-Krauss car following.
 
 MOBIL — "Minimizing Overall Braking Induced by Lane changes" (Kesting, Treiber, Helbing,
-TRR 1999, 2007; MODELS.md "IDM and MOBIL"). A vehicle ``c`` looks at the two *adjacent* lanes
+TRR 1999, 2007; docs/method.md §4.2). A vehicle ``c`` looks at the two *adjacent* lanes
 only. With ``a`` the IDM acceleration (:func:`evoscen_sim.car_following.idm_acceleration`)
 now and ``ã`` after the change, ``n`` the new follower (behind ``c`` in the target lane) and
 ``o`` the old follower (behind ``c`` in its lane), a change is
@@ -53,12 +53,12 @@ Readings and choices (all configurable through :class:`MobilParams`):
   the same step that would be unsafe for each other are resolved in favour of the vehicle
   ahead (:func:`resolve_conflicts`) [choice].
 
-Parameter sources: MODELS.md ("IDM and MOBIL"): p = 0–0.5, Δa_th = 0.1–0.2 m/s²,
+Parameter sources: docs/method.md §4.2: p = 0–0.5, Δa_th = 0.1–0.2 m/s²,
 Δa_bias = 0.2–0.3 m/s², b_safe = 4 m/s²; IDM highway values v0 = 120 km/h, T = 1.0–1.5 s,
 s0 = 2 m, a = 1.0 m/s², b = 1.5 m/s², δ = 4 (Treiber & Kesting, *Traffic Flow Dynamics*,
 2013, Table 11.2).
 
-Longitudinal control: SUMO's Krauss (:mod:`evoscen_sut.krauss`, SPEC §4: car following is
+Longitudinal control: SUMO's Krauss (:mod:`evoscen_sut.krauss`, docs/method.md §4: car following is
 the same for every SUT), see :class:`KraussLaneChangeDriver`, which this module's and
 :mod:`evoscen_sut.nilsson`'s drivers share.
 """
@@ -90,31 +90,31 @@ class MobilParams:
     """MOBIL parameters (``models.mobil`` in the scenario YAML)."""
 
     politeness: float = number(0.25, 0.0, 5.0)
-    """Politeness factor p (-). Default 0.25, mid-range of MODELS.md's p = 0–0.5."""
+    """Politeness factor p (-). Default 0.25, mid-range of docs/method.md §4.2's p = 0–0.5."""
     threshold_mps2: float = number(0.1, 0.0, 5.0)
-    """Changing threshold Δa_th (m/s²). Default 0.1, MODELS.md (0.1–0.2)."""
+    """Changing threshold Δa_th (m/s²). Default 0.1, docs/method.md §4.2 (0.1–0.2)."""
     bias_mps2: float = number(0.2, 0.0, 5.0)
-    """Keep-right bias Δa_bias of the asymmetric variant (m/s²). Default 0.2, MODELS.md (0.2–0.3)."""
+    """Keep-right bias Δa_bias of the asymmetric variant (m/s²). Default 0.2, docs/method.md §4.2 (0.2–0.3)."""
     safe_decel_mps2: float = number(4.0, 0.0, 20.0, lo_open=True)
-    """Safe deceleration b_safe (m/s²): the new follower's ã_n ≥ −b_safe. Default 4, MODELS.md."""
+    """Safe deceleration b_safe (m/s²): the new follower's ã_n ≥ −b_safe. Default 4, docs/method.md §4.2."""
     asymmetric: bool = flag(True)
-    """Use the asymmetric keep-right / overtake-left criteria (MODELS.md); False: symmetric MOBIL."""
+    """Use the asymmetric keep-right / overtake-left criteria (docs/method.md §4.2); False: symmetric MOBIL."""
     critical_speed_mps: float = number(60.0 / 3.6, 0.0, 40.0)
     """Above this speed the ego may not overtake on the right: ã_c ← min(ã_c, a_c) for a change
     to the right (m/s). Default 60 km/h (Kesting, Treiber, Helbing 2007, European rules)."""
     desired_speed_mps: float = number(120.0 / 3.6, 0.0, 40.0, lo_open=True)
-    """IDM desired speed v0 (m/s), capped by the lane's speed limit. Default 120 km/h, MODELS.md."""
+    """IDM desired speed v0 (m/s), capped by the lane's speed limit. Default 120 km/h, docs/method.md §4.2."""
     accel_mps2: float = number(1.0, 0.0, 10.0, lo_open=True)
-    """IDM maximum acceleration a (m/s²). Default 1.0, MODELS.md highway value."""
+    """IDM maximum acceleration a (m/s²). Default 1.0, docs/method.md §4.2 highway value."""
     comfort_decel_mps2: float = number(1.5, 0.0, 10.0, lo_open=True)
-    """IDM comfortable deceleration b (m/s²). Default 1.5, MODELS.md highway value."""
+    """IDM comfortable deceleration b (m/s²). Default 1.5, docs/method.md §4.2 highway value."""
     time_headway_s: float = number(1.0, 0.0, 5.0, lo_open=True)
-    """IDM safe time headway T (s). Default 1.0, MODELS.md highway range 1.0–1.5 (Treiber &
+    """IDM safe time headway T (s). Default 1.0, docs/method.md §4.2 highway range 1.0–1.5 (Treiber &
     Kesting 2013, Table 11.2), equal to Krauss' τ = 1 s."""
     min_gap_m: float = number(2.0, 0.0, 20.0)
-    """IDM standstill gap s0 (m). Default 2, MODELS.md."""
+    """IDM standstill gap s0 (m). Default 2, docs/method.md §4.2."""
     delta: float = number(4.0, 0.0, 10.0, lo_open=True)
-    """IDM acceleration exponent δ (-). Default 4, MODELS.md."""
+    """IDM acceleration exponent δ (-). Default 4, docs/method.md §4.2."""
     merge_stop_margin_m: float = number(15.0, 0.0, 200.0)
     """A lane end acts as a standing obstacle this far before it (m), in the MOBIL
     accelerations and in the Krauss command. Default 15, as the level-0 driver
@@ -789,5 +789,5 @@ SPEC = ModelSpec(
     roles=("sut", "bv"),
     factory=make_driver,
     params_type=MobilParams,
-    description="MOBIL lane changes (IDM accelerations, keep-right variant) + Krauss car following (SPEC 4)",
+    description="MOBIL lane changes (IDM accelerations, keep-right variant) + Krauss car following (docs/method.md §4)",
 )

@@ -1,4 +1,4 @@
-"""SUT mutants: an intact SUT model with one deliberate, documented defect (SPEC §7; docs/mutants.md).
+"""SUT mutants: an intact SUT model with one deliberate, documented defect (docs/method.md §7; docs/mutants.md).
 
 The model ``mutant`` (role ``sut``) wraps the driver of any registered SUT model — a built-in
 or a user's ``evoscen.sut`` plug-in — named by ``models.mutant.base``, and degrades it with one
@@ -313,5 +313,5 @@ SPEC = ModelSpec(
     roles=("sut",),
     factory=make_driver,
     params_type=MutantParams,
-    description="a registered SUT model with one deliberate defect (SPEC 7, docs/mutants.md)",
+    description="a registered SUT model with one deliberate defect (docs/method.md §7, docs/mutants.md)",
 )

@@ -1,4 +1,4 @@
-"""The named library of SUT mutants for mutation analysis (SPEC §7; docs/mutants.md).
+"""The named library of SUT mutants for mutation analysis (docs/method.md §7; docs/mutants.md).
 
 Each :class:`Mutant` is one operator of the ``mutant`` model (:mod:`evoscen_sut.mutant`) with
 parameters chosen as a realistic degradation; :func:`mutant_overrides` turns (base model,

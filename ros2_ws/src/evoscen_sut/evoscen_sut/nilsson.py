@@ -1,8 +1,8 @@
-"""Nilsson's lane-utility lane changes (SPEC §4) with SUMO-Krauss car following.
+"""Nilsson's lane-utility lane changes (docs/method.md §4) with SUMO-Krauss car following.
 
 Source: J. Nilsson, J. Silvlin, M. Brännström, E. Coelingh, J. Fredriksson, "If, when, and
 how to perform lane change maneuvers on highways", IEEE ITS Magazine 8(4), 2016, as restated
-in MODELS.md ("Nilsson lane-utility model") from a public re-implementation. Every lane ``l``
+in docs/method.md §4.1 from a public re-implementation. Every lane ``l``
 that exists at the ego's position gets the utility::
 
     U_l = w_v · U_v/N_v + w_tg · U_tg/N_tg + w_ld · U_ld/N_ld
@@ -12,7 +12,7 @@ that exists at the ego's position gets the utility::
   ``w_v = 5`` if ``v̄_l ≤ v_des`` else 12;
 * time gap: ``t_g = (x_front − x_rear − L)/v_rear``, ``U_tg = min(α t_des, t_g)``,
   ``N_tg = α t_des``, ``w_tg = 0.5``;
-* remaining distance (MODELS.md's reading, needed on the ramp):
+* remaining distance (docs/method.md §4.1's reading, needed on the ramp):
   ``U_ld = −max(0, d_max − d_end,l)/v_des``, ``N_ld = d_max/v_des``.
 
 The best lane over *all* lanes is the target ("all lanes are considered, one step at a
@@ -32,7 +32,7 @@ Readings (all configurable through :class:`NilssonParams`):
   would have after moving to) lane ``l`` at its current ``s``: its headway to the front
   vehicle ``g_front/v_ego`` and the rear vehicle's headway to it ``g_rear/v_rear`` (bumper
   gaps; speeds floored at ``v_min``); a missing neighbour drops its term, none gives
-  ``α t_des``. With the ego as the rear vehicle this is MODELS.md's ``(x_front − x_rear −
+  ``α t_des``. With the ego as the rear vehicle this is docs/method.md §4.1's ``(x_front − x_rear −
   L)/v_rear``. The re-implementation uses the ego as the rear vehicle of its *own* lane only
   and the whole front–rear gap of the *other* lanes; that makes the lane just left always
   look roomier than the lane just entered, and in closed loop the ego ping-ponged between
@@ -41,7 +41,7 @@ Readings (all configurable through :class:`NilssonParams`):
 * **Desired speed** ``v_des = min(desired_speed_mps, the lane's speed limit at s)``.
 * **Remaining distance.** ``d_end,l`` = :meth:`RoadModel.distance_to_lane_end` (``inf`` on
   the mainline, so ``U_ld = 0`` there; on the merge lane ``d_end`` ≪ ``d_max`` and
-  ``U_ld/N_ld ≈ −1``). MODELS.md gives no ``w_ld``: ``lane_end_weight`` = 5 [choice] makes
+  ``U_ld/N_ld ≈ −1``). docs/method.md §4.1 gives no ``w_ld``: ``lane_end_weight`` = 5 [choice] makes
   the merge lane lose against any mainline lane that is not nearly jammed. Mandatory rule
   [choice]: a lane whose stop point (``merge_stop_margin_m`` before its end) is closer than
   ``merge_mandatory_distance_m`` is never a target, and the ego leaves it for the best
@@ -53,7 +53,7 @@ Readings (all configurable through :class:`NilssonParams`):
   ``(1+θ)·U_ego`` threshold when ``U_ego ≥ 0``, monotone in ``U_ego`` when it is negative; the
   bias is ``b_r`` per lane step, in favour of the right (``b_r`` = 0.05, θ = 0.9).
 * **Safety.** The step is rejected if a vehicle in the adjacent lane is within ``2.5·L``
-  longitudinally (centre distance, ``L`` the ego's length; MODELS.md). Extensions
+  longitudinally (centre distance, ``L`` the ego's length; docs/method.md §4.1). Extensions
   [choice]: the distance grows by ``safety_closing_headway_s`` × the closing speed (a
   faster vehicle behind, a slower one ahead; 0 gives the plain rule), and a vehicle that
   is changing into the adjacent lane (``view.target_lane``) counts as being in it (two
@@ -65,9 +65,9 @@ Readings (all configurable through :class:`NilssonParams`):
   same step that fail the safety distance for each other are resolved in favour of the
   vehicle ahead (:func:`evoscen_sut.mobil.resolve_conflicts`) [choice].
 
-Parameter sources: MODELS.md (β = 300 s, v_min = 2 m/s, weights 5/12 and 0.5, α = 2,
+Parameter sources: docs/method.md §4.1 (β = 300 s, v_min = 2 m/s, weights 5/12 and 0.5, α = 2,
 b_r = 0.05, θ = 0.9, 2.5·L); ``t_des = 2 s`` is the desired headway of the public
-re-implementation's example [choice: MODELS.md gives no value].
+re-implementation's example [choice: docs/method.md §4.1 gives no value].
 
 Longitudinal control: SUMO's Krauss via :class:`evoscen_sut.mobil.KraussLaneChangeDriver`
 (shared with MOBIL: Krauss behind the own-lane leader, also the target-lane leader during a
@@ -105,29 +105,29 @@ class NilssonParams:
     desired_speed_mps: float = number(120.0 / 3.6, 0.0, 40.0, lo_open=True)
     """Desired speed v_des (m/s), capped by each lane's speed limit. Default 120 km/h (the road's limit)."""
     look_ahead_time_s: float = number(300.0, 0.0, 3600.0, lo_open=True)
-    """β: the look-ahead distance is d_max = v_des·β (s). Default 300, MODELS.md."""
+    """β: the look-ahead distance is d_max = v_des·β (s). Default 300, docs/method.md §4.1."""
     min_speed_mps: float = number(2.0, 0.0, 40.0, lo_open=True)
-    """v_min of the travel-time utility and its normaliser (m/s). Default 2, MODELS.md."""
+    """v_min of the travel-time utility and its normaliser (m/s). Default 2, docs/method.md §4.1."""
     speed_weight_slow: float = number(5.0, 0.0, 100.0)
-    """Travel-time weight when v̄_l ≤ v_des (-). Default 5, MODELS.md."""
+    """Travel-time weight when v̄_l ≤ v_des (-). Default 5, docs/method.md §4.1."""
     speed_weight_fast: float = number(12.0, 0.0, 100.0)
-    """Travel-time weight when v̄_l > v_des (-). Default 12, MODELS.md."""
+    """Travel-time weight when v̄_l > v_des (-). Default 12, docs/method.md §4.1."""
     time_gap_weight: float = number(0.5, 0.0, 100.0)
-    """Time-gap weight (-). Default 0.5, MODELS.md."""
+    """Time-gap weight (-). Default 0.5, docs/method.md §4.1."""
     desired_time_gap_s: float = number(2.0, 0.0, 20.0, lo_open=True)
     """Desired time gap t_des (s). Default 2, the public re-implementation's example [choice]."""
     time_gap_factor: float = number(2.0, 0.0, 20.0, lo_open=True)
-    """α: the time-gap utility saturates at α·t_des (-). Default 2, MODELS.md."""
+    """α: the time-gap utility saturates at α·t_des (-). Default 2, docs/method.md §4.1."""
     lane_end_weight: float = number(5.0, 0.0, 1000.0)
-    """Weight of the remaining-distance utility U_ld (-). Default 5 [choice: not in MODELS.md]."""
+    """Weight of the remaining-distance utility U_ld (-). Default 5 [choice: not in docs/method.md §4.1]."""
     keep_right_bias: float = number(0.05, 0.0, 10.0)
-    """Keep-right bias b_r per lane step (utility units). Default 0.05, MODELS.md."""
+    """Keep-right bias b_r per lane step (utility units). Default 0.05, docs/method.md §4.1."""
     hysteresis: float = number(0.9, 0.0, 10.0)
-    """θ: a change needs U_l − U_ego > θ·|U_ego| + bias (-). Default 0.9, MODELS.md."""
+    """θ: a change needs U_l − U_ego > θ·|U_ego| + bias (-). Default 0.9, docs/method.md §4.1."""
     safety_length_factor: float = number(2.5, 0.0, 20.0)
-    """Reject a step with a target-lane vehicle within this many ego lengths (centre distance). Default 2.5, MODELS.md."""
+    """Reject a step with a target-lane vehicle within this many ego lengths (centre distance). Default 2.5, docs/method.md §4.1."""
     safety_closing_headway_s: float = number(3.0, 0.0, 10.0)
-    """Extra safety distance per m/s of closing speed (s) [choice extension; 0: MODELS.md's rule].
+    """Extra safety distance per m/s of closing speed (s) [choice extension; 0: docs/method.md §4.1's rule].
     Default 3 s ≈ the time the centre needs to cross into the target lane (half a 3.5 m lane
     at the lateral controller's 0.6 m/s cap), during which the gap closes unseen by the
     target lane's follower."""
@@ -362,5 +362,5 @@ SPEC = ModelSpec(
     roles=("sut", "bv"),
     factory=make_driver,
     params_type=NilssonParams,
-    description="Nilsson lane utilities (travel time, time gap, remaining distance) + Krauss car following (SPEC 4)",
+    description="Nilsson lane utilities (travel time, time gap, remaining distance) + Krauss car following (docs/method.md §4)",
 )

@@ -1,4 +1,4 @@
-"""Stackelberg lane-change decision (SPEC §4; Yoo & Langari, ASME DSCC 2012; MODELS.md).
+"""Stackelberg lane-change decision (docs/method.md §4.3; Yoo & Langari, ASME DSCC 2012).
 
 The ego vehicle is the game's *leader*; the two most relevant other vehicles are its
 *followers*. The leader chooses among nine actions, {accelerate, keep, decelerate} ×
@@ -15,9 +15,9 @@ and the leader picks ``argmax_leader min_followers (U_pos + U_neg)``: the action
 action is used (the lane-change request); see "Longitudinal control" below.
 
 Readings (the source paper is not available to us; every choice is a parameter or is
-stated here — MODELS.md marks the overall reading):
+stated here — docs/method.md §4.3 marks the overall reading):
 
-* **The three steps** (SPEC: "three-step leader/follower/leader game") are three phases of
+* **The three steps** (docs/method.md §4.3: "three-step leader/followers/leader game") are three phases of
   ``horizon_s`` each, predicted with constant-acceleration kinematics:
 
   1. the leader applies its action (acceleration ``a1`` and lane) while the followers,
@@ -58,7 +58,7 @@ stated here — MODELS.md marks the overall reading):
   beats the best keep-lane worst-case value by more than ``lane_change_threshold_m``;
   ties (an empty road) keep the lane.
 
-Longitudinal control: SPEC §4 — "only the lane-change decision differs between SUTs; car
+Longitudinal control: docs/method.md §4 — "only the lane-change decision differs between SUTs; car
 following uses Krauss". The game's acceleration component only serves to value the lane
 choice (the leader may plan to accelerate into a gap); the command sent to the vehicle is
 SUMO's Krauss acceleration (:mod:`evoscen_sut.krauss`) behind the leader in the own lane —
@@ -100,7 +100,7 @@ class StackelbergParams:
     """Prediction horizon of one game step (s), in (0, 10]. Our choice: 1 s per step, 3 s
     for the whole game — the order of a lane change's duration."""
     steps: int = integer(3, 1, 3)
-    """Game steps, 1..3: 3 = leader → followers → leader (SPEC §4); 2 stops after the
+    """Game steps, 1..3: 3 = leader → followers → leader (docs/method.md §4); 2 stops after the
     followers' response, 1 after the leader's move."""
     leader_accel_mps2: float = number(2.0, 0.0, 10.0)
     """The leader's "accelerate" (m/s²), [0, 10]. Our choice, below Krauss's accel 2.6."""
@@ -112,10 +112,10 @@ class StackelbergParams:
     """A follower's "decelerate" magnitude (m/s²), [0, 10]. Our choice (as the leader's)."""
     view_distance_m: float = number(100.0, 0.0, lo_open=True)
     """d_v: the payoff's view distance (m), > 0; U_pos when nobody is ahead, and the cap of
-    both payoff terms. 100 m (the brief's example; SPEC §3.2's grid also sees ~100 m ahead)."""
+    both payoff terms. 100 m (the brief's example; docs/method.md §3.2's grid also sees ~100 m ahead)."""
     time_headway_s: float = number(1.5, 0.0)
     """T: time headway applied to the closing speed of the vehicle behind in U_neg (s), >= 0.
-    Our choice: 1.5 s, the IDM highway value of MODELS.md."""
+    Our choice: 1.5 s, the IDM highway value of docs/method.md §4.2."""
     min_gap_m: float = number(2.5, 0.0)
     """d_min: minimum gap subtracted in U_neg (m), >= 0. SUMO/Krauss minGap 2.5 m."""
     lane_change_threshold_m: float = number(1.0, 0.0)
@@ -360,7 +360,7 @@ def _factory(vehicles, params, config, rng):  # noqa: ANN001, ANN202
 
     from .krauss import KraussCarFollowing, KraussParams
 
-    # Krauss with SUMO's defaults: the same car following for every SUT (SPEC §4)
+    # Krauss with SUMO's defaults: the same car following for every SUT (docs/method.md §4)
     return StackelbergDriver(vehicles, params if params is not None else StackelbergParams(),
                              KraussCarFollowing(KraussParams(), rng, config.dt_s), vehicle_params_from_config(config))
 
@@ -370,5 +370,5 @@ SPEC = ModelSpec(
     roles=("sut",),
     factory=_factory,
     params_type=StackelbergParams,
-    description="Stackelberg lane change (leader = ego, 2 followers, worst-case best response; SPEC 4) + Krauss",
+    description="Stackelberg lane change (leader = ego, 2 followers, worst-case best response; docs/method.md §4) + Krauss",
 )

@@ -131,6 +131,7 @@ def test_plugin_drives_the_sut_in_process(plugin: Path, tmp_path: Path) -> None:
     assert abs(float(speed) - 20.0) < 0.2, speed
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_plugin_through_the_cli(plugin: Path, tmp_path: Path) -> None:
     cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {"gain_per_s": 1.0}})
     res = run([str(SCRIPT), "--mode", "inprocess", "--config", str(cfg), "--sut", "my_sut", "--no-record",
@@ -140,6 +141,7 @@ def test_plugin_through_the_cli(plugin: Path, tmp_path: Path) -> None:
     assert (tmp_path / "out" / "scenario.yaml").read_text(encoding="utf-8").count("my_sut") >= 2
 
 
+@pytest.mark.e2e  # runs a CLI as a subprocess
 def test_bad_plugin_parameter_is_a_one_line_error(plugin: Path, tmp_path: Path) -> None:
     cfg = write_config(tmp_path / "scenario.yaml", {"my_sut": {"gain_per_s": -1.0}})
     line = one_line_error(run([str(SCRIPT), "--mode", "inprocess", "--config", str(cfg), "--no-record", "--quiet",
@@ -157,7 +159,8 @@ def test_bad_plugin_parameter_in_process(plugin: Path, tmp_path: Path, key: str,
 
 
 @pytest.mark.parametrize(("value", "needle", "via_cli"), [
-    ("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.models.ModelSpec (got dict)", True),
+    pytest.param("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.models.ModelSpec (got dict)", True,
+                 marks=pytest.mark.e2e),  # through the CLI
     ("my_sut_plugin:MISSING", "failed to load", False),
     ("no_such_module:SPEC", "failed to load", False),
 ])

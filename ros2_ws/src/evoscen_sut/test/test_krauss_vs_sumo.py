@@ -36,7 +36,7 @@ import pytest
 
 libsumo = pytest.importorskip("libsumo", reason="SUMO comparison needs libsumo (pip install eclipse-sumo libsumo)")
 
-from evoscen_sut.krauss import KraussParams, krauss_next_speed
+from evoscen_sut.krauss import KraussParams, krauss_next_speed  # noqa: E402 (after the importorskip)
 
 DT = 0.1
 LENGTH = 4.8

@@ -1,6 +1,6 @@
 """MOBIL lane changes (evoscen_sut.mobil), hand-built situations with hand-derived decisions.
 
-IDM used by the decisions (MobilParams defaults, MODELS.md highway values):
+IDM used by the decisions (MobilParams defaults, docs/method.md §4.2 highway values):
     a = a_max [1 − (v/v0)^4 − (s*/s)²],  s* = s0 + max(0, v T + v Δv / (2 √(a_max b))),
     a_max = 1.0, b = 1.5, T = 1.0 s, s0 = 2 m, v0 = 120 km/h = 33.33 m/s (the road's limit).
 Criteria (asymmetric, defaults p = 0.25, Δa_th = 0.1, Δa_bias = 0.2, b_safe = 4):

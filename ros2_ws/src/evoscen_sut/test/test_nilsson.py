@@ -87,7 +87,7 @@ def test_fast_vehicle_closing_from_behind_blocks_the_change(road) -> None:
     # as above plus a 35 m/s vehicle in lane 2, 10 m behind (centres): within 2.5 L = 12 m -> keep
     w = hand_built_world(road, s=[300.0, 330.0, 290.0], lane=[1, 1, 2], speed=[25.0, 20.0, 35.0])
     assert decide(w)[0] == 0
-    assert decide(w, replace(P, safety_closing_headway_s=0.0))[0] == 0  # MODELS.md's plain rule too
+    assert decide(w, replace(P, safety_closing_headway_s=0.0))[0] == 0  # docs/method.md §4.1's plain rule too
     # 15 m behind: outside 12 m, but closing at 10 m/s needs 12 + 3 s × 10 m/s = 42 m -> keep
     w = hand_built_world(road, s=[300.0, 330.0, 285.0], lane=[1, 1, 2], speed=[25.0, 20.0, 35.0])
     ev = evaluate(w, EGO, P)
