@@ -74,11 +74,12 @@ class GraphResult:
     end_s: float | None
     hang: bool
     traceback: bool
-    bag_readable: bool
+    bag_readable: bool | None  # None: no bag was started (a death during start-up)
     reindexed: bool
     steps_lost: int | None
     world_identical: bool | None = None
     problems: list[str] = field(default_factory=list)
+    stderr_tail: str = ""  # the launcher's last lines, kept for runs with a problem
 
 
 def _fault_classes() -> list[tuple]:
@@ -203,7 +204,7 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
                 problems.append("the intruder itself failed")
     status = launcher.returncode if not hang else None
     traceback = "Traceback" in stderr
-    readable, reindexed, lost, identical = False, False, None, None
+    readable, reindexed, lost, identical = None, False, None, None
     if (out / "bag").exists():
         world = _world_steps(out / "bag")
         if world is None:
@@ -243,7 +244,7 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
         problems.append(f"exit status {status} not documented")
     if traceback:
         problems.append("traceback")
-    if (out / "bag").exists() and not readable:
+    if readable is False:
         problems.append("bag unreadable after reindex")
     if lost is not None and lost > allowed_loss:
         problems.append(f"{lost} steps lost (allowed {allowed_loss})")
@@ -254,8 +255,9 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
     if kind == "inject" and status != 0:
         problems.append(f"attacked run ended {status}, not 0")
     shutil.rmtree(out, ignore_errors=True)
+    tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
     return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost, identical,
-                       problems)
+                       problems, tail)
 
 
 # --------------------------------------------------------------------------- fuzzing
@@ -492,7 +494,8 @@ def main(argv: list[str] | None = None) -> int:
         ("  undocumented exit statuses", sum(r.status is not None and r.status not in DOCUMENTED_EXIT for r in graph)),
         ("  exit statuses seen", " ".join(f"{s}:{n}" for s, n in sorted(
             {s: sum(r.status == s for r in graph) for s in {r.status for r in graph}}.items(), key=str))),
-        ("  bags unreadable after reindex", sum(not r.bag_readable for r in graph)),
+        ("  bags written", sum(r.bag_readable is not None for r in graph)),
+        ("  bags unreadable after reindex", sum(r.bag_readable is False for r in graph)),
         ("  bags that needed reindex", sum(r.reindexed for r in graph)),
         ("  steps lost beyond the allowance", sum(any("steps lost" in p for p in r.problems) for r in graph)),
         ("  slowest end after a kill (s)", f"{max(ends):.1f}" if ends else "-"),

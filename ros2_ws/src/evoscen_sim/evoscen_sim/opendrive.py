@@ -323,6 +323,9 @@ def _read_xml(data: bytes, fname: str) -> _Node:
             f"{fname}:{exc.lineno}: not well-formed XML ({expat.errors.messages[exc.code]}, "
             f"column {exc.offset + 1}); expected an OpenDRIVE 1.6 document"
         ) from None
+    except LookupError as exc:  # the XML declaration names an encoding Python does not know
+        raise InputError(f"{fname}:1: the XML declaration names an unknown encoding ({exc}); "
+                         "expected UTF-8 (or another encoding Python knows)") from None
     if not root:  # pragma: no cover - expat rejects documents without a root element
         raise InputError(f"{fname}:1: no XML root element; expected <OpenDRIVE>")
     return root[0]

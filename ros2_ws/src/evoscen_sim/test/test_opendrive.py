@@ -144,6 +144,12 @@ def test_not_xml(tmp_path: Path) -> None:
     expect_error(tmp_path, text, 3, "not well-formed XML")
 
 
+def test_unknown_encoding_in_the_xml_declaration(tmp_path: Path) -> None:
+    # found by scripts/fault_campaign.py: a mangled declaration raised LookupError from the parser
+    text = MINIMAL.replace('<?xml version="1.0"?>', '<?xml version="1.0" encoding="UTF-8e-09"?>')
+    expect_error(tmp_path, text, 1, "unknown encoding", "UTF-8e-09")
+
+
 def test_spiral_geometry(tmp_path: Path) -> None:
     text = MINIMAL.replace('<arc curvature="0.01"/>', '<spiral curvStart="0" curvEnd="0.01"/>')
     msg = expect_error(tmp_path, text, line_of(text, "<spiral"), "<spiral>", "<geometry>", "not supported")
