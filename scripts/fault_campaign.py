@@ -20,7 +20,8 @@ of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, whether the b
 from the bag; ≤ 10 = 1 s allowed after a SIGKILLed evaluator, 0 otherwise). To count what the
 evaluator had been sent, a SIGKILL to it during the lockstep freezes the simulation (SIGSTOP)
 first and resumes it once the evaluator is gone; the one or two steps the simulation makes after
-SIGCONT, before the launcher's stop takes effect, are allowed on top. A SIGTERMed evaluator
+SIGCONT, before the launcher's stop takes effect, are allowed on top — up to the flow-control
+window (50 steps), because that stop is sometimes acted on seconds late (docs/recording.md). A SIGTERMed evaluator
 writes everything it received, so only gaps count there (not a frozen lockstep: an evaluator
 leaving the domain while its peer is stopped can block in the middleware's clean-up — seen once,
 60 s).
@@ -237,7 +238,9 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
     allowed_loss = 0
     if kind == "kill" and fault[2] == "eval" and fault[3] == "lockstep":
         # the open chunk (<= 1 s = 10 steps) at a SIGKILL; the steps after SIGCONT (above) either way
-        allowed_loss = 10 + 2 if fault[1] == "SIGKILL" else 0
+        # what this count can see: the open chunk (10 steps) + the run-on after SIGCONT, which the
+        # flow control bounds to its window (50 steps) when the stop signal is acted on late
+        allowed_loss = 10 + 50 + 2 if fault[1] == "SIGKILL" else 0
     if hang:
         problems.append("hang")
     if status is not None and status not in DOCUMENTED_EXIT:
@@ -502,8 +505,8 @@ def main(argv: list[str] | None = None) -> int:
         ("  attacked runs with a different world", sum(r.world_identical is False for r in graph)),
         ("  runs with a problem", sum(bool(r.problems) for r in graph)),
         ("fuzzed inputs", len(fuzzed)),
-        ("  accepted", sum(f["outcome"] == "ok" for f in fuzzed)),
-        ("  one-line errors", sum(f["outcome"] == "error" for f in fuzzed)),
+        ("  loaded, or a CLI exit 0/2", sum(f["outcome"] == "ok" for f in fuzzed)),
+        ("  one-line InputError / usage error", sum(f["outcome"] == "error" for f in fuzzed)),
         ("  tracebacks", sum(f["outcome"] == "traceback" for f in fuzzed)),
         ("  hangs", sum(f["outcome"] == "hang" for f in fuzzed)),
         ("  other (multi-line error, bad exit)", sum(f["outcome"] in ("multi-line-error", "bad-exit") for f in fuzzed)),

@@ -3,8 +3,8 @@
 Three graph runs — the evaluator SIGKILLed during the lockstep, the evaluator stalled, a hostile
 node on the domain — and 40 fuzzed inputs (eight of each kind). Expected, from docs/recording.md
 and docs/wire.md: the killed evaluator ends the graph with status 4 (a node died) and a bag that
-opens (after reindex if need be) missing at most the open chunk (10 steps) + the 2 steps after the
-lockstep resumes; the stalled one loses nothing and the run completes (0); the attacked run
+opens (after reindex if need be) missing at most the open chunk (10 steps) + the run-on after the
+lockstep resumes (≤ the 50-step flow-control window + 2); the stalled one loses nothing and the run completes (0); the attacked run
 completes (0) with a world table identical to the clean run's; every fuzzed input ends in success
 or a one-line error, never a traceback or a hang.
 """
@@ -33,7 +33,7 @@ def test_reduced_fault_campaign(tmp_path: Path) -> None:
     results = json.loads(out.read_text())
     kill, stall, inject = results["graph"]
     assert kill["fault"] == "kill SIGKILL eval lockstep" and kill["status"] == 4, kill
-    assert kill["bag_readable"] and kill["steps_lost"] is not None and kill["steps_lost"] <= 12, kill
+    assert kill["bag_readable"] and kill["steps_lost"] is not None and kill["steps_lost"] <= 62, kill
     assert stall["status"] == 0 and stall["steps_lost"] == 0 and not stall["problems"], stall
     assert inject["status"] == 0 and inject["world_identical"] is True and not inject["problems"], inject
     assert all(not r["traceback"] and not r["hang"] for r in results["graph"])

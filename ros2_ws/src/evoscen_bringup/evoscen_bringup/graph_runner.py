@@ -59,6 +59,9 @@ DOCUMENTED_NODE_STATUS = (0, 2, 3, 130)
 """Statuses with which the simulation node ends by itself; anything else (a signal, 1) is a death."""
 STOP_GRACE_S = 5.0
 """How long nodes get to end by themselves when the run ended before step 0 or the simulation died."""
+SIM_STOP_ESCALATE_S = 3.0
+"""When the launcher stops the simulation (a node died), SIGTERM follows the first signal after
+this long and SIGKILL after twice this long, so the graph ends within seconds in every case."""
 
 
 @dataclass
@@ -203,6 +206,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
         sim = procs["evoscen_sim"]
         fault_wait_s = opts.deadline_s * opts.max_misses + 5.0
         stop_sim_at: float | None = None
+        escalate: list[tuple[float, int]] = []  # (when, signal): if the simulation outlives its stop signal
         while sim.poll() is None:
             for name, p in procs.items():
                 if name == "evoscen_sim" or name in died or p.poll() in (None, 0):
@@ -224,11 +228,20 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 sim.send_signal(signal.SIGINT if ready_file.exists() else signal.SIGTERM)
                 signalled.add("evoscen_sim")
                 stop_sim_at = float("inf")  # once
+                escalate = [(time.monotonic() + SIM_STOP_ESCALATE_S, signal.SIGTERM),
+                            (time.monotonic() + 2 * SIM_STOP_ESCALATE_S, signal.SIGKILL)]
+            while escalate and time.monotonic() >= escalate[0][0]:
+                # the simulation did not end on the first signal: measured, a SIGINT that reached it
+                # while it waited for a killed recorder's acknowledgements was sometimes not acted
+                # on, and the wait lasted until the recorder's participant lease ran out (60 s)
+                sim.send_signal(escalate.pop(0)[1])
             time.sleep(0.05)
         started = ready_file.exists()
         sim_died = sim.returncode not in DOCUMENTED_NODE_STATUS and not (
             "evoscen_sim" in signalled and sim.returncode == -signal.SIGTERM)
-        if sim_died:
+        if sim_died and "evoscen_sim" in signalled and sim.returncode == -signal.SIGKILL:
+            note("evoscen_sim", "did not end on SIGINT/SIGTERM and was stopped with SIGKILL")
+        elif sim_died:
             note("evoscen_sim", f"died ({describe_status(sim.returncode)})")
         if sim_died or not started:
             # nobody will end the run for the others (the simulation died), or they never saw
