@@ -10,19 +10,27 @@
 #      readable bag whose last fault is the BV node's abort
 #   6. a user's SUT container built only from examples/ drives the SUT in a compose graph
 # Needs the project's .venv on the host (make setup) for the bag checks (docker/check_bag.py).
+#   docker/ci.sh              everything above
+#   docker/ci.sh --build      steps 1-2 only (.ci/run runs them at low priority beside the native suite)
+#   docker/ci.sh --no-build   steps 3-6 (the images are there)
 set -euo pipefail
+mode=${1:-all}
+case $mode in all|--build|--no-build) ;; *) echo "error: docker/ci.sh: unknown option '$mode' (expected --build or --no-build)" >&2; exit 2 ;; esac
 here=$(cd "$(dirname "$0")" && pwd); root=$(dirname "$here"); cd "$root"
 T0=$(date +%s)
 stage() { echo "=== container job: $* ($(( $(date +%s) - T0 )) s)"; }
-if ! { command -v docker >/dev/null && docker info >/dev/null 2>&1; }; then
-  stage "podman set-up"; bash docker/setup-podman.sh
+if [ "$mode" != --no-build ]; then
+  if ! { command -v docker >/dev/null && docker info >/dev/null 2>&1; }; then
+    stage "podman set-up"; bash docker/setup-podman.sh
+  fi
+  . docker/engine.sh
+  stage "images ($ENGINE)"
+  bash docker/build.sh test runtime user-sut
+  [ "$mode" = --build ] && { stage "images built"; exit 0; }
 fi
 . docker/engine.sh
 PY=$root/.venv/bin/python
 out=$root/runs/ci-container; rm -rf "$out"; mkdir -p "$out"
-
-stage "images ($ENGINE)"
-bash docker/build.sh test runtime user-sut
 
 stage "suite in the test image"
 $ENGINE run --rm --network none --shm-size=256m localhost/evoscen-test:latest make test PYTEST_ARGS="-q -p no:cacheprovider"
