@@ -29,7 +29,9 @@ if [ "$mode" != --no-build ]; then
   [ "$mode" = --build ] && { stage "images built"; exit 0; }
 fi
 . docker/engine.sh
-PY=$root/.venv/bin/python
+# the bag checks import the workspace packages: through the colcon overlay (a symlink install's
+# packages are not importable from a bare site-packages path)
+check() { ( set +u; . "$root/.venv/bin/activate" && . "$root/ros2_ws/install/setup.sh" && python "$here/check_bag.py" "$@" ); }
 out=$root/runs/ci-container; rm -rf "$out"; mkdir -p "$out"
 
 stage "suite in the test image"
@@ -40,7 +42,7 @@ bash docker/compose-run.sh --out "$out/graph" -- --steps 600 --seed 3 --no-plots
 mkdir -p "$out/inprocess"; [ "$(id -u)" = 0 ] && chown 10001:10001 "$out/inprocess"
 $ENGINE run --rm -v "$out/inprocess:/data" localhost/evoscen:latest --mode inprocess --steps 600 --seed 3 --no-plots \
   --quiet --out /data --overwrite >/dev/null
-$PY docker/check_bag.py equal "$out/graph/bag" "$out/inprocess/bag"
+check equal "$out/graph/bag" "$out/inprocess/bag"
 
 stage "BV container killed mid-run"
 proj=evoscen-ci-kill-$$
@@ -58,9 +60,9 @@ $ENGINE kill "$bv" >/dev/null
 rc=0; wait $run || rc=$?
 echo "graph status after the BV kill: $rc (expected 3: a controller fault)"
 [ "$rc" = 3 ] || exit 1
-$PY docker/check_bag.py aborted "$out/kill/bag" evoscen_bv
+check aborted "$out/kill/bag" evoscen_bv
 
 stage "a user's SUT container (examples/)"
 bash docker/compose-run.sh --out "$out/user-sut" --user-sut -- --steps 300 --seed 1 --no-plots
-$PY docker/check_bag.py complete "$out/user-sut/bag" 300
+check complete "$out/user-sut/bag" 300
 stage "done"
