@@ -31,6 +31,12 @@ def ensure_packages() -> None:
         site = prefix / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
         if site.is_dir():
             sys.path.insert(0, str(site))
+            # a symlink install (make build) leaves an .egg-link naming the package's directory
+            # instead of the package itself; Python reads those only through the overlay's setup
+            for link in site.glob("*.egg-link"):
+                target = link.read_text(encoding="utf-8").splitlines()[0].strip()
+                if target:
+                    sys.path.insert(0, target)
             prefixes.append(str(prefix))
         else:
             sys.path.insert(0, str(REPO / "ros2_ws" / "src" / pkg))

@@ -354,3 +354,20 @@ def test_no_record(cli, tmp_path, summary_of):
     assert "bag" not in summary and "bag:" not in res.stdout
     assert not (out / "bag").exists()
     assert not list(out.rglob("*.mcap"))
+
+
+def test_scripts_run_without_the_overlay(tmp_path: Path) -> None:
+    """The README: the scripts run from the venv with or without ``ros2_ws/install/setup.sh`` sourced —
+    also with the symlink install of ``make build`` (its .egg-link files name the packages)."""
+    import os
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[1]
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PYTHONPATH", "AMENT_PREFIX_PATH", "COLCON_PREFIX_PATH", "CMAKE_PREFIX_PATH")}
+    res = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "inprocess", "--steps", "5",
+                          "--no-record", "--quiet", "--no-plots", "--out", str(tmp_path / "o")],
+                         cwd=repo, env=env, capture_output=True, text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert "steps: 5 " in res.stdout, res.stdout
