@@ -27,6 +27,7 @@ import tempfile
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from run_scenario import add_scenario_options, prepare_output, scenario_overrides  # the same options and checks
 
 NODE_NAMES = {"sim": "evoscen_sim", "bv": "evoscen_bv", "sut": "evoscen_sut", "eval": "evoscen_eval"}
 
@@ -34,12 +35,7 @@ NODE_NAMES = {"sim": "evoscen_sim", "bv": "evoscen_bv", "sut": "evoscen_sut", "e
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="graph_node.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("node", choices=sorted(NODE_NAMES), help="the node this process becomes")
-    ap.add_argument("--config", type=Path, default=None, help="scenario YAML (default: the shipped default)")
-    ap.add_argument("--steps", help="number of steps (overrides 'steps')")
-    ap.add_argument("--seed", help="random seed (overrides 'seed')")
-    ap.add_argument("--sut", help="SUT model name (overrides 'sut.model')")
-    ap.add_argument("--bvs", help="number of background vehicles (overrides 'bvs.count')")
-    ap.add_argument("--mix", help="policy mix competitive:mutual:cooperative (overrides 'bvs.mix')")
+    add_scenario_options(ap)
     ap.add_argument("--out", type=Path, default=Path("/data/run"), help="output directory of the evaluator")
     ap.add_argument("--overwrite", action="store_true", help="eval: replace an existing bag and report in DIR")
     ap.add_argument("--no-plots", action="store_true", help="eval: report.json and report.md only")
@@ -77,16 +73,12 @@ def main(argv: list[str] | None = None) -> int:
         if not ok:
             print(f"error: {flag} = {value}: expected {allowed}", file=sys.stderr)
             return 2
-    overrides = {key: value for key, value in (
-        ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
-        ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+    overrides = scenario_overrides(args)
     try:
         cfg = load_scenario_config(args.config, overrides)
         out = args.out
         bag_dir, report_dir = out / "bag", out / "report"
         if name == "evoscen_eval":
-            from run_scenario import prepare_output  # the same checks as run_scenario.py (free bag dir)
-
             prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)

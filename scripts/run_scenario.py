@@ -24,17 +24,29 @@ import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 MODES = ("graph", "inprocess")
 
 
-def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="run_scenario.py", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--mode", default="graph", choices=MODES,
-                    help="graph (default): one ROS 2 process per node, lockstep; inprocess: all cores in one process, "
-                         "no middleware")
+def add_scenario_options(ap: argparse.ArgumentParser) -> None:
+    """The scenario options (``--config`` and the key overrides), shared with graph_node.py."""
     ap.add_argument("--config", type=Path, default=None, help="scenario YAML (default: the shipped default)")
     ap.add_argument("--steps", help="number of steps (overrides 'steps')")
     ap.add_argument("--seed", help="random seed (overrides 'seed')")
     ap.add_argument("--sut", help="SUT model name (overrides 'sut.model')")
     ap.add_argument("--bvs", help="number of background vehicles (overrides 'bvs.count')")
     ap.add_argument("--mix", help="policy mix competitive:mutual:cooperative, e.g. 4:3:3 (overrides 'bvs.mix')")
+
+
+def scenario_overrides(args: argparse.Namespace) -> dict[str, str]:
+    """The configuration keys the scenario options override (only those given)."""
+    return {key: value for key, value in (
+        ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
+        ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="run_scenario.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--mode", default="graph", choices=MODES,
+                    help="graph (default): one ROS 2 process per node, lockstep; inprocess: all cores in one process, "
+                         "no middleware")
+    add_scenario_options(ap)
     ap.add_argument("--out", default="runs/latest", help="output directory (default runs/latest)")
     ap.add_argument("--no-record", action="store_true", help="do not record a bag")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag and report in OUT/report")
@@ -148,9 +160,7 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    overrides = {key: value for key, value in (
-        ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
-        ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+    overrides = scenario_overrides(args)
     if args.external_sut and args.mode != "graph":
         print("error: --external-sut needs --mode graph (an external SUT node answers on the wire)", file=sys.stderr)
         return 2
