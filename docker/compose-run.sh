@@ -13,7 +13,7 @@ if [ -z "$COMPOSE" ]; then
   echo "error: no compose tool for $ENGINE: install podman-compose (docker/setup-podman.sh does) or the docker compose plugin" >&2
   exit 2
 fi
-out=$root/runs/compose; domain=$(( (RANDOM % 100) + 1 )); user_sut=0; keep=0; scen=(); proj=
+out=$root/runs/compose; domain=; user_sut=0; keep=0; scen=(); proj=
 while [ $# -gt 0 ]; do
   case $1 in
     --out) out=$(realpath -m "$2"); shift 2 ;;
@@ -25,6 +25,17 @@ while [ $# -gt 0 ]; do
     *) echo "error: docker/compose-run.sh: unknown option '$1' (expected --out, --domain-id, --project, --user-sut, --keep, -- ...)" >&2; exit 2 ;;
   esac
 done
+# the domain is reserved on this host like the native launcher's (evoscen_bringup/domains.py):
+# an exclusive flock on the same lock file, held on fd 9 until this script ends
+lockdir=${EVOSCEN_DOMAIN_LOCK_DIR:-${TMPDIR:-/tmp}/evoscen-domains}
+mkdir -p "$lockdir" && { chmod 1777 "$lockdir" 2>/dev/null || true; }
+reserve() { exec 9<>"$lockdir/domain-$1.lock" && { chmod 666 "$lockdir/domain-$1.lock" 2>/dev/null || true; } && flock -n 9; }
+if [ -n "$domain" ]; then
+  reserve "$domain" || { echo "error: docker/compose-run.sh: --domain-id $domain: another evoscen graph on this host runs on ROS_DOMAIN_ID $domain (lock $lockdir/domain-$domain.lock); choose another domain or leave --domain-id out" >&2; exit 2; }
+else
+  for d in $(shuf -i 1-100); do if reserve "$d"; then domain=$d; break; fi; exec 9>&-; done
+  [ -n "$domain" ] || { echo "error: docker/compose-run.sh: no free ROS_DOMAIN_ID in 1..100 (locks in $lockdir)" >&2; exit 2; }
+fi
 [ ${#scen[@]} -eq 0 ] && scen=(--steps 3000 --seed 0)
 steps=3000; for ((i=0; i<${#scen[@]}-1; i++)); do [ "${scen[$i]}" = --steps ] && steps=${scen[$((i+1))]}; done
 profile=builtin-sut
@@ -42,7 +53,7 @@ cleanup() {
   rm -rf "$shm"
 }
 trap cleanup EXIT
-$COMPOSE -p "$proj" -f "$here/compose.yaml" --profile "$profile" up --no-color >"$out/compose.log" 2>&1 &
+$COMPOSE -p "$proj" -f "$here/compose.yaml" --profile "$profile" up --no-color >"$out/compose.log" 2>&1 9>&- &
 upid=$!
 trap 'kill -INT $upid 2>/dev/null || true' INT TERM
 wait $upid || true

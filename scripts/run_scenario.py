@@ -14,7 +14,6 @@ prints one line ``error: ...`` and exits with status 2.
 from __future__ import annotations
 
 import argparse
-import random
 import shutil
 import sys
 from pathlib import Path
@@ -53,7 +52,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only, no PNG plots")
     ap.add_argument("--quiet", action="store_true", help="no progress bar (inprocess)")
     g = ap.add_argument_group("graph mode")
-    g.add_argument("--domain-id", help="ROS_DOMAIN_ID of the nodes (default: random in 1..100)")
+    g.add_argument("--domain-id", help="ROS_DOMAIN_ID of the nodes (default: a free one of 1..100, drawn at random; "
+                   "no two evoscen graphs on one host share a domain)")
     g.add_argument("--discovery-range", default="LOCALHOST", choices=("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT"),
                    help="ROS_AUTOMATIC_DISCOVERY_RANGE: SUBNET lets ROS 2 machines on the network see the topics")
     g.add_argument("--deadline", type=float, default=2.0, help="per-step controller deadline in seconds (default 2.0)")
@@ -108,13 +108,13 @@ def print_scores(report_dir: Path) -> None:
     print(f"report: {report_dir / 'report.md'}")
 
 
-def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, report_dir: Path) -> int:  # noqa: ANN001
-    """Run the node graph; print the outcome; return its status."""
+def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, report_dir: Path,  # noqa: ANN001
+                   domain: int) -> int:
+    """Run the node graph on ``domain`` (reserved by the caller); print the outcome; return its status."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
     from evoscen_eval.recorder import open_bag_reader
     from evoscen_sim.errors import InputError
 
-    domain = args.domain_id if args.domain_id is not None else random.SystemRandom().randint(1, 100)
     opts = GraphOptions(domain_id=domain, discovery_range=args.discovery_range,
                         deadline_s=args.deadline, max_misses=args.max_misses, external_sut=args.external_sut,
                         wait_for=tuple(args.wait_for), report_dir=report_dir, report_plots=not args.no_plots)
@@ -146,6 +146,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    from evoscen_bringup.domains import reserve_domain
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import dump_config, load_scenario_config
@@ -183,10 +184,15 @@ def main(argv: list[str] | None = None) -> int:
             raise InputError("--mode graph always records (the evaluator node is part of the graph): "
                              "drop --no-record / recording.enabled: false, or use --mode inprocess")
         report_dir = out / "report"
+        if args.mode == "graph":
+            # the domain is reserved (docs/architecture.md) before the output directory is touched,
+            # and held until the graph has ended
+            with reserve_domain(args.domain_id) as domain:
+                prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
+                dump_config(cfg, out / "scenario.yaml")
+                return run_graph_mode(args, cfg, out, bag_dir, report_dir, domain)
         prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
         dump_config(cfg, out / "scenario.yaml")
-        if args.mode == "graph":
-            return run_graph_mode(args, cfg, out, bag_dir, report_dir)
         bar = None
         if not args.quiet:
             from tqdm import tqdm

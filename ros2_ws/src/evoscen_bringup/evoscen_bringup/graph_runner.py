@@ -21,7 +21,8 @@ processes (``python -m <pkg>.<node> --ros-args --params-file ...``), and supervi
   :data:`EXIT_NODE_DIED` 4, :data:`EXIT_INTERRUPTED` 130 (:func:`graph_status`), never a raw
   signal number.
 
-Environment of the nodes: ``ROS_DOMAIN_ID`` (random in 1..100 unless given), the Fast DDS
+Environment of the nodes: ``ROS_DOMAIN_ID`` (a free one of 1..100 unless given: reserved on this
+host for the run, :mod:`evoscen_bringup.domains`), the Fast DDS
 middleware with synchronous publication (``RMW_FASTRTPS_PUBLICATION_MODE``), and
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless a wider discovery range is asked for
 (``SUBNET``, for ROS 2 users on other machines).
@@ -31,7 +32,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import random
 import signal
 import subprocess
 import sys
@@ -41,6 +41,7 @@ from pathlib import Path
 
 import yaml
 
+from evoscen_bringup.domains import reserve_domain
 from evoscen_sim.config import ScenarioConfig
 from evoscen_sim.node_params import scenario_parameters
 
@@ -69,7 +70,8 @@ class GraphOptions:
     """Settings of a graph run (defaults are the nodes' defaults)."""
 
     domain_id: int | None = None
-    """ROS_DOMAIN_ID; None = random in 1..100 (drawn from the OS, not the scenario seed)."""
+    """ROS_DOMAIN_ID; None = a free one of 1..100 reserved for the run (:mod:`evoscen_bringup.domains`);
+    an explicit one is used as given (``run_scenario.py`` reserves it first)."""
     discovery_range: str = "LOCALHOST"
     """ROS_AUTOMATIC_DISCOVERY_RANGE of the nodes."""
     deadline_s: float = 2.0
@@ -170,7 +172,10 @@ def describe_status(returncode: int | None) -> str:
 def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOptions | None = None) -> GraphResult:
     """Run the scenario as a node graph (see the module docstring)."""
     opts = opts or GraphOptions()
-    domain_id = opts.domain_id if opts.domain_id is not None else random.SystemRandom().randint(1, 100)
+    if opts.domain_id is None:  # reserve a free domain for the run (evoscen_bringup.domains)
+        with reserve_domain(None) as domain:
+            return run_graph(cfg, out_dir, bag_dir, dataclasses.replace(opts, domain_id=domain))
+    domain_id = opts.domain_id
     ready_file = out_dir / "params" / ".evoscen_sim.ready"
     opts = dataclasses.replace(opts, node_args={
         **opts.node_args, "evoscen_sim": {"ready_file": str(ready_file), **opts.node_args.get("evoscen_sim", {})}})

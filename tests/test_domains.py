@@ -1,0 +1,113 @@
+"""ROS_DOMAIN_ID reservation (evoscen_bringup.domains, docs/architecture.md §5).
+
+* With domains 1..99 held, an automatic reservation gets 100, the only free one; with all 100
+  held it is a one-line error naming the range and the lock directory.
+* A domain held by another process cannot be reserved explicitly (error naming the domain and
+  its lock file); once that process has ended (the kernel drops its lock, even on SIGKILL),
+  it can.
+* A reservation ends with its ``with`` block.
+* ``run_scenario.py --mode graph --domain-id N`` with N held: exit 2, one line, and the output
+  directory is not created.
+* An unusable lock directory: one warning line, the run goes on with the asked domain.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import random
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from evoscen_bringup.domains import AUTO_DOMAINS, reserve_domain
+from evoscen_sim.errors import InputError
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture
+def lock_dir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    d = tmp_path / "locks"
+    monkeypatch.setenv("EVOSCEN_DOMAIN_LOCK_DIR", str(d))
+    return d
+
+
+def test_the_only_free_domain_is_taken(lock_dir: Path) -> None:
+    with contextlib.ExitStack() as stack:
+        held = [stack.enter_context(reserve_domain(d)) for d in range(1, 100)]
+        assert held == list(range(1, 100))
+        for seed in range(5):  # whatever the order of the draw
+            with reserve_domain(None, random.Random(seed)) as d:
+                assert d == 100
+        with reserve_domain(100):
+            with pytest.raises(InputError) as exc:
+                with reserve_domain(None):
+                    pass
+    msg = str(exc.value)
+    assert "no free ROS_DOMAIN_ID in 1..100" in msg and str(lock_dir) in msg and "\n" not in msg
+    assert AUTO_DOMAINS == range(1, 101)
+
+
+def test_automatic_draws_differ_while_held(lock_dir: Path) -> None:
+    rng = random.Random(3)
+    with contextlib.ExitStack() as stack:
+        got = [stack.enter_context(reserve_domain(None, rng)) for _ in range(100)]
+    assert sorted(got) == list(range(1, 101))  # 100 reservations at once: every domain exactly once
+
+
+def test_reservation_ends_with_its_block(lock_dir: Path) -> None:
+    with reserve_domain(42) as d:
+        assert d == 42
+        with pytest.raises(InputError):
+            with reserve_domain(42):
+                pass
+    with reserve_domain(42) as d:
+        assert d == 42
+
+
+def test_domain_held_by_another_process(lock_dir: Path) -> None:
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import sys, time\n"
+         "from evoscen_bringup.domains import reserve_domain\n"
+         "with reserve_domain(57):\n    print('held', flush=True)\n    time.sleep(120)\n"],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(InputError) as exc:
+            with reserve_domain(57):
+                pass
+        msg = str(exc.value)
+        assert msg.startswith("--domain-id 57: another evoscen graph on this host runs on ROS_DOMAIN_ID 57")
+        assert str(lock_dir / "domain-57.lock") in msg and "\n" not in msg
+    finally:
+        holder.send_signal(signal.SIGKILL)
+        holder.wait()
+    with reserve_domain(57) as d:  # SIGKILL released it
+        assert d == 57
+
+
+def test_run_scenario_refuses_a_held_domain(lock_dir: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    with reserve_domain(23):
+        res = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--domain-id", "23",
+                              "--steps", "5", "--out", str(out), "--quiet"],
+                             cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 2, res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: --domain-id 23: another evoscen graph"), res.stderr
+    assert "Traceback" not in res.stderr
+    assert not out.exists()
+
+
+def test_unusable_lock_dir_warns_and_goes_on(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                            capsys: pytest.CaptureFixture) -> None:
+    blocker = tmp_path / "not-a-dir"
+    blocker.write_text("x")
+    monkeypatch.setenv("EVOSCEN_DOMAIN_LOCK_DIR", str(blocker / "locks"))
+    with reserve_domain(9) as d:
+        assert d == 9
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("warning: ROS_DOMAIN_ID 9 not reserved: the lock directory is not usable")
