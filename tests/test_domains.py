@@ -42,10 +42,8 @@ def test_the_only_free_domain_is_taken(lock_dir: Path) -> None:
         for seed in range(5):  # whatever the order of the draw
             with reserve_domain(None, random.Random(seed)) as d:
                 assert d == 100
-        with reserve_domain(100):
-            with pytest.raises(InputError) as exc:
-                with reserve_domain(None):
-                    pass
+        with reserve_domain(100), pytest.raises(InputError) as exc, reserve_domain(None):
+            pass
     msg = str(exc.value)
     assert "no free ROS_DOMAIN_ID in 1..100" in msg and str(lock_dir) in msg and "\n" not in msg
     assert AUTO_DOMAINS == range(1, 101)
@@ -61,9 +59,8 @@ def test_automatic_draws_differ_while_held(lock_dir: Path) -> None:
 def test_reservation_ends_with_its_block(lock_dir: Path) -> None:
     with reserve_domain(42) as d:
         assert d == 42
-        with pytest.raises(InputError):
-            with reserve_domain(42):
-                pass
+        with pytest.raises(InputError), reserve_domain(42):
+            pass
     with reserve_domain(42) as d:
         assert d == 42
 
@@ -76,9 +73,8 @@ def test_domain_held_by_another_process(lock_dir: Path) -> None:
         stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"
-        with pytest.raises(InputError) as exc:
-            with reserve_domain(57):
-                pass
+        with pytest.raises(InputError) as exc, reserve_domain(57):
+            pass
         msg = str(exc.value)
         assert msg.startswith("--domain-id 57: another evoscen graph on this host runs on ROS_DOMAIN_ID 57")
         assert str(lock_dir / "domain-57.lock") in msg and "\n" not in msg
