@@ -52,7 +52,8 @@ applicable ``<speed>``, the road ``<type>``'s ``<speed>``; otherwise +inf. Minim
 Performance: all per-s data is precomputed on a table of s breakpoints (every section, width,
 speed, laneOffset and road-type start); a query is one ``searchsorted`` plus a few array ops,
 broadcasting over any shape of (lane, s) or (s, d) inputs. Only ``cartesian_to_frenet`` loops, over
-the (three) planView pieces, never over vehicles.
+the (three) planView pieces, never over vehicles. Compiled kernels (driver models) read the
+same tables through :meth:`RoadModel.kernel_tables` and :mod:`evoscen_sim.road_kernels`.
 """
 
 from __future__ import annotations
@@ -68,6 +69,7 @@ import numpy as np
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 from evoscen_sim.opendrive import Lane, LaneSection, OpenDriveMap, Poly3, parse_opendrive
+from evoscen_sim.road_kernels import RoadTables
 
 ArrayLike = Union[float, int, np.ndarray, list, tuple]
 
@@ -281,6 +283,13 @@ class RoadModel:
         widths0 = [lane.widths[0].value(0.0) for k, sec in enumerate(sections)
                    for lane in sec.right if sec_present[k][-lane.id - 1]]
         self.lane_width_m: float = float(np.median(widths0))
+        self._kernel_tables = RoadTables(
+            breaks=np.ascontiguousarray(self._breaks), present=np.ascontiguousarray(self._present),
+            max_speed_mps=np.ascontiguousarray(self._vmax),
+            lane_end_s=np.ascontiguousarray(self.lane_end_s, dtype=float),
+            reaches_end=np.ascontiguousarray(self._reaches_end), length_m=float(self.length_m),
+            width_coef=np.ascontiguousarray(self._w_coef), width_origin=np.ascontiguousarray(self._w_origin),
+            offset_coef=np.ascontiguousarray(self._off_coef), offset_origin=np.ascontiguousarray(self._off_origin))
 
     # ------------------------------------------------------------------ validation helpers
     @staticmethod
@@ -365,6 +374,12 @@ class RoadModel:
         ``0 <= l < num_lanes`` and ``present[searchsorted(breaks, clip(s, 0, length_m), 'right') - 1, l]``
         (what :meth:`lane_exists` computes; the arrays are read-only)."""
         return self._breaks, self._present, self.length_m
+
+    def kernel_tables(self) -> RoadTables:
+        """The lane tables for compiled kernels, read by :mod:`evoscen_sim.road_kernels`'s queries
+        (:func:`~evoscen_sim.road_kernels.segment_index`, :func:`~evoscen_sim.road_kernels.lane_end_distance`,
+        :func:`~evoscen_sim.road_kernels.lane_center_d`), which compute what this class's methods do."""
+        return self._kernel_tables
 
     def lane_exists(self, lane: ArrayLike, s: ArrayLike) -> np.ndarray:
         """True where lane index ``lane`` exists at ``s`` (s clamped to [0, length])."""

@@ -205,3 +205,21 @@ def test_lane_markings(road: RoadModel) -> None:
 def test_model_is_read_only(road: RoadModel) -> None:
     with pytest.raises(ValueError):
         road.lane_end_s[0] = 1.0
+
+
+def test_compiled_queries_match_the_model(road: RoadModel) -> None:
+    # evoscen_sim.road_kernels computes, for one (lane, s), exactly what RoadModel's methods compute
+    from evoscen_sim.road_kernels import lane_center_d, lane_end_distance, segment_index
+
+    tables = road.kernel_tables()
+    rng = np.random.default_rng(5)
+    s = np.concatenate([rng.uniform(-20.0, L + 20.0, 300), [0.0, 600.0, 900.0, 930.0, 960.0, L]])
+    lane = np.concatenate([rng.integers(-1, road.num_lanes + 1, 300), [0, 0, 0, 0, 0, 4]])
+    for k in range(s.size):
+        li, sk = int(lane[k]), float(s[k])
+        assert bool(road.lane_exists(li, sk)) == (0 <= li < road.num_lanes
+                                                  and bool(tables.present[segment_index(tables, sk), li]))
+        expected_end = float(road.distance_to_lane_end(li, sk))
+        assert lane_end_distance(tables, li, sk) == (math.inf if math.isnan(expected_end) else expected_end)
+        np.testing.assert_array_equal(lane_center_d(tables, li, sk), road.lane_center_d(li, sk))
+    assert tables.length_m == road.length_m and all(not a.flags.writeable for a in tables if hasattr(a, "flags"))
