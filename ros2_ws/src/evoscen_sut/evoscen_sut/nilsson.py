@@ -63,39 +63,32 @@ Readings (all configurable through :class:`NilssonParams`):
   change [choice] (except when it must leave an ending lane).
 * Among the vehicles one driver drives (the BV role), two steps into the same lane at the
   same step that fail the safety distance for each other are resolved in favour of the
-  vehicle ahead (:func:`evoscen_sut.mobil.resolve_conflicts`) [choice].
+  vehicle ahead (:mod:`evoscen_sut.conflicts`) [choice].
 
 Parameter sources: docs/method.md §4.1 (β = 300 s, v_min = 2 m/s, weights 5/12 and 0.5, α = 2,
 b_r = 0.05, θ = 0.9, 2.5·L); ``t_des = 2 s`` is the desired headway of the public
 re-implementation's example [choice: docs/method.md §4.1 gives no value].
 
-Longitudinal control: SUMO's Krauss via :class:`evoscen_sut.mobil.KraussLaneChangeDriver`
+Longitudinal control: SUMO's Krauss via :class:`evoscen_sut.lane_change.KraussLaneChangeDriver`
 (shared with MOBIL: Krauss behind the own-lane leader, also the target-lane leader during a
 change, and a stop before the end of the merge lane).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from functools import lru_cache
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from evoscen_sim.config import number
 from evoscen_sim.jit import kernel
 from evoscen_sim.models import ModelSpec
+from evoscen_sim.road_kernels import lane_end_distance, segment_index
 
-from .mobil import (
-    _argmax_first,
-    _lane_end_dist,
-    _np_max,
-    _np_min,
-    _resolve_kernel,
-    _road_seg,
-    _road_tables,
-    _settled_scalar,
-    lane_change_factory,
-)
+from .conflicts import ConflictRule, resolve_conflicts
+from .kernel_math import argmax, maximum, minimum
+from .lane_change import kernel_params, lane_change_factory, settled
 
 
 @dataclass(frozen=True)
@@ -165,23 +158,48 @@ class NilssonEvaluation:
     """(k,) the own lane may be kept (False: an ending lane within the mandatory distance)."""
 
 
+class NilssonKernelParams(NamedTuple):
+    """:class:`NilssonParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
+
+    desired_speed_mps: float
+    look_ahead_time_s: float
+    min_speed_mps: float
+    speed_weight_slow: float
+    speed_weight_fast: float
+    time_gap_weight: float
+    desired_time_gap_s: float
+    time_gap_factor: float
+    lane_end_weight: float
+    keep_right_bias: float
+    hysteresis: float
+    safety_length_factor: float
+    safety_closing_headway_s: float
+    view_range_m: float
+    merge_stop_margin_m: float
+    merge_mandatory_distance_m: float
+    settle_tolerance_m: float
+
+
+assert NilssonKernelParams._fields == tuple(f.name for f in fields(NilssonParams))
+
+
 @lru_cache(maxsize=64)
-def _param_array(p: NilssonParams) -> np.ndarray:
-    """Nilsson parameters as one float array (the kernels' ``prm``; indices ``_P_*``)."""
-    return np.array([p.desired_speed_mps, p.look_ahead_time_s, p.min_speed_mps, p.speed_weight_slow,
-                     p.speed_weight_fast, p.time_gap_weight, p.desired_time_gap_s, p.time_gap_factor,
-                     p.lane_end_weight, p.keep_right_bias, p.hysteresis, p.safety_length_factor,
-                     p.safety_closing_headway_s, p.view_range_m, p.merge_stop_margin_m,
-                     p.merge_mandatory_distance_m, p.settle_tolerance_m], dtype=float)
+def _kernel_params(p: NilssonParams) -> NilssonKernelParams:
+    return kernel_params(NilssonKernelParams, p)
 
 
-(_P_VDES, _P_BETA, _P_VMIN, _P_W_SLOW, _P_W_FAST, _P_W_TG, _P_TDES, _P_ALPHA, _P_W_LD, _P_BIAS, _P_HYST, _P_SLF,
- _P_SCH, _P_RANGE, _P_MARGIN, _P_MAND, _P_SETTLE) = range(17)
+@lru_cache(maxsize=64)
+def conflict_rule(p: NilssonParams) -> ConflictRule:
+    """Nilsson's pair test of :func:`evoscen_sut.conflicts.resolve_conflicts`: the safety distance
+    ``safety_length_factor · L + safety_closing_headway_s · max(closing speed, 0)``."""
+    return ConflictRule(safety_distance=True, desired_speed_mps=np.nan, safe_decel_mps2=np.nan,
+                        time_headway_s=np.nan, min_gap_m=np.nan, accel_mps2=np.nan, comfort_decel_mps2=np.nan,
+                        delta=np.nan, max_decel_mps2=np.nan, length_factor=float(p.safety_length_factor),
+                        closing_headway_s=float(p.safety_closing_headway_s))
 
 
 @kernel
-def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax, lane_end_s, reaches_end,  # noqa: ANN001, ANN202, PLR0913, PLR0915
-                    road_length, prm):
+def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):  # noqa: ANN001, ANN202, PLR0913, PLR0915
     """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`NilssonEvaluation`.
 
     The nearest vehicle ahead / behind in every lane (within ``view_range_m``): ahead means a
@@ -190,7 +208,7 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax,
     """
     k = idx.shape[0]
     n = s.shape[0]
-    nl = present.shape[1]
+    nl = road.present.shape[1]
     utility = np.empty((k, nl))
     speed = np.empty((k, nl))
     time_gap = np.empty((k, nl))
@@ -204,18 +222,18 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax,
     d_rear = np.empty(nl)
     candidate = np.empty(nl, dtype=np.bool_)
     others = np.empty(nl)
-    v_des_max = prm[_P_VDES]
-    beta = prm[_P_BETA]
-    v_min = prm[_P_VMIN]
-    sat = prm[_P_ALPHA] * prm[_P_TDES]
-    view_range = prm[_P_RANGE]
+    v_des_max = prm.desired_speed_mps
+    beta = prm.look_ahead_time_s
+    v_min = prm.min_speed_mps
+    sat = prm.time_gap_factor * prm.desired_time_gap_s
+    view_range = prm.view_range_m
     for r in range(k):
         i = idx[r]
         si = s[i]
         vi = v[i]
         li = lane[i]
         half = 0.5 * length[i]
-        seg = _road_seg(si, breaks, road_length)
+        seg = segment_index(road, si)
         # nearest vehicle ahead / behind in every lane
         for ln in range(nl):
             front[ln] = -1
@@ -240,48 +258,48 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax,
                 rear[lj] = j
         # lane utilities
         for ln in range(nl):
-            exists = present[seg, ln]
-            limit = vmax[seg, ln]
-            v_des = _np_min(v_des_max, limit if np.isfinite(limit) else v_des_max)
+            exists = road.present[seg, ln]
+            limit = road.max_speed_mps[seg, ln]
+            v_des = minimum(v_des_max, limit if np.isfinite(limit) else v_des_max)
             fj = front[ln]
             bj = rear[ln]
             if fj >= 0:
                 v_bar = 0.5 * (v[fj] + v[bj]) if bj >= 0 else v[fj]
                 gap_f = s[fj] - si - 0.5 * (length[fj] + length[i])
-                t_front = gap_f / _np_max(vi, v_min)
+                t_front = gap_f / maximum(vi, v_min)
             else:
                 v_bar = v_des
                 t_front = np.inf
             if bj >= 0:
                 gap_r = si - s[bj] - 0.5 * (length[bj] + length[i])
-                t_rear = gap_r / _np_max(v[bj], v_min)
+                t_rear = gap_r / maximum(v[bj], v_min)
             else:
                 t_rear = np.inf
-            t_gap = _np_min(_np_min(t_front, t_rear), sat)
-            u_v = -beta * abs(1.0 - v_des / _np_max(v_min, v_bar))
+            t_gap = minimum(minimum(t_front, t_rear), sat)
+            u_v = -beta * abs(1.0 - v_des / maximum(v_min, v_bar))
             n_v = beta * abs(1.0 - v_des / v_min)
-            w_v = prm[_P_W_SLOW] if v_bar <= v_des else prm[_P_W_FAST]
-            u_tg = _np_min(sat, t_gap) / sat
+            w_v = prm.speed_weight_slow if v_bar <= v_des else prm.speed_weight_fast
+            u_tg = minimum(sat, t_gap) / sat
             d_max = v_des * beta
-            d_end = _lane_end_dist(ln, si, lane_end_s, reaches_end)
-            u_ld = -_np_max(0.0, d_max - d_end) / d_max
-            u = w_v * u_v / n_v + prm[_P_W_TG] * u_tg + prm[_P_W_LD] * u_ld
+            d_end = lane_end_distance(road, ln, si)
+            u_ld = -maximum(0.0, d_max - d_end) / d_max
+            u = w_v * u_v / n_v + prm.time_gap_weight * u_tg + prm.lane_end_weight * u_ld
             utility[r, ln] = u if exists else -np.inf
             speed[r, ln] = v_bar
             time_gap[r, ln] = t_gap
             # candidates: existing lanes whose stop point is not within the mandatory distance
-            stop_gap = d_end - prm[_P_MARGIN] - half
-            candidate[ln] = exists and not (np.isfinite(stop_gap) and stop_gap < prm[_P_MAND])
+            stop_gap = d_end - prm.merge_stop_margin_m - half
+            candidate[ln] = exists and not (np.isfinite(stop_gap) and stop_gap < prm.merge_mandatory_distance_m)
         u_ego = utility[r, li]
         for ln in range(nl):
             if ln == li:
                 sc = u_ego
             else:
-                sc = utility[r, ln] - prm[_P_HYST] * abs(u_ego) + prm[_P_BIAS] * float(li - ln)
+                sc = utility[r, ln] - prm.hysteresis * abs(u_ego) + prm.keep_right_bias * float(li - ln)
             sc = sc if candidate[ln] else -np.inf
             score[r, ln] = sc
             others[ln] = -np.inf if ln == li else sc
-        best_other = _argmax_first(others)
+        best_other = argmax(others)
         best_score = others[best_other]
         own_ok = candidate[li]
         change = np.isfinite(best_score) and ((not own_ok) or best_score > u_ego)
@@ -297,7 +315,7 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax,
                 continue
             ds = s[j] - si
             dv_closing = v[j] - vi if ds < 0.0 else vi - v[j]
-            need = prm[_P_SLF] * length[i] + prm[_P_SCH] * _np_max(dv_closing, 0.0)
+            need = prm.safety_length_factor * length[i] + prm.safety_closing_headway_s * maximum(dv_closing, 0.0)
             if abs(ds) < need:
                 blocked = True
                 break
@@ -306,11 +324,10 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, breaks, present, vmax,
 
 
 @kernel
-def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, breaks, present, vmax, lane_end_s,  # noqa: ANN001, ANN202, PLR0913
-                     reaches_end, road_length, w_coef, w_origin, off_coef, off_origin, prm):
+def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, road, prm, rule):  # noqa: ANN001, ANN202, PLR0913
     """:func:`lane_change_decision` (evaluation, safety, settling and conflicts) in one pass."""
     _utility, _speed, _time_gap, _score, target, step_safe, own_candidate = _nilsson_kernel(
-        idx, s, v, length, lane, target_lane, breaks, present, vmax, lane_end_s, reaches_end, road_length, prm)
+        idx, s, v, length, lane, target_lane, road, prm)
     k = idx.shape[0]
     request = np.zeros(k, dtype=np.int64)
     for r in range(k):
@@ -320,20 +337,18 @@ def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, break
         if lane_change[i] != 0:
             req = 0
         # not leaving an ending lane: only once settled
-        if req != 0 and own_candidate[r] and not _settled_scalar(
-                s[i], d[i], lane[i], prm[_P_SETTLE], breaks, road_length, w_coef, w_origin, off_coef, off_origin):
+        if req != 0 and own_candidate[r] and not settled(road, s[i], d[i], lane[i], prm.settle_tolerance_m):
             req = 0
         request[r] = req
-    return _resolve_kernel(idx, request, lane, s, v, length, True, prm[_P_SLF:_P_SCH + 1])
+    return resolve_conflicts(idx, request, lane, s, v, length, rule)
 
 
 def evaluate(view: Any, vehicles: np.ndarray, params: NilssonParams) -> NilssonEvaluation:
     """Lane utilities, scores, target lane and safety of the step (module docstring)."""
     idx = np.asarray(vehicles, dtype=np.int64)
-    breaks, present, vmax, lane_end_s, reaches_end, road_length = _road_tables(view.road)[:6]
     utility, speed, time_gap, score, target, step_safe, own_candidate = _nilsson_kernel(
-        idx, view.s, view.v, view.length, view.lane, view.target_lane, breaks, present, vmax, lane_end_s,
-        reaches_end, road_length, _param_array(params))
+        idx, view.s, view.v, view.length, view.lane, view.target_lane, view.road.kernel_tables(),
+        _kernel_params(params))
     return NilssonEvaluation(utility=utility, speed=speed, time_gap=time_gap, score=score, target=target,
                              step_safe=step_safe, own_candidate=own_candidate)
 
@@ -342,15 +357,17 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: NilssonParams)
     """Nilsson's lane-change request (+1 left, −1 right, 0 keep) for each of ``vehicles``.
 
     One step towards :func:`evaluate`'s target lane if that step is safe; 0 while a change is in
-    progress or the vehicle has not settled (:func:`evoscen_sut.mobil.settled`, except when it
+    progress or the vehicle has not settled (:func:`evoscen_sut.lane_change.settled`, except when it
     must leave an ending lane); two conflicting requests of the given vehicles resolved by
-    :func:`evoscen_sut.mobil.resolve_conflicts` with the safety distance as the pair test.
+    :func:`evoscen_sut.conflicts.resolve_conflicts` with the safety distance as the pair test
+    (:func:`conflict_rule`).
     """
     idx = np.asarray(vehicles, dtype=np.int64)
     if idx.size == 0:
         return np.zeros(0, dtype=np.int64)
     return _decision_kernel(idx, view.s, view.d, view.v, view.length, view.lane, view.target_lane,
-                            view.lane_change, *_road_tables(view.road), _param_array(params))
+                            view.lane_change, view.road.kernel_tables(), _kernel_params(params),
+                            conflict_rule(params))
 
 
 make_driver = lane_change_factory(lane_change_decision, NilssonParams)

@@ -26,12 +26,8 @@ from evoscen_sim.testing import hand_built_world
 from evoscen_sim.vehicle import VehicleParams
 from evoscen_sut import mobil
 from evoscen_sut.krauss import KraussCarFollowing, KraussParams, sumo_follow_speed
-from evoscen_sut.mobil import (
-    KraussLaneChangeDriver,
-    MobilParams,
-    evaluate,
-    lane_change_decision,
-)
+from evoscen_sut.lane_change import KraussLaneChangeDriver, settled
+from evoscen_sut.mobil import MobilParams, evaluate, lane_change_decision
 
 L = 4.8
 V0 = 120.0 / 3.6
@@ -380,12 +376,10 @@ def test_compiled_settled_matches_the_road_model(road) -> None:
     lane = rng.integers(0, road.num_lanes, s.size)
     centre = road.lane_center_d(lane, np.maximum(s, 0.0))
     d = np.where(np.isfinite(centre), centre, 0.0) + rng.uniform(-1.0, 1.0, s.size)
-    tables = mobil._road_tables(road)
-    breaks, road_length, w_coef, w_origin, off_coef, off_origin = (tables[0], tables[5], *tables[6:])
+    tables = road.kernel_tables()
     for tol in (0.0, 0.3, 0.5):
         expected = np.abs(d - centre) <= tol
-        got = [mobil._settled_scalar(s[k], d[k], lane[k], tol, breaks, road_length, w_coef, w_origin, off_coef,
-                                     off_origin) for k in range(s.size)]
+        got = [settled(tables, s[k], d[k], lane[k], tol) for k in range(s.size)]
         np.testing.assert_array_equal(got, expected)
 
 

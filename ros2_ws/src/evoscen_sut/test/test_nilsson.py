@@ -26,7 +26,7 @@ from evoscen_sim.testing import hand_built_world
 from evoscen_sim.vehicle import VehicleParams
 from evoscen_sut import nilsson
 from evoscen_sut.krauss import KraussCarFollowing, KraussParams
-from evoscen_sut.mobil import KraussLaneChangeDriver
+from evoscen_sut.lane_change import KraussLaneChangeDriver
 from evoscen_sut.nilsson import NilssonParams, evaluate, lane_change_decision
 
 L = 4.8

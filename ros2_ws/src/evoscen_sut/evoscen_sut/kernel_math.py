@@ -1,0 +1,63 @@
+"""numpy's semantics for single floats inside compiled kernels (:mod:`evoscen_sim.jit`).
+
+The lane-change kernels (:mod:`evoscen_sut.lane_change`, :mod:`evoscen_sut.mobil`,
+:mod:`evoscen_sut.nilsson`) compute, one vehicle at a time, what the vectorised numpy form
+computes over arrays. Python's ``min``/``max`` treat NaN differently from ``np.minimum`` /
+``np.maximum``; these helpers keep numpy's results, so the kernels stay bit-identical to it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from evoscen_sim.jit import kernel
+
+FLOAT_MAX = float(np.finfo(np.float64).max)
+"""The largest float64 (``np.nan_to_num``'s replacement for ``inf``)."""
+
+
+@kernel
+def minimum(a, b):  # noqa: ANN001, ANN201
+    """``np.minimum`` of two floats (NaN propagates, the first NaN wins)."""
+    if np.isnan(a):
+        return a
+    if np.isnan(b):
+        return b
+    return min(a, b)
+
+
+@kernel
+def maximum(a, b):  # noqa: ANN001, ANN201
+    """``np.maximum`` of two floats (NaN propagates, the first NaN wins)."""
+    if np.isnan(a):
+        return a
+    if np.isnan(b):
+        return b
+    return max(a, b)
+
+
+@kernel
+def nan_to_num(x):  # noqa: ANN001, ANN201
+    """``np.nan_to_num(x, nan=0.0)`` of one float."""
+    if np.isnan(x):
+        return 0.0
+    if x == np.inf:
+        return FLOAT_MAX
+    if x == -np.inf:
+        return -FLOAT_MAX
+    return x
+
+
+@kernel
+def argmax(x):  # noqa: ANN001, ANN201
+    """``np.argmax`` of a 1-d float array (the first maximum; the first NaN if any)."""
+    best = 0
+    bv = x[0]
+    if np.isnan(bv):
+        return 0
+    for q in range(1, x.shape[0]):
+        if np.isnan(x[q]):
+            return q
+        if x[q] > bv:
+            best = q
+            bv = x[q]
+    return best
