@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from evoscen_contract.contract import POLICY_CODES, SOCIAL_POLICIES
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 
@@ -40,8 +41,8 @@ from .training_config import TrainingConfig, load_training_config
 POLICY_FILES = {"mutual": "mutual.npz", "competitive": "competitive.npz", "cooperative": "cooperative.npz"}
 """Decision policy of each policy name at run time (``mutual`` is the level-2 mutual policy)."""
 CONTROLLER_FILE = "controller.npz"
-POLICY_CODE = {"mutual": 1, "competitive": 2, "cooperative": 3}
-"""The world's policy codes (``evoscen_sim.scenario.POLICY_CODES``)."""
+POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
+"""The world's policy codes of the social types (``evoscen_contract.contract.POLICY_CODES``)."""
 
 
 def shipped_policy_dir() -> Path:
