@@ -50,6 +50,7 @@ from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
 from evoscen_contract import wire
+from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 from .node_params import run_node, scenario_from_node
 from .events import ExposureMonitor, fault_event, run_end_event, step_events
@@ -57,7 +58,6 @@ from .scenario import SUT_INDEX, build_world
 
 NODE_NAME = T.NODE_SIM
 CONTROLLER_TOPICS = {T.NODE_BV: T.COMMANDS_BV, T.NODE_SUT: T.COMMANDS_SUT}
-EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 LEAVE_ANNOUNCE_S = 0.05  # see SimulationNode._leave
 WIRE_EVENTS_PER_STEP = 4
 """At most this many wire ``fault`` events per step (distinct topic/publisher/reason; the rest are counted)."""
