@@ -329,11 +329,11 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_eval.highd import load_recording
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config import load_scenario_config, share_path
     from evoscen_sim.errors import InputError
     from evoscen_sim.road import DEFAULT_MAP_PATH, load_road
 
-    default_yaml = (Path(DEFAULT_MAP_PATH).parents[1] / "config" / "default_scenario.yaml")
+    default_yaml = share_path("config/default_scenario.yaml")
     yaml_text = default_yaml.read_text(encoding="utf-8")
     map_text = Path(DEFAULT_MAP_PATH).read_text(encoding="utf-8")
     base_bag = work / "fuzz-base" / "bag"

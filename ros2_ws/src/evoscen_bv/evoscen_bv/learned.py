@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from evoscen_contract.contract import POLICY_CODES, SOCIAL_POLICIES
+from evoscen_sim.config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 
@@ -47,15 +48,8 @@ POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
 
 def shipped_policy_dir() -> Path:
     """The shipped policies (installed share dir, else the source tree)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        p = Path(get_package_share_directory("evoscen_bv")) / "policies"
-        if p.is_dir():
-            return p
-    except Exception:  # noqa: BLE001 - no ament index: use the source tree
-        pass
-    return Path(__file__).resolve().parent / "policies"
+    candidates = share_candidates("policies", "evoscen_bv", source=Path(__file__).resolve().parent / "policies")
+    return next((p for p in candidates[:-1] if p.is_dir()), candidates[-1])
 
 
 class PolicyBank:
