@@ -44,6 +44,7 @@ import time
 from pathlib import Path
 
 import _bootstrap  # noqa: F401
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 
 def time_inprocess(steps: int, repeats: int, driver: str, warmup: int = 300) -> list[float]:
@@ -251,7 +252,7 @@ def main(argv: list[str] | None = None) -> int:
         if getattr(args, name) < lowest:
             print(f"error: --{name.replace('_', '-')} = {getattr(args, name)}: expected "
                   f"{'an integer >= 0 (0 = skip)' if lowest == 0 else 'a positive integer'}", file=sys.stderr)
-            return 2
+            return EXIT_BAD_INPUT
 
     drv = args.bv_driver
     out: dict = {"python": sys.version.split()[0], "bv_driver": drv}
@@ -319,7 +320,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"SUMO reference skipped: {why} (pip install -r requirements-bench.txt)")
     if args.json:
         print(json.dumps(out))
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

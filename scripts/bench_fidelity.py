@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 TARGET_S = 10.0
 TARGET_BYTES = 2 * 1024**3
@@ -135,10 +136,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.measure is not None:
         measure(args.measure)
-        return 0
+        return EXIT_OK
     if min(args.vehicles, args.frames, args.rows) < 1:
         print("error: --vehicles, --frames and --rows must be >= 1", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     import numpy as np
 
     from evoscen_eval.highd import write_recording

@@ -21,6 +21,7 @@ import subprocess
 import sys
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_OK
 
 CHILD = r"""
 import json, resource, sys, time
@@ -86,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.tracemalloc:
         subprocess.run([sys.executable, "-c", "from pathlib import Path\n" + TRACE, str(args.tracemalloc),
                         str(args.bvs)], check=True)
-        return 0
+        return EXIT_OK
     idle = measure(1, args.bvs)
     rows = [measure(n, args.bvs) for n in args.steps]
     mib = 2**20
@@ -102,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{(b['scored'] - a['scored']) / dn:.0f} B/step")
     print(f"  peak ratio {b['steps']}/{a['steps']} steps: {b['scored'] / a['scored']:.2f} "
           f"(length ratio {b['steps'] / a['steps']:.1f})")
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 KEYS = (("bv_lane_changes_per_vehicle_km", "BV lane changes / veh-km", "{:.3f}"),
         ("bv_bv_collisions_per_vehicle_hour", "BV-BV collisions / veh-h", "{:.3f}"),
@@ -72,13 +73,13 @@ def main(argv: list[str] | None = None) -> int:
                 cfg = load_scenario_config(args.config, overrides)
             except InputError as exc:
                 print(f"error: {exc}", file=sys.stderr)
-                return 2
+                return EXIT_BAD_INPUT
             t0 = time.perf_counter()
             try:
                 summary = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False)
             except InputError as exc:  # e.g. a policy directory that cannot be loaded
                 print(f"error: {exc}", file=sys.stderr)
-                return 2
+                return EXIT_BAD_INPUT
             f = bv_realism(summary.run)
             figures.append(f)
             print(f"{profile} seed {seed}: {f['bv_lane_changes']} BV lane changes, {f['bv_bv_collisions']} BV-BV "
@@ -96,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         args.json.write_text(json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
                                                   for k, v in vars(args).items()}, "figures": out}, indent=2))
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

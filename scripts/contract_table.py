@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401
+from evoscen_contract.contract import EXIT_OK
 
 BEGIN, END = "<!-- contract:begin -->", "<!-- contract:end -->"
 README = Path(__file__).resolve().parents[1] / "README.md"
@@ -34,12 +35,12 @@ def main(argv: list[str] | None = None) -> int:
     table = contract_markdown().strip()
     if not args.write:
         print(table)
-        return 0
+        return EXIT_OK
     text = README.read_text(encoding="utf-8")
     old = readme_section(text)
     README.write_text(text.replace(old, table, 1), encoding="utf-8")
     print(f"{README}: contract table {'unchanged' if old == table else 'updated'}")
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

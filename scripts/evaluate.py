@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -73,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         report = write_report(run, out, override=override, plots=not args.no_plots, source=str(bag_path))
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     g, c = report["intelligence"], report["complexity"]["score"]
     w = g["weighted"]
     print(f"{report['run']['steps']} steps; intelligence: {g['score']:.4f} (weighted safety {w['safety']:.4f}, "
@@ -81,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
           + ("-" if c is None else f"{c:.4f}")
           + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
     print(f"report: {out / 'report.md'}")
-    return 0
+    return EXIT_OK
 
 
 def _finished(bag_path: Path) -> bool:

@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 from experiment_intelligence import distinct_names, positive_int
 
 
@@ -66,14 +67,14 @@ def main(argv: list[str] | None = None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except OSError as exc:
         print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
 
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="complexity")
     if results is None:
-        return 130
+        return EXIT_INTERRUPTED
 
     ev = rounds[0].cfg.evaluation
     header = ["scenario", "BV driver", f"LC / {ev.window_steps}", f"AD / {ev.window_steps}", f"E / {ev.window_steps}",
@@ -86,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         if any(c["score"] is None for c in cx):
             print(f"error: --steps {args.steps}: shorter than one complexity window ({ev.window_steps} states)",
                   file=sys.stderr)
-            return 2
+            return EXIT_BAD_INPUT
         # averaged over all windows of all rounds (every round has the same number of windows)
         lc, ad, e = (mean_ci([c[k] for c in cx]) for k in ("lane_changes", "accel_decel", "exposures"))
         score = complexity_score(e[0], lc[0], ad[0], ev.k_exposure, ev.k_lane_change, ev.k_accel)
@@ -114,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     plot(args.out / "complexity.png", bars, ev.window_steps)
     print(table, end="")
     print(f"written: {args.out / 'complexity.md'}, complexity.csv, rounds.csv, complexity.png")
-    return 0
+    return EXIT_OK
 
 
 def plot(path: Path, bars, window: int) -> None:  # noqa: ANN001

@@ -26,6 +26,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 HIGHD_MISSING = ("--highd DIR is required: HighD data cannot be redistributed, so evoscen ships none; obtain the "
                  "dataset from https://www.highd-dataset.com (free for non-commercial research) and pass the directory "
@@ -130,10 +131,10 @@ def main(argv: list[str] | None = None) -> int:
             raise InputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     print(table, end="")
     print(f"results: {csv_path}, {args.out / 'fidelity.md'}, {len(plots)} plots in {args.out}")
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -83,14 +84,14 @@ def main(argv: list[str] | None = None) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except OSError as exc:
         print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
 
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="intelligence")
     if results is None:
-        return 130
+        return EXIT_INTERRUPTED
 
     header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
               "collisions", "exposures", "seeds"]
@@ -137,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         print("\n" + pair_table, end="")
     print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, rounds.csv, ttc.png, speed.png"
           + (", paired.csv" if pair_csv else ""))
-    return 0
+    return EXIT_OK
 
 
 def paired_comparisons(suts: list[str], rounds, results) -> tuple[list[list[str]], list[list]]:  # noqa: ANN001

@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 from experiment_intelligence import distinct_names, positive_int
 
 INTACT = "intact"
@@ -86,14 +87,14 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
         args.out.mkdir(parents=True, exist_ok=True)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except OSError as exc:
         print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
 
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity")
     if results is None:
-        return 130
+        return EXIT_INTERRUPTED
 
     # seed -> report, per (scenario, base, variant)
     reports: dict[tuple[str, str, str], dict[int, dict]] = {}
@@ -181,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     plot(args.out / "sensitivity.png", plot_data)
     print(score_table, end="")
     print(f"written: {args.out / 'sensitivity.md'}, sensitivity.csv, mutation_scores.csv, rounds.csv, sensitivity.png")
-    return 0
+    return EXIT_OK
 
 
 def plot(path: Path, panels) -> None:  # noqa: ANN001

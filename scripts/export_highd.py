@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -53,11 +54,11 @@ def main(argv: list[str] | None = None) -> int:
         paths = write_recording(args.outdir, rec, overwrite=args.overwrite)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     n_sut = int((rec.tracks_meta["evoscenRole"] == 1).sum())
     print(f"exported {args.bag} -> {paths['tracks'].parent}: {rec.num_rows} rows, {len(rec.tracks_meta['id'])} tracks "
           f"({n_sut} of the SUT), {int(rec.tracks['frame'].max())} frames at {rec.frame_rate_hz:g} Hz")
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -56,10 +56,10 @@ from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 import numpy as np
+from evoscen_contract.contract import EXIT_BAD_INPUT, GRAPH_EXIT_STATUSES, TOPIC_WORLD
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPTS = REPO / "scripts"
-DOCUMENTED_EXIT = (0, 2, 3, 4, 130)
 NODES = {"sim": "evoscen_sim.sim_node", "bv": "evoscen_bv.bv_node", "sut": "evoscen_sut.sut_node",
          "eval": "evoscen_eval.eval_node"}
 END_LIMIT_S = 10.0
@@ -99,7 +99,7 @@ def _world_steps(bag: Path) -> list[int] | None:
     from evoscen_eval.recorder import open_bag_reader
 
     try:
-        return sorted({t // DT_NS for topic, _type, t, _d in open_bag_reader(bag) if topic == "/evoscen/world"})
+        return sorted({t // DT_NS for topic, _type, t, _d in open_bag_reader(bag) if topic == TOPIC_WORLD})
     except Exception:  # noqa: BLE001 - unreadable, whatever the reason
         return None
 
@@ -107,7 +107,7 @@ def _world_steps(bag: Path) -> list[int] | None:
 def _world_bytes(bag: Path) -> list[bytes]:
     from evoscen_eval.recorder import open_bag_reader
 
-    return [d for topic, _type, _t, d in open_bag_reader(bag) if topic == "/evoscen/world"]
+    return [d for topic, _type, _t, d in open_bag_reader(bag) if topic == TOPIC_WORLD]
 
 
 def class_name(fault: tuple) -> str:
@@ -243,7 +243,7 @@ def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pat
         allowed_loss = 10 + 50 + 2 if fault[1] == "SIGKILL" else 0
     if hang:
         problems.append("hang")
-    if status is not None and status not in DOCUMENTED_EXIT:
+    if status is not None and status not in GRAPH_EXIT_STATUSES:
         problems.append(f"exit status {status} not documented")
     if traceback:
         problems.append("traceback")
@@ -329,11 +329,11 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_eval.highd import load_recording
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config import load_scenario_config, share_path
     from evoscen_sim.errors import InputError
     from evoscen_sim.road import DEFAULT_MAP_PATH, load_road
 
-    default_yaml = (Path(DEFAULT_MAP_PATH).parents[1] / "config" / "default_scenario.yaml")
+    default_yaml = share_path("config/default_scenario.yaml")
     yaml_text = default_yaml.read_text(encoding="utf-8")
     map_text = Path(DEFAULT_MAP_PATH).read_text(encoding="utf-8")
     base_bag = work / "fuzz-base" / "bag"
@@ -454,7 +454,7 @@ def main(argv: list[str] | None = None) -> int:
     for name, value, low in (("--graph-runs", args.graph_runs, 0), ("--fuzz", args.fuzz, 0), ("--steps", args.steps, 50)):
         if value < low or value > 100_000:
             print(f"error: {name} = {value}: expected an integer in [{low}, 100000]", file=sys.stderr)
-            return 2
+            return EXIT_BAD_INPUT
     classes = _fault_classes()
     if args.classes is not None:
         known = {class_name(c): c for c in classes}
@@ -463,11 +463,11 @@ def main(argv: list[str] | None = None) -> int:
         if bad or not wanted:
             print(f"error: --classes = {args.classes!r}: expected comma-separated names among {', '.join(known)}",
                   file=sys.stderr)
-            return 2
+            return EXIT_BAD_INPUT
         classes = [known[c] for c in wanted]
     if not 2.0 <= args.max_stall <= 60.0:
         print(f"error: --max-stall = {args.max_stall}: expected a number in [2, 60] (s)", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     work = Path(tempfile.mkdtemp(prefix="evoscen-faults-")) if args.out is None else args.out
     work.mkdir(parents=True, exist_ok=True)
     rng = random.Random(args.seed)
@@ -494,7 +494,7 @@ def main(argv: list[str] | None = None) -> int:
         ("graph runs", len(graph)),
         ("  hangs", sum(r.hang for r in graph)),
         ("  tracebacks", sum(r.traceback for r in graph)),
-        ("  undocumented exit statuses", sum(r.status is not None and r.status not in DOCUMENTED_EXIT for r in graph)),
+        ("  undocumented exit statuses", sum(r.status is not None and r.status not in GRAPH_EXIT_STATUSES for r in graph)),
         ("  exit statuses seen", " ".join(f"{s}:{n}" for s, n in sorted(
             {s: sum(r.status == s for r in graph) for s in {r.status for r in graph}}.items(), key=str))),
         ("  bags written", sum(r.bag_readable is not None for r in graph)),

@@ -27,6 +27,7 @@ import tempfile
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT
 from run_scenario import add_scenario_options, prepare_output, scenario_overrides  # the same options and checks
 
 NODE_NAMES = {"sim": "evoscen_sim", "bv": "evoscen_bv", "sut": "evoscen_sut", "eval": "evoscen_eval"}
@@ -53,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: EVOSCEN_GRAPH_ARGS: {exc} (expected shell words, e.g. '--steps 3000 --seed 0')",
               file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     args = parse_args(argv)
     from evoscen_bringup.graph_runner import NODES, GraphOptions, node_environment, write_parameter_files
     from evoscen_sim.config import load_scenario_config
@@ -64,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     if not domain.isdigit() or not 0 <= int(domain) <= 232:
         print(f"error: ROS_DOMAIN_ID = {domain!r}: expected an integer in [0, 232] in the environment "
               "(every node of the graph needs the same one)", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     discovery = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     for flag, value, ok, allowed in (("--deadline", args.deadline, args.deadline > 0, "a number > 0 (s)"),
                                      ("--max-misses", args.max_misses, args.max_misses >= 1, "an integer >= 1"),
@@ -72,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
                                       "a number > 0 (s)")):
         if not ok:
             print(f"error: {flag} = {value}: expected {allowed}", file=sys.stderr)
-            return 2
+            return EXIT_BAD_INPUT
     overrides = scenario_overrides(args)
     try:
         cfg = load_scenario_config(args.config, overrides)
@@ -82,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
             prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     opts = GraphOptions(domain_id=int(domain), discovery_range=discovery, deadline_s=args.deadline,
                         max_misses=args.max_misses, startup_timeout_s=args.startup_timeout,
                         external_sut=args.external_sut, report_dir=report_dir, report_plots=not args.no_plots)

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,17 +33,17 @@ def main(argv: list[str] | None = None) -> int:
         r = reindex_bag(args.bag, keep_original=not args.no_keep_original)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except OSError as exc:
         print(f"error: bag {str(args.bag)!r}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     last = "-" if r.last_step_ns is None else f"{r.last_step_ns / 1e9:.1f} s"
     print(f"recovered {r.messages} messages, {r.steps} world states (last at {last}) from {r.chunks} chunks "
           + ("(the file was complete)" if not r.stopped else f"(read stopped at: {r.stopped})"))
     for topic, n in r.topic_counts.items():
         print(f"  {topic}: {n}")
     print(f"bag: {r.mcap_path.parent}" + (f"  (damaged file kept as {r.original.name})" if r.original else ""))
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

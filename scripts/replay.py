@@ -28,6 +28,7 @@ import time
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
 #: Fast DDS profile of the replay's writers: a 100 ms heartbeat (Fast DDS default 3 s), so that a
@@ -263,7 +264,7 @@ def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeo
         sim = (t_last - t_first) * 1e-9 if sent else 0.0
         print(f"replayed: {sent} messages on {len(topics)} topic{'s' if len(topics) != 1 else ''}, {passes} pass{'es' if passes != 1 else ''}, "
               f"simulated {sim:.3f} s, wall {wall:.3f} s", flush=True)
-        return 0
+        return EXIT_OK
     except Interrupted as exc:
         wall = time.monotonic() - wall0 if wall0 is not None else 0.0
         print(f"interrupted: {sent} messages sent, {passes} full passes, wall {wall:.3f} s", flush=True)
@@ -294,7 +295,7 @@ def main(argv: list[str] | None = None) -> int:
         return replay(args, rate, start_delay, wait_timeout, topics)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except Interrupted as exc:
         return 128 + exc.signum
 

@@ -19,6 +19,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, TOPIC_WORLD
 
 MODES = ("graph", "inprocess")
 
@@ -127,15 +128,15 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
     counts: dict[str, int] = {}
     if not any(bag_dir.glob("*.mcap")) if bag_dir.is_dir() else True:
         print(f"error: no bag was written in {bag_dir} (the run ended during start-up)", file=sys.stderr)
-        return result.status or 3
+        return result.status or EXIT_FAULT
     try:
         for topic, _type, _t, _data in open_bag_reader(bag_dir):
             counts[topic] = counts.get(topic, 0) + 1
     except InputError as exc:
         print(f"error: the bag is not readable ({exc}); if the recorder was killed, recover what it wrote with: "
               f"python scripts/reindex.py {bag_dir}", file=sys.stderr)
-        return result.status or 3
-    steps = max(counts.get("/evoscen/world", 1) - 1, 0)
+        return result.status or EXIT_FAULT
+    steps = max(counts.get(TOPIC_WORLD, 1) - 1, 0)
     print(f"steps: {steps}  domain: {result.domain_id}  wall: {result.wall_time_s:.2f} s  "
           f"nodes: " + ", ".join(f"{n}={s}" for n, s in result.node_status.items()))
     size = sum(f.stat().st_size for f in bag_dir.iterdir())
@@ -160,11 +161,11 @@ def main(argv: list[str] | None = None) -> int:
         args.max_misses = parse_cli_int("--max-misses", args.max_misses, 1, 1_000_000)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     overrides = scenario_overrides(args)
     if args.external_sut and args.mode != "graph":
         print("error: --external-sut needs --mode graph (an external SUT node answers on the wire)", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     if args.mode == "graph":
         for name, value, ok in (("--domain-id", args.domain_id, args.domain_id is None or 0 <= args.domain_id <= 232),
                                 ("--deadline", args.deadline, args.deadline > 0),
@@ -172,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
             if not ok:
                 print(f"error: {name} = {value}: expected " + {"--domain-id": "an integer in [0, 232]",
                       "--deadline": "a number > 0 (s)", "--max-misses": "an integer >= 1"}[name], file=sys.stderr)
-                return 2
+                return EXIT_BAD_INPUT
     try:
         # everything the run needs is validated (config, map, SUT, spawn) before the output
         # directory is touched, so a bad input never costs an existing bag
@@ -206,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
                 bar.close()
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     print(f"steps: {summary.steps}  simulated: {summary.sim_time_s:.1f} s  wall: {summary.wall_time_s:.2f} s  "
           f"({summary.steps_per_s:.0f} steps/s)")
     print(f"collisions: {summary.collisions}  lane changes: {summary.lane_changes}  re-entries: {summary.reentries}  "
@@ -214,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     if summary.bag_dir is not None:
         print(f"bag: {summary.bag_dir}  ({summary.message_count} messages, {summary.bag_bytes / 1e6:.2f} MB)")
     print_scores(report_dir)
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 
 STAGE_CHOICES = ("control", "level1", "level2", "competitive", "cooperative", "all")
 
@@ -29,7 +30,7 @@ STAGE_CHOICES = ("control", "level1", "level2", "competitive", "cooperative", "a
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, status 2
         print(f"error: {message}", file=sys.stderr)
-        sys.exit(2)
+        sys.exit(EXIT_BAD_INPUT)
 
 
 def _strict_int(text: str, lo: int, hi: int, expected: str) -> int:
@@ -83,18 +84,18 @@ def main(argv: list[str] | None = None) -> int:
         results = pipeline.run(stages)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except OSError as exc:
         print(f"error: --out {args.out}: {exc.strerror or exc}", file=sys.stderr)
-        return 2
+        return EXIT_BAD_INPUT
     except KeyboardInterrupt:
         print("interrupted: run the same command again to resume from the last checkpoint", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     for r in results:
         print(f"{r.stage}: {r.policy}.npz, {r.steps} steps in {r.wall_s:.0f} s, "
               f"converged at step {r.steps_to_convergence}, {r.metrics}")
     print(f"total training wall time: {sum(r.wall_s for r in results):.0f} s")
-    return 0
+    return EXIT_OK
 
 
 if __name__ == "__main__":

@@ -42,22 +42,18 @@ from pathlib import Path
 import yaml
 
 from evoscen_bringup.domains import reserve_domain
+from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED, EXIT_OK, NODE_BV,
+                                       NODE_EVAL, NODE_EXIT_STATUSES, NODE_SIM, NODE_SUT)
 from evoscen_sim.config import ScenarioConfig
 from evoscen_sim.node_params import scenario_parameters
 
 NODES = (
-    ("evoscen_eval", "evoscen_eval.eval_node"),
-    ("evoscen_bv", "evoscen_bv.bv_node"),
-    ("evoscen_sut", "evoscen_sut.sut_node"),
-    ("evoscen_sim", "evoscen_sim.sim_node"),
+    (NODE_EVAL, "evoscen_eval.eval_node"),
+    (NODE_BV, "evoscen_bv.bv_node"),
+    (NODE_SUT, "evoscen_sut.sut_node"),
+    (NODE_SIM, "evoscen_sim.sim_node"),
 )
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
-EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_NODE_DIED, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
-"""The launcher's exit statuses (docs/recording.md): 0 completed, 2 bad input, 3 a controller
-fault (the simulation node aborted the run), 4 a node died or ended before the run did (named
-on stderr), 130 interrupted."""
-DOCUMENTED_NODE_STATUS = (0, 2, 3, 130)
-"""Statuses with which the simulation node ends by itself; anything else (a signal, 1) is a death."""
 STOP_GRACE_S = 5.0
 """How long nodes get to end by themselves when the run ended before step 0 or the simulation died."""
 SIM_STOP_ESCALATE_S = 3.0
@@ -112,9 +108,9 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
     params_dir = out_dir / "params"
     params_dir.mkdir(parents=True, exist_ok=True)
     scenario = scenario_parameters(cfg)
-    controllers = (["evoscen_bv"] if cfg.bvs.count > 0 else []) + ["evoscen_sut"]
+    controllers = ([NODE_BV] if cfg.bvs.count > 0 else []) + [NODE_SUT]
     own = {
-        "evoscen_sim": {"deadline_s": opts.deadline_s, "max_misses": opts.max_misses,
+        NODE_SIM: {"deadline_s": opts.deadline_s, "max_misses": opts.max_misses,
                         "startup_timeout_s": opts.startup_timeout_s, "controllers": controllers, "recorder": True,
                         "external_sut": opts.external_sut,
                         # a parameter file cannot type an empty list: only when there are nodes to wait for
@@ -122,14 +118,14 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
         # no use_sim_time: the nodes take simulation time from the stamps of the messages they
         # answer or record; rclpy's time source would add a /clock reader per node that nothing
         # reads (no executor spins), and every step's /clock would be delivered to it
-        "evoscen_bv": {"startup_timeout_s": opts.startup_timeout_s},
-        "evoscen_sut": {"startup_timeout_s": opts.startup_timeout_s},
-        "evoscen_eval": {"bag_dir": str(bag_dir), "external_sut": opts.external_sut,
+        NODE_BV: {"startup_timeout_s": opts.startup_timeout_s},
+        NODE_SUT: {"startup_timeout_s": opts.startup_timeout_s},
+        NODE_EVAL: {"bag_dir": str(bag_dir), "external_sut": opts.external_sut,
                          **({"report_dir": str(opts.report_dir), "report_plots": opts.report_plots}
                             if opts.report_dir is not None else {})},
     }
     if opts.wait_for:  # the controllers wait for users' nodes too (a parameter file cannot type [])
-        for name in ("evoscen_bv", "evoscen_sut"):
+        for name in (NODE_BV, NODE_SUT):
             own[name]["wait_for_nodes"] = list(opts.wait_for)
     paths = {}
     for name, _ in NODES:
@@ -178,12 +174,12 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     domain_id = opts.domain_id
     ready_file = out_dir / "params" / ".evoscen_sim.ready"
     opts = dataclasses.replace(opts, node_args={
-        **opts.node_args, "evoscen_sim": {"ready_file": str(ready_file), **opts.node_args.get("evoscen_sim", {})}})
+        **opts.node_args, NODE_SIM: {"ready_file": str(ready_file), **opts.node_args.get(NODE_SIM, {})}})
     params = write_parameter_files(cfg, out_dir, bag_dir, opts)
     ready_file.unlink(missing_ok=True)
     env = node_environment(domain_id, opts.discovery_range)
     wanted = [(name, module) for name, module in NODES
-              if (name != "evoscen_bv" or cfg.bvs.count > 0) and (name != "evoscen_sut" or not opts.external_sut)]
+              if (name != NODE_BV or cfg.bvs.count > 0) and (name != NODE_SUT or not opts.external_sut)]
     procs: dict[str, subprocess.Popen] = {}
     t0 = time.monotonic()
     interrupted = False
@@ -193,7 +189,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     def forward(signum, frame):  # noqa: ANN001, ANN202
         nonlocal interrupted
         interrupted = True
-        sim = procs.get("evoscen_sim")
+        sim = procs.get(NODE_SIM)
         if sim is not None and sim.poll() is None:
             sim.send_signal(signal.SIGINT)
 
@@ -208,18 +204,18 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 [sys.executable, "-m", module, "--ros-args", "--params-file", str(params[name])],
                 env=env, start_new_session=True,  # Ctrl-C reaches the launcher only; it decides
             )
-        sim = procs["evoscen_sim"]
+        sim = procs[NODE_SIM]
         fault_wait_s = opts.deadline_s * opts.max_misses + 5.0
         stop_sim_at: float | None = None
         escalate: list[tuple[float, int]] = []  # (when, signal): if the simulation outlives its stop signal
         while sim.poll() is None:
             for name, p in procs.items():
-                if name == "evoscen_sim" or name in died or p.poll() in (None, 0):
+                if name == NODE_SIM or name in died or p.poll() in (None, 0):
                     continue  # 0: a controller answered the final state, the recorder got run_end
                 started = ready_file.exists()
                 note(name, f"ended early ({describe_status(p.returncode)})"
                      + ("" if started else " during start-up"))
-                if name == "evoscen_eval" or not started:
+                if name == NODE_EVAL or not started:
                     # no recorder: nothing would be recorded; during start-up: the simulation would
                     # wait out its start-up timeout for the dead node. Stop the run now.
                     stop_sim_at = time.monotonic()
@@ -231,7 +227,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 # SIGTERM before step 0: a node still importing its modules would print a
                 # KeyboardInterrupt traceback on SIGINT (the simulation handles both alike)
                 sim.send_signal(signal.SIGINT if ready_file.exists() else signal.SIGTERM)
-                signalled.add("evoscen_sim")
+                signalled.add(NODE_SIM)
                 stop_sim_at = float("inf")  # once
                 escalate = [(time.monotonic() + SIM_STOP_ESCALATE_S, signal.SIGTERM),
                             (time.monotonic() + 2 * SIM_STOP_ESCALATE_S, signal.SIGKILL)]
@@ -242,27 +238,27 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 sim.send_signal(escalate.pop(0)[1])
             time.sleep(0.05)
         started = ready_file.exists()
-        sim_died = sim.returncode not in DOCUMENTED_NODE_STATUS and not (
-            "evoscen_sim" in signalled and sim.returncode == -signal.SIGTERM)
-        if sim_died and "evoscen_sim" in signalled and sim.returncode == -signal.SIGKILL:
-            note("evoscen_sim", "did not end on SIGINT/SIGTERM and was stopped with SIGKILL")
+        sim_died = sim.returncode not in NODE_EXIT_STATUSES and not (
+            NODE_SIM in signalled and sim.returncode == -signal.SIGTERM)
+        if sim_died and NODE_SIM in signalled and sim.returncode == -signal.SIGKILL:
+            note(NODE_SIM, "did not end on SIGINT/SIGTERM and was stopped with SIGKILL")
         elif sim_died:
-            note("evoscen_sim", f"died ({describe_status(sim.returncode)})")
+            note(NODE_SIM, f"died ({describe_status(sim.returncode)})")
         if sim_died or not started:
             # nobody will end the run for the others (the simulation died), or they never saw
             # step 0 and would wait out their start-up timeouts: stop them all now, together.
             # The evaluator finishes the bag on SIGTERM; SIGTERM before step 0 (a node still
             # importing would print a KeyboardInterrupt traceback on SIGINT); SIGKILL after 5 s.
-            alive = [n for n in procs if n != "evoscen_sim" and procs[n].poll() is None]
+            alive = [n for n in procs if n != NODE_SIM and procs[n].poll() is None]
             for name in alive:
-                use_int = started and name != "evoscen_eval"
+                use_int = started and name != NODE_EVAL
                 procs[name].send_signal(signal.SIGINT if use_int else signal.SIGTERM)
                 signalled.add(name)
             end = time.monotonic() + STOP_GRACE_S
             for name in alive:
                 _stop(procs[name], max(end - time.monotonic(), 0.0), signals=(signal.SIGKILL,))
         else:
-            for name in ("evoscen_eval", *[n for n in procs if n not in ("evoscen_eval", "evoscen_sim")]):
+            for name in (NODE_EVAL, *[n for n in procs if n not in (NODE_EVAL, NODE_SIM)]):
                 _stop(procs[name], opts.shutdown_grace_s)
     finally:
         for p in procs.values():
@@ -293,10 +289,10 @@ def graph_status(node_status: dict[str, int | None], died: dict[str, str], inter
     run cleanly and said why), then a node that died (4), then an interruption (130), then any
     other node's failure (2 as it is, anything else 4); 0 only if every node ended with 0.
     """
-    sim = node_status.get("evoscen_sim")
+    sim = node_status.get(NODE_SIM)
     if sim in (EXIT_BAD_INPUT, EXIT_FAULT):
         return sim
-    others = [s for n, s in node_status.items() if n != "evoscen_sim" and s not in (0, None)]
+    others = [s for n, s in node_status.items() if n != NODE_SIM and s not in (0, None)]
     if EXIT_BAD_INPUT in others:
         return EXIT_BAD_INPUT
     if died:

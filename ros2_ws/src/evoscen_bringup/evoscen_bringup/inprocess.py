@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Callable
 
 
+from evoscen_contract.contract import KIND_COMPLETED, KIND_INTERRUPTED
 from evoscen_sim.config import ScenarioConfig
 
 from evoscen_sim.events import ExposureMonitor, run_end_event, step_events
@@ -137,7 +138,7 @@ def run_inprocess(
     bv_ids = world.ids[sc.bv_indices]
     sut_ids = world.ids[[sc.sut_index]]
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
-    end_kind, end_message = "interrupted", "run interrupted"
+    end_kind, end_message = KIND_INTERRUPTED, "run interrupted"
     t0 = time.perf_counter()
     try:
         for k in range(n_steps):
@@ -164,7 +165,7 @@ def run_inprocess(
                 acc.add_events(events)
             if progress is not None:
                 progress(k + 1)
-        end_kind, end_message = "completed", f"run completed: {world.step_index} steps"
+        end_kind, end_message = KIND_COMPLETED, f"run completed: {world.step_index} steps"
     finally:
         summary.wall_time_s = time.perf_counter() - t0
         summary.steps = world.step_index

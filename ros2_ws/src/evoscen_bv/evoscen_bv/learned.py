@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from evoscen_contract.contract import POLICY_CODES, SOCIAL_POLICIES
+from evoscen_sim.config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 
@@ -40,21 +42,14 @@ from .training_config import TrainingConfig, load_training_config
 POLICY_FILES = {"mutual": "mutual.npz", "competitive": "competitive.npz", "cooperative": "cooperative.npz"}
 """Decision policy of each policy name at run time (``mutual`` is the level-2 mutual policy)."""
 CONTROLLER_FILE = "controller.npz"
-POLICY_CODE = {"mutual": 1, "competitive": 2, "cooperative": 3}
-"""The world's policy codes (``evoscen_sim.scenario.POLICY_CODES``)."""
+POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
+"""The world's policy codes of the social types (``evoscen_contract.contract.POLICY_CODES``)."""
 
 
 def shipped_policy_dir() -> Path:
     """The shipped policies (installed share dir, else the source tree)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        p = Path(get_package_share_directory("evoscen_bv")) / "policies"
-        if p.is_dir():
-            return p
-    except Exception:  # noqa: BLE001 - no ament index: use the source tree
-        pass
-    return Path(__file__).resolve().parent / "policies"
+    candidates = share_candidates("policies", "evoscen_bv", source=Path(__file__).resolve().parent / "policies")
+    return next((p for p in candidates[:-1] if p.is_dir()), candidates[-1])
 
 
 class PolicyBank:

@@ -20,6 +20,7 @@ from typing import Any
 
 import yaml
 
+from evoscen_sim.config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, check_yaml_depth, read_text_limited
 
@@ -85,16 +86,10 @@ class TrainingConfig:
 
 
 def default_config_path() -> Path:
-    """The shipped training config (installed share dir, else the source tree)."""
-    try:
-        from ament_index_python.packages import get_package_share_directory
-
-        p = Path(get_package_share_directory("evoscen_bv")) / "config" / "training.yaml"
-        if p.is_file():
-            return p
-    except Exception:  # noqa: BLE001 - no ament index: use the source tree
-        pass
-    return Path(__file__).resolve().parent / "config" / "training.yaml"
+    """The shipped training config (installed share dir, else the source tree: evoscen_bv/config/)."""
+    candidates = share_candidates("config/training.yaml", "evoscen_bv",
+                                  source=Path(__file__).resolve().parent / "config" / "training.yaml")
+    return next((p for p in candidates[:-1] if p.is_file()), candidates[-1])
 
 
 def _convert(section_type: type, raw: Any, where: str, path: str) -> Any:

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .tables import CELL_BYTES, FLOAT64, stamp_from_ns
+from .contract import CELL_BYTES, EVENT_RUN_END, FLOAT64, stamp_parts
 
 _ENCAPSULATION_CDR_LE = b"\x00\x01\x00\x00"
 
@@ -62,8 +62,7 @@ class _PayloadWriter:
 
 
 def _stamp_bytes(stamp_ns: int) -> bytes:
-    t = stamp_from_ns(stamp_ns)
-    return struct.pack("<iI", t.sec, t.nanosec)
+    return struct.pack("<iI", *stamp_parts(stamp_ns))
 
 
 class TableEncoder:
@@ -383,4 +382,4 @@ def is_run_end(data: bytes) -> bool:
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.serialization import deserialize_message
 
-    return any(s.name == "evoscen/run_end" for s in deserialize_message(bytes(data), DiagnosticArray).status)
+    return any(s.name == EVENT_RUN_END for s in deserialize_message(bytes(data), DiagnosticArray).status)

@@ -20,7 +20,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .tables import stamp_from_ns
-from .topics import MAP_FRAME, POLICY_CODES
+from .contract import MAP_FRAME, POLICY_CODES
 
 VEHICLE_HEIGHT_M = 1.5
 POLICY_COLORS: dict[str, tuple[float, float, float]] = {

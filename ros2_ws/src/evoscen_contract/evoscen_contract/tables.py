@@ -31,14 +31,9 @@ from builtin_interfaces.msg import Time
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
-#: ``sensor_msgs/msg/PointField.FLOAT64``.
-FLOAT64: int = 8
-#: Bytes per table cell (one float64).
-CELL_BYTES: int = 8
+from .contract import CELL_BYTES, FLOAT64, stamp_parts  # noqa: F401  (FLOAT64, CELL_BYTES re-exported)
 
 _NS_PER_S: int = 1_000_000_000
-_INT32_MIN: int = -(2**31)
-_INT32_MAX: int = 2**31 - 1
 
 
 # --------------------------------------------------------------------------- time
@@ -51,14 +46,10 @@ def stamp_from_ns(ns: int) -> Time:
     always in ``[0, 1e9)`` as ROS requires, also for negative times).
 
     Raises:
-        ValueError: ``ns`` is not an integer or ``sec`` does not fit int32.
+        ValueError: ``ns`` is not an integer or ``sec`` does not fit int32
+            (:func:`evoscen_contract.contract.stamp_parts`).
     """
-    ns_int = int(ns)
-    if ns_int != ns:
-        raise ValueError(f"stamp_from_ns: time {ns!r} ns is not an integer number of nanoseconds")
-    sec, nanosec = divmod(ns_int, _NS_PER_S)
-    if not _INT32_MIN <= sec <= _INT32_MAX:
-        raise ValueError(f"stamp_from_ns: time {ns_int} ns is outside the int32 seconds range")
+    sec, nanosec = stamp_parts(ns)
     return Time(sec=sec, nanosec=nanosec)
 
 

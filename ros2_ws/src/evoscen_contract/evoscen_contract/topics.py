@@ -1,8 +1,12 @@
-"""THE evoscen topic contract: every topic, its type, QoS, publisher, rate and meaning.
+"""THE evoscen topic contract, ROS binding: every topic, its type, QoS, publisher, rate and meaning.
 
-This module is the single source of truth that every node, the recorder, the replayer
-and the README import (:func:`contract_markdown` renders the README table). Nothing
-else in evoscen may spell a topic name, a table's column list or a QoS profile.
+The contract's facts (topic and type names, table columns, role and policy codes, event
+names and keys, exit statuses) are defined once, without ROS, in
+:mod:`evoscen_contract.contract`, which the cores import; this module re-exports them and
+binds them to ROS: the message classes, the QoS profiles, the :class:`TopicSpec` rows and
+the message builders. Every node, the recorder, the replayer and the README import it
+(:func:`contract_markdown` renders the README table). Nothing else in evoscen may spell a
+topic name, a table's column list or a QoS profile.
 
 Time: every message is stamped with *simulation* time (integer nanoseconds in the
 cores, ``builtin_interfaces/Time`` on the wire). Step ``k`` happens at ``t_k``.
@@ -47,127 +51,65 @@ from visualization_msgs.msg import MarkerArray
 from evoscen_contract.qos import QosSpec
 from evoscen_contract.tables import stamp_from_ns
 
-# --------------------------------------------------------------------------- nodes
-
-#: Node names (publishers in the contract).
-NODE_SIM: str = "evoscen_sim"
-NODE_BV: str = "evoscen_bv"
-NODE_SUT: str = "evoscen_sut"
-NODE_EVAL: str = "evoscen_eval"
-
-#: Frame of all world-fixed data (the OpenDRIVE inertial frame, x/y in m).
-MAP_FRAME: str = "map"
-#: Child frame of the SUT odometry.
-SUT_BASE_FRAME: str = "sut/base_link"
-
-# --------------------------------------------------------------------------- codes
-
-#: ``role`` column values.
-ROLE_BV: int = 0
-ROLE_SUT: int = 1
-
-#: ``policy`` column values (driver model of each vehicle).
-POLICY_CODES: dict[str, int] = {
-    "level0": 0,
-    "mutual": 1,
-    "competitive": 2,
-    "cooperative": 3,
-    "sut": 4,
-    "nilsson": 5,
-    "mobil": 6,
-}
-#: Inverse of :data:`POLICY_CODES`.
-POLICY_NAMES: dict[int, str] = {code: name for name, code in POLICY_CODES.items()}
-
-# --------------------------------------------------------------------------- tables
-
-#: Columns of ``/evoscen/world`` (one row per vehicle, float64).
-WORLD_FIELDS: tuple[str, ...] = (
-    "id", "role", "policy", "x", "y", "yaw", "s", "d", "heading_rel", "speed", "accel",
-    "steer", "lane", "target_lane", "lane_change", "length", "width",
-)  # fmt: skip
-
-#: Columns of ``/evoscen/commands/bv`` and ``/evoscen/commands/sut``.
-COMMAND_FIELDS: tuple[str, ...] = ("id", "throttle", "lane_change")
-
-#: Columns of ``/evoscen/roster``.
-ROSTER_FIELDS: tuple[str, ...] = ("id", "role", "policy", "length", "width")
-
-#: Meaning and unit of every table column (rendered in the README).
-FIELD_DOCS: dict[str, str] = {
-    "id": "vehicle id (integer valued), unique in a scenario",
-    "role": f"{ROLE_BV} = background vehicle (BV), {ROLE_SUT} = system under test (SUT)",
-    "policy": "driver model code: " + ", ".join(f"{c} = {n}" for n, c in POLICY_CODES.items()),
-    "x": "position x in the map frame (m), vehicle reference point",
-    "y": "position y in the map frame (m)",
-    "yaw": "heading in the map frame (rad, counter-clockwise from +x)",
-    "s": "arc length along the OpenDRIVE reference line (m)",
-    "d": "lateral offset from the reference line (m, positive to the left)",
-    "heading_rel": "heading relative to the road direction at s (rad, positive to the left)",
-    "speed": "longitudinal speed (m/s)",
-    "accel": "longitudinal acceleration (m/s^2)",
-    "steer": "front-wheel steering angle (rad, positive to the left)",
-    "lane": "current lane index (0 = lane I, the merge lane ... 4 = lane V); a vehicle whose centre leaves the road keeps its last lane (see the evoscen/off_road event)",
-    "target_lane": "lane index the vehicle is heading for (= lane when keeping lane)",
-    "lane_change": "world table: lane change in progress (-1 right, 0 none, +1 left); command tables: the requested lane change (the world executes it only if the target lane exists and no change is in progress)",
-    "length": "vehicle length (m)",
-    "width": "vehicle width (m)",
-    "throttle": (
-        "normalized longitudinal command in [-1, 1] (dimensionless; +1 full throttle, "
-        "-1 full brake; scaling owned by evoscen_sim)"
-    ),
-}
-
-# --------------------------------------------------------------------------- events
-
-EVENT_COLLISION: str = "evoscen/collision"
-EVENT_LANE_CHANGE: str = "evoscen/lane_change"
-EVENT_REENTRY: str = "evoscen/reentry"
-EVENT_FAULT: str = "evoscen/fault"
-EVENT_OFF_ROAD: str = "evoscen/off_road"
-EVENT_RUN_END: str = "evoscen/run_end"
-EVENT_EXPOSURE: str = "evoscen/exposure"
-#: All event names allowed on ``/evoscen/events``.
-EVENT_NAMES: tuple[str, ...] = (
-    EVENT_COLLISION, EVENT_LANE_CHANGE, EVENT_REENTRY, EVENT_OFF_ROAD, EVENT_FAULT, EVENT_RUN_END,
+# The facts (names, columns, codes, events, exit statuses) are defined once, ROS-free, in
+# evoscen_contract.contract; re-exported here so that ``T.<name>`` works in ROS code.
+from evoscen_contract.contract import (  # noqa: F401  (re-exported)
+    COMMAND_FIELDS,
+    DEFAULT_EVENT_LEVELS,
+    EVENT_COLLISION,
     EVENT_EXPOSURE,
+    EVENT_FAULT,
+    EVENT_HARDWARE_ID,
+    EVENT_KEY_TYPES,
+    EVENT_KINDS,
+    EVENT_LANE_CHANGE,
+    EVENT_NAMES,
+    EVENT_OFF_ROAD,
+    EVENT_REENTRY,
+    EVENT_RUN_END,
+    EXIT_BAD_INPUT,
+    EXIT_FAULT,
+    EXIT_INTERRUPTED,
+    EXIT_NODE_DIED,
+    EXIT_OK,
+    FIELD_DOCS,
+    GRAPH_EXIT_STATUSES,
+    KIND_ABORT,
+    KIND_ABORTED,
+    KIND_COMPLETED,
+    KIND_DEADLINE,
+    KIND_END,
+    KIND_INTERRUPTED,
+    KIND_START,
+    LEVEL_ERROR,
+    LEVEL_OK,
+    LEVEL_STALE,
+    LEVEL_WARN,
+    MAP_FRAME,
+    NODE_BV,
+    NODE_EVAL,
+    NODE_EXIT_STATUSES,
+    NODE_SIM,
+    NODE_SUT,
+    POLICY_CODES,
+    POLICY_NAMES,
+    ROLE_BV,
+    ROLE_SUT,
+    ROSTER_FIELDS,
+    SOCIAL_POLICIES,
+    SUT_BASE_FRAME,
+    TOPIC_CLOCK,
+    TOPIC_COMMANDS_BV,
+    TOPIC_COMMANDS_SUT,
+    TOPIC_EVENTS,
+    TOPIC_MAP_MARKERS,
+    TOPIC_MARKERS,
+    TOPIC_ROSTER,
+    TOPIC_SUT_ODOM,
+    TOPIC_TYPES,
+    TOPIC_WORLD,
+    WORLD_FIELDS,
 )
-
-#: ``diagnostic_msgs/DiagnosticStatus`` levels (OK, WARN, ERROR, STALE).
-LEVEL_OK, LEVEL_WARN, LEVEL_ERROR, LEVEL_STALE = 0, 1, 2, 3
-#: Level used when an event dict gives none.
-DEFAULT_EVENT_LEVELS: dict[str, int] = {
-    EVENT_COLLISION: LEVEL_ERROR,
-    EVENT_LANE_CHANGE: LEVEL_OK,
-    EVENT_REENTRY: LEVEL_WARN,
-    EVENT_OFF_ROAD: LEVEL_ERROR,
-    EVENT_FAULT: LEVEL_ERROR,
-    EVENT_RUN_END: LEVEL_OK,
-    EVENT_EXPOSURE: LEVEL_WARN,
-}
-#: ``hardware_id`` of every event status.
-EVENT_HARDWARE_ID: str = "evoscen"
-
-#: Typed event keys: values are encoded to / decoded from KeyValue strings by type.
-#: ``"int"`` -> ``str(int)``; ``"float"`` -> ``repr(float)`` (exact round trip, also
-#: ``inf``/``nan``); ``"ints"`` -> comma separated ints (``"3,7"``, ``""`` = empty);
-#: ``"str"`` -> as is. Keys not listed here are written with ``str(value)`` and read back
-#: as strings.
-EVENT_KEY_TYPES: dict[str, str] = {
-    "step": "int",  # step index k
-    "time_s": "float",  # simulation time of the event (s)
-    "ids": "ints",  # vehicle ids involved
-    "duration_s": "float",  # duration (s), e.g. of a lane change or an off-road episode
-    "direction": "int",  # lane-change direction (+1 left, -1 right)
-    "from_lane": "int",  # lane index before
-    "to_lane": "int",  # lane index after
-    "misses": "int",  # consecutive missed controller deadlines (fault)
-    "controller": "str",  # node name of the controller concerned (fault)
-    "kind": "str",  # sub-kind: fault "deadline"/"abort"; lane_change "completed"/"aborted"; run_end "completed"/"aborted"/"interrupted"; exposure "start"/"end"
-    "steps": "int",  # steps simulated (run_end); states an exposure lasted (exposure end)
-    "ttc_s": "float",  # the SUT's time to collision with the vehicle ahead in its path (exposure start; inf if none)
-    "accel_mps2": "float",  # the SUT's acceleration (exposure start)
-}
 
 _RESERVED_EVENT_KEYS = ("name", "level", "message")
 
@@ -217,8 +159,8 @@ LATCHED_QOS = QosSpec(
 )
 
 CLOCK = TopicSpec(
-    name="/clock",
-    type_name="rosgraph_msgs/msg/Clock",
+    name=TOPIC_CLOCK,
+    type_name=TOPIC_TYPES[TOPIC_CLOCK],
     msg_class=Clock,
     qos=STEP_QOS,
     publisher=NODE_SIM,
@@ -227,8 +169,8 @@ CLOCK = TopicSpec(
     subscribers=(NODE_EVAL,),
 )
 WORLD = TopicSpec(
-    name="/evoscen/world",
-    type_name="sensor_msgs/msg/PointCloud2",
+    name=TOPIC_WORLD,
+    type_name=TOPIC_TYPES[TOPIC_WORLD],
     msg_class=PointCloud2,
     qos=STEP_QOS,
     publisher=NODE_SIM,
@@ -241,8 +183,8 @@ WORLD = TopicSpec(
     subscribers=(NODE_BV, NODE_SUT, NODE_EVAL),
 )
 COMMANDS_BV = TopicSpec(
-    name="/evoscen/commands/bv",
-    type_name="sensor_msgs/msg/PointCloud2",
+    name=TOPIC_COMMANDS_BV,
+    type_name=TOPIC_TYPES[TOPIC_COMMANDS_BV],
     msg_class=PointCloud2,
     qos=STEP_QOS,
     publisher=NODE_BV,
@@ -255,8 +197,8 @@ COMMANDS_BV = TopicSpec(
     subscribers=(NODE_SIM, NODE_EVAL),
 )
 COMMANDS_SUT = TopicSpec(
-    name="/evoscen/commands/sut",
-    type_name="sensor_msgs/msg/PointCloud2",
+    name=TOPIC_COMMANDS_SUT,
+    type_name=TOPIC_TYPES[TOPIC_COMMANDS_SUT],
     msg_class=PointCloud2,
     qos=STEP_QOS,
     publisher=NODE_SUT,
@@ -269,8 +211,8 @@ COMMANDS_SUT = TopicSpec(
     subscribers=(NODE_SIM, NODE_EVAL),
 )
 SUT_ODOM = TopicSpec(
-    name="/evoscen/sut/odom",
-    type_name="nav_msgs/msg/Odometry",
+    name=TOPIC_SUT_ODOM,
+    type_name=TOPIC_TYPES[TOPIC_SUT_ODOM],
     msg_class=Odometry,
     qos=STEP_QOS,
     publisher=NODE_SIM,
@@ -282,8 +224,8 @@ SUT_ODOM = TopicSpec(
     subscribers=(NODE_EVAL,),
 )
 EVENTS = TopicSpec(
-    name="/evoscen/events",
-    type_name="diagnostic_msgs/msg/DiagnosticArray",
+    name=TOPIC_EVENTS,
+    type_name=TOPIC_TYPES[TOPIC_EVENTS],
     msg_class=DiagnosticArray,
     qos=STEP_QOS,
     publisher=NODE_SIM,
@@ -295,8 +237,8 @@ EVENTS = TopicSpec(
     subscribers=(NODE_EVAL,),
 )
 ROSTER = TopicSpec(
-    name="/evoscen/roster",
-    type_name="sensor_msgs/msg/PointCloud2",
+    name=TOPIC_ROSTER,
+    type_name=TOPIC_TYPES[TOPIC_ROSTER],
     msg_class=PointCloud2,
     qos=LATCHED_QOS,
     publisher=NODE_SIM,
@@ -308,8 +250,8 @@ ROSTER = TopicSpec(
 
 #: The whole contract, in README order.
 MARKERS = TopicSpec(
-    name="/evoscen/markers",
-    type_name="visualization_msgs/msg/MarkerArray",
+    name=TOPIC_MARKERS,
+    type_name=TOPIC_TYPES[TOPIC_MARKERS],
     msg_class=MarkerArray,
     qos=STEP_QOS,
     publisher=NODE_SIM,
@@ -320,8 +262,8 @@ MARKERS = TopicSpec(
 )
 
 MAP_MARKERS = TopicSpec(
-    name="/evoscen/map_markers",
-    type_name="visualization_msgs/msg/MarkerArray",
+    name=TOPIC_MAP_MARKERS,
+    type_name=TOPIC_TYPES[TOPIC_MAP_MARKERS],
     msg_class=MarkerArray,
     qos=LATCHED_QOS,
     publisher=NODE_SIM,

@@ -47,7 +47,7 @@ def test_contract_names_types_and_qos() -> None:
     assert POLICY_NAMES[2] == "competitive"
     from evoscen_sim.scenario import POLICY_CODES as SIM_POLICY_CODES
 
-    assert SIM_POLICY_CODES == POLICY_CODES  # the simulation core keeps its own copy (no ROS import)
+    assert SIM_POLICY_CODES is POLICY_CODES  # one definition (evoscen_contract.contract), no copy
 
 
 def test_qos_conversions() -> None:

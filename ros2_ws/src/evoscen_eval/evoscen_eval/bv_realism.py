@@ -31,10 +31,11 @@ from typing import Any
 
 import numpy as np
 
-ROLE_BV = 0
-"""``evoscen_sim.world.ROLE_BV`` (the world table's ``role`` column)."""
-POLICY_NAMES = {1: "mutual", 2: "competitive", 3: "cooperative"}
-"""The world table's ``policy`` codes of the learned BVs' social types (``evoscen_sim.scenario.POLICY_CODES``)."""
+from evoscen_contract.contract import (EVENT_COLLISION, EVENT_LANE_CHANGE, KIND_COMPLETED, POLICY_CODES, ROLE_BV,
+                                       SOCIAL_POLICIES)
+
+POLICY_NAMES = {POLICY_CODES[name]: name for name in SOCIAL_POLICIES}
+"""The world table's ``policy`` codes of the learned BVs' social types (code -> name)."""
 
 
 def time_headways(s: np.ndarray, lane: np.ndarray, speed: np.ndarray, length: np.ndarray, bv: np.ndarray,
@@ -69,13 +70,13 @@ def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -
     hours = float(bv.sum()) * (run.states - 1) * dt / 3600.0 if run.states > 1 else 0.0
     km = float(np.sum(c["speed"][body][:, bv]) * dt / 1000.0)
     bvbv = sut_coll = 0
-    for e in run.events_named("evoscen/collision"):
+    for e in run.events_named(EVENT_COLLISION):
         pair = [int(x) for x in e.get("ids", [])]
         if pair and all(x in bv_ids for x in pair):
             bvbv += 1
         if any(x in sut_ids for x in pair):
             sut_coll += 1
-    lcs = sum(1 for e in run.events_named("evoscen/lane_change", "completed")
+    lcs = sum(1 for e in run.events_named(EVENT_LANE_CHANGE, KIND_COMPLETED)
               if int(e.get("ids", [-1])[0]) in bv_ids)
     thw = time_headways(c["s"], c["lane"], c["speed"], c["length"], bv, min_speed_mps, leader_range_m)
     # per social type (the policy column): completed lane changes and km of the BVs of that type
@@ -85,7 +86,7 @@ def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -
     for code, name in POLICY_NAMES.items():
         cols = bv & (policy == code)
         if cols.any():
-            n = sum(1 for e in run.events_named("evoscen/lane_change", "completed")
+            n = sum(1 for e in run.events_named(EVENT_LANE_CHANGE, KIND_COMPLETED)
                     if int(e.get("ids", [-1])[0]) in bv_ids and code_of.get(int(e["ids"][0])) == code)
             by_type[name] = {"lane_changes": n, "vehicle_km": float(np.sum(c["speed"][body][:, cols]) * dt / 1000.0)}
     return {

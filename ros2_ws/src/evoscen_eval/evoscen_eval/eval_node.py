@@ -50,13 +50,13 @@ import time
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.cdr import TableEncoder, decode_table, events_count, is_run_end
+from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 from evoscen_sim.node_params import run_node, scenario_from_node
 
 from .recorder import BagRecorder, OrderedBag
 from .rundata import SCENARIO_METADATA, RunAccumulator, scenario_metadata
 
 NODE_NAME = T.NODE_EVAL
-EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 # topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
 _CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name, T.MARKERS.name}
 # tables from any publisher (a user's SUT node may serialize with rclpy): re-encoded canonically

@@ -58,7 +58,7 @@ from typing import Any
 
 import numpy as np
 
-from evoscen_contract import topics as T
+from evoscen_contract import contract as C
 from evoscen_sim.safety import (attribution_steps, dangerous, drac, exposure_runs, follower_ttc, rear_attributed,
                                 rear_dangerous, sut_follower, sut_leader, sut_ttc)
 
@@ -245,7 +245,7 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     sut_id = int(run.ids[sut])
 
     # --- safety
-    collisions = run.events_named(T.EVENT_COLLISION)
+    collisions = run.events_named(C.EVENT_COLLISION)
     sut_collisions = [e for e in collisions if sut_id in e.get("ids", [])]
     exposures = []
     for k0, k1 in zip(series.starts, series.ends):
@@ -316,8 +316,8 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     H = max_in_view(ev)
     h_mean = float(series.in_view.sum(axis=1).mean())
     v_mean = float(series.speed.mean())
-    sut_changes = [e for e in run.events_named(T.EVENT_LANE_CHANGE) if e.get("ids", [None])[0] == sut_id]
-    durations = [float(e["duration_s"]) for e in sut_changes if e.get("kind") == "completed"]
+    sut_changes = [e for e in run.events_named(C.EVENT_LANE_CHANGE) if e.get("ids", [None])[0] == sut_id]
+    durations = [float(e["duration_s"]) for e in sut_changes if e.get("kind") == C.KIND_COMPLETED]
     exclude = ev.undefined_terms == "exclude"
     t_l = float(np.mean(durations)) if durations else ev.no_lane_change_time_s
     i_e, term1, term2 = efficiency_score(h_mean, H, v_mean, ev.v_max_mps, t_l,
@@ -334,7 +334,7 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
         "density_form": ev.efficiency_density,
         "density_speed_term": term1,
         "lane_changes": len(durations),
-        "lane_changes_aborted": sum(1 for e in sut_changes if e.get("kind") == "aborted"),
+        "lane_changes_aborted": sum(1 for e in sut_changes if e.get("kind") == C.KIND_ABORTED),
         "mean_lane_change_time_s": t_l,
         "lane_change_time_defined": bool(durations),
         "lane_change_term": term2,

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from evoscen_contract import topics as T
+from evoscen_contract import contract as C
 from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
 from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_STEPS
@@ -46,7 +46,7 @@ class RunData:
     """One run, state by state.
 
     ``columns[name]`` is a float64 ``[K, V]`` array for every name of
-    :data:`evoscen_contract.topics.WORLD_FIELDS`: row k = the world state at ``time_s[k]``,
+    :data:`evoscen_contract.contract.WORLD_FIELDS`: row k = the world state at ``time_s[k]``,
     column v = one vehicle (the world table's row order, constant through a run).
     """
 
@@ -102,31 +102,36 @@ class RunAccumulator:
 
     def add_world_columns(self, columns: Mapping[str, np.ndarray], t_ns: int) -> None:
         """A world state from the world's columns (copied)."""
-        self._add_state(np.column_stack([np.asarray(columns[f], dtype=np.float64) for f in T.WORLD_FIELDS]), t_ns)
+        self._add_state(np.column_stack([np.asarray(columns[f], dtype=np.float64) for f in C.WORLD_FIELDS]), t_ns)
 
     def add_events(self, events: Iterable[Mapping[str, Any]]) -> None:
         """Event dicts of one ``/evoscen/events`` message."""
         for event in events:
             self.events.append(dict(event))
-            if event["name"] == T.EVENT_RUN_END:
+            if event["name"] == C.EVENT_RUN_END:
                 self.complete = True
 
     def add_bytes(self, topic: str, data: bytes) -> None:
         """One serialized message of the contract; topics the scores do not use are ignored."""
-        if topic == T.WORLD.name:
+        if topic == C.TOPIC_WORLD:
             table = decode_table(data)
-            if table.fields != T.WORLD_FIELDS:
-                raise ValueError(f"world table columns {table.fields}, expected {T.WORLD_FIELDS}")
+            if table.fields != C.WORLD_FIELDS:
+                raise ValueError(f"world table columns {table.fields}, expected {C.WORLD_FIELDS}")
             self._add_state(np.array(table.data, dtype=np.float64), table.stamp_ns)
-        elif topic == T.EVENTS.name:
+        elif topic == C.TOPIC_EVENTS:
             if events_count(data):
+                # the message classes (the ROS binding) only when a message must be deserialized
                 from rclpy.serialization import deserialize_message
+
+                from evoscen_contract import topics as T
 
                 if self._events_class is None:
                     self._events_class = T.EVENTS.msg_class
                 self.add_events(T.parse_events(deserialize_message(data, self._events_class)))
-        elif topic == T.MAP_MARKERS.name and self.lane_segments is None:
+        elif topic == C.TOPIC_MAP_MARKERS and self.lane_segments is None:
             from rclpy.serialization import deserialize_message
+
+            from evoscen_contract import topics as T
 
             self.lane_segments = lane_segments(deserialize_message(data, T.MAP_MARKERS.msg_class))
 
@@ -165,8 +170,8 @@ class RunAccumulator:
         if not bad.any():
             return None
         v, j = (int(i[0]) for i in np.nonzero(bad))
-        vid = table[v, T.WORLD_FIELDS.index("id")]
-        return (int(vid) if np.isfinite(vid) else v), T.WORLD_FIELDS[j], float(table[v, j])
+        vid = table[v, C.WORLD_FIELDS.index("id")]
+        return (int(vid) if np.isfinite(vid) else v), C.WORLD_FIELDS[j], float(table[v, j])
 
     def stamps_ns(self) -> list[int]:
         """The stamps of the states collected so far (ns)."""
@@ -180,10 +185,10 @@ class RunAccumulator:
         k = self._k
         if k < self._buf.shape[1] // 2:  # a run cut short: do not keep the unused half
             self._buf = self._buf[:, :k].copy()
-        columns = {f: self._buf[j, :k] for j, f in enumerate(T.WORLD_FIELDS)}
+        columns = {f: self._buf[j, :k] for j, f in enumerate(C.WORLD_FIELDS)}
         times = np.asarray(self._times_ns, dtype=np.int64)
         roles = columns["role"][0]
-        suts = np.flatnonzero(roles == 1)
+        suts = np.flatnonzero(roles == C.ROLE_SUT)
         if len(suts) != 1:
             raise ValueError(f"the world table has {len(suts)} vehicles with role 1 (SUT), expected exactly 1")
         if scenario is not None and "dt_s" in scenario:
@@ -247,8 +252,8 @@ def portable_map_ref(map_path: str | Path) -> tuple[str, str]:
 # ---------------------------------------------------------------------- reading a bag
 
 
-_USED_TOPICS = {T.WORLD.name, T.EVENTS.name, T.MAP_MARKERS.name}
-_USED_TYPES = {spec.name: spec.type_name for spec in (T.WORLD, T.EVENTS, T.MAP_MARKERS)}
+_USED_TOPICS = {C.TOPIC_WORLD, C.TOPIC_EVENTS, C.TOPIC_MAP_MARKERS}
+_USED_TYPES = {name: C.TOPIC_TYPES[name] for name in (C.TOPIC_WORLD, C.TOPIC_EVENTS, C.TOPIC_MAP_MARKERS)}
 
 
 def _check_channel(channel: Any, schemas: Mapping[int, Any], path: Path) -> None:
@@ -334,7 +339,7 @@ def read_run(bag_dir: Path | str) -> RunData:
                     topic = channels.get(record.channel_id)
                     if topic in _USED_TOPICS:
                         acc.add_bytes(topic, record.data)
-                        if topic == T.WORLD.name:
+                        if topic == C.TOPIC_WORLD:
                             bad = acc.last_nonfinite()
                             if bad is not None:
                                 raise InputError(
@@ -371,7 +376,7 @@ def read_run(bag_dir: Path | str) -> RunData:
     dt_ns = None
     if scenario is not None and isinstance(scenario.get("dt_s"), (int, float)) and scenario["dt_s"] > 0:
         dt_ns = round(float(scenario["dt_s"]) * 1e9)
-    warnings.extend(check_stamps(acc.stamps_ns(), dt_ns, f"bag {str(path)!r}: topic {T.WORLD.name!r}"))
+    warnings.extend(check_stamps(acc.stamps_ns(), dt_ns, f"bag {str(path)!r}: topic {C.TOPIC_WORLD!r}"))
     if scenario is None:
         warnings.append(f"bag {str(path)!r} carries no scenario configuration (metadata record "
                         f"{SCENARIO_METADATA!r}): default evaluation settings used")

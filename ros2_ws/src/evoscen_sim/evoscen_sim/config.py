@@ -70,6 +70,7 @@ __all__ = [
     "register_bv_driver",
     "register_sut_model",
     "resolve_map_path",
+    "share_candidates",
     "share_path",
 ]
 
@@ -876,7 +877,7 @@ def resolve_map_path(value: str, base_dir: str | Path | None = None) -> Path:
         tried = [candidate]
     else:
         base = Path(base_dir) if base_dir is not None else Path.cwd()
-        tried = [base / candidate, *_share_candidates(f"maps/{value}", _PACKAGE)]
+        tried = [base / candidate, *share_candidates(f"maps/{value}", _PACKAGE)]
     for path in tried:
         if path.is_file():
             return path.resolve()
@@ -960,8 +961,16 @@ def _source_dir(package: str) -> Path:
     return here if package == _PACKAGE else here.parent / package
 
 
-def _share_candidates(relative: str, package: str) -> list[Path]:
-    """Where ``relative`` may live: the ament share directory (if any), then the source tree."""
+def share_candidates(relative: str, package: str = _PACKAGE, source: Path | None = None) -> list[Path]:
+    """Where a share file of ``package`` may live: the ament share directory (if any), then the source tree.
+
+    The one package-path lookup of evoscen (:func:`share_path`, the map look-up, the BV
+    package's policies and training config use it): ``share/<package>/<relative>`` of an
+    installed workspace (the ament index; skipped when ament_index_python, the package or
+    ``AMENT_PREFIX_PATH`` is missing), then ``source``, by default
+    ``ros2_ws/src/<package>/<relative>`` (for files whose installed path mirrors their source
+    path). The paths are returned whether or not they exist.
+    """
     candidates: list[Path] = []
     try:
         from ament_index_python.packages import (  # type: ignore[import-not-found]
@@ -976,7 +985,7 @@ def _share_candidates(relative: str, package: str) -> list[Path]:
         except (PackageNotFoundError, OSError, ValueError):
             # not installed, or no AMENT_PREFIX_PATH (OSError): use the source tree
             pass
-    candidates.append(_source_dir(package) / relative)
+    candidates.append(_source_dir(package) / relative if source is None else source)
     return candidates
 
 
@@ -986,7 +995,7 @@ def share_path(relative: str, package: str = _PACKAGE) -> Path:
     Tries the ament index (an installed workspace) first, then the source tree
     (``ros2_ws/src/<package>/<relative>``). Raises InputError if the file is in neither.
     """
-    tried = _share_candidates(relative, package)
+    tried = share_candidates(relative, package)
     for candidate in tried:
         if candidate.exists():
             return candidate.resolve()

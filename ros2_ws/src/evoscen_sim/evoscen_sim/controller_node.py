@@ -36,12 +36,12 @@ from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
 from evoscen_contract import wire
 from evoscen_contract.cdr import decode_table
+from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 from .node_params import run_node, scenario_from_node
 from .road import load_road
 from .view import WorldView
 
-EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 MAX_WARNINGS = 20
 """Refused world messages logged (one line each); the rest are counted silently."""
 END_CHECK_S = 0.1

@@ -1,7 +1,7 @@
 """What happened in a step, as the event dicts of ``/evoscen/events`` (no ROS here).
 
 Each dict has ``name`` (``evoscen/<kind>``), optional ``level`` and ``message``, and typed
-key/values (see ``evoscen_contract.topics.EVENT_KEY_TYPES``). Order within a step is fixed:
+key/values (see ``evoscen_contract.contract.EVENT_KEY_TYPES``; names and kinds are the contract's). Order within a step is fixed:
 collisions, completed lane changes, aborted lane changes, re-entries, off-road, then the
 SUT's exposures (:class:`ExposureMonitor`).
 """
@@ -9,6 +9,10 @@ SUT's exposures (:class:`ExposureMonitor`).
 from __future__ import annotations
 
 import numpy as np
+
+from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FAULT, EVENT_LANE_CHANGE, EVENT_OFF_ROAD,
+                                       EVENT_REENTRY, EVENT_RUN_END, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
+                                       KIND_END, KIND_START, ROLE_SUT)
 
 from .safety import RearAttribution, attribution_steps, dangerous, rear_dangerous, sut_follower_ttc_state, sut_leader_ttc_state
 
@@ -19,23 +23,23 @@ def step_events(world, result) -> list[dict]:  # noqa: ANN001
     common = {"step": result.step, "time_s": result.time_s}
     events: list[dict] = []
     for i, j in result.collisions:
-        events.append({"name": "evoscen/collision", "message": f"vehicles {ids[i]} and {ids[j]} collide",
+        events.append({"name": EVENT_COLLISION, "message": f"vehicles {ids[i]} and {ids[j]} collide",
                        **common, "ids": [int(ids[i]), int(ids[j])]})
     for i, from_lane, to_lane, duration in result.lane_changes_completed:
-        events.append({"name": "evoscen/lane_change", "message": f"vehicle {ids[i]}: lane {from_lane} -> {to_lane}",
+        events.append({"name": EVENT_LANE_CHANGE, "message": f"vehicle {ids[i]}: lane {from_lane} -> {to_lane}",
                        **common, "ids": [int(ids[i])], "duration_s": duration,
                        "direction": 1 if to_lane > from_lane else -1, "from_lane": from_lane, "to_lane": to_lane,
-                       "kind": "completed"})
+                       "kind": KIND_COMPLETED})
     for i, from_lane, to_lane in result.lane_changes_aborted:
-        events.append({"name": "evoscen/lane_change", "level": 1,
+        events.append({"name": EVENT_LANE_CHANGE, "level": 1,
                        "message": f"vehicle {ids[i]}: lane change {from_lane} -> {to_lane} aborted, lane {to_lane} ended",
                        **common, "ids": [int(ids[i])], "direction": 1 if to_lane > from_lane else -1,
-                       "from_lane": from_lane, "to_lane": to_lane, "kind": "aborted"})
+                       "from_lane": from_lane, "to_lane": to_lane, "kind": KIND_ABORTED})
     for i, lane, s in result.reentries:
-        events.append({"name": "evoscen/reentry", "message": f"vehicle {ids[i]} re-entered lane {lane} at s = {s:.1f} m",
+        events.append({"name": EVENT_REENTRY, "message": f"vehicle {ids[i]} re-entered lane {lane} at s = {s:.1f} m",
                        **common, "ids": [int(ids[i])], "to_lane": lane})
     for i in result.off_road:
-        events.append({"name": "evoscen/off_road", "message": f"vehicle {ids[i]} left the road",
+        events.append({"name": EVENT_OFF_ROAD, "message": f"vehicle {ids[i]} left the road",
                        **common, "ids": [int(ids[i])]})
     return events
 
@@ -48,13 +52,13 @@ def has_events(result) -> bool:  # noqa: ANN001
 
 def run_end_event(world, kind: str, message: str) -> dict:  # noqa: ANN001
     """The last event of every run: ``kind`` is completed, aborted or interrupted."""
-    return {"name": "evoscen/run_end", "level": 0 if kind == "completed" else 2, "message": message,
+    return {"name": EVENT_RUN_END, "level": 0 if kind == KIND_COMPLETED else 2, "message": message,
             "step": world.step_index, "time_s": world.time_s, "steps": world.step_index, "kind": kind}
 
 
 def fault_event(world, kind: str, controller: str, misses: int, message: str) -> dict:  # noqa: ANN001
     """A controller fault: ``kind`` deadline (command held) or abort."""
-    return {"name": "evoscen/fault", "level": 1 if kind == "deadline" else 2, "message": message,
+    return {"name": EVENT_FAULT, "level": 1 if kind == KIND_DEADLINE else 2, "message": message,
             "step": world.step_index, "time_s": world.time_s, "controller": controller, "misses": misses,
             "kind": kind}
 
@@ -78,7 +82,7 @@ class ExposureMonitor:
         self.hard_brake_mps2 = evaluation.hard_brake_mps2
         self.rear_conflicts = evaluation.rear_conflicts
         self.rear_attribution_s = evaluation.rear_attribution_s
-        self.sut = int(np.flatnonzero(np.asarray(role) == 1)[0])
+        self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
         self._rear: RearAttribution | None = None
 
@@ -112,10 +116,10 @@ class ExposureMonitor:
                 cause = f"follower {int(w.ids[follower])}: TTC {f_ttc:.2f} s, acceleration {f_accel:.2f} m/s^2"
             if rear:
                 ids.append(int(w.ids[follower]))
-            return [{"name": "evoscen/exposure", "level": 1, "message": f"SUT dangerous state: {cause}",
-                     **common, "ids": ids, "kind": "start", "ttc_s": ttc, "accel_mps2": accel}]
+            return [{"name": EVENT_EXPOSURE, "level": 1, "message": f"SUT dangerous state: {cause}",
+                     **common, "ids": ids, "kind": KIND_START, "ttc_s": ttc, "accel_mps2": accel}]
         if not danger and self.start_step is not None:
             steps, self.start_step = k - self.start_step, None
-            return [{"name": "evoscen/exposure", "level": 0, "message": f"SUT exposure over after {steps} states",
-                     **common, "ids": [int(w.ids[sut])], "kind": "end", "steps": steps}]
+            return [{"name": EVENT_EXPOSURE, "level": 0, "message": f"SUT exposure over after {steps} states",
+                     **common, "ids": [int(w.ids[sut])], "kind": KIND_END, "steps": steps}]
         return []

@@ -9,12 +9,11 @@ import sys
 from collections.abc import Callable
 
 from evoscen_contract import graph
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED
 from evoscen_contract.graph import NodeParameterError
 
 from .config import ScenarioConfig, config_from_dict, config_to_dict
 from .errors import InputError
-
-EXIT_BAD_INPUT, EXIT_INTERRUPTED = 2, 130
 
 
 def scenario_from_node(params: Mapping[str, Any], node_name: str) -> ScenarioConfig:

@@ -11,15 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from evoscen_contract.contract import POLICY_CODES
+
 from .config import ScenarioConfig, mix_counts
 from .models import create_driver
 from .road import RoadModel, load_road
 from .scenario_params import control_params_from_config, reentry_params_from_config, vehicle_params_from_config
 from .spawn import spawn_layout
 from .world import World
-
-POLICY_CODES = {"level0": 0, "mutual": 1, "competitive": 2, "cooperative": 3, "sut": 4, "nilsson": 5, "mobil": 6}
-"""Policy codes of the world table (kept equal to ``evoscen_contract.topics.POLICY_CODES`` by a test)."""
 
 SUT_INDEX = 0
 """The SUT is always vehicle 0 (id 0)."""

@@ -50,6 +50,7 @@ from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
 from evoscen_contract import wire
+from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 from .node_params import run_node, scenario_from_node
 from .events import ExposureMonitor, fault_event, run_end_event, step_events
@@ -57,7 +58,6 @@ from .scenario import SUT_INDEX, build_world
 
 NODE_NAME = T.NODE_SIM
 CONTROLLER_TOPICS = {T.NODE_BV: T.COMMANDS_BV, T.NODE_SUT: T.COMMANDS_SUT}
-EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED = 0, 2, 3, 130
 LEAVE_ANNOUNCE_S = 0.05  # see SimulationNode._leave
 WIRE_EVENTS_PER_STEP = 4
 """At most this many wire ``fault`` events per step (distinct topic/publisher/reason; the rest are counted)."""
@@ -287,17 +287,17 @@ class SimulationNode:
             self.misses[c] += 1
             rows = self._rows_of(c)
             self.lane_change[rows] = 0
-            kind = "abort" if self.misses[c] >= self.max_misses else "deadline"
+            kind = T.KIND_ABORT if self.misses[c] >= self.max_misses else T.KIND_DEADLINE
             what = (f"sent malformed commands or missed deadlines {self.misses[c]} consecutive times"
                     if c in malformed else f"missed {self.misses[c]} consecutive deadline(s) of {timeout_s:g} s")
             text = (f"controller '{c}' {what} at step {step}"
-                    + ("; run aborted" if kind == "abort" else "; holding its last throttle"))
-            if c in malformed and kind == "deadline":
+                    + ("; run aborted" if kind == T.KIND_ABORT else "; holding its last throttle"))
+            if c in malformed and kind == T.KIND_DEADLINE:
                 continue  # its wire fault event says it; the throttle is held
             self._flush_wire_faults()
             self._publish_events([fault_event(self.world, kind, c, self.misses[c], text)])
             self.node.get_logger().warning(text)
-            if kind == "abort":
+            if kind == T.KIND_ABORT:
                 raise RunAborted(text)
         self._flush_wire_faults()
 
@@ -394,12 +394,12 @@ class SimulationNode:
 
     def _rows_of(self, controller: str) -> np.ndarray:
         role = self.world.role
-        return np.flatnonzero(role == 1) if controller == T.NODE_SUT else np.flatnonzero(role == 0)
+        return np.flatnonzero(role == T.ROLE_SUT) if controller == T.NODE_SUT else np.flatnonzero(role == T.ROLE_BV)
 
     def run(self) -> int:
         """The whole run; returns the process exit status."""
         w = self.world
-        end_kind, end_text, status = "interrupted", "run interrupted (SIGINT)", EXIT_INTERRUPTED
+        end_kind, end_text, status = T.KIND_INTERRUPTED, "run interrupted (SIGINT)", EXIT_INTERRUPTED
         loop_start = None
         # an exposure in the initial state goes out with the first events
         self._initial_events = self.exposures.observe(w)
@@ -418,9 +418,9 @@ class SimulationNode:
                 self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
                 # its events go out with the next state (every step, [] if nothing happened)
                 self._stepped = w.step(self.throttle, self.lane_change)
-            end_kind, end_text, status = "completed", f"run completed: {w.step_index} steps", EXIT_OK
+            end_kind, end_text, status = T.KIND_COMPLETED, f"run completed: {w.step_index} steps", EXIT_OK
         except RunAborted as exc:
-            end_kind, end_text, status = "aborted", str(exc), EXIT_FAULT
+            end_kind, end_text, status = T.KIND_ABORTED, str(exc), EXIT_FAULT
             print(f"error: {NODE_NAME}: {exc}", file=sys.stderr)
         except KeyboardInterrupt:
             pass

@@ -39,15 +39,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from evoscen_contract.contract import ROLE_BV, ROLE_SUT  # noqa: F401  (re-exported: the world's role codes)
+
 from .collision import overlapping_pairs
 from .control import ControlParams, DualPidController, dual_pid_one
 from .jit import kernel
 from .neighbors import Neighborhood, compute_neighborhood
 from .vehicle import VehicleParams, bicycle_one
-
-ROLE_BV = 0
-ROLE_SUT = 1
-
 
 @dataclass(frozen=True)
 class ReentryParams:
