@@ -11,8 +11,9 @@ The **[choice]** points the method leaves open, as implemented (all configurable
 * **Dangerous state / exposure** — :mod:`evoscen_sim.safety`: TTC to the vehicle ahead in the
   SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``, or a rear
   conflict attributed to the SUT (``rear_conflicts`` [after_lane_change]: the follower in its
-  path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2``, from the start of
-  a SUT lane change to ``rear_attribution_s`` [5 s] after it); an exposure is a maximal run of
+  path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2`` within
+  ``rear_braking_headway_s`` [2 s] of time headway (``rear_braking`` [within_headway]), from the
+  start of a SUT lane change to ``rear_attribution_s`` [5 s] after it); an exposure is a maximal run of
   dangerous states; one still open at the end of the run counts (flagged ``open_at_end``).
 * **Conflicts** (``safety.conflicts``, reported only) — follower TTC, DRAC of the SUT and of
   its follower (SUMO SSM's definitions; states above ``drac_threshold_mps2`` [3 m/s²]), and
@@ -59,8 +60,8 @@ from typing import Any
 import numpy as np
 
 from evoscen_contract import contract as C
-from evoscen_sim.safety import (attribution_steps, dangerous, drac, exposure_runs, follower_ttc, rear_attributed,
-                                rear_dangerous, sut_follower, sut_leader, sut_ttc)
+from evoscen_sim.safety import (attribution_steps, dangerous, drac, exposure_runs, follower_headway, follower_ttc,
+                                rear_attributed, rear_dangerous, sut_follower, sut_leader, sut_ttc)
 
 from .rundata import EXTERNAL_SUT, RunData
 
@@ -209,16 +210,18 @@ class Series:
         self.follower_accel = np.where(has_f, c["accel"][rows, np.maximum(self.follower, 0)], 0.0)
         self.after_steps = attribution_steps(ev.rear_attribution_s, run.dt_s)
         self.attributed = rear_attributed(c["lane_change"][:, sut], ev.rear_conflicts, self.after_steps)
-        self.rear_conflict = rear_dangerous(self.follower_ttc, self.follower_accel, ev.ttc_threshold_s,
-                                            ev.hard_brake_mps2)
+        _, f_gap = sut_follower(c["s"], c["d"], c["length"], c["width"], sut)
+        f_speed = np.where(has_f, c["speed"][rows, np.maximum(self.follower, 0)], np.nan)
+        self.follower_thw = follower_headway(f_gap, f_speed)
+        self.rear_conflict = rear_dangerous(self.follower_ttc, self.follower_accel, self.follower_thw,
+                                            ev.ttc_threshold_s, ev.hard_brake_mps2, ev.rear_braking,
+                                            ev.rear_braking_headway_s)
         self.rear_danger = self.rear_conflict & self.attributed
         self.danger = self.front_danger | self.rear_danger
         # DRAC of the SUT behind its leader and of the follower behind the SUT (reported only)
         leader, gap = sut_leader(c["s"], c["d"], c["length"], c["width"], sut)
         l_speed = np.where(leader >= 0, c["speed"][rows, np.maximum(leader, 0)], np.nan)
         self.drac_sut = drac(gap, self.speed, l_speed)
-        _, f_gap = sut_follower(c["s"], c["d"], c["length"], c["width"], sut)
-        f_speed = np.where(has_f, c["speed"][rows, np.maximum(self.follower, 0)], np.nan)
         self.drac_follower = drac(f_gap, f_speed, self.speed)
         ds = c["s"] - c["s"][:, sut:sut + 1]
         in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
@@ -293,6 +296,8 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     safety["conflicts"] = {
         "rear_conflicts": ev.rear_conflicts,
         "rear_attribution_s": ev.rear_attribution_s,
+        "rear_braking": ev.rear_braking,
+        "rear_braking_headway_s": ev.rear_braking_headway_s,
         "attribution_states": int(att.sum()),
         "front_dangerous_states": int(series.front_danger.sum()),
         "rear_conflict_states": int(series.rear_conflict.sum()),

@@ -121,6 +121,9 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
         out += ["\n### Conflicts on either side of the SUT (docs/evaluation.md)\n", _table([
             ("rear conflicts", cf["rear_conflicts"], f"which follower conflicts are the SUT's (window "
                                                       f"{cf['rear_attribution_s']:g} s after a SUT lane change)"),
+            ("rear braking", cf.get("rear_braking", "any"),
+             (f"a follower's hard braking counts within {cf['rear_braking_headway_s']:g} s of headway"
+              if cf.get("rear_braking") == "within_headway" else "a follower's hard braking counts at any distance")),
             ("rear conflict states", cf["rear_conflict_states"], "follower in the path: TTC below threshold or hard brake"),
             ("... attributed", cf["rear_conflict_states_attributed"], "of them in the attribution window (dangerous)"),
             ("min follower TTC (s)", cf["min_follower_ttc_s"], "follower onto the SUT (– = never closing)"),

@@ -116,6 +116,31 @@ def test_tailgater_behind_a_lane_keeping_sut_is_not_its_fault():
     assert s["conflicts"]["min_follower_accel_mps2"] == -7.0
 
 
+def test_follower_braking_counts_within_two_seconds_of_headway():
+    """rear_braking (docs/evaluation.md §2): the follower (20 m/s, the SUT 25 m/s: not closing) brakes
+    at -7 m/s² over states 12..14, in the window after the SUT's lane change. Follower at s = 56 m:
+    gap = (100 - 56) - 4.8 = 39.2 m, headway 39.2 / 20 = 1.96 s < 2: a rear conflict. At s = 54 m:
+    41.2 / 20 = 2.06 s: braking for reasons of its own, not the SUT's doing; ``any`` counts both."""
+    def run_with_follower_at(s_f: float) -> RunData:
+        run = rear_run()
+        run.columns["s"][:, 1] = s_f
+        run.columns["speed"][:, 1] = 20.0
+        run.columns["accel"][12:15, 1] = -7.0
+        return run
+
+    near = evaluate(run_with_follower_at(56.0), EV)["safety"]
+    assert [(e["start_state"], e["end_state"]) for e in near["exposure_list"]] == [(12, 15)]
+    assert near["conflicts"]["rear_braking"] == "within_headway" and near["conflicts"]["rear_braking_headway_s"] == 2.0
+    far = evaluate(run_with_follower_at(54.0), EV)["safety"]
+    assert far["exposures"] == 0 and far["conflicts"]["rear_conflict_states"] == 0
+    assert far["conflicts"]["min_follower_accel_mps2"] == -7.0  # still reported
+    anyb = evaluate(run_with_follower_at(54.0), replace(EV, rear_braking="any"))["safety"]
+    assert [(e["start_state"], e["end_state"]) for e in anyb["exposure_list"]] == [(12, 15)]
+    # a longer headway setting takes the 2.06 s follower in
+    wide = evaluate(run_with_follower_at(54.0), replace(EV, rear_braking_headway_s=2.1))["safety"]
+    assert wide["exposures"] == 1
+
+
 def lane_keeper_run() -> RunData:
     """SUT 30 m/s, no lane change, one BV in view in the next lane all along (h = 1)."""
     states = 40
@@ -224,6 +249,31 @@ def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, expected)
     cf = s["conflicts"]
     assert cf["rear_conflict_states"] > 0 and len(cf["lane_change_pet"]) == 1
     assert cf["lane_change_pet"][0]["follower_id"] == 1 and 0.0 < cf["min_pet_s"] < 1.0
+
+
+def _cut_in_ahead_of_a_braking_follower(k):
+    # SUT (28 m/s, lane 2) changes left at once into lane 3, where vehicle 1 drives at 25 m/s
+    # behind it; its body is in vehicle 1's path from state 30; vehicle 1 brakes at full throttle
+    # -1 over steps 32..41, the gap opening all along
+    return [0.0, -1.0 if 32 <= k < 42 else 0.0], [1 if k == 0 else 0, 0]
+
+
+@pytest.mark.parametrize("behind_m, rule, expected", [(30.0, "within_headway", 1), (80.0, "within_headway", 0),
+                                                      (80.0, "any", 1)])
+def test_live_monitor_equals_the_evaluator_on_a_braking_follower(road, behind_m, rule, expected):
+    """The follower's hard braking while the SUT pulls away: 30 m behind at the start (headway
+    ~1.4 s when it brakes) it is a rear conflict, 80 m behind (~3.4 s) only under
+    ``rear_braking: any``; live == evaluator."""
+    ev = replace(EV, rear_braking=rule)
+    world = hand_built_world(road, [300.0, 300.0 - behind_m], [2, 3], [28.0, 25.0], roles=[1, 0])
+    report, live = drive(world, _cut_in_ahead_of_a_braking_follower, 100, ev)
+    s = report["safety"]
+    starts = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "start"]
+    assert s["conflicts"]["min_follower_accel_mps2"] < -EV.hard_brake_mps2  # it did brake hard, in the path
+    assert s["exposures"] == len(starts) == expected
+    assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
+    if expected:
+        assert "follower 1" in starts[0]["message"]
 
 
 @pytest.mark.parametrize("mode", ["all", "after_lane_change"])

@@ -506,6 +506,8 @@ EFFICIENCY_DENSITY_FORMS = ("literal", "normalised")
 ACCEL_ACTIVITY_FORMS = ("smoothed", "literal")
 #: ``evaluation.rear_conflicts`` values (see :mod:`evoscen_sim.safety`).
 REAR_CONFLICT_MODES = ("after_lane_change", "all", "none")
+#: ``evaluation.rear_braking`` values (see :mod:`evoscen_sim.safety`).
+REAR_BRAKING_RULES = ("within_headway", "any")
 #: ``evaluation.undefined_terms`` values.
 UNDEFINED_TERM_RULES = ("exclude", "literal")
 
@@ -577,6 +579,15 @@ class EvaluationConfig:
     rear_attribution_s: float = field(default=5.0, metadata=_NON_NEGATIVE)
     """Attribution window after a SUT lane change ends (s); also the window after the change
     over which its lane-change PET is taken."""
+    rear_braking: str = field(default="within_headway", metadata=_check(_Str(lambda: REAR_BRAKING_RULES)))
+    """Which braking of the follower is a rear conflict: within_headway = braking harder than
+    hard_brake_mps2 while its time headway to the SUT (gap / its speed) is below
+    rear_braking_headway_s (the SUT can have caused it); any = every such braking (round 2's
+    first rule: counted followers braking 30-160 m behind for reasons of their own). See
+    docs/evaluation.md."""
+    rear_braking_headway_s: float = field(default=2.0, metadata=_POSITIVE)
+    """Time headway below which a follower's hard braking is the SUT's to answer for (s; the
+    two-second rule)."""
     drac_threshold_mps2: float = field(default=3.0, metadata=_POSITIVE)
     """Reported counts of states whose DRAC exceeds this (m/s^2; SUMO SSM's default 3)."""
     undefined_terms: str = field(default="exclude", metadata=_check(_Str(lambda: UNDEFINED_TERM_RULES)))

@@ -14,7 +14,8 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FA
                                        EVENT_REENTRY, EVENT_RUN_END, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
                                        KIND_END, KIND_START, ROLE_SUT)
 
-from .safety import RearAttribution, attribution_steps, dangerous, rear_dangerous, sut_follower_ttc_state, sut_leader_ttc_state
+from .safety import (RearAttribution, attribution_steps, dangerous, follower_headway, rear_dangerous,
+                     sut_follower_ttc_state, sut_leader_ttc_state)
 
 
 def step_events(world, result) -> list[dict]:  # noqa: ANN001
@@ -82,6 +83,8 @@ class ExposureMonitor:
         self.hard_brake_mps2 = evaluation.hard_brake_mps2
         self.rear_conflicts = evaluation.rear_conflicts
         self.rear_attribution_s = evaluation.rear_attribution_s
+        self.rear_braking = evaluation.rear_braking
+        self.rear_braking_headway_s = evaluation.rear_braking_headway_s
         self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
         self._rear: RearAttribution | None = None
@@ -101,8 +104,13 @@ class ExposureMonitor:
             follower, f_ttc = sut_follower_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = follower_ttc
             f_ttc, follower = float(f_ttc), int(follower)
             f_accel = float(w.accel[follower]) if follower >= 0 else 0.0
-            rear = bool(rear_dangerous(np.float64(f_ttc), np.float64(f_accel), self.ttc_threshold_s,
-                                       self.hard_brake_mps2))
+            f_thw = np.inf
+            if follower >= 0:  # the arithmetic of safety.sut_follower and follower_headway, bit for bit
+                f_gap = (w.s[sut] - w.s[follower]) - 0.5 * (w.length[follower] + w.length[sut])
+                f_thw = float(follower_headway(np.float64(f_gap), np.float64(w.v[follower])))
+            rear = bool(rear_dangerous(np.float64(f_ttc), np.float64(f_accel), np.float64(f_thw),
+                                       self.ttc_threshold_s, self.hard_brake_mps2, self.rear_braking,
+                                       self.rear_braking_headway_s))
             danger = danger or rear
         if danger and self.start_step is None:
             self.start_step = k

@@ -7,7 +7,8 @@ Definitions, choices and their reasons: docs/evaluation.md. A state is **dangero
 * the SUT's acceleration is below ``-evaluation.hard_brake_mps2`` [-6 m/s²], or
 * **[choice]** (``evaluation.rear_conflicts``) there is a *rear conflict attributed to the
   SUT*: the follower in the SUT's path (:func:`sut_follower`) closes on it with TTC below the
-  threshold or brakes harder than ``hard_brake_mps2``, in a state from the start of a SUT
+  threshold or brakes harder than ``hard_brake_mps2`` within ``rear_braking_headway_s`` [2 s]
+  of time headway behind it (**[choice]** ``evaluation.rear_braking``), in a state from the start of a SUT
   lane change until ``rear_attribution_s`` [5 s] after it ends (``after_lane_change``,
   default; :func:`rear_attributed`), in every state (``all``) or never (``none``: the
   definition before rear conflicts, exactly).
@@ -35,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import REAR_CONFLICT_MODES
+from .config import REAR_BRAKING_RULES, REAR_CONFLICT_MODES
 from .jit import kernel
 from .neighbors import time_to_collision
 
@@ -179,11 +180,28 @@ def drac(gap_m: np.ndarray, speed_mps: np.ndarray, leader_speed_mps: np.ndarray)
     return np.where(np.isfinite(gap_m), out, 0.0)
 
 
-def rear_dangerous(follower_ttc_s: np.ndarray, follower_accel: np.ndarray, ttc_threshold_s: float,
-                   hard_brake_mps2: float) -> np.ndarray:
+def follower_headway(gap_m: np.ndarray, follower_speed_mps: np.ndarray) -> np.ndarray:
+    """The follower's time headway to the SUT (s): gap / its speed while it moves, else ``inf``
+    (also ``inf`` without a follower: ``inf`` gap or ``nan`` speed); negative while the bodies
+    overlap longitudinally."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        thw = np.where(follower_speed_mps > 0.0, gap_m / follower_speed_mps, np.inf)
+    return np.where(np.isfinite(gap_m), thw, np.inf)
+
+
+def rear_dangerous(follower_ttc_s: np.ndarray, follower_accel: np.ndarray, follower_thw_s: np.ndarray,
+                   ttc_threshold_s: float, hard_brake_mps2: float, rear_braking: str = "within_headway",
+                   braking_headway_s: float = 2.0) -> np.ndarray:
     """A conflict at the SUT's rear: the follower in its path closes with TTC below the
-    threshold or brakes harder than ``hard_brake_mps2`` (``follower_accel`` 0 without one)."""
-    return (follower_ttc_s < ttc_threshold_s) | (follower_accel < -hard_brake_mps2)
+    threshold, or brakes harder than ``hard_brake_mps2`` (``follower_accel`` 0 without one) —
+    with ``rear_braking`` ``within_headway`` only while its time headway ``follower_thw_s`` to the
+    SUT is below ``braking_headway_s``, with ``any`` whatever its distance (docs/evaluation.md §2)."""
+    braking = follower_accel < -hard_brake_mps2
+    if rear_braking == "within_headway":
+        braking = braking & (follower_thw_s < braking_headway_s)
+    elif rear_braking != "any":
+        raise ValueError(f"rear_braking {rear_braking!r}: expected one of {', '.join(REAR_BRAKING_RULES)}")
+    return (follower_ttc_s < ttc_threshold_s) | braking
 
 
 
