@@ -185,7 +185,7 @@ def test_facts_are_defined_once() -> None:
 
 def test_share_lookup_is_defined_once() -> None:
     users = [str(p.relative_to(REPO)) for p in _sources() if "get_package_share_directory" in p.read_text(encoding="utf-8")]
-    assert users == ["ros2_ws/src/evoscen_sim/evoscen_sim/config.py"]
+    assert users == ["ros2_ws/src/evoscen_sim/evoscen_sim/share.py"]
 
 
 def test_former_copies_are_the_contract_objects() -> None:

@@ -24,22 +24,38 @@ from dataclasses import dataclass
 import numpy as np
 
 from evoscen_sim.car_following import IdmParams, idm_scalar
+from evoscen_sim.config_schema import Level0Config
 from evoscen_sim.jit import kernel
 from evoscen_sim.neighbors import LEFT, OWN
 
 MERGE_LANE = 0
 
 
+def _idm_from_section(c: Level0Config) -> IdmParams:
+    return IdmParams(
+        time_headway_s=c.time_headway_s,
+        min_gap_m=c.min_gap_m,
+        accel_mps2=c.accel_mps2,
+        comfort_decel_mps2=c.comfort_decel_mps2,
+        delta=c.delta,
+    )
+
+
+_DEFAULTS = Level0Config()
+"""The single source of the level-0 defaults: the scenario's ``level0`` section."""
+
+
 @dataclass(frozen=True)
 class Level0Params:
-    """Level-0 driver parameters (IDM plus the merge rule)."""
+    """Level-0 driver parameters (IDM plus the merge rule): the ``level0`` section, structured
+    for the driver; the defaults are the section's (:class:`evoscen_sim.config.Level0Config`)."""
 
-    idm: IdmParams = IdmParams()
-    desired_speed_range_mps: tuple[float, float] = (27.0, 33.0)
-    merge_min_front_gap_m: float = 8.0
-    merge_min_rear_gap_m: float = 8.0
-    merge_closing_headway_s: float = 1.5
-    merge_stop_margin_m: float = 15.0
+    idm: IdmParams = _idm_from_section(_DEFAULTS)
+    desired_speed_range_mps: tuple[float, float] = _DEFAULTS.desired_speed_mps
+    merge_min_front_gap_m: float = _DEFAULTS.merge_min_front_gap_m
+    merge_min_rear_gap_m: float = _DEFAULTS.merge_min_rear_gap_m
+    merge_closing_headway_s: float = _DEFAULTS.merge_closing_headway_s
+    merge_stop_margin_m: float = _DEFAULTS.merge_stop_margin_m
 
 
 class Level0Driver:
@@ -113,13 +129,7 @@ def level0_params_from_config(cfg) -> Level0Params:
     """Level-0 parameters from a :class:`evoscen_sim.config.ScenarioConfig`."""
     c = cfg.level0
     return Level0Params(
-        idm=IdmParams(
-            time_headway_s=c.time_headway_s,
-            min_gap_m=c.min_gap_m,
-            accel_mps2=c.accel_mps2,
-            comfort_decel_mps2=c.comfort_decel_mps2,
-            delta=c.delta,
-        ),
+        idm=_idm_from_section(c),
         desired_speed_range_mps=tuple(c.desired_speed_mps),
         merge_min_front_gap_m=c.merge_min_front_gap_m,
         merge_min_rear_gap_m=c.merge_min_rear_gap_m,

@@ -6,26 +6,28 @@ to the weights, so the decision rate and the observation scales at run time are 
 the policies were trained with). The shipped file is ``share/evoscen_bv/config/training.yaml``
 (source: ``evoscen_bv/config/training.yaml``), every key commented there.
 
-Validation: unknown keys and values of the wrong type or out of range fail with one line
-naming the file, the key and what is expected.
+Validation: by the scenario configuration's validator (:func:`evoscen_sim.config_load.build`,
+the same checkers, the same one-line errors: file, key, value, what is expected, line);
+unknown keys and values of the wrong type or out of range fail. The parameter dataclasses
+are the kernels' own, so each field's check follows from the type of its default
+(:func:`_check_by_default`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from evoscen_sim.config import share_candidates
-from evoscen_sim.errors import InputError
-from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, check_yaml_depth, read_text_limited
+from evoscen_sim.config_checks import _Bool, _Float, _Int, _Range, _section, _Str
+from evoscen_sim.config_load import Context, build, parse_yaml
+from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, read_text_limited
+from evoscen_sim.share import share_candidates
 
 from .car_following import CarFollowingParams
 from .lane_change import GridParams, RewardParams
+from .profile import PROFILE_NAMES
 from .td3 import TD3Params
 
 STAGES = ("control", "level1", "level2", "competitive", "cooperative")
@@ -72,12 +74,12 @@ class StageSteps:
 class TrainingConfig:
     """Everything the pipeline needs (see the shipped YAML for the meaning of each key)."""
 
-    td3: TD3Params = field(default_factory=TD3Params)
-    car_following: CarFollowingParams = field(default_factory=CarFollowingParams)
-    grid: GridParams = field(default_factory=GridParams)
-    reward: RewardParams = field(default_factory=RewardParams)
-    env: EnvParams = field(default_factory=EnvParams)
-    steps: StageSteps = field(default_factory=StageSteps)
+    td3: TD3Params = _section(TD3Params)
+    car_following: CarFollowingParams = _section(CarFollowingParams)
+    grid: GridParams = _section(GridParams)
+    reward: RewardParams = _section(RewardParams)
+    env: EnvParams = _section(EnvParams)
+    steps: StageSteps = _section(StageSteps)
 
     def to_dict(self) -> dict[str, Any]:
         out = dataclasses.asdict(self)
@@ -92,79 +94,42 @@ def default_config_path() -> Path:
     return next((p for p in candidates[:-1] if p.is_file()), candidates[-1])
 
 
-def _convert(section_type: type, raw: Any, where: str, path: str) -> Any:
-    if raw is None:
-        raw = {}
-    if not isinstance(raw, dict):
-        raise InputError(f"{where}: '{path}' must be a mapping, got {type(raw).__name__}")
-    known = {f.name: f for f in fields(section_type)}
-    unknown = sorted(set(raw) - set(known))
-    if unknown:
-        raise InputError(f"{where}: unknown key '{path}.{unknown[0]}' (expected one of {', '.join(known)})")
-    kwargs = {}
-    for name, value in raw.items():
-        default = getattr(section_type(), name)
-        key = f"{path}.{name}"
-        if isinstance(default, bool):
-            ok = isinstance(value, bool)
-            expected = "a boolean"
-        elif isinstance(default, int):
-            ok = isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= MAX_TRAINING_STEPS
-            expected = f"an integer in [1, {MAX_TRAINING_STEPS}]"
-        elif isinstance(default, float):
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-            expected = "a finite number"
-            value = float(value) if ok else value
-        elif isinstance(default, str):
-            from .profile import PROFILE_NAMES
-
-            ok = value in PROFILE_NAMES
-            expected = "one of " + ", ".join(PROFILE_NAMES)
-        elif isinstance(default, tuple):
-            ok = (isinstance(value, list) and len(value) == 2
-                  and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-                  and 0 < value[0] <= value[1])
-            expected = "a list [lo, hi] of two numbers with 0 < lo <= hi"
-            value = tuple(float(v) for v in value) if ok else value
-        else:  # pragma: no cover - every field is one of the above
-            ok, expected = True, ""
-        if not ok:
-            raise InputError(f"{where}: '{key}' = {value!r}: expected {expected}")
-        kwargs[name] = value
-    return section_type(**kwargs)
+def _check_by_default(f: dataclasses.Field) -> Any:
+    """The checker of a training parameter, by the type of its default: the parameter
+    dataclasses (TD3, car following, grid, rewards) are the kernels' own and declare no
+    checks; every integer is a count of steps or units, every text a BV profile."""
+    default = f.default_factory() if f.default is dataclasses.MISSING else f.default
+    if isinstance(default, bool):
+        return _Bool()
+    if isinstance(default, int):
+        return _Int(1, MAX_TRAINING_STEPS)
+    if isinstance(default, float):
+        return _Float()
+    if isinstance(default, str):
+        return _Str(lambda: PROFILE_NAMES)
+    if isinstance(default, tuple):
+        return _Range(0.0, None, lo_open=True)
+    raise TypeError(f"training parameter {f.name!r}: no check for a default of type {type(default).__name__}")
 
 
 def load_training_config(path: Path | str | None = None) -> TrainingConfig:
     """Read and validate a training YAML (``None``: the shipped one)."""
     path = Path(path) if path is not None else default_config_path()
-    text = read_text_limited(path, str(path), "training config", MAX_CONFIG_BYTES)
-    check_yaml_depth(text, str(path), "training config")
-    try:
-        raw = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark is not None else ""
-        raise InputError(f"{path}{line}: not valid YAML ({getattr(exc, 'problem', exc)})") from None
-    if raw is None:
-        raw = {}
-    if not isinstance(raw, dict):
-        raise InputError(f"{path}: expected a mapping of sections at the top level")
-    sections = {f.name: f for f in fields(TrainingConfig)}
-    unknown = sorted(set(raw) - set(sections))
-    if unknown:
-        raise InputError(f"{path}: unknown section '{unknown[0]}' (expected one of {', '.join(sections)})")
-    kwargs = {name: _convert(type(f.default_factory()), raw.get(name), str(path), name)
-              for name, f in sections.items()}
-    cfg = TrainingConfig(**kwargs)
+    label = str(path)
+    text = read_text_limited(path, label, "training config", MAX_CONFIG_BYTES)
+    raw, lines = parse_yaml(text, label, "training config")
+    ctx = Context(label, lines, top_level="training config sections", default_check=_check_by_default)
+    explicit: set[str] = set()
+    cfg = build(TrainingConfig, raw, "", ctx, explicit)
     for name, value in (("reward.lane_change_penalty", cfg.reward.lane_change_penalty),
                         ("reward.comp_lane_change_penalty", cfg.reward.comp_lane_change_penalty),
                         ("reward.coop_lane_change_penalty", cfg.reward.coop_lane_change_penalty),
                         ("reward.request_penalty", cfg.reward.request_penalty)):
         if value > 0:
-            raise InputError(f"{path}: '{name}' = {value}: expected a number <= 0 (a penalty)")
+            ctx.fail(name, value, "expected a number <= 0 (a penalty)", is_default=name not in explicit)
     for name, value in (("car_following.view_m", cfg.car_following.view_m),
                         ("reward.front_view_m", cfg.reward.front_view_m),
                         ("reward.gain_norm_m2", cfg.reward.gain_norm_m2)):
         if value <= 0:
-            raise InputError(f"{path}: '{name}' = {value}: expected a number > 0")
+            ctx.fail(name, value, "expected a number > 0", is_default=name not in explicit)
     return cfg

@@ -121,7 +121,7 @@ def test_resume_continues_exactly(tmp_path, monkeypatch):
     (["--stage", "control", "--out", "{tmp}/o", "--steps", "0"], "argument --steps: expected a positive integer"),
     (["--stage", "control", "--out", "{tmp}/o", "--seed", "-1"], "argument --seed: expected an integer in [0, 2^32)"),
     (["--stage", "level2", "--out", "{tmp}/o"], "stage level2 needs"),
-    (["--stage", "control", "--out", "{tmp}/o", "--config", "{tmp}/bad.yaml"], "unknown key 'td3.gamma'"),
+    (["--stage", "control", "--out", "{tmp}/o", "--config", "{tmp}/bad.yaml"], "key 'td3.gamma': unknown key"),
     (["--stage", "control", "--out", "{tmp}/o", "--config", "{tmp}/missing.yaml"], "training config not found"),
 ])
 def test_bad_cli_input_is_one_line_and_status_2(tmp_path, args, message):

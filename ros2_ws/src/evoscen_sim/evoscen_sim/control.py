@@ -25,25 +25,10 @@ Gains are per second (the loops are gain-scheduled by speed through ``w / v`` an
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from .config_schema import ControlParams
 from .jit import kernel
-
-
-@dataclass(frozen=True)
-class ControlParams:
-    """Gains of the dual PID (see the module docstring for units)."""
-
-    lat_kp: float = 0.8
-    lat_ki: float = 0.0
-    lat_kd: float = 0.0
-    head_kp: float = 3.0
-    head_ki: float = 0.0
-    head_kd: float = 0.0
-    max_lateral_speed_mps: float = 0.6
-    max_heading_ref_rad: float = 0.2
 
 
 _MIN_SPEED_MPS = 1.0  # below this the speed scheduling uses 1 m/s (avoids division by ~0)

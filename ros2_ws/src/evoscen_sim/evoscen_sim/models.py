@@ -23,6 +23,10 @@ Parameters live in the scenario YAML under ``models.<name>`` and are validated a
 model's parameter dataclass with the same checks and one-line errors as every other key
 (declare fields with :func:`evoscen_sim.config.number`, :func:`~evoscen_sim.config.integer`,
 :func:`~evoscen_sim.config.flag`).
+
+This module is the registry the configuration reads (:data:`SUT_MODELS`, :data:`BV_DRIVERS`,
+the valid ``sut.model`` and ``bvs.driver``); it imports nothing of the configuration, so the
+configuration can import it.
 """
 
 from __future__ import annotations
@@ -38,6 +42,25 @@ from .errors import InputError
 ROLES = ("sut", "bv")
 ENTRY_POINT_GROUPS = {"sut": "evoscen.sut", "bv": "evoscen.bv"}
 BUILTIN_MODULES = ("evoscen_bv.models", "evoscen_sut.models")
+
+#: Background-vehicle driver implementations selectable by ``bvs.driver``, in registration order.
+BV_DRIVERS: tuple[str, ...] = ("level0",)
+#: System-under-test models selectable by ``sut.model``, in registration order.
+SUT_MODELS: tuple[str, ...] = ("level0",)
+
+
+def register_bv_driver(name: str) -> None:
+    """Make ``name`` a valid ``bvs.driver`` (idempotent)."""
+    global BV_DRIVERS
+    if name not in BV_DRIVERS:
+        BV_DRIVERS = (*BV_DRIVERS, name)
+
+
+def register_sut_model(name: str) -> None:
+    """Make ``name`` a valid ``sut.model`` (idempotent)."""
+    global SUT_MODELS
+    if name not in SUT_MODELS:
+        SUT_MODELS = (*SUT_MODELS, name)
 
 
 @dataclass(frozen=True)
@@ -68,21 +91,18 @@ def register_model(spec: ModelSpec) -> None:
     if bad or not spec.roles:
         raise ValueError(f"model {spec.name!r}: roles {spec.roles} must be a non-empty subset of {ROLES}")
     _REGISTRY[spec.name] = spec
-    from . import config
-
     if "sut" in spec.roles:
-        config.register_sut_model(spec.name)
+        register_sut_model(spec.name)
     if "bv" in spec.roles:
-        config.register_bv_driver(spec.name)
+        register_bv_driver(spec.name)
 
 
 def unregister_model(name: str) -> None:
     """Remove a model from the registry (tests; plug-ins are normally permanent)."""
-    from . import config
-
+    global SUT_MODELS, BV_DRIVERS
     _REGISTRY.pop(name, None)
-    config.SUT_MODELS = tuple(n for n in config.SUT_MODELS if n != name)
-    config.BV_DRIVERS = tuple(n for n in config.BV_DRIVERS if n != name)
+    SUT_MODELS = tuple(n for n in SUT_MODELS if n != name)
+    BV_DRIVERS = tuple(n for n in BV_DRIVERS if n != name)
 
 
 def discover() -> None:

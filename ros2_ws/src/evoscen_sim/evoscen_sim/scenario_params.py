@@ -1,4 +1,9 @@
-"""Conversions from the scenario configuration to the simulation core's parameter objects."""
+"""The simulation core's parameter objects of a scenario configuration.
+
+The ``vehicle`` and ``control`` sections *are* the core's :class:`VehicleParams` and
+:class:`ControlParams` (one dataclass each, :mod:`evoscen_sim.config_schema`), so they are
+passed as they are; the re-entry parameters add a core-only field to the ``reentry`` section.
+"""
 
 from __future__ import annotations
 
@@ -8,33 +13,13 @@ from .world import ReentryParams
 
 
 def vehicle_params_from_config(cfg) -> VehicleParams:
-    """:class:`VehicleParams` from ``cfg.vehicle``."""
-    v = cfg.vehicle
-    return VehicleParams(
-        length_m=v.length_m,
-        width_m=v.width_m,
-        wheelbase_m=v.wheelbase_m,
-        max_accel_mps2=v.max_accel_mps2,
-        max_brake_mps2=v.max_brake_mps2,
-        max_speed_mps=v.max_speed_mps,
-        max_steer_rad=v.max_steer_rad,
-        max_steer_rate_radps=v.max_steer_rate_radps,
-    )
+    """:class:`VehicleParams` of the scenario: ``cfg.vehicle`` itself."""
+    return cfg.vehicle
 
 
 def control_params_from_config(cfg) -> ControlParams:
-    """:class:`ControlParams` from ``cfg.control``."""
-    c = cfg.control
-    return ControlParams(
-        lat_kp=c.lat_kp,
-        lat_ki=c.lat_ki,
-        lat_kd=c.lat_kd,
-        head_kp=c.head_kp,
-        head_ki=c.head_ki,
-        head_kd=c.head_kd,
-        max_lateral_speed_mps=c.max_lateral_speed_mps,
-        max_heading_ref_rad=c.max_heading_ref_rad,
-    )
+    """:class:`ControlParams` of the scenario: ``cfg.control`` itself."""
+    return cfg.control
 
 
 def reentry_params_from_config(cfg) -> ReentryParams:

@@ -24,25 +24,10 @@ heading with forward Euler. Limits: acceleration ``[-max_brake, max_accel]``, st
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from .config_schema import VehicleParams
 from .jit import kernel
-
-
-@dataclass(frozen=True)
-class VehicleParams:
-    """Physical limits of a vehicle (the same for every vehicle of a scenario)."""
-
-    length_m: float = 4.8
-    width_m: float = 1.9
-    wheelbase_m: float = 2.9
-    max_accel_mps2: float = 3.0
-    max_brake_mps2: float = 8.0
-    max_speed_mps: float = 40.0
-    max_steer_rad: float = 0.5
-    max_steer_rate_radps: float = 0.5
 
 
 def throttle_to_accel(throttle: np.ndarray, params: VehicleParams) -> np.ndarray:

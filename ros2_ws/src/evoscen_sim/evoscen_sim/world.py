@@ -42,6 +42,7 @@ import numpy as np
 from evoscen_contract.contract import ROLE_BV, ROLE_SUT  # noqa: F401  (re-exported: the world's role codes)
 
 from .collision import overlapping_pairs
+from .config_schema import ReentryConfig
 from .control import ControlParams, DualPidController, dual_pid_one
 from .jit import kernel
 from .neighbors import Neighborhood, compute_neighborhood
@@ -51,8 +52,8 @@ from .vehicle import VehicleParams, bicycle_one
 class ReentryParams:
     """Re-entry policy of vehicles that leave the road (see the module docstring)."""
 
-    ramp_share: float = 0.2
-    min_gap_m: float = 15.0
+    ramp_share: float = ReentryConfig.ramp_share  # the defaults of the ``reentry`` section
+    min_gap_m: float = ReentryConfig.min_gap_m
     speed_match_range_m: float = 100.0
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from evoscen_sim import config as config_module
+from evoscen_sim import models as registry
 from evoscen_sim.config import (
     POLICIES,
     BvConfig,
@@ -160,7 +160,7 @@ def test_unknown_sut_model_lists_valid_choices(scenario_dir):
 
 
 def test_registered_models_become_valid(scenario_dir, monkeypatch):
-    monkeypatch.setattr(config_module, "SUT_MODELS", config_module.SUT_MODELS)
+    monkeypatch.setattr(registry, "SUT_MODELS", registry.SUT_MODELS)
     register_sut_model("my_sut")
     assert load_scenario_config(write(scenario_dir, "sut: {model: my_sut}\n")).sut.model == "my_sut"
     message = load_error(scenario_dir, "sut: {model: my_stu}\n")

@@ -61,7 +61,7 @@ from typing import Any
 
 import numpy as np
 import yaml
-from evoscen_sim import config as _config
+from evoscen_sim import models as _models
 from evoscen_sim.config import integer, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec, get_model, model_names
@@ -89,7 +89,7 @@ and minimum gap)."""
 
 
 def _base_choices() -> tuple[str, ...]:
-    return tuple(n for n in _config.SUT_MODELS if n != NAME)
+    return tuple(n for n in _models.SUT_MODELS if n != NAME)
 
 
 @dataclass(frozen=True)
