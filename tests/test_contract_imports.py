@@ -38,6 +38,7 @@ CORE_MODULES = (
     "evoscen_sim.spawn",
     "evoscen_sim.models",
     "evoscen_sim.scenario",
+    "evoscen_sim.step_loop",
     "evoscen_bv.level0",
     "evoscen_bv.learned",
     "evoscen_bv.models",

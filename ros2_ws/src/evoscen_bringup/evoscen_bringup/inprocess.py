@@ -1,16 +1,12 @@
 """The in-process runner: simulation, drivers and recorder composed in one process.
 
-No middleware: the cores are called directly, in the same order the node graph uses
-(think ROS 2 composition). Step ``k`` (time ``t_k``):
+No middleware: the cores are called directly. The steps are run by the step loop the
+simulation node drives too (:class:`evoscen_sim.step_loop.StepLoop`: state at ``t_k`` out,
+commands in, the world integrates to ``t_{k+1}``, its events out with the next state; after
+the last step the final state and a ``run_end`` event); this runner's port asks the BV
+drivers and the SUT for the commands directly (think ROS 2 composition) and records every
+message.
 
-1. the world at ``t_k`` is published: ``/clock``, ``/evoscen/world``, ``/evoscen/sut/odom``
-   (and, once before the first step, the transient-local ``/evoscen/roster``);
-2. the BV drivers and the SUT answer with their commands, stamped ``t_k``
-   (``/evoscen/commands/bv``, ``/evoscen/commands/sut``);
-3. the world integrates to ``t_{k+1}``; what happened goes out on ``/evoscen/events``
-   stamped ``t_{k+1}`` (every step; empty when nothing happened).
-
-After the last step the final state (``t_N``) is published too, and a ``run_end`` event.
 With recording on, every message goes through :class:`evoscen_eval.recorder.OrderedBag`
 and :class:`~evoscen_eval.recorder.BagRecorder` — what the evaluator node uses — with the
 bytes of :class:`evoscen_contract.messages.WorldMessages` — what the simulation node
@@ -21,16 +17,14 @@ config and seed, and equal to the node graph's.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 
-from evoscen_contract.contract import KIND_COMPLETED, KIND_INTERRUPTED
+from evoscen_contract.contract import KIND_INTERRUPTED
 from evoscen_sim.config import ScenarioConfig
-
-from evoscen_sim.events import ExposureMonitor, run_end_event, step_events
+from evoscen_sim.step_loop import Commands, Port, StepLoop
 
 from .scenario import Scenario, build_scenario
 
@@ -78,20 +72,22 @@ class _Recorder:
         self.bag = OrderedBag(bag, T.CONTRACT)
         self.road = road
         self.markers_every = cfg.recording.markers_every
-        self.last_state_ns: int | None = None
 
-    def world_state(self, world, sut_index: int, *, roster: bool = False) -> None:  # noqa: ANN001
-        T, m, t_ns = self.T, self.msgs, world.time_ns
-        self.last_state_ns = t_ns
-        cols = world.columns()
+    def world(self, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
+        """``/evoscen/world`` (and the roster and map markers) at ``t_ns``; earlier steps are written."""
+        T, m = self.T, self.msgs
         self.bag.flush_before(t_ns)
         if roster:
             self.bag.add(T.ROSTER.name, m.roster(cols, t_ns), t_ns, canonical=True)
             self.bag.add(T.MAP_MARKERS.name, m.map_markers(self.road, t_ns), t_ns)
-        self.bag.add(T.CLOCK.name, m.clock(t_ns), t_ns, canonical=True)
         self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
+
+    def state(self, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001
+        """The rest of the state: ``/clock``, odometry, vehicle markers when due."""
+        T, m = self.T, self.msgs
+        self.bag.add(T.CLOCK.name, m.clock(t_ns), t_ns, canonical=True)
         self.bag.add(T.SUT_ODOM.name, m.odometry(cols, sut_index, t_ns), t_ns, canonical=True)
-        if self.markers_every and world.step_index % self.markers_every == 0:
+        if self.markers_every and step_index % self.markers_every == 0:
             self.bag.add(T.MARKERS.name, m.vehicle_markers(cols, t_ns), t_ns, canonical=True)
 
     def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
@@ -99,6 +95,60 @@ class _Recorder:
 
     def events(self, events: list[dict], t_ns: int) -> None:
         self.bag.add(self.T.EVENTS.name, self.msgs.events(events, t_ns), t_ns)
+
+
+class _InProcessPort(Port):
+    """The in-process runner's side of the step loop: the drivers answer, the bag records.
+
+    Messages go to the bag (``rec``) and/or the evaluator's accumulator (``acc``), either of
+    which may be absent. The bag writes each step in canonical order, so the order of the
+    calls within a step does not show in it.
+    """
+
+    def __init__(self, sc: Scenario, rec: _Recorder | None, acc, summary: RunSummary,  # noqa: ANN001
+                 progress: Callable[[int], None] | None) -> None:
+        self.sc, self.rec, self.acc, self.summary, self.progress = sc, rec, acc, summary, progress
+        self.bv_ids = sc.world.ids[sc.bv_indices]
+        self.sut_ids = sc.world.ids[[sc.sut_index]]
+        self._cols = None  # the columns of the state being sent
+
+    def send_world(self, world, *, roster: bool) -> None:  # noqa: ANN001
+        self._cols = cols = world.columns() if self.rec is not None or self.acc is not None else None
+        if self.rec is not None:
+            self.rec.world(cols, world.time_ns, roster=roster)
+        if self.acc is not None:
+            self.acc.add_world_columns(cols, world.time_ns)
+
+    def send_events(self, events: list[dict], t_ns: int) -> None:
+        if self.rec is not None:
+            self.rec.events(events, t_ns)  # every step, as the sim node
+        if self.acc is not None:
+            self.acc.add_events(events)
+
+    def send_state(self, world) -> None:  # noqa: ANN001
+        if self.rec is not None:
+            self.rec.state(self._cols, self.sc.sut_index, world.step_index, world.time_ns)
+        self._cols = None
+
+    def commands(self, step: int) -> Commands:
+        sc, rec = self.sc, self.rec
+        bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
+        if rec is not None:
+            t_ns = sc.world.time_ns
+            if len(self.bv_ids):  # no BVs, no BV controller: no BV commands (as in the node graph)
+                rec.commands(rec.T.COMMANDS_BV.name, self.bv_ids, bv_thr, bv_lc, t_ns)
+            rec.commands(rec.T.COMMANDS_SUT.name, self.sut_ids, sut_thr, sut_lc, t_ns)
+        throttle, lane_change = sc.assemble(bv_thr, bv_lc, sut_thr, sut_lc)
+        return Commands(throttle, lane_change)
+
+    def stepped(self, step: int, result) -> None:  # noqa: ANN001
+        s = self.summary
+        s.collisions += len(result.collisions)
+        s.lane_changes += len(result.lane_changes_completed)
+        s.reentries += len(result.reentries)
+        s.off_road += len(result.off_road)
+        if self.progress is not None:
+            self.progress(step + 1)
 
 
 def run_inprocess(
@@ -119,8 +169,8 @@ def run_inprocess(
     alone the report is only returned (``RunSummary.report``). Either way the scores are the
     ones an offline evaluation of the bag gives.
 
-    Ctrl-C (KeyboardInterrupt) ends the run after the current step: the bag is finished
-    (``run_end`` event of kind ``interrupted``) and the interrupt is raised again.
+    Ctrl-C (KeyboardInterrupt) ends the run: the bag is finished (``run_end`` event of kind
+    ``interrupted``) and the interrupt is raised again; so is any other error.
     """
     sc = scenario if scenario is not None else build_scenario(cfg)
     n_steps = cfg.steps if steps is None else steps
@@ -133,55 +183,22 @@ def run_inprocess(
         acc = RunAccumulator(expected_states=n_steps + 1)
         if report_dir is not None:  # the lane lines of the report's snapshots
             acc.add_map(world.road)
-    exposures = ExposureMonitor(cfg.evaluation, world.role)
-    initial = exposures.observe(world)  # an exposure in the initial state goes out with the first events
-    bv_ids = world.ids[sc.bv_indices]
-    sut_ids = world.ids[[sc.sut_index]]
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
-    end_kind, end_message = KIND_INTERRUPTED, "run interrupted"
-    t0 = time.perf_counter()
+    loop = StepLoop(world, cfg.evaluation, _InProcessPort(sc, rec, acc, summary, progress),
+                    interrupted_text="run interrupted", finish_on_error=True)
     try:
-        for k in range(n_steps):
-            if rec is not None:
-                rec.world_state(world, sc.sut_index, roster=(k == 0))
-            if acc is not None:
-                acc.add_world_columns(world.columns(), world.time_ns)
-            bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
-            if rec is not None:
-                t_ns = world.time_ns
-                if len(bv_ids):  # no BVs, no BV controller: no BV commands (as in the node graph)
-                    rec.commands(rec.T.COMMANDS_BV.name, bv_ids, bv_thr, bv_lc, t_ns)
-                rec.commands(rec.T.COMMANDS_SUT.name, sut_ids, sut_thr, sut_lc, t_ns)
-            result = sc.apply(bv_thr, bv_lc, sut_thr, sut_lc)
-            summary.collisions += len(result.collisions)
-            summary.lane_changes += len(result.lane_changes_completed)
-            summary.reentries += len(result.reentries)
-            summary.off_road += len(result.off_road)
-            events = initial + step_events(world, result) + exposures.observe(world)
-            initial = []
-            if rec is not None:
-                rec.events(events, world.time_ns)  # every step, as the sim node
-            if acc is not None:
-                acc.add_events(events)
-            if progress is not None:
-                progress(k + 1)
-        end_kind, end_message = KIND_COMPLETED, f"run completed: {world.step_index} steps"
+        outcome = loop.run(n_steps)
     finally:
-        summary.wall_time_s = time.perf_counter() - t0
-        summary.steps = world.step_index
-        summary.sim_time_s = world.time_s
-        end = [run_end_event(world, end_kind, end_message)]
         if rec is not None:
-            if rec.last_state_ns != world.time_ns:  # the final state, unless recorded already (Ctrl-C)
-                rec.world_state(world, sc.sut_index, roster=(world.step_index == 0))
-            rec.events(end, world.time_ns)
             rec.bag.close()
-            summary.message_count = rec.bag.message_count
-            summary.bag_bytes = sum(f.stat().st_size for f in Path(bag_dir).iterdir())
-        if acc is not None:
-            if acc.states == world.step_index:  # the final state, unless collected already (Ctrl-C)
-                acc.add_world_columns(world.columns(), world.time_ns)
-            acc.add_events(end)
+    summary.wall_time_s = outcome.wall_s
+    summary.steps = world.step_index
+    summary.sim_time_s = world.time_s
+    if rec is not None:
+        summary.message_count = rec.bag.message_count
+        summary.bag_bytes = sum(f.stat().st_size for f in Path(bag_dir).iterdir())
+    if outcome.kind == KIND_INTERRUPTED:
+        raise KeyboardInterrupt
     if acc is not None:
         summary.run, summary.report = _report(acc, cfg, report_dir, plots)
     return summary

@@ -52,6 +52,10 @@ class Scenario:
 
     def apply(self, bv_thr, bv_lc, sut_thr, sut_lc):  # noqa: ANN001, ANN201
         """Advance the world with the drivers' commands; returns the world's StepResult."""
+        return self.world.step(*self.assemble(bv_thr, bv_lc, sut_thr, sut_lc))
+
+    def assemble(self, bv_thr, bv_lc, sut_thr, sut_lc) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+        """The drivers' commands as one ``(throttle, lane_change)`` pair in world order."""
         n = self.world.n
         throttle = np.empty(n)
         lane_change = np.empty(n, dtype=np.int64)
@@ -59,7 +63,7 @@ class Scenario:
         lane_change[self.bv_indices] = bv_lc
         throttle[self.sut_index] = sut_thr[0]
         lane_change[self.sut_index] = sut_lc[0]
-        return self.world.step(throttle, lane_change)
+        return throttle, lane_change
 
 
 def build_scenario(cfg: ScenarioConfig) -> Scenario:

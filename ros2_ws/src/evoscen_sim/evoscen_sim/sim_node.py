@@ -2,7 +2,9 @@
 
     python -m evoscen_sim.sim_node --ros-args --params-file sim.yaml   (or: ros2 run evoscen_sim sim_node ...)
 
-Step k: publish ``/clock``, ``/evoscen/world`` and ``/evoscen/sut/odom`` at t_k (and the
+The steps are run by the step loop the in-process runner drives too
+(:class:`evoscen_sim.step_loop.StepLoop`); this node is the loop's port on the graph. Step k:
+publish ``/clock``, ``/evoscen/world`` and ``/evoscen/sut/odom`` at t_k (and the
 latched ``/evoscen/roster`` before the first step); wait until every registered controller
 (``controllers``: the BV node, the SUT node) has answered with commands stamped t_k;
 integrate to t_{k+1}; publish what happened on ``/evoscen/events`` (every step; an empty
@@ -53,8 +55,9 @@ from evoscen_contract import wire
 from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 from .node_params import run_node, scenario_from_node
-from .events import ExposureMonitor, fault_event, run_end_event, step_events
+from .events import fault_event, step_events
 from .scenario import SUT_INDEX, build_world
+from .step_loop import Commands, Port, RunAborted, StepLoop
 
 NODE_NAME = T.NODE_SIM
 CONTROLLER_TOPICS = {T.NODE_BV: T.COMMANDS_BV, T.NODE_SUT: T.COMMANDS_SUT}
@@ -64,13 +67,19 @@ WIRE_EVENTS_PER_STEP = 4
 WIRE_EVENTS_PER_RUN = 200
 """At most this many wire ``fault`` events per run; the last one says that further ones are suppressed."""
 
+EXIT_STATUS = {T.KIND_COMPLETED: EXIT_OK, T.KIND_ABORTED: EXIT_FAULT, T.KIND_INTERRUPTED: EXIT_INTERRUPTED}
+"""The node's exit status for each way a run ends (``run_end`` kind)."""
 
-class RunAborted(RuntimeError):
-    """The run cannot go on (a controller fault or a start-up timeout); the message says why."""
 
+class SimulationNode(Port):
+    """The simulation node (see the module docstring): the graph's port of the step loop.
 
-class SimulationNode:
-    """The simulation node (see the module docstring)."""
+    :class:`~evoscen_sim.step_loop.StepLoop` runs the steps; this node waits for the graph
+    at start-up (:meth:`start`), keeps flow control towards the recorder (:meth:`begin_step`),
+    publishes the states and events on the contract's topics and collects the controllers'
+    commands with deadlines (:meth:`commands`: held throttles, wire and deadline faults,
+    aborts).
+    """
 
     def __init__(self) -> None:
         self.node = graph.make_node(NODE_NAME)
@@ -96,7 +105,7 @@ class SimulationNode:
         self.ready_file = p("ready_file", "", str, expected="expected a file path or ''")
 
         self.world = build_world(self.cfg)
-        self.exposures = ExposureMonitor(self.cfg.evaluation, self.world.role)
+        self.loop = StepLoop(self.world, self.cfg.evaluation, self, interrupted_text="run interrupted (SIGINT)")
         self.msgs = WorldMessages(self.cfg.dt_s)
         n = self.node
         self.pub = {spec.name: graph.publisher(n, spec)
@@ -116,9 +125,7 @@ class SimulationNode:
         self.throttle = np.zeros(self.world.n)
         self.lane_change = np.zeros(self.world.n, dtype=np.int64)
         self.misses = dict.fromkeys(self.controllers, 0)
-        self._published_ns: int | None = None
-        self._stepped = None  # the result of the last step, until its events go out with the next state
-        self._initial_events: list[dict] = []
+        self._cols = None  # the columns of the state being published
         # Ctrl-C / SIGTERM take effect at step boundaries (never between two publications of a step)
         self._interrupted = False
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -137,7 +144,7 @@ class SimulationNode:
         world = copy.deepcopy(self.world)
         result = world.step(np.zeros(world.n), np.zeros(world.n, dtype=np.int64))
         step_events(world, result)
-        copy.deepcopy(self.exposures).observe(world)
+        copy.deepcopy(self.loop.exposures).observe(world)
         type(self.msgs)(self.cfg.dt_s).vehicle_markers(world.columns(), world.time_ns)  # a spare encoder
 
     def _on_signal(self, signum, frame) -> None:  # noqa: ANN001
@@ -151,32 +158,32 @@ class SimulationNode:
     def _publish(self, spec: T.TopicSpec, data: bytes) -> None:
         self.pub[spec.name].publish(data)
 
-    def _publish_state(self, *, roster: bool) -> None:
-        """The world at t_k first (what the controllers wait for), then the rest of the step.
+    def send_world(self, world, *, roster: bool) -> None:  # noqa: ANN001
+        """The world at t_k first: what the controllers wait for.
 
-        The rest — the events of the step that led to t_k (worked out only now, while the
-        controllers compute), ``/clock``, odometry, markers — is off the critical path. The
-        bag's order does not depend on the publishing order: the recorder writes each step in
-        canonical order.
+        The rest — the events of the step that led to t_k (worked out by the loop only now,
+        while the controllers compute), ``/clock``, odometry, markers (:meth:`send_state`) —
+        is off the critical path. The bag's order does not depend on the publishing order:
+        the recorder writes each step in canonical order.
         """
-        w, m, t_ns = self.world, self.msgs, self.world.time_ns
-        cols = w.columns()
-        self._published_ns = t_ns
+        m, t_ns = self.msgs, world.time_ns
+        self._cols = cols = world.columns()
         self._publish(T.WORLD, m.world(cols, t_ns))
         if roster:
             self._publish(T.ROSTER, m.roster(cols, t_ns))
-            self._publish(T.MAP_MARKERS, m.map_markers(w.road, t_ns))
-        if self._stepped is not None:  # what happened in the step that led to t_k
-            self._publish_events(self._initial_events + step_events(w, self._stepped) + self.exposures.observe(w))
-            self._stepped, self._initial_events = None, []
+            self._publish(T.MAP_MARKERS, m.map_markers(world.road, t_ns))
+
+    def send_events(self, events: list[dict], t_ns: int) -> None:
+        self._publish(T.EVENTS, self.msgs.events(events, t_ns))
+
+    def send_state(self, world) -> None:  # noqa: ANN001
+        m, t_ns, cols = self.msgs, world.time_ns, self._cols
+        self._cols = None
         self._publish(T.CLOCK, m.clock(t_ns))
         self._publish(T.SUT_ODOM, m.odometry(cols, SUT_INDEX, t_ns))
         every = self.cfg.recording.markers_every
-        if every and w.step_index % every == 0:
+        if every and world.step_index % every == 0:
             self._publish(T.MARKERS, m.vehicle_markers(cols, t_ns))
-
-    def _publish_events(self, events: list[dict]) -> None:
-        self._publish(T.EVENTS, self.msgs.events(events, self.world.time_ns))
 
     # ------------------------------------------------------------------ start-up
     def _unmatched(self) -> list[str]:
@@ -255,7 +262,25 @@ class SimulationNode:
                             for name in [*self.pub, *(s.topic_name for s in self.subs.values())]))
 
     # ------------------------------------------------------------------ lockstep
-    def _collect_commands(self, step: int, timeout_s: float) -> None:
+    def start(self) -> None:
+        """Start-up: wait for the graph, then create ``ready_file``."""
+        self.wait_for_graph()
+        if self.ready_file:
+            with open(self.ready_file, "w", encoding="utf-8"):
+                pass
+
+    def begin_step(self, step: int) -> None:
+        """Ctrl-C takes effect here; flow control every ``recorder_lag_steps`` steps."""
+        self._check_interrupt()
+        lag = self.recorder_lag_steps
+        if lag and step and step % lag == 0:
+            self._wait_acked()
+
+    def commands(self, step: int) -> Commands:
+        """The controllers' commands for ``step`` (the first step waits up to ``startup_timeout_s``)."""
+        return self._collect_commands(step, self.startup_timeout_s if step == 0 else self.deadline_s)
+
+    def _collect_commands(self, step: int, timeout_s: float) -> Commands:
         """Take the commands stamped for this step from every controller (or count a miss).
 
         A message counts only if it comes from the controller's registered publisher and
@@ -264,10 +289,14 @@ class SimulationNode:
         malformed, the controller's vehicles hold their last throttle (no lane change), as on a
         missed deadline. Everything else — foreign publishers, wrong stamps, garbage — is
         ignored for control and reported as a ``fault`` event (kind ``wire``).
+
+        The fault events come back with the commands, one ``/evoscen/events`` message per
+        list, in the order found; after ``max_misses`` misses in a row, with ``abort`` set.
         """
         t_ns = self.world.time_ns
         pending = set(self.controllers)
         malformed: set[str] = set()
+        events: list[list[dict]] = []
         deadline = time.monotonic() + timeout_s
         while True:
             for c in self.controllers:
@@ -294,12 +323,13 @@ class SimulationNode:
                     + ("; run aborted" if kind == T.KIND_ABORT else "; holding its last throttle"))
             if c in malformed and kind == T.KIND_DEADLINE:
                 continue  # its wire fault event says it; the throttle is held
-            self._flush_wire_faults()
-            self._publish_events([fault_event(self.world, kind, c, self.misses[c], text)])
+            self._flush_wire_faults(events)
+            events.append([fault_event(self.world, kind, c, self.misses[c], text)])
             self.node.get_logger().warning(text)
             if kind == T.KIND_ABORT:
-                raise RunAborted(text)
-        self._flush_wire_faults()
+                return Commands(self.throttle, self.lane_change, events, abort=text)
+        self._flush_wire_faults(events)
+        return Commands(self.throttle, self.lane_change, events)
 
     def _one_command(self, c: str, topic: str, data: bytes, gid: bytes | None, t_ns: int,
                      pending: set, malformed: set) -> None:
@@ -343,8 +373,11 @@ class SimulationNode:
             self._wire_logged.add(key)
             self.node.get_logger().warning(f"{topic}: message from {publisher} refused: {reason}")
 
-    def _flush_wire_faults(self) -> None:
-        """This step's wire faults as ``fault`` events (rate-limited: WIRE_EVENTS_PER_STEP/PER_RUN)."""
+    def _flush_wire_faults(self, out: list[list[dict]]) -> None:
+        """This step's wire faults as ``fault`` events (rate-limited: WIRE_EVENTS_PER_STEP/PER_RUN).
+
+        The events, if any, are appended to ``out`` as one ``/evoscen/events`` message.
+        """
         if not self._wire_faults:
             return
         faults, self._wire_faults = list(self._wire_faults.items()), {}
@@ -369,7 +402,7 @@ class SimulationNode:
             events.append(ev)
             self._wire_events += 1
         if events:
-            self._publish_events(events)
+            out.append(events)
 
     def _wait_acked(self) -> None:
         """Flow control: until every matched reader has acknowledged every sample published.
@@ -397,43 +430,17 @@ class SimulationNode:
         return np.flatnonzero(role == T.ROLE_SUT) if controller == T.NODE_SUT else np.flatnonzero(role == T.ROLE_BV)
 
     def run(self) -> int:
-        """The whole run; returns the process exit status."""
-        w = self.world
-        end_kind, end_text, status = T.KIND_INTERRUPTED, "run interrupted (SIGINT)", EXIT_INTERRUPTED
-        loop_start = None
-        # an exposure in the initial state goes out with the first events
-        self._initial_events = self.exposures.observe(w)
-        try:
-            self.wait_for_graph()
-            if self.ready_file:
-                with open(self.ready_file, "w", encoding="utf-8"):
-                    pass
-            loop_start = time.perf_counter()
-            lag = self.recorder_lag_steps
-            for k in range(self.cfg.steps):
-                self._check_interrupt()
-                if lag and k and k % lag == 0:
-                    self._wait_acked()
-                self._publish_state(roster=(k == 0))
-                self._collect_commands(k, self.startup_timeout_s if k == 0 else self.deadline_s)
-                # its events go out with the next state (every step, [] if nothing happened)
-                self._stepped = w.step(self.throttle, self.lane_change)
-            end_kind, end_text, status = T.KIND_COMPLETED, f"run completed: {w.step_index} steps", EXIT_OK
-        except RunAborted as exc:
-            end_kind, end_text, status = T.KIND_ABORTED, str(exc), EXIT_FAULT
-            print(f"error: {NODE_NAME}: {exc}", file=sys.stderr)
-        except KeyboardInterrupt:
-            pass
-        if loop_start is not None:
-            self._report(w.step_index, time.perf_counter() - loop_start)
-        if w.time_ns != self._published_ns:  # the final state, unless it went out already (abort, Ctrl-C)
-            self._publish_state(roster=(w.step_index == 0))
-        self._publish_events([run_end_event(w, end_kind, end_text)])
+        """The whole run (:class:`~evoscen_sim.step_loop.StepLoop` with this port); returns the exit status."""
+        outcome = self.loop.run(self.cfg.steps)
+        if outcome.kind == T.KIND_ABORTED:
+            print(f"error: {NODE_NAME}: {outcome.text}", file=sys.stderr)
+        if outcome.wall_s is not None:  # start-up was over
+            self._report(outcome.steps, outcome.wall_s)
         end = time.monotonic() + 1.0  # a dead reader would hold this for the whole timeout: 1 s in all
         for pub in self.pub.values():
             pub.wait_for_all_acked(graph.duration(max(end - time.monotonic(), 0.0)))
         self._leave()
-        return status
+        return EXIT_STATUS[outcome.kind]
 
     def _leave(self) -> None:
         """Withdraw our publishers, so that peers see us gone at once.
