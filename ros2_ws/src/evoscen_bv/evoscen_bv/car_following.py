@@ -198,12 +198,25 @@ def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right
 @kernel
 def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
                     d_right, d_left, present, merge_stop_s):
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    return _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present, merge_stop_s, occ,
+                            _ALL_SEEN, 0)
+
+
+_ALL_SEEN = np.zeros((0, 0, 0), dtype=np.int64)
+"""``seen`` of :func:`_nearest_leaders` when every vehicle is perceived (``full = 0``: never read)."""
+
+
+@kernel
+def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,  # noqa: ANN001, ANN202
+                     merge_stop_s, occ, seen, full):
+    """:func:`leaders` from the occupancy ``occ`` (:func:`_occupancy`), over the perceived vehicles
+    only (``seen[k, j, q] >= full``) when ``full > 0`` (the ``driver`` profile), over all when 0."""
     m = idx.shape[0]
     n, num_lanes = present.shape
     gap = np.full((m, 2), np.inf)
     vl = np.full((m, 2), np.nan)
     al = np.full((m, 2), np.nan)
-    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
     for k in range(m):
         i = idx[k]
         second = lane[i]
@@ -220,8 +233,8 @@ def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length
                 break
             best = -1
             best_ds = np.inf
-            for j in range(n):  # the nearest vehicle ahead occupying lane q
-                if j == i or not occ[j, q]:
+            for j in range(n):  # the nearest (perceived) vehicle ahead occupying lane q
+                if j == i or not occ[j, q] or (full > 0 and seen[k, j, q] < full):
                     continue
                 ds = s[j] - s[i]
                 if ds < 0.0 or (ds == 0.0 and j < i) or ds >= best_ds:
@@ -412,8 +425,8 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
                         seen[k, j, q] = min(seen[k, j, q] + 1, full)
                     else:
                         seen[k, j, q] = 0
-        gap_a, vl_a, al_a = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
-                                            d_right, d_left, present, merge_stop_s)
+        gap_a, vl_a, al_a = _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,
+                                             merge_stop_s, occ, _ALL_SEEN, 0)
         for k in range(m):
             need = 0.0
             for slot in range(2):
@@ -426,58 +439,14 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
                 em_count[k] = min(em_count[k] + 1, full)
             else:
                 em_count[k] = 0
-    gap_all, vl_all, al_all = _perceived_leaders_kernel(idx, s, v, a, lane, lane_change, target_lane, length, present,
-                                                        merge_stop_s, occ, seen, full)
+    gap_all, vl_all, al_all = _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,
+                                               merge_stop_s, occ, seen, full)
     em_on = np.empty(m, dtype=np.bool_)
     for k in range(m):
         em_on[k] = em_count[k] >= full
     return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
                                   v_max, a_max, speed_gain, em_trigger, em_margin, max_accel, max_brake,
                                   W1, b1, W2, b2, W3, b3, max_action, em_on, cap_frac)
-
-
-@kernel
-def _perceived_leaders_kernel(idx, s, v, a, lane, lane_change, target_lane, length, present,  # noqa: ANN001, ANN202
-                              merge_stop_s, occ, seen, full):
-    """:func:`_leaders_kernel` over the perceived vehicles only (``seen[k, j, q] >= full``)."""
-    m = idx.shape[0]
-    n, num_lanes = present.shape
-    gap = np.full((m, 2), np.inf)
-    vl = np.full((m, 2), np.nan)
-    al = np.full((m, 2), np.nan)
-    for k in range(m):
-        i = idx[k]
-        second = lane[i]
-        if lane_change[i] != 0:
-            second = target_lane[i]
-        else:
-            for q in (lane[i] - 1, lane[i] + 1):
-                if 0 <= q < num_lanes and occ[i, q]:
-                    second = q
-        for slot in range(2):
-            q = lane[i] if slot == 0 else second
-            if slot == 1 and q == lane[i]:
-                gap[k, 1], vl[k, 1], al[k, 1] = gap[k, 0], vl[k, 0], al[k, 0]
-                break
-            best = -1
-            best_ds = np.inf
-            for j in range(n):
-                if j == i or not occ[j, q] or seen[k, j, q] < full:
-                    continue
-                ds = s[j] - s[i]
-                if ds < 0.0 or (ds == 0.0 and j < i) or ds >= best_ds:
-                    continue
-                best_ds = ds
-                best = j
-            if best >= 0:
-                gap[k, slot] = best_ds - 0.5 * (length[i] + length[best])
-                vl[k, slot] = v[best]
-                al[k, slot] = a[best]
-            if slot == 0 and lane[i] == 0 and lane_change[i] == 0:
-                end_gap = merge_stop_s - (s[i] + 0.5 * length[i])
-                if end_gap < gap[k, 0]:
-                    gap[k, 0], vl[k, 0], al[k, 0] = end_gap, 0.0, 0.0
-    return gap, vl, al
 
 
 @kernel
