@@ -25,7 +25,6 @@ from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
-from experiment_intelligence import distinct_names, positive_int
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -45,12 +44,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds_with_bar, write_csv
+    from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
+                                             run_rounds_with_bar, set_up, write_csv)
     from evoscen_eval.metrics import complexity_score
     from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.errors import InputError
 
-    try:
+    def build() -> tuple[list[str], list[Round], int, int]:
         n_rounds = positive_int("--rounds", args.rounds)
         first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
@@ -64,13 +63,12 @@ def main(argv: list[str] | None = None) -> int:
                 if args.mix is not None:
                     overrides["bvs.mix"] = args.mix
                 rounds.append(Round(name, load_scenario_config(args.config, overrides)))
-        args.out.mkdir(parents=True, exist_ok=True)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        return scenarios, rounds, jobs, n_rounds
+
+    built = set_up(args.out, build)
+    if built is None:
         return EXIT_BAD_INPUT
-    except OSError as exc:
-        print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    scenarios, rounds, jobs, n_rounds = built
 
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="complexity")
     if results is None:

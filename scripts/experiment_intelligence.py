@@ -41,35 +41,13 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def positive_int(name: str, text: str, lo: int = 1) -> int:
-    from evoscen_sim.errors import InputError
-
-    try:
-        value = int(text)
-    except ValueError:
-        value = lo - 1
-    if value < lo:
-        raise InputError(f"{name} = {text!r}: expected an integer >= {lo}")
-    return value
-
-
-def distinct_names(option: str, text: str, what: str = "names") -> list[str]:
-    """The comma-separated ``text`` of ``option`` as a list: non-empty, no name twice (else a one-line InputError)."""
-    from evoscen_sim.errors import InputError
-
-    names = [s.strip() for s in text.split(",") if s.strip()]
-    if not names or len(set(names)) != len(names):
-        raise InputError(f"{option} {text!r}: expected distinct comma-separated {what}")
-    return names
-
-
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds_with_bar, write_csv
+    from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
+                                             run_rounds_with_bar, set_up, write_csv)
     from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.errors import InputError
 
-    try:
+    def build() -> tuple[list[str], list[Round], int, int, int]:
         seeds = positive_int("--seeds", args.seeds)
         first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
@@ -81,13 +59,12 @@ def main(argv: list[str] | None = None) -> int:
                                                          "bvs.mix": args.mix, "bvs.count": args.bvs,
                                                          "recording.enabled": "false"})
                 rounds.append(Round(sut, cfg))
-        args.out.mkdir(parents=True, exist_ok=True)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        return suts, rounds, jobs, seeds, first
+
+    built = set_up(args.out, build)
+    if built is None:
         return EXIT_BAD_INPUT
-    except OSError as exc:
-        print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    suts, rounds, jobs, seeds, first = built
 
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="intelligence")
     if results is None:

@@ -29,7 +29,6 @@ from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
-from experiment_intelligence import distinct_names, positive_int
 
 INTACT = "intact"
 
@@ -51,13 +50,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear report
     args = parse_args(argv)
-    from evoscen_bringup.experiments import Round, fmt_ci, markdown_table, mean_ci, run_rounds_with_bar, write_csv
+    from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
+                                             run_rounds_with_bar, set_up, write_csv)
     from evoscen_bringup.sensitivity import SCORES, mutation_score, paired, score_of, seeds_needed
     from evoscen_sim.config import load_scenario_config
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY, mutant_overrides
 
-    try:
+    Built = tuple[list[str], list[str], list[str], list[Round], dict[str, tuple[str, str, str]], int, int, int]
+
+    def build() -> Built:
         seeds = positive_int("--seeds", args.seeds)
         first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
@@ -84,13 +86,12 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
                     rnd = Round(f"{scenario}--{base}--{variant}", load_scenario_config(args.config, overrides))
                     rounds.append(rnd)
                     meta[rnd.key] = (scenario, base, variant)
-        args.out.mkdir(parents=True, exist_ok=True)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        return bases, scenarios, mutants, rounds, meta, jobs, seeds, first
+
+    built = set_up(args.out, build)
+    if built is None:
         return EXIT_BAD_INPUT
-    except OSError as exc:
-        print(f"error: --out {args.out}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    bases, scenarios, mutants, rounds, meta, jobs, seeds, first = built
 
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity")
     if results is None:

@@ -25,7 +25,7 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import yaml
@@ -120,6 +120,54 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
             if progress is not None:
                 progress(len(results), total, _brief(result))
     return results
+
+
+T = TypeVar("T")
+
+
+def positive_int(name: str, text: str, lo: int = 1) -> int:
+    """The integer ``text`` of option ``name``, at least ``lo`` (else a one-line InputError)."""
+    from evoscen_sim.errors import InputError
+
+    try:
+        value = int(text)
+    except ValueError:
+        value = lo - 1
+    if value < lo:
+        raise InputError(f"{name} = {text!r}: expected an integer >= {lo}")
+    return value
+
+
+def distinct_names(option: str, text: str, what: str = "names") -> list[str]:
+    """The comma-separated ``text`` of ``option`` as a list: non-empty, no name twice (else a one-line InputError)."""
+    from evoscen_sim.errors import InputError
+
+    names = [s.strip() for s in text.split(",") if s.strip()]
+    if not names or len(set(names)) != len(names):
+        raise InputError(f"{option} {text!r}: expected distinct comma-separated {what}")
+    return names
+
+
+def set_up(out_dir: Path, build: Callable[[], T]) -> T | None:
+    """An experiment's set-up: ``build()`` (argument checks, the rounds), then ``out_dir`` created.
+
+    None after a one-line error on stderr (the caller exits with ``EXIT_BAD_INPUT``): an
+    :class:`evoscen_sim.errors.InputError`, or an ``OSError`` (``out_dir`` cannot be created).
+    """
+    import sys
+
+    from evoscen_sim.errors import InputError
+
+    try:
+        built = build()
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return None
+    except OSError as exc:
+        print(f"error: --out {out_dir}: cannot create: {exc.strerror or exc}", file=sys.stderr)
+        return None
+    return built
 
 
 def _saved_result(path: Path) -> dict[str, Any] | None:
