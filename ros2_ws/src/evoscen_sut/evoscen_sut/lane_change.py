@@ -28,9 +28,11 @@ from .kernel_math import maximum, minimum
 from .krauss import follow_speed_scalar, next_speed_scalar
 
 
+@lru_cache(maxsize=128)
 def kernel_params(tuple_type: type, params: Any) -> tuple:
     """``params`` (a frozen parameter dataclass) as ``tuple_type``, a named tuple with (some of)
-    its field names, for compiled kernels: numbers as float, flags as bool."""
+    its field names, for compiled kernels: numbers as float, flags as bool (cached: one tuple per
+    parameter set, as the models call it every decision)."""
     values = (getattr(params, name) for name in tuple_type._fields)
     return tuple_type(*(v if isinstance(v, bool) else float(v) for v in values))
 

@@ -180,11 +180,6 @@ assert MobilKernelParams._fields == tuple(f.name for f in fields(MobilParams))
 
 
 @lru_cache(maxsize=64)
-def _kernel_params(p: MobilParams) -> MobilKernelParams:
-    return kernel_params(MobilKernelParams, p)
-
-
-@lru_cache(maxsize=64)
 def conflict_rule(p: MobilParams) -> ConflictRule:
     """MOBIL's pair test of :func:`evoscen_sut.conflicts.resolve_conflicts`: the rear vehicle's IDM
     acceleration (desired speed ``v0``) behind the front one is below ``−b_safe``."""
@@ -378,7 +373,7 @@ def evaluate(view: Any, vehicles: np.ndarray, params: MobilParams) -> MobilEvalu
     """MOBIL's accelerations, incentives and safety criteria (see the module docstring)."""
     idx = np.asarray(vehicles, dtype=np.int64)
     exists, acc_ego, gain_n, gain_o, at_n, inc, safe, mandatory = _mobil_kernel(
-        idx, *_view_args(view), view.road.kernel_tables(), _kernel_params(params))
+        idx, *_view_args(view), view.road.kernel_tables(), kernel_params(MobilKernelParams, params))
     return MobilEvaluation(exists=exists, acc_ego=acc_ego, gain_new_follower=gain_n, gain_old_follower=gain_o,
                            acc_new_follower=at_n, incentive=inc, safe=safe, mandatory=mandatory)
 
@@ -399,7 +394,7 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: MobilParams) -
     return _mobil_decision_kernel(idx, view.s, view.d, view.v, view.length, view.lane, view.target_lane,
                                   view.lane_change, view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps,
                                   nb.gap_rear_m, nb.follower, nb.follower_speed_mps, view.road.kernel_tables(),
-                                  _kernel_params(params), conflict_rule(params))
+                                  kernel_params(MobilKernelParams, params), conflict_rule(params))
 
 
 make_driver = lane_change_factory(lane_change_decision, MobilParams)

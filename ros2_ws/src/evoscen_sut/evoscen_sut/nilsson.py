@@ -184,11 +184,6 @@ assert NilssonKernelParams._fields == tuple(f.name for f in fields(NilssonParams
 
 
 @lru_cache(maxsize=64)
-def _kernel_params(p: NilssonParams) -> NilssonKernelParams:
-    return kernel_params(NilssonKernelParams, p)
-
-
-@lru_cache(maxsize=64)
 def conflict_rule(p: NilssonParams) -> ConflictRule:
     """Nilsson's pair test of :func:`evoscen_sut.conflicts.resolve_conflicts`: the safety distance
     ``safety_length_factor · L + safety_closing_headway_s · max(closing speed, 0)``."""
@@ -348,7 +343,7 @@ def evaluate(view: Any, vehicles: np.ndarray, params: NilssonParams) -> NilssonE
     idx = np.asarray(vehicles, dtype=np.int64)
     utility, speed, time_gap, score, target, step_safe, own_candidate = _nilsson_kernel(
         idx, view.s, view.v, view.length, view.lane, view.target_lane, view.road.kernel_tables(),
-        _kernel_params(params))
+        kernel_params(NilssonKernelParams, params))
     return NilssonEvaluation(utility=utility, speed=speed, time_gap=time_gap, score=score, target=target,
                              step_safe=step_safe, own_candidate=own_candidate)
 
@@ -366,7 +361,7 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: NilssonParams)
     if idx.size == 0:
         return np.zeros(0, dtype=np.int64)
     return _decision_kernel(idx, view.s, view.d, view.v, view.length, view.lane, view.target_lane,
-                            view.lane_change, view.road.kernel_tables(), _kernel_params(params),
+                            view.lane_change, view.road.kernel_tables(), kernel_params(NilssonKernelParams, params),
                             conflict_rule(params))
 
 
