@@ -18,9 +18,8 @@ from dataclasses import fields, replace
 
 import numpy as np
 import pytest
-from evoscen_bringup.scenario import build_scenario
+from evoscen_bringup.testing import model_scenario, run_checked
 from evoscen_sim.config import load_scenario_config
-from evoscen_sim.errors import InputError
 from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
 from evoscen_sim.vehicle import VehicleParams
@@ -255,51 +254,17 @@ def test_merge_in_closed_loop(road) -> None:
 
 
 # ------------------------------------------------------------------ scenario runs
-def _scenario(role: str, seed: int = 0):
-    key = "sut.model" if role == "sut" else "bvs.driver"
-    try:
-        cfg = load_scenario_config(overrides={"bvs.driver": "level0", key: "nilsson", "recording.enabled": False, "seed": seed})
-        sc = build_scenario(cfg)
-    except InputError:  # not registered yet: build the driver with the model's factory
-        cfg = load_scenario_config(overrides={"recording.enabled": False, "seed": seed, "bvs.driver": "level0"})
-        sc = build_scenario(cfg)
-        rng = np.random.default_rng(seed + 1)
-        if role == "sut":
-            sc.sut = nilsson.SPEC.factory(np.array([sc.sut_index]), NilssonParams(), cfg, rng)
-        else:
-            sc.bv_driver = nilsson.SPEC.factory(sc.bv_indices, NilssonParams(), cfg, rng)
-    return sc
-
-
-def _run(sc, steps: int, driven: np.ndarray) -> tuple[list, int]:
-    w = sc.world
-    collisions, changes = [], 0
-    for _ in range(steps):
-        bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
-        req = np.empty(w.n, dtype=np.int64)
-        req[sc.bv_indices] = bv_lc
-        req[sc.sut_index] = sut_lc[0]
-        assert set(np.unique(req[driven])) <= {-1, 0, 1}
-        moving = driven[req[driven] != 0]
-        assert np.all(w.road.lane_exists(w.lane[moving] + req[moving], w.s[moving])), "request to a non-existent lane"
-        assert np.all(w.lane_change[moving] == 0), "request while changing lanes"
-        r = sc.apply(bv_thr, bv_lc, sut_thr, sut_lc)
-        collisions += r.collisions
-        changes += sum(1 for c in r.lane_changes_completed if c[0] in set(driven.tolist()))
-    return collisions, changes
-
-
 def test_default_scenario_3000_steps_as_sut() -> None:
-    sc = _scenario("sut")
-    collisions, changes = _run(sc, 3000, np.array([sc.sut_index]))
+    sc = model_scenario(nilsson.SPEC, NilssonParams(), "sut")
+    collisions, changes = run_checked(sc, 3000, np.array([sc.sut_index]))
     assert not [c for c in collisions if sc.sut_index in c], collisions
     assert changes >= 1
     assert np.all(np.isfinite(sc.world.v))
 
 
 def test_default_scenario_as_bv_driver() -> None:
-    sc = _scenario("bv")
-    _collisions, changes = _run(sc, 1000, sc.bv_indices)
+    sc = model_scenario(nilsson.SPEC, NilssonParams(), "bv")
+    _collisions, changes = run_checked(sc, 1000, sc.bv_indices)
     assert changes >= 1
     assert np.all(np.isfinite(sc.world.v))
 
