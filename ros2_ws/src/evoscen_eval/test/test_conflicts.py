@@ -16,8 +16,9 @@ import pytest
 from evoscen_contract import topics as T
 from evoscen_eval.metrics import evaluate
 from evoscen_eval.rundata import RunAccumulator, RunData
+from evoscen_eval.testing import drive
 from evoscen_sim.config import EvaluationConfig
-from evoscen_sim.events import ExposureMonitor, step_events
+from evoscen_sim.events import ExposureMonitor
 from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
 
@@ -205,22 +206,6 @@ def test_only_undefined_terms_weighted_gives_no_intelligence():
 @pytest.fixture(scope="module")
 def road():
     return load_road()
-
-
-def drive(world, command, steps, ev):
-    acc = RunAccumulator()
-    monitor = ExposureMonitor(ev, world.role)
-    live = monitor.observe(world)
-    acc.add_events(live)
-    for k in range(steps):
-        acc.add_world_columns(world.columns(), world.time_ns)
-        throttle, lane_change = command(k)
-        result = world.step(np.asarray(throttle, dtype=float), np.asarray(lane_change, dtype=np.int64))
-        events = step_events(world, result) + monitor.observe(world)
-        live += events
-        acc.add_events(events)
-    acc.add_world_columns(world.columns(), world.time_ns)
-    return evaluate(acc.run_data(), ev), live
 
 
 def _cut_in_front_of_follower(k):

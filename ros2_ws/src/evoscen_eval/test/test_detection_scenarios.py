@@ -13,10 +13,8 @@ import numpy as np
 import pytest
 
 from evoscen_contract import topics as T
-from evoscen_eval.metrics import evaluate
-from evoscen_eval.rundata import RunAccumulator
+from evoscen_eval.testing import drive as drive_run
 from evoscen_sim.config import EvaluationConfig
-from evoscen_sim.events import ExposureMonitor, step_events
 from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
 
@@ -29,20 +27,8 @@ def road():
 
 
 def drive(world, command, steps):
-    """Run ``steps`` steps with ``command(k) -> (throttle, lane_change)``; returns (report, live events)."""
-    acc = RunAccumulator()
-    monitor = ExposureMonitor(EV, world.role)
-    live = monitor.observe(world)
-    acc.add_events(live)
-    for k in range(steps):
-        acc.add_world_columns(world.columns(), world.time_ns)
-        throttle, lane_change = command(k)
-        result = world.step(np.asarray(throttle, dtype=float), np.asarray(lane_change, dtype=np.int64))
-        events = step_events(world, result) + monitor.observe(world)
-        live += events
-        acc.add_events(events)
-    acc.add_world_columns(world.columns(), world.time_ns)
-    return evaluate(acc.run_data(), EV), live
+    """:func:`evoscen_eval.testing.drive` under ``EV``."""
+    return drive_run(world, command, steps, EV)
 
 
 def exposure_events(live, kind):
