@@ -18,8 +18,6 @@ from dataclasses import fields, replace
 
 import numpy as np
 import pytest
-from evoscen_bringup.testing import model_scenario, run_checked
-from evoscen_sim.config import load_scenario_config
 from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
 from evoscen_sim.vehicle import VehicleParams
@@ -265,70 +263,6 @@ def test_driver_follows_the_target_lane_leader_while_changing(road) -> None:
     # without the change in progress only the own lane counts
     w2 = hand_built_world(road, s=[300.0, 345.0], lane=[3, 2], speed=[30.0, 22.0])
     assert _driver([0]).acceleration(w2)[0] == pytest.approx((min(30.0 + 0.26, V0) - 30.0) / 0.1)
-
-
-def _factory_driver(vehicles, params: MobilParams = P):
-    cfg = load_scenario_config(overrides={"recording.enabled": False})
-    return mobil.SPEC.factory(np.asarray(vehicles), params, cfg, np.random.default_rng(7))
-
-
-def test_empty_road_speed_converges_to_desired_speed(road) -> None:
-    # lane 1 from s = 100 at 20 m/s, 400 steps (passes the merge lane, which it must not enter)
-    w = hand_built_world(road, s=[100.0], lane=[1], speed=[20.0])
-    drv = _factory_driver([0])
-    speeds, requests = [], []
-    for _ in range(400):
-        thr, lc = drv.act(w)
-        requests.append(int(lc[0]))
-        w.step(thr, lc)
-        speeds.append(w.v[0])
-    assert requests == [0] * 400 and w.lane[0] == 1
-    # Krauss free road: commanded speeds i.i.d. in (v_max − σ a Δt, v_max] = (33.20, 33.33], mean 33.27
-    # (the vehicle model tracks the command to within a few mm/s)
-    assert np.mean(speeds[-100:]) == pytest.approx(V0 - 0.5 * 2.6 * 0.1 / 2, abs=0.03)
-    assert V0 - 0.15 < min(speeds[-100:]) and max(speeds[-100:]) < V0 + 0.01
-
-
-def test_merge_lane_blocked_waits_before_the_lane_end(road) -> None:
-    # ego on lane 0 at s = 800, a blocker in lane 1 level with it, driven with the ego's own command:
-    # the ego can never merge and must stop before the stop point (945 m) without leaving the road.
-    w = hand_built_world(road, s=[800.0, 800.0], lane=[0, 1], speed=[20.0, 20.0])
-    drv = _driver([0], sigma=0.5)
-    for _ in range(300):
-        thr, lc = drv.act(w)
-        assert lc[0] == 0
-        r = w.step(np.array([thr[0], thr[0]]), np.array([lc[0], 0]))
-        assert not r.off_road and not r.collisions
-        assert abs(w.s[0] - w.s[1]) < 0.5
-    assert w.lane[0] == 0
-    assert w.s[0] + L / 2 <= 945.0 and w.v[0] < 0.1
-
-
-def test_merge_in_closed_loop(road) -> None:
-    # ego on lane 0 at s = 650, 20 m/s, lane 1 empty: merges, no off-road
-    w = hand_built_world(road, s=[650.0], lane=[0], speed=[20.0])
-    drv = _factory_driver([0])
-    for _ in range(200):
-        thr, lc = drv.act(w)
-        r = w.step(thr, lc)
-        assert not r.off_road
-    assert w.lane[0] >= 1
-
-
-# ------------------------------------------------------------------ scenario runs
-def test_default_scenario_3000_steps_as_sut() -> None:
-    sc = model_scenario(mobil.SPEC, MobilParams(), "sut")
-    collisions, changes = run_checked(sc, 3000, np.array([sc.sut_index]))
-    assert not [c for c in collisions if sc.sut_index in c], collisions
-    assert changes >= 1  # MOBIL does change lanes in the default traffic
-    assert np.all(np.isfinite(sc.world.v))
-
-
-def test_default_scenario_as_bv_driver() -> None:
-    sc = model_scenario(mobil.SPEC, MobilParams(), "bv")
-    _collisions, changes = run_checked(sc, 1000, sc.bv_indices)
-    assert changes >= 1
-    assert np.all(np.isfinite(sc.world.v))
 
 
 # ------------------------------------------------------------------ compiled kernels vs the numpy helpers

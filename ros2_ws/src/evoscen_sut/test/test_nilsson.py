@@ -18,14 +18,9 @@ from dataclasses import fields, replace
 
 import numpy as np
 import pytest
-from evoscen_bringup.testing import model_scenario, run_checked
-from evoscen_sim.config import load_scenario_config
 from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
-from evoscen_sim.vehicle import VehicleParams
 from evoscen_sut import nilsson
-from evoscen_sut.krauss import KraussCarFollowing, KraussParams
-from evoscen_sut.lane_change import KraussLaneChangeDriver
 from evoscen_sut.nilsson import NilssonParams, evaluate, lane_change_decision
 
 L = 4.8
@@ -207,66 +202,6 @@ def test_unsettled_vehicle_and_same_step_conflicts(road) -> None:
     w = hand_built_world(road, s=[300.0, 298.0, 330.0, 328.0], lane=[1, 3, 1, 3], speed=[25.0, 25.0, 20.0, 20.0])
     assert decide(w, vehicles=[0])[0] == 1 and decide(w, vehicles=[1])[0] == -1
     np.testing.assert_array_equal(decide(w, vehicles=[0, 1]), [1, 0])
-
-
-# ------------------------------------------------------------------ driver (Krauss)
-def _factory_driver(vehicles, params: NilssonParams = P):
-    cfg = load_scenario_config(overrides={"recording.enabled": False})
-    return nilsson.SPEC.factory(np.asarray(vehicles), params, cfg, np.random.default_rng(7))
-
-
-def test_empty_road_speed_converges_to_desired_speed(road) -> None:
-    w = hand_built_world(road, s=[100.0], lane=[2], speed=[20.0])
-    drv = _factory_driver([0])
-    speeds, requests = [], []
-    for _ in range(400):
-        thr, lc = drv.act(w)
-        requests.append(int(lc[0]))
-        w.step(thr, lc)
-        speeds.append(w.v[0])
-    assert requests == [0] * 400 and w.lane[0] == 2
-    # Krauss free road: mean v_max − σ a Δt / 2 = 33.27 m/s
-    assert np.mean(speeds[-100:]) == pytest.approx(V0 - 0.5 * 2.6 * 0.1 / 2, abs=0.03)
-    assert V0 - 0.15 < min(speeds[-100:]) and max(speeds[-100:]) < V0 + 0.01
-
-
-def test_merge_lane_blocked_waits_before_the_lane_end(road) -> None:
-    # blocker in lane 1 level with the ego, driven with the ego's command: no merge, stop before 945 m
-    w = hand_built_world(road, s=[800.0, 800.0], lane=[0, 1], speed=[20.0, 20.0])
-    krauss = KraussCarFollowing(KraussParams(), np.random.default_rng(0), 0.1)
-    drv = KraussLaneChangeDriver(np.array([0]), lane_change_decision, P, krauss, VehicleParams(), P.merge_stop_margin_m)
-    for _ in range(300):
-        thr, lc = drv.act(w)
-        assert lc[0] == 0
-        r = w.step(np.array([thr[0], thr[0]]), np.array([lc[0], 0]))
-        assert not r.off_road and not r.collisions
-    assert w.lane[0] == 0
-    assert w.s[0] + L / 2 <= 945.0 and w.v[0] < 0.1
-
-
-def test_merge_in_closed_loop(road) -> None:
-    w = hand_built_world(road, s=[650.0], lane=[0], speed=[20.0])
-    drv = _factory_driver([0])
-    for _ in range(200):
-        thr, lc = drv.act(w)
-        assert not w.step(thr, lc).off_road
-    assert w.lane[0] >= 1
-
-
-# ------------------------------------------------------------------ scenario runs
-def test_default_scenario_3000_steps_as_sut() -> None:
-    sc = model_scenario(nilsson.SPEC, NilssonParams(), "sut")
-    collisions, changes = run_checked(sc, 3000, np.array([sc.sut_index]))
-    assert not [c for c in collisions if sc.sut_index in c], collisions
-    assert changes >= 1
-    assert np.all(np.isfinite(sc.world.v))
-
-
-def test_default_scenario_as_bv_driver() -> None:
-    sc = model_scenario(nilsson.SPEC, NilssonParams(), "bv")
-    _collisions, changes = run_checked(sc, 1000, sc.bv_indices)
-    assert changes >= 1
-    assert np.all(np.isfinite(sc.world.v))
 
 
 def test_compiled_neighbour_search_matches_the_neighbourhood(road) -> None:
