@@ -8,9 +8,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from evoscen_contract import topics as T
 from evoscen_eval.metrics import activity_accel, evaluate
 from evoscen_eval.rundata import RunData
+from evoscen_eval.testing import make_run
 from evoscen_sim.config import EvaluationConfig
 
 
@@ -28,18 +28,10 @@ def test_trailing_mean_by_hand() -> None:
 
 
 def _run(states: int, accel: np.ndarray) -> RunData:
-    vehicles = accel.shape[1]
-    c = {f: np.zeros((states, vehicles)) for f in T.WORLD_FIELDS}
-    c["id"][:] = np.arange(vehicles)
-    c["role"][:, 0] = 1
-    c["length"][:] = 4.8
-    c["width"][:] = 1.9
-    c["speed"][:] = 30.0
-    c["lane"][:] = 2
-    c["s"][:] = 1000.0 + 200.0 * np.arange(vehicles)
-    c["accel"][:] = accel
-    return RunData(time_s=np.arange(states) * 0.1, columns=c, ids=np.arange(vehicles), sut_index=0,
-                   events=[], dt_s=0.1, complete=True)
+    run = make_run(states, accel.shape[1])
+    run.columns["s"][:] = 1000.0 + 200.0 * np.arange(accel.shape[1])
+    run.columns["accel"][:] = accel
+    return run
 
 
 def test_dawdling_noise_is_not_activity_but_a_manoeuvre_is() -> None:

@@ -23,27 +23,12 @@ from evoscen_eval.metrics import (
     max_in_view,
     safety_score,
 )
-from evoscen_eval.rundata import RunData
+from evoscen_eval.testing import make_run
 from evoscen_sim.config import EvaluationConfig
 
 EV = EvaluationConfig()
 #: the method's arithmetic taken literally for undefined terms (T_l = 0 s, I_i = 1 without a lane change)
 EV_LIT = EvaluationConfig(undefined_terms="literal")
-
-
-def make_run(states: int, vehicles: int, events: list[dict] | None = None) -> RunData:
-    """SUT = vehicle 0 at s = 1000 m, 30 m/s, lane 2; BVs 500 m ahead (out of view) unless moved."""
-    c = {f: np.zeros((states, vehicles)) for f in T.WORLD_FIELDS}
-    c["id"][:] = np.arange(vehicles)
-    c["role"][:, 0] = 1
-    c["length"][:] = 4.8
-    c["width"][:] = 1.9
-    c["speed"][:] = 30.0
-    c["lane"][:] = 2
-    c["s"][:, 0] = 1000.0
-    c["s"][:, 1:] = 1500.0 + 50.0 * np.arange(vehicles - 1)
-    return RunData(time_s=np.arange(states) * 0.1, columns=c, ids=np.arange(vehicles), sut_index=0,
-                   events=events or [], dt_s=0.1, complete=True)
 
 
 # ---------------------------------------------------------------------- formulas
