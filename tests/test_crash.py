@@ -26,7 +26,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # noqa: E402 (the graph tests' helpers)
 from test_graph import PER_STEP_STATE, REPO, _children, _error_lines, _events, _launch, \
-    _mcap_summary_count, _read_bag, _stamps, _steps, _terminate, _wait_running
+    _mcap_summary_count, _read_bag, _running, _stamps, _steps, _terminate
 
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
@@ -43,18 +43,13 @@ def _world_steps(bag_dir: Path) -> list[int]:
 
 def test_sigterm_to_evaluator_finishes_the_bag(tmp_path):
     out = tmp_path / "run"
-    launcher = _launch("--steps", 5000, "--seed", 5, "--out", out, "--no-plots")
-    try:
-        _wait_running(launcher, out / "bag")
-        time.sleep(0.5)
+    with _running(out / "bag", "--steps", 5000, "--seed", 5, "--out", out, "--no-plots", settle_s=0.5) as launcher:
         ev = _children(launcher, "evoscen_eval.eval_node")
         assert len(ev) == 1, ev
         os.kill(ev[0], signal.SIGTERM)
         t_kill = time.monotonic()
         stdout, stderr = launcher.communicate(timeout=60)
         after = time.monotonic() - t_kill
-    finally:
-        _terminate(launcher)
     print(f"\nevaluator SIGTERM: graph ended {after:.1f} s later")
     assert launcher.returncode == 4, f"{launcher.returncode}\n{stdout}\n{stderr}"
     assert "Traceback" not in stderr, stderr
@@ -82,10 +77,7 @@ def test_sigterm_to_evaluator_finishes_the_bag(tmp_path):
 
 def test_sigkill_to_evaluator_then_reindex_loses_at_most_a_second(tmp_path):
     out = tmp_path / "run"
-    launcher = _launch("--steps", 5000, "--seed", 5, "--out", out, "--no-plots")
-    try:
-        _wait_running(launcher, out / "bag")
-        time.sleep(1.0)
+    with _running(out / "bag", "--steps", 5000, "--seed", 5, "--out", out, "--no-plots", settle_s=1.0) as launcher:
         sim = _children(launcher, "evoscen_sim.sim_node")
         ev = _children(launcher, "evoscen_eval.eval_node")
         assert len(sim) == 1 and len(ev) == 1, (sim, ev)
@@ -95,8 +87,6 @@ def test_sigkill_to_evaluator_then_reindex_loses_at_most_a_second(tmp_path):
         time.sleep(0.3)
         os.kill(sim[0], signal.SIGCONT)
         stdout, stderr = launcher.communicate(timeout=60)
-    finally:
-        _terminate(launcher)
     assert launcher.returncode == 4, f"{launcher.returncode}\n{stdout}\n{stderr}"
     assert "Traceback" not in stderr, stderr
     assert any("evoscen_eval" in e and "SIGKILL" in e for e in _error_lines(stderr)), stderr
@@ -139,16 +129,11 @@ def _assert_quick_end(launcher: subprocess.Popen, node: str, t_kill: float, time
 
 def test_killed_simulation_node_ends_the_graph_quickly(tmp_path):
     out = tmp_path / "run"
-    launcher = _launch("--steps", 5000, "--seed", 5, "--out", out, "--no-plots")
-    try:
-        _wait_running(launcher, out / "bag")
-        time.sleep(0.5)
+    with _running(out / "bag", "--steps", 5000, "--seed", 5, "--out", out, "--no-plots", settle_s=0.5) as launcher:
         sim = _children(launcher, "evoscen_sim.sim_node")
         os.kill(sim[0], signal.SIGKILL)
         t_kill = time.monotonic()
         _assert_quick_end(launcher, "evoscen_sim", t_kill)
-    finally:
-        _terminate(launcher)
     bag = _read_bag(out / "bag")  # the evaluator finished the bag on the launcher's SIGTERM
     assert _mcap_summary_count(out / "bag") == sum(len(v) for v in bag.values())
 
@@ -179,18 +164,13 @@ def test_stalled_recorder_kills_nothing_and_loses_nothing(tmp_path):
     stall_s = float(os.environ.get("EVOSCEN_STALL_S", "25"))
     steps = 3000
     out = tmp_path / "run"
-    launcher = _launch("--steps", steps, "--seed", 5, "--out", out, "--no-plots")
-    try:
-        _wait_running(launcher, out / "bag")
-        time.sleep(0.3)
+    with _running(out / "bag", "--steps", steps, "--seed", 5, "--out", out, "--no-plots", settle_s=0.3) as launcher:
         ev = _children(launcher, "evoscen_eval.eval_node")
         assert len(ev) == 1, ev
         os.kill(ev[0], signal.SIGSTOP)
         time.sleep(stall_s)
         os.kill(ev[0], signal.SIGCONT)
         stdout, stderr = launcher.communicate(timeout=120)
-    finally:
-        _terminate(launcher)
     assert launcher.returncode == 0, f"{launcher.returncode}\n{stdout}\n{stderr}"
     assert "Traceback" not in stderr and not _error_lines(stderr), stderr
     bag = _read_bag(out / "bag")

@@ -27,6 +27,8 @@ import subprocess
 import sys
 import time
 from collections import Counter, defaultdict
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -103,6 +105,20 @@ def _terminate(launcher: subprocess.Popen) -> None:
             os.kill(pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+@contextmanager
+def _running(bag_dir: Path, *args: object, settle_s: float = 0.0) -> Iterator[subprocess.Popen]:
+    """The launcher of ``_launch(*args)``, once its run is in progress (``_wait_running`` on
+    ``bag_dir``) and ``settle_s`` seconds more; ended with ``_terminate`` on the way out."""
+    launcher = _launch(*args)
+    try:
+        _wait_running(launcher, bag_dir)
+        if settle_s:
+            time.sleep(settle_s)
+        yield launcher
+    finally:
+        _terminate(launcher)
 
 
 def _read_bag(bag_dir: Path) -> dict[str, list[tuple[int, bytes]]]:
@@ -246,18 +262,14 @@ def test_parameter_files_written_and_load_back(graph_200):
 def killed_bv(tmp_path_factory):
     """A long run whose BV node is SIGKILLed mid-run (deadline 0.5 s, 3 misses abort)."""
     out = tmp_path_factory.mktemp("killbv") / "run"
-    launcher = _launch("--steps", 5000, "--seed", 5, "--deadline", 0.5, "--max-misses", 3, "--out", out)
-    try:
-        _wait_running(launcher, out / "bag")
-        time.sleep(0.3)
+    with _running(out / "bag", "--steps", 5000, "--seed", 5, "--deadline", 0.5, "--max-misses", 3, "--out", out,
+                  settle_s=0.3) as launcher:
         bv = _children(launcher, "evoscen_bv.bv_node")
         assert len(bv) == 1, f"expected one evoscen_bv.bv_node child of the launcher, found {bv}"
         os.kill(bv[0], signal.SIGKILL)
         t_kill = time.monotonic()
         stdout, stderr = launcher.communicate(timeout=120)
         after_kill = time.monotonic() - t_kill
-    finally:
-        _terminate(launcher)
     return {"out": out, "rc": launcher.returncode, "stdout": stdout, "stderr": stderr, "after_kill": after_kill}
 
 
@@ -320,14 +332,9 @@ def test_killed_controller_bag_has_one_message_per_step(killed_bv):
 
 def test_sigint_to_launcher_leaves_finished_bag(tmp_path):
     out = tmp_path / "run"
-    launcher = _launch("--steps", 5000, "--seed", 5, "--out", out)
-    try:
-        _wait_running(launcher, out / "bag")
-        time.sleep(0.3)
+    with _running(out / "bag", "--steps", 5000, "--seed", 5, "--out", out, settle_s=0.3) as launcher:
         launcher.send_signal(signal.SIGINT)  # the launcher only: it forwards to the simulation node
         stdout, stderr = launcher.communicate(timeout=90)
-    finally:
-        _terminate(launcher)
     assert launcher.returncode == 130, f"exit status {launcher.returncode}\n{stdout}\n{stderr}"
     assert "Traceback" not in stderr and not _error_lines(stderr), stderr
     bag_dir = out / "bag"
@@ -351,15 +358,11 @@ def test_sigint_to_launcher_leaves_finished_bag(tmp_path):
 
 def test_killed_recorder_is_one_error_line(tmp_path):
     out = tmp_path / "run"
-    launcher = _launch("--steps", 5000, "--seed", 5, "--out", out)
-    try:
-        _wait_running(launcher, out / "bag")
+    with _running(out / "bag", "--steps", 5000, "--seed", 5, "--out", out) as launcher:
         ev = _children(launcher, "evoscen_eval.eval_node")
         assert len(ev) == 1, ev
         os.kill(ev[0], signal.SIGKILL)
         _stdout, stderr = launcher.communicate(timeout=90)
-    finally:
-        _terminate(launcher)
     assert launcher.returncode not in (0, 1), f"exit status {launcher.returncode}\n{stderr}"
     assert "Traceback" not in stderr, stderr
     errors = _error_lines(stderr)
