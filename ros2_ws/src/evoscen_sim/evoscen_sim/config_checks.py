@@ -6,7 +6,8 @@ one-line error (``expected an integer in [1, 4]``). :func:`evoscen_sim.config_lo
 walks a dataclass's fields and applies the checker each field declares in its metadata
 (``{"check": checker}``): the scenario schema, the driver models' parameters and the training
 configuration are all validated that way. Declare a field with :func:`number`,
-:func:`integer`, :func:`flag`, :func:`text` or :func:`number_range`.
+:func:`integer`, :func:`flag`, :func:`text`, :func:`number_range` or :func:`names` (the
+nodes' own parameters, :mod:`evoscen_sim.node_params`, are declared with them too).
 
 Pure Python (no YAML, no numpy): the parameter dataclasses of the kernels import it.
 """
@@ -125,17 +126,19 @@ class _Bool:
 class _Str:
     takes_str = True
 
-    def __init__(self, choices: Callable[[], tuple[str, ...]] | None = None) -> None:
+    def __init__(self, choices: Callable[[], tuple[str, ...]] | None = None, *,
+                 allow_empty: bool = False) -> None:
         self.choices = choices
+        self.allow_empty = allow_empty
 
     @property
     def expected(self) -> str:
         if self.choices is None:
-            return "expected a non-empty string"
+            return "expected a string ('' for none)" if self.allow_empty else "expected a non-empty string"
         return "expected one of " + ", ".join(self.choices())
 
     def __call__(self, value: Any) -> str:
-        if not isinstance(value, str) or not value:
+        if not isinstance(value, str) or not (value or self.allow_empty):
             raise _Bad(self.expected)
         if self.choices is not None:
             allowed = self.choices()
@@ -172,6 +175,30 @@ class _Range:
         if lo > hi:
             raise _Bad(self.expected)
         return (lo, hi)
+
+
+class _Names:
+    """A list of non-empty names (ROS node names), optionally from ``choices``, non-empty or
+    distinct; stored as a tuple."""
+
+    takes_str = False
+
+    def __init__(self, choices: tuple[str, ...] | None = None, *, non_empty: bool = False,
+                 distinct: bool = False) -> None:
+        self.choices, self.non_empty, self.distinct = choices, non_empty, distinct
+        what = ("non-empty " if non_empty else "") + "list of " + ("distinct " if distinct else "")
+        if choices is None:
+            self.expected = f"expected a {what}non-empty node names"
+        else:
+            self.expected = f"expected a {what}names from " + ", ".join(choices)
+
+    def __call__(self, value: Any) -> tuple[str, ...]:
+        if not isinstance(value, (list, tuple)) or not all(isinstance(x, str) and x for x in value):
+            raise _Bad(self.expected)
+        if ((self.non_empty and not value) or (self.distinct and len(set(value)) != len(value))
+                or (self.choices is not None and not set(value) <= set(self.choices))):
+            raise _Bad(self.expected)
+        return tuple(value)
 
 
 _MIX_STRING = re.compile(r"^\s*(\d+)\s*:\s*(\d+)\s*:\s*(\d+)\s*$")
@@ -249,11 +276,13 @@ def flag(default: bool) -> Any:
     return field(default=default, metadata=_check(_Bool()))
 
 
-def text(default: str, choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None) -> Any:
+def text(default: str, choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None, *,
+         allow_empty: bool = False) -> Any:
     """A non-empty string parameter, optionally one of ``choices`` (a tuple, or a callable
-    returning one at validation time, e.g. the registered SUT models)."""
+    returning one at validation time, e.g. the registered SUT models); ``allow_empty``: ''
+    is allowed too (an optional path)."""
     if choices is None or callable(choices):
-        return field(default=default, metadata=_check(_Str(choices)))
+        return field(default=default, metadata=_check(_Str(choices, allow_empty=allow_empty)))
     fixed = tuple(choices)
     return field(default=default, metadata=_check(_Str(lambda: fixed)))
 
@@ -261,6 +290,12 @@ def text(default: str, choices: tuple[str, ...] | Callable[[], tuple[str, ...]] 
 def number_range(default: tuple[float, float], lo: float, hi: float, *, lo_open: bool = False) -> Any:
     """A ``[lo, hi]`` pair parameter within bounds."""
     return field(default=default, metadata=_check(_Range(lo, hi, lo_open=lo_open)))
+
+
+def names(default: tuple[str, ...], choices: tuple[str, ...] | None = None, *, non_empty: bool = False,
+          distinct: bool = False) -> Any:
+    """A list of node names (a tuple once validated), optionally from ``choices``."""
+    return field(default=default, metadata=_check(_Names(choices, non_empty=non_empty, distinct=distinct)))
 
 
 
