@@ -13,7 +13,9 @@ Parameters. A node gets its parameters from a ROS 2 parameter file
 the top level and the whole scenario configuration under ``scenario.`` (nested mappings,
 i.e. dotted names ``scenario.bvs.count``). :func:`node_parameters` rebuilds the nested
 mapping; ``evoscen_sim.node_params.scenario_from_node`` validates the scenario part like a
-YAML file, so a bad value is the same one-line error, naming the parameter.
+YAML file, and ``evoscen_sim.node_params.own_parameters`` the node's own parameters (a
+dataclass per node) with the same validator, so a bad value is the same one-line error,
+naming the parameter file (:func:`parameter_sources`), the parameter and what is allowed.
 """
 
 from __future__ import annotations
@@ -41,6 +43,10 @@ FASTDDS_PROFILES = Path(__file__).with_name("fastdds_profiles.xml")
 writers armed for 50 ms instead of firing for every sample sent."""
 
 
+_init_args: list[str] = []
+"""The arguments of the last :func:`init` (for :func:`parameter_sources`)."""
+
+
 def init(args: list[str] | None = None) -> list[str]:
     """``rclpy.init`` without rclpy's signal handlers; returns the non-ROS arguments.
 
@@ -50,7 +56,9 @@ def init(args: list[str] | None = None) -> list[str]:
     """
     import os
 
+    global _init_args
     os.environ.setdefault("FASTRTPS_DEFAULT_PROFILES_FILE", str(FASTDDS_PROFILES))
+    _init_args = list(args if args is not None else sys.argv)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     return rclpy.utilities.remove_ros_args(args=args if args is not None else sys.argv)
 
@@ -84,18 +92,30 @@ def node_parameters(node: Node) -> dict[str, Any]:
     return out
 
 
-def own_parameter(params: Mapping[str, Any], node_name: str, key: str, default: Any, kind: type,
-                  *, check: Any = None, expected: str = "") -> Any:
-    """One of the node's own parameters, type- and range-checked; NodeParameterError otherwise."""
-    value = params.get(key, default)
-    ok = isinstance(value, kind) and not (kind in (int, float) and isinstance(value, bool))
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value, ok = float(value), True
-    if ok and check is not None:
-        ok = bool(check(value))
-    if not ok:
-        raise NodeParameterError(f"{node_name}: parameter '{key}' = {value!r}: {expected or 'expected ' + kind.__name__}")
-    return value
+def parameter_sources(node_name: str, args: list[str] | None = None) -> tuple[list[str], set[str]]:
+    """Where the node's parameters come from: the ``--params-file`` paths (in order; a later
+    file overrides an earlier one) and the names set with ``-p name:=value`` (``-p``
+    overrides the files), from the ROS arguments of ``args`` (default: those given to the
+    last :func:`init`). Used to name the file (or ``command line``) in parameter errors."""
+    if args is None:
+        args = _init_args
+    files: list[str] = []
+    cli: set[str] = set()
+    in_ros = False
+    it = iter(args)
+    for arg in it:
+        if arg == "--ros-args":
+            in_ros = True
+        elif arg == "--":
+            in_ros = False
+        elif in_ros and arg == "--params-file":
+            files.append(next(it, ""))
+        elif in_ros and arg in ("-p", "--param"):
+            name = next(it, "").split(":=", 1)[0]
+            target, _, key = name.rpartition(":")
+            if not target or target.lstrip("/") == node_name:
+                cli.add(key)
+    return [f for f in files if f], cli
 
 
 def publisher(node: Node, spec: TopicSpec):  # noqa: ANN201

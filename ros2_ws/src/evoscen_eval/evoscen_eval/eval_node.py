@@ -46,12 +46,14 @@ from __future__ import annotations
 import signal
 import sys
 import time
+from dataclasses import dataclass
 
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.cdr import TableEncoder, decode_table, events_count, is_run_end
 from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
-from evoscen_sim.node_params import run_node, scenario_from_node
+from evoscen_sim.config_checks import flag, integer, number, text
+from evoscen_sim.node_params import own_parameters, run_node, scenario_from_node
 
 from .recorder import BagRecorder, OrderedBag
 from .rundata import SCENARIO_METADATA, RunAccumulator, scenario_metadata
@@ -63,6 +65,21 @@ _CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name,
 _TABLE_TOPICS = {T.COMMANDS_BV.name, T.COMMANDS_SUT.name}
 MAX_WARNINGS = 20
 """Refused messages logged (one line each); the rest are counted."""
+
+
+@dataclass(frozen=True)
+class EvalParams:
+    """The recorder's own parameters (see the module docstring), validated by
+    :func:`~evoscen_sim.node_params.own_parameters`; ``bag_dir`` is required."""
+
+    bag_dir: str = text("")
+    drain_s: float = number(0.5, 0.0)
+    batch_s: float = number(0.005, 0.0)
+    nice: int = integer(10, 0, 19)
+    idle_timeout_s: float = number(60.0, 0.0, lo_open=True)
+    report_dir: str = text("", allow_empty=True)
+    report_plots: bool = flag(True)
+    external_sut: bool = flag(False)
 
 
 class EvaluatorNode:
@@ -77,22 +94,21 @@ class EvaluatorNode:
         self.node = graph.make_node(NODE_NAME)
         params = graph.node_parameters(self.node)
         self.cfg = scenario_from_node(params, NODE_NAME)
-        p = lambda *a, **k: graph.own_parameter(params, NODE_NAME, *a, **k)  # noqa: E731
-        bag_dir = p("bag_dir", "", str, check=bool, expected="expected the path of a new or empty bag directory")
-        self.drain_s = p("drain_s", 0.5, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
-        self.batch_s = p("batch_s", 0.005, float, check=lambda v: v >= 0, expected="expected a number >= 0 (s)")
-        self.nice = p("nice", 10, int, check=lambda v: 0 <= v <= 19, expected="expected an integer in [0, 19]")
+        own = own_parameters(EvalParams, params, NODE_NAME)
+        bag_dir = own.bag_dir
+        self.drain_s = own.drain_s
+        self.batch_s = own.batch_s
+        self.nice = own.nice
         if self.nice:
             # outside the lockstep loop, and the topics are keep-all: lagging costs memory, never data,
             # so the recorder yields the CPU to the loop (measurable on a 2-core machine)
             import os
 
             os.nice(self.nice)
-        self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
-                                expected="expected a number > 0 (s)")
-        self.report_dir = p("report_dir", "", str, expected="expected a directory path or ''")
-        self.report_plots = p("report_plots", True, bool, expected="expected true or false")
-        self.external_sut = p("external_sut", False, bool, expected="expected true or false")
+        self.idle_timeout_s = own.idle_timeout_s
+        self.report_dir = own.report_dir
+        self.report_plots = own.report_plots
+        self.external_sut = own.external_sut
         self.metadata = scenario_metadata(self.cfg, external_sut=self.external_sut)  # the bag's; the report reads it too
         self.acc = RunAccumulator(expected_states=self.cfg.steps + 1) if self.report_dir else None
         self.dt_ns = round(self.cfg.dt_s * 1e9)

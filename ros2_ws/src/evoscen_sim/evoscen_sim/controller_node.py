@@ -28,6 +28,7 @@ from __future__ import annotations
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,7 +39,8 @@ from evoscen_contract import wire
 from evoscen_contract.cdr import decode_table
 from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
-from .node_params import run_node, scenario_from_node
+from .config_checks import names, number
+from .node_params import own_parameters, run_node, scenario_from_node
 from .road import load_road
 from .view import WorldView
 
@@ -46,6 +48,18 @@ MAX_WARNINGS = 20
 """Refused world messages logged (one line each); the rest are counted silently."""
 END_CHECK_S = 0.1
 """Seconds without a world message after which a controller asks whether the simulation node left."""
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """A controller node's own parameters (see the module docstring), validated by
+    :func:`~evoscen_sim.node_params.own_parameters`; a node's ``build`` may read more."""
+
+    command_subscribers: tuple[str, ...] = names((T.NODE_SIM, T.NODE_EVAL))
+    startup_timeout_s: float = number(30.0, 0.0, lo_open=True)
+    idle_timeout_s: float = number(60.0, 0.0, lo_open=True)
+    wait_for_nodes: tuple[str, ...] = names(())
+    discovery_settle_s: float = number(0.5, 0.0)
 
 
 class ControllerNode:
@@ -63,18 +77,12 @@ class ControllerNode:
         self.node = graph.make_node(name)
         params = graph.node_parameters(self.node)
         self.cfg = scenario_from_node(params, name)
-        p = lambda *a, **k: graph.own_parameter(params, name, *a, **k)  # noqa: E731
-        self.command_subscribers = p("command_subscribers", [T.NODE_SIM, T.NODE_EVAL], list,
-                                     check=lambda v: all(isinstance(x, str) and x for x in v),
-                                     expected="expected a list of node names (the simulation node and the recorder)")
-        self.startup_timeout_s = p("startup_timeout_s", 30.0, float, check=lambda v: v > 0,
-                                   expected="expected a number > 0 (s)")
-        self.idle_timeout_s = p("idle_timeout_s", 60.0, float, check=lambda v: v > 0,
-                                expected="expected a number > 0 (s)")
-        self.wait_for_nodes = p("wait_for_nodes", [], list, check=lambda v: all(isinstance(x, str) and x for x in v),
-                                expected="expected a list of node names")
-        self.discovery_settle_s = p("discovery_settle_s", 0.5, float, check=lambda v: v >= 0,
-                                    expected="expected a number >= 0 (s)")
+        own = own_parameters(ControllerParams, params, name)
+        self.command_subscribers = list(own.command_subscribers)
+        self.startup_timeout_s = own.startup_timeout_s
+        self.idle_timeout_s = own.idle_timeout_s
+        self.wait_for_nodes = list(own.wait_for_nodes)
+        self.discovery_settle_s = own.discovery_settle_s
         self._first_seen: dict[str, float] = {}
         self.driver, self.vehicles = build(params, self.cfg)
         self.road = load_road(self.cfg.map)

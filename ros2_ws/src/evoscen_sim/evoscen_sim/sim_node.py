@@ -45,6 +45,7 @@ from __future__ import annotations
 import signal
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -54,7 +55,8 @@ from evoscen_contract.messages import WorldMessages
 from evoscen_contract import wire
 from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
-from .node_params import run_node, scenario_from_node
+from .config_checks import flag, integer, names, number, text
+from .node_params import own_parameters, run_node, scenario_from_node
 from .events import fault_event, step_events
 from .scenario import SUT_INDEX, build_world
 from .step_loop import Commands, Port, RunAborted, StepLoop
@@ -71,6 +73,25 @@ EXIT_STATUS = {T.KIND_COMPLETED: EXIT_OK, T.KIND_ABORTED: EXIT_FAULT, T.KIND_INT
 """The node's exit status for each way a run ends (``run_end`` kind)."""
 
 
+@dataclass(frozen=True)
+class SimParams:
+    """The simulation node's own parameters (see the module docstring), validated by
+    :func:`~evoscen_sim.node_params.own_parameters`."""
+
+    deadline_s: float = number(2.0, 0.0, lo_open=True)
+    startup_timeout_s: float = number(30.0, 0.0, lo_open=True)
+    max_misses: int = integer(5, 1)
+    controllers: tuple[str, ...] = names((T.NODE_BV, T.NODE_SUT), tuple(sorted(CONTROLLER_TOPICS)),
+                                         non_empty=True, distinct=True)
+    recorder: bool = flag(True)
+    stats_file: str = text("", allow_empty=True)
+    external_sut: bool = flag(False)
+    wait_for_nodes: tuple[str, ...] = names(())
+    discovery_settle_s: float = number(0.5, 0.0)
+    recorder_lag_steps: int = integer(50, 0)
+    ready_file: str = text("", allow_empty=True)
+
+
 class SimulationNode(Port):
     """The simulation node (see the module docstring): the graph's port of the step loop.
 
@@ -85,24 +106,18 @@ class SimulationNode(Port):
         self.node = graph.make_node(NODE_NAME)
         params = graph.node_parameters(self.node)
         self.cfg = scenario_from_node(params, NODE_NAME)
-        p = lambda *a, **k: graph.own_parameter(params, NODE_NAME, *a, **k)  # noqa: E731
-        self.deadline_s = p("deadline_s", 2.0, float, check=lambda v: v > 0, expected="expected a number > 0 (s)")
-        self.startup_timeout_s = p("startup_timeout_s", 30.0, float, check=lambda v: v > 0,
-                                   expected="expected a number > 0 (s)")
-        self.max_misses = p("max_misses", 5, int, check=lambda v: v >= 1, expected="expected an integer >= 1")
-        self.controllers = p("controllers", [T.NODE_BV, T.NODE_SUT], list,
-                             check=lambda v: len(v) > 0 and set(v) <= set(CONTROLLER_TOPICS) and len(set(v)) == len(v),
-                             expected=f"expected a non-empty list of distinct names from {sorted(CONTROLLER_TOPICS)}")
-        self.recorder = p("recorder", True, bool, expected="expected true or false")
-        self.stats_file = p("stats_file", "", str, expected="expected a file path or ''")
-        self.external_sut = p("external_sut", False, bool, expected="expected true or false")
-        self.wait_for_nodes = p("wait_for_nodes", [], list, check=lambda v: all(isinstance(x, str) and x for x in v),
-                                expected="expected a list of node names")
-        self.discovery_settle_s = p("discovery_settle_s", 0.5, float, check=lambda v: v >= 0,
-                                    expected="expected a number >= 0 (s)")
-        self.recorder_lag_steps = p("recorder_lag_steps", 50, int, check=lambda v: v >= 0,
-                                    expected="expected an integer >= 0 (0 = no flow control)")
-        self.ready_file = p("ready_file", "", str, expected="expected a file path or ''")
+        own = own_parameters(SimParams, params, NODE_NAME)
+        self.deadline_s = own.deadline_s
+        self.startup_timeout_s = own.startup_timeout_s
+        self.max_misses = own.max_misses
+        self.controllers = list(own.controllers)
+        self.recorder = own.recorder
+        self.stats_file = own.stats_file
+        self.external_sut = own.external_sut
+        self.wait_for_nodes = list(own.wait_for_nodes)
+        self.discovery_settle_s = own.discovery_settle_s
+        self.recorder_lag_steps = own.recorder_lag_steps
+        self.ready_file = own.ready_file
 
         self.world = build_world(self.cfg)
         self.loop = StepLoop(self.world, self.cfg.evaluation, self, interrupted_text="run interrupted (SIGINT)")

@@ -11,20 +11,27 @@ one-line error listing the valid choices (exit 2). Other parameters: ``scenario.
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
 import numpy as np
 
-from evoscen_contract import graph
 from evoscen_contract import topics as T
+from evoscen_sim.config_checks import text
 from evoscen_sim.controller_node import run_controller
 from evoscen_sim.models import model_names
+from evoscen_sim.node_params import own_parameters
 from evoscen_sim.scenario import SUT_INDEX, build_sut_driver
 
 
+@dataclass(frozen=True)
+class SutParams:
+    """The SUT node's own parameter beyond the controllers' (``ControllerParams``)."""
+
+    model: str = text("", lambda: model_names("sut"))  # default: the scenario's sut.model
+
+
 def _build(params, cfg):  # noqa: ANN001, ANN202
-    model = graph.own_parameter(params, T.NODE_SUT, "model", cfg.sut.model, str,
-                                check=lambda v: v in model_names("sut"),
-                                expected="expected one of " + ", ".join(model_names("sut")))
+    model = own_parameters(SutParams, params, T.NODE_SUT, model=cfg.sut.model).model
     return build_sut_driver(cfg, model), np.array([SUT_INDEX])
 
 
