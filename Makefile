@@ -26,9 +26,20 @@ $(REQ_STAMP): requirements.txt requirements-runtime.txt
 # --symlink-install: the install tree links to the sources (Python modules, share files), so an
 # edited module is what the next test imports without a rebuild; rebuild after adding a file,
 # an entry point or a package.
+# colcon runs only when the build's inputs changed since the last successful build: the list of
+# files under ros2_ws/src (a file added or removed) or the packages' setup.py/setup.cfg/package.xml;
+# an edited module needs no rebuild (symlink install). BUILD_STAMP holds those inputs.
+BUILD_STAMP := $(INSTALL)/.evoscen-build-inputs
 build: $(REQ_STAMP)
-	. $(VENV)/bin/activate && cd $(WS) && colcon --log-base log build --symlink-install --base-paths src \
-	    --build-base build --install-base install --event-handlers console_cohesion- summary-
+	@new=$$(cd $(WS)/src && { find . \( -name __pycache__ -o -name '*.egg-info' \) -prune -o -type f -print | LC_ALL=C sort; \
+	    cat */setup.py */setup.cfg */package.xml 2>/dev/null | sha256sum; }); \
+	if [ -f $(BUILD_STAMP) ] && [ "$$new" = "$$(cat $(BUILD_STAMP))" ]; then \
+	    echo "build: up to date (no file added or removed under $(WS)/src, no package metadata changed)"; \
+	else \
+	    ( . $(VENV)/bin/activate && cd $(WS) && colcon --log-base log build --symlink-install --base-paths src \
+	        --build-base build --install-base install --event-handlers console_cohesion- summary- ) \
+	    && printf '%s\n' "$$new" > $(BUILD_STAMP); \
+	fi
 
 demo: setup
 	$(RUN) python scripts/run_scenario.py --out $(DEMO_OUT) --overwrite
