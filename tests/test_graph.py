@@ -491,6 +491,25 @@ def test_own_parameters_name_the_node_or_the_command_line(monkeypatch):
                               "(node evoscen_eval)")
 
 
+def test_scenario_parameters_name_the_parameter_file(monkeypatch):
+    """A bad ``scenario.*`` parameter: the scenario validator's one line, naming the node's
+    parameter file (the last one given) and the node; without a file, the node."""
+    from evoscen_contract import graph
+    from evoscen_sim.errors import InputError
+    from evoscen_sim.node_params import scenario_from_node
+
+    monkeypatch.setattr(graph, "_init_args", ["sim", "--ros-args", "--params-file", "/a.yaml", "--params-file",
+                                              "/b.yaml"])
+    with pytest.raises(InputError) as exc:
+        scenario_from_node({"scenario": {"steps": -1}}, "evoscen_sim")
+    assert str(exc.value) == ("/b.yaml (node evoscen_sim, scenario.*): key 'steps' = -1: expected an integer in "
+                              "[1, 1000000]")
+    monkeypatch.setattr(graph, "_init_args", ["sim"])
+    with pytest.raises(InputError) as exc:
+        scenario_from_node({"scenario": {"seed": "x"}}, "evoscen_bv")
+    assert str(exc.value).startswith("evoscen_bv parameter 'scenario': key 'seed' = 'x': expected ")
+
+
 def test_no_bvs_graph_bag_equals_inprocess_bag(tmp_path):
     """``bvs.count: 0``: the graph starts no BV controller, the in-process runner writes no BV
     commands either (it wrote one empty table per step): the two bags are byte-identical."""

@@ -18,7 +18,7 @@ from typing import Any
 
 from evoscen_contract import graph
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED
-from evoscen_contract.graph import NodeParameterError
+from evoscen_contract.graph import NodeParameterError, parameter_sources
 
 from .config import ScenarioConfig, config_from_dict, config_to_dict
 from .config_checks import _Bad
@@ -33,7 +33,11 @@ def scenario_from_node(params: Mapping[str, Any], node_name: str) -> ScenarioCon
     if not isinstance(scenario, Mapping):
         raise NodeParameterError(f"{node_name}: parameters 'scenario.*' missing: start the node with the "
                                  "parameter file written by scripts/run_scenario.py --mode graph")
-    return config_from_dict(_prefix_keys(scenario), source=f"{node_name} parameter 'scenario'")
+    # the source names the parameter file that holds them (the last one given), as a node's own
+    # parameters do; without one (parameters set in code, tests) the node
+    files, _cli = parameter_sources(node_name)
+    source = f"{files[-1]} (node {node_name}, scenario.*)" if files else f"{node_name} parameter 'scenario'"
+    return config_from_dict(_prefix_keys(scenario), source=source)
 
 
 class _NodeContext(Context):
