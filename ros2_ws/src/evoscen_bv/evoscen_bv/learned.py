@@ -48,7 +48,7 @@ POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
 
 def shipped_policy_dir() -> Path:
     """The shipped policies (installed share dir, else the source tree)."""
-    candidates = share_candidates("policies", "evoscen_bv", source=Path(__file__).resolve().parent / "policies")
+    candidates = share_candidates("policies", "evoscen_bv")  # the source tree keeps them in ros2_ws/src/evoscen_bv/policies
     return next((p for p in candidates[:-1] if p.is_dir()), candidates[-1])
 
 

@@ -108,3 +108,19 @@ def test_round1_set_is_selectable_and_records_its_training_profile():
     for _ in range(20):
         sc.step()
     assert sc.world.step_index == 20
+
+
+def test_source_tree_fallback_finds_the_policies():
+    """Without an installed workspace (no AMENT_PREFIX_PATH) the shipped policies are found in
+    the source tree, ros2_ws/src/evoscen_bv/policies (the fallback pointed into the Python
+    package, where no policies are, until round 2)."""
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "AMENT_PREFIX_PATH"}
+    out = subprocess.run([sys.executable, "-c", "from evoscen_bv.learned import shipped_policy_dir; "
+                          "print(shipped_policy_dir())"], env=env, capture_output=True, text=True, check=True)
+    path = Path(out.stdout.strip())
+    src = Path(__file__).resolve().parents[1]  # ros2_ws/src/evoscen_bv
+    assert path == src / "policies" and path.is_dir()
+    assert any(path.iterdir())
