@@ -117,13 +117,24 @@ def class_name(fault: tuple) -> str:
 
 def graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path, clean_world: dict,
               max_stall_s: float = 30.0) -> GraphResult:
-    """One graph run with ``fault``; see the module docstring."""
+    """One graph run with ``fault`` on a domain this process reserves for it (the intruder joins
+    it too); see the module docstring."""
+    from evoscen_bringup.domains import reserve_domain, reserved_by_caller_env
+
+    rng.randint(101, 200)  # was the domain (now reserved): drawn still, so later draws stay those of before
+    with reserve_domain(None) as domain:
+        return _graph_run(fault, seed, steps, rng, work, clean_world, max_stall_s, domain,
+                          dict(os.environ, **reserved_by_caller_env(domain)))
+
+
+def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path, clean_world: dict,
+               max_stall_s: float, domain: int, launcher_env: dict[str, str]) -> GraphResult:
     out = work / f"run-{seed}"
-    domain = rng.randint(101, 200)
     args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--mode", "graph", "--steps", str(steps),
             "--seed", str(seed), "--out", str(out), "--no-plots", "--deadline", "0.5", "--max-misses", "3",
             "--domain-id", str(domain), "--overwrite"]
-    launcher = subprocess.Popen(args, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    launcher = subprocess.Popen(args, cwd=REPO, env=launcher_env, text=True, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE)
     intruder = None
     t_fault = None
     kind = fault[0]

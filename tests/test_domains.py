@@ -8,6 +8,9 @@
 * A reservation ends with its ``with`` block.
 * ``run_scenario.py --mode graph --domain-id N`` with N held: exit 2, one line, and the output
   directory is not created.
+* A caller that reserved domain N and tells the launcher so (``EVOSCEN_DOMAIN_RESERVED=N``)
+  gets N from the launcher's explicit reservation; the variable vouches for N only, not for
+  another held domain.
 * An unusable lock directory: one warning line, the run goes on with the asked domain.
 """
 
@@ -22,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from evoscen_bringup.domains import AUTO_DOMAINS, reserve_domain
+from evoscen_bringup.domains import AUTO_DOMAINS, RESERVED_ENV, reserve_domain, reserved_by_caller_env
 from evoscen_sim.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]
@@ -96,6 +99,31 @@ def test_run_scenario_refuses_a_held_domain(lock_dir: Path, tmp_path: Path) -> N
     assert len(lines) == 1 and lines[0].startswith("error: --domain-id 23: another evoscen graph"), res.stderr
     assert "Traceback" not in res.stderr
     assert not out.exists()
+
+
+_LAUNCHER = ("import sys\n"
+             "from evoscen_bringup.domains import reserve_domain\n"
+             "from evoscen_sim.errors import InputError\n"
+             "try:\n"
+             "    with reserve_domain(int(sys.argv[1])) as d:\n"
+             "        print('reserved', d)\n"
+             "except InputError as exc:\n"
+             "    print('error:', exc)\n")
+
+
+def test_a_domain_reserved_by_the_caller_is_trusted_for_that_domain_only(lock_dir: Path) -> None:
+    import os
+
+    assert reserved_by_caller_env(31) == {"ROS_DOMAIN_ID": "31", RESERVED_ENV: "31"}
+    with reserve_domain(31), reserve_domain(32):  # this process (the caller) holds both
+        env = {**os.environ, **reserved_by_caller_env(31)}
+        told, other = (subprocess.run([sys.executable, "-c", _LAUNCHER, str(d)], env=env, capture_output=True,
+                                      text=True, timeout=60, check=True).stdout.strip() for d in (31, 32))
+        untold = subprocess.run([sys.executable, "-c", _LAUNCHER, "31"], capture_output=True, text=True,
+                                timeout=60, check=True).stdout.strip()
+    assert told == "reserved 31"
+    assert other.startswith("error: --domain-id 32: another evoscen graph"), other
+    assert untold.startswith("error: --domain-id 31: another evoscen graph"), untold
 
 
 def test_unusable_lock_dir_warns_and_goes_on(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

@@ -2,16 +2,17 @@
 evoscen's SUT node and drives the SUT in lockstep.
 
 The graph's nodes are started here, as the launcher does (its parameter files, its node
-environment) but without ``evoscen_sut``, on an explicit random ROS_DOMAIN_ID with localhost
-discovery; the example node is started next to them on the same domain. The bag must then hold
+environment) but without ``evoscen_sut``, on a ROS_DOMAIN_ID reserved on the host as the
+launcher reserves its own (``evoscen_bringup.domains``) with localhost discovery; the example
+node is started next to them on the same domain. The bag must then hold
 one SUT command per step, stamped like the world message it answers, whose values are what
 the example's policy computes from that recorded world table (recomputed here).
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib.util
-import random
 import subprocess
 import sys
 from pathlib import Path
@@ -37,7 +38,7 @@ def load_example():
     return sys.modules[spec.name]
 
 
-def start_graph_with_external_sut(out: Path, *, steps: int, example_args: list[str]) -> dict:
+def start_graph_with_external_sut(out: Path, domain_id: int, *, steps: int, example_args: list[str]) -> dict:
     """Start evaluator, BV and simulation nodes plus the example (not waiting for them)."""
     from evoscen_bringup.graph_runner import GraphOptions, node_environment, write_parameter_files
     from evoscen_sim.config import load_scenario_config
@@ -45,7 +46,6 @@ def start_graph_with_external_sut(out: Path, *, steps: int, example_args: list[s
     out.mkdir(parents=True, exist_ok=True)
     cfg = load_scenario_config(None, {"steps": steps, "seed": SEED})
     params = write_parameter_files(cfg, out, out / "bag", GraphOptions(startup_timeout_s=60.0, external_sut=True))
-    domain_id = random.SystemRandom().randint(101, 232)  # apart from the launcher's 1..100
     env = node_environment(domain_id, "LOCALHOST")
     commands = {
         "evoscen_eval": ["-m", "evoscen_eval.eval_node", "--ros-args", "--params-file", str(params["evoscen_eval"])],
@@ -87,12 +87,16 @@ def read_bag(bag_dir: Path) -> dict[str, list[tuple[int, bytes]]]:
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict:
     """Two runs at once: the example told the number of steps (STEPS), and the example not
     told it (FINAL_STEPS: it then answers the final state too)."""
+    from evoscen_bringup.domains import reserve_domain
+
     root = tmp_path_factory.mktemp("external_sut")
-    started = {"told": (start_graph_with_external_sut(root / "told", steps=STEPS,
-                                                      example_args=["-p", f"steps:={STEPS}"]), root / "told"),
-               "untold": (start_graph_with_external_sut(root / "untold", steps=FINAL_STEPS, example_args=[]),
-                          root / "untold")}
-    return {key: wait_for(procs, out) for key, (procs, out) in started.items()}
+    with contextlib.ExitStack() as held:  # each graph's domain reserved until its nodes have ended
+        told, untold = (held.enter_context(reserve_domain(None)) for _ in range(2))
+        started = {"told": (start_graph_with_external_sut(root / "told", told, steps=STEPS,
+                                                          example_args=["-p", f"steps:={STEPS}"]), root / "told"),
+                   "untold": (start_graph_with_external_sut(root / "untold", untold, steps=FINAL_STEPS,
+                                                            example_args=[]), root / "untold")}
+        return {key: wait_for(procs, out) for key, (procs, out) in started.items()}
 
 
 @pytest.fixture(scope="module")

@@ -10,8 +10,8 @@ real rclpy + Fast DDS, no mocks.
 * a node started with a bad parameter exits 2 with one line naming the parameter;
 * the launcher's parameter files (``OUT/params/<node>.yaml``) load back with the scenario values.
 
-Every graph runs on its own ROS_DOMAIN_ID (the launcher draws one, or a test passes a random
-explicit one) with localhost-only discovery. Only processes started by a test are signalled:
+Every graph runs on its own ROS_DOMAIN_ID (the launcher reserves one on the host; nodes a test
+starts itself run on a domain the test has reserved the same way) with localhost-only discovery. Only processes started by a test are signalled:
 node processes are found as children of the test's own launcher (``pgrep -P <launcher pid>``),
 never by name alone (other graphs may run on the same machine).
 """
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import re
 import signal
 import subprocess
@@ -47,8 +46,14 @@ PER_STEP_STATE = ("/clock", "/evoscen/world", "/evoscen/sut/odom")  # published 
 # --------------------------------------------------------------------------- helpers
 
 
-def _domain_id() -> int:
-    return random.SystemRandom().randint(1, 100)
+@pytest.fixture(scope="module")
+def own_domain():
+    """A ROS_DOMAIN_ID reserved on the host (as the launcher reserves its own) for the lone
+    nodes this module starts itself, so that they never join another graph's domain."""
+    from evoscen_bringup.domains import reserve_domain
+
+    with reserve_domain(None) as domain:
+        yield domain
 
 
 def _node_env(domain_id: int) -> dict[str, str]:
@@ -372,13 +377,13 @@ def test_killed_recorder_is_one_error_line(tmp_path):
 # --------------------------------------------------------------------------- bad parameters
 
 
-def _node_with_params(module: str, params_file: Path, *extra: str) -> subprocess.Popen:
+def _node_with_params(domain: int, module: str, params_file: Path, *extra: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", module, "--ros-args", "--params-file", str(params_file), *extra],
-                            cwd=REPO, env=_node_env(_domain_id()), text=True,
+                            cwd=REPO, env=_node_env(domain), text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
 
-def test_bad_node_parameters_are_one_line_errors(tmp_path):
+def test_bad_node_parameters_are_one_line_errors(tmp_path, own_domain):
     from evoscen_bringup.graph_runner import GraphOptions, write_parameter_files
     from evoscen_sim.config import load_scenario_config
 
@@ -395,9 +400,9 @@ def test_bad_node_parameters_are_one_line_errors(tmp_path):
     bad_bv = edit("evoscen_bv", lambda p: p["scenario"]["bvs"].__setitem__("count", -1))
     bad_sim = edit("evoscen_sim", lambda p: p.__setitem__("deadline_s", -1))
     cases = {  # started together: each takes a few seconds to start
-        "model": _node_with_params("evoscen_sut.sut_node", files["evoscen_sut"], "-p", "model:=nosuch"),
-        "bvs.count": _node_with_params("evoscen_bv.bv_node", bad_bv),
-        "deadline_s": _node_with_params("evoscen_sim.sim_node", bad_sim),
+        "model": _node_with_params(own_domain, "evoscen_sut.sut_node", files["evoscen_sut"], "-p", "model:=nosuch"),
+        "bvs.count": _node_with_params(own_domain, "evoscen_bv.bv_node", bad_bv),
+        "deadline_s": _node_with_params(own_domain, "evoscen_sim.sim_node", bad_sim),
     }
     results = {}
     try:
@@ -434,7 +439,7 @@ _BAD_OWN = {  # node -> (module, [(key, wrong type, expected), (key, out of rang
 
 
 @pytest.mark.parametrize("node", sorted(_BAD_OWN))
-def test_bad_own_parameter_is_one_line_naming_file_key_value_expected(tmp_path, node):
+def test_bad_own_parameter_is_one_line_naming_file_key_value_expected(tmp_path, node, own_domain):
     """A node's own parameter of the wrong type, and one out of range: exit 2 and exactly one
     line ``error: <file>: key '<key>' = <value>: <expected> (node <node>, line <n>)``, the
     format of a bad scenario key (one validator, evoscen_sim.config_load.build)."""
@@ -451,7 +456,7 @@ def test_bad_own_parameter_is_one_line_naming_file_key_value_expected(tmp_path, 
         path.write_text(yaml.safe_dump(doc, sort_keys=False))
         line = next(n for n, text in enumerate(path.read_text().splitlines(), 1) if text.startswith(f"    {key}:"))
         wanted.append((f"error: {path}: key '{key}' = {value!r}: {expected}", f"(node {node}, line {line})"))
-        procs.append(_node_with_params(module, path))
+        procs.append(_node_with_params(own_domain, module, path))
     try:
         results = [(*proc.communicate(timeout=60), proc.returncode) for proc in procs]
     finally:

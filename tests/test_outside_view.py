@@ -6,8 +6,9 @@ it imports only rclpy, the standard message packages and numpy: nothing of evosc
 also taken off its ``PYTHONPATH``). That node subscribes to every topic of the table with the
 QoS the table states, decodes every message (tables by their PointField descriptions, events,
 odometry, clock), and writes a JSON summary once it has seen the ``run_end`` event. It runs on
-the graph's domain (an explicit random ``--domain-id``, localhost discovery) and is started
-before the launcher. Half-way into the run it also subscribes to the roster a second time,
+the graph's domain (reserved on the host by the test and handed to the launcher with
+``--domain-id`` and ``EVOSCEN_DOMAIN_RESERVED``, localhost discovery) and is started before the
+launcher. Half-way into the run it also subscribes to the roster a second time,
 to check that a late joiner gets the latched (transient-local) roster.
 """
 
@@ -15,7 +16,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import re
 import subprocess
 import sys
@@ -245,27 +245,30 @@ def observed(tmp_path_factory):
     (tmp / "config.json").write_text(json.dumps(
         {"topics": [{k: t[k] for k in ("name", "type", "qos")} for t in topics],
          "out": str(summary_path), "ready": str(ready), "timeout_s": 150}))
-    domain_id = random.SystemRandom().randint(1, 100)
-    observer = subprocess.Popen([sys.executable, str(script), str(tmp / "config.json")], cwd=tmp,
-                                env=_observer_env(domain_id), text=True,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
-        end = time.monotonic() + 60
-        while not ready.exists():
-            assert observer.poll() is None, f"observer failed: {observer.communicate()}"
-            assert time.monotonic() < end, "observer did not start"
-            time.sleep(0.05)
-        t0 = time.monotonic()
-        run = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--steps", str(STEPS),
-                              "--seed", "7", "--domain-id", str(domain_id), "--out", str(tmp / "run"),
-                              "--wait-for", "user_observer"],  # a user's monitor: receives every step
-                             cwd=REPO, capture_output=True, text=True, timeout=150, check=False)
-        launcher_s = time.monotonic() - t0
-        _out, err = observer.communicate(timeout=60)
-    finally:
-        if observer.poll() is None:
-            observer.kill()
-            observer.communicate()
+    from evoscen_bringup.domains import reserve_domain, reserved_by_caller_env
+
+    with reserve_domain(None) as domain_id:  # held until the observer and the graph have ended
+        observer = subprocess.Popen([sys.executable, str(script), str(tmp / "config.json")], cwd=tmp,
+                                    env=_observer_env(domain_id), text=True,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            end = time.monotonic() + 60
+            while not ready.exists():
+                assert observer.poll() is None, f"observer failed: {observer.communicate()}"
+                assert time.monotonic() < end, "observer did not start"
+                time.sleep(0.05)
+            t0 = time.monotonic()
+            run = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--steps", str(STEPS),
+                                  "--seed", "7", "--domain-id", str(domain_id), "--out", str(tmp / "run"),
+                                  "--wait-for", "user_observer"],  # a user's monitor: receives every step
+                                 cwd=REPO, env={**os.environ, **reserved_by_caller_env(domain_id)},
+                                 capture_output=True, text=True, timeout=150, check=False)
+            launcher_s = time.monotonic() - t0
+            _out, err = observer.communicate(timeout=60)
+        finally:
+            if observer.poll() is None:
+                observer.kill()
+                observer.communicate()
     assert run.returncode == 0, f"graph run failed ({run.returncode}):\n{run.stdout}\n{run.stderr}"
     assert observer.returncode == 0, f"observer failed ({observer.returncode}):\n{err}"
     print(f"\noutside view: launcher {launcher_s:.1f} s; {run.stderr.strip().splitlines()[-1]}")

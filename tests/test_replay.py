@@ -1,8 +1,10 @@
 """End-to-end tests of ``scripts/replay.py``: a recorded bag comes back on the wire, byte for byte.
 
 A 50-step in-process run is recorded once (``run_scenario.py --mode inprocess --steps 50``).
-Each wire test starts two real processes on a random ROS_DOMAIN_ID (1..100, from the OS) with
-localhost-only discovery: a raw subscriber (``probe.py``, written below into ``tmp_path``:
+Each wire test starts two real processes on a ROS_DOMAIN_ID reserved on the host for this module
+(``evoscen_bringup.domains``, as the launcher reserves its own: a replay publishes
+``/evoscen/world`` and must never land on a running graph's domain) with localhost-only
+discovery: a raw subscriber (``probe.py``, written below into ``tmp_path``:
 ``raw=True`` subscriptions with the bag's QoS (metadata.yaml) on every topic of the bag; it saves the
 received bytes per topic, in arrival order, and the QoS of the publishers it sees) and the
 replay with ``--wait-subscribers 1`` so that no first message is lost. Expectations are the
@@ -16,7 +18,6 @@ from __future__ import annotations
 import json
 import os
 import pickle
-import random
 import re
 import signal
 import subprocess
@@ -85,8 +86,13 @@ PROBE = textwrap.dedent('''
 ''')
 
 
-def _domain() -> int:
-    return random.SystemRandom().randint(1, 100)
+@pytest.fixture(scope="module")
+def domain():
+    """This module's ROS_DOMAIN_ID, reserved on the host while its tests run (one at a time)."""
+    from evoscen_bringup.domains import reserve_domain
+
+    with reserve_domain(None) as reserved:
+        yield reserved
 
 
 def _env(domain: int) -> dict[str, str]:
@@ -165,8 +171,7 @@ def _summary(stdout: str) -> dict[str, float]:
 # ------------------------------------------------------------------ on the wire
 
 
-def test_replay_delivers_the_recorded_bytes_in_order(bag: Path, bag_topics, recorded, tmp_path: Path) -> None:
-    domain = _domain()
+def test_replay_delivers_the_recorded_bytes_in_order(bag: Path, bag_topics, recorded, tmp_path: Path, domain: int) -> None:
     expected = {topic: len(msgs) for topic, msgs in recorded.items()}
     probe, result = _start_probe(tmp_path, domain, bag_topics, expected)
     rep = _replay(bag, "--rate", "0", "--wait-subscribers", "1", domain=domain)
@@ -185,8 +190,7 @@ def test_replay_delivers_the_recorded_bytes_in_order(bag: Path, bag_topics, reco
         assert offered == {(bag_topics[topic]["reliability"], bag_topics[topic]["durability"])}, topic
 
 
-def test_topics_filter_and_rate_pacing(bag: Path, bag_topics, recorded, tmp_path: Path) -> None:
-    domain = _domain()
+def test_topics_filter_and_rate_pacing(bag: Path, bag_topics, recorded, tmp_path: Path, domain: int) -> None:
     chosen = ["/clock", "/evoscen/world"]
     probe, result = _start_probe(tmp_path, domain, bag_topics, {t: len(recorded[t]) for t in chosen}, linger_s=0.5)
     t0 = time.monotonic()
@@ -206,8 +210,7 @@ def test_topics_filter_and_rate_pacing(bag: Path, bag_topics, recorded, tmp_path
     assert elapsed >= 0.4
 
 
-def test_loop_repeats_until_ctrl_c(bag: Path, bag_topics, recorded, tmp_path: Path) -> None:
-    domain = _domain()
+def test_loop_repeats_until_ctrl_c(bag: Path, bag_topics, recorded, tmp_path: Path, domain: int) -> None:
     clock = recorded["/clock"]
     probe, result = _start_probe(tmp_path, domain, bag_topics, {"/clock": 2 * len(clock)}, linger_s=0.0)
     rep = subprocess.Popen([sys.executable, REPLAY, str(bag), "--rate", "20", "--loop", "--topics", "/clock",
@@ -275,7 +278,7 @@ def _run_in_process(argv: list[str]) -> tuple[int, str, str]:
 
 
 @pytest.fixture(scope="module")
-def error_runs(bag: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple]:
+def error_runs(bag: Path, tmp_path_factory: pytest.TempPathFactory, domain: int) -> dict[str, tuple]:
     """Every bad-input case: ``{case: (args, returncode, stdout, stderr)}``.
 
     Cases ending in ``_process`` run as real processes (exit status as a user sees it, and the
@@ -307,9 +310,9 @@ def error_runs(bag: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str,
         "unknown_topic": [str(bag), "--topics", "/clock", "/not/there"],
         "type_not_installed": [str(_write_foreign_bag(base / "foreign"))],
         "no_subscribers_process": [str(bag), "--topics", "/clock", "--wait-subscribers", "1",
-                                   "--wait-timeout", "0.5", "--domain-id", str(_domain())],
+                                   "--wait-timeout", "0.5", "--domain-id", str(domain)],
     }
-    procs = {name: subprocess.Popen([sys.executable, REPLAY, *args], cwd=REPO, env=_env(_domain()), text=True,
+    procs = {name: subprocess.Popen([sys.executable, REPLAY, *args], cwd=REPO, env=_env(domain), text=True,
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE)
              for name, args in cases.items() if name.endswith("_process")}
     out = {name: (args, *_run_in_process(args)) for name, args in cases.items() if name not in procs}

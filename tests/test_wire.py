@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import os
-import random
 import subprocess
 import sys
 import time
@@ -66,20 +65,23 @@ def _steps(bag: dict, topic: str) -> list[int]:
 @pytest.fixture(scope="module")
 def attacked(tmp_path_factory):
     root = tmp_path_factory.mktemp("wire")
-    domain = random.SystemRandom().randint(101, 232)
-    intruder = subprocess.Popen([sys.executable, str(REPO / "tests" / "wire_intruder.py"), "90"], cwd=REPO,
-                                env=_node_env(domain), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        time.sleep(1.0)  # its endpoints exist before the run's start-up: a stray publisher present from the start
-        graph = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--steps", str(STEPS),
-                                "--seed", str(SEED), "--domain-id", str(domain), "--discovery-range", "LOCALHOST",
-                                "--out", str(root / "graph")],
-                               cwd=REPO, capture_output=True, text=True, timeout=240, check=False)
-        out, _ = intruder.communicate(timeout=30)
-    finally:
-        if intruder.poll() is None:
-            intruder.kill()
-            intruder.wait()
+    from evoscen_bringup.domains import reserve_domain, reserved_by_caller_env
+
+    with reserve_domain(None) as domain:  # held until the intruder and the graph have ended
+        intruder = subprocess.Popen([sys.executable, str(REPO / "tests" / "wire_intruder.py"), "90"], cwd=REPO,
+                                    env=_node_env(domain), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        try:
+            time.sleep(1.0)  # its endpoints exist before the run's start-up: a stray publisher present from the start
+            graph = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--steps", str(STEPS),
+                                    "--seed", str(SEED), "--domain-id", str(domain), "--discovery-range", "LOCALHOST",
+                                    "--out", str(root / "graph")],
+                                   cwd=REPO, env={**os.environ, **reserved_by_caller_env(domain)},
+                                   capture_output=True, text=True, timeout=240, check=False)
+            out, _ = intruder.communicate(timeout=30)
+        finally:
+            if intruder.poll() is None:
+                intruder.kill()
+                intruder.wait()
     clean = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "inprocess", "--steps", str(STEPS),
                             "--seed", str(SEED), "--out", str(root / "clean"), "--quiet", "--no-plots"],
                            cwd=REPO, capture_output=True, text=True, timeout=240, check=False)

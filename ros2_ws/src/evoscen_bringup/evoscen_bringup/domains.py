@@ -15,6 +15,13 @@ discovery); the simulation node's start-up check (no other publisher of ``/evosc
 still catches everything else: a replay, a graph of an older version, another machine on SUBNET.
 See docs/architecture.md (node graph).
 
+A caller that starts nodes of its own on the domain before the graph (a user's observer, a test's
+intruder or probe) reserves the domain first and then hands it to the launcher with
+``--domain-id N`` and ``EVOSCEN_DOMAIN_RESERVED=N`` in the launcher's environment
+(:func:`reserved_by_caller_env`): the launcher then trusts that reservation instead of failing
+on the lock its caller holds. Drawing such a domain at random without a reservation is what
+put two of a test module's graphs on one domain (CI of session 8: 101..232, two graphs at once).
+
 Lock directory: ``$EVOSCEN_DOMAIN_LOCK_DIR`` or ``<tmp>/evoscen-domains`` (mode 1777, lock files
 0666, so graphs of different users on one host see each other's reservations).
 """
@@ -35,6 +42,14 @@ from evoscen_sim.errors import InputError
 
 AUTO_DOMAINS = range(1, 101)
 """Where an automatic domain is drawn from (explicit ones may be 0..232)."""
+
+RESERVED_ENV = "EVOSCEN_DOMAIN_RESERVED"
+"""Environment variable: the domain the launcher's caller has reserved for it (see module doc)."""
+
+
+def reserved_by_caller_env(domain: int) -> dict[str, str]:
+    """Environment entries for a process that joins ``domain``, reserved by this process."""
+    return {"ROS_DOMAIN_ID": str(domain), RESERVED_ENV: str(domain)}
 
 
 def lock_dir() -> Path:
@@ -71,7 +86,11 @@ def reserve_domain(domain_id: int | None, rng: random.Random | None = None) -> I
     Raises :class:`InputError` if the explicit domain, or every automatic one, is held by another
     evoscen graph on this host. If the lock directory cannot be used (read-only ``/tmp``), says so
     in one line on stderr and goes on without a reservation (the start-up check remains).
+    An explicit domain equal to ``$EVOSCEN_DOMAIN_RESERVED`` is taken as reserved by the caller.
     """
+    if domain_id is not None and os.environ.get(RESERVED_ENV, "").strip() == str(domain_id):
+        yield domain_id  # the caller holds the lock for us (reserved_by_caller_env)
+        return
     try:
         directory = lock_dir()
         candidates = [domain_id] if domain_id is not None else list(AUTO_DOMAINS)
