@@ -76,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
                 return EXIT_BAD_INPUT
             t0 = time.perf_counter()
             try:
-                summary = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False)
+                summary = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False, keep_run=True)
             except InputError as exc:  # e.g. a policy directory that cannot be loaded
                 print(f"error: {exc}", file=sys.stderr)
                 return EXIT_BAD_INPUT

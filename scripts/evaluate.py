@@ -39,8 +39,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_eval.report import write_report
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.report import write_stream_report
+    from evoscen_eval.rundata import score_bag
     from evoscen_sim.config import load_scenario_config
     from evoscen_sim.errors import InputError
 
@@ -54,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
 
             r = reindex_bag(bag_path)
             print(f"reindexed: {r.messages} messages, {r.steps} world states recovered", file=sys.stderr)
-        run = read_run(bag_path)
+        run = score_bag(bag_path, override)  # one pass: memory independent of the run's length
         if not args.reindex and not _finished(bag_path):
             hint = f"; to rebuild its summary and metadata.yaml: python scripts/reindex.py {bag_path} (or --reindex)"
             damaged = [k for k, w in enumerate(run.warnings) if "truncated or corrupt" in w]
@@ -71,7 +71,8 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(out)
         for warning in run.warnings:
             print(f"warning: {warning}", file=sys.stderr)
-        report = write_report(run, out, override=override, plots=not args.no_plots, source=str(bag_path))
+        report = write_stream_report(run.stream, run.info, run.warnings, out, plots=not args.no_plots,
+                                     source=str(bag_path), lane_segments=run.lane_segments)
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

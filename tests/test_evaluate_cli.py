@@ -49,6 +49,17 @@ def test_offline_report_equals_the_runs_own(recorded_run, tmp_path):
     assert f"report: {tmp_path / 'off' / 'report.md'}" in res.stdout
 
 
+def test_the_bag_scored_in_one_pass_equals_the_bag_read_whole(recorded_run):
+    """score_bag (one pass, no [K, V] kept: scripts/evaluate.py) and read_run + report_of (the run
+    held as arrays) give the same report, to the last bit."""
+    from evoscen_eval.metrics import report_of_stream
+    from evoscen_eval.report import report_of
+    from evoscen_eval.rundata import read_run, score_bag
+
+    scored = score_bag(recorded_run.bag_dir)
+    assert report_of_stream(scored.stream, scored.info, scored.warnings) == report_of(read_run(recorded_run.bag_dir))
+
+
 def test_default_out_and_no_silent_overwrite(recorded_run, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(recorded_run.bag_dir, run / "bag")

@@ -30,12 +30,8 @@ from typing import Any, TypeVar
 import numpy as np
 import yaml
 
+from evoscen_eval.streaming import SPEED_BINS, TTC_BINS  # noqa: F401 - the histograms' bins (the plots read them here)
 from evoscen_sim.config import ScenarioConfig, config_to_dict
-
-TTC_BINS = np.linspace(0.0, 20.0, 41)
-"""TTC histogram bin edges (s): finite TTC values up to 20 s."""
-SPEED_BINS = np.linspace(0.0, 40.0, 81)
-"""Speed histogram bin edges (m/s)."""
 
 
 @dataclass(frozen=True)
@@ -55,22 +51,18 @@ class Round:
 
 def run_round(rnd: Round) -> dict[str, Any]:
     """Run and score one round (in this process); returns what is saved for it."""
-    from evoscen_eval.metrics import Series
-    from evoscen_eval.report import evaluation_settings
-
     from .inprocess import run_inprocess
 
     summary = run_inprocess(rnd.cfg, bag_dir=None, evaluate=True)
-    series = Series(summary.run, evaluation_settings(summary.run))
-    ttc = series.ttc[np.isfinite(series.ttc)]
+    plot = summary.plot  # the SUT's TTC and speed distributions, over TTC_BINS and SPEED_BINS
     return {
         "label": rnd.label,
         "seed": rnd.cfg.seed,
         "steps": summary.steps,
         "wall_time_s": summary.wall_time_s,
         "report": summary.report,
-        "ttc_hist": np.histogram(ttc, bins=TTC_BINS)[0].tolist(),
-        "speed_hist": np.histogram(series.speed, bins=SPEED_BINS)[0].tolist(),
+        "ttc_hist": plot.ttc_hist.tolist(),
+        "speed_hist": plot.speed_hist.tolist(),
     }
 
 

@@ -46,7 +46,9 @@ class RunSummary:
     report: dict | None = None
     """The evaluation report (``report.json``'s content) when the run was evaluated."""
     run: object | None = None
-    """The evaluated run as arrays (:class:`evoscen_eval.rundata.RunData`), with ``report``."""
+    """The evaluated run as arrays (:class:`evoscen_eval.rundata.RunData`), with ``keep_run``."""
+    plot: object | None = None
+    """The evaluated run's :class:`evoscen_eval.streaming.PlotData` (distributions of TTC and speed)."""
 
     @property
     def steps_per_s(self) -> float:
@@ -161,13 +163,15 @@ def run_inprocess(
     report_dir: Path | None = None,
     evaluate: bool = False,
     plots: bool = True,
+    keep_run: bool = False,
 ) -> RunSummary:
     """Run ``steps`` (default ``cfg.steps``) steps; record to ``bag_dir`` unless it is None.
 
     With ``report_dir`` the run is scored and ``report.json``/``report.md`` (and, with
     ``plots``, the PNGs) are written there (:mod:`evoscen_eval.report`); with ``evaluate``
     alone the report is only returned (``RunSummary.report``). Either way the scores are the
-    ones an offline evaluation of the bag gives.
+    ones an offline evaluation of the bag gives, computed as the run goes (scoring memory does
+    not grow with the run); ``keep_run`` also keeps the run's arrays (``RunSummary.run``).
 
     Ctrl-C (KeyboardInterrupt) ends the run: the bag is finished (``run_end`` event of kind
     ``interrupted``) and the interrupt is raised again; so is any other error.
@@ -180,7 +184,13 @@ def run_inprocess(
     if report_dir is not None or evaluate:
         from evoscen_eval.rundata import RunAccumulator
 
-        acc = RunAccumulator(expected_states=n_steps + 1)
+        import yaml
+
+        from evoscen_eval.rundata import SCENARIO_KEY, evaluation_settings_of, scenario_metadata
+
+        acc = RunAccumulator(expected_states=n_steps + 1, keep_world=keep_run)
+        recorded = yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY])  # scored as the bag would be
+        acc.start_scoring(evaluation_settings_of(recorded), float(recorded["dt_s"]))
         if report_dir is not None:  # the lane lines of the report's snapshots
             acc.add_map(world.road)
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
@@ -200,19 +210,23 @@ def run_inprocess(
     if outcome.kind == KIND_INTERRUPTED:
         raise KeyboardInterrupt
     if acc is not None:
-        summary.run, summary.report = _report(acc, cfg, report_dir, plots)
+        summary.run, summary.report, summary.plot = _report(acc, cfg, report_dir, plots, keep_run)
     return summary
 
 
-def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool):  # noqa: ANN001, ANN202
-    """Score the accumulated run exactly as the bag would be scored (same scenario dict)."""
+def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool, keep_run: bool):  # noqa: ANN001, ANN202
+    """Score the run as it was streamed, exactly as the bag would be scored (same scenario dict)."""
     import yaml
 
-    from evoscen_eval.metrics import evaluate
-    from evoscen_eval.report import evaluation_settings, write_report
+    from evoscen_eval.metrics import report_of_stream
+    from evoscen_eval.report import write_stream_report
     from evoscen_eval.rundata import SCENARIO_KEY, scenario_metadata
 
-    run = acc.run_data(scenario=yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY]))
+    scenario = yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY])
+    info = acc.stream_info(scenario=scenario)
+    run = acc.run_data(scenario=scenario) if keep_run else None
     if report_dir is None:
-        return run, evaluate(run, evaluation_settings(run))
-    return run, write_report(run, report_dir, plots=plots)
+        report = report_of_stream(acc.stream, info, [])
+    else:
+        report = write_stream_report(acc.stream, info, [], report_dir, plots=plots, lane_segments=acc.lane_segments)
+    return run, report, acc.stream.plot_data()

@@ -27,8 +27,9 @@ refused is counted, logged (at most ``MAX_WARNINGS`` lines) and not recorded; no
 the node with a traceback.
 
 Scoring: the world tables, events and map markers the node writes into the bag also go, in
-the same order, into a :class:`~evoscen_eval.rundata.RunAccumulator`; when the run ends the
-node writes ``report.json``, ``report.md`` and the plots into ``report_dir``
+the same order, into a :class:`~evoscen_eval.rundata.RunAccumulator`, which scores them as
+they come (:mod:`evoscen_eval.streaming`: nothing of the run is kept, so a long run costs no
+memory); when the run ends the node writes ``report.json``, ``report.md`` and the plots into ``report_dir``
 (:mod:`evoscen_eval.report`) — the very numbers ``scripts/evaluate.py`` computes from the bag.
 The SUT's exposures go out live as ``evoscen/exposure`` events from the simulation node (same
 definitions, :mod:`evoscen_sim.safety`).
@@ -56,7 +57,7 @@ from evoscen_sim.config_checks import flag, integer, number, text
 from evoscen_sim.node_params import own_parameters, run_node, scenario_from_node
 
 from .recorder import BagRecorder, OrderedBag
-from .rundata import SCENARIO_METADATA, RunAccumulator, scenario_metadata
+from .rundata import SCENARIO_KEY, SCENARIO_METADATA, RunAccumulator, scenario_metadata
 
 NODE_NAME = T.NODE_EVAL
 # topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
@@ -110,7 +111,15 @@ class EvaluatorNode:
         self.report_plots = own.report_plots
         self.external_sut = own.external_sut
         self.metadata = scenario_metadata(self.cfg, external_sut=self.external_sut)  # the bag's; the report reads it too
-        self.acc = RunAccumulator(expected_states=self.cfg.steps + 1) if self.report_dir else None
+        self.acc = None
+        if self.report_dir:  # scored state by state (evoscen_eval.streaming): memory does not grow with the run
+            import yaml
+
+            from .rundata import evaluation_settings_of
+
+            recorded = yaml.safe_load(self.metadata[SCENARIO_KEY])  # as an offline evaluation reads it
+            self.acc = RunAccumulator(keep_world=False)
+            self.acc.start_scoring(evaluation_settings_of(recorded), float(recorded["dt_s"]))
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         rec = self.cfg.recording
         self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,
@@ -241,13 +250,13 @@ class EvaluatorNode:
 
         from evoscen_sim.errors import InputError
 
-        from .report import write_report
-        from .rundata import SCENARIO_KEY
+        from .report import write_stream_report
 
         try:
-            run = self.acc.run_data(scenario=yaml.safe_load(self.metadata[SCENARIO_KEY]),
-                                    external_sut=self.external_sut)
-            write_report(run, self.report_dir, plots=self.report_plots)
+            info = self.acc.stream_info(scenario=yaml.safe_load(self.metadata[SCENARIO_KEY]),
+                                        external_sut=self.external_sut)
+            write_stream_report(self.acc.stream, info, [], self.report_dir, plots=self.report_plots,
+                                lane_segments=self.acc.lane_segments)
         except (InputError, ValueError) as exc:
             print(f"error: {NODE_NAME}: no report: {exc}", file=sys.stderr)
             return status or EXIT_FAULT

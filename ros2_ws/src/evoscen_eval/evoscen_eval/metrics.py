@@ -1,9 +1,10 @@
-"""Scores of a run (docs/method.md §5.1-5.2), vectorized over the recorded states.
+"""Scores of a run (docs/method.md §5.1-5.2).
 
-Input: a :class:`~evoscen_eval.rundata.RunData` (``[K, V]`` arrays, K world states) and the
-scenario's :class:`~evoscen_sim.config.EvaluationConfig`. Output: the ``report.json`` dict
-(:func:`evaluate`) — every score with the inputs of its formula, so the arithmetic can be
-checked by hand.
+Input: the run's states in one pass (:class:`~evoscen_eval.streaming.ScoreStream`, which holds
+no ``[K, V]`` array; :func:`evaluate` streams a :class:`~evoscen_eval.rundata.RunData` through
+it) and the scenario's :class:`~evoscen_sim.config.EvaluationConfig`. Output: the
+``report.json`` dict (:func:`report_of_stream`) — every score with the inputs of its formula,
+so the arithmetic can be checked by hand.
 
 The **[choice]** points the method leaves open, as implemented (all configurable under
 ``evaluation.*``; docs/evaluation.md states them with their reasons):
@@ -60,10 +61,10 @@ from typing import Any
 import numpy as np
 
 from evoscen_contract import contract as C
-from evoscen_sim.safety import (attribution_steps, dangerous, drac, exposure_runs, follower_headway, follower_ttc,
-                                rear_attributed, rear_dangerous, sut_follower, sut_leader, sut_ttc)
+from evoscen_sim.safety import attribution_steps
 
-from .rundata import EXTERNAL_SUT, RunData
+from .rundata import RunData, run_info_of
+from .streaming import ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
 
 
 # ---------------------------------------------------------------------- formulas (scalars)
@@ -110,127 +111,6 @@ def max_in_view(ev) -> int:  # noqa: ANN001 - EvaluationConfig
 # ---------------------------------------------------------------------- per-state quantities
 
 
-def lane_change_starts(lane_change: np.ndarray) -> np.ndarray:
-    """``[K, V]`` bool: a lane change starts at state k (the column becomes non-zero or switches sign)."""
-    lc = np.asarray(lane_change)
-    prev = np.vstack([np.zeros((1,) + lc.shape[1:], dtype=lc.dtype), lc[:-1]])
-    return (lc != 0) & (lc != prev)
-
-
-def change_intervals(lane_change: np.ndarray) -> list[tuple[int, int]]:
-    """The ``[k0, k1)`` state intervals of one vehicle's lane changes (1-D column)."""
-    lc = np.asarray(lane_change)
-    starts = np.flatnonzero(lane_change_starts(lc[:, None])[:, 0])
-    out = []
-    for k0 in starts:
-        k1 = k0 + 1
-        while k1 < len(lc) and lc[k1] == lc[k0]:
-            k1 += 1
-        out.append((int(k0), int(k1)))
-    return out
-
-
-def activity_accel(accel: np.ndarray, dt_s: float, form: str, window_s: float) -> np.ndarray:
-    """The ``[K, V]`` acceleration AD compares with its threshold (docs/evaluation.md, "AD").
-
-    ``literal``: the per-state acceleration as recorded. ``smoothed``: at state k the mean of
-    the last ``n = max(1, round(window_s / dt_s))`` states' accelerations (k−n+1..k; fewer at
-    the start of the run) — the speed change over the window divided by its length, so
-    per-step noise that averages out (Krauss dawdling: i.i.d. speed draws just below the
-    desired speed) is not counted as activity, while a manoeuvre (braking or accelerating
-    for a second or more) is.
-    """
-    a = np.asarray(accel, dtype=float)
-    if form == "literal":
-        return a
-    if form != "smoothed":
-        raise ValueError(f"accel_activity_form {form!r}: expected 'smoothed' or 'literal'")
-    n = max(1, int(round(window_s / dt_s)))
-    csum = np.cumsum(np.vstack([np.zeros((1,) + a.shape[1:]), a]), axis=0)
-    k = np.arange(1, a.shape[0] + 1)
-    lo = np.maximum(k - n, 0)
-    count = (k - lo).reshape((-1,) + (1,) * (a.ndim - 1))
-    return (csum[k] - csum[lo]) / count
-
-
-def lane_change_pet(run: RunData, intervals: list[tuple[int, int]], after_steps: int) -> list[dict[str, Any]]:
-    """The lane-change PET equivalent of each SUT lane change (docs/evaluation.md).
-
-    For a change over states ``[k0, k1)`` into target lane T (the SUT's ``target_lane`` at
-    k0), over the states k0 <= k < k1 + ``after_steps`` (and < K): the *new follower* at k is
-    the nearest vehicle j != SUT with lane_j(k) = T, centre behind the SUT's and body
-    overlapping the SUT's laterally (in its path: the SUT's body has entered lane T);
-    PET(k) = max(gap, 0) / v_j, gap = s_sut − s_j − (l_sut + l_j)/2 (bumper to bumper), the
-    time until the follower's front reaches the point the SUT's rear occupies, at its
-    current speed (``inf`` when v_j <= 0). The change's PET is the minimum over those
-    states; ``None`` when no state has a new follower.
-    """
-    c, sut, K = run.columns, run.sut_index, run.states
-    out = []
-    for k0, k1 in intervals:
-        k_end = min(k1 + after_steps, K)
-        target = int(c["target_lane"][k0, sut])
-        s, d, v = c["s"][k0:k_end], c["d"][k0:k_end], c["speed"][k0:k_end]
-        length, width, lane = c["length"][k0:k_end], c["width"][k0:k_end], c["lane"][k0:k_end]
-        back = s[:, sut:sut + 1] - s
-        cand = (back > 0.0) & (np.abs(d - d[:, sut:sut + 1]) < 0.5 * (width + width[:, sut:sut + 1])) \
-            & (lane == target)
-        cand[:, sut] = False
-        j = np.argmin(np.where(cand, back, np.inf), axis=1)
-        rows = np.arange(k_end - k0)
-        has = cand[rows, j]
-        gap = back[rows, j] - 0.5 * (length[rows, j] + length[:, sut])
-        vj = v[rows, j]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            pet = np.where(has & (vj > 0.0), np.maximum(gap, 0.0) / vj, np.inf)
-        entry: dict[str, Any] = {"start_state": k0, "end_state": k1, "window_end_state": k_end,
-                                 "target_lane": target, "pet_s": None, "state": None, "follower_id": None}
-        if has.any():
-            m = int(np.argmin(pet))
-            entry.update({"pet_s": _finite(float(pet[m])), "state": k0 + m, "follower_id": int(run.ids[j[m]])})
-        out.append(entry)
-    return out
-
-
-class Series:
-    """Per-state series of a run, for the scores and the plots."""
-
-    def __init__(self, run: RunData, ev) -> None:  # noqa: ANN001
-        c, sut = run.columns, run.sut_index
-        self.sut = sut
-        self.ttc = sut_ttc(c["s"], c["d"], c["speed"], c["length"], c["width"], sut)
-        self.speed = c["speed"][:, sut]
-        self.accel = c["accel"][:, sut]
-        self.lane = c["lane"][:, sut]
-        self.front_danger = dangerous(self.ttc, self.accel, ev.ttc_threshold_s, ev.hard_brake_mps2)
-        # the rear (docs/evaluation.md): follower in the SUT's path, attribution window
-        self.follower, self.follower_ttc = follower_ttc(c["s"], c["d"], c["speed"], c["length"], c["width"], sut)
-        has_f = self.follower >= 0
-        rows = np.arange(run.states)
-        self.follower_accel = np.where(has_f, c["accel"][rows, np.maximum(self.follower, 0)], 0.0)
-        self.after_steps = attribution_steps(ev.rear_attribution_s, run.dt_s)
-        self.attributed = rear_attributed(c["lane_change"][:, sut], ev.rear_conflicts, self.after_steps)
-        _, f_gap = sut_follower(c["s"], c["d"], c["length"], c["width"], sut)
-        f_speed = np.where(has_f, c["speed"][rows, np.maximum(self.follower, 0)], np.nan)
-        self.follower_thw = follower_headway(f_gap, f_speed)
-        self.rear_conflict = rear_dangerous(self.follower_ttc, self.follower_accel, self.follower_thw,
-                                            ev.ttc_threshold_s, ev.hard_brake_mps2, ev.rear_braking,
-                                            ev.rear_braking_headway_s)
-        self.rear_danger = self.rear_conflict & self.attributed
-        self.danger = self.front_danger | self.rear_danger
-        # DRAC of the SUT behind its leader and of the follower behind the SUT (reported only)
-        leader, gap = sut_leader(c["s"], c["d"], c["length"], c["width"], sut)
-        l_speed = np.where(leader >= 0, c["speed"][rows, np.maximum(leader, 0)], np.nan)
-        self.drac_sut = drac(gap, self.speed, l_speed)
-        self.drac_follower = drac(f_gap, f_speed, self.speed)
-        ds = c["s"] - c["s"][:, sut:sut + 1]
-        in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
-        in_view[:, sut] = False
-        self.in_view = in_view
-        self.starts, self.ends = exposure_runs(self.danger)
-        self.time_s = run.time_s
-
-
 # ---------------------------------------------------------------------- the report
 
 
@@ -240,46 +120,45 @@ def _finite(x: float) -> float | None:
 
 
 def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationConfig
-    """The scores of ``run`` as the ``report.json`` dict (see the module docstring)."""
-    K = run.states
+    """The scores of ``run`` as the ``report.json`` dict (see the module docstring): its states
+    streamed through :class:`~evoscen_eval.streaming.ScoreStream`, as every runner scores."""
+    return report_of_stream(stream_run(run, ev), run_info(run), list(run.warnings))
+
+
+def stream_run(run: RunData, ev) -> ScoreStream:  # noqa: ANN001 - EvaluationConfig
+    """A finished :class:`~evoscen_eval.streaming.ScoreStream` fed the states and events of ``run``."""
+    stream = ScoreStream(ev, run.dt_s)
+    stream.add_events(run.events)
+    order = [run.columns[f] for f in C.WORLD_FIELDS]
+    for k in range(run.states):
+        stream.add_state(np.stack([col[k] for col in order], axis=-1), int(round(float(run.time_s[k]) * 1e9)),
+                         float(run.time_s[k]))
+    stream.finish()
+    return stream
+
+
+def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str]) -> dict[str, Any]:  # noqa: PLR0915
+    """The ``report.json`` dict from a finished stream, ``run_info`` and the run's warnings."""
+    st.finish()
+    ev = st.ev
+    K = st.states
     warnings_extra: list[str] = []
-    series = Series(run, ev)
-    c, sut = run.columns, run.sut_index
-    sut_id = int(run.ids[sut])
 
     # --- safety
-    collisions = run.events_named(C.EVENT_COLLISION)
-    sut_collisions = [e for e in collisions if sut_id in e.get("ids", [])]
-    exposures = []
-    for k0, k1 in zip(series.starts, series.ends):
-        ttc = series.ttc[k0:k1]
-        acc = series.accel[k0:k1]
-        severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -acc / ev.hard_brake_mps2)
-        rear = series.rear_danger[k0:k1]
-        if rear.any():  # an attributed rear conflict is as severe as the same TTC/braking ahead
-            f_sev = np.maximum(ev.ttc_threshold_s / np.maximum(series.follower_ttc[k0:k1], 1e-3),
-                               -series.follower_accel[k0:k1] / ev.hard_brake_mps2)
-            severity = np.where(rear, np.maximum(severity, f_sev), severity)
-        worst = int(k0 + np.argmax(severity))
-        exposures.append({
-            "start_state": int(k0), "end_state": int(k1), "states": int(k1 - k0),
-            "start_time_s": float(run.time_s[k0]), "open_at_end": bool(k1 == K),
-            "min_ttc_s": _finite(float(ttc.min())), "min_accel_mps2": float(acc.min()),
-            "worst_state": worst, "severity": float(severity.max()),
-            "rear_states": int(rear.sum()),
-        })
+    exposures = st.exposures
     n_exp = len(exposures)
+    sut_collisions = st.sut_collisions
     i_s = safety_score(len(sut_collisions), n_exp, ev.collision_cap)
     safety = {
         "score": i_s,
         "collisions": len(sut_collisions),
-        "collisions_all": len(collisions),
+        "collisions_all": st.collisions_all,
         "collision_cap": ev.collision_cap,
         "exposures": n_exp,
         "exposures_open_at_end": sum(e["open_at_end"] for e in exposures),
-        "dangerous_states": int(series.danger.sum()),
-        "min_ttc_s": _finite(float(series.ttc.min())),
-        "min_accel_mps2": float(series.accel.min()),
+        "dangerous_states": st.n["danger"],
+        "min_ttc_s": _finite(st.min_ttc),
+        "min_accel_mps2": st.min_accel,
         "ttc_threshold_s": ev.ttc_threshold_s,
         "hard_brake_mps2": ev.hard_brake_mps2,
         "collision_list": [{"state": int(e["step"]), "time_s": float(e["time_s"]), "ids": list(e["ids"])}
@@ -288,40 +167,42 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     }
 
     # --- conflicts on either side of the SUT (docs/evaluation.md), reported on their own
-    intervals = change_intervals(c["lane_change"][:, sut])
-    pets = lane_change_pet(run, intervals, series.after_steps)
+    changes = st.finished_changes
+    after = attribution_steps(ev.rear_attribution_s, st.dt_s if st.dt_s is not None else 0.1)
+    pets = [{"start_state": ch.k0, "end_state": ch.k1, "window_end_state": min(ch.k1 + after, K),
+             "target_lane": ch.target, "pet_s": _finite(ch.pet) if ch.pet_any else None,
+             "state": ch.pet_state if ch.pet_any else None, "follower_id": ch.pet_follower if ch.pet_any else None}
+            for ch in changes]
     pet_values = [p["pet_s"] for p in pets if p["pet_s"] is not None]
-    att = series.attributed
     thr = ev.drac_threshold_mps2
     safety["conflicts"] = {
         "rear_conflicts": ev.rear_conflicts,
         "rear_attribution_s": ev.rear_attribution_s,
         "rear_braking": ev.rear_braking,
         "rear_braking_headway_s": ev.rear_braking_headway_s,
-        "attribution_states": int(att.sum()),
-        "front_dangerous_states": int(series.front_danger.sum()),
-        "rear_conflict_states": int(series.rear_conflict.sum()),
-        "rear_conflict_states_attributed": int(series.rear_danger.sum()),
-        "rear_only_dangerous_states": int((series.rear_danger & ~series.front_danger).sum()),
-        "min_follower_ttc_s": _finite(float(series.follower_ttc.min())),
-        "min_follower_ttc_attributed_s": (_finite(float(series.follower_ttc[att].min())) if att.any() else None),
-        "min_follower_accel_mps2": (float(series.follower_accel[series.follower >= 0].min())
-                                    if (series.follower >= 0).any() else None),
+        "attribution_states": st.n["attributed"],
+        "front_dangerous_states": st.n["front"],
+        "rear_conflict_states": st.n["rear_conflict"],
+        "rear_conflict_states_attributed": st.n["rear_danger"],
+        "rear_only_dangerous_states": st.n["rear_only"],
+        "min_follower_ttc_s": _finite(st.min_f_ttc),
+        "min_follower_ttc_attributed_s": _finite(st.min_f_ttc_att) if st.any_att else None,
+        "min_follower_accel_mps2": st.min_f_accel if st.any_follower else None,
         "drac_threshold_mps2": thr,
-        "max_drac_sut_mps2": _finite(float(series.drac_sut.max())),
-        "max_drac_follower_mps2": _finite(float(series.drac_follower.max())),
-        "drac_sut_states": int((series.drac_sut > thr).sum()),
-        "drac_follower_states": int((series.drac_follower > thr).sum()),
-        "drac_follower_states_attributed": int(((series.drac_follower > thr) & att).sum()),
+        "max_drac_sut_mps2": _finite(st.max_drac_sut),
+        "max_drac_follower_mps2": _finite(st.max_drac_f),
+        "drac_sut_states": st.n["drac_sut"],
+        "drac_follower_states": st.n["drac_follower"],
+        "drac_follower_states_attributed": st.n["drac_follower_att"],
         "lane_change_pet": pets,
         "min_pet_s": min(pet_values) if pet_values else None,
     }
 
     # --- efficiency
     H = max_in_view(ev)
-    h_mean = float(series.in_view.sum(axis=1).mean())
-    v_mean = float(series.speed.mean())
-    sut_changes = [e for e in run.events_named(C.EVENT_LANE_CHANGE) if e.get("ids", [None])[0] == sut_id]
+    h_mean = st.n["in_view"] / K
+    v_mean = st.speed_sum / K
+    sut_changes = st.sut_lane_changes
     durations = [float(e["duration_s"]) for e in sut_changes if e.get("kind") == C.KIND_COMPLETED]
     exclude = ev.undefined_terms == "exclude"
     t_l = float(np.mean(durations)) if durations else ev.no_lane_change_time_s
@@ -347,18 +228,13 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
     }
 
     # --- interaction
-    starts_all = lane_change_starts(c["lane_change"])
-    bv = np.ones(run.ids.shape[0], dtype=bool)
-    bv[sut] = False
+    intervals = [(ch.k0, ch.k1) for ch in changes]
     per_change = []
-    for k0, k1 in intervals:
-        view = series.in_view[k0:k1] & bv
-        if view.any():
-            dv = np.abs(c["speed"][k0:k1] - c["speed"][k0])[view]
-            da = np.abs(c["accel"][k0:k1] - c["accel"][k0])[view]
-            seen = view.any(axis=0)
-            lcs = starts_all[k0:k1][:, seen].sum(axis=0)
-            per_change.append((float(dv.mean()), float(da.mean()), float(lcs.mean()), int(seen.sum())))
+    for ch in changes:
+        if ch.samples:
+            seen = ch.seen
+            per_change.append((ch.dv_sum / ch.samples, ch.da_sum / ch.samples, float(ch.starts[seen].mean()),
+                               int(seen.sum())))
         else:
             per_change.append((0.0, 0.0, 0.0, 0))
     v_f = float(np.mean([p[0] for p in per_change])) if per_change else 0.0
@@ -410,12 +286,10 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
                                   "accel_activity_form": ev.accel_activity_form,
                                   "accel_activity_window_s": ev.accel_activity_window_s,
                                   "k": [ev.k_exposure, ev.k_lane_change, ev.k_accel]}
-    warnings = list(run.warnings) + warnings_extra
+    warnings = list(warnings) + warnings_extra
     if n_win:
-        lc_w = starts_all[: n_win * W].reshape(n_win, W, -1).sum(axis=(1, 2))
-        ad_acc = activity_accel(c["accel"], run.dt_s, ev.accel_activity_form, ev.accel_activity_window_s)
-        ad_w = (np.abs(ad_acc[: n_win * W]) > ev.accel_activity_mps2).reshape(n_win, W, -1).sum(axis=(1, 2))
-        e_w = np.bincount(series.starts[series.starts < n_win * W] // W, minlength=n_win)
+        lc_w, ad_w, e_w = (np.asarray(st.windows[key][:n_win], dtype=np.int64)
+                           for key in ("lane_changes", "accel_decel", "exposures"))
         lc, ad, e = float(lc_w.mean()), float(ad_w.mean()), float(e_w.mean())
         complexity.update({
             "score": complexity_score(e, lc, ad, ev.k_exposure, ev.k_lane_change, ev.k_accel),
@@ -428,7 +302,7 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
         warnings.append(f"{K} states is shorter than one complexity window ({W} states): no complexity score")
 
     return {
-        "run": run_info(run),
+        "run": info,
         "settings": asdict(ev),
         "warnings": warnings,
         "safety": safety,
@@ -441,17 +315,5 @@ def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationCo
 
 def run_info(run: RunData) -> dict[str, Any]:
     """What run the report is about."""
-    sc = run.scenario or {}
-    return {
-        "scenario": sc.get("name"),
-        "seed": sc.get("seed"),
-        "sut_model": EXTERNAL_SUT if run.external_sut else (sc.get("sut") or {}).get("model"),
-        "bv_driver": (sc.get("bvs") or {}).get("driver"),
-        "bv_count": int(run.ids.shape[0] - 1),
-        "sut_id": int(run.ids[run.sut_index]),
-        "states": run.states,
-        "steps": run.states - 1,
-        "dt_s": run.dt_s,
-        "duration_s": float(run.time_s[-1] - run.time_s[0]),
-        "complete": run.complete,
-    }
+    return run_info_of(run.scenario, run.external_sut, run.ids, run.sut_index, run.states, run.dt_s,
+                       float(run.time_s[-1] - run.time_s[0]), run.complete)

@@ -1,7 +1,10 @@
 """The evaluation report of a run: ``report.json``, ``report.md`` and PNG plots.
 
 Written the same way by the live evaluator node, by ``scripts/evaluate.py`` from a bag, and
-by the in-process runner: :func:`write_report` on a :class:`~evoscen_eval.rundata.RunData`.
+by the in-process runner: :func:`write_stream_report` on the run's
+:class:`~evoscen_eval.streaming.ScoreStream` (:func:`write_report` streams a
+:class:`~evoscen_eval.rundata.RunData` through one). The plots read the stream's
+:class:`~evoscen_eval.streaming.PlotData`, bounded whatever the run's length.
 
 Plots (matplotlib, Agg): the SUT's TTC distribution (``ttc.png``) and speed distribution
 (``speed.png``); a timeline of speed, lane and TTC with exposures shaded and collisions
@@ -19,25 +22,20 @@ from typing import Any
 
 import numpy as np
 
-from evoscen_sim.config import EvaluationConfig, evaluation_from_dict
+from evoscen_sim.config import EvaluationConfig
 from evoscen_sim.errors import InputError
 
-from .metrics import Series, evaluate
-from .rundata import RunData
+from .metrics import evaluate, report_of_stream, run_info, stream_run
+from .rundata import RunData, evaluation_settings_of
+from .streaming import MAX_SNAPSHOTS, SPEED_BINS, TTC_BINS, PlotData, Scene, ScoreStream
 
-MAX_SNAPSHOTS = 10
-"""Collision snapshots drawn at most (the report lists every collision)."""
-TTC_PLOT_MAX_S = 20.0
+TTC_PLOT_MAX_S = float(TTC_BINS[-1])
 """TTC values above this (and infinite TTC: nothing closing ahead) are left out of the TTC plots."""
 
 
 def evaluation_settings(run: RunData, override: EvaluationConfig | None = None) -> EvaluationConfig:
     """The evaluation settings of a run: ``override``, else the recorded scenario's, else the defaults."""
-    if override is not None:
-        return override
-    if run.scenario is not None and run.scenario.get("evaluation") is not None:
-        return evaluation_from_dict(run.scenario["evaluation"], "the bag's recorded scenario")
-    return EvaluationConfig()
+    return override if override is not None else evaluation_settings_of(run.scenario)
 
 
 def report_of(run: RunData, override: EvaluationConfig | None = None) -> dict[str, Any]:
@@ -51,14 +49,22 @@ def write_report(run: RunData, out_dir: Path | str, *, override: EvaluationConfi
 
     Returns the report dict. InputError if ``out_dir`` cannot be written.
     """
-    ev = evaluation_settings(run, override)
-    report = evaluate(run, ev)
+    stream = stream_run(run, evaluation_settings(run, override))
+    return write_stream_report(stream, run_info(run), list(run.warnings), out_dir, plots=plots, source=source,
+                               lane_segments=run.lane_segments)
+
+
+def write_stream_report(stream: ScoreStream, info: dict[str, Any], warnings: list[str], out_dir: Path | str, *,
+                        plots: bool = True, source: str | None = None,
+                        lane_segments: np.ndarray | None = None) -> dict[str, Any]:
+    """:func:`write_report` for a run scored as it streamed (``info``: :func:`~evoscen_eval.metrics.run_info_of`)."""
+    report = report_of_stream(stream, info, warnings)
     if source is not None:
         report["run"]["source"] = source
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        images = draw_plots(run, ev, report, out) if plots else []
+        images = draw_plots(stream.plot_data(lane_segments), stream.ev, report, out) if plots else []
         (out / "report.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
         (out / "report.md").write_text(markdown(report, images), encoding="utf-8")
     except OSError as exc:
@@ -181,64 +187,65 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
 # ---------------------------------------------------------------------- plots
 
 
-def draw_plots(run: RunData, ev: EvaluationConfig, report: dict[str, Any], out: Path) -> list[str]:
+def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out: Path) -> list[str]:
     """Draw the PNGs into ``out``; returns their file names."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    series = Series(run, ev)
     names: list[str] = []
-
-    finite = series.ttc[np.isfinite(series.ttc) & (series.ttc <= TTC_PLOT_MAX_S)]
+    closing = int(plot.ttc_hist.sum())
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    if finite.size:
-        ax.hist(finite, bins=np.linspace(0.0, TTC_PLOT_MAX_S, 41), color="tab:blue")
+    if closing:
+        ax.stairs(plot.ttc_hist, TTC_BINS, fill=True, color="tab:blue")
     ax.axvline(ev.ttc_threshold_s, color="tab:red", ls="--", label=f"threshold {ev.ttc_threshold_s:g} s")
     ax.set(xlabel="SUT TTC to the vehicle ahead in its path (s)", ylabel="states",
-           title=f"TTC distribution ({finite.size} of {series.ttc.size} states closing within {TTC_PLOT_MAX_S:g} s)")
+           title=f"TTC distribution ({closing} of {plot.states} states closing within {TTC_PLOT_MAX_S:g} s)")
     ax.legend()
     names.append(_save(fig, out, "ttc.png"))
 
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    ax.hist(series.speed, bins=40, color="tab:green")
-    ax.set(xlabel="SUT speed (m/s)", ylabel="states", title=f"Speed distribution (mean {series.speed.mean():.2f} m/s)")
+    ax.stairs(plot.speed_hist, SPEED_BINS, fill=True, color="tab:green")
+    ax.set(xlabel="SUT speed (m/s)", ylabel="states",
+           title=f"Speed distribution (mean {report['efficiency']['mean_speed_mps']:.2f} m/s)")
     names.append(_save(fig, out, "speed.png"))
 
-    t = run.time_s
+    t = plot.timeline_time_s
     fig, axes = plt.subplots(3, 1, figsize=(10, 6.5), sharex=True)
-    axes[0].plot(t, series.speed, lw=0.8)
+    axes[0].plot(t, plot.timeline_speed, lw=0.8)
     axes[0].set_ylabel("speed (m/s)")
-    axes[1].step(t, series.lane, where="post", lw=0.8)
+    axes[1].step(t, plot.timeline_lane, where="post", lw=0.8)
     axes[1].set_ylabel("lane")
     from matplotlib.ticker import MaxNLocator
 
     axes[1].yaxis.set_major_locator(MaxNLocator(integer=True))
-    axes[2].plot(t, np.minimum(series.ttc, TTC_PLOT_MAX_S), lw=0.8)
+    axes[2].plot(t, np.minimum(plot.timeline_ttc, TTC_PLOT_MAX_S), lw=0.8)
     axes[2].axhline(ev.ttc_threshold_s, color="tab:red", ls="--", lw=0.8)
     axes[2].set(ylabel=f"TTC (s, ≤{TTC_PLOT_MAX_S:g})", xlabel="time (s)")
-    for k0, k1 in zip(series.starts, series.ends):
+    dt = report["run"]["dt_s"]
+    last_t = report["run"]["duration_s"] + (float(t[0]) if t.size else 0.0)
+    for x in report["safety"]["exposure_list"]:
         for ax in axes:
-            ax.axvspan(t[k0], t[min(k1, len(t) - 1)], color="tab:orange", alpha=0.3, lw=0)
+            ax.axvspan(x["start_time_s"], min(x["start_time_s"] + x["states"] * dt, last_t),
+                       color="tab:orange", alpha=0.3, lw=0)
     for col in report["safety"]["collision_list"]:
         for ax in axes:
             ax.axvline(col["time_s"], color="tab:red", lw=1.2)
+    every = "" if plot.timeline_stride == 1 else f"; one point per {plot.timeline_stride} states, lowest TTC"
     axes[0].set_title(f"SUT timeline: {report['safety']['exposures']} exposures (shaded), "
-                      f"{report['safety']['collisions']} collisions (red)")
+                      f"{report['safety']['collisions']} collisions (red){every}")
     names.append(_save(fig, out, "timeline.png"))
 
     for n, col in enumerate(report["safety"]["collision_list"][:MAX_SNAPSHOTS], 1):
-        k = min(int(col["state"]), run.states - 1)
-        names.append(_snapshot(plt, run, k, set(col["ids"]), f"collision {n} at t = {col['time_s']:.1f} s",
-                               out, f"collision_{n}.png"))
-    exposures = report["safety"]["exposure_list"]
-    if exposures:
-        worst = max(exposures, key=lambda x: x["severity"])
-        k = worst["worst_state"]
-        ttc = series.ttc[k]
-        names.append(_snapshot(plt, run, k, set(), f"worst exposure at t = {run.time_s[k]:.1f} s: TTC "
-                               f"{ttc:.2f} s, accel {series.accel[k]:.2f} m/s²", out, "worst_exposure.png"))
+        scene = plot.collision_scenes.get(min(int(col["state"]), plot.states - 1))
+        if scene is not None:
+            names.append(_snapshot(plt, scene, plot.lane_segments, set(col["ids"]),
+                                   f"collision {n} at t = {col['time_s']:.1f} s", out, f"collision_{n}.png"))
+    if plot.worst_scene is not None:
+        w = plot.worst_scene
+        names.append(_snapshot(plt, w, plot.lane_segments, set(), f"worst exposure at t = {w.time_s:.1f} s: TTC "
+                               f"{w.sut_ttc:.2f} s, accel {w.sut_accel:.2f} m/s²", out, "worst_exposure.png"))
     return names
 
 
@@ -251,32 +258,33 @@ def _save(fig, out: Path, name: str) -> str:  # noqa: ANN001
     return name
 
 
-def _snapshot(plt, run: RunData, k: int, highlight: set[int], title: str, out: Path, name: str) -> str:  # noqa: ANN001
-    """Bird's-eye view around the SUT at state ``k``: lane lines, every vehicle as its box."""
+def _snapshot(plt, scene: Scene, lane_segments: np.ndarray | None, highlight: set[int], title: str,  # noqa: ANN001
+              out: Path, name: str) -> str:
+    """Bird's-eye view around the SUT in ``scene``: lane lines, every vehicle as its box."""
     from matplotlib.collections import LineCollection
     from matplotlib.patches import Polygon
 
-    c, sut = run.columns, run.sut_index
-    cx, cy = c["x"][k, sut], c["y"][k, sut]
+    c, sut = scene.columns, scene.sut_index
+    cx, cy = c["x"][sut], c["y"][sut]
     half = 70.0
     fig, ax = plt.subplots(figsize=(10, 4))
-    if run.lane_segments is not None and len(run.lane_segments):
-        seg = run.lane_segments
+    if lane_segments is not None and len(lane_segments):
+        seg = lane_segments
         near = (np.abs(seg[:, :, 0] - cx).min(axis=1) < 2 * half) & (np.abs(seg[:, :, 1] - cy).min(axis=1) < 2 * half)
         ax.add_collection(LineCollection(seg[near], colors="0.6", linewidths=0.8))
-    for j in range(run.ids.shape[0]):
-        x, y, yaw, length, width = (c[f][k, j] for f in ("x", "y", "yaw", "length", "width"))
+    for j in range(scene.ids.shape[0]):
+        x, y, yaw, length, width = (c[f][j] for f in ("x", "y", "yaw", "length", "width"))
         if abs(x - cx) > half + 10 or abs(y - cy) > half:
             continue
         ca, sa = math.cos(yaw), math.sin(yaw)
         corners = [(x + ca * u - sa * v, y + sa * u + ca * v)
                    for u, v in ((length / 2, width / 2), (-length / 2, width / 2),
                                 (-length / 2, -width / 2), (length / 2, -width / 2))]
-        vid = int(run.ids[j])
+        vid = int(scene.ids[j])
         color = "orange" if j == sut else ("tab:red" if vid in highlight else "tab:blue")
         edge, lw = ("tab:red", 2.0) if vid in highlight else ("k", 0.5)
         ax.add_patch(Polygon(corners, closed=True, fc=color, ec=edge, lw=lw, alpha=0.85))
-        ax.text(x, y + width, f"{vid}\n{c['speed'][k, j] * 3.6:.0f}", fontsize=6, ha="center", va="bottom")
+        ax.text(x, y + width, f"{vid}\n{c['speed'][j] * 3.6:.0f}", fontsize=6, ha="center", va="bottom")
     ax.set_xlim(cx - half, cx + half)
     ax.set_ylim(cy - 15, cy + 15)
     ax.set_aspect("equal")

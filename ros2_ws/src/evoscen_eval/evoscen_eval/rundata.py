@@ -1,11 +1,13 @@
 """A run as arrays: what the scores, the report and the fidelity extraction read.
 
 One accumulator, three feeders, so the live evaluator, an offline evaluation of the bag and
-the in-process runner see *the same numbers*:
+the in-process runner see *the same numbers* (and, scoring, compute them in one pass,
+:mod:`evoscen_eval.streaming`):
 
 * the evaluator node feeds it the serialized messages it records (:meth:`RunAccumulator.add_bytes`);
-* :func:`read_run` feeds it the messages of a bag, in file order (a truncated or corrupt bag:
-  the readable prefix, with a warning saying how many states were read);
+* :func:`read_run` (the run as arrays) and :func:`score_bag` (the scores in one pass) feed it
+  the messages of a bag, in file order (a truncated or corrupt bag: the readable prefix, with
+  a warning saying how many states were read);
 * the in-process runner feeds it the world's columns and the event dicts directly (the world
   table's float64 values are exactly the columns; event values survive the KeyValue strings
   exactly: ints, ``repr`` floats).
@@ -27,6 +29,7 @@ import yaml
 
 from evoscen_contract import contract as C
 from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
+from evoscen_sim.config import EvaluationConfig, evaluation_from_dict
 from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_STEPS
 
@@ -75,9 +78,16 @@ class RunData:
 
 
 class RunAccumulator:
-    """Collects world states, events and the map of a run (see the module docstring)."""
+    """Collects world states, events and the map of a run (see the module docstring).
 
-    def __init__(self, expected_states: int | None = None) -> None:
+    With ``keep_world`` (default) it holds the run (:meth:`run_data`: the ``[K, V]`` columns
+    the fidelity extraction and the realism figures read). For scoring alone, ``keep_world=False``
+    and :meth:`start_scoring` before the first state: each state goes to a
+    :class:`~evoscen_eval.streaming.ScoreStream` and is not kept, so scoring memory does not
+    grow with the run (the live evaluator, the in-process runner, ``scripts/evaluate.py``).
+    """
+
+    def __init__(self, expected_states: int | None = None, *, keep_world: bool = True) -> None:
         # The world states live in one float64 buffer [F, capacity, V]: field j of states 0..K-1
         # is the contiguous block buf[j, :K], which RunData.columns hands out as views, so the
         # [K, V] columns are held once (before: a list of [V, F] arrays, then np.stack, then a
@@ -92,6 +102,23 @@ class RunAccumulator:
         self.lane_segments: np.ndarray | None = None
         self._events_class: Any = None
         self._markers_class: Any = None
+        self.keep_world = keep_world
+        self.stream: Any = None
+        self._last_table: np.ndarray | None = None
+        self._last_stamp: int | None = None
+
+    def start_scoring(self, ev: Any, dt_s: float | None = None) -> Any:
+        """Score the states as they come (a :class:`~evoscen_eval.streaming.ScoreStream` under
+        ``ev``, step ``dt_s`` or from the stamps); before the first world state."""
+        from .streaming import ScoreStream
+
+        if self._k:
+            raise ValueError("scoring must start before the first world state")
+        self.stream = ScoreStream(ev, dt_s)
+        self.stream.add_events(self.events)
+        if not self.keep_world:
+            self.events = [e for e in self.events if e["name"] == C.EVENT_RUN_END]
+        return self.stream
 
     # ------------------------------------------------------------------ feeding
 
@@ -107,9 +134,12 @@ class RunAccumulator:
     def add_events(self, events: Iterable[Mapping[str, Any]]) -> None:
         """Event dicts of one ``/evoscen/events`` message."""
         for event in events:
-            self.events.append(dict(event))
+            if self.keep_world or self.stream is None:
+                self.events.append(dict(event))
             if event["name"] == C.EVENT_RUN_END:
                 self.complete = True
+        if self.stream is not None:
+            self.stream.add_events(events)
 
     def add_bytes(self, topic: str, data: bytes) -> None:
         """One serialized message of the contract; topics the scores do not use are ignored."""
@@ -142,6 +172,12 @@ class RunAccumulator:
         self.lane_segments = lane_segments(road_markers(road))
 
     def _add_state(self, table: np.ndarray, t_ns: int) -> None:
+        self._last_table, self._last_stamp = table, int(t_ns)
+        if self.stream is not None:
+            self.stream.add_state(table, t_ns)
+        if not self.keep_world:
+            self._k += 1
+            return
         rows, n_fields = table.shape
         if self._buf is None:
             self._buf = np.empty((n_fields, self._expected, rows), dtype=np.float64)
@@ -165,7 +201,7 @@ class RunAccumulator:
 
     def last_nonfinite(self) -> tuple[int, str, float] | None:
         """``(vehicle id, field, value)`` of the first NaN/inf cell of the last state, else None."""
-        table = self._buf[:, self._k - 1, :].T
+        table = self._last_table
         bad = ~np.isfinite(table)
         if not bad.any():
             return None
@@ -174,12 +210,26 @@ class RunAccumulator:
         return (int(vid) if np.isfinite(vid) else v), C.WORLD_FIELDS[j], float(table[v, j])
 
     def stamps_ns(self) -> list[int]:
-        """The stamps of the states collected so far (ns)."""
+        """The stamps of the states collected so far (ns; empty without ``keep_world``)."""
         return self._times_ns
+
+    @property
+    def last_stamp_ns(self) -> int | None:
+        """The stamp of the last state collected (ns)."""
+        return self._last_stamp
+
+    def stream_info(self, *, scenario: dict | None = None, external_sut: bool = False) -> dict[str, Any]:
+        """The report's ``run`` section of a scored stream (:func:`~evoscen_eval.metrics.run_info_of`)."""
+        st = self.stream
+        st.finish()
+        dt = float(scenario["dt_s"]) if scenario is not None and "dt_s" in scenario else (st.dt_s or 0.1)
+        return run_info_of(scenario, external_sut, st.ids, st.sut, st.states, dt, st.duration_s, self.complete)
 
     def run_data(self, *, scenario: dict | None = None, warnings: Iterable[str] = (),
                  external_sut: bool = False) -> RunData:
-        """The collected run; ValueError if no world state was collected."""
+        """The collected run; ValueError if no world state was collected (or none was kept)."""
+        if not self.keep_world:
+            raise ValueError("the accumulator scored the states without keeping them (keep_world=False)")
         if not self._k:
             raise ValueError("no world state (/evoscen/world) in the run")
         k = self._k
@@ -268,6 +318,65 @@ def _check_channel(channel: Any, schemas: Mapping[int, Any], path: Path) -> None
                          f"{channel.message_encoding!r}; expected {expected!r} (ros2msg) as cdr")
 
 
+class StampCheck:
+    """The world states' stamps checked one at a time (see :func:`check_stamps`); holds one entry
+    per distinct spacing, not one per state."""
+
+    def __init__(self, dt_ns: int | None, where: str) -> None:
+        self.dt_ns = dt_ns if dt_ns is not None and dt_ns > 0 else None
+        self.where = where
+        self.states = 0
+        self._prev: int | None = None
+        self._spacings: dict[int, list[int]] = {}  # spacing -> [first state after it, count, stamp before it]
+
+    def add(self, t_ns: int) -> None:
+        """The next state's stamp; InputError if it is not after the previous one (or, with a
+        known step, not a whole number of steps after it)."""
+        k, t = self.states, int(t_ns)
+        self.states += 1
+        if self._prev is not None:
+            d = t - self._prev
+            if d <= 0:
+                what = "the same stamp as" if d == 0 else "a stamp before"
+                raise InputError(f"{self.where}: world state {k} (t = {t} ns) has {what} state {k - 1} "
+                                 f"(t = {self._prev} ns): duplicated or reordered world states; expected strictly "
+                                 "increasing stamps, one per step")
+            if self.dt_ns is not None and d % self.dt_ns != 0:
+                self._irregular(k, t, d, self.dt_ns)
+            entry = self._spacings.get(d)
+            if entry is None:
+                self._spacings[d] = [k, 1, self._prev]
+            else:
+                entry[1] += 1
+        self._prev = t
+
+    def _irregular(self, k: int, t: int, d: int, dt_ns: int) -> None:
+        raise InputError(f"{self.where}: world state {k} (t = {t} ns) is {d} ns after state {k - 1}: "
+                         f"not a whole number of steps of {dt_ns} ns")
+
+    def finish(self) -> list[str]:
+        """The warnings (one line for all gaps); InputError for an irregular spacing when the step
+        was not known (then it is the smallest spacing)."""
+        if self.states < 2:
+            return []
+        dt_ns = self.dt_ns if self.dt_ns is not None else min(self._spacings)
+        if self.dt_ns is None:
+            bad = [(e[0], d, e[2]) for d, e in self._spacings.items() if d % dt_ns != 0]
+            if bad:
+                k, d, before = min(bad)
+                self._irregular(k, before + d, d, dt_ns)
+        gaps = {d: e for d, e in self._spacings.items() if d > dt_ns}
+        if not gaps:
+            return []
+        count = sum(e[1] for e in gaps.values())
+        missing = sum(e[1] * (d // dt_ns - 1) for d, e in gaps.items())
+        first_d = min(gaps, key=lambda d: gaps[d][0])
+        return [f"{self.where}: {count} gap{'s' if count > 1 else ''} in the world states, {missing} step"
+                f"{'s' if missing != 1 else ''} missing (the first: {first_d // dt_ns - 1} after t = "
+                f"{gaps[first_d][2]} ns); scored as recorded: {self.states} states, the states around a gap "
+                "taken as consecutive"]
+
+
 def check_stamps(times_ns: list[int] | np.ndarray, dt_ns: int | None, where: str) -> list[str]:
     """Check the world states' stamps: strictly increasing, one step ``dt_ns`` apart.
 
@@ -275,34 +384,13 @@ def check_stamps(times_ns: list[int] | np.ndarray, dt_ns: int | None, where: str
     scores would count as extra steps) is an InputError; a stamp a whole number of steps
     after the previous one (states missing: a gap) is reported as a warning, one line for
     all gaps, and the run is scored as recorded (the scores then treat the states on either
-    side of a gap as consecutive); any other spacing is an InputError. Returns the warnings.
+    side of a gap as consecutive); any other spacing is an InputError (without ``dt_ns`` the
+    step is the smallest spacing). Returns the warnings.
     """
-    t = np.asarray(times_ns, dtype=np.int64)
-    if t.size < 2:
-        return []
-    d = np.diff(t)
-    back = np.flatnonzero(d <= 0)
-    if back.size:
-        k = int(back[0]) + 1
-        what = "the same stamp as" if d[k - 1] == 0 else "a stamp before"
-        raise InputError(f"{where}: world state {k} (t = {int(t[k])} ns) has {what} state {k - 1} "
-                         f"(t = {int(t[k - 1])} ns): duplicated or reordered world states; expected strictly "
-                         "increasing stamps, one per step")
-    if dt_ns is None or dt_ns <= 0:
-        dt_ns = int(d.min())
-    irregular = np.flatnonzero(d % dt_ns != 0)
-    if irregular.size:
-        k = int(irregular[0]) + 1
-        raise InputError(f"{where}: world state {k} (t = {int(t[k])} ns) is {int(d[k - 1])} ns after state {k - 1}: "
-                         f"not a whole number of steps of {dt_ns} ns")
-    gaps = np.flatnonzero(d > dt_ns)
-    if not gaps.size:
-        return []
-    missing = int((d[gaps] // dt_ns - 1).sum())
-    k = int(gaps[0])
-    return [f"{where}: {gaps.size} gap{'s' if gaps.size > 1 else ''} in the world states, {missing} step"
-            f"{'s' if missing != 1 else ''} missing (the first: {int(d[k] // dt_ns - 1)} after t = {int(t[k])} ns); "
-            f"scored as recorded: {t.size} states, the states around a gap taken as consecutive"]
+    check = StampCheck(dt_ns, where)
+    for t in np.asarray(times_ns, dtype=np.int64).tolist():
+        check.add(t)
+    return check.finish()
 
 
 def read_run(bag_dir: Path | str) -> RunData:
@@ -315,18 +403,61 @@ def read_run(bag_dir: Path | str) -> RunData:
     Raises:
         InputError: no such bag, not an MCAP file, nothing readable, or no world state.
     """
+    path, acc, scenario, external_sut, warnings = _read_bag(bag_dir, RunAccumulator())
+    try:
+        return acc.run_data(scenario=scenario, warnings=warnings, external_sut=external_sut)
+    except ValueError as exc:
+        raise InputError(f"bag {str(path)!r}: {exc}") from None
+
+
+@dataclass
+class ScoredBag:
+    """A bag scored as it was read (:func:`score_bag`), without keeping its states."""
+
+    stream: Any
+    """The finished :class:`~evoscen_eval.streaming.ScoreStream`."""
+    info: dict[str, Any]
+    """The report's ``run`` section."""
+    warnings: list[str]
+    lane_segments: np.ndarray | None
+
+
+def score_bag(bag_dir: Path | str, override: Any = None) -> ScoredBag:
+    """Score the run in a bag in one pass, in memory independent of its length: as :func:`read_run`
+    reads it (same checks, warnings and errors), under ``override`` (an EvaluationConfig) or the
+    recorded scenario's evaluation settings."""
+    acc = RunAccumulator(keep_world=False)
+
+    def start(scenario: dict | None) -> None:
+        ev = override if override is not None else evaluation_settings_of(scenario)
+        dt = scenario.get("dt_s") if scenario is not None else None
+        acc.start_scoring(ev, float(dt) if isinstance(dt, (int, float)) and not isinstance(dt, bool) else None)
+
+    path, acc, scenario, external_sut, warnings = _read_bag(bag_dir, acc, start)
+    try:
+        info = acc.stream_info(scenario=scenario, external_sut=external_sut)
+    except ValueError as exc:
+        raise InputError(f"bag {str(path)!r}: {exc}") from None
+    return ScoredBag(acc.stream, info, warnings, acc.lane_segments)
+
+
+def _read_bag(bag_dir: Path | str, acc: RunAccumulator, before_first_state: Any = None
+              ) -> tuple[Path, RunAccumulator, dict | None, bool, list[str]]:
+    """Feed ``acc`` the bag's messages in file order (see :func:`read_run`); ``before_first_state(scenario)``
+    is called before the first world state is added. Returns (file, acc, scenario, external SUT, warnings)."""
     from mcap.records import Channel, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
 
     from .recorder import bag_file
 
     path = bag_file(Path(bag_dir))
-    acc = RunAccumulator()
     channels: dict[int, str] = {}
     schemas: dict[int, Any] = {}
     scenario: dict | None = None
     external_sut = False
     warnings: list[str] = []
+    stamps: StampCheck | None = None
+    where = f"bag {str(path)!r}: topic {C.TOPIC_WORLD!r}"
     try:
         stream = open(path, "rb")  # noqa: SIM115
     except OSError as exc:
@@ -338,14 +469,19 @@ def read_run(bag_dir: Path | str) -> RunData:
                 if isinstance(record, Message):
                     topic = channels.get(record.channel_id)
                     if topic in _USED_TOPICS:
+                        if topic == C.TOPIC_WORLD and stamps is None:
+                            stamps = StampCheck(_dt_ns(scenario), where)
+                            if before_first_state is not None:
+                                before_first_state(scenario)
                         acc.add_bytes(topic, record.data)
                         if topic == C.TOPIC_WORLD:
                             bad = acc.last_nonfinite()
                             if bad is not None:
                                 raise InputError(
                                     f"bag {str(path)!r}: topic {topic!r}, step {acc.states - 1} "
-                                    f"(t = {acc.stamps_ns()[-1]} ns): field {bad[1]!r} of vehicle {bad[0]} is "
+                                    f"(t = {acc.last_stamp_ns} ns): field {bad[1]!r} of vehicle {bad[0]} is "
                                     f"{bad[2]}; expected finite values")
+                            stamps.add(acc.last_stamp_ns)
                 elif isinstance(record, Channel):
                     if record.topic in _USED_TOPICS:
                         _check_channel(record, schemas, path)
@@ -373,17 +509,19 @@ def read_run(bag_dir: Path | str) -> RunData:
     elif not acc.complete:
         warnings.append(f"bag {str(path)!r} has no run_end event (the run did not finish): evaluated "
                         f"{acc.states} world states ({acc.states - 1} steps)")
-    dt_ns = None
-    if scenario is not None and isinstance(scenario.get("dt_s"), (int, float)) and scenario["dt_s"] > 0:
-        dt_ns = round(float(scenario["dt_s"]) * 1e9)
-    warnings.extend(check_stamps(acc.stamps_ns(), dt_ns, f"bag {str(path)!r}: topic {C.TOPIC_WORLD!r}"))
+    if stamps is not None:
+        warnings.extend(stamps.finish())
     if scenario is None:
         warnings.append(f"bag {str(path)!r} carries no scenario configuration (metadata record "
                         f"{SCENARIO_METADATA!r}): default evaluation settings used")
-    try:
-        return acc.run_data(scenario=scenario, warnings=warnings, external_sut=external_sut)
-    except ValueError as exc:
-        raise InputError(f"bag {str(path)!r}: {exc}") from None
+    return path, acc, scenario, external_sut, warnings
+
+
+def _dt_ns(scenario: dict | None) -> int | None:
+    """The step of a recorded scenario in ns (None if it has none)."""
+    if scenario is not None and isinstance(scenario.get("dt_s"), (int, float)) and scenario["dt_s"] > 0:
+        return round(float(scenario["dt_s"]) * 1e9)
+    return None
 
 
 def _parse_sut_source(value: str | None, path: Path) -> bool:
@@ -409,3 +547,29 @@ def _parse_scenario(text: str | None, path: Path) -> dict | None:
     if not isinstance(data, dict):
         raise InputError(f"bag {str(path)!r}: the scenario metadata record is not a mapping")
     return data
+
+
+def run_info_of(scenario: dict | None, external_sut: bool, ids: np.ndarray, sut_index: int, states: int,
+                dt_s: float, duration_s: float, complete: bool) -> dict[str, Any]:
+    """:func:`run_info` from its parts (a streamed run has no :class:`RunData`)."""
+    sc = scenario or {}
+    return {
+        "scenario": sc.get("name"),
+        "seed": sc.get("seed"),
+        "sut_model": EXTERNAL_SUT if external_sut else (sc.get("sut") or {}).get("model"),
+        "bv_driver": (sc.get("bvs") or {}).get("driver"),
+        "bv_count": int(ids.shape[0] - 1),
+        "sut_id": int(ids[sut_index]),
+        "states": states,
+        "steps": states - 1,
+        "dt_s": dt_s,
+        "duration_s": float(duration_s),
+        "complete": complete,
+    }
+
+
+def evaluation_settings_of(scenario: dict | None) -> EvaluationConfig:
+    """The evaluation settings of a recorded scenario dict (the defaults without one)."""
+    if scenario is not None and scenario.get("evaluation") is not None:
+        return evaluation_from_dict(scenario["evaluation"], "the bag's recorded scenario")
+    return EvaluationConfig()

@@ -14,12 +14,10 @@ import pytest
 
 from evoscen_contract import topics as T
 from evoscen_eval.metrics import (
-    change_intervals,
     complexity_score,
     efficiency_score,
     evaluate,
     interaction_score,
-    lane_change_starts,
     max_in_view,
     safety_score,
 )
@@ -78,10 +76,22 @@ def test_view_capacity_H():
     assert max_in_view(EV) == 5 * 17  # floor(120 / 6.8) = 17 per lane
 
 
-def test_lane_change_starts_and_intervals():
+@pytest.mark.parametrize("split", [False, True])
+def test_lane_change_starts_and_intervals(split, monkeypatch):
+    """A change starts where the SUT's column becomes non-zero or switches sign and lasts while
+    it keeps its value; a change open at the end counts. With blocks of 3 states (``split``)
+    every change and the complexity window's LC count straddle block boundaries: same result."""
+    if split:
+        monkeypatch.setattr("evoscen_eval.streaming.BLOCK_STATES", 3)
     lc = np.array([0, 1, 1, 0, -1, -1, 1, 0, 0, 1])
-    assert np.flatnonzero(lane_change_starts(lc[:, None])[:, 0]).tolist() == [1, 4, 6, 9]
-    assert change_intervals(lc) == [(1, 3), (4, 6), (6, 7), (9, 10)]
+    run = make_run(10, 2)
+    run.columns["lane_change"][:, 0] = lc
+    ev = EvaluationConfig(window_steps=10)
+    report = evaluate(run, ev)
+    changes = [(c["start_state"], c["end_state"]) for c in report["interaction"]["changes"]]
+    assert changes == [(1, 3), (4, 6), (6, 7), (9, 10)]
+    assert [(p["start_state"], p["end_state"]) for p in report["safety"]["conflicts"]["lane_change_pet"]] == changes
+    assert report["complexity"]["per_window"]["lane_changes"] == [4]  # starts at states 1, 4, 6, 9
 
 
 # ---------------------------------------------------------------------- runs

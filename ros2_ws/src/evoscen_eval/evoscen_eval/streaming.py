@@ -1,0 +1,573 @@
+"""The scores of a run in one pass over its states, in memory independent of the run's length.
+
+:class:`ScoreStream` takes the world states one at a time (the evaluator node as they arrive,
+a bag as it is read, the in-process runner after each step) and the events, and gives the
+``report.json`` dict and what the report's plots need (:class:`PlotData`) at the end. It
+holds no ``[K, V]`` array: states wait in a block of :data:`BLOCK_STATES` and each block is
+reduced with the same broadcasting definitions the scores are written in
+(:mod:`evoscen_sim.safety`; they act row by row, so a block gives the same per-state values
+as a whole run would) to
+
+* running sums, counts, minima and maxima (efficiency, the conflict figures);
+* the exposure in progress (an exposure is a run of dangerous states; one block's run can
+  continue into the next) and the finished exposure list;
+* the SUT lane change in progress with its interaction sums and its PET window (which runs
+  ``rear_attribution_s`` past the change's end, so it can outlive the change by blocks);
+* per-window counts of the complexity windows;
+* fixed-bin histograms of the SUT's TTC and speed, a timeline of at most
+  :data:`TIMELINE_POINTS` points (a longer run is drawn from buckets of 2^n states: the
+  first speed and lane and the lowest TTC of each), and the scenes of the report's
+  snapshots (the states of the first collisions and of the worst exposure).
+
+What stays proportional to the run is its output: the exposure, collision and lane-change
+lists and the per-window counts (one entry per 100 states). Blocks start at multiples of
+:data:`BLOCK_STATES` from state 0 whoever feeds the stream, so the live evaluator, a bag read
+offline and the in-process runner sum in the same order and agree to the last bit.
+
+Definitions (docs/evaluation.md; formulas in :mod:`evoscen_eval.metrics`): a block's values
+equal the whole-run definitions except for floating-point sums (the mean speed, the
+interaction means and the trailing-window acceleration of AD are summed block by block).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from evoscen_contract import contract as C
+from evoscen_sim.safety import (attribution_steps, dangerous, drac, exposure_runs, follower_headway, follower_ttc,
+                                rear_dangerous, sut_follower, sut_leader, sut_ttc)
+
+BLOCK_STATES = 256
+"""States reduced together (the block size bounds the memory of the stream)."""
+TIMELINE_POINTS = 20_000
+"""Most points of the report's timeline; a longer run is drawn from buckets of 2^n states."""
+TTC_BINS = np.linspace(0.0, 20.0, 41)
+"""Bins of the SUT's TTC distribution (s); TTC above 20 s (and infinite TTC) is left out."""
+SPEED_BINS = np.linspace(0.0, 40.0, 81)
+"""Bins of the SUT's speed distribution (m/s)."""
+MAX_SNAPSHOTS = 10
+"""Collision scenes kept at most (the report lists every collision)."""
+
+_F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
+_SCENE_FIELDS = ("x", "y", "yaw", "length", "width", "speed")
+
+
+@dataclass
+class Scene:
+    """One world state, for a bird's-eye snapshot: ``columns[f]`` is a ``[V]`` array."""
+
+    state: int
+    time_s: float
+    columns: dict[str, np.ndarray]
+    ids: np.ndarray
+    sut_index: int
+    sut_ttc: float = math.inf
+    sut_accel: float = 0.0
+
+
+@dataclass
+class PlotData:
+    """What the report's plots and the experiments' distributions read (bounded in size)."""
+
+    states: int
+    ttc_hist: np.ndarray
+    """Counts of the SUT's TTC over :data:`TTC_BINS` (finite TTC up to 20 s)."""
+    speed_hist: np.ndarray
+    """Counts of the SUT's speed over :data:`SPEED_BINS`."""
+    timeline_time_s: np.ndarray
+    timeline_speed: np.ndarray
+    timeline_lane: np.ndarray
+    timeline_ttc: np.ndarray
+    """Lowest TTC of each timeline bucket."""
+    timeline_stride: int
+    """States per timeline point (1 up to :data:`TIMELINE_POINTS` states)."""
+    collision_scenes: dict[int, Scene] = field(default_factory=dict)
+    worst_scene: Scene | None = None
+    lane_segments: np.ndarray | None = None
+
+
+@dataclass
+class _Exposure:
+    start: int
+    start_time_s: float
+    min_ttc: float = math.inf
+    min_accel: float = math.inf
+    severity: float = -math.inf
+    worst: int = -1
+    rear_states: int = 0
+
+
+@dataclass
+class _Change:
+    """A SUT lane change ``[k0, k1)`` (k1 None while it lasts) with its PET and interaction sums."""
+
+    k0: int
+    value: float
+    target: int
+    v0: np.ndarray
+    a0: np.ndarray
+    k1: int | None = None
+    # PET (docs/evaluation.md §3): running minimum, first of equal values
+    pet_any: bool = False
+    pet: float = math.inf
+    pet_state: int | None = None
+    pet_follower: int | None = None
+    # interaction: in-view samples of the change
+    dv_sum: float = 0.0
+    da_sum: float = 0.0
+    samples: int = 0
+    seen: np.ndarray | None = None
+    starts: np.ndarray | None = None
+
+
+class ScoreStream:
+    """The scores of one run, fed state by state (see the module docstring).
+
+    Args:
+        ev: the evaluation settings (an :class:`~evoscen_sim.config.EvaluationConfig`).
+        dt_s: the step; None: taken from the first two stamps (0.1 s for a single state).
+    """
+
+    def __init__(self, ev, dt_s: float | None = None) -> None:  # noqa: ANN001 - EvaluationConfig
+        self.ev = ev
+        self.dt_s = dt_s
+        self._block: list[np.ndarray] = []
+        self._block_t: list[int] = []
+        self.states = 0
+        self.first_t_ns: int | None = None
+        self.first_time_s = 0.0
+        self.last_time_s = 0.0
+        self.ids: np.ndarray | None = None
+        self.sut: int | None = None
+        self._events_before: list[dict] = []
+        # events the scores read
+        self.collisions_all = 0
+        self.sut_collisions: list[dict] = []
+        self.sut_lane_changes: list[dict] = []
+        # carried between blocks
+        self._prev_lc: np.ndarray | None = None
+        self._accel_tail: np.ndarray | None = None
+        self._rear_last = -1
+        self._open: _Exposure | None = None
+        self._changes: list[_Change] = []
+        self._prev_scene_block: tuple[int, np.ndarray, np.ndarray] | None = None
+        # reductions
+        self.exposures: list[dict] = []
+        self.finished_changes: list[_Change] = []
+        self.n = {key: 0 for key in ("danger", "front", "rear_conflict", "rear_danger", "rear_only", "attributed",
+                                     "drac_sut", "drac_follower", "drac_follower_att", "in_view")}
+        self.speed_sum = 0.0
+        self.min_ttc = math.inf
+        self.min_accel = math.inf
+        self.min_f_ttc = math.inf
+        self.min_f_ttc_att = math.inf
+        self.any_att = False
+        self.min_f_accel = math.inf
+        self.any_follower = False
+        self.max_drac_sut = -math.inf
+        self.max_drac_f = -math.inf
+        self.windows: dict[str, list[int]] = {"lane_changes": [], "accel_decel": [], "exposures": []}
+        # plots
+        self.ttc_hist = np.zeros(len(TTC_BINS) - 1, dtype=np.int64)
+        self.speed_hist = np.zeros(len(SPEED_BINS) - 1, dtype=np.int64)
+        self._tl: dict[str, list] = {"bucket": [], "t": [], "speed": [], "lane": [], "ttc": []}
+        self._stride = 1
+        self.collision_scenes: dict[int, Scene] = {}
+        self._worst_sev = -math.inf
+        self.worst_scene: Scene | None = None
+        self._finished = False
+
+    # ------------------------------------------------------------------ feeding
+
+    def add_state(self, table: np.ndarray, t_ns: int, time_s: float | None = None) -> None:
+        """One world state: the world table's rows ``[V, F]`` (float64, F = the contract's fields),
+        its stamp and its time in seconds (default ``t_ns * 1e-9``, as :class:`RunData` has it)."""
+        time_s = int(t_ns) * 1e-9 if time_s is None else float(time_s)
+        if self._finished:
+            raise ValueError("the stream has been finished")
+        if self.ids is None:
+            roles = table[:, _F["role"]]
+            suts = np.flatnonzero(roles == C.ROLE_SUT)
+            if len(suts) != 1:
+                raise ValueError(f"the world table has {len(suts)} vehicles with role 1 (SUT), expected exactly 1")
+            self.ids = table[:, _F["id"]].astype(np.int64)
+            self.sut = int(suts[0])
+            self.first_t_ns = int(t_ns)
+            self.first_time_s = time_s
+            pending, self._events_before = self._events_before, []
+            self.add_events(pending)
+        elif table.shape[0] != self.ids.shape[0]:
+            raise ValueError(f"world table of {table.shape[0]} vehicles at t = {t_ns} ns, "
+                             f"the run started with {self.ids.shape[0]}")
+        if self.dt_s is None and self.states == 1:
+            self.dt_s = (int(t_ns) - self.first_t_ns) * 1e-9
+        self._block.append(np.array(table, dtype=np.float64))
+        self._block_t.append(time_s)
+        self.last_time_s = time_s
+        self.states += 1
+        if len(self._block) == BLOCK_STATES:
+            self._reduce_block()
+
+    def add_events(self, events) -> None:  # noqa: ANN001 - iterable of event dicts
+        """Event dicts (``/evoscen/events``); the scores read collisions and the SUT's lane changes."""
+        for event in events:
+            name = event.get("name")
+            if name not in (C.EVENT_COLLISION, C.EVENT_LANE_CHANGE):
+                continue
+            if self.ids is None:
+                self._events_before.append(dict(event))
+                continue
+            sut_id = int(self.ids[self.sut])
+            ids = event.get("ids", [])
+            if name == C.EVENT_COLLISION:
+                self.collisions_all += 1
+                if sut_id in ids:
+                    self.sut_collisions.append(dict(event))
+            elif ids and ids[0] == sut_id:
+                self.sut_lane_changes.append(dict(event))
+
+    # ------------------------------------------------------------------ one block
+
+    def _reduce_block(self) -> None:  # noqa: PLR0915 - one linear reduction
+        if not self._block:
+            return
+        ev, sut = self.ev, self.sut
+        dt = self.dt_s if self.dt_s is not None else 0.1
+        tables = np.stack(self._block)  # [n, V, F]
+        times = np.asarray(self._block_t, dtype=np.float64)
+        self._block, self._block_t = [], []
+        n = tables.shape[0]
+        k0 = self.states - n
+        ks = np.arange(k0, k0 + n)
+        c = {f: tables[:, :, j] for f, j in _F.items()}
+        rows = np.arange(n)
+        s, d, v, a, length, width = c["s"], c["d"], c["speed"], c["accel"], c["length"], c["width"]
+
+        # --- per-state quantities of the SUT (evoscen_sim.safety, row by row)
+        ttc = sut_ttc(s, d, v, length, width, sut)
+        speed, accel, lane, lc_sut = v[:, sut], a[:, sut], c["lane"][:, sut], c["lane_change"][:, sut]
+        front = dangerous(ttc, accel, ev.ttc_threshold_s, ev.hard_brake_mps2)
+        follower, f_ttc = follower_ttc(s, d, v, length, width, sut)
+        has_f = follower >= 0
+        f_idx = np.maximum(follower, 0)
+        f_accel = np.where(has_f, a[rows, f_idx], 0.0)
+        attributed = self._attributed(lc_sut, ks, attribution_steps(ev.rear_attribution_s, dt))
+        _, f_gap = sut_follower(s, d, length, width, sut)
+        f_speed = np.where(has_f, v[rows, f_idx], np.nan)
+        thw = follower_headway(f_gap, f_speed)
+        rear_conflict = rear_dangerous(f_ttc, f_accel, thw, ev.ttc_threshold_s, ev.hard_brake_mps2,
+                                       ev.rear_braking, ev.rear_braking_headway_s)
+        rear_danger = rear_conflict & attributed
+        danger = front | rear_danger
+        leader, gap = sut_leader(s, d, length, width, sut)
+        l_speed = np.where(leader >= 0, v[rows, np.maximum(leader, 0)], np.nan)
+        drac_sut = drac(gap, speed, l_speed)
+        drac_f = drac(f_gap, f_speed, speed)
+        ds = s - s[:, sut:sut + 1]
+        in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
+        in_view[:, sut] = False
+
+        # --- lane-change starts of every vehicle (a column becoming non-zero or switching sign)
+        lc = c["lane_change"]
+        prev = np.vstack([np.zeros((1, lc.shape[1])) if self._prev_lc is None else self._prev_lc[None], lc[:-1]])
+        starts = (lc != 0) & (lc != prev)
+        self._prev_lc = lc[-1].copy()
+
+        # --- AD: |acceleration| above the threshold (trailing mean for 'smoothed', metrics.activity_accel)
+        tail = self._accel_tail if self._accel_tail is not None else np.zeros((0, a.shape[1]))
+        block = np.vstack([tail, a])
+        act = activity_accel(block, dt, ev.accel_activity_form, ev.accel_activity_window_s)[tail.shape[0]:]
+        keep = max(1, int(round(ev.accel_activity_window_s / dt))) - 1 if ev.accel_activity_form == "smoothed" else 0
+        self._accel_tail = block[max(0, block.shape[0] - keep):] if keep else None
+        ad_count = (np.abs(act) > ev.accel_activity_mps2).sum(axis=1)
+
+        # --- counts and extremes
+        nb = self.n
+        nb["danger"] += int(danger.sum())
+        nb["front"] += int(front.sum())
+        nb["rear_conflict"] += int(rear_conflict.sum())
+        nb["rear_danger"] += int(rear_danger.sum())
+        nb["rear_only"] += int((rear_danger & ~front).sum())
+        nb["attributed"] += int(attributed.sum())
+        nb["drac_sut"] += int((drac_sut > ev.drac_threshold_mps2).sum())
+        nb["drac_follower"] += int((drac_f > ev.drac_threshold_mps2).sum())
+        nb["drac_follower_att"] += int(((drac_f > ev.drac_threshold_mps2) & attributed).sum())
+        nb["in_view"] += int(in_view.sum())
+        self.speed_sum += float(speed.sum())
+        self.min_ttc = min(self.min_ttc, float(ttc.min()))
+        self.min_accel = min(self.min_accel, float(accel.min()))
+        self.min_f_ttc = min(self.min_f_ttc, float(f_ttc.min()))
+        if attributed.any():
+            self.any_att = True
+            self.min_f_ttc_att = min(self.min_f_ttc_att, float(f_ttc[attributed].min()))
+        if has_f.any():
+            self.any_follower = True
+            self.min_f_accel = min(self.min_f_accel, float(f_accel[has_f].min()))
+        self.max_drac_sut = max(self.max_drac_sut, float(drac_sut.max()))
+        self.max_drac_f = max(self.max_drac_f, float(drac_f.max()))
+
+        # --- exposures (maximal runs of dangerous states, continued across blocks)
+        severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -accel / ev.hard_brake_mps2)
+        f_sev = np.maximum(ev.ttc_threshold_s / np.maximum(f_ttc, 1e-3), -f_accel / ev.hard_brake_mps2)
+        severity = np.where(rear_danger, np.maximum(severity, f_sev), severity)
+        run_starts, run_ends = exposure_runs(danger)
+        if self._open is not None and not (run_starts.size and run_starts[0] == 0):
+            self._close_exposure(k0)
+        exposure_starts = []
+        for r0, r1 in zip(run_starts.tolist(), run_ends.tolist()):
+            if r0 == 0 and self._open is not None:
+                x = self._open
+            else:
+                x = self._open = _Exposure(start=k0 + r0, start_time_s=float(times[r0]))
+                exposure_starts.append(k0 + r0)
+            seg = slice(r0, r1)
+            x.min_ttc = min(x.min_ttc, float(ttc[seg].min()))
+            x.min_accel = min(x.min_accel, float(accel[seg].min()))
+            m = int(np.argmax(severity[seg]))
+            if severity[r0 + m] > x.severity:
+                x.severity, x.worst = float(severity[r0 + m]), k0 + r0 + m
+            x.rear_states += int(rear_danger[seg].sum())
+            if severity[r0 + m] > self._worst_sev:
+                self._worst_sev = float(severity[r0 + m])
+                self.worst_scene = self._scene(tables, times, r0 + m, k0 + r0 + m)
+                self.worst_scene.sut_ttc, self.worst_scene.sut_accel = float(ttc[r0 + m]), float(accel[r0 + m])
+            if r1 < n:
+                self._close_exposure(k0 + r1)
+
+        # --- complexity windows (state k in window k // W; only whole windows count in the end)
+        W = ev.window_steps
+        w_idx = ks // W
+        n_w = int(w_idx[-1]) + 1
+        for key, per_state in (("lane_changes", starts.sum(axis=1)), ("accel_decel", ad_count)):
+            sums = np.bincount(w_idx - w_idx[0], weights=per_state, minlength=n_w - int(w_idx[0]))
+            self._add_windows(key, int(w_idx[0]), sums)
+        e_w = np.bincount(np.asarray(exposure_starts, dtype=np.int64) // W - int(w_idx[0]),
+                          minlength=n_w - int(w_idx[0]))
+        self._add_windows("exposures", int(w_idx[0]), e_w)
+
+        # --- the SUT's lane changes: interaction sums and PET windows
+        self._track_changes(lc_sut, ks, c, tables, in_view, starts, v, a)
+
+        # --- plots
+        finite = ttc[np.isfinite(ttc) & (ttc <= TTC_BINS[-1])]
+        self.ttc_hist += np.histogram(finite, bins=TTC_BINS)[0]
+        self.speed_hist += np.histogram(speed, bins=SPEED_BINS)[0]
+        self._timeline(ks, times, speed, lane, ttc)
+        self._collision_scenes(k0, tables, times)
+        self._prev_scene_block = (k0, tables, times)
+
+    def _collision_scenes(self, k0: int, tables: np.ndarray, times: np.ndarray) -> None:
+        """The scenes of the first collisions whose states are in this block or the previous one
+        (a collision event may arrive after its state)."""
+        blocks = [(k0, tables, times)]
+        if self._prev_scene_block is not None:
+            blocks.append(self._prev_scene_block)
+        for event in self.sut_collisions[:MAX_SNAPSHOTS]:
+            k = int(event["step"])
+            for b0, b_tables, b_times in blocks:
+                if b0 <= k < b0 + b_tables.shape[0] and k not in self.collision_scenes:
+                    self.collision_scenes[k] = self._scene(b_tables, b_times, k - b0, k)
+
+    def _attributed(self, lc_sut: np.ndarray, ks: np.ndarray, after: int) -> np.ndarray:
+        """:func:`evoscen_sim.safety.rear_attributed`, continued from the previous block."""
+        mode = self.ev.rear_conflicts
+        if mode == "all":
+            return np.ones(ks.shape[0], dtype=bool)
+        if mode == "none":
+            return np.zeros(ks.shape[0], dtype=bool)
+        if mode != "after_lane_change":
+            from evoscen_sim.safety import rear_attributed
+
+            rear_attributed(lc_sut, mode, after)  # raises the error naming the modes
+        last = np.maximum(np.maximum.accumulate(np.where(lc_sut != 0, ks, -1)), self._rear_last)
+        self._rear_last = int(last[-1])
+        return (last >= 0) & (ks - last <= after)
+
+    def _close_exposure(self, end: int) -> None:
+        x, self._open = self._open, None
+        self.exposures.append({
+            "start_state": x.start, "end_state": end, "states": end - x.start, "start_time_s": x.start_time_s,
+            "open_at_end": False, "min_ttc_s": _finite(x.min_ttc), "min_accel_mps2": x.min_accel,
+            "worst_state": x.worst, "severity": x.severity, "rear_states": x.rear_states,
+        })
+
+    def _add_windows(self, key: str, first: int, sums: np.ndarray) -> None:
+        lst = self.windows[key]
+        for i, value in enumerate(sums.tolist()):
+            w = first + i
+            if w < len(lst):
+                lst[w] += int(value)
+            else:
+                lst.append(int(value))
+
+    def _track_changes(self, lc_sut, ks, c, tables, in_view, starts, v, a) -> None:  # noqa: ANN001, PLR0913
+        """Open and close the SUT's lane changes (:func:`evoscen_eval.metrics.change_intervals`) and
+        add this block's rows to each change's interaction sums and PET window."""
+        k0 = int(ks[0])
+        n = ks.shape[0]
+        sut = self.sut
+        prev = self._changes[-1].value if self._changes and self._changes[-1].k1 is None else 0.0
+        for r in range(n):
+            value = float(lc_sut[r])
+            if value == prev:
+                continue
+            if self._changes and self._changes[-1].k1 is None:
+                self._changes[-1].k1 = k0 + r
+            if value != 0.0:
+                self._changes.append(_Change(k0=k0 + r, value=value, target=int(c["target_lane"][r, sut]),
+                                             v0=v[r].copy(), a0=a[r].copy(),
+                                             seen=np.zeros(v.shape[1], dtype=bool),
+                                             starts=np.zeros(v.shape[1], dtype=np.int64)))
+            prev = value
+        after = attribution_steps(self.ev.rear_attribution_s, self.dt_s if self.dt_s is not None else 0.1)
+        k_end_block = k0 + n
+        still = []
+        for ch in self._changes:
+            # interaction over the change's states [k0, k1)
+            lo = max(ch.k0, k0) - k0
+            hi = (min(ch.k1, k_end_block) if ch.k1 is not None else k_end_block) - k0
+            if hi > lo:
+                view = in_view[lo:hi]
+                if view.any():
+                    ch.dv_sum += float(np.abs(v[lo:hi] - ch.v0)[view].sum())
+                    ch.da_sum += float(np.abs(a[lo:hi] - ch.a0)[view].sum())
+                    ch.samples += int(view.sum())
+                    ch.seen |= view.any(axis=0)
+                ch.starts += starts[lo:hi].sum(axis=0)
+            # PET over [k0, k1 + after)
+            p_hi = (min(ch.k1 + after, k_end_block) if ch.k1 is not None else k_end_block) - k0
+            if p_hi > lo:
+                self._pet_rows(ch, c, lo, p_hi, k0)
+            if ch.k1 is not None and ch.k1 + after <= k_end_block:
+                self.finished_changes.append(ch)
+            else:
+                still.append(ch)
+        self._changes = still
+
+    def _pet_rows(self, ch: _Change, c: dict, lo: int, hi: int, k0: int) -> None:
+        """:func:`evoscen_eval.metrics.lane_change_pet` over rows ``[lo, hi)`` of the block."""
+        sut = self.sut
+        s, d, v = c["s"][lo:hi], c["d"][lo:hi], c["speed"][lo:hi]
+        length, width, lane = c["length"][lo:hi], c["width"][lo:hi], c["lane"][lo:hi]
+        back = s[:, sut:sut + 1] - s
+        cand = (back > 0.0) & (np.abs(d - d[:, sut:sut + 1]) < 0.5 * (width + width[:, sut:sut + 1])) \
+            & (lane == ch.target)
+        cand[:, sut] = False
+        j = np.argmin(np.where(cand, back, np.inf), axis=1)
+        rows = np.arange(hi - lo)
+        has = cand[rows, j]
+        gap = back[rows, j] - 0.5 * (length[rows, j] + length[:, sut])
+        vj = v[rows, j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pet = np.where(has & (vj > 0.0), np.maximum(gap, 0.0) / vj, np.inf)
+        if k0 + lo == ch.k0:  # the window's first row: argmin's answer when every PET is infinite
+            ch.pet_state, ch.pet_follower = ch.k0, int(self.ids[j[0]])
+        if has.any():
+            ch.pet_any = True
+        m = int(np.argmin(pet))
+        if pet[m] < ch.pet:
+            ch.pet, ch.pet_state, ch.pet_follower = float(pet[m]), k0 + lo + m, int(self.ids[j[m]])
+
+    def _timeline(self, ks, times, speed, lane, ttc) -> None:  # noqa: ANN001
+        tl = self._tl
+        buckets = ks // self._stride
+        for b in np.unique(buckets).tolist():
+            sel = np.flatnonzero(buckets == b)
+            low = float(ttc[sel].min())
+            if tl["bucket"] and tl["bucket"][-1] == b:
+                tl["ttc"][-1] = min(tl["ttc"][-1], low)
+                continue
+            r = int(sel[0])
+            for key, value in (("bucket", b), ("t", float(times[r])), ("speed", float(speed[r])),
+                               ("lane", float(lane[r])), ("ttc", low)):
+                tl[key].append(value)
+        while len(tl["bucket"]) > TIMELINE_POINTS:
+            self._stride *= 2
+            merged: dict[str, list] = {key: [] for key in tl}
+            for i, b in enumerate(tl["bucket"]):
+                if merged["bucket"] and merged["bucket"][-1] == b // 2:
+                    merged["ttc"][-1] = min(merged["ttc"][-1], tl["ttc"][i])
+                    continue
+                merged["bucket"].append(b // 2)
+                for key in ("t", "speed", "lane", "ttc"):
+                    merged[key].append(tl[key][i])
+            self._tl = tl = merged
+
+    def _scene(self, tables: np.ndarray, times: np.ndarray, r: int, k: int) -> Scene:
+        return Scene(state=k, time_s=float(times[r]),
+                     columns={f: tables[r, :, _F[f]].copy() for f in _SCENE_FIELDS},
+                     ids=self.ids.copy(), sut_index=self.sut)
+
+    # ------------------------------------------------------------------ the end
+
+    def finish(self) -> None:
+        """Reduce the last (partial) block and close what is still open; idempotent."""
+        if self._finished:
+            return
+        if self.ids is None:
+            raise ValueError("no world state (/evoscen/world) in the run")
+        self._reduce_block()
+        K = self.states
+        if self._open is not None:
+            self._close_exposure(K)
+            self.exposures[-1]["open_at_end"] = True
+        for ch in self._changes:
+            if ch.k1 is None:
+                ch.k1 = K
+            self.finished_changes.append(ch)
+        self._changes = []
+        self.finished_changes.sort(key=lambda ch: ch.k0)
+        if self._prev_scene_block is not None:  # collisions stamped past the last state: the last state's scene
+            k0, tables, times = self._prev_scene_block
+            for event in self.sut_collisions[:MAX_SNAPSHOTS]:
+                k = min(int(event["step"]), K - 1)
+                if k not in self.collision_scenes and k0 <= k:
+                    self.collision_scenes[k] = self._scene(tables, times, k - k0, k)
+        self._prev_scene_block = None
+        self._finished = True
+
+    def plot_data(self, lane_segments: np.ndarray | None = None) -> PlotData:
+        """The plots' inputs (after :meth:`finish`)."""
+        self.finish()
+        tl = self._tl
+        return PlotData(states=self.states, ttc_hist=self.ttc_hist.copy(), speed_hist=self.speed_hist.copy(),
+                        timeline_time_s=np.asarray(tl["t"]), timeline_speed=np.asarray(tl["speed"]),
+                        timeline_lane=np.asarray(tl["lane"]), timeline_ttc=np.asarray(tl["ttc"]),
+                        timeline_stride=self._stride, collision_scenes=dict(self.collision_scenes),
+                        worst_scene=self.worst_scene, lane_segments=lane_segments)
+
+    @property
+    def duration_s(self) -> float:
+        """Simulated time from the first state to the last (s)."""
+        return self.last_time_s - self.first_time_s
+
+
+def activity_accel(accel: np.ndarray, dt_s: float, form: str, window_s: float) -> np.ndarray:
+    """The ``[K, V]`` acceleration AD compares with its threshold (docs/evaluation.md, "AD").
+
+    ``literal``: the per-state acceleration as recorded. ``smoothed``: at state k the mean of
+    the last ``n = max(1, round(window_s / dt_s))`` states' accelerations (k−n+1..k; fewer at
+    the start of the run) — the speed change over the window divided by its length, so
+    per-step noise that averages out (Krauss dawdling: i.i.d. speed draws just below the
+    desired speed) is not counted as activity, while a manoeuvre (braking or accelerating
+    for a second or more) is.
+    """
+    a = np.asarray(accel, dtype=float)
+    if form == "literal":
+        return a
+    if form != "smoothed":
+        raise ValueError(f"accel_activity_form {form!r}: expected 'smoothed' or 'literal'")
+    n = max(1, int(round(window_s / dt_s)))
+    csum = np.cumsum(np.vstack([np.zeros((1,) + a.shape[1:]), a]), axis=0)
+    k = np.arange(1, a.shape[0] + 1)
+    lo = np.maximum(k - n, 0)
+    count = (k - lo).reshape((-1,) + (1,) * (a.ndim - 1))
+    return (csum[k] - csum[lo]) / count
+
+
+def _finite(x: float) -> float | None:
+    """JSON has no infinity: ``None`` for a non-finite number."""
+    return float(x) if math.isfinite(x) else None
