@@ -1,0 +1,418 @@
+"""Campaigns: many runs from one YAML spec on Ray, each computed once (docs/campaigns.md).
+
+A **spec** names a scenario configuration, the seeds, overrides for every run (``set``) and a
+``grid`` of axes (scenario keys such as ``sut.model`` or ``bvs.driver``, and ``mutant``: a
+mutant of the run's ``sut.model``, :mod:`evoscen_sut.mutants`, or ``intact``); the campaign is
+every combination of the axes' values (a *cell*) for every seed. Each run is one Ray task of
+one CPU that simulates and scores the run in-process (:func:`evoscen_bringup.inprocess.run_inprocess`).
+
+**Once.** A run is keyed by a hash of its whole resolved configuration and of the code
+version (:func:`code_version`: the content of evoscen's packages, maps and shipped policies).
+Its result (``OUT/runs/<key>/result.json`` with its ``report.json`` beside) is written by the
+driver, atomically, when the task returns; a run whose result exists is never run again, so
+an interrupted campaign resumes where it stopped, and the results table
+(``OUT/results.parquet``, one row per run of the spec) is rebuilt from those files: no run
+is counted twice. A task whose worker process dies is retried by Ray (``--retries``); a run
+that still fails is reported and left without a result (the next invocation tries it again).
+
+By default Ray is started in this process (a local cluster with one worker per CPU);
+``address`` joins a running cluster (``ray start --head`` on one machine, ``ray start
+--address`` on the others, with evoscen installed and sourced alike on every node).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import itertools
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from evoscen_sim.config import ScenarioConfig, config_to_dict, load_scenario_config
+from evoscen_sim.errors import InputError
+
+SPEC_KEYS = ("name", "config", "steps", "seeds", "set", "grid", "record", "compare")
+MUTANT_AXIS = "mutant"
+INTACT = "intact"
+PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_eval", "evoscen_bringup")
+SCORE_COLUMNS = ("intelligence", "safety", "efficiency", "interaction", "complexity")
+COUNT_COLUMNS = ("collisions", "exposures")
+OBJECT_STORE_BYTES = 100 * 2**20
+"""The local Ray's object store: tasks pass a configuration and return a report (kilobytes), so
+100 MiB is plenty, and it fits a container's /dev/shm (ours: 256 MiB) instead of Ray's 30 % of RAM."""
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A campaign spec, validated (see the module docstring)."""
+
+    path: Path
+    name: str
+    config: str | None
+    steps: int | None
+    seeds: tuple[int, ...]
+    fixed: dict[str, str]
+    grid: dict[str, tuple[str, ...]]
+    record: str = "none"
+    compare: tuple[str, str] | None = None
+
+
+@dataclass(frozen=True)
+class CampaignRun:
+    """One run of a campaign: its cell (axis → value), seed, configuration and key."""
+
+    key: str
+    cell: tuple[tuple[str, str], ...]
+    seed: int
+    cfg: ScenarioConfig
+
+
+@dataclass
+class CampaignResult:
+    """What :func:`run_campaign` did."""
+
+    runs: int
+    already_done: int
+    computed: int = 0
+    failed: list[str] = field(default_factory=list)
+    interrupted: bool = False
+    wall_s: float = 0.0
+    nodes: set[str] = field(default_factory=set)
+
+
+# ---------------------------------------------------------------------- the spec
+
+
+def _err(path: Path, key: str, value: Any, expected: str) -> InputError:
+    return InputError(f"{path}: key {key!r} = {value!r}: expected {expected}")
+
+
+def load_spec(path: Path | str) -> Spec:
+    """Read and validate a campaign spec; InputError (one line naming the file and key) if it is wrong."""
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise InputError(f"campaign spec {str(path)!r}: cannot read: {exc.strerror or exc}") from None
+    except yaml.YAMLError as exc:
+        raise InputError(f"campaign spec {str(path)!r}: not YAML ({str(exc).splitlines()[0]})") from None
+    if not isinstance(doc, dict):
+        raise InputError(f"campaign spec {str(path)!r}: expected a mapping of {', '.join(SPEC_KEYS)}")
+    unknown = [k for k in doc if k not in SPEC_KEYS]
+    if unknown:
+        raise _err(path, str(unknown[0]), doc[unknown[0]], f"one of the keys {', '.join(SPEC_KEYS)}")
+    name = doc.get("name", path.stem)
+    if not isinstance(name, str) or not name.strip() or "/" in name:
+        raise _err(path, "name", name, "a non-empty name without '/'")
+    config = doc.get("config")
+    if config is not None and not isinstance(config, str):
+        raise _err(path, "config", config, "a scenario YAML file (relative to the spec) or null")
+    if config is not None and not Path(config).is_absolute():
+        config = str((path.parent / config).resolve())
+    steps = doc.get("steps")
+    if steps is not None and (isinstance(steps, bool) or not isinstance(steps, int) or steps < 1):
+        raise _err(path, "steps", steps, "an integer >= 1")
+    seeds = _seeds(path, doc.get("seeds", {"first": 0, "count": 1}))
+    fixed = doc.get("set") or {}
+    if not isinstance(fixed, dict):
+        raise _err(path, "set", fixed, "a mapping of scenario keys to values")
+    grid = doc.get("grid") or {}
+    if not isinstance(grid, dict):
+        raise _err(path, "grid", grid, "a mapping of axes (scenario keys or 'mutant') to lists of values")
+    axes: dict[str, tuple[str, ...]] = {}
+    for axis, values in grid.items():
+        if not isinstance(values, list) or not values or len({str(v) for v in values}) != len(values):
+            raise _err(path, f"grid.{axis}", values, "a non-empty list of distinct values")
+        axes[str(axis)] = tuple(_text(v) for v in values)
+    if MUTANT_AXIS in axes:
+        from evoscen_sut.mutants import LIBRARY
+
+        bad = [m for m in axes[MUTANT_AXIS] if m != INTACT and m not in LIBRARY]
+        if bad:
+            raise _err(path, f"grid.{MUTANT_AXIS}", bad[0], f"'{INTACT}' or a mutant of {', '.join(LIBRARY)}")
+    record = doc.get("record", "none")
+    if record not in ("none", "all"):
+        raise _err(path, "record", record, "'none' (scores only) or 'all' (a bag per run)")
+    compare = doc.get("compare")
+    if compare is not None:
+        if (not isinstance(compare, dict) or set(compare) != {"axis", "reference"}
+                or compare["axis"] not in axes or _text(compare["reference"]) not in axes[compare["axis"]]):
+            raise _err(path, "compare", compare, "{axis: <a grid axis>, reference: <one of its values>}")
+        compare = (str(compare["axis"]), _text(compare["reference"]))
+    return Spec(path, name.strip(), config, steps, seeds, {str(k): _text(v) for k, v in fixed.items()}, axes,
+                record, compare)
+
+
+def _text(value: Any) -> str:
+    """A spec value as the command-line override text of the scenario loader."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def _seeds(path: Path, value: Any) -> tuple[int, ...]:
+    if isinstance(value, list) and value and all(isinstance(s, int) and not isinstance(s, bool) and s >= 0
+                                                 for s in value) and len(set(value)) == len(value):
+        return tuple(value)
+    if isinstance(value, dict) and set(value) <= {"first", "count"} and "count" in value:
+        first, count = value.get("first", 0), value["count"]
+        if all(isinstance(x, int) and not isinstance(x, bool) for x in (first, count)) and first >= 0 and count >= 1:
+            return tuple(range(first, first + count))
+    raise _err(path, "seeds", value, "a list of distinct integers >= 0, or {first: N, count: M}")
+
+
+def expand(spec: Spec, version: str | None = None) -> list[CampaignRun]:
+    """Every run of the spec: each cell (combination of the axes' values, in the spec's order) × each seed."""
+    version = code_version() if version is None else version
+    axes = list(spec.grid)
+    runs = []
+    for values in itertools.product(*(spec.grid[a] for a in axes)) if axes else [()]:
+        cell = tuple(zip(axes, values))
+        overrides = dict(spec.fixed)
+        mutant = None
+        for axis, value in cell:
+            if axis == MUTANT_AXIS:
+                mutant = value
+            else:
+                overrides[axis] = value
+        if spec.record == "none":
+            overrides["recording.enabled"] = "false"
+        if spec.steps is not None:
+            overrides["steps"] = str(spec.steps)
+        for seed in spec.seeds:
+            over = {**overrides, "seed": str(seed)}
+            try:
+                cfg = load_scenario_config(spec.config, over)
+                if mutant is not None and mutant != INTACT:
+                    from evoscen_sut.mutants import mutant_overrides
+
+                    cfg = load_scenario_config(spec.config, {**over, **mutant_overrides(cfg.sut.model, mutant)})
+            except InputError as exc:
+                raise InputError(f"{spec.path}: cell {dict(cell)}: {exc}") from None
+            runs.append(CampaignRun(run_key(cfg, version), cell, seed, cfg))
+    return runs
+
+
+def run_key(cfg: ScenarioConfig, version: str) -> str:
+    """The run's key: SHA-256 of its whole resolved configuration and the code version (20 hex digits)."""
+    text = json.dumps(config_to_dict(cfg), sort_keys=True, default=str)
+    return hashlib.sha256(f"{version}\n{text}".encode()).hexdigest()[:20]
+
+
+def code_version() -> str:
+    """A hash of what decides a run's result besides its configuration: the files of evoscen's
+    packages (sources, maps, configuration) and the shipped BV policies."""
+    from evoscen_bv.learned import shipped_policy_dir
+
+    roots = [Path(importlib.import_module(p).__file__).resolve().parent for p in PACKAGES]
+    from evoscen_sim.share import share_candidates
+
+    roots += [c for c in share_candidates("maps") if c.is_dir()][:1]
+    policies = shipped_policy_dir()
+    if policies.is_dir():
+        roots.append(policies.resolve())
+    h = hashlib.sha256()
+    for root in roots:
+        for f in sorted(p for p in root.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+            h.update(f.relative_to(root).as_posix().encode())
+            h.update(hashlib.sha256(f.read_bytes()).digest())
+    return h.hexdigest()[:16]
+
+
+# ---------------------------------------------------------------------- one run (a Ray task)
+
+
+def execute(run: CampaignRun, out_dir: str, record: str) -> dict[str, Any]:
+    """Simulate and score one run (in the worker); returns its result row and report."""
+    from .inprocess import run_inprocess
+
+    bag = Path(out_dir) / "runs" / run.key / "bag" if record == "all" else None
+    if bag is not None and bag.exists():  # a retried task: its predecessor's partial bag
+        import shutil
+
+        shutil.rmtree(bag)
+    t0 = time.perf_counter()
+    summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False)
+    report = summary.report
+    row: dict[str, Any] = {"key": run.key, **dict(run.cell), "seed": run.seed, "steps": summary.steps}
+    for name in SCORE_COLUMNS:
+        value = report[name]["score"]
+        row[name] = math.nan if value is None else float(value)
+    row["collisions"] = int(report["safety"]["collisions"])
+    row["exposures"] = int(report["safety"]["exposures"])
+    row["wall_time_s"] = time.perf_counter() - t0
+    try:
+        import ray
+
+        row["node"] = ray.get_runtime_context().get_node_id()[:12]
+    except Exception:  # noqa: BLE001 - outside Ray (tests call it directly)
+        row["node"] = "local"
+    row["pid"] = os.getpid()
+    return {"row": row, "report": report}
+
+
+# ---------------------------------------------------------------------- the campaign
+
+
+def result_path(out_dir: Path, key: str) -> Path:
+    return out_dir / "runs" / key / "result.json"
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def run_campaign(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path, *, address: str | None = None,
+                 cpus: int | None = None, retries: int = 3,
+                 progress: Callable[[int, int, float], None] | None = None) -> CampaignResult:
+    """Run every run of ``runs`` without a result in ``out_dir`` on Ray (see the module docstring).
+
+    ``progress(done, total, runs_per_s)`` after each finished run. Ctrl-C cancels what is left
+    (finished runs are kept; ``interrupted`` is set). The results table and summary are
+    written in every case.
+    """
+    out_dir.mkdir(parents=True, exist_ok=True)
+    todo = [r for r in runs if not result_path(out_dir, r.key).exists()]
+    result = CampaignResult(runs=len(runs), already_done=len(runs) - len(todo))
+    t0 = time.monotonic()
+    if todo:
+        import ray
+
+        started = not ray.is_initialized()
+        if started:
+            local = {} if address else {"num_cpus": cpus, "object_store_memory": OBJECT_STORE_BYTES}
+            ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False, **local)
+        task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute)
+        pending = {task.remote(r, str(out_dir), spec.record): r for r in todo}
+        try:
+            while pending:
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
+                for ref in ready:
+                    run = pending.pop(ref)
+                    try:
+                        done = ray.get(ref)
+                    except Exception as exc:  # noqa: BLE001 - the task failed after its retries
+                        result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): "
+                                             f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+                        continue
+                    path = result_path(out_dir, run.key)
+                    _write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
+                    _write_atomic(path, json.dumps(done["row"]) + "\n")
+                    result.computed += 1
+                    result.nodes.add(done["row"]["node"])
+                    if progress is not None:
+                        rate = result.computed / max(time.monotonic() - t0, 1e-9)
+                        progress(result.already_done + result.computed, len(runs), rate)
+        except KeyboardInterrupt:
+            result.interrupted = True
+            for ref in pending:
+                ray.cancel(ref, force=True)
+        finally:
+            if started:
+                ray.shutdown()
+    result.wall_s = time.monotonic() - t0
+    write_results(spec, runs, out_dir)
+    return result
+
+
+def collect_rows(runs: Sequence[CampaignRun], out_dir: Path) -> list[dict[str, Any]]:
+    """The result rows of ``runs`` that have one, in the spec's order (each run at most once)."""
+    rows = []
+    for r in runs:
+        path = result_path(out_dir, r.key)
+        if path.exists():
+            rows.append(json.loads(path.read_text(encoding="utf-8")))
+    return rows
+
+
+def write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> list[dict[str, Any]]:
+    """``results.parquet`` (one row per finished run of the spec) and ``summary.md``."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rows = collect_rows(runs, out_dir)
+    axes = list(spec.grid)
+    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, "wall_time_s", "node", "pid"]
+    table = pa.table({c: [row.get(c) for row in rows] for c in columns}) if rows else pa.table(
+        {c: pa.array([], type=pa.string()) for c in columns})
+    tmp = out_dir / "results.parquet.tmp"
+    pq.write_table(table, tmp)
+    os.replace(tmp, out_dir / "results.parquet")
+    _write_atomic(out_dir / "summary.md", summary_markdown(spec, runs, rows))
+    return rows
+
+
+# ---------------------------------------------------------------------- statistics
+
+
+def bootstrap_ci(values: Sequence[float], rng: np.random.Generator, draws: int = 2000) -> tuple[float, float, float]:
+    """Mean and its 95 % percentile-bootstrap interval ``(mean, low, high)`` (for skewed counts
+    such as collisions); ``nan`` bounds with fewer than 2 values."""
+    x = np.asarray(values, dtype=float)
+    if x.size == 0:
+        return math.nan, math.nan, math.nan
+    if x.size < 2:
+        return float(x.mean()), math.nan, math.nan
+    means = x[rng.integers(0, x.size, size=(draws, x.size))].mean(axis=1)
+    low, high = np.percentile(means, [2.5, 97.5])
+    return float(x.mean()), float(low), float(high)
+
+
+def cells(spec: Spec, rows: Sequence[Mapping[str, Any]]) -> dict[tuple[str, ...], list[Mapping[str, Any]]]:
+    """Rows grouped by cell (the axes' values in the spec's order)."""
+    out: dict[tuple[str, ...], list[Mapping[str, Any]]] = {}
+    for row in rows:
+        out.setdefault(tuple(str(row[a]) for a in spec.grid), []).append(row)
+    return out
+
+
+def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Mapping[str, Any]]) -> str:
+    """Per-cell means with 95 % intervals (Student t for scores, bootstrap for counts) and, with
+    ``compare``, paired differences to the reference on shared seeds."""
+    from .experiments import fmt_ci, markdown_table, mean_ci
+    from .sensitivity import paired
+
+    axes = list(spec.grid)
+    lines = [f"# Campaign {spec.name}\n",
+             f"{len(rows)} of {len(runs)} runs finished; {len(spec.seeds)} seeds per cell; spec `{spec.path.name}`. "
+             "Scores: mean ± 95 % Student-t interval over seeds; counts: mean [95 % bootstrap interval].\n"]
+    rng = np.random.default_rng(0)  # the bootstrap's draws: fixed, so the summary is reproducible
+    body = []
+    grouped = cells(spec, rows)
+    for cell, members in grouped.items():
+        entry = [*cell, str(len(members))]
+        for name in ("intelligence", "safety", "efficiency", "interaction"):
+            vals = [m[name] for m in members if m[name] is not None and not math.isnan(m[name])]
+            entry.append(fmt_ci(*mean_ci(vals)) if vals else "–")
+        for name in COUNT_COLUMNS:
+            mean, low, high = bootstrap_ci([m[name] for m in members], rng)
+            entry.append(f"{mean:.2f} [{low:.2f}, {high:.2f}]" if not math.isnan(low) else f"{mean:.2f}")
+        body.append(entry)
+    lines.append(markdown_table([*axes, "n", "I", "I_s", "I_e", "I_i", "collisions", "exposures"], body))
+    if spec.compare is not None and rows:
+        axis, ref = spec.compare
+        i = axes.index(axis)
+        comp = []
+        for cell, members in grouped.items():
+            if cell[i] == ref:
+                continue
+            ref_cell = cell[:i] + (ref,) + cell[i + 1:]
+            base = {m["seed"]: m["intelligence"] for m in grouped.get(ref_cell, [])}
+            other = {m["seed"]: m["intelligence"] for m in members}
+            p = paired(base, other)
+            comp.append([*cell, str(p.n), fmt_ci(p.mean, p.half), "yes" if p.above_zero else "no"])
+        lines.append(f"\n## Paired by seed: {ref} − each other {axis} (intelligence)\n")
+        lines.append(markdown_table([*axes, "seeds", "ΔI", "interval above 0"], comp))
+    return "\n".join(lines) + "\n"

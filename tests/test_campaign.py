@@ -1,0 +1,249 @@
+"""Campaigns on Ray (evoscen_bringup.campaign, scripts/campaign.py; docs/campaigns.md).
+
+* A bad spec is one line naming the file, the key and what was expected.
+* Expansion: 2 SUT models x 3 seeds = 6 runs with distinct keys; the same spec and code give
+  the same keys; another code version or another step count gives other keys; a ``mutant``
+  axis applies the mutant's overrides (docs/mutants.md) to the cell's ``sut.model``.
+* A campaign on a local Ray of 2 workers: every run once (results.parquet: 6 rows, 6 keys),
+  each result equal to the same run in this process; run again: nothing computed, no result
+  file rewritten.
+* Ctrl-C part-way (the CLI in a subprocess): exit 130, finished runs kept; the same command
+  again computes only the rest, the earlier result files untouched, every run once.
+* A Ray worker killed (SIGKILL) while it runs a task: the task is retried, the campaign ends
+  with every run exactly once (exit 0).
+* A real 2-node cluster on this machine (two raylets, ray.cluster_utils.Cluster): tasks run on
+  both nodes and every result equals the local run's.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from evoscen_bringup.campaign import collect_rows, expand, load_spec, run_campaign
+from evoscen_sim.errors import InputError
+
+pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
+
+REPO = Path(__file__).resolve().parents[1]
+SMALL = """
+name: small
+steps: 40
+seeds: [0, 1, 2]
+set: {bvs.count: 4, spawn.ramp_vehicles: 1}
+grid:
+  sut.model: [mobil, level0]
+compare: {axis: sut.model, reference: mobil}
+"""
+
+
+def write_spec(tmp_path: Path, text: str, name: str = "spec.yaml") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("grids: {}\n", "key 'grids' = {}: expected one of the keys name, config"),
+    ("seeds: []\n", "key 'seeds' = []: expected a list of distinct integers >= 0, or {first: N, count: M}"),
+    ("grid: {sut.model: []}\n", "key 'grid.sut.model' = []: expected a non-empty list of distinct values"),
+    ("grid: {mutant: [intact, nosuch]}\n", "key 'grid.mutant' = 'nosuch': expected 'intact' or a mutant of"),
+    ("steps: 0\n", "key 'steps' = 0: expected an integer >= 1"),
+    ("grid: {sut.model: [mobil]}\ncompare: {axis: bvs.driver, reference: x}\n", "key 'compare' ="),
+    ("record: some\n", "key 'record' = 'some': expected 'none' (scores only) or 'all'"),
+])
+def test_bad_spec_is_one_line_naming_file_and_key(tmp_path, text, needle):
+    path = write_spec(tmp_path, text)
+    with pytest.raises(InputError) as exc:
+        load_spec(path)
+    msg = str(exc.value)
+    assert msg.startswith(str(path)) and needle in msg and "\n" not in msg, msg
+
+
+def test_a_bad_scenario_value_names_the_spec_and_the_cell(tmp_path):
+    spec = load_spec(write_spec(tmp_path, "grid: {sut.model: [mobil, nosuch]}\n"))
+    with pytest.raises(InputError) as exc:
+        expand(spec, version="v")
+    assert str(exc.value).startswith(f"{spec.path}: cell {{'sut.model': 'nosuch'}}: ") and "\n" not in str(exc.value)
+
+
+def test_expansion_and_keys(tmp_path):
+    spec = load_spec(write_spec(tmp_path, SMALL))
+    runs = expand(spec, version="v1")
+    assert [(dict(r.cell)["sut.model"], r.seed) for r in runs] == [
+        ("mobil", 0), ("mobil", 1), ("mobil", 2), ("level0", 0), ("level0", 1), ("level0", 2)]
+    assert all(r.cfg.steps == 40 and r.cfg.bvs.count == 4 and r.cfg.seed == r.seed for r in runs)
+    assert all(r.cfg.recording.enabled is False for r in runs)  # record: none
+    keys = [r.key for r in runs]
+    assert len(set(keys)) == 6 and keys == [r.key for r in expand(spec, version="v1")]
+    assert not set(keys) & {r.key for r in expand(spec, version="v2")}
+    longer = load_spec(write_spec(tmp_path, SMALL.replace("steps: 40", "steps: 41"), "longer.yaml"))
+    assert not set(keys) & {r.key for r in expand(longer, version="v1")}
+    mut = load_spec(write_spec(tmp_path, "set: {sut.model: mobil}\ngrid: {mutant: [intact, stale]}\n", "m.yaml"))
+    intact, stale = expand(mut, version="v1")
+    from evoscen_sut.mutants import mutant_overrides
+
+    assert intact.cfg.sut.model == "mobil" and intact.key != stale.key
+    reference = __import__("evoscen_sim.config", fromlist=["x"]).load_scenario_config(
+        None, {"sut.model": "mobil", "recording.enabled": "false", "seed": "0", **mutant_overrides("mobil", "stale")})
+    assert stale.cfg == reference
+
+
+@pytest.fixture(scope="module")
+def local_campaign(tmp_path_factory):
+    """The SMALL campaign on a local Ray of 2 workers, run twice."""
+    tmp = tmp_path_factory.mktemp("campaign")
+    spec = load_spec(write_spec(tmp, SMALL))
+    runs = expand(spec)
+    first = run_campaign(spec, runs, tmp / "out", cpus=2)
+    mtimes = {r.key: (tmp / "out" / "runs" / r.key / "result.json").stat().st_mtime_ns for r in runs}
+    second = run_campaign(spec, runs, tmp / "out", cpus=2)
+    return {"spec": spec, "runs": runs, "out": tmp / "out", "first": first, "second": second, "mtimes": mtimes}
+
+
+def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
+    import pyarrow.parquet as pq
+
+    from evoscen_bringup.inprocess import run_inprocess
+
+    runs, out, first = local_campaign["runs"], local_campaign["out"], local_campaign["first"]
+    assert (first.runs, first.already_done, first.computed, first.failed) == (6, 0, 6, [])
+    table = pq.read_table(out / "results.parquet").to_pylist()
+    assert sorted(row["key"] for row in table) == sorted(r.key for r in runs)
+    here = run_inprocess(runs[4].cfg, bag_dir=None, evaluate=True, plots=False).report
+    row = next(row for row in table if row["key"] == runs[4].key)
+    assert row["intelligence"] == here["intelligence"]["score"]
+    assert row["collisions"] == here["safety"]["collisions"] and row["seed"] == 1 and row["sut.model"] == "level0"
+    report = json.loads((out / "runs" / runs[4].key / "report.json").read_text())
+    assert report["intelligence"]["score"] == here["intelligence"]["score"]
+    summary = (out / "summary.md").read_text()
+    assert "## Paired by seed: mobil − each other sut.model (intelligence)" in summary
+    assert "| level0 | 3 |" in summary  # the paired row: 3 shared seeds
+
+
+def test_running_again_computes_nothing(local_campaign):
+    second, runs, out = local_campaign["second"], local_campaign["runs"], local_campaign["out"]
+    assert (second.already_done, second.computed) == (6, 0)
+    for r in runs:
+        assert (out / "runs" / r.key / "result.json").stat().st_mtime_ns == local_campaign["mtimes"][r.key]
+    assert len(collect_rows(runs, out)) == 6
+
+
+def _cli(spec: Path, out: Path, *extra: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "scripts/campaign.py", str(spec), "--out", str(out), "--cpus", "2",
+                             *extra], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+def _results(out: Path) -> list[Path]:
+    return sorted((out / "runs").glob("*/result.json")) if (out / "runs").is_dir() else []
+
+
+def _wait_for(pred, timeout: float = 120.0) -> None:  # noqa: ANN001
+    end = time.monotonic() + timeout
+    while not pred():
+        assert time.monotonic() < end, "timed out"
+        time.sleep(0.2)
+
+
+EIGHT = SMALL.replace("seeds: [0, 1, 2]", "seeds: [0, 1, 2, 3]").replace("steps: 40", "steps: 400")
+
+
+def test_ctrl_c_then_the_same_command_computes_only_the_rest(tmp_path):
+    import pyarrow.parquet as pq
+
+    spec, out = write_spec(tmp_path, EIGHT), tmp_path / "out"
+    proc = _cli(spec, out)
+    try:
+        _wait_for(lambda: len(_results(out)) >= 2)
+        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground group, Ray's workers too
+        _out, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    kept = {p: p.stat().st_mtime_ns for p in _results(out)}
+    assert 2 <= len(kept) < 8
+    again = _cli(spec, out)
+    stdout, err = again.communicate(timeout=300)
+    assert again.returncode == 0, err
+    assert f"{8 - len(kept)} runs computed" in stdout and f"{len(kept)} already done" in stdout
+    assert all(p.stat().st_mtime_ns == t for p, t in kept.items())
+    keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
+    assert len(keys) == 8 == len(set(keys))
+
+
+def _task_workers(root: int) -> list[int]:
+    """Pids of Ray workers (descendants of ``root``) running a campaign task (title ``ray::execute``)."""
+    out = subprocess.run(["ps", "-e", "-o", "pid=,ppid=,args="], capture_output=True, text=True, check=True).stdout
+    children: dict[int, list[int]] = {}
+    title: dict[int, str] = {}
+    for line in out.splitlines():
+        pid, ppid, args = line.strip().split(None, 2)
+        children.setdefault(int(ppid), []).append(int(pid))
+        title[int(pid)] = args
+    found, stack = [], [root]
+    while stack:
+        pid = stack.pop()
+        for child in children.get(pid, []):
+            if title[child].startswith("ray::execute"):
+                found.append(child)
+            stack.append(child)
+    return found
+
+
+def test_a_killed_worker_is_retried_and_every_run_counts_once(tmp_path):
+    import pyarrow.parquet as pq
+
+    spec, out = write_spec(tmp_path, EIGHT), tmp_path / "out"
+    proc = _cli(spec, out)
+    try:
+        _wait_for(lambda: len(_results(out)) >= 1 and _task_workers(proc.pid))
+        before = set(_task_workers(proc.pid))  # the workers of the 2 CPUs: busy, or done already
+        before |= {json.loads(p.read_text())["pid"] for p in _results(out)}
+        victim = min(_task_workers(proc.pid))
+        os.kill(victim, signal.SIGKILL)
+        stdout, err = proc.communicate(timeout=300)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    assert proc.returncode == 0, err
+    keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
+    assert len(keys) == 8 == len(set(keys))
+    pids = {row["pid"] for row in pq.read_table(out / "results.parquet").to_pylist()}
+    assert pids - before, (pids, before)  # a new worker took over the killed one's task
+
+
+def test_a_two_node_cluster_runs_tasks_on_both_nodes_with_the_local_results(local_campaign, tmp_path):
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from evoscen_bringup.campaign import OBJECT_STORE_BYTES
+
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False,
+                                                           "object_store_memory": OBJECT_STORE_BYTES})
+    try:
+        cluster.add_node(num_cpus=1, object_store_memory=OBJECT_STORE_BYTES)
+        cluster.wait_for_nodes()
+        spec, runs = local_campaign["spec"], local_campaign["runs"]
+        result = run_campaign(spec, runs, tmp_path / "out", address=cluster.address)
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+        cluster.shutdown()
+    assert result.computed == 6 and not result.failed
+    assert len(result.nodes) == 2, result.nodes
+    here = {row["key"]: row for row in collect_rows(runs, local_campaign["out"])}
+    for row in collect_rows(runs, tmp_path / "out"):
+        for name in ("intelligence", "safety", "efficiency", "collisions", "exposures"):
+            assert row[name] == here[row["key"]][name] or (row[name] != row[name] and here[row["key"]][name] != here[row["key"]][name]), name
