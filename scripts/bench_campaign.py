@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
                              f"set: {{sut.model: {args.sut}}}\n", encoding="utf-8")
         spec = load_spec(spec_path)
         runs = expand(spec)
-        result = run_campaign(spec, runs, Path(tmp) / "out", cpus=args.cpus)
+        result = run_campaign(runs, Path(tmp) / "out", cpus=args.cpus)
     rate = result.computed / result.wall_s
     print(f"bench_campaign: {args.runs} runs x {args.steps} steps, SUT {args.sut}, {args.cpus} Ray workers")
     print(f"  single process: {ref:.3f} runs/s ({args.reference} runs after a warm-up run)")

@@ -36,7 +36,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.campaign import expand, load_spec, run_campaign
+    from evoscen_bringup.campaign import expand, load_spec, run_campaign, write_results
     from evoscen_bringup.experiments import positive_int
     from evoscen_sim.errors import InputError
 
@@ -64,13 +64,15 @@ def main(argv: list[str] | None = None) -> int:
         bar.refresh()
 
     try:
-        result = run_campaign(spec, runs, out, address=args.address, cpus=cpus, retries=retries, progress=progress)
+        result = run_campaign(runs, out, record=spec.record, address=args.address, cpus=cpus, retries=retries,
+                              progress=progress)
     except KeyboardInterrupt:  # before Ray was up
         bar.close()
         print("interrupted: run the same command again to continue", file=sys.stderr)
         return EXIT_INTERRUPTED
     finally:
         bar.close()
+    write_results(spec, runs, out)
     print(f"{result.computed} runs computed in {result.wall_s:.1f} s on {len(result.nodes) or 0} node(s), "
           f"{result.already_done} already done; {out / 'results.parquet'}, {out / 'summary.md'}")
     for line in result.failed:

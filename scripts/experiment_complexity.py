@@ -8,7 +8,7 @@
 Scenarios: ``evolving`` — the BVs as the scenario configuration drives them (``bvs.driver``;
 the shipped default); ``nilsson`` / ``mobil`` (any BV driver name) — every BV driven by that
 model. The SUT (default Stackelberg) is the same everywhere. Each scenario runs ``--rounds``
-rounds (seeds ``--first-seed`` …) of ``--steps`` steps in-process, in ``--jobs`` processes;
+rounds (seeds ``--first-seed`` …) of ``--steps`` steps in-process, on ``--jobs`` Ray workers (the campaign engine);
 finished rounds are saved and never recomputed. Per scenario: LC, AD and E per
 ``evaluation.window_steps`` (100) states, averaged over windows and rounds (± 95 % interval
 over rounds), and the complexity score C of those averages (± the interval of the rounds'
@@ -38,7 +38,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--steps", default="10000", help="steps per round (default 10000)")
     ap.add_argument("--first-seed", default="0", help="seed of the first round (default 0)")
     ap.add_argument("--mix", default=None, help="BV policy mix of the evolving scenario (default: the config's)")
-    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="parallel processes (default: CPU count)")
+    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
     return ap.parse_args(argv)
 
 

@@ -6,7 +6,7 @@
                                              [--bvs N] [--jobs N]
 
 Every SUT runs the same seeds (same BV layout and draws) for ``--steps`` steps in-process; the
-rounds run in ``--jobs`` processes and are saved as they finish, so an interrupted experiment
+rounds run on ``--jobs`` Ray workers (the campaign engine) and are saved as they finish, so an interrupted experiment
 continues where it stopped (a finished round is not recomputed). Writes into ``--out``:
 ``intelligence.csv`` / ``intelligence.md`` (per SUT: the weighted safety, efficiency and
 interaction terms and the intelligence score, mean ± 95 % interval over seeds, with the
@@ -37,7 +37,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--steps", default="3000", help="steps per round (default 3000)")
     ap.add_argument("--mix", default="4:3:3", help="BV policy mix competitive:mutual:cooperative (default 4:3:3)")
     ap.add_argument("--bvs", default="20", help="number of BVs (default 20)")
-    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="parallel processes (default: CPU count)")
+    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
     return ap.parse_args(argv)
 
 

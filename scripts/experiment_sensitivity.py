@@ -13,7 +13,7 @@ name (``level0``, ``nilsson``, ``mobil``) — every BV driven by that model. Per
 scenario: the paired difference intact − mutant of the intelligence score and of each
 sub-score, with its 95 % interval over seeds, *detected* when the intelligence interval lies
 above zero, and the seeds needed to detect it; per scenario the mutation score (detected /
-all). Rounds run in ``--jobs`` processes and are saved as they finish: an interrupted
+all). Rounds run on ``--jobs`` Ray workers (the campaign engine) and are saved as they finish: an interrupted
 experiment continues where it stopped. Writes ``sensitivity.md``, ``sensitivity.csv``,
 ``mutation_scores.csv``, ``rounds.csv`` and ``sensitivity.png`` into ``--out`` and prints the
 tables. Exit status: 0 done, 2 bad input, 130 interrupted.
@@ -44,7 +44,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--seeds", default="10", help="seeds per SUT variant and scenario (default 10)")
     ap.add_argument("--first-seed", default="0", help="first seed (default 0)")
     ap.add_argument("--steps", default="3000", help="steps per round (default 3000)")
-    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="parallel processes (default: CPU count)")
+    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
     return ap.parse_args(argv)
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 
-from evoscen_bringup.campaign import collect_rows, expand, load_spec, run_campaign
+from evoscen_bringup.campaign import collect_rows, expand, load_spec, run_campaign, write_results
 from evoscen_sim.errors import InputError
 
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
@@ -102,9 +102,10 @@ def local_campaign(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("campaign")
     spec = load_spec(write_spec(tmp, SMALL))
     runs = expand(spec)
-    first = run_campaign(spec, runs, tmp / "out", cpus=2)
+    first = run_campaign(runs, tmp / "out", cpus=2)
+    write_results(spec, runs, tmp / "out")
     mtimes = {r.key: (tmp / "out" / "runs" / r.key / "result.json").stat().st_mtime_ns for r in runs}
-    second = run_campaign(spec, runs, tmp / "out", cpus=2)
+    second = run_campaign(runs, tmp / "out", cpus=2)
     return {"spec": spec, "runs": runs, "out": tmp / "out", "first": first, "second": second, "mtimes": mtimes}
 
 
@@ -235,8 +236,8 @@ def test_a_two_node_cluster_runs_tasks_on_both_nodes_with_the_local_results(loca
     try:
         cluster.add_node(num_cpus=1, object_store_memory=OBJECT_STORE_BYTES)
         cluster.wait_for_nodes()
-        spec, runs = local_campaign["spec"], local_campaign["runs"]
-        result = run_campaign(spec, runs, tmp_path / "out", address=cluster.address)
+        runs = local_campaign["runs"]
+        result = run_campaign(runs, tmp_path / "out", address=cluster.address)
     finally:
         if ray.is_initialized():
             ray.shutdown()

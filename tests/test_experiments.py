@@ -73,7 +73,7 @@ def test_intelligence_paired_comparisons(intelligence):
 
 def test_intelligence_resumes_without_recomputing(intelligence):
     out, _ = intelligence
-    files = sorted((out / "rounds").glob("*.json"))
+    files = sorted((out / "runs").glob("*/result.json"))
     assert len(files) == 6
     stamps = {f: f.stat().st_mtime_ns for f in files}
     res = script("experiment_intelligence.py", "--out", out, "--seeds", 2, "--steps", 200, "--jobs", 2)
@@ -82,7 +82,7 @@ def test_intelligence_resumes_without_recomputing(intelligence):
     # a third seed runs only the three new rounds
     res = script("experiment_intelligence.py", "--out", out, "--seeds", 3, "--steps", 200, "--jobs", 2)
     assert res.returncode == 0 and "6 rounds already done" in res.stderr
-    assert len(list((out / "rounds").glob("*.json"))) == 9
+    assert len(list((out / "runs").glob("*/result.json"))) == 9
 
 
 def test_complexity_table_and_files(tmp_path):

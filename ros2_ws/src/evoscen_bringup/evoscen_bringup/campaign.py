@@ -22,6 +22,7 @@ By default Ray is started in this process (a local cluster with one worker per C
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import itertools
@@ -208,6 +209,7 @@ def run_key(cfg: ScenarioConfig, version: str) -> str:
     return hashlib.sha256(f"{version}\n{text}".encode()).hexdigest()[:20]
 
 
+@functools.lru_cache(maxsize=1)
 def code_version() -> str:
     """A hash of what decides a run's result besides its configuration: the files of evoscen's
     packages (sources, maps, configuration) and the shipped BV policies."""
@@ -257,7 +259,8 @@ def execute(run: CampaignRun, out_dir: str, record: str) -> dict[str, Any]:
     except Exception:  # noqa: BLE001 - outside Ray (tests call it directly)
         row["node"] = "local"
     row["pid"] = os.getpid()
-    return {"row": row, "report": report}
+    plot = {"ttc_hist": summary.plot.ttc_hist.tolist(), "speed_hist": summary.plot.speed_hist.tolist()}
+    return {"row": row, "report": report, "plot": plot}
 
 
 # ---------------------------------------------------------------------- the campaign
@@ -274,14 +277,13 @@ def _write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def run_campaign(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path, *, address: str | None = None,
+def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "none", address: str | None = None,
                  cpus: int | None = None, retries: int = 3,
                  progress: Callable[[int, int, float], None] | None = None) -> CampaignResult:
     """Run every run of ``runs`` without a result in ``out_dir`` on Ray (see the module docstring).
 
     ``progress(done, total, runs_per_s)`` after each finished run. Ctrl-C cancels what is left
-    (finished runs are kept; ``interrupted`` is set). The results table and summary are
-    written in every case.
+    (finished runs are kept; ``interrupted`` is set). :func:`write_results` writes the table.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     todo = [r for r in runs if not result_path(out_dir, r.key).exists()]
@@ -295,7 +297,7 @@ def run_campaign(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path, *, addr
             local = {} if address else {"num_cpus": cpus, "object_store_memory": OBJECT_STORE_BYTES}
             ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False, **local)
         task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute)
-        pending = {task.remote(r, str(out_dir), spec.record): r for r in todo}
+        pending = {task.remote(r, str(out_dir), record): r for r in todo}
         try:
             while pending:
                 ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
@@ -309,7 +311,8 @@ def run_campaign(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path, *, addr
                         continue
                     path = result_path(out_dir, run.key)
                     _write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
-                    _write_atomic(path, json.dumps(done["row"]) + "\n")
+                    _write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
+                    _write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
                     result.computed += 1
                     result.nodes.add(done["row"]["node"])
                     if progress is not None:
@@ -323,8 +326,15 @@ def run_campaign(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path, *, addr
             if started:
                 ray.shutdown()
     result.wall_s = time.monotonic() - t0
-    write_results(spec, runs, out_dir)
     return result
+
+
+def load_result(out_dir: Path, key: str) -> dict[str, Any]:
+    """A finished run's files: ``{"row", "report", "plot"}`` (``plot``: the SUT's TTC and speed
+    histograms over :data:`evoscen_eval.streaming.TTC_BINS` and ``SPEED_BINS``)."""
+    d = out_dir / "runs" / key
+    return {name: json.loads((d / f"{name if name != 'row' else 'result'}.json").read_text(encoding="utf-8"))
+            for name in ("row", "report", "plot")}
 
 
 def collect_rows(runs: Sequence[CampaignRun], out_dir: Path) -> list[dict[str, Any]]:

@@ -1,37 +1,36 @@
-"""Campaigns of in-process rounds: parallel, resumable, summarised with 95 % intervals.
+"""The method's experiments as lists of in-process rounds, run on the campaign engine, summarised with 95 % intervals.
 
 A *round* is one in-process run of a scenario configuration (no bag), scored like every run
-(:mod:`evoscen_eval.metrics`). The method's experiments (``scripts/experiment_intelligence.py``,
-``scripts/experiment_complexity.py``) are lists of rounds run by :func:`run_rounds`:
+(:mod:`evoscen_eval.metrics`). The experiments (``scripts/experiment_intelligence.py``,
+``experiment_complexity.py``, ``experiment_sensitivity.py``) are lists of rounds run by
+:func:`run_rounds` on the one execution path of many runs, :mod:`evoscen_bringup.campaign`
+(docs/campaigns.md):
 
-* **parallel** — rounds run in ``jobs`` worker processes (one round per process at a time);
-* **resumable** — each finished round is saved as ``OUT/rounds/<label>-seed<S>-<hash>.json``,
-  where the hash is of the round's whole resolved configuration; a file that exists is read
-  back instead of running the round again, and a changed setting (steps, model parameters,
-  evaluation settings …) gives a new hash, so a stale result is never reused;
+* **parallel** — one Ray task of one CPU per round, ``jobs`` workers on a local Ray;
+* **resumable** — each finished round is saved under ``OUT/runs/<key>/`` (``result.json``,
+  ``report.json``, ``plot.json``), the key a hash of the round's whole resolved configuration
+  and of the code version; a round whose result exists is read back instead of run again,
+  and a changed setting (steps, model parameters, evaluation settings …) or changed code
+  gives a new key, so a stale result is never reused;
 * **summarised** — :func:`mean_ci` gives mean ± the half-width of the 95 % Student-t interval
   over rounds (seeds).
 
-Each saved round holds its ``report.json`` dict plus histograms of the SUT's TTC and speed
+Each round's result holds its ``report.json`` dict plus histograms of the SUT's TTC and speed
 (:data:`TTC_BINS`, :data:`SPEED_BINS`) for the distribution plots.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import math
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
-import yaml
 
 from evoscen_eval.streaming import SPEED_BINS, TTC_BINS  # noqa: F401 - the histograms' bins (the plots read them here)
-from evoscen_sim.config import ScenarioConfig, config_to_dict
+from evoscen_sim.config import ScenarioConfig
 
 
 @dataclass(frozen=True)
@@ -43,75 +42,44 @@ class Round:
 
     @property
     def key(self) -> str:
-        """File stem: label, seed and a hash of the whole resolved configuration."""
-        text = yaml.safe_dump(config_to_dict(self.cfg), sort_keys=True)
-        digest = hashlib.sha1(text.encode("utf-8")).hexdigest()[:10]
-        return f"{self.label}-seed{self.cfg.seed}-{digest}"
+        """The round's campaign key (:func:`evoscen_bringup.campaign.run_key`: configuration and code version)."""
+        from .campaign import code_version, run_key
 
-
-def run_round(rnd: Round) -> dict[str, Any]:
-    """Run and score one round (in this process); returns what is saved for it."""
-    from .inprocess import run_inprocess
-
-    summary = run_inprocess(rnd.cfg, bag_dir=None, evaluate=True)
-    plot = summary.plot  # the SUT's TTC and speed distributions, over TTC_BINS and SPEED_BINS
-    return {
-        "label": rnd.label,
-        "seed": rnd.cfg.seed,
-        "steps": summary.steps,
-        "wall_time_s": summary.wall_time_s,
-        "report": summary.report,
-        "ttc_hist": plot.ttc_hist.tolist(),
-        "speed_hist": plot.speed_hist.tolist(),
-    }
-
-
-def _work(args: tuple[Round, str]) -> tuple[str, dict[str, Any]]:
-    rnd, path = args
-    result = run_round(rnd)
-    tmp = Path(path).with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(result, allow_nan=False), encoding="utf-8")
-    os.replace(tmp, path)  # a round file is complete or absent, never half-written
-    return rnd.key, result
+        return run_key(self.cfg, code_version())
 
 
 def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
                progress: Callable[[int, int, str], None] | None = None) -> dict[str, dict[str, Any]]:
-    """Run the rounds not finished yet (``jobs`` processes); returns every round's result by key.
-
-    ``progress(done, total, text)`` is called as rounds finish (the cached ones first).
+    """Run the rounds not finished yet on a local Ray of ``jobs`` workers; returns every round's
+    result by key (``label``, ``seed``, ``steps``, ``wall_time_s``, ``report``, ``ttc_hist``,
+    ``speed_hist``). ``progress(done, total, text)`` as rounds finish (the saved ones first).
+    KeyboardInterrupt after Ctrl-C (finished rounds are kept); RuntimeError naming the rounds
+    that failed after their retries.
     """
-    rounds_dir = out_dir / "rounds"
-    rounds_dir.mkdir(parents=True, exist_ok=True)
-    results: dict[str, dict[str, Any]] = {}
-    todo: list[tuple[Round, str]] = []
-    for rnd in rounds:
-        path = rounds_dir / f"{rnd.key}.json"
-        saved = _saved_result(path)
-        if saved is not None:
-            results[rnd.key] = saved
-        else:
-            todo.append((rnd, str(path)))
-    total = len(rounds)
-    if progress is not None:
-        progress(len(results), total, f"{len(results)} rounds already done")
-    if not todo:
-        return results
-    if jobs <= 1 or len(todo) == 1:
-        for item in todo:
-            key, result = _work(item)
-            results[key] = result
-            if progress is not None:
-                progress(len(results), total, _brief(result))
-        return results
-    import multiprocessing as mp
+    from .campaign import CampaignRun, load_result, result_path, run_campaign
 
-    with mp.get_context("fork").Pool(processes=min(jobs, len(todo)), maxtasksperchild=1) as pool:
-        for key, result in pool.imap_unordered(_work, todo):
-            results[key] = result
-            if progress is not None:
-                progress(len(results), total, _brief(result))
-    return results
+    runs = [CampaignRun(rnd.key, (("label", rnd.label),), rnd.cfg.seed, rnd.cfg) for rnd in rounds]
+    total = len(runs)
+    done = sum(result_path(out_dir, r.key).exists() for r in runs)
+    if progress is not None:
+        progress(done, total, f"{done} rounds already done")
+
+    def tick(n: int, _total: int, rate: float) -> None:
+        if progress is not None:
+            progress(n, total, f"{rate:.2f} rounds/s")
+
+    result = run_campaign(runs, out_dir, cpus=jobs, progress=tick) if done < total else None
+    if result is not None and result.interrupted:
+        raise KeyboardInterrupt
+    if result is not None and result.failed:
+        raise RuntimeError(f"{len(result.failed)} round(s) failed: {result.failed[0]}")
+    out = {}
+    for rnd, run in zip(rounds, runs):
+        saved = load_result(out_dir, run.key)
+        row = saved["row"]
+        out[rnd.key] = {"label": rnd.label, "seed": rnd.cfg.seed, "steps": row["steps"],
+                        "wall_time_s": row["wall_time_s"], "report": saved["report"], **saved["plot"]}
+    return out
 
 
 T = TypeVar("T")
@@ -162,14 +130,6 @@ def set_up(out_dir: Path, build: Callable[[], T]) -> T | None:
     return built
 
 
-def _saved_result(path: Path) -> dict[str, Any] | None:
-    """A finished round's saved result; None if there is none or it cannot be read (the round runs again)."""
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError):
-        return None
-
-
 def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, desc: str
                         ) -> dict[str, dict[str, Any]] | None:
     """:func:`run_rounds` behind a tqdm progress bar (stderr); None after Ctrl-C (finished rounds are kept)."""
@@ -188,18 +148,17 @@ def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, de
         return run_rounds(rounds, out_dir, jobs=jobs, progress=progress)
     except KeyboardInterrupt:
         bar.close()
-        print(f"interrupted: finished rounds are kept in {out_dir / 'rounds'}; run again to continue",
+        print(f"interrupted: finished rounds are kept in {out_dir / 'runs'}; run again to continue",
               file=sys.stderr)
         return None
+    except RuntimeError as exc:  # rounds that failed after their retries: named, the rest kept
+        bar.close()
+        from evoscen_contract.contract import EXIT_FAULT
+
+        print(f"error: {exc}; finished rounds are kept in {out_dir / 'runs'}", file=sys.stderr)
+        raise SystemExit(EXIT_FAULT) from None
     finally:
         bar.close()
-
-
-def _brief(result: dict[str, Any]) -> str:
-    r = result["report"]
-    c = r["complexity"]["score"]
-    return (f"{result['label']} seed {result['seed']}: I={r['intelligence']['score']:.3f}"
-            + ("" if c is None else f" C={c:.3f}"))
 
 
 def mean_ci(values: Sequence[float]) -> tuple[float, float]:
