@@ -64,7 +64,8 @@ def main(argv: list[str] | None = None) -> int:
         bar.refresh()
 
     try:
-        result = run_campaign(runs, out, record=spec.record, address=args.address, cpus=cpus, retries=retries,
+        result = run_campaign(runs, out, record=spec.record, clip_s=spec.clip_s, address=args.address, cpus=cpus,
+                              retries=retries,
                               progress=progress)
     except KeyboardInterrupt:  # before Ray was up
         bar.close()

@@ -7,7 +7,7 @@
 * A campaign on a local Ray of 2 workers: every run once (results.parquet: 6 rows, 6 keys),
   each result equal to the same run in this process; run again: nothing computed, no result
   file rewritten.
-* Ctrl-C part-way (the CLI in a subprocess): exit 130, finished runs kept; the same command
+* Ctrl-C part-way through 12 runs (the CLI in a subprocess): exit 130, finished runs kept; the same command
   again computes only the rest, the earlier result files untouched, every run once.
 * A Ray worker killed (SIGKILL) while it runs a task: the task is retried, the campaign ends
   with every run exactly once (exit 0).
@@ -57,7 +57,8 @@ def write_spec(tmp_path: Path, text: str, name: str = "spec.yaml") -> Path:
     ("grid: {mutant: [intact, nosuch]}\n", "key 'grid.mutant' = 'nosuch': expected 'intact' or a mutant of"),
     ("steps: 0\n", "key 'steps' = 0: expected an integer >= 1"),
     ("grid: {sut.model: [mobil]}\ncompare: {axis: bvs.driver, reference: x}\n", "key 'compare' ="),
-    ("record: some\n", "key 'record' = 'some': expected 'none' (scores only) or 'all'"),
+    ("record: some\n", "key 'record' = 'some': expected 'none' (scores only), 'events' (critical-event clips) or 'all'"),
+    ("clip_s: 0\n", "key 'clip_s' = 0: expected seconds in (0, 60] on either side of an event"),
 ])
 def test_bad_spec_is_one_line_naming_file_and_key(tmp_path, text, needle):
     path = write_spec(tmp_path, text)
@@ -154,13 +155,14 @@ def _wait_for(pred, timeout: float = 120.0) -> None:  # noqa: ANN001
         time.sleep(0.2)
 
 
-EIGHT = SMALL.replace("seeds: [0, 1, 2]", "seeds: [0, 1, 2, 3]").replace("steps: 40", "steps: 400")
+# 12 runs of 2,000 steps (~0.5-1 s each once a worker is warm): Ctrl-C and the kill land while runs remain
+TWELVE = SMALL.replace("seeds: [0, 1, 2]", "seeds: {first: 0, count: 6}").replace("steps: 40", "steps: 2000")
 
 
 def test_ctrl_c_then_the_same_command_computes_only_the_rest(tmp_path):
     import pyarrow.parquet as pq
 
-    spec, out = write_spec(tmp_path, EIGHT), tmp_path / "out"
+    spec, out = write_spec(tmp_path, TWELVE), tmp_path / "out"
     proc = _cli(spec, out)
     try:
         _wait_for(lambda: len(_results(out)) >= 2)
@@ -173,14 +175,14 @@ def test_ctrl_c_then_the_same_command_computes_only_the_rest(tmp_path):
     assert proc.returncode == 130, err
     assert "Traceback" not in err
     kept = {p: p.stat().st_mtime_ns for p in _results(out)}
-    assert 2 <= len(kept) < 8
+    assert 2 <= len(kept) < 12
     again = _cli(spec, out)
     stdout, err = again.communicate(timeout=300)
     assert again.returncode == 0, err
-    assert f"{8 - len(kept)} runs computed" in stdout and f"{len(kept)} already done" in stdout
+    assert f"{12 - len(kept)} runs computed" in stdout and f"{len(kept)} already done" in stdout
     assert all(p.stat().st_mtime_ns == t for p, t in kept.items())
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
-    assert len(keys) == 8 == len(set(keys))
+    assert len(keys) == 12 == len(set(keys))
 
 
 def _task_workers(root: int) -> list[int]:
@@ -205,7 +207,7 @@ def _task_workers(root: int) -> list[int]:
 def test_a_killed_worker_is_retried_and_every_run_counts_once(tmp_path):
     import pyarrow.parquet as pq
 
-    spec, out = write_spec(tmp_path, EIGHT), tmp_path / "out"
+    spec, out = write_spec(tmp_path, TWELVE), tmp_path / "out"
     proc = _cli(spec, out)
     try:
         _wait_for(lambda: len(_results(out)) >= 1 and _task_workers(proc.pid))
@@ -220,7 +222,7 @@ def test_a_killed_worker_is_retried_and_every_run_counts_once(tmp_path):
             proc.communicate()
     assert proc.returncode == 0, err
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
-    assert len(keys) == 8 == len(set(keys))
+    assert len(keys) == 12 == len(set(keys))
     pids = {row["pid"] for row in pq.read_table(out / "results.parquet").to_pylist()}
     assert pids - before, (pids, before)  # a new worker took over the killed one's task
 
@@ -248,3 +250,61 @@ def test_a_two_node_cluster_runs_tasks_on_both_nodes_with_the_local_results(loca
     for row in collect_rows(runs, tmp_path / "out"):
         for name in ("intelligence", "safety", "efficiency", "collisions", "exposures"):
             assert row[name] == here[row["key"]][name] or (row[name] != row[name] and here[row["key"]][name] != here[row["key"]][name]), name
+
+
+CLIPS = """
+name: clips
+steps: 300
+seeds: [3]
+set: {sut.model: mobil, bvs.count: 6, spawn.ramp_vehicles: 1, evaluation.ttc_threshold_s: 6.0}
+record: events
+clip_s: 2.0
+"""
+
+
+def test_critical_events_become_clips_pictures_and_reproducible_commands(tmp_path):
+    """With a 6 s TTC threshold this run has 3 exposures. Every SUT collision and exposure of the
+    run becomes a clip of +-2 s (20 states each side at dt 0.1 s, clamped to the run) with the
+    latched map, a picture and a command; the command's run holds the very same world states;
+    ``record: events`` keeps no whole bag; the gallery lists collisions first, then exposures
+    by falling severity."""
+    import shlex
+
+    from evoscen_eval.recorder import open_bag_reader
+
+    spec = load_spec(write_spec(tmp_path, CLIPS))
+    runs = expand(spec)
+    out = tmp_path / "out"
+    result = run_campaign(runs, out, record=spec.record, clip_s=spec.clip_s, cpus=1)
+    write_results(spec, runs, out)
+    assert result.computed == 1 and not result.failed
+    run_dir = out / "runs" / runs[0].key
+    report = json.loads((run_dir / "report.json").read_text())
+    clips = json.loads((run_dir / "clips.json").read_text())
+    n_events = report["safety"]["collisions"] + report["safety"]["exposures"]
+    assert n_events >= 2 and len(clips) == n_events
+    assert not (run_dir / "bag").exists()  # record: events keeps the clips only
+    first = clips[0]
+    k = first["state"]
+    assert (first["from_state"], first["to_state"]) == (max(0, k - 20), min(300, k + 20))
+    clip_msgs = list(open_bag_reader(run_dir / first["clip"]))
+    world = [(t, d) for topic, _ty, t, d in clip_msgs if topic == "/evoscen/world"]
+    assert [t for t, _ in world] == [s * 100_000_000 for s in range(first["from_state"], first["to_state"] + 1)]
+    assert sum(topic == "/evoscen/map_markers" for topic, *_ in clip_msgs) == 1
+    assert all((run_dir / c["png"]).stat().st_size > 0 for c in clips)
+    # the reproduce command: the same world states, byte for byte
+    argv = shlex.split(first["command"])
+    out_arg = argv.index("--out") + 1
+    argv[out_arg] = str(tmp_path / "repro")
+    res = subprocess.run([sys.executable, *argv[1:], "--quiet", "--no-plots"], cwd=REPO, capture_output=True,
+                         text=True, timeout=300, check=False)
+    assert res.returncode == 0, res.stderr
+    repro = {t: d for topic, _ty, t, d in open_bag_reader(tmp_path / "repro" / "bag") if topic == "/evoscen/world"}
+    assert all(repro[t] == d for t, d in world)
+    gallery = (out / "gallery.md").read_text().splitlines()
+    rows = [line.split(" | ") for line in gallery if line.startswith("| ") and line[2].isdigit()]
+    assert len(rows) == n_events
+    kinds = [r[1] for r in rows]
+    assert kinds == sorted(kinds)  # every collision before every exposure
+    sev = [float(r[5]) for r in rows if r[1] == "exposure"]
+    assert sev == sorted(sev, reverse=True)

@@ -41,7 +41,8 @@ import yaml
 from evoscen_sim.config import ScenarioConfig, config_to_dict, load_scenario_config
 from evoscen_sim.errors import InputError
 
-SPEC_KEYS = ("name", "config", "steps", "seeds", "set", "grid", "record", "compare")
+SPEC_KEYS = ("name", "config", "steps", "seeds", "set", "grid", "record", "clip_s", "compare")
+RECORD_MODES = ("none", "events", "all")
 MUTANT_AXIS = "mutant"
 INTACT = "intact"
 PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_eval", "evoscen_bringup")
@@ -65,6 +66,7 @@ class Spec:
     grid: dict[str, tuple[str, ...]]
     record: str = "none"
     compare: tuple[str, str] | None = None
+    clip_s: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -141,8 +143,12 @@ def load_spec(path: Path | str) -> Spec:
         if bad:
             raise _err(path, f"grid.{MUTANT_AXIS}", bad[0], f"'{INTACT}' or a mutant of {', '.join(LIBRARY)}")
     record = doc.get("record", "none")
-    if record not in ("none", "all"):
-        raise _err(path, "record", record, "'none' (scores only) or 'all' (a bag per run)")
+    if record not in RECORD_MODES:
+        raise _err(path, "record", record, "'none' (scores only), 'events' (critical-event clips) or 'all' "
+                   "(clips and the whole bag)")
+    clip_s = doc.get("clip_s", 5.0)
+    if isinstance(clip_s, bool) or not isinstance(clip_s, (int, float)) or not 0 < clip_s <= 60:
+        raise _err(path, "clip_s", clip_s, "seconds in (0, 60] on either side of an event")
     compare = doc.get("compare")
     if compare is not None:
         if (not isinstance(compare, dict) or set(compare) != {"axis", "reference"}
@@ -150,7 +156,7 @@ def load_spec(path: Path | str) -> Spec:
             raise _err(path, "compare", compare, "{axis: <a grid axis>, reference: <one of its values>}")
         compare = (str(compare["axis"]), _text(compare["reference"]))
     return Spec(path, name.strip(), config, steps, seeds, {str(k): _text(v) for k, v in fixed.items()}, axes,
-                record, compare)
+                record, compare, float(clip_s))
 
 
 def _text(value: Any) -> str:
@@ -185,8 +191,7 @@ def expand(spec: Spec, version: str | None = None) -> list[CampaignRun]:
                 mutant = value
             else:
                 overrides[axis] = value
-        if spec.record == "none":
-            overrides["recording.enabled"] = "false"
+        overrides["recording.enabled"] = "false" if spec.record == "none" else "true"
         if spec.steps is not None:
             overrides["steps"] = str(spec.steps)
         for seed in spec.seeds:
@@ -233,17 +238,31 @@ def code_version() -> str:
 # ---------------------------------------------------------------------- one run (a Ray task)
 
 
-def execute(run: CampaignRun, out_dir: str, record: str) -> dict[str, Any]:
-    """Simulate and score one run (in the worker); returns its result row and report."""
+def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) -> dict[str, Any]:
+    """Simulate and score one run (in the worker); returns its result row, report, plot data and,
+    when recording, its files (``{path relative to the run's directory: bytes}``: the critical-event
+    clips, and the whole bag with ``record: all``), which the driver writes — on a cluster the
+    worker's disk is not the driver's."""
+    import tempfile
+
+    from evoscen_eval.clips import mine_run
+
     from .inprocess import run_inprocess
 
-    bag = Path(out_dir) / "runs" / run.key / "bag" if record == "all" else None
-    if bag is not None and bag.exists():  # a retried task: its predecessor's partial bag
-        import shutil
-
-        shutil.rmtree(bag)
     t0 = time.perf_counter()
-    summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False)
+    files: dict[str, bytes] = {}
+    clips: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="evoscen-run-") as tmp:
+        bag = Path(tmp) / "bag" if record != "none" else None
+        summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False)
+        if bag is not None:
+            scenario_file = (Path(out_dir) / "runs" / run.key / "scenario.yaml").resolve()
+            clips = mine_run(bag, summary.report, Path(tmp), clip_s=clip_s, scenario_file=scenario_file,
+                             run_name=run.key)
+            for f in sorted(Path(tmp).rglob("*")):
+                rel = f.relative_to(tmp)
+                if f.is_file() and (record == "all" or rel.parts[0] != "bag"):
+                    files[rel.as_posix()] = f.read_bytes()
     report = summary.report
     row: dict[str, Any] = {"key": run.key, **dict(run.cell), "seed": run.seed, "steps": summary.steps}
     for name in SCORE_COLUMNS:
@@ -251,6 +270,7 @@ def execute(run: CampaignRun, out_dir: str, record: str) -> dict[str, Any]:
         row[name] = math.nan if value is None else float(value)
     row["collisions"] = int(report["safety"]["collisions"])
     row["exposures"] = int(report["safety"]["exposures"])
+    row["clips"] = len(clips)
     row["wall_time_s"] = time.perf_counter() - t0
     try:
         import ray
@@ -260,7 +280,7 @@ def execute(run: CampaignRun, out_dir: str, record: str) -> dict[str, Any]:
         row["node"] = "local"
     row["pid"] = os.getpid()
     plot = {"ttc_hist": summary.plot.ttc_hist.tolist(), "speed_hist": summary.plot.speed_hist.tolist()}
-    return {"row": row, "report": report, "plot": plot}
+    return {"row": row, "report": report, "plot": plot, "files": files}
 
 
 # ---------------------------------------------------------------------- the campaign
@@ -277,8 +297,21 @@ def _write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "none", address: str | None = None,
-                 cpus: int | None = None, retries: int = 3,
+def _write_files(run_dir: Path, files: Mapping[str, bytes]) -> None:
+    """A run's files from its worker (clips, bag), replacing any of an earlier, interrupted attempt."""
+    import shutil
+
+    for top in {Path(rel).parts[0] for rel in files}:
+        if (run_dir / top).is_dir():
+            shutil.rmtree(run_dir / top)
+    for rel, data in files.items():
+        target = run_dir / rel
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(data)
+
+
+def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "none", clip_s: float = 5.0,
+                 address: str | None = None, cpus: int | None = None, retries: int = 3,
                  progress: Callable[[int, int, float], None] | None = None) -> CampaignResult:
     """Run every run of ``runs`` without a result in ``out_dir`` on Ray (see the module docstring).
 
@@ -297,7 +330,7 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
             local = {} if address else {"num_cpus": cpus, "object_store_memory": OBJECT_STORE_BYTES}
             ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False, **local)
         task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute)
-        pending = {task.remote(r, str(out_dir), record): r for r in todo}
+        pending = {task.remote(r, str(out_dir), record, clip_s): r for r in todo}
         try:
             while pending:
                 ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
@@ -310,6 +343,9 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
                                              f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
                         continue
                     path = result_path(out_dir, run.key)
+                    _write_files(path.parent, done["files"])
+                    _write_atomic(path.with_name("scenario.yaml"),
+                                  yaml.safe_dump(config_to_dict(run.cfg), sort_keys=False))
                     _write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
                     _write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
                     _write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
@@ -354,14 +390,44 @@ def write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> lis
 
     rows = collect_rows(runs, out_dir)
     axes = list(spec.grid)
-    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, "wall_time_s", "node", "pid"]
+    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, "clips", "wall_time_s", "node", "pid"]
     table = pa.table({c: [row.get(c) for row in rows] for c in columns}) if rows else pa.table(
         {c: pa.array([], type=pa.string()) for c in columns})
     tmp = out_dir / "results.parquet.tmp"
     pq.write_table(table, tmp)
     os.replace(tmp, out_dir / "results.parquet")
     _write_atomic(out_dir / "summary.md", summary_markdown(spec, runs, rows))
+    if spec.record != "none":
+        _write_atomic(out_dir / "gallery.md", gallery_markdown(spec, runs, out_dir))
     return rows
+
+
+def gallery_markdown(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> str:
+    """``gallery.md``: every critical event of the finished runs, most severe first
+    (:func:`evoscen_eval.clips.rank_key`), with its picture, clip and reproduce command."""
+    from evoscen_eval.clips import rank_key
+
+    events = []
+    for r in runs:
+        path = out_dir / "runs" / r.key / "clips.json"
+        if result_path(out_dir, r.key).exists() and path.exists():
+            events += [(e, r) for e in json.loads(path.read_text(encoding="utf-8"))]
+    events.sort(key=lambda item: rank_key(item[0]))
+    lines = [f"# Critical events of campaign {spec.name}\n",
+             f"{len(events)} events (SUT collisions, then exposures by severity max(2 s / TTC, −a / 6 m/s²)); "
+             f"each a clip of ±{spec.clip_s:g} s (`python scripts/replay.py CLIP`, Foxglove) and the command that "
+             "runs the same configuration to the clip's end.\n",
+             "| rank | event | cell | seed | t (s) | severity | min TTC (s) | scene | clip | reproduce |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for n, (e, r) in enumerate(events, 1):
+        base = f"runs/{r.key}"
+        pic = f"![scene]({base}/{e['png']})" if e.get("png") else "–"
+        sev = "–" if e["severity"] is None else f"{e['severity']:.2f}"
+        ttc = "–" if e.get("min_ttc_s") is None else f"{e['min_ttc_s']:.2f}"
+        cell = ", ".join(f"{k}={v}" for k, v in r.cell) or "–"
+        lines.append(f"| {n} | {e['kind']} | {cell} | {r.seed} | {e['time_s']:.1f} | {sev} | {ttc} | {pic} | "
+                     f"`{base}/{e['clip']}` | `{e.get('command') or '–'}` |")
+    return "\n".join(lines) + "\n"
 
 
 # ---------------------------------------------------------------------- statistics

@@ -1,0 +1,152 @@
+"""Critical-event clips: every SUT collision and exposure of a run as a short bag, a picture and
+the command that reproduces it (docs/campaigns.md, "Critical events").
+
+For an event at state k (a collision's step, an exposure's worst state) the clip holds the
+run's messages stamped from ``t_k - clip_s`` to ``t_k + clip_s`` (clamped to the run), the
+latched topics' last message before that (the map and the roster: a player that opens the
+clip sees the road and who is who) and the run's scenario record, in a rosbag2 bag of its
+own (``scripts/replay.py``, Foxglove, ``ros2 bag play``). Beside it: a bird's-eye PNG of state
+k (the report's snapshot) and the command that runs the same configuration to the clip's end
+in-process — deterministic, so its bag holds the very same world states.
+
+Severity (the gallery's order): every collision before every exposure; exposures by their
+severity max(TTC threshold / TTC, −a / hard-brake threshold) at the worst state (the report's
+``exposure_list[i].severity``: 2 at TTC 1 s or at −12 m/s²); collisions by their time.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+from pathlib import Path
+from typing import Any
+
+from evoscen_contract import contract as C
+
+CLIP_S = 5.0
+"""Seconds of the run kept on either side of an event (SUMO SSM's default ``extratime``, the
+attribution window of docs/evaluation.md §3.1)."""
+
+
+def events_of(report: dict[str, Any]) -> list[dict[str, Any]]:
+    """The run's critical events from its report: SUT collisions, then exposures."""
+    out = []
+    for c in report["safety"]["collision_list"]:
+        out.append({"kind": "collision", "state": int(c["state"]), "time_s": float(c["time_s"]), "ids": list(c["ids"]),
+                    "severity": None, "min_ttc_s": None})
+    for x in report["safety"]["exposure_list"]:
+        out.append({"kind": "exposure", "state": int(x["worst_state"]), "time_s": None, "ids": [],
+                    "severity": float(x["severity"]), "min_ttc_s": x["min_ttc_s"],
+                    "start_state": int(x["start_state"]), "end_state": int(x["end_state"])})
+    return out
+
+
+def rank_key(event: dict[str, Any]) -> tuple:
+    """Sort key of the gallery: collisions first (by time), then exposures by severity (highest first)."""
+    if event["kind"] == "collision":
+        return (0, event.get("time_s") or 0.0)
+    return (1, -event["severity"])
+
+
+def read_messages(bag_dir: Path) -> list[tuple[str, int, bytes]]:
+    """The bag's messages ``(topic, log time, data)`` in log-time order (ties in file order)."""
+    from .recorder import open_bag_reader
+
+    return [(topic, t_ns, data) for topic, _type, t_ns, data in open_bag_reader(bag_dir, log_time_order=True)]
+
+
+def cut_clip(messages: list[tuple[str, int, bytes]], metadata: dict, out_dir: Path, t_from_ns: int,
+             t_to_ns: int) -> int:
+    """Write the messages stamped in ``[t_from_ns, t_to_ns]`` (and the latched topics' last
+    message before) as a bag in ``out_dir`` with the MCAP ``metadata`` records; returns the
+    number of messages written."""
+    from evoscen_contract import topics as T
+
+    from .recorder import BagRecorder
+
+    latched = {spec.name for spec in T.CONTRACT if spec.qos.durability == "transient_local"}
+    before: dict[str, tuple[int, bytes]] = {}
+    inside: list[tuple[str, int, bytes]] = []
+    for topic, t_ns, data in messages:
+        if t_ns < t_from_ns:
+            if topic in latched:
+                before[topic] = (t_ns, data)
+        elif t_ns <= t_to_ns:
+            inside.append((topic, t_ns, data))
+        else:
+            break
+    n = 0
+    with BagRecorder(out_dir, T.CONTRACT, metadata=metadata) as bag:
+        for topic, (t_ns, data) in sorted(before.items(), key=lambda item: item[1][0]):
+            bag.write(topic, data, log_time_ns=t_ns)
+            n += 1
+        for topic, t_ns, data in inside:
+            bag.write(topic, data, log_time_ns=t_ns)
+            n += 1
+    return n
+
+
+def bag_metadata(bag_dir: Path, name: str) -> dict[str, dict[str, str]]:
+    """The MCAP metadata record ``name`` of a bag as ``{name: {key: value}}`` (empty if none)."""
+    from mcap.reader import make_reader
+
+    from .recorder import bag_file
+
+    with open(bag_file(Path(bag_dir)), "rb") as f:
+        for record in make_reader(f).iter_metadata():
+            if record.name == name:
+                return {name: dict(record.metadata)}
+    return {}
+
+
+def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: float = CLIP_S,
+             scenario_file: Path | None = None, run_name: str | None = None) -> list[dict[str, Any]]:
+    """A clip, a PNG and a reproduce command for every critical event of a recorded run.
+
+    Writes ``run_dir/clips/<n>-<kind>-<state>/{bag/, scene.png}`` and ``run_dir/clips.json``;
+    returns one entry per event (what :func:`events_of` gives, plus ``clip``, ``png``,
+    ``command``, ``messages``, ``from_state``, ``to_state``; paths relative to ``run_dir``).
+    """
+    from .report import _snapshot
+    from .rundata import SCENARIO_METADATA, read_run
+    from .streaming import Scene
+
+    dt = float(report["run"]["dt_s"])
+    states = int(report["run"]["states"])
+    messages = read_messages(bag_dir)
+    metadata = bag_metadata(bag_dir, SCENARIO_METADATA)
+    t0 = next((t for topic, t, _ in messages if topic == C.TOPIC_WORLD), 0)
+    pad = int(round(clip_s / dt))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = []
+    for n, event in enumerate(events_of(report), 1):
+        k = min(event["state"], states - 1)
+        k_from, k_to = max(0, k - pad), min(states - 1, k + pad)
+        name = f"{n:03d}-{event['kind']}-{k}"
+        clip_dir = run_dir / "clips" / name
+        count = cut_clip(messages, metadata, clip_dir / "bag", t0 + int(round(k_from * dt * 1e9)),
+                         t0 + int(round(k_to * dt * 1e9)))
+        clip = read_run(clip_dir / "bag")
+        row = k - k_from
+        png = None
+        if 0 <= row < clip.states:
+            scene = Scene(state=k, time_s=k * dt, columns={f: clip.columns[f][row] for f in clip.columns},
+                          ids=clip.ids, sut_index=clip.sut_index)
+            what = ("collision" if event["kind"] == "collision" else
+                    f"exposure (severity {event['severity']:.2f}, min TTC "
+                    f"{'–' if event['min_ttc_s'] is None else format(event['min_ttc_s'], '.2f')} s)")
+            png = _snapshot(plt, scene, clip.lane_segments, set(event["ids"]), f"{what} at t = {k * dt:.1f} s",
+                            clip_dir, "scene.png")
+        command = None
+        if scenario_file is not None:
+            command = (f"python scripts/run_scenario.py --mode inprocess --config {shlex.quote(str(scenario_file))} "
+                       f"--steps {k_to} --out {shlex.quote(f'runs/repro/{run_name or run_dir.name}-{name}')}")
+        out.append({**event, "state": k, "time_s": k * dt, "clip": f"clips/{name}/bag",
+                    "png": f"clips/{name}/{png}" if png else None, "command": command, "messages": count,
+                    "from_state": k_from, "to_state": k_to})
+    (run_dir / "clips.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    return out
