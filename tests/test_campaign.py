@@ -144,6 +144,16 @@ def _cli(spec: Path, out: Path, *extra: str) -> subprocess.Popen:
                             start_new_session=True)
 
 
+def _finish(proc: subprocess.Popen, timeout: float) -> tuple[str, str]:
+    """The CLI's output once it has ended (its whole process group killed if it has not in time)."""
+    try:
+        return proc.communicate(timeout=timeout)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+
+
 def _results(out: Path) -> list[Path]:
     return sorted((out / "runs").glob("*/result.json")) if (out / "runs").is_dir() else []
 
@@ -167,11 +177,8 @@ def test_ctrl_c_then_the_same_command_computes_only_the_rest(tmp_path):
     try:
         _wait_for(lambda: len(_results(out)) >= 2)
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C reaches the whole foreground group, Ray's workers too
-        _out, err = proc.communicate(timeout=60)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
+        _out, err = _finish(proc, 60)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
     kept = {p: p.stat().st_mtime_ns for p in _results(out)}
@@ -213,13 +220,9 @@ def test_a_killed_worker_is_retried_and_every_run_counts_once(tmp_path):
         _wait_for(lambda: len(_results(out)) >= 1 and _task_workers(proc.pid))
         before = set(_task_workers(proc.pid))  # the workers of the 2 CPUs: busy, or done already
         before |= {json.loads(p.read_text())["pid"] for p in _results(out)}
-        victim = min(_task_workers(proc.pid))
-        os.kill(victim, signal.SIGKILL)
-        stdout, err = proc.communicate(timeout=300)
+        os.kill(min(_task_workers(proc.pid)), signal.SIGKILL)
     finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
+        _out, err = _finish(proc, 300)
     assert proc.returncode == 0, err
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
     assert len(keys) == 12 == len(set(keys))
