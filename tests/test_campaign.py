@@ -7,7 +7,7 @@
 * A campaign on a local Ray of 2 workers: every run once (results.parquet: 6 rows, 6 keys),
   each result equal to the same run in this process; run again: nothing computed, no result
   file rewritten.
-* Ctrl-C part-way through 12 runs (the CLI in a subprocess): exit 130, finished runs kept; the same command
+* Ctrl-C part-way through 16 runs (the CLI in a subprocess): exit 130, finished runs kept; the same command
   again computes only the rest, the earlier result files untouched, every run once.
 * A Ray worker killed (SIGKILL) while it runs a task: the task is retried, the campaign ends
   with every run exactly once (exit 0).
@@ -165,14 +165,21 @@ def _wait_for(pred, timeout: float = 120.0) -> None:  # noqa: ANN001
         time.sleep(0.2)
 
 
-# 12 runs of 2,000 steps (~0.5-1 s each once a worker is warm): Ctrl-C and the kill land while runs remain
-TWELVE = SMALL.replace("seeds: [0, 1, 2]", "seeds: {first: 0, count: 6}").replace("steps: 40", "steps: 2000")
+# 16 runs of 3,000 steps with the default 20 BVs (~1 s each once a worker is warm, a few times that
+# under load; ~8 s for two workers): Ctrl-C and the kill land while runs remain, however fast the machine
+LONG = """
+name: long
+steps: 3000
+seeds: {first: 0, count: 8}
+grid:
+  sut.model: [mobil, level0]
+"""
 
 
 def test_ctrl_c_then_the_same_command_computes_only_the_rest(tmp_path):
     import pyarrow.parquet as pq
 
-    spec, out = write_spec(tmp_path, TWELVE), tmp_path / "out"
+    spec, out = write_spec(tmp_path, LONG), tmp_path / "out"
     proc = _cli(spec, out)
     try:
         _wait_for(lambda: len(_results(out)) >= 2)
@@ -182,14 +189,14 @@ def test_ctrl_c_then_the_same_command_computes_only_the_rest(tmp_path):
     assert proc.returncode == 130, err
     assert "Traceback" not in err
     kept = {p: p.stat().st_mtime_ns for p in _results(out)}
-    assert 2 <= len(kept) < 12
+    assert 2 <= len(kept) < 16
     again = _cli(spec, out)
     stdout, err = again.communicate(timeout=300)
     assert again.returncode == 0, err
-    assert f"{12 - len(kept)} runs computed" in stdout and f"{len(kept)} already done" in stdout
+    assert f"{16 - len(kept)} runs computed" in stdout and f"{len(kept)} already done" in stdout
     assert all(p.stat().st_mtime_ns == t for p, t in kept.items())
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
-    assert len(keys) == 12 == len(set(keys))
+    assert len(keys) == 16 == len(set(keys))
 
 
 def _task_workers(root: int) -> list[int]:
@@ -214,7 +221,7 @@ def _task_workers(root: int) -> list[int]:
 def test_a_killed_worker_is_retried_and_every_run_counts_once(tmp_path):
     import pyarrow.parquet as pq
 
-    spec, out = write_spec(tmp_path, TWELVE), tmp_path / "out"
+    spec, out = write_spec(tmp_path, LONG), tmp_path / "out"
     proc = _cli(spec, out)
     try:
         _wait_for(lambda: len(_results(out)) >= 1 and _task_workers(proc.pid))
@@ -225,7 +232,7 @@ def test_a_killed_worker_is_retried_and_every_run_counts_once(tmp_path):
         _out, err = _finish(proc, 300)
     assert proc.returncode == 0, err
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
-    assert len(keys) == 12 == len(set(keys))
+    assert len(keys) == 16 == len(set(keys))
     pids = {row["pid"] for row in pq.read_table(out / "results.parquet").to_pylist()}
     assert pids - before, (pids, before)  # a new worker took over the killed one's task
 

@@ -22,6 +22,7 @@ By default Ray is started in this process (a local cluster with one worker per C
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import importlib
@@ -38,6 +39,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from evoscen_eval.streaming import COLLISION_KINDS
 from evoscen_sim.config import ScenarioConfig, config_to_dict, load_scenario_config
 from evoscen_sim.errors import InputError
 
@@ -48,6 +50,8 @@ INTACT = "intact"
 PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_eval", "evoscen_bringup")
 SCORE_COLUMNS = ("intelligence", "safety", "efficiency", "interaction", "complexity")
 COUNT_COLUMNS = ("collisions", "exposures")
+KIND_COLUMNS = tuple(f"collisions_{k}" for k in (*COLLISION_KINDS, "unknown"))
+"""SUT collisions by what they were (docs/evaluation.md §3.4)."""
 OBJECT_STORE_BYTES = 100 * 2**20
 """The local Ray's object store: tasks pass a configuration and return a report (kilobytes), so
 100 MiB is plenty, and it fits a container's /dev/shm (ours: 256 MiB) instead of Ray's 30 % of RAM."""
@@ -269,6 +273,8 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
         value = report[name]["score"]
         row[name] = math.nan if value is None else float(value)
     row["collisions"] = int(report["safety"]["collisions"])
+    for kind, count in report["safety"]["collisions_by_kind"].items():
+        row[f"collisions_{kind}"] = int(count)
     row["exposures"] = int(report["safety"]["exposures"])
     row["clips"] = len(clips)
     row["wall_time_s"] = time.perf_counter() - t0
@@ -356,8 +362,12 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
                         progress(result.already_done + result.computed, len(runs), rate)
         except KeyboardInterrupt:
             result.interrupted = True
-            for ref in pending:
-                ray.cancel(ref, force=True)
+            if not started:  # a cluster's workers outlive this driver: ask them to drop our tasks
+                for ref in pending:
+                    with contextlib.suppress(Exception):
+                        ray.cancel(ref)
+            # (a local Ray goes down with its workers below; a forced cancel racing a task that
+            # is just completing aborted the driver inside Ray, seen once in CI)
         finally:
             if started:
                 ray.shutdown()
@@ -390,7 +400,8 @@ def write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> lis
 
     rows = collect_rows(runs, out_dir)
     axes = list(spec.grid)
-    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, "clips", "wall_time_s", "node", "pid"]
+    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, *KIND_COLUMNS, "clips", "wall_time_s",
+               "node", "pid"]
     table = pa.table({c: [row.get(c) for row in rows] for c in columns}) if rows else pa.table(
         {c: pa.array([], type=pa.string()) for c in columns})
     tmp = out_dir / "results.parquet.tmp"
@@ -457,8 +468,8 @@ def cells(spec: Spec, rows: Sequence[Mapping[str, Any]]) -> dict[tuple[str, ...]
 def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Mapping[str, Any]]) -> str:
     """Per-cell means with 95 % intervals (Student t for scores, bootstrap for counts) and, with
     ``compare``, paired differences to the reference on shared seeds."""
-    from .experiments import fmt_ci, markdown_table, mean_ci
     from .sensitivity import paired
+    from .stats import fmt_ci, markdown_table, mean_ci
 
     axes = list(spec.grid)
     lines = [f"# Campaign {spec.name}\n",
@@ -475,8 +486,11 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
         for name in COUNT_COLUMNS:
             mean, low, high = bootstrap_ci([m[name] for m in members], rng)
             entry.append(f"{mean:.2f} [{low:.2f}, {high:.2f}]" if not math.isnan(low) else f"{mean:.2f}")
+        kinds = {c[len("collisions_"):]: sum(m.get(c) or 0 for m in members) for c in KIND_COLUMNS}
+        entry.append(", ".join(f"{k} {n}" for k, n in kinds.items() if n) or "–")
         body.append(entry)
-    lines.append(markdown_table([*axes, "n", "I", "I_s", "I_e", "I_i", "collisions", "exposures"], body))
+    lines.append(markdown_table([*axes, "n", "I", "I_s", "I_e", "I_i", "collisions", "exposures",
+                                 "collisions by kind (all seeds)"], body))
     if spec.compare is not None and rows:
         axis, ref = spec.compare
         i = axes.index(axis)

@@ -21,16 +21,16 @@ Each round's result holds its ``report.json`` dict plus histograms of the SUT's 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
-import numpy as np
 
 from evoscen_eval.streaming import SPEED_BINS, TTC_BINS  # noqa: F401 - the histograms' bins (the plots read them here)
 from evoscen_sim.config import ScenarioConfig
+
+from .stats import fmt_ci, markdown_table, mean_ci  # noqa: F401 - the experiments' scripts import them from here
 
 
 @dataclass(frozen=True)
@@ -159,33 +159,6 @@ def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, de
         raise SystemExit(EXIT_FAULT) from None
     finally:
         bar.close()
-
-
-def mean_ci(values: Sequence[float]) -> tuple[float, float]:
-    """Mean and the half-width of its 95 % Student-t interval (``nan`` with fewer than 2 values)."""
-    x = np.asarray([v for v in values if v is not None], dtype=float)
-    if x.size == 0:
-        return math.nan, math.nan
-    if x.size < 2:
-        return float(x.mean()), math.nan
-    from scipy import stats
-
-    half = float(stats.t.ppf(0.975, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
-    return float(x.mean()), half
-
-
-def fmt_ci(mean: float, half: float, digits: int = 4) -> str:
-    """``mean ± half`` (just the mean when the interval is undefined)."""
-    if math.isnan(mean):
-        return "–"
-    return f"{mean:.{digits}f}" if math.isnan(half) else f"{mean:.{digits}f} ± {half:.{digits}f}"
-
-
-def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    """A Markdown table."""
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return "\n".join(lines) + "\n"
 
 
 def write_csv(path: Path, header: Sequence[str], rows: Sequence[Sequence[Any]]) -> None:

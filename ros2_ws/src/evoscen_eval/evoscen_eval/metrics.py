@@ -64,7 +64,7 @@ from evoscen_contract import contract as C
 from evoscen_sim.safety import attribution_steps
 
 from .rundata import RunData, run_info_of
-from .streaming import ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
+from .streaming import COLLISION_KINDS, ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
 
 
 # ---------------------------------------------------------------------- formulas (scalars)
@@ -161,8 +161,12 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "min_accel_mps2": st.min_accel,
         "ttc_threshold_s": ev.ttc_threshold_s,
         "hard_brake_mps2": ev.hard_brake_mps2,
-        "collision_list": [{"state": int(e["step"]), "time_s": float(e["time_s"]), "ids": list(e["ids"])}
-                           for e in sut_collisions],
+        "collision_list": [{"state": int(e["step"]), "time_s": float(e["time_s"]), "ids": list(e["ids"]),
+                            "kind": st.collision_kinds.get(i, "unknown")}
+                           for i, e in enumerate(sut_collisions)],
+        "collisions_by_kind": {kind: sum(st.collision_kinds.get(i, "unknown") == kind
+                                         for i in range(len(sut_collisions)))
+                               for kind in (*COLLISION_KINDS, "unknown")},
         "exposure_list": exposures,
     }
 

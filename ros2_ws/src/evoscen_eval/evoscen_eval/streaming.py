@@ -50,6 +50,10 @@ SPEED_BINS = np.linspace(0.0, 40.0, 81)
 """Bins of the SUT's speed distribution (m/s)."""
 MAX_SNAPSHOTS = 10
 """Collision scenes kept at most (the report lists every collision)."""
+COLLISION_LOOKBACK_S = 2.0
+"""How far back a vehicle's lane change makes it "changing lanes" at a collision (s)."""
+COLLISION_KINDS = ("sut_cut_in", "other_cut_in", "both_changing", "sut_rear_end", "rear_ended_by_other")
+"""What a SUT collision was (docs/evaluation.md §3.4); "unknown" if its state was not seen."""
 
 _F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
 _SCENE_FIELDS = ("x", "y", "yaw", "length", "width", "speed")
@@ -154,6 +158,9 @@ class ScoreStream:
         self._open: _Exposure | None = None
         self._changes: list[_Change] = []
         self._prev_scene_block: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._last_lc = None  # [V]: the latest state with each vehicle's lane_change non-zero (-1: none)
+        self._prev_lc_block: tuple[int, np.ndarray, np.ndarray] | None = None  # (k0, tables, last-lc rows)
+        self.collision_kinds: dict[int, str] = {}  # index in sut_collisions -> kind
         # reductions
         self.exposures: list[dict] = []
         self.finished_changes: list[_Change] = []
@@ -358,6 +365,39 @@ class ScoreStream:
         self._timeline(ks, times, speed, lane, ttc)
         self._collision_scenes(k0, tables, times)
         self._prev_scene_block = (k0, tables, times)
+        last = np.maximum.accumulate(np.where(lc != 0, ks[:, None], -1), axis=0)
+        if self._last_lc is not None:
+            last = np.maximum(last, self._last_lc)
+        self._last_lc = last[-1].copy()
+        self._classify_collisions(k0, tables, last)
+        self._prev_lc_block = (k0, tables, last)
+
+    def _classify_collisions(self, k0: int, tables: np.ndarray, last: np.ndarray, clamp: int | None = None) -> None:
+        """What each SUT collision whose state is in this block or the previous one was: who was
+        changing lanes (``lane_change`` non-zero within :data:`COLLISION_LOOKBACK_S` up to the
+        state) and, if neither, who struck whom (the vehicle behind, by centre)."""
+        n_back = int(np.floor(COLLISION_LOOKBACK_S / (self.dt_s if self.dt_s is not None else 0.1) + 1e-9))
+        blocks = [(k0, tables, last)]
+        if self._prev_lc_block is not None:
+            blocks.append(self._prev_lc_block)
+        sut_id = int(self.ids[self.sut])
+        for i, event in enumerate(self.sut_collisions):
+            if i in self.collision_kinds:
+                continue
+            k = int(event["step"]) if clamp is None else min(int(event["step"]), clamp)
+            others = [j for j in event.get("ids", []) if j != sut_id]
+            found = np.flatnonzero(self.ids == others[0]) if others else []
+            for b0, b_tables, b_last in blocks:
+                if b0 <= k < b0 + b_tables.shape[0] and len(found):
+                    r, o = k - b0, int(found[0])
+                    sut_lc = b_last[r, self.sut] >= k - n_back
+                    oth_lc = b_last[r, o] >= k - n_back
+                    if sut_lc or oth_lc:
+                        kind = "both_changing" if sut_lc and oth_lc else ("sut_cut_in" if sut_lc else "other_cut_in")
+                    else:
+                        behind = b_tables[r, self.sut, _F["s"]] < b_tables[r, o, _F["s"]]
+                        kind = "sut_rear_end" if behind else "rear_ended_by_other"
+                    self.collision_kinds[i] = kind
 
     def _collision_scenes(self, k0: int, tables: np.ndarray, times: np.ndarray) -> None:
         """The scenes of the first collisions whose states are in this block or the previous one
@@ -527,6 +567,9 @@ class ScoreStream:
                 if k not in self.collision_scenes and k0 <= k:
                     self.collision_scenes[k] = self._scene(tables, times, k - k0, k)
         self._prev_scene_block = None
+        if self._prev_lc_block is not None:  # collisions stamped past the last state: as at the last state
+            self._classify_collisions(*self._prev_lc_block, clamp=K - 1)
+        self._prev_lc_block = None
         self._finished = True
 
     def plot_data(self, lane_segments: np.ndarray | None = None) -> PlotData:

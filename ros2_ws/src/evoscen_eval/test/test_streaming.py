@@ -121,3 +121,31 @@ def test_a_long_run_leaves_only_output_sized_state(monkeypatch):
     assert len(st.windows["lane_changes"]) == 50  # one count per 100-state window
     assert st.n["in_view"] == 5000 * 0  # the BVs are 500 m ahead: never in view
     assert math.isfinite(st.speed_sum) and st.speed_sum == pytest.approx(5000 * 30.0)
+
+
+def _collision(step: int, other: int) -> dict:
+    return {"name": T.EVENT_COLLISION, "step": step, "time_s": step / 10, "ids": [0, other]}
+
+
+@pytest.mark.parametrize("block", [1, 256])
+def test_collision_kinds_by_hand(block, monkeypatch):
+    """Who was changing lanes within 2 s (20 states) up to the contact, else who was behind:
+    vehicle 1 cuts in (lane change over 10..19, contact at 25); the SUT cuts in (30..34, contact
+    at 54: 20 states after its last, still counted); both (the SUT over 60..66, vehicle 1 over
+    62..65, contact at 66); vehicle 2 changed lanes at state 70, 21 states before the contact
+    at 91, the SUT ahead of it: a rear-end by the other; the SUT behind vehicle 3 at 99."""
+    monkeypatch.setattr(streaming, "BLOCK_STATES", block)
+    events = [_collision(25, 1), _collision(54, 1), _collision(66, 1), _collision(91, 2), _collision(99, 3)]
+    run = make_run(100, 4, events=events)
+    c = run.columns
+    c["lane_change"][10:20, 1] = -1
+    c["lane_change"][30:35, 0] = 1
+    c["lane_change"][60:67, 0] = 1
+    c["lane_change"][62:66, 1] = 1
+    c["lane_change"][70, 2] = 1
+    c["s"][:, 1], c["s"][:, 2], c["s"][:, 3] = 1002.0, 996.0, 1004.0  # 1 and 3 ahead, 2 behind
+    s = evaluate(run, EV)["safety"]
+    assert [x["kind"] for x in s["collision_list"]] == [
+        "other_cut_in", "sut_cut_in", "both_changing", "rear_ended_by_other", "sut_rear_end"]
+    assert s["collisions_by_kind"] == {"sut_cut_in": 1, "other_cut_in": 1, "both_changing": 1, "sut_rear_end": 1,
+                                       "rear_ended_by_other": 1, "unknown": 0}
