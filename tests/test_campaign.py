@@ -119,7 +119,8 @@ def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
     assert (first.runs, first.already_done, first.computed, first.failed) == (6, 0, 6, [])
     table = pq.read_table(out / "results.parquet").to_pylist()
     assert sorted(row["key"] for row in table) == sorted(r.key for r in runs)
-    here = run_inprocess(runs[4].cfg, bag_dir=None, evaluate=True, plots=False).report
+    here_run = run_inprocess(runs[4].cfg, bag_dir=None, evaluate=True, plots=False)
+    here, here_plot = here_run.report, here_run.plot
     row = next(row for row in table if row["key"] == runs[4].key)
     assert row["intelligence"] == here["intelligence"]["score"]
     assert row["collisions"] == here["safety"]["collisions"] and row["seed"] == 1 and row["sut.model"] == "level0"
@@ -128,6 +129,10 @@ def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
     summary = (out / "summary.md").read_text()
     assert "## Paired by seed: mobil − each other sut.model (intelligence)" in summary
     assert "| level0 | 3 |" in summary  # the paired row: 3 shared seeds
+    for name in ("summary.png", "distributions.png"):
+        assert (out / name).stat().st_size > 0 and f"]({name})" in summary
+    plot = json.loads((out / "runs" / runs[4].key / "plot.json").read_text())
+    assert plot["speed_hist"] == here_plot.speed_hist.tolist() and plot["ttc_hist"] == here_plot.ttc_hist.tolist()
 
 
 def test_running_again_computes_nothing(local_campaign):

@@ -407,10 +407,62 @@ def write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> lis
     tmp = out_dir / "results.parquet.tmp"
     pq.write_table(table, tmp)
     os.replace(tmp, out_dir / "results.parquet")
-    _write_atomic(out_dir / "summary.md", summary_markdown(spec, runs, rows))
+    images = summary_plots(spec, runs, rows, out_dir) if rows else []
+    _write_atomic(out_dir / "summary.md", summary_markdown(spec, runs, rows)
+                  + "".join(f"\n![{Path(name).stem}]({name})\n" for name in images))
     if spec.record != "none":
         _write_atomic(out_dir / "gallery.md", gallery_markdown(spec, runs, out_dir))
     return rows
+
+
+def summary_plots(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Mapping[str, Any]],
+                  out_dir: Path) -> list[str]:
+    """``summary.png`` (per cell: mean I with its 95 % interval) and ``distributions.png`` (per cell:
+    the SUT's TTC and speed distributions over all its runs, as fractions of states)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from evoscen_eval.streaming import SPEED_BINS, TTC_BINS
+
+    from .stats import mean_ci
+
+    grouped = cells(spec, rows)
+    labels = [", ".join(cell) or spec.name for cell in grouped]
+    stats = [mean_ci([m["intelligence"] for m in members if not math.isnan(m["intelligence"])])
+             for members in grouped.values()]
+    fig, ax = plt.subplots(figsize=(max(6.0, 0.6 * len(labels) + 2), 4))
+    x = np.arange(len(labels))
+    ax.bar(x, [m for m, _ in stats], yerr=[0.0 if math.isnan(h) else h for _, h in stats], capsize=3,
+           color="tab:blue")
+    ax.set_xticks(x, labels, rotation=45, ha="right", fontsize=8)
+    ax.set(ylabel="intelligence I (mean, 95 % interval)", title=f"campaign {spec.name}: {len(rows)} runs")
+    fig.tight_layout()
+    fig.savefig(out_dir / "summary.png", dpi=100)
+    plt.close(fig)
+    key_of = {r.key: ", ".join(v for _, v in r.cell) or spec.name for r in runs}
+    hists: dict[str, list[np.ndarray]] = {}
+    for row in rows:
+        path = out_dir / "runs" / row["key"] / "plot.json"
+        if path.exists():
+            plot = json.loads(path.read_text(encoding="utf-8"))
+            h = hists.setdefault(key_of[row["key"]], [np.zeros(len(TTC_BINS) - 1), np.zeros(len(SPEED_BINS) - 1)])
+            h[0] += plot["ttc_hist"]
+            h[1] += plot["speed_hist"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    for label, (ttc, speed) in hists.items():
+        for ax, h, bins in ((axes[0], ttc, TTC_BINS), (axes[1], speed, SPEED_BINS)):
+            if h.sum():
+                ax.stairs(h / h.sum(), bins, label=label)
+    axes[0].set(xlabel="SUT TTC to the vehicle ahead (s, closing states up to 20 s)", ylabel="fraction")
+    axes[1].set(xlabel="SUT speed (m/s)", ylabel="fraction")
+    if len(hists) <= 12:
+        axes[1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out_dir / "distributions.png", dpi=100)
+    plt.close(fig)
+    return ["summary.png", "distributions.png"]
 
 
 def gallery_markdown(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> str:
