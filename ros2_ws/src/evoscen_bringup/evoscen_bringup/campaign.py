@@ -329,50 +329,85 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
     result = CampaignResult(runs=len(runs), already_done=len(runs) - len(todo))
     t0 = time.monotonic()
     if todo:
-        import ray
-
-        started = not ray.is_initialized()
-        if started:
-            local = {} if address else {"num_cpus": cpus, "object_store_memory": OBJECT_STORE_BYTES}
-            ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False, **local)
-        task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute)
-        pending = {task.remote(r, str(out_dir), record, clip_s): r for r in todo}
-        try:
-            while pending:
-                ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
-                for ref in ready:
-                    run = pending.pop(ref)
-                    try:
-                        done = ray.get(ref)
-                    except Exception as exc:  # noqa: BLE001 - the task failed after its retries
-                        result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): "
-                                             f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
-                        continue
-                    path = result_path(out_dir, run.key)
-                    _write_files(path.parent, done["files"])
-                    _write_atomic(path.with_name("scenario.yaml"),
-                                  yaml.safe_dump(config_to_dict(run.cfg), sort_keys=False))
-                    _write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
-                    _write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
-                    _write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
-                    result.computed += 1
-                    result.nodes.add(done["row"]["node"])
-                    if progress is not None:
-                        rate = result.computed / max(time.monotonic() - t0, 1e-9)
-                        progress(result.already_done + result.computed, len(runs), rate)
-        except KeyboardInterrupt:
-            result.interrupted = True
-            if not started:  # a cluster's workers outlive this driver: ask them to drop our tasks
-                for ref in pending:
-                    with contextlib.suppress(Exception):
-                        ray.cancel(ref)
-            # (a local Ray goes down with its workers below; a forced cancel racing a task that
-            # is just completing aborted the driver inside Ray, seen once in CI)
-        finally:
-            if started:
-                ray.shutdown()
+        with _ctrl_c_interrupts() as arm:
+            _run_todo(todo, out_dir, result, len(runs), t0, record=record, clip_s=clip_s, address=address,
+                      cpus=cpus, retries=retries, progress=progress, arm=arm)
     result.wall_s = time.monotonic() - t0
     return result
+
+
+@contextlib.contextmanager
+def _ctrl_c_interrupts():
+    """Yields ``arm()``: from then on Ctrl-C (SIGINT) and SIGTERM raise KeyboardInterrupt in this
+    (main) thread, whatever the process inherited — a background job of a non-interactive shell
+    starts with SIGINT ignored, and Python then installs no handler (CI's test run once ignored
+    the test's Ctrl-C). Called after ``ray.init``, which may set handlers of its own; the old
+    handlers are restored at the end."""
+    import signal
+    import threading
+
+    saved: dict[int, Any] = {}
+
+    def arm() -> None:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                saved.setdefault(sig, signal.getsignal(sig))
+                signal.signal(sig, signal.default_int_handler)
+
+    try:
+        yield arm
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+
+
+def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult, total: int, t0: float, *,  # noqa: PLR0913
+              record: str, clip_s: float, address: str | None, cpus: int | None, retries: int,
+              progress: Callable[[int, int, float], None] | None, arm: Callable[[], None]) -> None:
+    """Submit ``todo`` to Ray and write each result as it comes (see :func:`run_campaign`)."""
+    import ray
+
+    started = not ray.is_initialized()
+    if started:
+        local = {} if address else {"num_cpus": cpus, "object_store_memory": OBJECT_STORE_BYTES}
+        ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False, **local)
+    arm()
+    task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute)
+    pending = {task.remote(r, str(out_dir), record, clip_s): r for r in todo}
+    try:
+        while pending:
+            ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
+            for ref in ready:
+                run = pending.pop(ref)
+                try:
+                    done = ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - the task failed after its retries
+                    result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): "
+                                         f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+                    continue
+                path = result_path(out_dir, run.key)
+                _write_files(path.parent, done["files"])
+                _write_atomic(path.with_name("scenario.yaml"),
+                              yaml.safe_dump(config_to_dict(run.cfg), sort_keys=False))
+                _write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
+                _write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
+                _write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
+                result.computed += 1
+                result.nodes.add(done["row"]["node"])
+                if progress is not None:
+                    rate = result.computed / max(time.monotonic() - t0, 1e-9)
+                    progress(result.already_done + result.computed, total, rate)
+    except KeyboardInterrupt:
+        result.interrupted = True
+        if not started:  # a cluster's workers outlive this driver: ask them to drop our tasks
+            for ref in pending:
+                with contextlib.suppress(Exception):
+                    ray.cancel(ref)
+        # (a local Ray goes down with its workers below; a forced cancel racing a task that
+        # is just completing aborted the driver inside Ray, seen once on this machine)
+    finally:
+        if started:
+            ray.shutdown()
 
 
 def load_result(out_dir: Path, key: str) -> dict[str, Any]:
