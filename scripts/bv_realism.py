@@ -3,7 +3,7 @@
 
     python scripts/bv_realism.py [--profiles driver safety_net] [--seeds 1 2 3 4 5]
                                  [--steps 3000] [--sut level0] [--config FILE] [--policy-dir DIR] [--json OUT]
-                                 [--cut-in-headway H]
+                                 [--cut-in-headway H] [--lane-hold S]
 
 Runs every (profile, seed) in process (``bvs.driver: learned``, no bag) and prints, per
 profile, the pooled figures of :func:`evoscen_eval.bv_realism.bv_realism`: BV lane changes
@@ -44,6 +44,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="models.learned.policy_dir: shipped (default), round1, or a train_bv.py --out directory")
     ap.add_argument("--cut-in-headway", type=float, default=None, metavar="H",
                     help="measure with the profiles' cut-in closing headway h replaced by H s (0: the method's plain 10 m)")
+    ap.add_argument("--lane-hold", type=float, default=None, metavar="S",
+                    help="models.learned.lane_hold_s (default: the config's, 20 s; 0: no hold)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
     args = ap.parse_args(argv)
 
@@ -69,6 +71,8 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["sut.model"] = args.sut
             if args.policy_dir:
                 overrides["models.learned.policy_dir"] = args.policy_dir
+            if args.lane_hold is not None:
+                overrides["models.learned.lane_hold_s"] = args.lane_hold
             try:
                 cfg = load_scenario_config(args.config, overrides)
             except InputError as exc:

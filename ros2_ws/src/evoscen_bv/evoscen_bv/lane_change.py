@@ -191,6 +191,23 @@ def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_sca
     return grid
 
 
+def forced_merge_targets(view, idx: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:  # noqa: ANN001
+    """The road's mandatory change of each vehicle ``idx``: +1/-1 for a vehicle in a lane that ends
+    less than ``within_m`` ahead beside a lane that ends later (left if both neighbours do), else 0."""
+    idx = np.asarray(idx, dtype=np.int64)
+    out = np.zeros(idx.size, dtype=np.int64)
+    end = np.asarray(view.road.lane_end_s, dtype=float)
+    lanes = end.size
+    lane = np.asarray(view.lane)[idx]
+    for k in np.flatnonzero(end[lane] - np.asarray(view.s)[idx] < within_m):  # a few vehicles at most
+        q = int(lane[k])
+        for r in (1, -1):
+            if 0 <= q + r < lanes and end[q + r] > end[q]:
+                out[k] = r
+                break
+    return out
+
+
 def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:  # noqa: ANN001
     """``requested`` with the road's mandatory changes: a vehicle in a lane that ends less than
     ``within_m`` ahead requests the change to the neighbouring lane that ends later (left if
@@ -203,18 +220,8 @@ def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m
     beside it, its body still reaching into the merge lane, stood behind it: both lanes
     blocked. The rule constraints still apply to the forced request (it waits for a gap).
     """
-    idx = np.asarray(idx, dtype=np.int64)
-    out = np.asarray(requested, dtype=np.int64).copy()
-    end = np.asarray(view.road.lane_end_s, dtype=float)
-    lanes = end.size
-    lane = np.asarray(view.lane)[idx]
-    for k in np.flatnonzero(end[lane] - np.asarray(view.s)[idx] < within_m):  # a few vehicles at most
-        q = int(lane[k])
-        for r in (1, -1):
-            if 0 <= q + r < lanes and end[q + r] > end[q]:
-                out[k] = r
-                break
-    return out
+    target = forced_merge_targets(view, idx, within_m)
+    return np.where(target != 0, target, np.asarray(requested, dtype=np.int64))
 
 
 def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa: ANN001

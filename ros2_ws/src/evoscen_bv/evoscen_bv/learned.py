@@ -34,7 +34,7 @@ from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
-from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, forced_merge_requests, observation_grid
+from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, forced_merge_targets, observation_grid
 from .profile import get_profile
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
@@ -140,12 +140,25 @@ class LearnedDriver:
             training environments' traffic no (the policies were trained without it).
         profile: the run-time rule profile (:mod:`evoscen_bv.profile`, docs/bv-profiles.md):
             ``driver`` or ``safety_net``; ``None``: the training config's ``env.profile``.
+        lane_hold_s: the run-time lane hold (docs/learned-bvs.md, "Lane hold"): for this long
+            after a vehicle's lane change ends (the world's ``lane_change`` column back to 0),
+            its policy's requests are rewritten to keep, except the forced merge's; 0 = no
+            hold (the training environments, and the scenario's BVs before round 2's hold).
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
                  config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
-                 forced_merge: bool = False, profile: str | None = None) -> None:
+                 forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
+        if not lane_hold_s >= 0.0:
+            raise ValueError(f"lane_hold_s must be >= 0, got {lane_hold_s}")
+        self.lane_hold_s = float(lane_hold_s)
+        self._changing = np.zeros(self.vehicles.size, dtype=bool)
+        """Whether each hosted vehicle was changing lanes at the last :meth:`act`."""
+        self.hold_until_step = np.full(self.vehicles.size, -1, dtype=np.int64)
+        """Per hosted vehicle: decisions at steps before this one keep the lane (the lane hold)."""
+        self._last_s: np.ndarray | None = None
+        """Arc lengths at the last :meth:`act` (a fall marks a re-entry)."""
         self.profile = get_profile(config.env.profile if profile is None else profile)
         self.reaction: ReactionState | None = None
         """The driver profile's state, made at the first step (N needs the step length); None: safety_net."""
@@ -193,14 +206,31 @@ class LearnedDriver:
         idx = self.vehicles[positions]
         obs = observation_grid(view, idx, self.config.grid).reshape(idx.size, OBS_DIM)
         requested = action_to_lane_change(self.stack.forward(obs, self.policy_columns(view, idx)))
+        forced = np.zeros(idx.size, dtype=np.int64)
         if self.forced_merge:
-            requested = forced_merge_requests(view, idx, requested)
-        executed = apply_rule_constraints(view, idx, requested, self.profile.cut_in_closing_headway_s)
+            forced = forced_merge_targets(view, idx)
+            requested = np.where(forced != 0, forced, requested)
+        allowed = requested
+        if self.lane_hold_s > 0.0:  # the hold rewrites the policy's requests, not the road's forced merge
+            held = (self.hold_until_step[positions] > int(view.step_index)) & (forced == 0)
+            allowed = np.where(held, 0, requested)
+        executed = apply_rule_constraints(view, idx, allowed, self.profile.cut_in_closing_headway_s)
         return obs, requested, executed
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
         throttle = self.throttle(view)
+        if self.lane_hold_s > 0.0:
+            changing = np.asarray(view.lane_change)[self.vehicles] != 0
+            ended = self._changing & ~changing
+            if ended.any():
+                n = int(round(self.lane_hold_s / float(view.dt_s)))
+                self.hold_until_step[ended] = int(view.step_index) + n
+            self._changing = changing
+            s = np.asarray(view.s)[self.vehicles]
+            if self._last_s is not None:  # s falls only when a vehicle re-enters: a new vehicle, no hold
+                self.hold_until_step[s < self._last_s] = -1
+            self._last_s = s.copy()
         request = np.zeros(self.vehicles.size, dtype=np.int64)
         if self.stack is not None and view.step_index % self.config.env.decision_interval_steps == 0:
             positions = np.flatnonzero(view.lane_change[self.vehicles] == 0)

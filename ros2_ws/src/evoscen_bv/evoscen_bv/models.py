@@ -5,7 +5,7 @@
 * ``learned`` (role ``bv``): the TD3-trained social drivers (:mod:`evoscen_bv.learned`) —
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
-  Parameters ``models.learned``: ``policy_dir``, ``on_missing`` and ``profile`` (:class:`LearnedParams`).
+  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile`` and ``lane_hold_s`` (:class:`LearnedParams`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from evoscen_sim.config import text
+from evoscen_sim.config import number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec, register_model
 from evoscen_sim.scenario_params import vehicle_params_from_config
@@ -45,6 +45,12 @@ class LearnedParams:
     time of 1 s and braking bounded at 7 m/s², so a reckless SUT can cause a conflict) or
     ``safety_net`` (instant, full-brake reactions to any leader: the rules the shipped
     policies were trained with, every SUT mistake absorbed)."""
+    lane_hold_s: float = number(20.0, 0.0, 600.0)
+    """The lane hold (docs/learned-bvs.md, "Lane hold"): for this long after a BV's lane change
+    ends, its decision policy's requests are rewritten to keep (the forced merge excepted).
+    [choice] 20 s, SUMO's ``lcSpeedGainRemainTime`` (the minimum time on the new lane after a
+    speed-gain change); 0 = no hold, round 2's first form (the BVs then reversed 70 % of
+    their changes, a median 5.8 s apart)."""
 
 
 def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
@@ -65,7 +71,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
             return _level0(vehicles, None, config, rng)
         raise InputError(f"models.learned.policy_dir = {params.policy_dir}: {exc}") from None
     return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config),
-                         forced_merge=True, profile=params.profile)
+                         forced_merge=True, profile=params.profile, lane_hold_s=params.lane_hold_s)
 
 
 LEVEL0 = ModelSpec(

@@ -144,7 +144,9 @@ computed with the code before profiles existed (commit 33305ed) on the developme
 def test_safety_net_reproduces_the_old_commands_exactly():
     # the old commands came from round 1's policies (shipped then; kept as policy_dir: round1) and a
     # lateral loop without the heading-reference cap (evoscen_sim.control; 1.5 rad never binds: asin(0.6) < 0.65)
-    old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "round1"}}, "control.max_heading_ref_rad": 1.5}
+    # and no lane hold (lane_hold_s: 0; the hold came in round 2, docs/learned-bvs.md)
+    old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "round1", "lane_hold_s": 0}},
+           "control.max_heading_ref_rad": 1.5}
     assert _commands_digest(old, 400) == OLD_COMMANDS_SHA256
     # the driver profile drives differently
     assert _commands_digest({"models": {"learned": {"policy_dir": "round1"}}}, 400) != OLD_COMMANDS_SHA256
@@ -199,3 +201,86 @@ def test_scenario_default_profile_is_driver():
     assert drv.profile.name == "driver"
     drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": {"learned": {"profile": "safety_net"}}}))
     assert drv.profile.name == "safety_net"
+
+
+def _constant_actor(side: int):  # noqa: ANN202
+    """A decision actor whose output is tanh(±2) = ±0.96 whatever it sees: it asks for ``side`` always."""
+    from evoscen_bv.lane_change import OBS_DIM
+    from evoscen_bv.td3 import NumpyActor
+
+    h = 4
+    return NumpyActor({"W1": np.zeros((OBS_DIM, h)), "b1": np.zeros(h), "W2": np.zeros((h, h)), "b2": np.zeros(h),
+                       "W3": np.zeros((h, 1)), "b3": np.array([2.0 * side]), "max_action": np.array(1.0)})
+
+
+def _lane_change_starts(road, policies, hold_s: float, steps: int) -> tuple[list[int], list[int]]:  # noqa: ANN001
+    """A lone BV in lane 1 at 25 m/s whose policy always asks to go left: (steps at which a change starts,
+    steps at which one ends — the lane_change column back to 0)."""
+    controller, _, training = policies
+    w = hand_built_world(road, s=[1200.0], lane=[1], speed=[25.0])
+    bv = LearnedDriver(np.array([0]), controller, {1: _constant_actor(+1)}, training, np.random.default_rng(0),
+                       w.vehicle, forced_merge=True, profile="driver", lane_hold_s=hold_s)
+    starts, ends, was = [], [], 0
+    for k in range(steps):
+        assert w.step_index == k
+        u, req = bv.act(w)
+        w.step(u, req)
+        now = int(w.lane_change[0])
+        if now and not was:
+            starts.append(k)
+        if was and not now:
+            ends.append(k + 1)  # the state after step k is the first with the column back to 0
+        was = now
+    return starts, ends
+
+
+def test_lane_hold_keeps_the_new_lane_for_the_hold_then_decides_again(road, policies):
+    # decisions every 10 steps (1 s). Without a hold the next change starts at the first decision step
+    # at or after the previous change ended; with a 20 s hold (200 steps) at the first one at or after end + 200.
+    free_starts, free_ends = _lane_change_starts(road, policies, 0.0, 400)
+    held_starts, held_ends = _lane_change_starts(road, policies, 20.0, 400)
+    assert free_starts[0] == held_starts[0] == 0 and free_ends[0] == held_ends[0]
+    end = held_ends[0]
+    assert 10 < end < 100  # one lane change takes a few seconds
+
+    def next_decision(k):  # noqa: ANN001, ANN202
+        return -(-k // 10) * 10
+
+    assert free_starts[1] == next_decision(end)
+    assert held_starts[1] == next_decision(end + 200)
+    assert len(free_starts) == 3 and len(held_starts) == 2  # lane 1 -> 2 -> 3 -> 4 (the left edge) vs 1 -> 2 -> 3
+
+
+def test_lane_hold_spares_the_forced_merge_and_is_reset_by_a_reentry(road, policies):
+    controller, _, training = policies
+    # vehicle 0 on the merge lane 110 m before its end (the forced zone), vehicle 1 in lane 2: both held
+    w = hand_built_world(road, s=[850.0, 1500.0], lane=[0, 2], speed=[20.0, 25.0])
+    bv = LearnedDriver(np.array([0, 1]), controller, {1: _constant_actor(-1)}, training, np.random.default_rng(0),
+                       w.vehicle, forced_merge=True, profile="driver", lane_hold_s=20.0)
+    bv.hold_until_step[:] = 10**6
+    _, requested, executed = bv.decide(w, np.array([0, 1]))
+    assert requested.tolist() == [1, -1]  # the forced merge's left; the policy's right
+    assert executed.tolist() == [1, 0]  # the forced merge goes ahead, the held policy request becomes keep
+    unheld = LearnedDriver(np.array([0, 1]), controller, {1: _constant_actor(-1)}, training,
+                           np.random.default_rng(0), w.vehicle, forced_merge=True, profile="driver", lane_hold_s=20.0)
+    assert unheld.decide(w, np.array([0, 1]))[2].tolist() == [1, -1]
+    # a fall of s is a re-entry (a new vehicle at the road's start): its hold ends
+    bv.act(w)
+    w.s[1] = 100.0
+    bv.act(w)
+    assert bv.hold_until_step.tolist() == [10**6, -1]
+    with pytest.raises(ValueError, match="lane_hold_s must be >= 0"):
+        LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), w.vehicle, lane_hold_s=-1.0)
+
+
+def test_lane_hold_is_a_scenario_key_with_the_old_form_selectable():
+    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.errors import InputError
+    from evoscen_sim.scenario import build_bv_driver
+
+    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}})).lane_hold_s == 20.0
+    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"},
+                                             "models": {"learned": {"lane_hold_s": 0}}})).lane_hold_s == 0.0
+    with pytest.raises(InputError, match=r"models\.learned\.lane_hold_s") as e:
+        config_from_dict({"models": {"learned": {"lane_hold_s": -3}}})
+    assert "\n" not in str(e.value)
