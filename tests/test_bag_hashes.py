@@ -5,7 +5,11 @@ here; a change meant to alter behaviour updates the hashes in its own commit and
 History: the hashes of commit 76c0247 (before the architecture work) held through the
 refactorings until ``evaluation.rear_braking`` (issue 17): the scenario metadata record gained
 its two keys and some ``evoscen/exposure`` events changed; the world, command, clock and
-odometry messages stayed identical to the byte (compared per topic).
+odometry messages stayed identical to the byte (compared per topic). Then, meant to change
+behaviour (issue 17, round 2's last evaluation and BV changes): the learned BVs' lane hold
+(``models.learned.lane_hold_s``: the world changes), cut-ins and the ``conflict`` reading of
+hard braking (``evaluation.cut_in_gap_m``, ``evaluation.hard_braking``: the metadata record
+and the ``evoscen/exposure`` events change).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
@@ -21,11 +25,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "82d6cd40acaf98125ceab73ca0e946cfd8ce9bd3744f47f4916249e857fa3689",  # the shipped default (level0 SUT)
-    "nilsson": "80138d64bfd6d84c1680bdf21706e419b324396b744ec0696e1227c36f4581c6",
-    "mobil": "a26c0eb3694e74944409f5cb72e0c81ca805c326c9861dbdb0b68dbded4342d9",
-    "stackelberg": "151cc073cac2f7713115379d4d65c058eb46d2855da9970397328e9474fbd718",
-    "mutant": "3ce21a16abd081b18b423a7a359a21dd4cd5ad0e5f68779b8bdca17ef8d0eb96",  # the default mutant
+    None: "2f0bc6ec08db7136204c9f4aaf8b547dc580201c9344919c73e7e90693ba99f7",  # the shipped default (level0 SUT)
+    "nilsson": "b82d1f7ffb3a1660f701437d08ac6a96797960caaf6f97e95fa138699c67c7b1",
+    "mobil": "3d6f7fe3aff6bf658a318eab22baf64af3dee7023766fadd388b8a034420b398",
+    "stackelberg": "c5d01eddf6119f0d35d229d54f41631d85195ce212c9eecd22b9c730d9801e37",
+    "mutant": "ed58332a9d0e5184677d3c4ab82b22bbe65d13cdf710333d47bc662b7ee6216c",  # the default mutant
 }
 
 

@@ -14,7 +14,8 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   conflict attributed to the SUT (``rear_conflicts`` [after_lane_change]: the follower in its
   path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2`` within
   ``rear_braking_headway_s`` [2 s] of time headway (``rear_braking`` [within_headway]), from the
-  start of a SUT lane change to ``rear_attribution_s`` [5 s] after it); an exposure is a maximal run of
+  start of a SUT lane change to ``rear_attribution_s`` [5 s] after it), or a cut-in (the SUT
+  changing lanes with its new follower less than ``cut_in_gap_m`` [10 m] behind); an exposure is a maximal run of
   dangerous states; one still open at the end of the run counts (flagged ``open_at_end``).
 * **Conflicts** (``safety.conflicts``, reported only) — follower TTC, DRAC of the SUT and of
   its follower (SUMO SSM's definitions; states above ``drac_threshold_mps2`` [3 m/s²]), and
@@ -189,6 +190,10 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "rear_conflict_states": st.n["rear_conflict"],
         "rear_conflict_states_attributed": st.n["rear_danger"],
         "rear_only_dangerous_states": st.n["rear_only"],
+        "cut_in_gap_m": ev.cut_in_gap_m,
+        "cut_in_states": st.n["cut_in"],
+        "cut_in_only_dangerous_states": st.n["cut_in_only"],
+        "min_cut_in_gap_m": _finite(st.min_cut_in_gap),
         "min_follower_ttc_s": _finite(st.min_f_ttc),
         "min_follower_ttc_attributed_s": _finite(st.min_f_ttc_att) if st.any_att else None,
         "min_follower_accel_mps2": st.min_f_accel if st.any_follower else None,

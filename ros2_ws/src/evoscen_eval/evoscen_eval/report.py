@@ -132,6 +132,11 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
               if cf.get("rear_braking") == "within_headway" else "a follower's hard braking counts at any distance")),
             ("rear conflict states", cf["rear_conflict_states"], "follower in the path: TTC below threshold or hard brake"),
             ("... attributed", cf["rear_conflict_states_attributed"], "of them in the attribution window (dangerous)"),
+            ("cut-in states", cf.get("cut_in_states", 0),
+             (f"SUT changing lanes with its new follower within {cf['cut_in_gap_m']:g} m (dangerous)"
+              if cf.get("cut_in_gap_m") else "not counted (cut_in_gap_m 0)")),
+            ("min cut-in gap (m)", cf.get("min_cut_in_gap_m"), "new follower behind the SUT during its lane changes "
+                                                              "(– = none)"),
             ("min follower TTC (s)", cf["min_follower_ttc_s"], "follower onto the SUT (– = never closing)"),
             ("max DRAC SUT (m/s²)", cf["max_drac_sut_mps2"], "SUT behind its leader (– = infinite)"),
             ("max DRAC follower (m/s²)", cf["max_drac_follower_mps2"], "follower behind the SUT (– = infinite)"),

@@ -37,8 +37,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from evoscen_contract import contract as C
-from evoscen_sim.safety import (attribution_steps, dangerous, drac, exposure_runs, follower_headway, follower_ttc,
-                                rear_dangerous, sut_follower, sut_leader, sut_ttc)
+from evoscen_sim.safety import (attribution_steps, cut_in_dangerous, cut_in_gap, dangerous, drac, exposure_runs,
+                                follower_headway, follower_ttc, rear_dangerous, sut_follower, sut_leader, sut_ttc)
 
 BLOCK_STATES = 256
 """States reduced together (the block size bounds the memory of the stream)."""
@@ -102,6 +102,7 @@ class _Exposure:
     severity: float = -math.inf
     worst: int = -1
     rear_states: int = 0
+    cut_in_states: int = 0
 
 
 @dataclass
@@ -165,7 +166,8 @@ class ScoreStream:
         self.exposures: list[dict] = []
         self.finished_changes: list[_Change] = []
         self.n = {key: 0 for key in ("danger", "front", "rear_conflict", "rear_danger", "rear_only", "attributed",
-                                     "drac_sut", "drac_follower", "drac_follower_att", "in_view")}
+                                     "drac_sut", "drac_follower", "drac_follower_att", "in_view", "cut_in",
+                                     "cut_in_only")}
         self.speed_sum = 0.0
         self.min_ttc = math.inf
         self.min_accel = math.inf
@@ -176,6 +178,7 @@ class ScoreStream:
         self.any_follower = False
         self.max_drac_sut = -math.inf
         self.max_drac_f = -math.inf
+        self.min_cut_in_gap = math.inf
         self.windows: dict[str, list[int]] = {"lane_changes": [], "accel_decel": [], "exposures": []}
         # plots
         self.ttc_hist = np.zeros(len(TTC_BINS) - 1, dtype=np.int64)
@@ -256,7 +259,6 @@ class ScoreStream:
         # --- per-state quantities of the SUT (evoscen_sim.safety, row by row)
         ttc = sut_ttc(s, d, v, length, width, sut)
         speed, accel, lane, lc_sut = v[:, sut], a[:, sut], c["lane"][:, sut], c["lane_change"][:, sut]
-        front = dangerous(ttc, accel, ev.ttc_threshold_s, ev.hard_brake_mps2)
         follower, f_ttc = follower_ttc(s, d, v, length, width, sut)
         has_f = follower >= 0
         f_idx = np.maximum(follower, 0)
@@ -265,13 +267,17 @@ class ScoreStream:
         _, f_gap = sut_follower(s, d, length, width, sut)
         f_speed = np.where(has_f, v[rows, f_idx], np.nan)
         thw = follower_headway(f_gap, f_speed)
-        rear_conflict = rear_dangerous(f_ttc, f_accel, thw, ev.ttc_threshold_s, ev.hard_brake_mps2,
-                                       ev.rear_braking, ev.rear_braking_headway_s)
-        rear_danger = rear_conflict & attributed
-        danger = front | rear_danger
         leader, gap = sut_leader(s, d, length, width, sut)
         l_speed = np.where(leader >= 0, v[rows, np.maximum(leader, 0)], np.nan)
         drac_sut = drac(gap, speed, l_speed)
+        front = dangerous(ttc, accel, ev.ttc_threshold_s, ev.hard_brake_mps2, ev.hard_braking, drac_sut, thw,
+                          ev.rear_braking_headway_s)
+        rear_conflict = rear_dangerous(f_ttc, f_accel, thw, ev.ttc_threshold_s, ev.hard_brake_mps2,
+                                       ev.rear_braking, ev.rear_braking_headway_s)
+        rear_danger = rear_conflict & attributed
+        _, cut_gap = cut_in_gap(s, d, length, width, c["lane"], c["target_lane"], c["lane_change"], sut)
+        cut_in = cut_in_dangerous(cut_gap, ev.cut_in_gap_m)
+        danger = front | rear_danger | cut_in
         drac_f = drac(f_gap, f_speed, speed)
         ds = s - s[:, sut:sut + 1]
         in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
@@ -298,6 +304,9 @@ class ScoreStream:
         nb["rear_conflict"] += int(rear_conflict.sum())
         nb["rear_danger"] += int(rear_danger.sum())
         nb["rear_only"] += int((rear_danger & ~front).sum())
+        nb["cut_in"] += int(cut_in.sum())
+        nb["cut_in_only"] += int((cut_in & ~front & ~rear_danger).sum())
+        self.min_cut_in_gap = min(self.min_cut_in_gap, float(cut_gap.min()))
         nb["attributed"] += int(attributed.sum())
         nb["drac_sut"] += int((drac_sut > ev.drac_threshold_mps2).sum())
         nb["drac_follower"] += int((drac_f > ev.drac_threshold_mps2).sum())
@@ -318,8 +327,12 @@ class ScoreStream:
 
         # --- exposures (maximal runs of dangerous states, continued across blocks)
         severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -accel / ev.hard_brake_mps2)
+        if ev.hard_braking == "conflict":  # a needed deceleration beyond hard braking, as the SUT's own braking
+            severity = np.maximum(severity, drac_sut / ev.hard_brake_mps2)
         f_sev = np.maximum(ev.ttc_threshold_s / np.maximum(f_ttc, 1e-3), -f_accel / ev.hard_brake_mps2)
         severity = np.where(rear_danger, np.maximum(severity, f_sev), severity)
+        if ev.cut_in_gap_m > 0.0:  # a cut-in: the threshold over the gap (2 at half the threshold), as TTC's
+            severity = np.where(cut_in, np.maximum(severity, ev.cut_in_gap_m / np.maximum(cut_gap, 1e-3)), severity)
         run_starts, run_ends = exposure_runs(danger)
         if self._open is not None and not (run_starts.size and run_starts[0] == 0):
             self._close_exposure(k0)
@@ -337,6 +350,7 @@ class ScoreStream:
             if severity[r0 + m] > x.severity:
                 x.severity, x.worst = float(severity[r0 + m]), k0 + r0 + m
             x.rear_states += int(rear_danger[seg].sum())
+            x.cut_in_states += int(cut_in[seg].sum())
             if severity[r0 + m] > self._worst_sev:
                 self._worst_sev = float(severity[r0 + m])
                 self.worst_scene = self._scene(tables, times, r0 + m, k0 + r0 + m)
@@ -432,6 +446,7 @@ class ScoreStream:
             "start_state": x.start, "end_state": end, "states": end - x.start, "start_time_s": x.start_time_s,
             "open_at_end": False, "min_ttc_s": _finite(x.min_ttc), "min_accel_mps2": x.min_accel,
             "worst_state": x.worst, "severity": x.severity, "rear_states": x.rear_states,
+            "cut_in_states": x.cut_in_states,
         })
 
     def _add_windows(self, key: str, first: int, sums: np.ndarray) -> None:

@@ -93,8 +93,13 @@ def test_attribution_window_edges():
     # all: every state with a rear conflict; none: the SUT's front and braking only (no exposure here)
     assert [(e["start_state"], e["end_state"]) for e in
             evaluate(rear_run(), replace(EV, rear_conflicts="all"))["safety"]["exposure_list"]] == [(7, 40)]
-    none = evaluate(rear_run(), replace(EV, rear_conflicts="none"))["safety"]
+    none = evaluate(rear_run(), replace(EV, rear_conflicts="none", cut_in_gap_m=0.0))["safety"]
     assert none["exposures"] == 0 and none["score"] == pytest.approx(1.0)
+    # none with cut-ins counted (10 m, the default): the change's states 7..9, new follower 5.2 m behind
+    cut = evaluate(rear_run(), replace(EV, rear_conflicts="none"))["safety"]
+    assert [(e["start_state"], e["end_state"], e["cut_in_states"], e["rear_states"])
+            for e in cut["exposure_list"]] == [(7, 10, 3, 0)]
+    assert cut["conflicts"]["cut_in_states"] == 3 and cut["conflicts"]["min_cut_in_gap_m"] == pytest.approx(5.2)
     assert none["conflicts"]["rear_conflict_states"] == 33 and none["conflicts"]["rear_conflict_states_attributed"] == 0
 
 
@@ -113,7 +118,9 @@ def test_tailgater_behind_a_lane_keeping_sut_is_not_its_fault():
     run.columns["speed"][:, 1] = 20.0
     run.columns["accel"][12:15, 1] = -7.0
     s = evaluate(run, EV)["safety"]
-    assert [(e["start_state"], e["end_state"], e["min_accel_mps2"]) for e in s["exposure_list"]] == [(12, 15, 0.0)]
+    # (7, 10): the cut-in itself (the new follower 5.2 m behind while the SUT changes lanes), then the braking
+    assert [(e["start_state"], e["end_state"], e["min_accel_mps2"], e["cut_in_states"])
+            for e in s["exposure_list"]] == [(7, 10, 0.0, 3), (12, 15, 0.0, 0)]
     assert s["conflicts"]["min_follower_accel_mps2"] == -7.0
 
 
@@ -214,9 +221,10 @@ def _cut_in_front_of_follower(k):
     return [0.0, -0.6 if 32 <= k < 55 else 0.0], [1 if k == 0 else 0, 0]
 
 
-@pytest.mark.parametrize("mode, expected", [("after_lane_change", 1), ("all", 1), ("none", 0)])
-def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, expected):
-    ev = replace(EV, rear_conflicts=mode)
+@pytest.mark.parametrize("mode, cut_in_gap_m, expected",
+                         [("after_lane_change", 0.0, 1), ("all", 0.0, 1), ("none", 0.0, 0), ("none", 10.0, 1)])
+def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, cut_in_gap_m, expected):
+    ev = replace(EV, rear_conflicts=mode, cut_in_gap_m=cut_in_gap_m)
     world = hand_built_world(road, [300.0, 272.0], [2, 3], [25.0, 30.0], roles=[1, 0])
     report, live = drive(world, _cut_in_front_of_follower, 150, ev)
     s = report["safety"]
@@ -226,11 +234,16 @@ def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, expected)
     assert s["exposures"] == len(starts) == expected
     assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
     assert [e["steps"] for e in ends] == [x["states"] for x in s["exposure_list"] if not x["open_at_end"]]
-    if expected:
+    if expected and mode != "none":
         ex = s["exposure_list"][0]
         assert ex["rear_states"] == ex["states"] and ex["min_ttc_s"] is None  # all from the rear
         assert starts[0]["ids"] == [0, 1] and "follower 1" in starts[0]["message"]
         assert s["conflicts"]["min_follower_ttc_attributed_s"] < 2.0
+    if expected and mode == "none":  # the cut-in alone: the SUT changing lanes, its new follower within 10 m
+        ex = s["exposure_list"][0]
+        assert ex["cut_in_states"] == ex["states"] and ex["rear_states"] == 0
+        assert starts[0]["ids"] == [0, 1] and "cut-in: new follower 1" in starts[0]["message"]
+        assert s["conflicts"]["min_cut_in_gap_m"] < 10.0
     cf = s["conflicts"]
     assert cf["rear_conflict_states"] > 0 and len(cf["lane_change_pet"]) == 1
     assert cf["lane_change_pet"][0]["follower_id"] == 1 and 0.0 < cf["min_pet_s"] < 1.0

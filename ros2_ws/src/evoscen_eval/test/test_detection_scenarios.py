@@ -9,6 +9,8 @@ overlapping step) fails.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -60,13 +62,52 @@ def test_same_situation_without_the_cut_in_has_no_exposure(road):
 
 
 def test_hard_brake_yields_exactly_one_exposure(road):
+    # hard_braking: own (the method's words): the SUT's full braking alone is dangerous
     world = hand_built_world(road, [300.0, 900.0], [2, 2], [30.0, 30.0], roles=[1, 0])
-    report, live = drive(world, lambda k: ([-1.0 if 10 <= k < 15 else 0.0, 0.0], [0, 0]), 40)
+    report, live = drive_run(world, lambda k: ([-1.0 if 10 <= k < 15 else 0.0, 0.0], [0, 0]), 40,
+                             replace(EV, hard_braking="own"))
     s = report["safety"]
     assert s["exposures"] == 1
     assert s["exposure_list"][0]["states"] == 5  # -8 m/s^2 in the five states after the five full-brake commands
     assert s["min_accel_mps2"] == pytest.approx(-8.0)
     assert len(exposure_events(live, "start")) == 1
+
+
+def test_hard_brake_counts_when_it_is_imposed_on_a_close_follower(road):
+    # hard_braking: conflict (default). Alone on the road (the BV 600 m ahead) the same braking
+    # endangers no one: no exposure.
+    world = hand_built_world(road, [300.0, 900.0], [2, 2], [30.0, 30.0], roles=[1, 0])
+    report, live = drive(world, lambda k: ([-1.0 if 10 <= k < 15 else 0.0, 0.0], [0, 0]), 40)
+    assert report["safety"]["exposures"] == 0 and not exposure_events(live, "start")
+    # a follower 15 m behind (centres) at 30 m/s: gap 15 - 4.8 = 10.2 m, headway 0.34 s < 2 s: the
+    # SUT's full braking is imposed on it — the same five states
+    world = hand_built_world(road, [300.0, 900.0, 285.0], [2, 2, 2], [30.0, 30.0, 30.0], roles=[1, 0, 0])
+    # the follower brakes as hard two steps later (no collision)
+    report, live = drive(world, lambda k: ([-1.0 if 10 <= k < 15 else 0.0, 0.0, -1.0 if 12 <= k < 17 else 0.0],
+                                           [0, 0, 0]), 40)
+    s = report["safety"]
+    assert s["collisions_all"] == 0
+    assert [(e["start_state"], e["states"]) for e in s["exposure_list"]] == [(11, 5)]
+    assert [e["step"] for e in exposure_events(live, "start")] == [11]
+
+
+def test_a_needed_hard_brake_counts_whatever_the_sut_does(road):
+    # SUT at 30 m/s coasting towards a standing BV 80 m ahead (bumper to bumper), then braking fully
+    # from step 3. DRAC = 30^2 / (2 gap): state 1, gap 77 m: 5.84 m/s^2; state 2, gap 74 m: 6.08 > 6.
+    # TTC = gap / 30 < 2 s only from gap < 60 m. conflict (default): dangerous from state 2, while the
+    # needed deceleration exceeds 6 m/s^2, before the SUT brakes at all; own: from its braking (state 4).
+    def run(mode):  # noqa: ANN001, ANN202
+        world = hand_built_world(road, [300.0, 384.8], [2, 2], [30.0, 0.0], roles=[1, 0])
+        return drive_run(world, lambda k: ([-1.0 if k >= 3 else 0.0, 0.0], [0, 0]), 60,
+                         replace(EV, hard_braking=mode))
+    report, live = run("conflict")
+    ex = report["safety"]["exposure_list"]
+    assert report["safety"]["collisions"] == 0
+    assert ex[0]["start_state"] == 2 and exposure_events(live, "start")[0]["step"] == 2
+    assert "needed deceleration (DRAC) 6.08" in exposure_events(live, "start")[0]["message"]
+    assert [e["step"] for e in exposure_events(live, "start")] == [e["start_state"] for e in ex]
+    own, _ = run("own")
+    assert own["safety"]["exposure_list"][0]["start_state"] == 4
 
 
 def test_moderate_brake_is_not_an_exposure(road):

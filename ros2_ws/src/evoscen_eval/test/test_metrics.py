@@ -25,6 +25,9 @@ from evoscen_eval.testing import make_run
 from evoscen_sim.config import EvaluationConfig
 
 EV = EvaluationConfig()
+OWN = EvaluationConfig(hard_braking="own")
+"""The method's braking criterion (every SUT deceleration beyond 6 m/s²): the hand-built hard brakings
+below have nobody around, which the default (``conflict``) does not count (test_detection_scenarios.py)."""
 #: the method's arithmetic taken literally for undefined terms (T_l = 0 s, I_i = 1 without a lane change)
 EV_LIT = EvaluationConfig(undefined_terms="literal")
 
@@ -136,7 +139,8 @@ def test_hard_brake_is_one_exposure():
     run = make_run(40, 2)
     run.columns["accel"][12:15, 0] = -7.0
     run.columns["accel"][15, 0] = -5.9  # above -6: not dangerous
-    rep = evaluate(run, EV)
+    assert evaluate(run, EV)["safety"]["exposures"] == 0  # conflict: nothing ahead, nobody behind
+    rep = evaluate(run, OWN)
     assert rep["safety"]["exposures"] == 1
     assert rep["safety"]["exposure_list"][0]["states"] == 3
     assert rep["safety"]["min_accel_mps2"] == -7.0
@@ -145,7 +149,7 @@ def test_hard_brake_is_one_exposure():
 def test_exposure_spanning_the_end_of_the_run_counts_once():
     run = make_run(30, 2)
     run.columns["accel"][27:, 0] = -6.5
-    s = evaluate(run, EV)["safety"]
+    s = evaluate(run, OWN)["safety"]
     assert s["exposures"] == 1 and s["exposures_open_at_end"] == 1
     assert s["exposure_list"][0]["end_state"] == 30
 
@@ -213,7 +217,7 @@ def test_complexity_windows_by_hand():
     c["accel"][120:122, 0] = -7.0  # an exposure starting in window 1 (2 more active states)
     from dataclasses import replace
 
-    cx = evaluate(run, replace(EV, accel_activity_form="literal"))["complexity"]  # per-step accelerations
+    cx = evaluate(run, replace(OWN, accel_activity_form="literal"))["complexity"]  # per-step accelerations
     assert cx["windows"] == 2
     assert cx["per_window"] == {"lane_changes": [2, 1], "accel_decel": [100, 2], "exposures": [0, 1]}
     assert (cx["lane_changes"], cx["accel_decel"], cx["exposures"]) == (1.5, 51.0, 0.5)
@@ -232,8 +236,8 @@ def test_settings_change_the_scores():
 
     run = make_run(40, 2)
     run.columns["accel"][12:15, 0] = -5.0
-    assert evaluate(run, EV)["safety"]["exposures"] == 0
-    assert evaluate(run, replace(EV, hard_brake_mps2=4.5))["safety"]["exposures"] == 1
+    assert evaluate(run, OWN)["safety"]["exposures"] == 0
+    assert evaluate(run, replace(OWN, hard_brake_mps2=4.5))["safety"]["exposures"] == 1
     rep = evaluate(run, replace(EV, weight_safety=1.0, weight_efficiency=0.0, weight_interaction=0.0))
     assert rep["intelligence"]["score"] == pytest.approx(rep["safety"]["score"])
 

@@ -222,6 +222,8 @@ ACCEL_ACTIVITY_FORMS = ("smoothed", "literal")
 REAR_CONFLICT_MODES = ("after_lane_change", "all", "none")
 #: ``evaluation.rear_braking`` values (see :mod:`evoscen_sim.safety`).
 REAR_BRAKING_RULES = ("within_headway", "any")
+#: ``evaluation.hard_braking`` values (see :mod:`evoscen_sim.safety`).
+HARD_BRAKING_RULES = ("conflict", "own")
 #: ``evaluation.undefined_terms`` values.
 UNDEFINED_TERM_RULES = ("exclude", "literal")
 
@@ -302,6 +304,15 @@ class EvaluationConfig:
     rear_braking_headway_s: float = field(default=2.0, metadata=_POSITIVE)
     """Time headway below which a follower's hard braking is the SUT's to answer for (s; the
     two-second rule)."""
+    hard_braking: str = field(default="conflict", metadata=_check(_Str(lambda: HARD_BRAKING_RULES)))
+    """Which hard braking of the SUT makes a state dangerous: conflict = needed (its DRAC to the
+    leader above hard_brake_mps2) or imposed on a follower within rear_braking_headway_s; own =
+    every SUT deceleration beyond hard_brake_mps2 (the method's words; rewards a SUT that cannot
+    brake hard). See docs/evaluation.md."""
+    cut_in_gap_m: float = field(default=10.0, metadata=_NON_NEGATIVE)
+    """A SUT lane change whose new follower is closer than this (m, bumper to bumper) makes the
+    state dangerous (a cut-in; the method's rule constraint for BV lane changes: 10 m); 0 = off,
+    the definition before cut-ins counted. See docs/evaluation.md."""
     drac_threshold_mps2: float = field(default=3.0, metadata=_POSITIVE)
     """Reported counts of states whose DRAC exceeds this (m/s^2; SUMO SSM's default 3)."""
     undefined_terms: str = field(default="exclude", metadata=_check(_Str(lambda: UNDEFINED_TERM_RULES)))

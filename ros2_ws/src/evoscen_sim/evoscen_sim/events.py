@@ -14,8 +14,8 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FA
                                        EVENT_REENTRY, EVENT_RUN_END, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
                                        KIND_END, KIND_START, ROLE_SUT)
 
-from .safety import (RearAttribution, attribution_steps, dangerous, follower_headway, rear_dangerous,
-                     sut_follower_ttc_state, sut_leader_ttc_state)
+from .safety import (RearAttribution, attribution_steps, cut_in_dangerous, cut_in_gap_state, drac, follower_headway,
+                     hard_braking_dangerous, rear_dangerous, sut_follower_ttc_state, sut_leader_ttc_state)
 
 
 def step_events(world, result) -> list[dict]:  # noqa: ANN001
@@ -70,8 +70,8 @@ class ExposureMonitor:
     :meth:`observe` is called on every state, the initial one included; it returns a
     ``kind: start`` event when an exposure begins (``step``/``time_s`` of the first dangerous
     state, ``ttc_s``, ``accel_mps2``, ``ids`` = the SUT, the vehicle ahead in its path if any,
-    and the follower in its path when a rear conflict attributed to the SUT makes the state
-    dangerous) and a ``kind: end`` event when it is over (``steps`` = its length in states).
+    the follower in its path when a rear conflict attributed to the SUT makes the state
+    dangerous, and the new follower when a cut-in does) and a ``kind: end`` event when it is over (``steps`` = its length in states).
     The definitions are :mod:`evoscen_sim.safety`'s, the evaluator's; the rear-conflict
     attribution window (``evaluation.rear_conflicts``, docs/evaluation.md) is the one state
     this monitor keeps besides the open exposure, fed the SUT's ``lane_change`` column of
@@ -85,6 +85,8 @@ class ExposureMonitor:
         self.rear_attribution_s = evaluation.rear_attribution_s
         self.rear_braking = evaluation.rear_braking
         self.rear_braking_headway_s = evaluation.rear_braking_headway_s
+        self.cut_in_gap_m = evaluation.cut_in_gap_m
+        self.hard_braking = evaluation.hard_braking
         self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
         self._rear: RearAttribution | None = None
@@ -97,33 +99,53 @@ class ExposureMonitor:
         leader, ttc = sut_leader_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = sut_leader, sut_ttc
         ttc = float(ttc)
         accel = float(w.accel[sut])
-        danger = bool(dangerous(np.float64(ttc), np.float64(accel), self.ttc_threshold_s, self.hard_brake_mps2))
         k, common = w.step_index, {"step": w.step_index, "time_s": w.time_s}
-        rear = False
-        if self._rear.observe(k, int(w.lane_change[sut])):
+        attributed = self._rear.observe(k, int(w.lane_change[sut]))
+        follower, f_ttc, f_thw = -1, np.inf, np.inf
+        conflict_rule = self.hard_braking == "conflict"
+        if attributed or (conflict_rule and accel < -self.hard_brake_mps2):
             follower, f_ttc = sut_follower_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = follower_ttc
             f_ttc, follower = float(f_ttc), int(follower)
-            f_accel = float(w.accel[follower]) if follower >= 0 else 0.0
-            f_thw = np.inf
             if follower >= 0:  # the arithmetic of safety.sut_follower and follower_headway, bit for bit
                 f_gap = (w.s[sut] - w.s[follower]) - 0.5 * (w.length[follower] + w.length[sut])
                 f_thw = float(follower_headway(np.float64(f_gap), np.float64(w.v[follower])))
+        drac_sut = 0.0
+        if conflict_rule and leader >= 0:  # the arithmetic of safety.sut_leader and drac, bit for bit
+            gap = (w.s[leader] - w.s[sut]) - 0.5 * (w.length[leader] + w.length[sut])
+            drac_sut = float(drac(np.float64(gap), np.float64(w.v[sut]), np.float64(w.v[leader])))
+        braking = bool(hard_braking_dangerous(np.float64(accel), np.float64(drac_sut), np.float64(f_thw),
+                                              self.hard_brake_mps2, self.hard_braking, self.rear_braking_headway_s))
+        danger = bool(ttc < self.ttc_threshold_s) or braking  # = safety.dangerous
+        rear = False
+        if attributed:
+            f_accel = float(w.accel[follower]) if follower >= 0 else 0.0
             rear = bool(rear_dangerous(np.float64(f_ttc), np.float64(f_accel), np.float64(f_thw),
                                        self.ttc_threshold_s, self.hard_brake_mps2, self.rear_braking,
                                        self.rear_braking_headway_s))
             danger = danger or rear
+        cut_in, new_follower, cut_gap = False, -1, np.inf
+        if w.lane_change[sut] != 0.0 and self.cut_in_gap_m > 0.0:
+            new_follower, cut_gap = cut_in_gap_state(w.s, w.d, w.length, w.width, w.lane, w.target_lane,
+                                                     w.lane_change, sut)  # = safety.cut_in_gap
+            cut_in = bool(cut_in_dangerous(np.float64(cut_gap), self.cut_in_gap_m))
+            danger = danger or cut_in
         if danger and self.start_step is None:
             self.start_step = k
             leader = int(leader)
             ids = [int(w.ids[sut])] + ([int(w.ids[leader])] if leader >= 0 else [])
             if ttc < self.ttc_threshold_s:
                 cause = f"TTC {ttc:.2f} s"
-            elif accel < -self.hard_brake_mps2:
-                cause = f"acceleration {accel:.2f} m/s^2"
+            elif braking:
+                cause = (f"acceleration {accel:.2f} m/s^2" if drac_sut <= self.hard_brake_mps2
+                         else f"needed deceleration (DRAC) {drac_sut:.2f} m/s^2")
+            elif cut_in and not rear:
+                cause = f"cut-in: new follower {int(w.ids[new_follower])} {float(cut_gap):.2f} m behind"
             else:
                 cause = f"follower {int(w.ids[follower])}: TTC {f_ttc:.2f} s, acceleration {f_accel:.2f} m/s^2"
             if rear:
                 ids.append(int(w.ids[follower]))
+            if cut_in and int(w.ids[new_follower]) not in ids:
+                ids.append(int(w.ids[new_follower]))
             return [{"name": EVENT_EXPOSURE, "level": 1, "message": f"SUT dangerous state: {cause}",
                      **common, "ids": ids, "kind": KIND_START, "ttc_s": ttc, "accel_mps2": accel}]
         if not danger and self.start_step is not None:

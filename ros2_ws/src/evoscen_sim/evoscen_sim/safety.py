@@ -4,14 +4,23 @@ Definitions, choices and their reasons: docs/evaluation.md. A state is **dangero
 
 * the SUT's time to collision with the vehicle ahead *in its path* is below
   ``evaluation.ttc_threshold_s`` [2 s], or
-* the SUT's acceleration is below ``-evaluation.hard_brake_mps2`` [-6 m/s²], or
+* the SUT brakes hard: **[choice]** (``evaluation.hard_braking``) ``conflict`` [default]: the
+  deceleration it needs to avoid its leader (DRAC) exceeds ``evaluation.hard_brake_mps2``
+  [6 m/s²], or it brakes harder than that with the follower in its path within
+  ``rear_braking_headway_s`` [2 s] of headway; ``own``: its acceleration is below
+  ``-hard_brake_mps2`` (the method's words), or
 * **[choice]** (``evaluation.rear_conflicts``) there is a *rear conflict attributed to the
   SUT*: the follower in the SUT's path (:func:`sut_follower`) closes on it with TTC below the
   threshold or brakes harder than ``hard_brake_mps2`` within ``rear_braking_headway_s`` [2 s]
   of time headway behind it (**[choice]** ``evaluation.rear_braking``), in a state from the start of a SUT
   lane change until ``rear_attribution_s`` [5 s] after it ends (``after_lane_change``,
   default; :func:`rear_attributed`), in every state (``all``) or never (``none``: the
-  definition before rear conflicts, exactly).
+  definition before rear conflicts, exactly), or
+* **[choice]** (``evaluation.cut_in_gap_m`` [10 m], 0 = off) the SUT *cuts in*: it is changing
+  lanes and its new follower — the nearest vehicle in the SUT's target lane whose centre is
+  behind the SUT's and whose body overlaps the SUT's laterally — is less than
+  ``cut_in_gap_m`` behind it, bumper to bumper (:func:`cut_in_gap`): the SUT made the change the
+  method's rule constraint forbids every BV (no change with a vehicle within 10 m).
 
 **[choice]** "in its path": another vehicle whose body overlaps the SUT's laterally
 (|d_j - d_sut| < (w_j + w_sut)/2 in road coordinates) and whose centre is ahead
@@ -36,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .config import REAR_BRAKING_RULES, REAR_CONFLICT_MODES
+from .config import HARD_BRAKING_RULES, REAR_BRAKING_RULES, REAR_CONFLICT_MODES
 from .jit import kernel
 from .neighbors import time_to_collision
 
@@ -104,10 +113,31 @@ def sut_leader_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length
     return leader, np.inf
 
 
-def dangerous(ttc: np.ndarray, sut_accel: np.ndarray, ttc_threshold_s: float, hard_brake_mps2: float
-              ) -> np.ndarray:
-    """Whether each state is dangerous at the SUT's front (see the module docstring)."""
-    return (ttc < ttc_threshold_s) | (sut_accel < -hard_brake_mps2)
+def dangerous(ttc: np.ndarray, sut_accel: np.ndarray, ttc_threshold_s: float, hard_brake_mps2: float,
+              hard_braking: str = "own", drac_sut: np.ndarray | float = 0.0,
+              follower_thw_s: np.ndarray | float = np.inf, headway_s: float = 2.0) -> np.ndarray:
+    """Whether each state is dangerous at the SUT's front (see the module docstring): TTC below
+    the threshold, or hard braking as ``hard_braking`` reads it (:func:`hard_braking_dangerous`)."""
+    return (ttc < ttc_threshold_s) | hard_braking_dangerous(sut_accel, drac_sut, follower_thw_s, hard_brake_mps2,
+                                                              hard_braking, headway_s)
+
+
+def hard_braking_dangerous(sut_accel: np.ndarray, drac_sut: np.ndarray | float, follower_thw_s: np.ndarray | float,
+                           hard_brake_mps2: float, mode: str = "own", headway_s: float = 2.0) -> np.ndarray:
+    """The method's "SUT deceleration < -6 m/s²" as ``evaluation.hard_braking`` reads it (docs/evaluation.md §3.6).
+
+    * ``own``: the SUT's acceleration below ``-hard_brake_mps2`` (the method's words);
+    * ``conflict``: a hard braking that belongs to a conflict — *needed*: the SUT's DRAC to its
+      leader (:func:`drac`) above ``hard_brake_mps2``, whatever the SUT did; or *imposed*: the
+      SUT braking harder than ``hard_brake_mps2`` while the follower in its path is within
+      ``headway_s`` of time headway (it must brake as hard).
+    """
+    braking = sut_accel < -hard_brake_mps2
+    if mode == "own":
+        return braking
+    if mode == "conflict":
+        return (drac_sut > hard_brake_mps2) | (braking & (follower_thw_s < headway_s))
+    raise ValueError(f"evaluation.hard_braking = {mode!r}: expected one of {', '.join(HARD_BRAKING_RULES)}")
 
 
 # ---------------------------------------------------------------------- the SUT's rear
@@ -168,6 +198,55 @@ def sut_follower_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, leng
     if closing > 0.0:
         return follower, (gap if gap >= 0.0 else 0.0) / closing
     return follower, np.inf
+
+
+def cut_in_gap(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarray, lane: np.ndarray,
+               target_lane: np.ndarray, lane_change: np.ndarray, sut: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(follower, gap)`` of the SUT's *new follower* while the SUT changes lanes (docs/evaluation.md §3).
+
+    While the SUT's ``lane_change`` is non-zero, the new follower is the nearest vehicle j ≠ SUT
+    with ``lane_j`` = the SUT's ``target_lane``, centre behind the SUT's (s_j < s_SUT) and body
+    overlapping the SUT's laterally (|d_j - d_SUT| < (w_j + w_SUT)/2; so only once the SUT's body
+    has entered the target lane); gap = bumper-to-bumper distance (negative if the bodies overlap
+    longitudinally). ``-1`` / ``inf`` when the SUT keeps its lane or no such vehicle exists. The
+    lane-change PET's follower is the same vehicle (``evoscen_eval.streaming``).
+    """
+    back = s[..., sut:sut + 1] - s
+    half_widths = 0.5 * (width + width[..., sut:sut + 1])
+    cand = (back > 0.0) & (np.abs(d - d[..., sut:sut + 1]) < half_widths) & (lane == target_lane[..., sut:sut + 1])
+    cand[..., sut] = False
+    gaps = np.where(cand, back - 0.5 * (length + length[..., sut:sut + 1]), np.inf)
+    follower = np.argmin(np.where(cand, back, np.inf), axis=-1)
+    gap = np.take_along_axis(gaps, follower[..., None], axis=-1)[..., 0]
+    gap = np.where(lane_change[..., sut] != 0.0, gap, np.inf)
+    follower = np.where(np.isfinite(gap), follower, -1)
+    return follower, gap
+
+
+@kernel
+def cut_in_gap_state(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarray, lane: np.ndarray,
+                     target_lane: np.ndarray, lane_change: np.ndarray, sut: int) -> tuple[int, float]:
+    """:func:`cut_in_gap` of ONE state (``[V]`` arrays), compiled; bit-identical to it (a test
+    compares them on many states)."""
+    if lane_change[sut] == 0.0:
+        return -1, np.inf
+    s0, d0, w0, l0, t0 = s[sut], d[sut], width[sut], length[sut], target_lane[sut]
+    follower, best = -1, np.inf
+    for j in range(s.shape[0]):
+        back = s0 - s[j]
+        if j != sut and back > 0.0 and abs(d[j] - d0) < 0.5 * (width[j] + w0) and lane[j] == t0 and back < best:
+            follower, best = j, back
+    if follower < 0:
+        return -1, np.inf
+    gap = (s0 - s[follower]) - 0.5 * (length[follower] + l0)
+    if not np.isfinite(gap):
+        return -1, np.inf
+    return follower, gap
+
+
+def cut_in_dangerous(gap_m: np.ndarray, cut_in_gap_m: float) -> np.ndarray:
+    """Whether each state is a dangerous cut-in: the new follower's gap below ``cut_in_gap_m`` (0: never)."""
+    return (gap_m < cut_in_gap_m) & (cut_in_gap_m > 0.0)
 
 
 def drac(gap_m: np.ndarray, speed_mps: np.ndarray, leader_speed_mps: np.ndarray) -> np.ndarray:

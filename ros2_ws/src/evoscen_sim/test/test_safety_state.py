@@ -16,6 +16,9 @@ import pytest
 from evoscen_sim.safety import (
     RearAttribution,
     attribution_steps,
+    cut_in_dangerous,
+    cut_in_gap,
+    cut_in_gap_state,
     drac,
     follower_ttc,
     rear_attributed,
@@ -181,3 +184,66 @@ def test_rear_attribution_window_edges() -> None:
     live = RearAttribution("after_lane_change", 3)  # the monitor's one-state-at-a-time version agrees
     assert [live.observe(k, int(x)) for k, x in enumerate(lc)] == want.tolist()
     assert attribution_steps(5.0, 0.1) == 50 and attribution_steps(0.3, 0.1) == 3 and attribution_steps(0.0, 0.1) == 0
+
+
+# ---------------------------------------------------------------------- the SUT's cut-ins
+
+
+def _same_cut_in(s, d, length, width, lane, target, lc, sut) -> tuple[int, float]:  # noqa: ANN001, PLR0913
+    arrays = [np.ascontiguousarray(x, dtype=float) for x in (s, d, length, width, lane, target, lc)]
+    f, gap = cut_in_gap(*arrays, sut)
+    want = int(f), float(gap)
+    got = cut_in_gap_state(*arrays, sut)
+    assert got[0] == want[0], f"new follower {got[0]} != {want[0]}"
+    assert np.float64(got[1]).tobytes() == np.float64(want[1]).tobytes(), f"gap {got[1]!r} != {want[1]!r}"
+    return want
+
+
+@pytest.mark.parametrize("case, sdl, lc, follower, gap", [
+    # the SUT (vehicle 0) at s = 100, d = 2.1 (its body over the line), lane 2, changing left (+1) into lane 3;
+    # bodies 4.8 x 1.9 m. sdl = s, d, lane of every vehicle.
+    # vehicle 1 in lane 3 (d = 3.5) 10 m behind: |Δd| 1.4 < 1.9, gap 10 - 4.8 = 5.2 m
+    ("new follower 5.2 m behind", ([100.0, 90.0], [2.1, 3.5], [2, 3]), 1, 1, 5.2),
+    ("the SUT keeps its lane", ([100.0, 90.0], [2.1, 3.5], [2, 3]), 0, -1, math.inf),
+    # the SUT's body not yet in lane 3: d = 1.4, |Δd| = 2.1 > 1.9
+    ("body not yet over the line", ([100.0, 90.0], [1.4, 3.5], [2, 3]), 1, -1, math.inf),
+    # vehicle 1 behind in the SUT's own lane (2), overlapping: the old follower, not a new one
+    ("old lane's follower", ([100.0, 90.0], [2.1, 1.0], [2, 2]), 1, -1, math.inf),
+    ("ahead is not a follower", ([100.0, 110.0], [2.1, 3.5], [2, 3]), 1, -1, math.inf),
+    # two in lane 3: the nearer (s = 80) of 60 and 80; gap 20 - 4.8 = 15.2 m
+    ("nearest of several", ([100.0, 60.0, 80.0], [2.1, 3.5, 3.4], [2, 3, 3]), 1, 2, 15.2),
+    ("bodies overlap: gap < 0", ([100.0, 97.0], [2.1, 3.5], [2, 3]), 1, 1, -1.8),
+])
+def test_cut_in_edge_cases(case: str, sdl: tuple, lc: int, follower: int, gap: float) -> None:
+    s, d, lane = (np.array(x, dtype=float) for x in sdl)
+    n = s.size
+    target = lane.copy()
+    target[0] = 3.0
+    lcs = np.zeros(n)
+    lcs[0] = lc
+    got = _same_cut_in(s, d, np.full(n, 4.8), np.full(n, 1.9), lane, target, lcs, 0)
+    assert got[0] == follower, case
+    assert got[1] == pytest.approx(gap), case
+    # dangerous below cut_in_gap_m (10 m, the method's BV rule constraint); 0 turns the rule off
+    assert bool(cut_in_dangerous(np.float64(got[1]), 10.0)) == (got[1] < 10.0)
+    assert not cut_in_dangerous(np.float64(got[1]), 0.0)
+
+
+def test_cut_in_threshold_by_hand() -> None:
+    gap = np.array([5.2, 9.99, 10.0, 15.2, np.inf, -1.8])
+    assert cut_in_dangerous(gap, 10.0).tolist() == [True, True, False, False, False, True]
+    assert cut_in_dangerous(gap, 5.0).tolist() == [False, False, False, False, False, True]
+    assert cut_in_dangerous(gap, 0.0).tolist() == [False] * 6
+
+
+def test_cut_in_random_dense_states() -> None:
+    rng = np.random.default_rng(13)
+    for _ in range(3000):
+        n = int(rng.integers(2, 30))
+        s = np.round(rng.uniform(0.0, 120.0, n), int(rng.integers(0, 3)))
+        lane = rng.integers(0, 5, n).astype(float)
+        d = (lane - 2.0) * 3.5 + rng.normal(0.0, 0.8, n)
+        target = np.clip(lane + rng.choice([-1.0, 0.0, 1.0], n), 0, 4)
+        lc = rng.choice([-1.0, 0.0, 1.0], n)
+        _same_cut_in(s, d, rng.uniform(3.5, 12.0, n), rng.uniform(1.6, 2.6, n), lane, target, lc,
+                     int(rng.integers(0, n)))
