@@ -183,16 +183,8 @@ def sut_follower_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, leng
         ``(follower, ttc)``: the follower's index (-1 if none) and its TTC onto the SUT (s;
         ``inf`` if none or not closing).
     """
-    s0, d0, w0, l0 = s[sut], d[sut], width[sut], length[sut]
-    follower, best = -1, np.inf
-    for j in range(s.shape[0]):
-        back = s0 - s[j]
-        if j != sut and back > 0.0 and abs(d[j] - d0) < 0.5 * (width[j] + w0) and back < best:
-            follower, best = j, back
+    follower, gap = _behind_in_path_state(s, d, length, width, s, np.inf, sut)  # any lane
     if follower < 0:
-        return -1, np.inf
-    gap = (s0 - s[follower]) - 0.5 * (length[follower] + l0)
-    if not np.isfinite(gap):
         return -1, np.inf
     closing = speed[follower] - speed[sut]
     if closing > 0.0:
@@ -230,11 +222,23 @@ def cut_in_gap_state(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np
     compares them on many states)."""
     if lane_change[sut] == 0.0:
         return -1, np.inf
-    s0, d0, w0, l0, t0 = s[sut], d[sut], width[sut], length[sut], target_lane[sut]
+    return _behind_in_path_state(s, d, length, width, lane, target_lane[sut], sut)
+
+
+@kernel
+def _behind_in_path_state(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarray, lane: np.ndarray,
+                          lane_wanted: float, sut: int) -> tuple[int, float]:
+    """The nearest vehicle behind the SUT whose body overlaps the SUT's laterally and whose
+    ``lane`` equals ``lane_wanted`` (pass ``lane = s`` and ``lane_wanted = inf`` for any lane),
+    and its bumper-to-bumper gap; ``(-1, inf)`` if none or the gap is not finite. One state,
+    compiled: :func:`sut_follower_ttc_state` and :func:`cut_in_gap_state`."""
+    s0, d0, w0, l0 = s[sut], d[sut], width[sut], length[sut]
+    any_lane = lane_wanted == np.inf
     follower, best = -1, np.inf
     for j in range(s.shape[0]):
         back = s0 - s[j]
-        if j != sut and back > 0.0 and abs(d[j] - d0) < 0.5 * (width[j] + w0) and lane[j] == t0 and back < best:
+        if (j != sut and back > 0.0 and abs(d[j] - d0) < 0.5 * (width[j] + w0) and (any_lane or lane[j] == lane_wanted)
+                and back < best):
             follower, best = j, back
     if follower < 0:
         return -1, np.inf
