@@ -14,7 +14,7 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FA
                                        EVENT_REENTRY, EVENT_RUN_END, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
                                        KIND_END, KIND_START, ROLE_SUT)
 
-from .safety import (RearAttribution, attribution_steps, cut_in_dangerous, cut_in_gap_state, drac, follower_headway,
+from .safety import (RearAttribution, attribution_steps, cut_in_dangerous, cut_in_gap_state, drac_one, follower_headway,
                      hard_braking_dangerous, rear_dangerous, sut_follower_ttc_state, sut_leader_ttc_state)
 
 
@@ -112,9 +112,9 @@ class ExposureMonitor:
         drac_sut = 0.0
         if conflict_rule and leader >= 0:  # the arithmetic of safety.sut_leader and drac, bit for bit
             gap = (w.s[leader] - w.s[sut]) - 0.5 * (w.length[leader] + w.length[sut])
-            drac_sut = float(drac(np.float64(gap), np.float64(w.v[sut]), np.float64(w.v[leader])))
-        braking = bool(hard_braking_dangerous(np.float64(accel), np.float64(drac_sut), np.float64(f_thw),
-                                              self.hard_brake_mps2, self.hard_braking, self.rear_braking_headway_s))
+            drac_sut = drac_one(float(gap), float(w.v[sut]), float(w.v[leader]))
+        braking = bool(hard_braking_dangerous(accel, drac_sut, f_thw, self.hard_brake_mps2, self.hard_braking,
+                                              self.rear_braking_headway_s))
         danger = bool(ttc < self.ttc_threshold_s) or braking  # = safety.dangerous
         rear = False
         if attributed:

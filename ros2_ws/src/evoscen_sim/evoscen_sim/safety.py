@@ -43,6 +43,8 @@ compiled one-state kernels are bit-identical to them.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .config import HARD_BRAKING_RULES, REAR_BRAKING_RULES, REAR_CONFLICT_MODES
@@ -261,6 +263,15 @@ def drac(gap_m: np.ndarray, speed_mps: np.ndarray, leader_speed_mps: np.ndarray)
     with np.errstate(divide="ignore", invalid="ignore"):
         out = np.where(closing > 0.0, np.where(gap_m > 0.0, closing * closing / (2.0 * gap_m), np.inf), 0.0)
     return np.where(np.isfinite(gap_m), out, 0.0)
+
+
+def drac_one(gap_m: float, speed_mps: float, leader_speed_mps: float) -> float:
+    """:func:`drac` of one finite gap in plain Python floats: the same IEEE operations, so the
+    same bits, at ~1 µs instead of numpy's ~20 µs per scalar call (the live monitor, every state)."""
+    closing = speed_mps - leader_speed_mps
+    if closing > 0.0:
+        return closing * closing / (2.0 * gap_m) if gap_m > 0.0 else math.inf
+    return 0.0
 
 
 def follower_headway(gap_m: np.ndarray, follower_speed_mps: np.ndarray) -> np.ndarray:

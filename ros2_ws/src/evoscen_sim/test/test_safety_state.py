@@ -20,6 +20,7 @@ from evoscen_sim.safety import (
     cut_in_gap,
     cut_in_gap_state,
     drac,
+    drac_one,
     follower_ttc,
     rear_attributed,
     sut_follower,
@@ -247,3 +248,15 @@ def test_cut_in_random_dense_states() -> None:
         lc = rng.choice([-1.0, 0.0, 1.0], n)
         _same_cut_in(s, d, rng.uniform(3.5, 12.0, n), rng.uniform(1.6, 2.6, n), lane, target, lc,
                      int(rng.integers(0, n)))
+
+
+def test_drac_one_is_drac_bit_for_bit() -> None:
+    # the brief's example: 5 m/s closing at 5.2 m: 25 / 10.4 = 2.4038 m/s²; opening: 0; touching while closing: inf
+    assert drac_one(5.2, 30.0, 25.0) == pytest.approx(25.0 / 10.4)
+    assert drac_one(5.2, 25.0, 30.0) == 0.0 and drac_one(0.0, 30.0, 25.0) == math.inf
+    rng = np.random.default_rng(17)
+    gap = np.round(rng.uniform(-5.0, 120.0, 20000), int(rng.integers(0, 3)))
+    v, vl = rng.uniform(0.0, 35.0, 20000), rng.uniform(0.0, 35.0, 20000)
+    want = drac(gap, v, vl)
+    got = np.array([drac_one(float(g), float(a), float(b)) for g, a, b in zip(gap, v, vl)])
+    assert got.tobytes() == want.tobytes()
