@@ -373,3 +373,30 @@ def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_pa
         read_run(bad)
     assert str(info.value) == (f"bag {str(bad / 'bad_0.mcap')!r}: metadata record 'evoscen': key 'sut_source' = "
                                "'remote': expected 'external' (or no such key)")
+
+
+@pytest.mark.parametrize("compression", ["none", "zstd"])
+def test_fast_message_path_writes_the_librarys_bytes(tmp_path: Path, monkeypatch, compression: str) -> None:
+    """The recorder's one-pack message and message-index writing (``_FastMessages``) gives the
+    bytes of mcap's own ``Writer.add_message``: the same messages — several topics, sizes from
+    0 to 3,000 bytes, equal and decreasing log times, chunks closed by size (4 kB) and by the
+    1-s duration rule — recorded both ways, byte for byte."""
+    from evoscen_eval import recorder as R
+
+    rng = np.random.default_rng(5)
+    topics = [spec.name for spec in CONTRACT]
+    plan = [(topics[int(rng.integers(0, len(topics)))], bytes(rng.integers(0, 256, int(rng.integers(0, 3000)),
+                                                                        dtype=np.uint8)),
+             int(k // 3) * 50_000_000 + int(rng.integers(0, 2)) * 7) for k in range(600)]
+
+    def record(name: str) -> bytes:  # the same bag name (the metadata record holds the file's name)
+        bag = BagRecorder(tmp_path / name / "bag", CONTRACT, compression=compression, chunk_size=4096)
+        for topic, data, t in plan:
+            bag.write(topic, data, t, canonical=True)
+        bag.close()
+        return (tmp_path / name / "bag" / "bag_0.mcap").read_bytes()
+
+    assert R._FastMessages.usable(BagRecorder(tmp_path / "probe", CONTRACT)._writer)
+    fast = record("fast")
+    monkeypatch.setattr(R._FastMessages, "usable", staticmethod(lambda writer: False))
+    assert record("library") == fast
