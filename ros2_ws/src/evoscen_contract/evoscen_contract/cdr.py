@@ -325,19 +325,26 @@ class VehicleMarkersEncoder:
                         for kind, ns, t in (("box", "vehicles", CUBE), ("label", "labels", TEXT_VIEW_FACING))
                         for a in (0, 4)}
         self._tails = {a: _marker_tail(a) for a in range(4)}
+        self._patched: dict[tuple, tuple[bytes, int, int]] = {}
+        """(kind, alignment, id, scale, colour) -> the prefix with those patched, and where stamp and pose go."""
 
     def _marker(self, out: bytearray, kind: str, stamp: bytes, vid: int, pose: tuple, scale: tuple,
                 color: tuple, text: str) -> None:
         pad = -(len(out) - 4) % 4  # payload offset = len(out) - 4 (CDR header)
         out += b"\x00" * pad
         start = len(out) - 4
-        prefix, at = self._prefix[(kind, start % 8)]
-        m = bytearray(prefix)
-        m[at["stamp"]:at["stamp"] + 8] = stamp
-        struct.pack_into("<i", m, at["id"], vid)
-        struct.pack_into("<7d", m, at["pose"], *pose)
-        struct.pack_into("<3d", m, at["scale"], *scale)
-        struct.pack_into("<4f", m, at["color"], *color)
+        key = (kind, start % 8, vid, scale, color)
+        cached = self._patched.get(key)
+        if cached is None:  # the marker's constant fields patched once per vehicle, kind and alignment
+            prefix, at = self._prefix[(kind, start % 8)]
+            m = bytearray(prefix)
+            struct.pack_into("<i", m, at["id"], vid)
+            struct.pack_into("<3d", m, at["scale"], *scale)
+            struct.pack_into("<4f", m, at["color"], *color)
+            cached = self._patched[key] = (bytes(m), at["stamp"], at["pose"])
+        m = bytearray(cached[0])
+        m[cached[1]:cached[1] + 8] = stamp
+        struct.pack_into("<7d", m, cached[2], *pose)
         out += m
         raw = text.encode("utf-8") + b"\x00"
         out += struct.pack("<I", len(raw)) + raw

@@ -223,6 +223,9 @@ class BagRecorder:
         metadata: MCAP metadata records ``{name: {key: value}}`` written right after the
             channels, before any message (evoscen records the resolved scenario
             configuration, see :mod:`evoscen_eval.rundata`).
+        fast_writes: write messages and message indexes with one ``pack`` each
+            (:class:`_FastMessages`; default) instead of the mcap library's own method: the
+            same bytes; False for the library's path (``scripts/bench_recording.py`` compares).
 
     Raises:
         InputError: ``bag_dir`` exists and is not an empty directory, or cannot be
@@ -242,6 +245,7 @@ class BagRecorder:
         canonicalize: bool = True,
         metadata: Mapping[str, Mapping[str, str]] | None = None,
         file_name: str | None = None,
+        fast_writes: bool = True,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
         if compression not in _COMPRESSIONS:
@@ -282,7 +286,7 @@ class BagRecorder:
             compression=_COMPRESSIONS[compression],
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
-        self._add_message = _FastMessages(self._writer).add if _FastMessages.usable(self._writer) \
+        self._add_message = _FastMessages(self._writer).add if fast_writes and _FastMessages.usable(self._writer) \
             else self._writer.add_message
         schema_ids: dict[str, int] = {}
         self._topics: dict[str, _TopicState] = {}

@@ -389,14 +389,16 @@ def test_fast_message_path_writes_the_librarys_bytes(tmp_path: Path, monkeypatch
                                                                         dtype=np.uint8)),
              int(k // 3) * 50_000_000 + int(rng.integers(0, 2)) * 7) for k in range(600)]
 
-    def record(name: str) -> bytes:  # the same bag name (the metadata record holds the file's name)
-        bag = BagRecorder(tmp_path / name / "bag", CONTRACT, compression=compression, chunk_size=4096)
+    def record(name: str, fast: bool) -> bytes:  # the same bag name (the metadata record holds the file's name)
+        bag = BagRecorder(tmp_path / name / "bag", CONTRACT, compression=compression, chunk_size=4096,
+                          fast_writes=fast)
         for topic, data, t in plan:
             bag.write(topic, data, t, canonical=True)
         bag.close()
         return (tmp_path / name / "bag" / "bag_0.mcap").read_bytes()
 
     assert R._FastMessages.usable(BagRecorder(tmp_path / "probe", CONTRACT)._writer)
-    fast = record("fast")
-    monkeypatch.setattr(R._FastMessages, "usable", staticmethod(lambda writer: False))
-    assert record("library") == fast
+    fast = record("fast", True)
+    assert record("library", False) == fast
+    monkeypatch.setattr(R._FastMessages, "usable", staticmethod(lambda writer: False))  # another mcap: its path
+    assert record("other", True) == fast

@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""What recording costs an in-process run, and what the recorder's write path costs.
+
+    python scripts/bench_recording.py [--steps N] [--repeats R] [--bv-driver level0|learned]
+
+Two figures, each against a reference measured in the same process (these machines are
+shared and noisy: compare ratios, not absolute rates):
+
+1. **Recorded / unrecorded** (issue 14's figure): ``run_inprocess`` of the default scenario for
+   ``--steps`` steps without a bag and with one, alternated ``--repeats`` times; steps/s of each
+   and their ratio (median over the repeats). Target: >= 0.5.
+2. **The write path**: the messages of one recorded run, read back from its bag, written again
+   by :class:`evoscen_eval.recorder.BagRecorder` with ``fast_writes`` (one ``pack`` per message
+   record and per message index) and with the mcap library's own ``Writer.add_message``;
+   microseconds per message of each, their ratio, and whether the two files are byte-identical.
+
+Figures only; nothing is asserted (benchmarks print figures; the tests assert the bytes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="bench_recording.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--steps", type=int, default=3000, help="steps per run (default 3000)")
+    ap.add_argument("--repeats", type=int, default=5, help="alternated unrecorded/recorded pairs (default 5)")
+    ap.add_argument("--bv-driver", choices=("level0", "learned"), default="level0")
+    args = ap.parse_args(argv)
+    for name in ("steps", "repeats"):
+        if getattr(args, name) < 1:
+            print(f"error: --{name} = {getattr(args, name)}: expected a positive integer", file=sys.stderr)
+            return EXIT_BAD_INPUT
+
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_contract.topics import CONTRACT
+    from evoscen_eval.clips import read_messages
+    from evoscen_eval.recorder import BagRecorder
+    from evoscen_sim.config import load_scenario_config
+
+    cfg = load_scenario_config(None, {"steps": args.steps, "bvs.driver": args.bv_driver})
+    run_inprocess(cfg, bag_dir=None, steps=200)  # compile the kernels first
+    work = Path(tempfile.mkdtemp(prefix="bench_recording_"))
+    off, on = [], []
+    for r in range(args.repeats):
+        t0 = time.perf_counter()
+        run_inprocess(cfg, bag_dir=None)
+        off.append(args.steps / (time.perf_counter() - t0))
+        t0 = time.perf_counter()
+        run_inprocess(cfg, bag_dir=work / f"run{r}" / "bag")
+        on.append(args.steps / (time.perf_counter() - t0))
+        print(f"  pair {r + 1}: unrecorded {off[-1]:8.0f} steps/s   recorded {on[-1]:7.0f} steps/s   "
+              f"ratio {on[-1] / off[-1]:.2f}")
+    print(f"in-process, 1 SUT + 20 BVs ({args.bv_driver}), {args.steps} steps, median of {args.repeats}: "
+          f"unrecorded {statistics.median(off):.0f} steps/s, recorded {statistics.median(on):.0f} steps/s, "
+          f"recorded / unrecorded {statistics.median([b / a for a, b in zip(off, on)]):.2f} (target >= 0.5)")
+
+    messages = read_messages(work / "run0" / "bag")
+    per_message = {}
+    files = {}
+    for fast in (True, False, True):
+        name = f"{'fast' if fast else 'library'}{len(files)}"
+        t0 = time.perf_counter()
+        bag = BagRecorder(work / name / "bag", CONTRACT, compression=cfg.recording.compression,
+                          chunk_size=cfg.recording.chunk_size_bytes, fast_writes=fast)
+        for topic, t_ns, data in messages:
+            bag.write(topic, data, t_ns, canonical=True)
+        bag.close()
+        per_message.setdefault(fast, []).append((time.perf_counter() - t0) / len(messages) * 1e6)
+        files[name] = (work / name / "bag" / "bag_0.mcap").read_bytes()
+    fast_us, lib_us = min(per_message[True]), min(per_message[False])
+    same = len(set(files.values())) == 1
+    print(f"BagRecorder.write of the run's {len(messages)} messages: fast_writes {fast_us:.1f} us/message, "
+          f"mcap's add_message {lib_us:.1f} us/message, ratio {fast_us / lib_us:.2f}; "
+          f"files byte-identical: {'yes' if same else 'NO'}")
+    return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())
