@@ -75,6 +75,33 @@ def test_a_bad_scenario_value_names_the_spec_and_the_cell(tmp_path):
     assert str(exc.value).startswith(f"{spec.path}: cell {{'sut.model': 'nosuch'}}: ") and "\n" not in str(exc.value)
 
 
+@pytest.mark.parametrize("name, cells, seeds", [("intelligence", 4, 10), ("complexity", 3, 20),
+                                               ("mobil-mutants", 11, 10), ("mutants", None, None)])
+def test_shipped_specs_load_and_expand(name, cells, seeds):
+    spec = load_spec(REPO / "examples" / "campaigns" / f"{name}.yaml")
+    runs = expand(spec, version="v1")
+    if cells is not None:
+        assert len(runs) == cells * seeds and len(spec.seeds) == seeds
+    assert len({r.key for r in runs}) == len(runs)
+
+
+def test_summary_gives_complexity_per_cell_by_hand(tmp_path):
+    from evoscen_bringup.campaign import summary_markdown
+
+    spec = load_spec(write_spec(tmp_path, SMALL))
+    runs = expand(spec, version="v1")
+    rows = []
+    for i, r in enumerate(runs):  # mobil: C 0.1, 0.2, 0.3; level0: undefined (a run shorter than a window)
+        rows.append({"key": r.key, "seed": r.seed, "sut.model": dict(r.cell)["sut.model"], "intelligence": 0.5,
+                     "safety": 0.5, "efficiency": 0.5, "interaction": 0.5,
+                     "complexity": [0.1, 0.2, 0.3][i] if i < 3 else None, "collisions": 0, "exposures": 0})
+    text = summary_markdown(spec, runs, rows)
+    # mean 0.2, sd 0.1, t(0.975, 2) = 4.3027: half-width 4.3027 * 0.1 / sqrt(3) = 0.2484
+    same = "0.5000 ± 0.0000 | " * 4
+    assert f"| mobil | 3 | {same}0.2000 ± 0.2484 |" in text
+    assert f"| level0 | 3 | {same}– |" in text
+
+
 def test_expansion_and_keys(tmp_path):
     spec = load_spec(write_spec(tmp_path, SMALL))
     runs = expand(spec, version="v1")

@@ -561,13 +561,14 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
     axes = list(spec.grid)
     lines = [f"# Campaign {spec.name}\n",
              f"{len(rows)} of {len(runs)} runs finished; {len(spec.seeds)} seeds per cell; spec `{spec.path.name}`. "
-             "Scores: mean ± 95 % Student-t interval over seeds; counts: mean [95 % bootstrap interval].\n"]
+             "Scores: mean ± 95 % Student-t interval over seeds (C: the scenario's complexity per run, – for a "
+             "run shorter than one window); counts: mean [95 % bootstrap interval].\n"]
     rng = np.random.default_rng(0)  # the bootstrap's draws: fixed, so the summary is reproducible
     body = []
     grouped = cells(spec, rows)
     for cell, members in grouped.items():
         entry = [*cell, str(len(members))]
-        for name in ("intelligence", "safety", "efficiency", "interaction"):
+        for name in ("intelligence", "safety", "efficiency", "interaction", "complexity"):
             vals = [m[name] for m in members if m[name] is not None and not math.isnan(m[name])]
             entry.append(fmt_ci(*mean_ci(vals)) if vals else "–")
         for name in COUNT_COLUMNS:
@@ -576,7 +577,7 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
         kinds = {c[len("collisions_"):]: sum(m.get(c) or 0 for m in members) for c in KIND_COLUMNS}
         entry.append(", ".join(f"{k} {n}" for k, n in kinds.items() if n) or "–")
         body.append(entry)
-    lines.append(markdown_table([*axes, "n", "I", "I_s", "I_e", "I_i", "collisions", "exposures",
+    lines.append(markdown_table([*axes, "n", "I", "I_s", "I_e", "I_i", "C", "collisions", "exposures",
                                  "collisions by kind (all seeds)"], body))
     if spec.compare is not None and rows:
         axis, ref = spec.compare
