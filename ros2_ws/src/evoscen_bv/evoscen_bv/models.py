@@ -50,7 +50,7 @@ class LearnedParams:
     ends, its decision policy's requests are rewritten to keep (the forced merge excepted).
     [choice] 20 s, SUMO's ``lcSpeedGainRemainTime`` (the minimum time on the new lane after a
     speed-gain change); 0 = no hold, round 2's first form (the BVs then reversed 70 % of
-    their changes, a median 5.8 s apart)."""
+    their changes, a median 5.7 s apart)."""
 
 
 def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
