@@ -102,6 +102,11 @@ class CarFollowingParams:
     least this constant deceleration (m/s²) [choice: MOBIL's safe braking b_safe]."""
     emergency_margin_m: float = 2.0
     """Bumper gap the emergency brake keeps to a slower leader (m) [choice]."""
+    no_leader_at_view_edge: bool = True
+    """V(s) without a leader in view: the value at the view's edge, Δs = o_smax (True), or 0
+    (False: the form the round-1 and first round-2 controllers were trained with) [choice:
+    with 0, losing the leader from view paid k·(V(edge) − 0) ≈ +4.9 at once, and the trained
+    controller braked hard for leaders 80–100 m ahead to let them escape; docs/method.md §3.1]."""
 
 
 def leader_state(gap_m: np.ndarray, leader_speed: np.ndarray, leader_accel: np.ndarray,
@@ -129,11 +134,14 @@ def _obs_kernel(gap, v_lead, a_lead, v, a, view, v_max, a_max):  # noqa: ANN001,
 
 
 def gap_value(obs: np.ndarray, params: CarFollowingParams) -> np.ndarray:
-    """V(s) = -(Δs - g)² / V_max² (docs/method.md eq. (2)); 0 without a leader in view."""
+    """V(s) = -(Δs - g)² / V_max² (docs/method.md eq. (2)); without a leader in view, Δs = o_smax
+    (``params.no_leader_at_view_edge``, the default) or V = 0."""
     obs = np.atleast_2d(obs)
     gap = obs[:, 0] * params.view_m
     v = -((gap - params.target_gap_m) ** 2) / params.value_scale_m**2
-    return np.where(obs[:, 3] > 0.5, v, 0.0)
+    free = -((params.view_m - params.target_gap_m) ** 2) / params.value_scale_m**2 if params.no_leader_at_view_edge \
+        else 0.0
+    return np.where(obs[:, 3] > 0.5, v, free)
 
 
 def car_following_reward(obs: np.ndarray, next_obs: np.ndarray, collided: np.ndarray,
