@@ -46,6 +46,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="measure with the profiles' cut-in closing headway h replaced by H s (0: the method's plain 10 m)")
     ap.add_argument("--lane-hold", type=float, default=None, metavar="S",
                     help="models.learned.lane_hold_s (default: the config's, 20 s; 0: no hold)")
+    ap.add_argument("--cut-in-decel", type=float, default=None, metavar="B",
+                    help="models.learned.cut_in_decel_mps2 (default: the config's, 4; 0: the linear cut-in gap only)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
     args = ap.parse_args(argv)
 
@@ -73,6 +75,8 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["models.learned.policy_dir"] = args.policy_dir
             if args.lane_hold is not None:
                 overrides["models.learned.lane_hold_s"] = args.lane_hold
+            if args.cut_in_decel is not None:
+                overrides["models.learned.cut_in_decel_mps2"] = args.cut_in_decel
             try:
                 cfg = load_scenario_config(args.config, overrides)
             except InputError as exc:

@@ -233,7 +233,8 @@ class DecisionEnv:
         p = self.config.reward
         ego = np.array([self.ego])
         requested = action_to_lane_change(np.asarray(action, dtype=float)[:1])
-        executed = apply_rule_constraints(w, ego, requested, self.profile.cut_in_closing_headway_s)
+        executed = apply_rule_constraints(w, ego, requested, self.profile.cut_in_closing_headway_s,
+                                          self.profile.cut_in_closing_decel_mps2)
         o_c = drivable_area(w, ego, np.zeros(1, dtype=np.int64), p.front_view_m)
         o_t = drivable_area(w, ego, executed, p.front_view_m)
         theta = np.where(executed > 0, p.theta_left, 1.0)

@@ -29,6 +29,10 @@ the target lane must be at least 10 m + h·max(0, v_i - v_j) away, one behind at
 plain 10 m, a merge from standstill in front of traffic at 30 m/s was "legal" and most
 lane-change collisions were such cut-ins. h is a parameter of the BV profile (both profiles
 keep 1.5 s; docs/bv-profiles.md gives the measurements).
+Opt-in (``models.learned.cut_in_decel_mps2`` = b > 0, ``driver`` profile): the gap also holds
+c²/(2b), so a new follower that reacts only after its reaction time can match speeds without
+braking harder than b. [choice] Off by default: with b = 4 m/s² merging BVs waited at
+standstill and jams formed (docs/bv-profiles.md, R5, gives the figures).
 [choice] A change into a lane that ends within 200 m ahead (the merge lane, seen from lane
 II) becomes keep, like a change off the road: trained BVs moved into the ending merge lane
 behind the vehicles waiting at its end, stopped half-way and blocked both lanes.
@@ -225,11 +229,14 @@ def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m
 
 
 def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa: ANN001
-                           closing_headway_s: float = CUT_IN_CLOSING_HEADWAY_S) -> np.ndarray:
+                           closing_headway_s: float = CUT_IN_CLOSING_HEADWAY_S,
+                           closing_decel_mps2: float | None = None) -> np.ndarray:
     """The executed actions: ``requested`` with the two rule constraints applied (see module docstring).
 
-    ``closing_headway_s``: h of the cut-in gap 10 m + h·closing speed (0: the method's plain
-    10 m); the BV profile's value (docs/bv-profiles.md).
+    ``closing_headway_s``: h of the cut-in gap 10 m + h·c, c the closing speed (0: the
+    method's plain 10 m); ``closing_decel_mps2``: b of the further term c²/(2b), the distance
+    in which the slower-to-react vehicle of the pair matches speeds braking at b (``None``:
+    no such term). Both are the BV profile's (docs/bv-profiles.md, R5).
 
     [choice] A vehicle counts as in the target lane when it is in it or changing into it
     (its target lane), so two vehicles cannot cut into the same gap from both sides.
@@ -241,12 +248,13 @@ def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa
     lane_end_s = np.asarray(view.road.lane_end_s, dtype=float)
     return _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, LANE_END_MARGIN_M, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
                               view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
-                              CUT_IN_GAP_M, float(closing_headway_s))
+                              CUT_IN_GAP_M, float(closing_headway_s),
+                              0.0 if closing_decel_mps2 is None else 1.0 / (2.0 * float(closing_decel_mps2)))
 
 
 @kernel
 def _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, end_margin, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
-                       d_right, d_left, present, min_gap, closing_headway):
+                       d_right, d_left, present, min_gap, closing_headway, closing_square):
     m = idx.shape[0]
     n = s.shape[0]
     out = np.zeros(m, dtype=np.int64)
@@ -268,7 +276,8 @@ def _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, end_m
                 continue
             ds = s[j] - s[i]
             closing = v[i] - v[j] if ds > 0.0 else v[j] - v[i]  # how fast the gap to j shrinks
-            need = min_gap + closing_headway * max(closing, 0.0)
+            c = max(closing, 0.0)
+            need = min_gap + closing_headway * c + closing_square * c * c
             if abs(ds) - 0.5 * (length[i] + length[j]) < need:  # cut-in within 10 m (+ closing) -> keep
                 ok = False
                 break

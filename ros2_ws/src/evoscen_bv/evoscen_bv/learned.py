@@ -24,6 +24,8 @@ they were trained with, and a model card per policy. The shipped directory is
 
 from __future__ import annotations
 
+import dataclasses
+
 from pathlib import Path
 
 import numpy as np
@@ -144,11 +146,14 @@ class LearnedDriver:
             after a vehicle's lane change ends (the world's ``lane_change`` column back to 0),
             its policy's requests are rewritten to keep, except the forced merge's; 0 = no
             hold (the training environments, and the scenario's BVs before round 2's hold).
+        cut_in_decel_mps2: b of the cut-in gap term c²/(2b) under the ``driver`` profile (0: no
+            such term); ``None``: the profile's (none). Ignored under ``safety_net``.
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
                  config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
-                 forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0) -> None:
+                 forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
+                 cut_in_decel_mps2: float | None = None) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         if not lane_hold_s >= 0.0:
             raise ValueError(f"lane_hold_s must be >= 0, got {lane_hold_s}")
@@ -160,6 +165,9 @@ class LearnedDriver:
         self._last_s: np.ndarray | None = None
         """Arc lengths at the last :meth:`act` (a fall marks a re-entry)."""
         self.profile = get_profile(config.env.profile if profile is None else profile)
+        if cut_in_decel_mps2 is not None and self.profile.name != "safety_net":  # safety_net: the rules as they were
+            self.profile = dataclasses.replace(self.profile,
+                                               cut_in_closing_decel_mps2=float(cut_in_decel_mps2) or None)
         self.reaction: ReactionState | None = None
         """The driver profile's state, made at the first step (N needs the step length); None: safety_net."""
         self.forced_merge = forced_merge
@@ -214,7 +222,8 @@ class LearnedDriver:
         if self.lane_hold_s > 0.0:  # the hold rewrites the policy's requests, not the road's forced merge
             held = (self.hold_until_step[positions] > int(view.step_index)) & (forced == 0)
             allowed = np.where(held, 0, requested)
-        executed = apply_rule_constraints(view, idx, allowed, self.profile.cut_in_closing_headway_s)
+        executed = apply_rule_constraints(view, idx, allowed, self.profile.cut_in_closing_headway_s,
+                                          self.profile.cut_in_closing_decel_mps2)
         return obs, requested, executed
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001

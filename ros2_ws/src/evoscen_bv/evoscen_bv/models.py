@@ -5,7 +5,7 @@
 * ``learned`` (role ``bv``): the TD3-trained social drivers (:mod:`evoscen_bv.learned`) —
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
-  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile`` and ``lane_hold_s`` (:class:`LearnedParams`).
+  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s`` and ``cut_in_decel_mps2`` (:class:`LearnedParams`).
 """
 
 from __future__ import annotations
@@ -21,9 +21,11 @@ from evoscen_sim.scenario_params import vehicle_params_from_config
 from .level0 import Level0Driver, level0_params_from_config
 
 SHIPPED = "shipped"
-SHIPPED_SETS = {SHIPPED: "", "round1": "round1"}
+SHIPPED_SETS = {SHIPPED: "", "round2a": "round2a", "round1": "round1"}
 """``policy_dir`` keywords of the shipped policy sets: ``shipped`` = the current set (trained at
-the method's scale under the ``driver`` profile), ``round1`` = round 1's set (40k controller /
+the method's scale under the ``driver`` profile), ``round2a`` = round 2's first set (the same,
+its controller trained with V = 0 without a leader: it brakes for leaders 80-100 m ahead,
+docs/method.md §3.1), ``round1`` = round 1's set (40k controller /
 20k decision steps, trained under the ``safety_net`` rules), kept selectable."""
 
 
@@ -51,6 +53,12 @@ class LearnedParams:
     [choice] 20 s, SUMO's ``lcSpeedGainRemainTime`` (the minimum time on the new lane after a
     speed-gain change); 0 = no hold, round 2's first form (the BVs then reversed 70 % of
     their changes, a median 5.7 s apart)."""
+    cut_in_decel_mps2: float = number(0.0, 0.0, 50.0)
+    """Under the ``driver`` profile, b of a further cut-in gap term c²/(2b) (docs/bv-profiles.md,
+    R5): a BV changes lanes only where the vehicle closing in on it, reacting after the
+    reaction time, can match speeds braking at most b (e.g. 4 m/s², MOBIL's b_safe).
+    [choice] 0 = no such term, the linear gap 10 m + 1.5 s·c only: with 4 m/s² merging BVs
+    waited at standstill and jams formed. ``safety_net`` keeps its rules and ignores the key."""
 
 
 def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
@@ -71,7 +79,8 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
             return _level0(vehicles, None, config, rng)
         raise InputError(f"models.learned.policy_dir = {params.policy_dir}: {exc}") from None
     return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config),
-                         forced_merge=True, profile=params.profile, lane_hold_s=params.lane_hold_s)
+                         forced_merge=True, profile=params.profile, lane_hold_s=params.lane_hold_s,
+                         cut_in_decel_mps2=params.cut_in_decel_mps2)
 
 
 LEVEL0 = ModelSpec(

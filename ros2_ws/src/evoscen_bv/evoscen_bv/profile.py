@@ -40,6 +40,9 @@ class BVProfile:
     """Bound on every braking command of the BV (m/s²); ``None``: the vehicle's full brake."""
     cut_in_closing_headway_s: float
     """h of the cut-in gap 10 m + h·closing speed of the lane-change rule constraint (s); 0 = the method's plain 10 m."""
+    cut_in_closing_decel_mps2: float | None = None
+    """b of the further cut-in gap term c²/(2b), c the closing speed (m/s²): the gap in which the
+    slower-to-react vehicle matches speeds braking at b; ``None``: no such term."""
 
     def reaction_steps(self, dt_s: float) -> int:
         """N = round(τ / dt): steps a situation must persist before the BV responds."""
@@ -54,6 +57,10 @@ PROFILES: dict[str, BVProfile] = {
     # al. 1997, NCHRP Report 400), below the simulated car's 8 m/s² full brake; at 6 m/s² the
     # shipped policies' BV-BV collisions rose (docs/bv-profiles.md, measurements).
     # [choice] h = 1.5 s kept: BV-BV realism (docs/bv-profiles.md, measurements).
+    # [choice] no c²/(2b) term by default: with b = 4 m/s² (MOBIL's b_safe) the merges in front of
+    # much faster traffic stopped colliding, but merging BVs waited at standstill and jams formed
+    # (4 % of mainline BV states at standstill against 0.3 %); selectable per scenario with
+    # models.learned.cut_in_decel_mps2 (docs/bv-profiles.md, R5).
     "driver": BVProfile("driver", reaction_time_s=1.0, max_decel_mps2=7.0,
                         cut_in_closing_headway_s=CUT_IN_CLOSING_HEADWAY_S),
     "safety_net": BVProfile("safety_net", reaction_time_s=0.0, max_decel_mps2=None,

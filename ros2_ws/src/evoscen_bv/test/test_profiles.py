@@ -40,6 +40,7 @@ def test_profile_parameters():
     assert get_profile("driver").max_decel_mps2 == 7.0
     assert get_profile("safety_net").reaction_time_s == 0.0 and get_profile("safety_net").max_decel_mps2 is None
     assert {p.cut_in_closing_headway_s for p in PROFILES.values()} == {1.5}
+    assert {p.cut_in_closing_decel_mps2 for p in PROFILES.values()} == {None}  # the term is opt-in
     with pytest.raises(ValueError, match="unknown BV profile 'nice': expected one of driver, safety_net"):
         get_profile("nice")
 
@@ -159,6 +160,21 @@ def test_cut_in_gap_headway_is_a_parameter(road):
     assert apply_rule_constraints(w, np.array([0]), np.array([1])).tolist() == [0]
     assert apply_rule_constraints(w, np.array([0]), np.array([1]), 1.5).tolist() == [0]
     assert apply_rule_constraints(w, np.array([0]), np.array([1]), 0.0).tolist() == [1]
+
+
+def test_cut_in_gap_quadratic_term_for_followers_that_react_late(road):
+    """Vehicle 0 (5 m/s, lane 1, leaving a queue) asks to move left in front of vehicle 1 in lane 2 at 25 m/s:
+    closing c = 20 m/s. Linear gap 10 + 1.5·20 = 40 m; with b = 4 m/s² a further c²/(2b) = 400/8 = 50 m: 90 m.
+    Bumper gaps (centres 5 m longer): 60 m → change under the linear rule only; 91 m → change under both;
+    89 m → keep under b = 4 (R5, docs/bv-profiles.md: models.learned.cut_in_decel_mps2)."""
+    for gap, linear, quadratic in ((60.0, 1, 0), (89.0, 1, 0), (91.0, 1, 1)):
+        w = hand_built_world(road, s=[400.0, 400.0 - gap - 5.0], lane=[1, 2], speed=[5.0, 25.0])
+        assert apply_rule_constraints(w, np.array([0]), np.array([1]), 1.5).tolist() == [linear]
+        assert apply_rule_constraints(w, np.array([0]), np.array([1]), 1.5, None).tolist() == [linear]
+        assert apply_rule_constraints(w, np.array([0]), np.array([1]), 1.5, 4.0).tolist() == [quadratic]
+    # a faster vehicle ahead closes nothing: the plain 10 m whatever b (bumper gap 10.5 m)
+    w = hand_built_world(road, s=[400.0, 415.5], lane=[1, 2], speed=[20.0, 30.0])
+    assert apply_rule_constraints(w, np.array([0]), np.array([1]), 1.5, 4.0).tolist() == [1]
 
 
 def test_profile_config_errors_are_one_line(tmp_path):
@@ -283,4 +299,22 @@ def test_lane_hold_is_a_scenario_key_with_the_old_form_selectable():
                                              "models": {"learned": {"lane_hold_s": 0}}})).lane_hold_s == 0.0
     with pytest.raises(InputError, match=r"models\.learned\.lane_hold_s") as e:
         config_from_dict({"models": {"learned": {"lane_hold_s": -3}}})
+    assert "\n" not in str(e.value)
+
+
+def test_cut_in_decel_is_a_scenario_key_with_the_old_rule_selectable():
+    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.errors import InputError
+    from evoscen_sim.scenario import build_bv_driver
+
+    def b(models: dict) -> float | None:
+        return build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": models})).profile \
+            .cut_in_closing_decel_mps2
+
+    assert b({}) is None  # the linear gap only
+    assert b({"learned": {"cut_in_decel_mps2": 4}}) == 4.0
+    assert b({"learned": {"cut_in_decel_mps2": 0}}) is None
+    assert b({"learned": {"profile": "safety_net", "cut_in_decel_mps2": 6}}) is None  # safety_net: rules as they were
+    with pytest.raises(InputError, match=r"models\.learned\.cut_in_decel_mps2") as e:
+        config_from_dict({"models": {"learned": {"cut_in_decel_mps2": -1}}})
     assert "\n" not in str(e.value)
