@@ -248,6 +248,30 @@ class EmptyEventsEncoder:
         return pad4(_ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns) + self._template[8:])
 
 
+def encode_diagnostic_array(msg) -> bytes:  # noqa: ANN001 - a DiagnosticArray (rclpy, or any with its fields)
+    """Canonical CDR of a ``diagnostic_msgs/DiagnosticArray`` (``/evoscen/events``), any number of statuses.
+
+    The same bytes as serializing the message with rclpy and canonicalizing it
+    (:class:`evoscen_eval.recorder.CanonicalCdr`; a test), without either: tens of µs for a
+    few events instead of ~250 µs.
+    """
+    w = _PayloadWriter()
+    w.pack("iI", int(msg.header.stamp.sec), int(msg.header.stamp.nanosec))
+    w.string(msg.header.frame_id)
+    w.pack("I", len(msg.status))
+    for status in msg.status:
+        level = status.level
+        w.buf += level if isinstance(level, (bytes, bytearray)) else bytes((int(level),))
+        w.string(status.name)
+        w.string(status.message)
+        w.string(status.hardware_id)
+        w.pack("I", len(status.values))
+        for kv in status.values:
+            w.string(kv.key)
+            w.string(kv.value)
+    return pad4(_ENCAPSULATION_CDR_LE + bytes(w.buf))
+
+
 class _Writer(_PayloadWriter):
     """A payload writer starting at payload offset ``base`` (alignment is relative to the payload)."""
 
