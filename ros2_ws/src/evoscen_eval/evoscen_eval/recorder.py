@@ -217,8 +217,9 @@ class _ChunkMessages:
     chunk's index and statistics in the writer, which finishes the file (summary) as before.
     The same bytes in the same places (tests/test_bag_hashes.py, and a test comparing all three
     write paths). The schema and channel records the library writes into its open chunk at
-    registration are taken over at construction (so construct it after registering channels). A message making the open chunk larger than ``chunk_size`` closes it after
-    that message, as the library does. Used only when the writer is the one this was written
+    registration are taken over at construction (so construct it after registering channels).
+    A message making the open chunk larger than ``chunk_size`` closes it after that message, as
+    the library does. Used only when the writer is the one this was written
     against (:meth:`usable`).
     """
 
