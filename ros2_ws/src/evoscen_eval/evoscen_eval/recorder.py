@@ -562,6 +562,37 @@ class BagRecorder:
         self._start_ns = log_time if self._start_ns is None else min(self._start_ns, log_time)
         self._end_ns = log_time if self._end_ns is None else max(self._end_ns, log_time)
 
+    def write_many(self, messages: Sequence[tuple[int, str, bytes | bytearray | memoryview, bool]]) -> None:
+        """:meth:`write` each ``(log_time_ns, topic, data, canonical)`` in turn (publish time = log
+        time): the same file as that many calls, with the per-call work done once.
+
+        Raises:
+            ValueError: as :meth:`write`; the messages before the offending one are written.
+        """
+        if self._closed:
+            raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
+        topics, add, duration = self._topics, self._add_message, self._chunk_duration_ns
+        for log_time_ns, topic, data, canonical in messages:
+            state = topics.get(topic)
+            log_time = int(log_time_ns)
+            if state is None or log_time < 0 or (self._canonical is not None and not canonical):
+                self.write(topic, data, log_time, canonical=canonical)  # its checks and errors
+                continue
+            payload = bytes(data)
+            if duration:
+                if self._chunk_start_ns is None:
+                    self._chunk_start_ns = log_time
+                elif log_time - self._chunk_start_ns >= duration:
+                    self._flush_chunk()  # close the chunk, write it out and hand it to the OS
+                    self._chunk_start_ns = log_time
+            state.message_count += 1
+            add(state.channel_id, log_time, payload, log_time, state.message_count)
+            self._message_count += 1
+            if self._start_ns is None or log_time < self._start_ns:
+                self._start_ns = log_time
+            if self._end_ns is None or log_time > self._end_ns:
+                self._end_ns = log_time
+
     def write_message(self, topic: str, msg: Any, log_time_ns: int) -> None:
         """Serialize an rclpy message (``serialize_message``) and :meth:`write` it.
 
@@ -860,12 +891,18 @@ class OrderedBag:
         if not self._pending:
             self._flushed_before = max(self._flushed_before, time_ns)
             return
-        ready = [m for m in self._pending if m[0] < time_ns]
-        if ready:
+        if all(m[0] < time_ns for m in self._pending):  # the usual case: all of them
+            ready, self._pending = self._pending, []
+        else:
+            ready = [m for m in self._pending if m[0] < time_ns]
             self._pending = [m for m in self._pending if m[0] >= time_ns]
-            for t, _, _, topic, data, canonical in sorted(ready):
-                self.bag.write(topic, data, t, canonical=canonical)
-                if self.on_write is not None:
+        if ready:
+            ready.sort()
+            if self.on_write is None:
+                self.bag.write_many([(t, topic, data, canonical) for t, _, _, topic, data, canonical in ready])
+            else:
+                for t, _, _, topic, data, canonical in ready:
+                    self.bag.write(topic, data, t, canonical=canonical)
                     self.on_write(topic, data)
         self._flushed_before = max(self._flushed_before, time_ns)
 
