@@ -10,9 +10,11 @@ shared and noisy: compare ratios, not absolute rates):
    ``--steps`` steps without a bag and with one, alternated ``--repeats`` times; steps/s of each
    and their ratio (median over the repeats). Target: >= 0.5.
 2. **The write path**: the messages of one recorded run, read back from its bag, written again
-   by :class:`evoscen_eval.recorder.BagRecorder` with ``fast_writes`` (one ``pack`` per message
-   record and per message index) and with the mcap library's own ``Writer.add_message``;
-   microseconds per message of each, their ratio, and whether the two files are byte-identical.
+   by :class:`evoscen_eval.recorder.BagRecorder` three ways: the default (the recorder keeps the
+   open chunk, ``_ChunkMessages``), ``chunk_writes=False`` (one ``pack`` per message record into
+   the library's chunk builder, ``_FastMessages``) and ``fast_writes=False`` (the mcap library's
+   own ``Writer.add_message``); microseconds per message of each (best of two, bag opening and
+   closing included), their ratio to the library's, and whether the files are byte-identical.
 
 Figures only; nothing is asserted (benchmarks print figures; the tests assert the bytes).
 """
@@ -65,22 +67,25 @@ def main(argv: list[str] | None = None) -> int:
           f"recorded / unrecorded {statistics.median([b / a for a, b in zip(off, on)]):.2f} (target >= 0.5)")
 
     messages = read_messages(work / "run0" / "bag")
-    per_message = {}
+    paths = {"chunk": {}, "fast": {"chunk_writes": False}, "library": {"fast_writes": False}}
+    per_message: dict[str, list[float]] = {}
     files = {}
-    for fast in (True, False, True):
-        name = f"{'fast' if fast else 'library'}{len(files)}"
-        t0 = time.perf_counter()
-        bag = BagRecorder(work / name / "bag", CONTRACT, compression=cfg.recording.compression,
-                          chunk_size=cfg.recording.chunk_size_bytes, fast_writes=fast)
-        for topic, t_ns, data in messages:
-            bag.write(topic, data, t_ns, canonical=True)
-        bag.close()
-        per_message.setdefault(fast, []).append((time.perf_counter() - t0) / len(messages) * 1e6)
-        files[name] = (work / name / "bag" / "bag_0.mcap").read_bytes()
-    fast_us, lib_us = min(per_message[True]), min(per_message[False])
+    for rep in range(2):
+        for path, kwargs in paths.items():
+            name = f"{path}{rep}"
+            t0 = time.perf_counter()
+            bag = BagRecorder(work / name / "bag", CONTRACT, compression=cfg.recording.compression,
+                              chunk_size=cfg.recording.chunk_size_bytes, **kwargs)
+            for topic, t_ns, data in messages:
+                bag.write(topic, data, t_ns, canonical=True)
+            bag.close()
+            per_message.setdefault(path, []).append((time.perf_counter() - t0) / len(messages) * 1e6)
+            files[name] = (work / name / "bag" / "bag_0.mcap").read_bytes()
+    us = {path: min(v) for path, v in per_message.items()}
     same = len(set(files.values())) == 1
-    print(f"BagRecorder.write of the run's {len(messages)} messages: fast_writes {fast_us:.1f} us/message, "
-          f"mcap's add_message {lib_us:.1f} us/message, ratio {fast_us / lib_us:.2f}; "
+    print(f"BagRecorder.write of the run's {len(messages)} messages: chunk writes {us['chunk']:.1f} us/message, "
+          f"fast_writes {us['fast']:.1f}, mcap's add_message {us['library']:.1f}; "
+          f"ratio to the library {us['chunk'] / us['library']:.2f} / {us['fast'] / us['library']:.2f}; "
           f"files byte-identical: {'yes' if same else 'NO'}")
     return EXIT_OK
 

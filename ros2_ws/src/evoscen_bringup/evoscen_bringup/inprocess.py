@@ -96,8 +96,8 @@ class _Recorder:
         self.bag.add(topic, self.msgs.commands(ids, throttle, lane_change, t_ns), t_ns, canonical=True)
 
     def events(self, events: list[dict], t_ns: int) -> None:
-        # a step without events is canonical CDR already (EmptyEventsEncoder): no re-serialization
-        self.bag.add(self.T.EVENTS.name, self.msgs.events(events, t_ns), t_ns, canonical=not events)
+        # canonical CDR already (evoscen_contract.cdr): no re-serialization
+        self.bag.add(self.T.EVENTS.name, self.msgs.events(events, t_ns), t_ns, canonical=True)
 
 
 class _InProcessPort(Port):

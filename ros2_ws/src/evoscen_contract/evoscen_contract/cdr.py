@@ -248,6 +248,30 @@ class EmptyEventsEncoder:
         return pad4(_ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns) + self._template[8:])
 
 
+def encode_diagnostic_array(msg) -> bytes:  # noqa: ANN001 - a DiagnosticArray (rclpy, or any with its fields)
+    """Canonical CDR of a ``diagnostic_msgs/DiagnosticArray`` (``/evoscen/events``), any number of statuses.
+
+    The same bytes as serializing the message with rclpy and canonicalizing it
+    (:class:`evoscen_eval.recorder.CanonicalCdr`; a test), without either: tens of µs for a
+    few events instead of ~250 µs.
+    """
+    w = _PayloadWriter()
+    w.pack("iI", int(msg.header.stamp.sec), int(msg.header.stamp.nanosec))
+    w.string(msg.header.frame_id)
+    w.pack("I", len(msg.status))
+    for status in msg.status:
+        level = status.level
+        w.buf += level if isinstance(level, (bytes, bytearray)) else bytes((int(level),))
+        w.string(status.name)
+        w.string(status.message)
+        w.string(status.hardware_id)
+        w.pack("I", len(status.values))
+        for kv in status.values:
+            w.string(kv.key)
+            w.string(kv.value)
+    return pad4(_ENCAPSULATION_CDR_LE + bytes(w.buf))
+
+
 class _Writer(_PayloadWriter):
     """A payload writer starting at payload offset ``base`` (alignment is relative to the payload)."""
 
@@ -326,6 +350,8 @@ class VehicleMarkersEncoder:
                         for a in (0, 4)}
         self._tails = {a: _marker_tail(a) for a in range(4)}
         self._patched: dict[tuple, tuple[bytes, int, int]] = {}
+        self._layout: tuple | None = None  # the compiled kernel's templates, made on first use
+        self._colors: dict[float, bytes] = {}
         """(kind, alignment, id, scale, colour) -> the prefix with those patched, and where stamp and pose go."""
 
     def _marker(self, out: bytearray, kind: str, stamp: bytes, vid: int, pose: tuple, scale: tuple,
@@ -351,7 +377,64 @@ class VehicleMarkersEncoder:
         out += self._tails[(len(out) - 4) % 4]
 
     def encode(self, columns, stamp_ns: int) -> bytes:  # noqa: ANN001
-        """CDR bytes of ``/evoscen/markers`` for the world columns at ``stamp_ns``."""
+        """CDR bytes of ``/evoscen/markers`` for the world columns at ``stamp_ns``.
+
+        The markers are laid out by a compiled kernel (:func:`_markers_kernel`) from arrays
+        prepared here (poses, sizes, colours, label texts formatted by Python as before);
+        :meth:`encode_python` is the earlier marker-by-marker path, the same bytes (a test).
+        """
+        kernel = _markers_kernel_or_none()
+        if kernel is None:
+            return self.encode_python(columns, stamp_ns)
+        from .markers import VEHICLE_HEIGHT_M, policy_color
+
+        if self._layout is None:
+            self._layout = self._kernel_layout()
+        pre, at, tails, tail_len = self._layout
+        f64 = np.float64
+        ids, x, y, yaw = (np.asarray(columns[k], dtype=f64) for k in ("id", "x", "y", "yaw"))
+        length, width, speed = (np.asarray(columns[k], dtype=f64) for k in ("length", "width", "speed"))
+        n = len(ids)
+        kmh = speed * 3.6
+        if n and not (np.all(np.abs(kmh) < 1e15) and np.all(np.abs(ids) < 2**31 - 1)):
+            return self.encode_python(columns, stamp_ns)  # text the kernel does not format (nan, inf, huge)
+        colors = b"".join([self._color_bytes(code, policy_color) for code in np.asarray(columns["policy"]).tolist()])
+        out = np.zeros(8 + n * 2 * (pre.shape[1] + 16 + tail_len.max() + 48), np.uint8)
+        end = kernel(out, np.frombuffer(_stamp_bytes(stamp_ns), np.uint8), ids, x, y, yaw, length, width, kmh,
+                     np.frombuffer(colors, np.uint8).reshape(n, 16), VEHICLE_HEIGHT_M, pre, at, tails, tail_len)
+        return pad4(out[:end].tobytes())
+
+    def _color_bytes(self, code: float, policy_color) -> bytes:  # noqa: ANN001
+        cached = self._colors.get(code)
+        if cached is None:
+            cached = self._colors[code] = struct.pack("<4f", *policy_color(code), 1.0)
+        return cached
+
+    def _kernel_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The four marker prefixes (box, label × start 0 or 4 mod 8) as rows of one array, the label's
+        constant scale and colour patched in; where stamp, id, pose, scale, colour go; the tails."""
+        prefixes, offsets = [], []
+        for kind in ("box", "label"):
+            for a in (0, 4):
+                prefix, at = self._prefix[(kind, a)]
+                m = bytearray(prefix)
+                if kind == "label":
+                    struct.pack_into("<3d", m, at["scale"], 0.0, 0.0, 1.2)
+                    struct.pack_into("<4f", m, at["color"], 1.0, 1.0, 1.0, 1.0)
+                prefixes.append(bytes(m))
+                offsets.append((len(m), at["stamp"], at["id"], at["pose"], at["scale"], at["color"]))
+        pre = np.zeros((4, max(len(p) for p in prefixes)), np.uint8)
+        for k, p in enumerate(prefixes):
+            pre[k, :len(p)] = np.frombuffer(p, np.uint8)
+        tails = np.zeros((4, max(len(t) for t in self._tails.values())), np.uint8)
+        tail_len = np.zeros(4, np.int64)
+        for a, t in self._tails.items():
+            tails[a, :len(t)] = np.frombuffer(t, np.uint8)
+            tail_len[a] = len(t)
+        return pre, np.array(offsets, dtype=np.int64), tails, tail_len
+
+    def encode_python(self, columns, stamp_ns: int) -> bytes:  # noqa: ANN001
+        """:meth:`encode` marker by marker in Python (the earlier path; the same bytes)."""
         from .markers import VEHICLE_HEIGHT_M, policy_color
 
         stamp = _stamp_bytes(stamp_ns)
@@ -390,3 +473,113 @@ def is_run_end(data: bytes) -> bool:
     from rclpy.serialization import deserialize_message
 
     return any(s.name == EVENT_RUN_END for s in deserialize_message(bytes(data), DiagnosticArray).status)
+
+
+_MARKERS_KERNEL: list = []
+
+
+def _markers_kernel_or_none():  # noqa: ANN202
+    """The compiled marker kernel (numba, compiled on first use and cached on disk); None without numba."""
+    if not _MARKERS_KERNEL:
+        try:
+            import numba
+        except ImportError:  # pragma: no cover - numba is a dependency of the simulation
+            _MARKERS_KERNEL.append(None)
+        else:
+            global _put_int  # the kernel calls the compiled helper
+            _put_int = numba.njit(cache=True, nogil=True)(_put_int)
+            _MARKERS_KERNEL.append(numba.njit(cache=True, nogil=True)(_markers_kernel))
+    return _MARKERS_KERNEL[0]
+
+
+def _markers_kernel(out, stamp, ids, x, y, yaw, length, width, kmh, colors, height,  # noqa: ANN001, ANN201
+                    pre, at, tails, tail_len):
+    """Write the ``MarkerArray`` of :meth:`VehicleMarkersEncoder.encode` into the zeroed ``out``; its length.
+
+    Per vehicle a box then a label marker: 4-aligned (payload offsets), the prefix for the
+    marker's start mod 8 (row ``2 * kind + start % 8 // 4`` of ``pre``; ``at`` holds its length
+    and where stamp, id, pose, scale and colour go), its text (empty for the box; the label's
+    ``f"{id}  {kmh:.0f} km/h"``: ``.0f`` rounds half to even, as ``np.rint``, and keeps the sign
+    of a negative value rounding to 0) as a CDR string, then the tail for the alignment reached.
+    """
+    n = ids.shape[0]
+    out[1] = 1  # little-endian CDR
+    count = 2 * n
+    for b in range(4):
+        out[4 + b] = (count >> (8 * b)) & 0xFF
+    pose = np.zeros(7)
+    pose_bytes = pose.view(np.uint8)
+    scale = np.zeros(3)
+    scale_bytes = scale.view(np.uint8)
+    vid_arr = np.zeros(1, np.int32)
+    vid_bytes = vid_arr.view(np.uint8)
+    digits = np.zeros(24, np.uint8)
+    pos = 8
+    for i in range(n):
+        vid = int(ids[i])
+        vid_arr[0] = vid
+        for kind in range(2):
+            pos += (-(pos - 4)) % 4
+            row = 2 * kind + ((pos - 4) % 8) // 4
+            size = at[row, 0]
+            out[pos:pos + size] = pre[row, :size]
+            out[pos + at[row, 1]:pos + at[row, 1] + 8] = stamp
+            out[pos + at[row, 2]:pos + at[row, 2] + 4] = vid_bytes
+            pose[0] = x[i]
+            pose[1] = y[i]
+            if kind == 0:
+                half = 0.5 * yaw[i]
+                pose[2] = 0.5 * height
+                pose[5] = math.sin(half)
+                pose[6] = math.cos(half)
+                scale[0] = length[i]
+                scale[1] = width[i]
+                scale[2] = height
+                out[pos + at[row, 4]:pos + at[row, 4] + 24] = scale_bytes
+                out[pos + at[row, 5]:pos + at[row, 5] + 16] = colors[i]
+            else:
+                pose[2] = height + 1.0
+                pose[5] = 0.0
+                pose[6] = 1.0
+            out[pos + at[row, 3]:pos + at[row, 3] + 56] = pose_bytes
+            pos += size
+            text_at = pos + 4
+            t = text_at
+            if kind == 1:  # f"{vid}  {kmh:.0f} km/h"
+                t = _put_int(out, t, vid, False, digits)
+                out[t] = 32
+                out[t + 1] = 32
+                v = kmh[i]
+                r = np.rint(v)
+                t = _put_int(out, t + 2, int(abs(r)), v < 0.0 or (v == 0.0 and math.copysign(1.0, v) < 0.0),
+                             digits)
+                out[t:t + 5] = np.array([32, 107, 109, 47, 104], np.uint8)  # " km/h"
+                t += 5
+            raw = t - text_at + 1  # the text and its NUL
+            for b in range(4):
+                out[pos + b] = (raw >> (8 * b)) & 0xFF
+            pos = t + 1  # the NUL is the buffer's zero
+            a = (pos - 4) % 4
+            out[pos:pos + tail_len[a]] = tails[a, :tail_len[a]]
+            pos += tail_len[a]
+    return pos
+
+
+def _put_int(out, t, value, minus, digits):  # noqa: ANN001, ANN202
+    """Write the decimal digits of ``value`` (with a leading ``-`` if negative or ``minus``) at ``t``; the end."""
+    if value < 0:
+        minus = True
+        value = -value
+    if minus:
+        out[t] = 45
+        t += 1
+    k = 0
+    while True:
+        digits[k] = 48 + value % 10
+        value //= 10
+        k += 1
+        if value == 0:
+            break
+    for j in range(k):
+        out[t + j] = digits[k - 1 - j]
+    return t + k

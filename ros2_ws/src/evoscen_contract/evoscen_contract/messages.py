@@ -2,9 +2,9 @@
 
 The in-process runner records these bytes; the simulation node publishes them
 (``publisher.publish(bytes)``). Tables, ``/clock``, the SUT's odometry, the vehicle markers
-and steps without events are canonical CDR from :mod:`evoscen_contract.cdr`; events and the
-(once-published) map markers are serialized by rclpy and canonicalized by the recorder,
-whichever runner they came from.
+and the events are canonical CDR from :mod:`evoscen_contract.cdr`; the (once-published) map
+markers are serialized by rclpy and canonicalized by the recorder, whichever runner they came
+from.
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from . import topics as T
-from .cdr import EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, encode_clock
+from .cdr import (EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, encode_clock,
+                  encode_diagnostic_array)
 
 
 def _rows(columns: list) -> np.ndarray:
@@ -75,9 +76,7 @@ class WorldMessages:
         return serialize_message(road_markers(road, t_ns))
 
     def events(self, events: Sequence[Mapping], t_ns: int) -> bytes:
-        """``/evoscen/events``: canonical bytes when empty, else rclpy's (the recorder canonicalizes)."""
+        """``/evoscen/events`` (canonical CDR; a step without events from a template)."""
         if not events:
             return self._no_events.encode(t_ns)
-        from rclpy.serialization import serialize_message
-
-        return serialize_message(T.events_message(events, t_ns))
+        return encode_diagnostic_array(T.events_message(events, t_ns))

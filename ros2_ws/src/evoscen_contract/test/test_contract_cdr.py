@@ -119,3 +119,29 @@ def test_is_run_end_reads_the_count_and_names(frame_id):
     assert not is_run_end(raw([]))
     assert not is_run_end(raw([{"name": "evoscen/collision", "ids": [1, 2]}]))
     assert is_run_end(raw([{"name": "evoscen/fault", "controller": "x"}, {"name": "evoscen/run_end", "kind": "completed"}]))
+
+
+@pytest.mark.parametrize("frame_id", [MAP_FRAME, "", "ab", "abcdef"])
+def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
+    """Events of every shape (no status, one, several; no values, several; text lengths that
+    leave every alignment; non-ASCII text; every level) encode to the canonical bytes of rclpy's
+    serialization."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from evoscen_contract.cdr import encode_diagnostic_array
+    from evoscen_contract.topics import events_message
+
+    canon = CanonicalCdr(["diagnostic_msgs/msg/DiagnosticArray"])
+    cases = [
+        [],
+        [{"name": "evoscen/collision", "ids": [1, 2]}],
+        [{"name": "evoscen/fault", "controller": "x", "level": 0},
+         {"name": "evoscen/run_end", "kind": "completed", "message": "run completed: 3 steps"}],
+        [{"name": "evoscen/fault", "controller": "ü" * k, "message": "é" * k, "level": k % 4} for k in range(7)],
+    ]
+    for k, events in enumerate(cases):
+        msg = events_message(events, 12_300_000_000 + k)
+        msg.header.frame_id = frame_id
+        ours = encode_diagnostic_array(msg)
+        assert ours == canon("diagnostic_msgs/msg/DiagnosticArray", serialize_message(msg)), events
+        assert len(deserialize_message(ours, DiagnosticArray).status) == len(events)

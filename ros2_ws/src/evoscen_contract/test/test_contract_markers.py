@@ -65,3 +65,27 @@ def test_vehicle_markers_encoder_equals_canonical_serialization(n):
     canon = CanonicalCdr(["visualization_msgs/msg/MarkerArray"])
     assert ours == canon("visualization_msgs/msg/MarkerArray", serialize_message(vehicle_markers(cols, 3_700_000_000)))
     assert len(deserialize_message(ours, MarkerArray).markers) == 2 * n
+
+
+def test_vehicle_markers_kernel_equals_the_python_path():
+    """The compiled marker layout (``VehicleMarkersEncoder.encode``) gives the bytes of the
+    marker-by-marker Python path (``encode_python``, itself compared with rclpy + canonicalization
+    above): 0, 1 and 21 vehicles; ids up to 6 digits; every alignment the label texts leave; speeds
+    whose km/h round half to even (0.5, 1.5, 2.5 km/h exactly), are negative, negative rounding to
+    zero (-0.1 km/h gives "-0"), -0.0, or not finite (the Python path's text: nan, inf)."""
+    from evoscen_contract.cdr import VehicleMarkersEncoder
+
+    enc = VehicleMarkersEncoder("map")
+    rng = np.random.default_rng(3)
+    special = np.array([0.0, -0.0, 0.5, 1.5, 2.5, -0.1, -0.5, -2.5, 1e6, 99.49, 99.5]) / 3.6
+    for k in range(60):
+        n = (0, 1, 21)[k % 3]
+        speed = rng.choice(special, n) if k % 2 else rng.uniform(-10, 300, n)
+        cols = {"id": rng.integers(0, 10 ** int(rng.integers(1, 7)), n).astype(float),
+                "policy": rng.integers(0, 8, n).astype(float), "x": rng.normal(size=n) * 500,
+                "y": rng.normal(size=n) * 20, "yaw": rng.normal(size=n) * 3, "length": rng.uniform(4, 6, n),
+                "width": rng.uniform(1.7, 2.1, n), "speed": speed}
+        assert enc.encode(cols, 3_700_000_000 + k) == enc.encode_python(cols, 3_700_000_000 + k), (k, cols)
+    cols["speed"] = np.array([np.nan] + [np.inf] * 20)
+    assert enc.encode(cols, 5) == enc.encode_python(cols, 5)
+    assert b"nan km/h" in enc.encode(cols, 5)

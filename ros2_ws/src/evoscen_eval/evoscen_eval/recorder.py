@@ -98,12 +98,21 @@ class CanonicalCdr:
             :func:`evoscen_eval.schemas.message_definition` (the installed ``.msg``).
     """
 
+    _STORES: dict[tuple[str, ...], Any] = {}
+    """Typestores built so far, by type names: parsing the definitions takes ~35 ms, once per process."""
+
     def __init__(self, type_names: Sequence[str]) -> None:
         from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 
-        self._store = get_typestore(Stores.EMPTY)
-        for type_name in dict.fromkeys(type_names):
-            self._store.register(get_types_from_msg(message_definition(type_name), type_name))
+        key = tuple(dict.fromkeys(type_names))
+        store = self._STORES.get(key)
+        if store is None:
+            store = get_typestore(Stores.EMPTY)
+            for type_name in key:
+                store.register(get_types_from_msg(message_definition(type_name), type_name))
+            if len(self._STORES) < 16:
+                self._STORES[key] = store
+        self._store = store
 
     def __call__(self, type_name: str, data: bytes | bytearray | memoryview) -> bytes:
         """Return ``data`` (a CDR message of ``type_name``) with all padding zeroed.
@@ -196,6 +205,134 @@ class _FastMessages:
             self._finalize()
 
 
+class _ChunkMessages:
+    """The open chunk kept by the recorder itself, written with a few Python operations per chunk.
+
+    :class:`_FastMessages` writes each message record into mcap's chunk builder; this class
+    keeps the chunk's records as a list of byte strings (one ``pack`` per message header), their
+    offsets and per-channel index entries, and at :meth:`finalize` writes what the library's
+    ``Writer.__finalize_chunk`` (mcap 1.6, pinned) writes — the chunk record (records joined,
+    compressed with a zstd compressor kept for the run, CRC-32 of the uncompressed records),
+    then one message index record per channel in first-appearance order — and registers the
+    chunk's index and statistics in the writer, which finishes the file (summary) as before.
+    The same bytes in the same places (tests/test_bag_hashes.py, and a test comparing all three
+    write paths). The schema and channel records the library writes into its open chunk at
+    registration are taken over at construction (so construct it after registering channels).
+    A message making the open chunk larger than ``chunk_size`` closes it after that message, as
+    the library does. Used only when the writer is the one this was written
+    against (:meth:`usable`).
+    """
+
+    _HEAD = _FastMessages._HEAD  # noqa: SLF001
+    _INDEX_HEAD = struct.Struct("<BQHI")  # opcode 0x07, record length, channel id, records length
+    _CHUNK_HEAD = struct.Struct("<BQQQQI")  # opcode 0x06, record length, start, end, size, crc
+    _NAMES = {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4", CompressionType.NONE: ""}
+
+    @staticmethod
+    def usable(writer: Writer) -> bool:
+        from mcap.writer import IndexType
+
+        return _FastMessages.usable(writer) \
+            and getattr(writer, "_Writer__enable_crcs", None) is True \
+            and getattr(writer, "_Writer__enable_data_crcs", None) is False \
+            and getattr(writer, "_Writer__compression", None) in _ChunkMessages._NAMES \
+            and isinstance(getattr(writer, "_Writer__chunk_indices", None), list) \
+            and bool(getattr(writer, "_Writer__index_types", 0) & IndexType.MESSAGE) \
+            and writer._Writer__chunk_builder.num_messages == 0  # noqa: SLF001
+
+    def __init__(self, writer: Writer) -> None:
+        import zlib
+
+        self._st = writer._Writer__statistics  # noqa: SLF001 - see the class docstring
+        self._chunk_size: int = writer._Writer__chunk_size  # noqa: SLF001
+        self._chunk_indices: list = writer._Writer__chunk_indices  # noqa: SLF001
+        self._stream = writer._Writer__stream  # noqa: SLF001
+        compression = writer._Writer__compression  # noqa: SLF001
+        self._compression_name = self._NAMES[compression]
+        if compression == CompressionType.ZSTD:
+            import zstandard
+
+            self._compress = zstandard.ZstdCompressor(level=3).compress  # = zstandard.compress(data)
+        elif compression == CompressionType.LZ4:
+            import lz4.frame
+
+            self._compress = lz4.frame.compress
+        else:
+            self._compress = bytes
+        self._crc32 = zlib.crc32
+        self._reset()
+        # the schema and channel records the library put into its (message-less) open chunk
+        # come first in this chunk, as they would in the library's
+        opened = writer._Writer__chunk_builder.record_writer.end()  # noqa: SLF001
+        if opened:
+            self._pieces.append(bytes(opened))
+            self._size = len(opened)
+
+    def _reset(self) -> None:
+        self._pieces: list[bytes] = []
+        self._size = 0  # bytes of the records so far
+        self._indices: dict[int, list[int]] = {}  # channel -> [log time, offset, log time, offset, ...]
+        self._start = 0
+        self._end = 0
+        self._count = 0
+
+    def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
+        st = self._st
+        if st.message_count == 0 or log_time < st.message_start_time:
+            st.message_start_time = log_time
+        if log_time > st.message_end_time:
+            st.message_end_time = log_time
+        st.channel_message_counts[channel_id] += 1
+        st.message_count += 1
+        if self._count == 0 or log_time < self._start:
+            self._start = log_time
+        if log_time > self._end:
+            self._end = log_time
+        index = self._indices.get(channel_id)
+        if index is None:
+            index = self._indices[channel_id] = []
+        index += (log_time, self._size)
+        self._count += 1
+        self._pieces += (self._HEAD.pack(0x05, 22 + len(data), channel_id, sequence, log_time, publish_time), data)
+        self._size += 31 + len(data)
+        if self._size > self._chunk_size:
+            self.finalize()
+
+    def finalize(self) -> None:
+        """Write the open chunk (if it holds a message) and its message indexes to the stream."""
+        if self._count == 0:
+            return
+        from mcap.records import ChunkIndex
+
+        self._st.chunk_count += 1
+        records = b"".join(self._pieces)
+        compressed = self._compress(records)
+        name = self._compression_name.encode()
+        stream = self._stream
+        chunk_start = stream.tell()
+        head = self._CHUNK_HEAD.pack(0x06, 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(compressed), self._start,
+                                     self._end, len(records), self._crc32(records))
+        stream.write(b"".join((head, struct.pack("<I", len(name)), name, struct.pack("<Q", len(compressed)),
+                               compressed)))
+        chunk_length = stream.tell() - chunk_start
+        index_start = stream.tell()
+        offsets = {}
+        parts = []
+        at = 0
+        for channel_id, flat in self._indices.items():
+            offsets[channel_id] = index_start + at
+            n = 8 * len(flat)
+            parts.append(self._INDEX_HEAD.pack(0x07, 6 + n, channel_id, n))
+            parts.append(struct.pack(f"<{len(flat)}Q", *flat))
+            at += 15 + n
+        stream.write(b"".join(parts))
+        self._chunk_indices.append(ChunkIndex(
+            message_start_time=self._start, message_end_time=self._end, chunk_start_offset=chunk_start,
+            chunk_length=chunk_length, message_index_offsets=offsets, message_index_length=at,
+            compression=self._compression_name, compressed_size=len(compressed), uncompressed_size=len(records)))
+        self._reset()
+
+
 class BagRecorder:
     """Write a rosbag2 bag directory (MCAP storage) from serialized CDR messages.
 
@@ -226,6 +363,9 @@ class BagRecorder:
         fast_writes: write messages and message indexes with one ``pack`` each
             (:class:`_FastMessages`; default) instead of the mcap library's own method: the
             same bytes; False for the library's path (``scripts/bench_recording.py`` compares).
+        chunk_writes: with ``fast_writes``, keep the open chunk in the recorder and write it with
+            a few operations per chunk (:class:`_ChunkMessages`; default): the same bytes; False
+            for :class:`_FastMessages` alone (the tests compare the three paths).
 
     Raises:
         InputError: ``bag_dir`` exists and is not an empty directory, or cannot be
@@ -246,6 +386,7 @@ class BagRecorder:
         metadata: Mapping[str, Mapping[str, str]] | None = None,
         file_name: str | None = None,
         fast_writes: bool = True,
+        chunk_writes: bool = True,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
         if compression not in _COMPRESSIONS:
@@ -286,8 +427,6 @@ class BagRecorder:
             compression=_COMPRESSIONS[compression],
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
-        self._add_message = _FastMessages(self._writer).add if fast_writes and _FastMessages.usable(self._writer) \
-            else self._writer.add_message
         schema_ids: dict[str, int] = {}
         self._topics: dict[str, _TopicState] = {}
         for spec in topics:
@@ -307,6 +446,15 @@ class BagRecorder:
                 },
             )
             self._topics[spec.name] = _TopicState(spec=spec, channel_id=channel_id)
+        self._chunk: _ChunkMessages | None = None
+        if fast_writes and chunk_writes and _ChunkMessages.usable(self._writer):
+            # after the channels: the library writes schemas and channels into its open chunk too
+            self._chunk = _ChunkMessages(self._writer)
+            self._add_message = self._chunk.add
+        elif fast_writes and _FastMessages.usable(self._writer):
+            self._add_message = _FastMessages(self._writer).add
+        else:
+            self._add_message = self._writer.add_message
         for name, record in (metadata or {}).items():
             self._writer.add_metadata(name, {str(k): str(v) for k, v in record.items()})
         self._start_ns: int | None = None
@@ -405,7 +553,7 @@ class BagRecorder:
             if self._chunk_start_ns is None:
                 self._chunk_start_ns = log_time
             elif log_time - self._chunk_start_ns >= self._chunk_duration_ns:
-                self._writer.flush()  # close the chunk, write it out and hand it to the OS
+                self._flush_chunk()  # close the chunk, write it out and hand it to the OS
                 self._chunk_start_ns = log_time
         state.message_count += 1
         self._add_message(state.channel_id, log_time, payload, publish_time,
@@ -413,6 +561,37 @@ class BagRecorder:
         self._message_count += 1
         self._start_ns = log_time if self._start_ns is None else min(self._start_ns, log_time)
         self._end_ns = log_time if self._end_ns is None else max(self._end_ns, log_time)
+
+    def write_many(self, messages: Sequence[tuple[int, str, bytes | bytearray | memoryview, bool]]) -> None:
+        """:meth:`write` each ``(log_time_ns, topic, data, canonical)`` in turn (publish time = log
+        time): the same file as that many calls, with the per-call work done once.
+
+        Raises:
+            ValueError: as :meth:`write`; the messages before the offending one are written.
+        """
+        if self._closed:
+            raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
+        topics, add, duration = self._topics, self._add_message, self._chunk_duration_ns
+        for log_time_ns, topic, data, canonical in messages:
+            state = topics.get(topic)
+            log_time = int(log_time_ns)
+            if state is None or log_time < 0 or (self._canonical is not None and not canonical):
+                self.write(topic, data, log_time, canonical=canonical)  # its checks and errors
+                continue
+            payload = bytes(data)
+            if duration:
+                if self._chunk_start_ns is None:
+                    self._chunk_start_ns = log_time
+                elif log_time - self._chunk_start_ns >= duration:
+                    self._flush_chunk()  # close the chunk, write it out and hand it to the OS
+                    self._chunk_start_ns = log_time
+            state.message_count += 1
+            add(state.channel_id, log_time, payload, log_time, state.message_count)
+            self._message_count += 1
+            if self._start_ns is None or log_time < self._start_ns:
+                self._start_ns = log_time
+            if self._end_ns is None or log_time > self._end_ns:
+                self._end_ns = log_time
 
     def write_message(self, topic: str, msg: Any, log_time_ns: int) -> None:
         """Serialize an rclpy message (``serialize_message``) and :meth:`write` it.
@@ -433,8 +612,14 @@ class BagRecorder:
     def flush(self) -> None:
         """Finish the current chunk and flush it to disk (smaller chunks compress worse)."""
         if not self._closed:
-            self._writer.flush()
+            self._flush_chunk()
             self._chunk_start_ns = None
+
+    def _flush_chunk(self) -> None:
+        """Close the open chunk, write it out and flush the stream (the library's ``flush``)."""
+        if self._chunk is not None:
+            self._chunk.finalize()
+        self._writer.flush()
 
     # ------------------------------------------------------------------ closing
 
@@ -501,6 +686,8 @@ class BagRecorder:
                 "rosbag2",
                 {"serialized_metadata": _dump_yaml(meta["rosbag2_bagfile_information"])},
             )
+            if self._chunk is not None:
+                self._chunk.finalize()  # where the library's finish() writes its open chunk
             self._writer.finish()
         finally:
             self._stream.close()
@@ -704,12 +891,18 @@ class OrderedBag:
         if not self._pending:
             self._flushed_before = max(self._flushed_before, time_ns)
             return
-        ready = [m for m in self._pending if m[0] < time_ns]
-        if ready:
+        if all(m[0] < time_ns for m in self._pending):  # the usual case: all of them
+            ready, self._pending = self._pending, []
+        else:
+            ready = [m for m in self._pending if m[0] < time_ns]
             self._pending = [m for m in self._pending if m[0] >= time_ns]
-            for t, _, _, topic, data, canonical in sorted(ready):
-                self.bag.write(topic, data, t, canonical=canonical)
-                if self.on_write is not None:
+        if ready:
+            ready.sort()
+            if self.on_write is None:
+                self.bag.write_many([(t, topic, data, canonical) for t, _, _, topic, data, canonical in ready])
+            else:
+                for t, _, _, topic, data, canonical in ready:
+                    self.bag.write(topic, data, t, canonical=canonical)
                     self.on_write(topic, data)
         self._flushed_before = max(self._flushed_before, time_ns)
 

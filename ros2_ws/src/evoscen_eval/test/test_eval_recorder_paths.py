@@ -1,0 +1,75 @@
+"""The recorder's three write paths give the same bytes (issue 14).
+
+:class:`~evoscen_eval.recorder.BagRecorder` writes messages through the mcap library's
+``Writer.add_message`` (``fast_writes=False``), through :class:`~evoscen_eval.recorder._FastMessages`
+(one ``pack`` per record into the library's chunk builder; ``chunk_writes=False``) or through
+:class:`~evoscen_eval.recorder._ChunkMessages` (the recorder keeps the open chunk and writes chunk
+record and message indexes itself; the default). The same messages — random topics, sizes 0 to
+3,000 bytes, equal and decreasing log times — written every way, with chunks closed by size, by
+the 1-s rule and by explicit flushes, must give byte-identical files for every compression; so
+must an empty bag.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from evoscen_contract.topics import CONTRACT
+from evoscen_eval import recorder as R
+from evoscen_eval.recorder import BagRecorder, open_bag_reader
+
+PATHS = {"library": {"fast_writes": False}, "fast": {"chunk_writes": False}, "chunk": {}}
+
+
+def _plan(seed: int, n: int) -> list[tuple[str, bytes, int]]:
+    rng = np.random.default_rng(seed)
+    topics = [spec.name for spec in CONTRACT]
+    return [(topics[int(rng.integers(0, len(topics)))],
+             bytes(rng.integers(0, 256, int(rng.integers(0, 3000)), dtype=np.uint8)),
+             int(k // 3) * 50_000_000 + int(rng.integers(0, 2)) * 7) for k in range(n)]
+
+
+def _record(path: Path, plan, *, flush_every: int = 0, **kwargs) -> bytes:
+    bag = BagRecorder(path / "bag", CONTRACT, **kwargs)
+    for k, (topic, data, t) in enumerate(plan):
+        bag.write(topic, data, t, canonical=True)
+        if flush_every and k % flush_every == flush_every - 1:
+            bag.flush()
+    bag.close()
+    return (path / "bag" / "bag_0.mcap").read_bytes()
+
+
+@pytest.mark.parametrize("compression", ["none", "zstd", "lz4"])
+@pytest.mark.parametrize("chunk_size", [4096, 1024 * 1024])
+def test_write_paths_give_the_same_bytes(tmp_path: Path, compression: str, chunk_size: int) -> None:
+    plan = _plan(7, 500)
+    files = {name: _record(tmp_path / name, plan, compression=compression, chunk_size=chunk_size, **kw)
+             for name, kw in PATHS.items()}
+    assert files["chunk"] == files["library"]
+    assert files["fast"] == files["library"]
+    # and the bag reads back as written
+    back = [(topic, t, data) for topic, _, t, data in open_bag_reader(tmp_path / "chunk" / "bag")]
+    assert back == [(topic, t, data) for topic, data, t in plan]
+
+
+def test_write_paths_with_flushes_and_no_time_bound(tmp_path: Path) -> None:
+    plan = _plan(8, 300)
+    for kwargs in ({"flush_every": 17}, {"chunk_duration_ns": 0, "chunk_size": 2000}, {"chunk_duration_ns": 0}):
+        files = {name: _record(tmp_path / f"{name}{len(kwargs)}{sorted(kwargs)}", plan, **kwargs, **kw)
+                 for name, kw in PATHS.items()}
+        assert len(set(files.values())) == 1, kwargs
+
+
+def test_empty_bag_is_the_same_every_way(tmp_path: Path) -> None:
+    files = {name: _record(tmp_path / name, [], **kw) for name, kw in PATHS.items()}
+    assert len(set(files.values())) == 1
+
+
+def test_chunk_path_is_used_and_falls_back(tmp_path: Path, monkeypatch) -> None:
+    assert BagRecorder(tmp_path / "a" / "bag", CONTRACT)._chunk is not None
+    assert BagRecorder(tmp_path / "b" / "bag", CONTRACT, chunk_writes=False)._chunk is None
+    monkeypatch.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))  # another mcap
+    assert BagRecorder(tmp_path / "c" / "bag", CONTRACT)._chunk is None
