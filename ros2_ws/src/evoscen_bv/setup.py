@@ -18,8 +18,6 @@ setup(
         ("share/" + package_name + "/policies", sorted(f for f in glob("policies/*") if os.path.isfile(f))),
         # the round-1 set (trained at 40k/20k steps under the safety_net rules), selectable as policy_dir: round1
         ("share/" + package_name + "/policies/round1", sorted(glob("policies/round1/*"))),
-        # round 2's first set (its controller trained with V = 0 without a leader), policy_dir: round2a
-        ("share/" + package_name + "/policies/round2a", sorted(glob("policies/round2a/*"))),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -102,11 +102,13 @@ class CarFollowingParams:
     least this constant deceleration (m/s²) [choice: MOBIL's safe braking b_safe]."""
     emergency_margin_m: float = 2.0
     """Bumper gap the emergency brake keeps to a slower leader (m) [choice]."""
-    no_leader_at_view_edge: bool = True
-    """V(s) without a leader in view: the value at the view's edge, Δs = o_smax (True), or 0
-    (False: the form the round-1 and first round-2 controllers were trained with) [choice:
-    with 0, losing the leader from view paid k·(V(edge) − 0) ≈ +4.9 at once, and the trained
-    controller braked hard for leaders 80–100 m ahead to let them escape; docs/method.md §3.1]."""
+    no_leader_at_view_edge: bool = False
+    """V(s) without a leader in view: 0 (False, the form every shipped controller was trained
+    with) or the value at the view's edge, Δs = o_smax (True). [choice] Both have a measured
+    defect (docs/method.md §3.1): with 0, losing the leader from view pays k·(0 − V(95 m))
+    ≈ +4.9 at once and the shipped controller brakes hard for leaders 80–100 m ahead; with the
+    edge value that incentive is gone, but the controllers trained so fall into a period-2
+    limit cycle (±2.5 m/s² every step) while following."""
 
 
 def leader_state(gap_m: np.ndarray, leader_speed: np.ndarray, leader_accel: np.ndarray,
@@ -134,8 +136,8 @@ def _obs_kernel(gap, v_lead, a_lead, v, a, view, v_max, a_max):  # noqa: ANN001,
 
 
 def gap_value(obs: np.ndarray, params: CarFollowingParams) -> np.ndarray:
-    """V(s) = -(Δs - g)² / V_max² (docs/method.md eq. (2)); without a leader in view, Δs = o_smax
-    (``params.no_leader_at_view_edge``, the default) or V = 0."""
+    """V(s) = -(Δs - g)² / V_max² (docs/method.md eq. (2)); without a leader in view V = 0, or the
+    value at Δs = o_smax with ``params.no_leader_at_view_edge``."""
     obs = np.atleast_2d(obs)
     gap = obs[:, 0] * params.view_m
     v = -((gap - params.target_gap_m) ** 2) / params.value_scale_m**2

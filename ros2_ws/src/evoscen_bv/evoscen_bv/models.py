@@ -21,11 +21,9 @@ from evoscen_sim.scenario_params import vehicle_params_from_config
 from .level0 import Level0Driver, level0_params_from_config
 
 SHIPPED = "shipped"
-SHIPPED_SETS = {SHIPPED: "", "round2a": "round2a", "round1": "round1"}
+SHIPPED_SETS = {SHIPPED: "", "round1": "round1"}
 """``policy_dir`` keywords of the shipped policy sets: ``shipped`` = the current set (trained at
-the method's scale under the ``driver`` profile), ``round2a`` = round 2's first set (the same,
-its controller trained with V = 0 without a leader: it brakes for leaders 80-100 m ahead,
-docs/method.md §3.1), ``round1`` = round 1's set (40k controller /
+the method's scale under the ``driver`` profile), ``round1`` = round 1's set (40k controller /
 20k decision steps, trained under the ``safety_net`` rules), kept selectable."""
 
 

@@ -47,18 +47,20 @@ def test_reward_by_hand():
     assert car_following_reward(s, s2, np.array([True]), P) == pytest.approx([-10.0])
 
 
-def test_value_without_a_leader_is_the_value_at_the_view_edge():
+def test_value_without_a_leader_zero_or_the_view_edge():
     none = np.zeros((1, 4))
     far = leader_state(np.array([95.0]), np.array([25.0]), np.array([0.0]), np.array([25.0]), np.array([0.0]), P)
-    # V(no leader) = -(100 - 25)² / 100² = -0.5625; V(95 m) = -(95 - 25)² / 100² = -0.49
-    assert gap_value(none, P) == pytest.approx([-0.5625])
+    # V(95 m) = -(95 - 25)² / 100² = -0.49
     assert gap_value(far, P) == pytest.approx([-0.49])
-    # the leader leaves the view: r = V(s') + 10 (V(s') - V(s)) = -0.5625 + 10 · (-0.0725) = -1.2875
-    assert car_following_reward(far, none, np.array([False]), P) == pytest.approx([-1.2875])
-    # the earlier form (V = 0 without a leader) paid for losing it: 0 + 10 · 0.49 = +4.9
-    old = dataclasses.replace(P, no_leader_at_view_edge=False)
-    assert gap_value(none, old) == pytest.approx([0.0])
-    assert car_following_reward(far, none, np.array([False]), old) == pytest.approx([4.9])
+    # the default (V = 0 without a leader) pays for losing it: r = 0 + 10 · (0 - (-0.49)) = +4.9
+    assert P.no_leader_at_view_edge is False
+    assert gap_value(none, P) == pytest.approx([0.0])
+    assert car_following_reward(far, none, np.array([False]), P) == pytest.approx([4.9])
+    # at the view's edge: V(no leader) = -(100 - 25)² / 100² = -0.5625, and the leader leaving the view
+    # costs r = -0.5625 + 10 · (-0.5625 + 0.49) = -1.2875
+    edge = dataclasses.replace(P, no_leader_at_view_edge=True)
+    assert gap_value(none, edge) == pytest.approx([-0.5625])
+    assert car_following_reward(far, none, np.array([False]), edge) == pytest.approx([-1.2875])
 
 
 def test_throttle_is_the_minimum_over_leaders_and_the_speed_cap():
