@@ -29,6 +29,11 @@ KEYS = (("bv_lane_changes_per_vehicle_km", "BV lane changes / veh-km", "{:.3f}")
         ("thw_median_s", "THW median (s)", "{:.2f}"),
         ("thw_share_below_1s", "share THW < 1 s", "{:.3f}"),
         ("thw_share_below_0_5s", "share THW < 0.5 s", "{:.3f}"),
+        ("hard_braking_share", "share braking < -3 m/s2 (main line)", "{:.4f}"),
+        ("phantom_braking_share", "  with nobody within 60 m ahead", "{:.4f}"),
+        ("standstill_share_main_line", "share at standstill, main line", "{:.4f}"),
+        ("standstill_share_merge_lane", "share at standstill, merge lane", "{:.4f}"),
+        ("accel_flip_share", "share of accel flips (|a| > 1)", "{:.4f}"),
         ("bv_vehicle_hours", "BV vehicle-hours", "{:.2f}"),
         ("bv_vehicle_km", "BV vehicle-km", "{:.1f}"))
 

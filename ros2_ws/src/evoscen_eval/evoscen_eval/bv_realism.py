@@ -21,6 +21,16 @@ in-process run's ``RunSummary.run``) and reports, over the background vehicles (
   same lane (any role) / own speed, over the states where the BV drives at least
   ``min_speed_mps`` (5 m/s, as :class:`evoscen_eval.behaviour.BehaviourConfig`) and the
   gap is at most ``leader_range_m`` (100 m). HighD's ``thw`` is likewise gap / speed.
+* how the BVs drive (:func:`driving_figures`; docs/learned-bvs.md, "Phantom braking"), over
+  the states k < K-1 of the BVs: ``main_line_states`` (on a lane >= 1, not changing into the
+  merge lane, at least ``min_speed_mps``), ``hard_braking_share`` (of those, accel < -3 m/s²),
+  ``phantom_braking_share`` (of those, accel < -3 m/s² with no vehicle within
+  ``PHANTOM_RANGE_M`` = 60 m ahead, bumper to bumper, in its lane or its target lane, by the
+  ``lane`` and ``target_lane`` columns of both), ``standstill_share_main_line`` and
+  ``standstill_share_merge_lane`` (of all BV states, speed < 2 m/s on a lane >= 1 / on lane 0),
+  ``accel_flip_share`` (of the pairs of consecutive states of a BV, k and k + 1 < K, those
+  where |accel| > 1 m/s² in both and the sign differs: a controller alternating between
+  braking and accelerating every step).
 
 ``scripts/bv_realism.py`` runs a few seeds in process and prints these for each BV profile.
 """
@@ -55,6 +65,52 @@ def time_headways(s: np.ndarray, lane: np.ndarray, speed: np.ndarray, length: np
             if gap <= leader_range_m:
                 out.append(max(gap, 0.0) / speed[k, i])
     return np.asarray(out, dtype=float)
+
+
+PHANTOM_RANGE_M = 60.0
+"""Hard braking with no vehicle within this far ahead (m) counts as phantom braking."""
+HARD_BRAKING_MPS2 = 3.0
+"""Braking harder than this (m/s²) is hard braking."""
+STANDSTILL_MPS = 2.0
+"""Below this speed (m/s) a BV is at standstill."""
+FLIP_ACCEL_MPS2 = 1.0
+"""|accel| above this in two consecutive states of opposite sign is a flip (m/s²)."""
+
+
+def driving_figures(s: np.ndarray, lane: np.ndarray, target_lane: np.ndarray, speed: np.ndarray, accel: np.ndarray,
+                    length: np.ndarray, bv: np.ndarray, min_speed_mps: float = 5.0) -> dict[str, Any]:
+    """The driving figures of the BVs (``bv``: bool ``[V]``) over states ``[K, V]`` (module docstring)."""
+    body = max(s.shape[0] - 1, 0)
+    cols = np.flatnonzero(bv)
+    main = hard = phantom = 0
+    for k in range(body):
+        for i in cols:
+            if lane[k, i] < 1 or target_lane[k, i] < 1 or speed[k, i] < min_speed_mps:
+                continue
+            main += 1
+            if accel[k, i] >= -HARD_BRAKING_MPS2:
+                continue
+            hard += 1
+            mine = (lane[k, i], target_lane[k, i])
+            ahead = (s[k] > s[k, i]) & (np.isin(lane[k], mine) | np.isin(target_lane[k], mine))
+            ahead[i] = False
+            gaps = s[k, ahead] - s[k, i] - 0.5 * (length[k, ahead] + length[k, i])
+            if not (gaps <= PHANTOM_RANGE_M).any():
+                phantom += 1
+    n = body * cols.size
+    v, ln = speed[:body][:, cols], lane[:body][:, cols]
+    a = accel[:, cols]
+    flips = (np.abs(a[1:]) > FLIP_ACCEL_MPS2) & (np.abs(a[:-1]) > FLIP_ACCEL_MPS2) & (np.sign(a[1:]) != np.sign(a[:-1]))
+    return {
+        "bv_states": n,
+        "main_line_states": main,
+        "hard_braking_share": hard / main if main else float("nan"),
+        "phantom_braking_share": phantom / main if main else float("nan"),
+        "standstill_share_main_line": float(np.sum((v < STANDSTILL_MPS) & (ln >= 1))) / n if n else float("nan"),
+        "standstill_share_merge_lane": float(np.sum((v < STANDSTILL_MPS) & (ln == 0))) / n if n else float("nan"),
+        "flip_pairs": int(flips.size),
+        "accel_flip_share": float(flips.mean()) if flips.size else float("nan"),
+    }
 
 
 def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -> dict[str, Any]:  # noqa: ANN001
@@ -102,6 +158,7 @@ def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -
         "thw_share_below_1s": float(np.mean(thw < 1.0)) if thw.size else float("nan"),
         "thw_share_below_0_5s": float(np.mean(thw < 0.5)) if thw.size else float("nan"),
         "by_policy": by_type,
+        **driving_figures(c["s"], c["lane"], c["target_lane"], c["speed"], c["accel"], c["length"], bv, min_speed_mps),
     }
 
 
@@ -143,4 +200,20 @@ def combine(figures: list[dict[str, Any]]) -> dict[str, Any]:
         "thw_share_below_1s": wmean("thw_share_below_1s"),
         "thw_share_below_0_5s": wmean("thw_share_below_0_5s"),
         "by_policy": by_type,
+        **_pool_driving(figures),
     }
+
+
+def _pool_driving(figures: list[dict[str, Any]]) -> dict[str, Any]:
+    """The driving figures of several runs, each share weighted by its denominator."""
+    out: dict[str, Any] = {}
+    for key, weight in (("bv_states", None), ("main_line_states", None), ("flip_pairs", None),
+                        ("hard_braking_share", "main_line_states"), ("phantom_braking_share", "main_line_states"),
+                        ("standstill_share_main_line", "bv_states"), ("standstill_share_merge_lane", "bv_states"),
+                        ("accel_flip_share", "flip_pairs")):
+        if weight is None:
+            out[key] = sum(f[key] for f in figures)
+        else:
+            w = sum(f[weight] for f in figures)
+            out[key] = sum(f[key] * f[weight] for f in figures if f[weight]) / w if w else float("nan")
+    return out

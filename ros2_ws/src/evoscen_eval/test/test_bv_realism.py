@@ -80,3 +80,37 @@ def test_combine_pools_counts_and_recomputes_rates():
     assert c["bv_bv_collisions_per_vehicle_hour"] == pytest.approx(1200.0)
     assert c["bv_lane_changes_per_vehicle_km"] == pytest.approx(1.0 / 0.055)
     assert c["thw_samples"] == 12 and c["thw_share_below_1s"] == pytest.approx(0.5)
+
+
+def test_driving_figures_by_hand():
+    """SUT 10 (lane 2, s 100); BV 11 (lane 2, s 70, 20 m/s) accel -4, 2, -2, 0; BV 12 (lane 1, s 0, 10 m/s, alone
+    in its lane) accel -5, -5, 0, 0; BV 13 on the merge lane (lane 0) at 1 m/s. Four states; the figures use
+    states 0-2 (the last stands for no step) and, for flips, the pairs (0, 1), (1, 2), (2, 3)."""
+    k, v = 4, 4
+    c = {name: np.zeros((k, v)) for name in T.WORLD_FIELDS}
+    c["id"][:] = [10, 11, 12, 13]
+    c["role"][:] = [1, 0, 0, 0]
+    c["s"][:] = [100.0, 70.0, 0.0, 50.0]
+    c["lane"][:] = [2, 2, 1, 0]
+    c["target_lane"][:] = c["lane"]
+    c["speed"][:] = [30.0, 20.0, 10.0, 1.0]
+    c["length"][:] = 5.0
+    c["accel"][:, 1] = [-4.0, 2.0, -2.0, 0.0]
+    c["accel"][:, 2] = [-5.0, -5.0, 0.0, 0.0]
+    run = RunData(time_s=np.arange(k) * 0.1, columns=c, ids=c["id"][0].astype(np.int64), sut_index=0, events=[],
+                  dt_s=0.1)
+    f = bv_realism(run)
+    # main line, >= 5 m/s: BVs 11 and 12 at states 0-2 = 6 states (BV 13 is on the merge lane)
+    assert f["bv_states"] == 9 and f["main_line_states"] == 6
+    # braking < -3: BV 11 at state 0, BV 12 at states 0 and 1
+    assert f["hard_braking_share"] == pytest.approx(3 / 6)
+    # BV 11 has the SUT 25 m ahead (100 - 70 - 5): not phantom; BV 12 has nobody ahead in lane 1: phantom twice
+    assert f["phantom_braking_share"] == pytest.approx(2 / 6)
+    # standstill (< 2 m/s): BV 13 on the merge lane, 3 of the 9 BV states
+    assert f["standstill_share_merge_lane"] == pytest.approx(3 / 9) and f["standstill_share_main_line"] == 0.0
+    # flips: BV 11 -4 -> 2 and 2 -> -2 (|a| > 1 both, signs differ); -2 -> 0 is not; 9 pairs in all
+    assert f["flip_pairs"] == 9 and f["accel_flip_share"] == pytest.approx(2 / 9)
+    # pooled: counts add, shares weighted by their denominators
+    g = combine([f, f])
+    assert g["main_line_states"] == 12 and g["phantom_braking_share"] == pytest.approx(2 / 6)
+    assert g["accel_flip_share"] == pytest.approx(2 / 9)
