@@ -8,6 +8,14 @@ lane within the view ``o_smax``::
 with Δs the bumper-to-bumper gap (m), Δṡ = v_leader - v_i, Δs̈ = a_leader - a_i, λ = 1 when
 such a leader is in view, else 0 and the three differences are 0.
 
+[choice] ``own_accel_in_observation`` (default true: the method's Δs̈). False puts the
+leader's acceleration alone in the third slot, a_leader / a_max. The reason: the BV's own
+acceleration is the one input that answers the policy's command within one step (throttle
+at step k is the acceleration observed at k + 1), so a trained gain above 1 on it closes a
+period-2 loop — the controllers trained with V at the view's edge alternated ±2.5 m/s²
+every step behind a steady leader (docs/learned-bvs.md). Without it the policy's feedback
+runs through the gap and the speed difference only, which integrate its command.
+
 Reward (docs/method.md eqs. (1)-(2))::
 
     r = -C                           on a collision
@@ -109,6 +117,15 @@ class CarFollowingParams:
     ≈ +4.9 at once and the shipped controller brakes hard for leaders 80–100 m ahead; with the
     edge value that incentive is gone, but the controllers trained so fall into a period-2
     limit cycle (±2.5 m/s² every step) while following."""
+    own_accel_in_observation: bool = True
+    """The observation's third slot: (a_leader − a_i) / a_max, the method's Δs̈ (True), or
+    a_leader / a_max (False) [choice, see the module docstring]. A policy runs with the value
+    it was trained with (its directory's training.yaml)."""
+
+    @property
+    def own_accel_weight(self) -> float:
+        """w in the third slot (a_leader − w a_i) / a_max: 1 (the method's Δs̈) or 0."""
+        return 1.0 if self.own_accel_in_observation else 0.0
 
 
 def leader_state(gap_m: np.ndarray, leader_speed: np.ndarray, leader_accel: np.ndarray,
@@ -119,18 +136,18 @@ def leader_state(gap_m: np.ndarray, leader_speed: np.ndarray, leader_accel: np.n
     """
     return _obs_kernel(np.asarray(gap_m, float), np.asarray(leader_speed, float), np.asarray(leader_accel, float),
                        np.asarray(speed, float), np.asarray(accel, float),
-                       params.view_m, params.v_max_mps, params.a_max_mps2)
+                       params.view_m, params.v_max_mps, params.a_max_mps2, params.own_accel_weight)
 
 
 @kernel
-def _obs_kernel(gap, v_lead, a_lead, v, a, view, v_max, a_max):  # noqa: ANN001, ANN202
+def _obs_kernel(gap, v_lead, a_lead, v, a, view, v_max, a_max, own_w):  # noqa: ANN001, ANN202
     m = gap.shape[0]
     obs = np.zeros((m, 4))
     for k in range(m):
         if gap[k] <= view and not np.isnan(v_lead[k]):  # method §3.1: a leader in view
             obs[k, 0] = gap[k] / view
             obs[k, 1] = (v_lead[k] - v[k]) / v_max
-            obs[k, 2] = (a_lead[k] - a[k]) / a_max
+            obs[k, 2] = (a_lead[k] - own_w * a[k]) / a_max  # own_w = 1: the method's Δs̈ (exact: 1.0 * a == a)
             obs[k, 3] = 1.0
     return obs
 
@@ -330,7 +347,7 @@ def compose_throttle(policy_own: np.ndarray, policy_target: np.ndarray, own_obs:
 def throttle_constants(bank, params: CarFollowingParams, road, max_accel: float, max_brake: float) -> tuple:  # noqa: ANN001
     """The run-time throttle's per-driver constants (computed once per driver, see :func:`learned_throttle`)."""
     return (float(road.lane_end_s[0]) - params.merge_stop_margin_m,
-            params.view_m, params.v_max_mps, params.a_max_mps2, params.speed_gain,
+            params.view_m, params.v_max_mps, params.a_max_mps2, params.own_accel_weight, params.speed_gain,
             params.emergency_decel_mps2, params.emergency_margin_m, float(max_accel), float(max_brake),
             bank.W1[0], bank.b1[0], bank.W2[0], bank.b2[0], bank.W3[0], float(bank.b3[0]), float(bank.max_action[0]))
 
@@ -395,20 +412,20 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
 
 @kernel
 def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
-                             d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max,
+                             d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max, own_w,
                              speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action):
     """The ``safety_net`` profile: every leader at once, the emergency brake at once and uncapped."""
     gap_all, vl_all, al_all = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                                               d_right, d_left, present, merge_stop_s)
     em_on = np.ones(idx.shape[0], dtype=np.bool_)
     return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
-                                  v_max, a_max, speed_gain, em_trigger, em_margin, max_accel, max_brake,
+                                  v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
                                   W1, b1, W2, b2, W3, b3, max_action, em_on, 1.0)
 
 
 @kernel
 def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
-                            d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max,
+                            d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max, own_w,
                             speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
                             n_react, seen, em_count, update, cap_frac):
     """The ``driver`` profile (docs/bv-profiles.md): reaction time and bounded braking.
@@ -455,13 +472,13 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
     for k in range(m):
         em_on[k] = em_count[k] >= full
     return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
-                                  v_max, a_max, speed_gain, em_trigger, em_margin, max_accel, max_brake,
+                                  v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
                                   W1, b1, W2, b2, W3, b3, max_action, em_on, cap_frac)
 
 
 @kernel
 def _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired,  # noqa: ANN001, ANN202, PLR0913
-                           view, v_max, a_max, speed_gain, em_trigger, em_margin, max_accel, max_brake,
+                           view, v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
                            W1, b1, W2, b2, W3, b3, max_action, em_on, cap_frac):
     m = idx.shape[0]
     out = np.empty(m)
@@ -485,7 +502,7 @@ def _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change
             if regulate and gap <= view and not np.isnan(vl):  # a leader in view: the controller's command
                 x[0] = gap / view
                 x[1] = (vl - v[i]) / v_max
-                x[2] = (al - a[i]) / a_max
+                x[2] = (al - own_w * a[i]) / a_max  # own_w = 1: the method's Δs̈
                 x[3] = 1.0
                 # max_action · tanh(W3 relu(W2 relu(W1 x + b1) + b2) + b3), inline (as PolicyBank's kernel)
                 for q in range(h):

@@ -25,6 +25,19 @@ the stage's policy is the best of these evaluations (its step is ``selected_step
 model card). TD3 is not monotone: a controller trained 40k steps, exported at the end,
 held a 35.7 m mean gap where the same run at 30k steps held 23 m.
 
+[choice] Settling. The evaluation return is nearly blind to two defects of a controller:
+a period-2 limit cycle (±2.5 m/s² alternating every step moves the gap by ~1 cm, so the
+reward hardly changes) and the gap it settles at (10 m off the target costs 0.01 per step).
+Trained with V at the view's edge, 27 of 35 periodic evaluations of two training seeds
+chattered so, and the settled gaps of one run's checkpoints ranged from 9 to 45 m. With
+``env.control_settling_check`` (default) every controller evaluation also runs
+:func:`settling_check` — four learned followers behind a leader at constant speed — and
+the stage's policy is the best return among the evaluations that pass (no collision, mean
+gap after the approach within g ± 5 m, at most 1 % acceleration flips); when none passes,
+the best return overall, and the model card says so. False: the return alone, as before.
+The check's platoon differs from the one ``test_shipped_policies`` runs (other speeds and
+starting gaps), so that test stays an independent check of the shipped controller.
+
 Seeding: stage ``k`` of seed ``S`` uses ``SeedSequence([S, k])`` for the torch seed, the
 learner's numpy generator (exploration noise, replay sampling) and the episode seeds.
 Resuming: a finished stage (``done.json``) is skipped; an unfinished one restarts from its
@@ -57,6 +70,55 @@ KIND_OF_STAGE = {"level1": "mutual", "level2": "mutual", "competitive": "competi
 FROZEN_OF_STAGE = {"level1": None, "level2": "level1_mutual", "competitive": "mutual", "cooperative": "mutual"}
 EVAL_EPISODES = {"control": 6, "decision": 4}
 """Evaluation episodes (deterministic policy, seeds disjoint from training) after each stage."""
+
+
+SETTLING_STEPS = 700
+"""Steps of the settling check (70 s); the gaps of the last 400 count (after the approach)."""
+SETTLING_FLIP_SHARE = 0.01
+"""At most this share of consecutive follower accelerations flip sign with |a| > 1 m/s² [choice:
+the shipped controller 0.000, the chattering ones 0.1-1.0]."""
+SETTLING_BAND_M = 5.0
+"""The mean settled gap must lie within g ± this (m) [choice: the band test_shipped_policies holds]."""
+
+
+def settling_check(controller, config: TrainingConfig, road) -> dict:  # noqa: ANN001
+    """Four learned followers (``controller``, the config's run-time profile) behind a leader at
+    a constant 22 m/s in lane 3, starting 55, 10, 40 and 25 m apart at 26, 20, 25 and 23 m/s;
+    700 steps. Returns the mean gap (m) and the share of acceleration flips over the last 400
+    steps, the collisions, and ``settled`` (see the module docstring)."""
+    from evoscen_sim.testing import hand_built_world
+
+    from .learned import LearnedDriver
+
+    s = [300.0, 240.0, 225.0, 180.0, 150.0]  # bumper gaps = Δs - 5 m: 55, 10, 40, 25
+    w = hand_built_world(road, s=s, lane=[3] * 5, speed=[22.0, 26.0, 20.0, 25.0, 23.0])
+    followers = LearnedDriver(np.arange(1, 5), controller, {}, config, np.random.default_rng(0), w.vehicle)
+    gaps, accels, collisions = [], [], 0
+    for k in range(SETTLING_STEPS):
+        throttle = np.zeros(5)
+        throttle[1:] = followers.throttle(w)
+        collisions += len(w.step(throttle, np.zeros(5, dtype=np.int64)).collisions)
+        if k >= SETTLING_STEPS - 400:
+            gaps.append(w.neighborhood().gap_front_m[1:, 2].copy())
+            accels.append(w.accel[1:].copy())
+    return settling_figures(np.array(gaps), np.array(accels), collisions, config.car_following.target_gap_m)
+
+
+def settling_figures(gaps: np.ndarray, accels: np.ndarray, collisions: int, target_gap_m: float) -> dict:
+    """The settling check's figures from the followers' gaps and accelerations (steps x followers)."""
+    a0, a1 = accels[:-1], accels[1:]
+    flips = (np.abs(a0) > 1.0) & (np.abs(a1) > 1.0) & (np.sign(a0) != np.sign(a1))
+    mean_gap = float(gaps.mean())
+    flip_share = float(flips.mean())
+    settled = collisions == 0 and abs(mean_gap - target_gap_m) <= SETTLING_BAND_M and flip_share <= SETTLING_FLIP_SHARE
+    return {"settled_gap_m": round(mean_gap, 2), "flip_share": round(flip_share, 4), "settling_collisions": collisions,
+            "settled": bool(settled)}
+
+
+def selection_key(e: dict) -> tuple:
+    """Rank of a periodic evaluation: settled first (evaluations without the check count as
+    settled), then the return, then the later step."""
+    return (e.get("settled", True), e["eval_mean_return"], e["step"])
 
 
 @dataclass
@@ -261,10 +323,13 @@ class Pipeline:
             bar.close()
         evals.append(self._periodic_eval(stage, env, ep_base, agent, t, evals, sdir))
         wall = wall_before + time.perf_counter() - start
-        best = max(evals, key=lambda e: (e["eval_mean_return"], e["step"]))
+        best = max(evals, key=selection_key)
         shutil.copyfile(sdir / "best.npz", self.out / f"{policy}.npz")
         self._write_curve(sdir, stage, rows, evals)
         metrics = {"selected_step": best["step"], **self.evaluate(stage, env, ep_base)}
+        if "settled" in best:
+            metrics.update({k: best[k] for k in ("settled_gap_m", "flip_share", "settled")},
+                           settled_evaluations=f"{sum(e['settled'] for e in evals)} of {len(evals)}")
         steps_arr = np.array([r["step"] for r in rows])
         ret_arr = np.array([r["mean_reward"] for r in rows])
         result = StageResult(stage=stage, policy=policy, steps=t, wall_s=round(wall, 1),
@@ -276,14 +341,18 @@ class Pipeline:
         return result
 
     def _periodic_eval(self, stage: str, env, ep_base: int, agent, t: int, evals: list, sdir: Path) -> dict:  # noqa: ANN001
-        """Evaluate the current actor; keep it as ``best.npz`` when its return beats every earlier one."""
+        """Evaluate the current actor; keep it as ``best.npz`` when it ranks above every earlier
+        one (:func:`selection_key`: with the settling check, settled first, then the return)."""
         from .td3 import NumpyActor, export_actor
 
         export_actor(agent.actor, sdir / "candidate.npz")
-        score = self._eval_actor(stage, env, ep_base, NumpyActor.load(sdir / "candidate.npz"))["eval_mean_return"]
-        if not evals or score >= max(e["eval_mean_return"] for e in evals):
+        actor = NumpyActor.load(sdir / "candidate.npz")
+        e = {"step": t, "eval_mean_return": self._eval_actor(stage, env, ep_base, actor)["eval_mean_return"]}
+        if stage == "control" and self.config.env.control_settling_check:
+            e.update(settling_check(actor, self.config, self.road))
+        if not evals or selection_key(e) >= max(selection_key(x) for x in evals):
             (sdir / "candidate.npz").replace(sdir / "best.npz")
-        return {"step": t, "eval_mean_return": score}
+        return e
 
     def _checkpoint(self, ckpt: Path, agent, rng, t, episode, wall, rows, evals, replay, sdir: Path) -> None:  # noqa: ANN001
         import torch
@@ -360,7 +429,7 @@ class Pipeline:
         ax.plot([e["step"] for e in evals], [e["eval_mean_return"] / self._eval_len(stage) for e in evals], "o-",
                 ms=3, label="evaluation (deterministic)")
         with (sdir / "eval.csv").open("w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=["step", "eval_mean_return"])
+            w = csv.DictWriter(f, fieldnames=list(evals[-1]))
             w.writeheader()
             w.writerows(evals)
         ax.set_xlabel("training step" + (" (simulation steps)" if stage == "control" else " (decisions)"))

@@ -33,6 +33,17 @@ def test_observation_normalised_by_view_speed_and_accel():
     assert obs[2].tolist() == [0.0, 0.0, 0.0, 0.0]  # leader beyond the 100 m view
 
 
+def test_observation_with_the_leaders_acceleration_alone():
+    """own_accel_in_observation false: the third slot is a_leader / a_max, the rest as before."""
+    assert P.own_accel_in_observation is True and P.own_accel_weight == 1.0  # the method's Δs̈ by default
+    lead = dataclasses.replace(P, own_accel_in_observation=False)
+    obs = leader_state(np.array([30.0, 50.0]), np.array([20.0, 25.0]), np.array([1.0, -2.0]),
+                       np.array([25.0, 25.0]), np.array([-1.0, 3.0]), lead)
+    # [Δs / o_smax, (v_l - v) / v_max, a_l / a_max, λ]: 1 / 8 and -2 / 8, the BV's own -1 and 3 m/s² ignored
+    assert obs[0] == pytest.approx([0.3, -5 / 33.33, 0.125, 1.0])
+    assert obs[1] == pytest.approx([0.5, 0.0, -0.25, 1.0])
+
+
 def test_reward_by_hand():
     s = leader_state(np.array([30.0]), np.array([20.0]), np.array([0.0]), np.array([25.0]), np.array([0.0]), P)
     s2 = leader_state(np.array([27.0]), np.array([20.0]), np.array([0.0]), np.array([25.0]), np.array([0.0]), P)
@@ -88,8 +99,10 @@ def test_observations_in_the_world_include_the_merge_lane_end():
     assert np.array_equal(own, target)  # nobody changes lanes
 
 
-def test_fused_run_time_throttle_equals_the_pieces():
-    """The compiled run-time throttle = observations → controller → min with the speed term."""
+@pytest.mark.parametrize("own_accel", [True, False])
+def test_fused_run_time_throttle_equals_the_pieces(own_accel):
+    """The compiled run-time throttle = observations → controller → min with the speed term
+    (with either form of the observation's acceleration slot)."""
     pytest.importorskip("torch")
     from evoscen_bv.car_following import learned_throttle
     from evoscen_bv.learned import PolicyBank
@@ -108,15 +121,18 @@ def test_fused_run_time_throttle_equals_the_pieces():
                          speed=[25, 22, 28, 20, 20, 31])
     w.step(np.zeros(6), np.array([0, 0, 1, 0, 0, 0]))
     assert w.lane_change[2] == 1
+    w.step(np.array([0.4, -0.3, 0.2, -0.5, 0.0, 0.3]), np.zeros(6, dtype=np.int64))
+    assert np.all(w.accel[[0, 1, 2, 3]] != 0.0)  # the acceleration slot differs between the two forms
+    params = dataclasses.replace(P, own_accel_in_observation=own_accel)
     idx = np.array([0, 2, 4, 5])
     desired = np.array([30.0, 29.0, 28.0, 27.0])
-    own, target = controller_observations(w, idx, P)
+    own, target = controller_observations(w, idx, params)
     u = actor.forward(np.vstack([own, target]))[:, 0]
     cap = speed_cap_throttle(w.v[idx], np.minimum(desired, w.speed_limit_mps[idx]), P, 3.0, 8.0)
-    gap, v_lead, a_lead = leaders(w, idx, P)
+    gap, v_lead, a_lead = leaders(w, idx, params)
     cap = np.minimum(cap, emergency_brake_throttle(gap, v_lead, w.v[idx][:, None], P, 8.0, a_lead).min(axis=1))
     expected = compose_throttle(u[:4], u[4:], own, target, cap, changing=w.lane_change[idx] != 0)
-    fused = learned_throttle(w, idx, desired, PolicyBank([actor]), P, 3.0, 8.0)
+    fused = learned_throttle(w, idx, desired, PolicyBank([actor]), params, 3.0, 8.0)
     assert fused == pytest.approx(expected, abs=1e-12)
     assert target[1, 3] == 1.0 and not np.array_equal(own[1], target[1])  # the target lane's leader is seen
     assert fused[2] == -1.0  # 4 is past the merge lane's standing end at 20 m/s: the emergency brake, full

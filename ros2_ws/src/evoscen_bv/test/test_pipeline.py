@@ -53,9 +53,12 @@ def test_smoke_pipeline_all_stages_produces_loadable_policies(tmp_path):
         assert rows[0].startswith("episode,step,return") and len(rows) > 1
         assert (out / stage / "curve.png").stat().st_size > 0
         evals = (out / stage / "eval.csv").read_text().splitlines()
-        assert evals[0] == "step,eval_mean_return" and len(evals) >= 2
+        header = "step,eval_mean_return" + (",settled_gap_m,flip_share,settling_collisions,settled"
+                                            if stage == "control" else "")  # the settling check, controller only
+        assert evals[0] == header and len(evals) >= 2
         assert not (out / stage / "checkpoint.pt").exists()
     assert (out / "control" / "gap_kde.png").stat().st_size > 0
+    assert "settled_evaluations:" in (out / "controller.md").read_text()
     controller, decisions, training = load_policies(out)
     assert controller.state_dim == 4 and sorted(decisions) == [1, 2, 3]
     assert training.td3.hidden == 16
@@ -152,3 +155,32 @@ def test_bad_policy_dir_is_one_line(tmp_path):
     assert isinstance(build_bv_driver(fallback), Level0Driver)
     with pytest.raises(InputError, match=r"models\.learned\.on_missing.*expected one of error, level0"):
         config_from_dict({"models": {"learned": {"on_missing": "ignore"}}})
+
+
+def test_settling_figures_by_hand():
+    """Mean gap over all followers and steps, flips = consecutive |a| > 1 m/s² of opposite sign."""
+    from evoscen_bv.pipeline import settling_figures
+
+    gaps = np.array([[24.0, 26.0], [22.0, 28.0]])  # mean 25
+    # follower 0: +2, -2, +2 (two flips); follower 1: +0.5, -3, -2 (0.5 is below 1 m/s²: none) -> 2 of 4 pairs
+    accels = np.array([[2.0, 0.5], [-2.0, -3.0], [2.0, -2.0]])
+    f = settling_figures(gaps, accels, 0, 25.0)
+    assert f == {"settled_gap_m": 25.0, "flip_share": 0.5, "settling_collisions": 0, "settled": False}
+    calm = np.array([[0.2, 0.1], [-0.3, 0.0], [0.1, 0.4]])
+    assert settling_figures(gaps, calm, 0, 25.0)["settled"] is True
+    assert settling_figures(gaps, calm, 0, 19.9)["settled"] is False  # 25 is 5.1 m off the target: outside g ± 5 m
+    assert settling_figures(gaps, calm, 0, 20.0)["settled"] is True  # exactly 5 m off: inside
+    assert settling_figures(gaps, calm, 1, 25.0)["settled"] is False  # a collision
+
+
+def test_selection_prefers_a_settled_evaluation_over_a_better_return():
+    from evoscen_bv.pipeline import selection_key
+
+    evals = [{"step": 100, "eval_mean_return": -4.0, "settled": False},
+             {"step": 200, "eval_mean_return": -5.0, "settled": True},
+             {"step": 300, "eval_mean_return": -6.0, "settled": True}]
+    assert max(evals, key=selection_key)["step"] == 200
+    # none settled: the best return; evaluations without the check (decision stages) rank by return, then step
+    assert max(evals[:1] + [{"step": 400, "eval_mean_return": -4.5, "settled": False}], key=selection_key)["step"] == 100
+    assert max([{"step": 1, "eval_mean_return": -1.0}, {"step": 2, "eval_mean_return": -1.0}],
+               key=selection_key)["step"] == 2
