@@ -53,11 +53,11 @@ class EnvParams:
     eval_every_steps: int = 5000
     """Evaluate the deterministic policy every this many training steps; the best evaluation
     is the stage's policy (see :mod:`evoscen_bv.pipeline`)."""
-    control_settling_check: bool = True
+    control_settling_check: bool = False
     """Select the controller only among evaluations that settle behind a steady leader
     (:func:`evoscen_bv.pipeline.settling_check`: no collision, mean gap within g ± 5 m,
-    acceleration flips ≤ 1 %); false: by evaluation return alone, as before [choice, see
-    :mod:`evoscen_bv.pipeline`]."""
+    acceleration flips ≤ 1 %); false (the default of a YAML without the key, as every earlier
+    training ran): by evaluation return alone [choice, see :mod:`evoscen_bv.pipeline`]."""
     profile: str = "driver"
     """The BV run-time rule profile of the decision environments' drivers (``driver`` or
     ``safety_net``, :mod:`evoscen_bv.profile`, docs/bv-profiles.md); the copy of this file

@@ -19,7 +19,8 @@ from evoscen_bv.td3 import NumpyActor  # noqa: E402
 REPO = Path(__file__).resolve().parents[4] if (Path(__file__).resolve().parents[4] / "scripts").is_dir() else None
 SMOKE = """
 td3: {hidden: 16, batch_size: 32, start_steps: 100}
-env: {control_episode_steps: 100, decision_episode_decisions: 20, bv_count: 8, eval_every_steps: 100}
+env: {control_episode_steps: 100, decision_episode_decisions: 20, bv_count: 8, eval_every_steps: 100,
+      control_settling_check: true}
 steps: {control: 300, level1: 150, level2: 150, competitive: 150, cooperative: 150}
 """
 
