@@ -81,7 +81,7 @@ class _Recorder:
         self.bag.flush_before(t_ns)
         if roster:
             self.bag.add(T.ROSTER.name, m.roster(cols, t_ns), t_ns, canonical=True)
-            self.bag.add(T.MAP_MARKERS.name, m.map_markers(self.road, t_ns), t_ns)
+            self.bag.add(T.MAP_MARKERS.name, m.map_markers(self.road, t_ns), t_ns, canonical=True)
         self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
 
     def state(self, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001

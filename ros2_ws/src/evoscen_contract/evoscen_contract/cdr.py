@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .contract import CELL_BYTES, EVENT_RUN_END, FLOAT64, stamp_parts
+from .contract import CELL_BYTES, EVENT_RUN_END, FLOAT64, MAP_FRAME, stamp_parts
 
 _ENCAPSULATION_CDR_LE = b"\x00\x01\x00\x00"
 
@@ -453,6 +453,58 @@ class VehicleMarkersEncoder:
             self._marker(out, "label", stamp, vid, (xi, yi, VEHICLE_HEIGHT_M + 1.0, 0.0, 0.0, 0.0, 1.0),
                          (0.0, 0.0, 1.2), (1.0, 1.0, 1.0, 1.0), f"{vid}  {float(speed[i]) * 3.6:.0f} km/h")
         return pad4(bytes(out))
+
+
+def encode_road_markers(road, stamp_ns: int = 0) -> bytes:  # noqa: ANN001 - an evoscen_sim Road
+    """Canonical CDR of ``/evoscen/map_markers`` (:func:`evoscen_contract.markers.road_markers`).
+
+    The same bytes as building the rclpy message, serializing it and canonicalizing it
+    (:class:`evoscen_eval.recorder.CanonicalCdr`; a test), without either: the ``LINE_LIST``
+    points go in as one numpy block per marking. The rclpy path took ~70 ms per run (the
+    recorder's re-encoding of some 10,000 points object by object), ~23 µs per step of a
+    3,000-step recorded run.
+    """
+    sec, nanosec = stamp_parts(stamp_ns)
+    lines = road.lane_markings()
+    w = _PayloadWriter()
+    w.pack("I", len(lines))
+    for k, line in enumerate(lines):
+        w.pack("iI", sec, nanosec)  # header.stamp
+        w.string(MAP_FRAME)
+        w.string(line.kind)  # ns
+        w.pack("i", k)  # id
+        w.pack("i", 5)  # type LINE_LIST
+        w.pack("i", 0)  # action ADD
+        w.pack("7d", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)  # pose: identity
+        w.pack("3d", float(line.width_m), 0.0, 0.0)  # scale
+        w.pack("4f", *((1.0, 1.0, 1.0) if line.color != "yellow" else (1.0, 0.85, 0.0)), 1.0)  # colour
+        w.pack("iI", 0, 0)  # lifetime
+        w.pack("?", False)  # frame_locked
+        xs = np.asarray(line.x_m, dtype=np.float64)
+        ys = np.asarray(line.y_m, dtype=np.float64)
+        j = np.arange(max(len(xs) - 1, 0))  # the segments j -> j + 1 drawn: all, or every third if broken
+        if line.type == "broken":
+            j = j[j % 3 == 0]
+        points = np.zeros((2 * len(j), 3))  # (x, y, 0) of each segment's two ends
+        points[0::2, 0], points[0::2, 1] = xs[j], ys[j]
+        points[1::2, 0], points[1::2, 1] = xs[j + 1], ys[j + 1]
+        w.pack("I", len(points))
+        if len(points):
+            w._align(8)
+            w.buf += points.tobytes()
+        w.pack("I", 0)  # colors[]
+        w.string("")  # texture_resource
+        w.pack("iI", 0, 0)  # texture.header.stamp
+        w.string("")  # texture.header.frame_id
+        w.string("")  # texture.format
+        w.pack("I", 0)  # texture.data[]
+        w.pack("I", 0)  # uv_coordinates[]
+        w.string("")  # text
+        w.string("")  # mesh_resource
+        w.string("")  # mesh_file.filename
+        w.pack("I", 0)  # mesh_file.data[]
+        w.pack("?", False)  # mesh_use_embedded_materials
+    return pad4(_ENCAPSULATION_CDR_LE + bytes(w.buf))
 
 
 def events_count(data: bytes) -> int:

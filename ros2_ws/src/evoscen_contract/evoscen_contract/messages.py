@@ -1,10 +1,8 @@
 """The simulation's per-step messages as CDR bytes, built the same way in every runner.
 
 The in-process runner records these bytes; the simulation node publishes them
-(``publisher.publish(bytes)``). Tables, ``/clock``, the SUT's odometry, the vehicle markers
-and the events are canonical CDR from :mod:`evoscen_contract.cdr`; the (once-published) map
-markers are serialized by rclpy and canonicalized by the recorder, whichever runner they came
-from.
+(``publisher.publish(bytes)``). Tables, ``/clock``, the SUT's odometry, the vehicle markers,
+the events and the (once-published) map markers are canonical CDR from :mod:`evoscen_contract.cdr`.
 """
 
 from __future__ import annotations
@@ -15,7 +13,7 @@ import numpy as np
 
 from . import topics as T
 from .cdr import (EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, encode_clock,
-                  encode_diagnostic_array)
+                  encode_diagnostic_array, encode_road_markers)
 
 
 def _rows(columns: list) -> np.ndarray:
@@ -68,12 +66,8 @@ class WorldMessages:
 
     @staticmethod
     def map_markers(road, t_ns: int) -> bytes:  # noqa: ANN001
-        """``/evoscen/map_markers`` of ``road``."""
-        from rclpy.serialization import serialize_message
-
-        from .markers import road_markers
-
-        return serialize_message(road_markers(road, t_ns))
+        """``/evoscen/map_markers`` of ``road`` (canonical CDR, :func:`~evoscen_contract.cdr.encode_road_markers`)."""
+        return encode_road_markers(road, t_ns)
 
     def events(self, events: Sequence[Mapping], t_ns: int) -> bytes:
         """``/evoscen/events`` (canonical CDR; a step without events from a template)."""

@@ -50,6 +50,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO
 
+import re
 import struct
 
 import yaml
@@ -680,19 +681,16 @@ class BagRecorder:
         if self._closed:
             return
         self._closed = True
-        meta = self.metadata()
+        info_text, meta_text = _dump_metadata_yaml(self.metadata()["rosbag2_bagfile_information"])
         try:
-            self._writer.add_metadata(
-                "rosbag2",
-                {"serialized_metadata": _dump_yaml(meta["rosbag2_bagfile_information"])},
-            )
+            self._writer.add_metadata("rosbag2", {"serialized_metadata": info_text})
             if self._chunk is not None:
                 self._chunk.finalize()  # where the library's finish() writes its open chunk
             self._writer.finish()
         finally:
             self._stream.close()
         try:
-            self.metadata_path.write_text(_dump_yaml(meta), encoding="utf-8")
+            self.metadata_path.write_text(meta_text, encoding="utf-8")
         except OSError as exc:
             raise InputError(
                 f"bag directory {str(self.bag_dir)!r}: cannot write metadata.yaml: "
@@ -716,6 +714,40 @@ class BagRecorder:
 def _dump_yaml(data: Any) -> str:
     """Dump YAML deterministically (insertion key order, block style)."""
     return yaml.safe_dump(data, sort_keys=False, default_flow_style=False)
+
+
+_PLAIN = re.compile(r"[A-Za-z0-9_./-]{0,100}")
+_METADATA_KEY = "rosbag2_bagfile_information"
+
+
+def _plain_strings(data: Any) -> bool:
+    """Whether every string in ``data`` (keys and values) is at most 100 characters of
+    ``[A-Za-z0-9_./-]``: no space, quote, colon, newline or non-ASCII character, nothing the
+    YAML emitters could quote, escape or wrap differently."""
+    if isinstance(data, str):
+        return _PLAIN.fullmatch(data) is not None
+    if isinstance(data, dict):
+        return all(_plain_strings(k) and _plain_strings(v) for k, v in data.items())
+    if isinstance(data, list):
+        return all(_plain_strings(v) for v in data)
+    return isinstance(data, (int, float, bool)) or data is None
+
+
+def _dump_metadata_yaml(info: dict[str, Any]) -> tuple[str, str]:
+    """``(_dump_yaml(info), _dump_yaml({"rosbag2_bagfile_information": info}))``: the rosbag2 metadata
+    record's text and ``metadata.yaml``'s.
+
+    With only plain strings in ``info`` (:func:`_plain_strings`; always so for evoscen's topics and
+    a bag directory named with letters, digits, ``_ . -``) one dump by libyaml's emitter (~1 ms
+    instead of two of ~5 ms by the Python emitter) gives both: the nested document is the same
+    lines indented by two spaces (block style; a sequence in a mapping is not indented, and no
+    plain string can wrap). Otherwise the two dumps as before. A test compares the texts.
+    """
+    dumper = getattr(yaml, "CSafeDumper", None)
+    if dumper is None or not _plain_strings(info):
+        return _dump_yaml(info), _dump_yaml({_METADATA_KEY: info})
+    text = yaml.dump(info, Dumper=dumper, sort_keys=False, default_flow_style=False)
+    return text, f"{_METADATA_KEY}:\n" + "".join("  " + line for line in text.splitlines(True))
 
 
 # ---------------------------------------------------------------------- reading

@@ -73,3 +73,33 @@ def test_chunk_path_is_used_and_falls_back(tmp_path: Path, monkeypatch) -> None:
     assert BagRecorder(tmp_path / "b" / "bag", CONTRACT, chunk_writes=False)._chunk is None
     monkeypatch.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))  # another mcap
     assert BagRecorder(tmp_path / "c" / "bag", CONTRACT)._chunk is None
+
+
+def test_metadata_yaml_from_one_dump_equals_the_two_dumps(tmp_path: Path) -> None:
+    """``_dump_metadata_yaml`` (one libyaml dump, the nested document indented) gives the texts of
+    the two Python-emitter dumps: for a recorded bag's metadata, an empty bag's, and made-up ones
+    whose strings look like other YAML types or are empty, long or odd (those fall back)."""
+    import copy
+
+    import yaml
+
+    bag = BagRecorder(tmp_path / "b" / "bag", CONTRACT)
+    for topic, data, t in _plan(3, 50):
+        bag.write(topic, data, t, canonical=True)
+    bag.close()
+    empty = BagRecorder(tmp_path / "e" / "bag", CONTRACT)
+    empty.close()
+    infos = [bag.metadata()["rosbag2_bagfile_information"], empty.metadata()["rosbag2_bagfile_information"]]
+    odd = ["true", "1.5", "", "null", "~", "-", "0x10", "1e3", "yes", "on", "a.b/c-d_e", "007", "x" * 100,
+           "x" * 101, "has space", "colon:", "quote'", "ümlaut", "new\nline", "#hash", "[flow]", "- item"]
+    for value in odd:
+        info = copy.deepcopy(infos[0])
+        info["files"][0]["path"] = value
+        info["topics_with_message_count"][1]["topic_metadata"]["name"] = value
+        info["custom_data"] = {value: value} if value else {}
+        infos.append(info)
+    assert any(R._plain_strings(i) for i in infos[2:]) and not all(R._plain_strings(i) for i in infos[2:])
+    for info in infos:
+        expected = (yaml.safe_dump(info, sort_keys=False, default_flow_style=False),
+                    yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False, default_flow_style=False))
+        assert R._dump_metadata_yaml(info) == expected, info
