@@ -16,12 +16,6 @@ from .cdr import (EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMark
                   encode_diagnostic_array, encode_road_markers)
 
 
-def _rows(columns: list) -> np.ndarray:
-    """Rows × columns float64 table of equal-length 1-D ``columns`` (``np.column_stack``'s result,
-    in half its time: one array of the columns, transposed into row order)."""
-    return np.ascontiguousarray(np.array(columns, dtype=np.float64).T)
-
-
 class WorldMessages:
     """Encoders for the world-side topics of the contract (one instance per run)."""
 
@@ -42,11 +36,11 @@ class WorldMessages:
 
     def world(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
         """``/evoscen/world`` from the world's columns."""
-        return self._world.encode(_rows([columns[f] for f in T.WORLD_FIELDS]), t_ns)
+        return self._world.encode_columns([columns[f] for f in T.WORLD_FIELDS], t_ns)
 
     def roster(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
         """``/evoscen/roster`` from the world's columns."""
-        return self._roster.encode(_rows([columns[f] for f in T.ROSTER_FIELDS]), t_ns)
+        return self._roster.encode_columns([columns[f] for f in T.ROSTER_FIELDS], t_ns)
 
     def odometry(self, columns: Mapping[str, np.ndarray], sut_index: int, t_ns: int) -> bytes:
         """``/evoscen/sut/odom``; the yaw rate is the yaw change since the previous call / dt."""
@@ -58,7 +52,7 @@ class WorldMessages:
 
     def commands(self, ids: np.ndarray, throttle: np.ndarray, lane_change: np.ndarray, t_ns: int) -> bytes:
         """A command table (``/evoscen/commands/bv`` or ``/sut``) answering the world at ``t_ns``."""
-        return self._commands.encode(_rows([ids, throttle, lane_change]), t_ns)
+        return self._commands.encode_columns((ids, throttle, lane_change), t_ns)
 
     def vehicle_markers(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
         """``/evoscen/markers`` (canonical CDR)."""

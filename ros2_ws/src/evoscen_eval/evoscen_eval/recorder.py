@@ -50,6 +50,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, BinaryIO
 
+import bisect
 import re
 import struct
 
@@ -572,6 +573,9 @@ class BagRecorder:
         """
         if self._closed:
             raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
+        if self._chunk is not None:
+            self._write_queued([(t, 0, 0, topic, data, canonical) for t, topic, data, canonical in messages])
+            return
         topics, add, duration = self._topics, self._add_message, self._chunk_duration_ns
         for log_time_ns, topic, data, canonical in messages:
             state = topics.get(topic)
@@ -588,6 +592,63 @@ class BagRecorder:
                     self._chunk_start_ns = log_time
             state.message_count += 1
             add(state.channel_id, log_time, payload, log_time, state.message_count)
+            self._message_count += 1
+            if self._start_ns is None or log_time < self._start_ns:
+                self._start_ns = log_time
+            if self._end_ns is None or log_time > self._end_ns:
+                self._end_ns = log_time
+
+    def _write_queued(self, messages: Sequence[tuple[int, int, int, str, Any, bool]]) -> None:
+        """:meth:`write_many` of ``(log_time_ns, _, _, topic, data, canonical)`` (:class:`OrderedBag`'s
+        queue entries) on the :class:`_ChunkMessages` path, in one loop: the bookkeeping of
+        :meth:`write` and of :meth:`_ChunkMessages.add` for each message, written out here (a
+        message that is not canonical ``bytes`` of a declared topic at an ``int`` time >= 0 goes
+        through :meth:`write`, its checks and errors). The same file as :meth:`write` per message
+        (tests compare)."""
+        if self._closed:
+            raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
+        chunk = self._chunk
+        st = chunk._st  # noqa: SLF001 - the writer's statistics, see _ChunkMessages
+        counts = st.channel_message_counts
+        topics, duration, limit = self._topics, self._chunk_duration_ns, chunk._chunk_size  # noqa: SLF001
+        head = _ChunkMessages._HEAD.pack  # noqa: SLF001
+        raw_ok = self._canonical is None
+        for log_time, _, _, topic, data, canonical in messages:
+            state = topics.get(topic)
+            if state is None or type(log_time) is not int or log_time < 0 or type(data) is not bytes \
+                    or not (canonical or raw_ok):
+                self.write(topic, data, log_time, canonical=canonical)
+                continue
+            if duration:
+                if self._chunk_start_ns is None:
+                    self._chunk_start_ns = log_time
+                elif log_time - self._chunk_start_ns >= duration:
+                    self._flush_chunk()  # close the chunk, write it out and hand it to the OS
+                    self._chunk_start_ns = log_time
+            state.message_count = seq = state.message_count + 1
+            channel_id = state.channel_id
+            # _ChunkMessages.add
+            if st.message_count == 0 or log_time < st.message_start_time:
+                st.message_start_time = log_time
+            if log_time > st.message_end_time:
+                st.message_end_time = log_time
+            counts[channel_id] += 1
+            st.message_count += 1
+            if chunk._count == 0 or log_time < chunk._start:  # noqa: SLF001
+                chunk._start = log_time  # noqa: SLF001
+            if log_time > chunk._end:  # noqa: SLF001
+                chunk._end = log_time  # noqa: SLF001
+            index = chunk._indices.get(channel_id)  # noqa: SLF001
+            if index is None:
+                index = chunk._indices[channel_id] = []  # noqa: SLF001
+            size = chunk._size  # noqa: SLF001
+            index += (log_time, size)
+            chunk._count += 1  # noqa: SLF001
+            chunk._pieces += (head(0x05, 22 + len(data), channel_id, seq, log_time, log_time), data)  # noqa: SLF001
+            chunk._size = size = size + 31 + len(data)  # noqa: SLF001
+            if size > limit:
+                chunk.finalize()
+            # write's own counts
             self._message_count += 1
             if self._start_ns is None or log_time < self._start_ns:
                 self._start_ns = log_time
@@ -923,15 +984,19 @@ class OrderedBag:
         if not self._pending:
             self._flushed_before = max(self._flushed_before, time_ns)
             return
-        if all(m[0] < time_ns for m in self._pending):  # the usual case: all of them
-            ready, self._pending = self._pending, []
+        pending = self._pending
+        pending.sort()  # (time, rank, arrival): unique keys
+        if pending[-1][0] < time_ns:  # the usual case: all of them
+            ready, self._pending = pending, []
         else:
-            ready = [m for m in self._pending if m[0] < time_ns]
-            self._pending = [m for m in self._pending if m[0] >= time_ns]
+            k = bisect.bisect_left(pending, (time_ns,))  # the first at time_ns or later
+            ready, self._pending = pending[:k], pending[k:]
         if ready:
-            ready.sort()
             if self.on_write is None:
-                self.bag.write_many([(t, topic, data, canonical) for t, _, _, topic, data, canonical in ready])
+                if self.bag._chunk is not None:  # noqa: SLF001 - the recorder's own queue format
+                    self.bag._write_queued(ready)  # noqa: SLF001
+                else:
+                    self.bag.write_many([(t, topic, data, canonical) for t, _, _, topic, data, canonical in ready])
             else:
                 for t, _, _, topic, data, canonical in ready:
                     self.bag.write(topic, data, t, canonical=canonical)

@@ -103,3 +103,54 @@ def test_metadata_yaml_from_one_dump_equals_the_two_dumps(tmp_path: Path) -> Non
         expected = (yaml.safe_dump(info, sort_keys=False, default_flow_style=False),
                     yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False, default_flow_style=False))
         assert R._dump_metadata_yaml(info) == expected, info
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"chunk_size": 4096}, {"chunk_duration_ns": 0, "chunk_size": 2000},
+                                    {"compression": "none"}, {"chunk_writes": False}, {"fast_writes": False}])
+def test_batched_writes_equal_one_write_per_message(tmp_path: Path, kwargs) -> None:
+    """``write_many`` and :class:`~evoscen_eval.recorder.OrderedBag` (on the chunk path: one loop,
+    ``BagRecorder._write_queued``) give the file of one :meth:`write` per message in the same order:
+    batches of 1 to 40 messages, chunks closed by size and by the 1-s rule inside a batch, data
+    given as ``bytes``, ``bytearray`` or ``memoryview``, times as ``int`` or numpy integers."""
+    from evoscen_eval.recorder import OrderedBag
+
+    plan = _plan(9, 600)
+    rng = np.random.default_rng(4)
+    kinds = rng.integers(0, 3, len(plan))
+    as_given = [(topic, (bytes, bytearray, memoryview)[int(k)](data), np.int64(t) if k == 1 else t)
+                for (topic, data, t), k in zip(plan, kinds)]
+    one = _record(tmp_path / "one", plan, **kwargs)
+    bag = BagRecorder(tmp_path / "many" / "bag", CONTRACT, **kwargs)
+    k = 0
+    while k < len(as_given):
+        n = int(rng.integers(1, 41))
+        bag.write_many([(t, topic, data, True) for topic, data, t in as_given[k:k + n]])
+        k += n
+    bag.close()
+    assert (tmp_path / "many" / "bag" / "bag_0.mcap").read_bytes() == one
+    # OrderedBag sorts by (time, topic rank, arrival): give it the plan in that order already, per time
+    rank = {spec.name: r for r, spec in enumerate(CONTRACT)}
+    ordered_plan = sorted(plan, key=lambda m: m[2])  # stable: arrival order within a time
+    ordered_plan = sorted(ordered_plan, key=lambda m: (m[2], rank[m[0]]))
+    expected = _record(tmp_path / "sorted", ordered_plan, **kwargs)
+    ob = OrderedBag(BagRecorder(tmp_path / "ordered" / "bag", CONTRACT, **kwargs), CONTRACT)
+    for j, (topic, data, t) in enumerate(plan):
+        if j % 7 == 0:
+            ob.flush_before(t - 7)  # the queue's earlier times go out (no later message is earlier)
+        ob.add(topic, data, t, canonical=True)
+    ob.close()
+    assert ob.late_messages == 0
+    assert (tmp_path / "ordered" / "bag" / "bag_0.mcap").read_bytes() == expected
+
+
+def test_batched_writes_check_as_write_does(tmp_path: Path) -> None:
+    """A bad message in a batch raises what :meth:`write` raises, after the ones before it."""
+    bag = BagRecorder(tmp_path / "b" / "bag", CONTRACT)
+    with pytest.raises(ValueError, match="not declared"):
+        bag.write_many([(5, "/clock", b"\x00\x01\x00\x00" + bytes(8), True), (6, "/nope", b"", True)])
+    with pytest.raises(ValueError, match=">= 0"):
+        bag.write_many([(-1, "/clock", b"", True)])
+    assert bag.message_count == 1
+    bag.close()
+    with pytest.raises(ValueError, match="after close"):
+        bag.write_many([(7, "/clock", b"", True)])
