@@ -382,6 +382,7 @@ class VehicleMarkersEncoder:
         self._patched: dict[tuple, tuple[bytes, int, int]] = {}
         self._layout: tuple | None = None  # the compiled kernel's templates, made on first use
         self._colors: dict[float, bytes] = {}
+        self._rows_cache: dict[tuple[str, bytes], np.ndarray] = {}
         """(kind, alignment, id, scale, colour) -> the prefix with those patched, and where stamp and pose go."""
 
     def _marker(self, out: bytearray, kind: str, stamp: bytes, vid: int, pose: tuple, scale: tuple,
@@ -416,23 +417,39 @@ class VehicleMarkersEncoder:
         kernel = _markers_kernel_or_none()
         if kernel is None:
             return self.encode_python(columns, stamp_ns)
-        from .markers import VEHICLE_HEIGHT_M, policy_color
+        from .markers import VEHICLE_HEIGHT_M
 
         if self._layout is None:
             self._layout = self._kernel_layout()
-        pre, at, tails, tail_len = self._layout
-        f64 = np.float64
-        ids, x, y, yaw = (np.asarray(columns[k], dtype=f64) for k in ("id", "x", "y", "yaw"))
-        length, width, speed = (np.asarray(columns[k], dtype=f64) for k in ("length", "width", "speed"))
+        pre, at, tails, tail_len, per_vehicle = self._layout
+        f64, asarray = np.float64, np.asarray
+        ids, x, y = asarray(columns["id"], dtype=f64), asarray(columns["x"], dtype=f64), asarray(columns["y"], dtype=f64)
+        yaw, length = asarray(columns["yaw"], dtype=f64), asarray(columns["length"], dtype=f64)
+        width, speed = asarray(columns["width"], dtype=f64), asarray(columns["speed"], dtype=f64)
         n = len(ids)
         kmh = speed * 3.6
-        if n and not (np.all(np.abs(kmh) < 1e15) and np.all(np.abs(ids) < 2**31 - 1)):
-            return self.encode_python(columns, stamp_ns)  # text the kernel does not format (nan, inf, huge)
-        colors = b"".join([self._color_bytes(code, policy_color) for code in np.asarray(columns["policy"]).tolist()])
-        out = np.zeros(8 + n * 2 * (pre.shape[1] + 16 + tail_len.max() + 48), np.uint8)
+        out = np.zeros(8 + n * per_vehicle, np.uint8)
         end = kernel(out, np.frombuffer(_stamp_bytes(stamp_ns), np.uint8), ids, x, y, yaw, length, width, kmh,
-                     np.frombuffer(colors, np.uint8).reshape(n, 16), VEHICLE_HEIGHT_M, pre, at, tails, tail_len)
+                     self._color_rows(columns["policy"], n), VEHICLE_HEIGHT_M, pre, at, tails, tail_len)
+        if end < 0:  # text the kernel does not format (nan, inf, huge): the kernel checked first
+            return self.encode_python(columns, stamp_ns)
         return pad4(out[:end].tobytes())
+
+    def _color_rows(self, policy, n: int) -> np.ndarray:  # noqa: ANN001
+        """The box colours (n × 16 bytes, four float32) of the policy codes ``policy``, remembered per
+        column (the policies of a run's vehicles seldom change)."""
+        from .markers import policy_color
+
+        policy = np.asarray(policy)
+        key = (policy.dtype.str, policy.tobytes())
+        rows = self._rows_cache.get(key)
+        if rows is None:
+            colors = b"".join([self._color_bytes(code, policy_color) for code in policy.tolist()])
+            rows = np.frombuffer(colors, np.uint8).reshape(n, 16)
+            if len(self._rows_cache) >= 64:
+                self._rows_cache.clear()
+            self._rows_cache[key] = rows
+        return rows
 
     def _color_bytes(self, code: float, policy_color) -> bytes:  # noqa: ANN001
         cached = self._colors.get(code)
@@ -440,9 +457,10 @@ class VehicleMarkersEncoder:
             cached = self._colors[code] = struct.pack("<4f", *policy_color(code), 1.0)
         return cached
 
-    def _kernel_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _kernel_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
         """The four marker prefixes (box, label × start 0 or 4 mod 8) as rows of one array, the label's
-        constant scale and colour patched in; where stamp, id, pose, scale, colour go; the tails."""
+        constant scale and colour patched in; where stamp, id, pose, scale, colour go; the tails; the
+        most bytes one vehicle's two markers take."""
         prefixes, offsets = [], []
         for kind in ("box", "label"):
             for a in (0, 4):
@@ -461,7 +479,8 @@ class VehicleMarkersEncoder:
         for a, t in self._tails.items():
             tails[a, :len(t)] = np.frombuffer(t, np.uint8)
             tail_len[a] = len(t)
-        return pre, np.array(offsets, dtype=np.int64), tails, tail_len
+        per_vehicle = 2 * (pre.shape[1] + 16 + int(tail_len.max()) + 48)  # bytes a vehicle's markers take at most
+        return pre, np.array(offsets, dtype=np.int64), tails, tail_len, per_vehicle
 
     def encode_python(self, columns, stamp_ns: int) -> bytes:  # noqa: ANN001
         """:meth:`encode` marker by marker in Python (the earlier path; the same bytes)."""
@@ -576,7 +595,9 @@ def _markers_kernel_or_none():  # noqa: ANN202
 
 def _markers_kernel(out, stamp, ids, x, y, yaw, length, width, kmh, colors, height,  # noqa: ANN001, ANN201
                     pre, at, tails, tail_len):
-    """Write the ``MarkerArray`` of :meth:`VehicleMarkersEncoder.encode` into the zeroed ``out``; its length.
+    """Write the ``MarkerArray`` of :meth:`VehicleMarkersEncoder.encode` into the zeroed ``out``; its
+    length, or -1 (nothing written) if a label's numbers are not all finite and small enough for the
+    kernel's formatting (|km/h| < 1e15, |id| < 2**31 - 1; the Python path writes those).
 
     Per vehicle a box then a label marker: 4-aligned (payload offsets), the prefix for the
     marker's start mod 8 (row ``2 * kind + start % 8 // 4`` of ``pre``; ``at`` holds its length
@@ -585,6 +606,9 @@ def _markers_kernel(out, stamp, ids, x, y, yaw, length, width, kmh, colors, heig
     of a negative value rounding to 0) as a CDR string, then the tail for the alignment reached.
     """
     n = ids.shape[0]
+    for i in range(n):
+        if not (abs(kmh[i]) < 1e15 and abs(ids[i]) < 2147483647.0):  # NaN fails too
+            return -1
     out[1] = 1  # little-endian CDR
     count = 2 * n
     for b in range(4):

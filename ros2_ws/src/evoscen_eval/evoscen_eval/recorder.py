@@ -609,51 +609,86 @@ class BagRecorder:
             raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
         chunk = self._chunk
         st = chunk._st  # noqa: SLF001 - the writer's statistics, see _ChunkMessages
-        counts = st.channel_message_counts
+        counts, indices = st.channel_message_counts, chunk._indices  # noqa: SLF001
         topics, duration, limit = self._topics, self._chunk_duration_ns, chunk._chunk_size  # noqa: SLF001
         head = _ChunkMessages._HEAD.pack  # noqa: SLF001
         raw_ok = self._canonical is None
-        for log_time, _, _, topic, data, canonical in messages:
+        # the open chunk's and the bag's running figures as locals, put back (``sync``) before anything
+        # that reads them: closing a chunk, write(), the end; times as min / max, which order leaves alone
+        pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
+        chunk_start = self._chunk_start_ns
+        n = 0  # messages since the last sync
+        lo = hi = 0
+        k, total = 0, len(messages)
+        while k < total:
+            log_time, _, _, topic, data, canonical = messages[k]
+            k += 1
             state = topics.get(topic)
-            if state is None or type(log_time) is not int or log_time < 0 or type(data) is not bytes \
-                    or not (canonical or raw_ok):
-                self.write(topic, data, log_time, canonical=canonical)
-                continue
-            if duration:
-                if self._chunk_start_ns is None:
-                    self._chunk_start_ns = log_time
-                elif log_time - self._chunk_start_ns >= duration:
+            slow = state is None or type(log_time) is not int or log_time < 0 or type(data) is not bytes \
+                or not (canonical or raw_ok)
+            new_chunk = not slow and duration and chunk_start is not None and log_time - chunk_start >= duration
+            if slow or new_chunk:
+                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                self._chunk_start_ns = chunk_start
+                self._sync(st, n, lo, hi)
+                n = 0
+                if slow:
+                    self.write(topic, data, log_time, canonical=canonical)
+                else:
                     self._flush_chunk()  # close the chunk, write it out and hand it to the OS
                     self._chunk_start_ns = log_time
+                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
+                indices, chunk_start = chunk._indices, self._chunk_start_ns  # noqa: SLF001
+                if slow:
+                    continue
+            elif duration and chunk_start is None:
+                chunk_start = log_time
             state.message_count = seq = state.message_count + 1
             channel_id = state.channel_id
-            # _ChunkMessages.add
-            if st.message_count == 0 or log_time < st.message_start_time:
-                st.message_start_time = log_time
-            if log_time > st.message_end_time:
-                st.message_end_time = log_time
+            if n == 0:
+                lo = hi = log_time
+            elif log_time < lo:
+                lo = log_time
+            elif log_time > hi:
+                hi = log_time
+            n += 1
             counts[channel_id] += 1
-            st.message_count += 1
-            if chunk._count == 0 or log_time < chunk._start:  # noqa: SLF001
-                chunk._start = log_time  # noqa: SLF001
-            if log_time > chunk._end:  # noqa: SLF001
-                chunk._end = log_time  # noqa: SLF001
-            index = chunk._indices.get(channel_id)  # noqa: SLF001
+            if count == 0 or log_time < c_start:
+                c_start = log_time
+            if log_time > c_end:
+                c_end = log_time
+            index = indices.get(channel_id)
             if index is None:
-                index = chunk._indices[channel_id] = []  # noqa: SLF001
-            size = chunk._size  # noqa: SLF001
+                index = indices[channel_id] = []
             index += (log_time, size)
-            chunk._count += 1  # noqa: SLF001
-            chunk._pieces += (head(0x05, 22 + len(data), channel_id, seq, log_time, log_time), data)  # noqa: SLF001
-            chunk._size = size = size + 31 + len(data)  # noqa: SLF001
+            count += 1
+            pieces += (head(0x05, 22 + len(data), channel_id, seq, log_time, log_time), data)
+            size += 31 + len(data)
             if size > limit:
+                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                self._sync(st, n, lo, hi)
+                n = 0
                 chunk.finalize()
-            # write's own counts
-            self._message_count += 1
-            if self._start_ns is None or log_time < self._start_ns:
-                self._start_ns = log_time
-            if self._end_ns is None or log_time > self._end_ns:
-                self._end_ns = log_time
+                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
+                indices = chunk._indices  # noqa: SLF001
+        chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+        self._chunk_start_ns = chunk_start
+        self._sync(st, n, lo, hi)
+
+    def _sync(self, st, n: int, lo: int, hi: int) -> None:  # noqa: ANN001 - mcap's Statistics
+        """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
+        the bag's own (what :meth:`_ChunkMessages.add` and :meth:`write` count one at a time)."""
+        if n:
+            if st.message_count == 0 or lo < st.message_start_time:
+                st.message_start_time = lo
+            if hi > st.message_end_time:
+                st.message_end_time = hi
+            st.message_count += n
+            self._message_count += n
+            if self._start_ns is None or lo < self._start_ns:
+                self._start_ns = lo
+            if self._end_ns is None or hi > self._end_ns:
+                self._end_ns = hi
 
     def write_message(self, topic: str, msg: Any, log_time_ns: int) -> None:
         """Serialize an rclpy message (``serialize_message``) and :meth:`write` it.
