@@ -38,7 +38,9 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
     with monkeypatch.context() as m:
         m.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))
         m.setattr(VehicleMarkersEncoder, "encode", VehicleMarkersEncoder.encode_python)
-        m.setattr(M, "encode_diagnostic_array", serialize_message)  # rclpy's bytes: the recorder canonicalizes
+        # events and map markers as rclpy's bytes: the recorder canonicalizes them
+        m.setattr(M.WorldMessages, "events", lambda self, events, t_ns: self._no_events.encode(t_ns) if not events
+                  else serialize_message(T.events_message(events, t_ns)))
         m.setattr(M, "encode_road_markers", lambda road, t_ns: serialize_message(road_markers(road, t_ns)))
         rclpy_topics = (T.EVENTS.name, T.MAP_MARKERS.name)
         m.setattr(R.BagRecorder, "write_many",

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .contract import CELL_BYTES, EVENT_RUN_END, FLOAT64, MAP_FRAME, stamp_parts
+from .contract import CELL_BYTES, EVENT_HARDWARE_ID, EVENT_RUN_END, FLOAT64, MAP_FRAME, stamp_parts
 
 _ENCAPSULATION_CDR_LE = b"\x00\x01\x00\x00"
 
@@ -299,6 +299,29 @@ def encode_diagnostic_array(msg) -> bytes:  # noqa: ANN001 - a DiagnosticArray (
         for kv in status.values:
             w.string(kv.key)
             w.string(kv.value)
+    return pad4(_ENCAPSULATION_CDR_LE + bytes(w.buf))
+
+
+def encode_event_statuses(statuses: Sequence[tuple[int, str, str, Sequence[tuple[str, str]]]], stamp_ns: int,
+                          frame_id: str = MAP_FRAME, hardware_id: str = EVENT_HARDWARE_ID) -> bytes:
+    """Canonical CDR of the ``DiagnosticArray`` with these statuses (``(level, name, message,
+    [(key, value), ...])``, :func:`evoscen_contract.topics.event_statuses`): the bytes of
+    :func:`encode_diagnostic_array` of the rclpy message :func:`~evoscen_contract.topics.events_message`
+    builds from the same events (a test), without building it (~50 µs for a few events)."""
+    sec, nanosec = stamp_parts(stamp_ns)
+    w = _PayloadWriter()
+    w.pack("iI", sec, nanosec)
+    w.string(frame_id)
+    w.pack("I", len(statuses))
+    for level, name, message, values in statuses:
+        w.buf += bytes((level,))
+        w.string(name)
+        w.string(message)
+        w.string(hardware_id)
+        w.pack("I", len(values))
+        for key, value in values:
+            w.string(key)
+            w.string(value)
     return pad4(_ENCAPSULATION_CDR_LE + bytes(w.buf))
 
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from . import topics as T
 from .cdr import (EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, encode_clock,
-                  encode_diagnostic_array, encode_road_markers)
+                  encode_event_statuses, encode_road_markers)
 
 
 class WorldMessages:
@@ -67,4 +67,4 @@ class WorldMessages:
         """``/evoscen/events`` (canonical CDR; a step without events from a template)."""
         if not events:
             return self._no_events.encode(t_ns)
-        return encode_diagnostic_array(T.events_message(events, t_ns))
+        return encode_event_statuses(T.event_statuses(events), t_ns)

@@ -144,8 +144,8 @@ def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
     serialization."""
     from diagnostic_msgs.msg import DiagnosticArray
 
-    from evoscen_contract.cdr import encode_diagnostic_array
-    from evoscen_contract.topics import events_message
+    from evoscen_contract.cdr import encode_diagnostic_array, encode_event_statuses
+    from evoscen_contract.topics import event_statuses, events_message
 
     canon = CanonicalCdr(["diagnostic_msgs/msg/DiagnosticArray"])
     cases = [
@@ -154,6 +154,8 @@ def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
         [{"name": "evoscen/fault", "controller": "x", "level": 0},
          {"name": "evoscen/run_end", "kind": "completed", "message": "run completed: 3 steps"}],
         [{"name": "evoscen/fault", "controller": "ü" * k, "message": "é" * k, "level": k % 4} for k in range(7)],
+        [{"name": "evoscen/lane_change", "kind": "completed", "id": 3, "from_lane": 1, "to_lane": 2},
+         {"name": "evoscen/exposure", "kind": "start", "ids": (4, 5), "level": 1, "note": 2.5}],
     ]
     for k, events in enumerate(cases):
         msg = events_message(events, 12_300_000_000 + k)
@@ -161,3 +163,5 @@ def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
         ours = encode_diagnostic_array(msg)
         assert ours == canon("diagnostic_msgs/msg/DiagnosticArray", serialize_message(msg)), events
         assert len(deserialize_message(ours, DiagnosticArray).status) == len(events)
+        # straight from the events, without the rclpy message: the same bytes
+        assert encode_event_statuses(event_statuses(events), 12_300_000_000 + k, frame_id) == ours, events
