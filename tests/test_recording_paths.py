@@ -2,8 +2,9 @@
 
 The run (300 steps of the default scenario: world, commands, clock, odometry, events with and
 without statuses, vehicle markers every 5th step, roster and map markers once) is recorded
-three times: as shipped (``_ChunkMessages``, the compiled marker kernel, events encoded
-directly); with the earlier write path (``_FastMessages``, markers marker by marker in Python,
+three times: as shipped (each step's messages handed to ``BagRecorder.write_parts`` in canonical
+order, ``_ChunkMessages``, the compiled marker kernel, events encoded directly); with the earlier
+write path (every message through ``OrderedBag``, ``_FastMessages``, markers marker by marker in Python,
 events and map markers serialized by rclpy and canonicalized by the recorder); and through the
 mcap library's own ``add_message``. The three ``.mcap`` files must be equal byte for byte.
 """
@@ -20,6 +21,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch) -> None:
     from rclpy.serialization import serialize_message
 
+    from evoscen_bringup import inprocess as IP
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract import messages as M
     from evoscen_contract import topics as T
@@ -36,6 +38,7 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
 
     new = record("new")
     with monkeypatch.context() as m:
+        m.setattr(IP._Recorder, "direct", False)  # every message through OrderedBag
         m.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))
         m.setattr(VehicleMarkersEncoder, "encode", VehicleMarkersEncoder.encode_python)
         # events and map markers as rclpy's bytes: the recorder canonicalizes them

@@ -106,26 +106,32 @@ class TableEncoder:
         w.pack("I", 0)  # len(data), patched
         self._template = bytes(w.buf)
         self._head = len(_ENCAPSULATION_CDR_LE)
-        self._heads: dict[int, bytes] = {}  # rows -> the template after the stamp, sizes patched
+        self._heads: dict[int, tuple[bytes, bytes]] = {}  # rows -> template after the stamp (sizes patched), tail
 
     def encode_columns(self, columns: Sequence[np.ndarray], stamp_ns: int) -> bytes:
         """:meth:`encode` of the table whose columns are ``columns`` (equal-length 1-D arrays, one per
         field): the same bytes, without making the rows × columns array first (the columns go to
         float64 in one ``np.array`` and out in row order by ``tobytes`` of its transpose)."""
+        return b"".join(self.parts_columns(columns, stamp_ns))
+
+    def parts_columns(self, columns: Sequence[np.ndarray], stamp_ns: int) -> tuple[bytes, ...]:
+        """:meth:`encode_columns`'s bytes in pieces (their join), for a writer that joins anyway."""
         table = np.array(columns, dtype=np.float64)
         if table.ndim != 2 or table.shape[0] != len(self.fields):
             raise ValueError(f"TableEncoder: expected {len(self.fields)} columns, got shape {table.shape}")
         rows = table.shape[1]
-        head = self._heads.get(rows)
-        if head is None:
+        cached = self._heads.get(rows)
+        if cached is None:
             patched = bytearray(self._template)
             struct.pack_into("<I", patched, self._width_at, rows)
             struct.pack_into("<I", patched, self._row_step_at, rows * self.point_step)
             struct.pack_into("<I", patched, self._data_len_at, rows * self.point_step)
             head = bytes(patched[8:])
+            size = len(_ENCAPSULATION_CDR_LE) + 8 + len(head) + rows * self.point_step + 1
+            cached = (head, b"\x01" + b"\x00" * (-size % 4))  # is_dense = True, then pad4's zeros
             if len(self._heads) < 64:
-                self._heads[rows] = head
-        return pad4(b"".join((_ENCAPSULATION_CDR_LE, _stamp_bytes(stamp_ns), head, table.T.tobytes(), b"\x01")))
+                self._heads[rows] = cached
+        return _ENCAPSULATION_CDR_LE, _stamp_bytes(stamp_ns), cached[0], table.T.tobytes(), cached[1]
 
     def encode(self, data: np.ndarray, stamp_ns: int) -> bytes:
         """CDR bytes of the table ``data`` (rows × len(fields), converted to float64)."""
@@ -147,6 +153,11 @@ def encode_clock(stamp_ns: int) -> bytes:
     return pad4(_ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns))
 
 
+def clock_parts(stamp_ns: int) -> tuple[bytes, bytes]:
+    """:func:`encode_clock`'s bytes in pieces (their join: 12 bytes, no padding)."""
+    return _ENCAPSULATION_CDR_LE, _stamp_bytes(stamp_ns)
+
+
 class OdometryEncoder:
     """Canonical CDR of the SUT's ``nav_msgs/Odometry`` (as :func:`evoscen_contract.topics.odometry_message`)."""
 
@@ -158,6 +169,9 @@ class OdometryEncoder:
         w._align(8)  # the pose's doubles start 8-aligned; everything after is doubles
         self._template = bytes(w.buf)
         self._zeros36 = bytes(8 * 36)  # a zero covariance
+        self._rest = self._template[8:]
+        size = len(_ENCAPSULATION_CDR_LE) + len(self._template) + 8 * (7 + 36 + 6 + 36)
+        self._zeros36_pad = self._zeros36 + b"\x00" * (-size % 4)  # the last covariance, then pad4's zeros
 
     def encode(self, x: float, y: float, yaw: float, speed: float, yaw_rate: float, stamp_ns: int) -> bytes:
         """CDR bytes of the odometry at ``stamp_ns`` (pose in frame_id, twist in child_frame_id)."""
@@ -167,6 +181,14 @@ class OdometryEncoder:
         pose = struct.pack("<7d", float(x), float(y), 0.0, 0.0, 0.0, math.sin(half), math.cos(half))
         twist = struct.pack("<6d", float(speed), 0.0, 0.0, 0.0, 0.0, float(yaw_rate))
         return pad4(b"".join((_ENCAPSULATION_CDR_LE, head, pose, self._zeros36, twist, self._zeros36)))
+
+    def parts(self, x: float, y: float, yaw: float, speed: float, yaw_rate: float, stamp_ns: int) -> tuple[bytes, ...]:
+        """:meth:`encode`'s bytes in pieces (their join), for a writer that joins anyway."""
+        half = 0.5 * float(yaw)
+        pose = struct.pack("<7d", float(x), float(y), 0.0, 0.0, 0.0, math.sin(half), math.cos(half))
+        twist = struct.pack("<6d", float(speed), 0.0, 0.0, 0.0, 0.0, float(yaw_rate))
+        return (_ENCAPSULATION_CDR_LE, _stamp_bytes(stamp_ns), self._rest, pose, self._zeros36, twist,
+                self._zeros36_pad)
 
 
 class TableDecodeError(ValueError):

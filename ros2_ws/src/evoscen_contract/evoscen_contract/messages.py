@@ -7,13 +7,14 @@ the events and the (once-published) map markers are canonical CDR from :mod:`evo
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from . import topics as T
-from .cdr import (EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, encode_clock,
-                  encode_event_statuses, encode_road_markers)
+from .cdr import (EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, clock_parts,
+                  encode_clock, encode_event_statuses, encode_road_markers)
 
 
 class WorldMessages:
@@ -28,6 +29,7 @@ class WorldMessages:
         self._no_events = EmptyEventsEncoder(T.MAP_FRAME)
         self._markers = VehicleMarkersEncoder(T.MAP_FRAME)
         self._prev_yaw: float | None = None
+        self._world_columns = operator.itemgetter(*T.WORLD_FIELDS)  # the world table's columns, in order
 
     @staticmethod
     def clock(t_ns: int) -> bytes:
@@ -36,7 +38,11 @@ class WorldMessages:
 
     def world(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
         """``/evoscen/world`` from the world's columns."""
-        return self._world.encode_columns([columns[f] for f in T.WORLD_FIELDS], t_ns)
+        return self._world.encode_columns(self._world_columns(columns), t_ns)
+
+    def world_parts(self, columns: Mapping[str, np.ndarray], t_ns: int) -> tuple[bytes, ...]:
+        """:meth:`world`'s bytes in pieces (their join)."""
+        return self._world.parts_columns(self._world_columns(columns), t_ns)
 
     def roster(self, columns: Mapping[str, np.ndarray], t_ns: int) -> bytes:
         """``/evoscen/roster`` from the world's columns."""
@@ -49,6 +55,24 @@ class WorldMessages:
         self._prev_yaw = yaw
         return self._odometry.encode(columns["x"][sut_index], columns["y"][sut_index], yaw,
                                      columns["speed"][sut_index], yaw_rate, t_ns)
+
+    def odometry_parts(self, columns: Mapping[str, np.ndarray], sut_index: int, t_ns: int) -> tuple[bytes, ...]:
+        """:meth:`odometry`'s bytes in pieces (their join); the same yaw-rate bookkeeping."""
+        yaw = float(columns["yaw"][sut_index])
+        yaw_rate = 0.0 if self._prev_yaw is None else (yaw - self._prev_yaw) / self.dt_s
+        self._prev_yaw = yaw
+        return self._odometry.parts(columns["x"][sut_index], columns["y"][sut_index], yaw,
+                                    columns["speed"][sut_index], yaw_rate, t_ns)
+
+    def commands_parts(self, ids: np.ndarray, throttle: np.ndarray, lane_change: np.ndarray,
+                       t_ns: int) -> tuple[bytes, ...]:
+        """:meth:`commands`'s bytes in pieces (their join)."""
+        return self._commands.parts_columns((ids, throttle, lane_change), t_ns)
+
+    @staticmethod
+    def clock_parts(t_ns: int) -> tuple[bytes, ...]:
+        """:meth:`clock`'s bytes in pieces (their join)."""
+        return clock_parts(t_ns)
 
     def commands(self, ids: np.ndarray, throttle: np.ndarray, lane_change: np.ndarray, t_ns: int) -> bytes:
         """A command table (``/evoscen/commands/bv`` or ``/sut``) answering the world at ``t_ns``."""

@@ -165,3 +165,23 @@ def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
         assert len(deserialize_message(ours, DiagnosticArray).status) == len(events)
         # straight from the events, without the rclpy message: the same bytes
         assert encode_event_statuses(event_statuses(events), 12_300_000_000 + k, frame_id) == ours, events
+
+
+def test_message_pieces_join_to_the_messages():
+    """The pieces the in-process recorder hands to ``BagRecorder.write_parts`` join to the messages'
+    bytes: world, commands, odometry (with its yaw-rate bookkeeping) and clock, several steps."""
+    from evoscen_contract.messages import WorldMessages
+
+    rng = np.random.default_rng(2)
+    a, b = WorldMessages(0.1), WorldMessages(0.1)
+    for k in range(5):
+        n = (1, 21, 21, 3, 0)[k]
+        cols = {f: rng.normal(size=n) * 100 if f not in ("id", "lane") else rng.integers(0, 9, n)
+                for f in WORLD_FIELDS}
+        t = 100_000_000 * k + 7
+        assert b"".join(a.world_parts(cols, t)) == b.world(cols, t)
+        assert b"".join(a.commands_parts(cols["id"], cols["x"], cols["lane"], t)) == \
+            b.commands(cols["id"], cols["x"], cols["lane"], t)
+        if n:
+            assert b"".join(a.odometry_parts(cols, n - 1, t)) == b.odometry(cols, n - 1, t)
+        assert b"".join(a.clock_parts(t)) == b.clock(t)

@@ -675,6 +675,61 @@ class BagRecorder:
         self._chunk_start_ns = chunk_start
         self._sync(st, n, lo, hi)
 
+    def write_parts(self, log_time_ns: int, messages: Sequence[tuple[str, Sequence[bytes]]]) -> None:
+        """Write canonical messages all at ``log_time_ns`` (publish time = log time), in the order
+        given, each as the pieces of its bytes: the file of ``write_many([(log_time_ns, topic,
+        b"".join(parts), True), ...])`` (tests compare), the pieces going into the open chunk as
+        they are and the 1-s rule and the checks done once (the in-process runner's steps).
+
+        Raises:
+            ValueError: as :meth:`write_many`.
+        """
+        chunk = self._chunk
+        topics = self._topics
+        if chunk is None or self._closed or type(log_time_ns) is not int or log_time_ns < 0 \
+                or not all(topic in topics for topic, _ in messages):
+            self.write_many([(log_time_ns, topic, b"".join(parts), True) for topic, parts in messages])
+            return
+        t = log_time_ns
+        duration = self._chunk_duration_ns
+        if duration:
+            if self._chunk_start_ns is None:
+                self._chunk_start_ns = t
+            elif t - self._chunk_start_ns >= duration:
+                self._flush_chunk()  # close the chunk, write it out and hand it to the OS
+                self._chunk_start_ns = t
+        st = chunk._st  # noqa: SLF001 - the writer's statistics, see _ChunkMessages
+        counts, head, limit = st.channel_message_counts, _ChunkMessages._HEAD.pack, chunk._chunk_size  # noqa: SLF001
+        pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count  # noqa: SLF001
+        n = 0
+        for topic, parts in messages:
+            if count == 0 or t < chunk._start:  # noqa: SLF001
+                chunk._start = t  # noqa: SLF001
+            if t > chunk._end:  # noqa: SLF001
+                chunk._end = t  # noqa: SLF001
+            state = topics[topic]
+            state.message_count = seq = state.message_count + 1
+            channel_id = state.channel_id
+            length = sum(map(len, parts))
+            counts[channel_id] += 1
+            index = indices.get(channel_id)
+            if index is None:
+                index = indices[channel_id] = []
+            index += (t, size)
+            count += 1
+            n += 1
+            pieces.append(head(0x05, 22 + length, channel_id, seq, t, t))
+            pieces += parts
+            size += 31 + length
+            if size > limit:
+                chunk._size, chunk._count = size, count  # noqa: SLF001
+                self._sync(st, n, t, t)
+                n = 0
+                chunk.finalize()
+                pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count  # noqa: SLF001
+        chunk._size, chunk._count = size, count  # noqa: SLF001
+        self._sync(st, n, t, t)
+
     def _sync(self, st, n: int, lo: int, hi: int) -> None:  # noqa: ANN001 - mcap's Statistics
         """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
         the bag's own (what :meth:`_ChunkMessages.add` and :meth:`write` count one at a time)."""

@@ -154,3 +154,41 @@ def test_batched_writes_check_as_write_does(tmp_path: Path) -> None:
     bag.close()
     with pytest.raises(ValueError, match="after close"):
         bag.write_many([(7, "/clock", b"", True)])
+
+
+@pytest.mark.parametrize("kwargs", [{}, {"chunk_size": 4096}, {"chunk_duration_ns": 0, "chunk_size": 2000},
+                                    {"compression": "lz4"}, {"chunk_writes": False}, {"fast_writes": False}])
+def test_write_parts_equals_write_many(tmp_path: Path, kwargs) -> None:
+    """``write_parts`` (one time, messages as pieces of their bytes) gives the file of ``write_many``
+    of the joined messages: steps of 1 to 12 messages cut into 1 to 5 pieces (empty ones too),
+    chunks closed by size inside a step and by the 1-s rule between steps, an unknown topic (the
+    checked path) and an empty step."""
+    plan = _plan(12, 700)
+    rng = np.random.default_rng(6)
+    steps, k = [], 0
+    while k < len(plan):
+        n = int(rng.integers(1, 13))
+        t = 10_000 + 97_000_000 * len(steps)
+        steps.append((t, [(topic, data) for topic, data, _ in plan[k:k + n]]))
+        k += n
+    steps.insert(3, (steps[2][0], []))
+
+    def pieces(data: bytes) -> tuple[bytes, ...]:
+        cuts = sorted(int(c) for c in rng.integers(0, len(data) + 1, int(rng.integers(0, 5))))
+        return tuple(data[a:b] for a, b in zip([0, *cuts], [*cuts, len(data)]))
+
+    many = BagRecorder(tmp_path / "many" / "bag", CONTRACT, **kwargs)
+    parts = BagRecorder(tmp_path / "parts" / "bag", CONTRACT, **kwargs)
+    for t, messages in steps:
+        many.write_many([(t, topic, data, True) for topic, data in messages])
+        parts.write_parts(t, [(topic, pieces(data)) for topic, data in messages])
+    many.close()
+    parts.close()
+    assert (tmp_path / "parts" / "bag" / "bag_0.mcap").read_bytes() == \
+        (tmp_path / "many" / "bag" / "bag_0.mcap").read_bytes()
+    assert parts.topic_message_counts() == many.topic_message_counts()
+    bag = BagRecorder(tmp_path / "bad" / "bag", CONTRACT, **kwargs)
+    with pytest.raises(ValueError, match="not declared"):
+        bag.write_parts(5, [("/clock", (b"\x00\x01\x00\x00", bytes(8))), ("/nope", (b"",))])
+    assert bag.message_count == 1
+    bag.close()
