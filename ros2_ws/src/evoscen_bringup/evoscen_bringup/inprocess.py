@@ -7,11 +7,12 @@ the last step the final state and a ``run_end`` event); this runner's port asks 
 drivers and the SUT for the commands directly (think ROS 2 composition) and records every
 message.
 
-With recording on, every message goes through :class:`evoscen_eval.recorder.OrderedBag`
-and :class:`~evoscen_eval.recorder.BagRecorder` — what the evaluator node uses — with the
-bytes of :class:`evoscen_contract.messages.WorldMessages` — what the simulation node
-publishes — and log time = simulation time, so the bag is byte-identical for the same
-config and seed, and equal to the node graph's.
+With recording on, every message goes to :class:`~evoscen_eval.recorder.BagRecorder` — what the
+evaluator node uses — in the canonical order :class:`evoscen_eval.recorder.OrderedBag` gives
+(a step at a time, :class:`_Recorder`), with the bytes of
+:class:`evoscen_contract.messages.WorldMessages` — what the simulation node publishes — and log
+time = simulation time, so the bag is byte-identical for the same config and seed, and equal
+to the node graph's.
 """
 
 from __future__ import annotations
