@@ -68,7 +68,7 @@ _LAST_STAMP: tuple = (None, b"")
 def _stamp_bytes(stamp_ns: int) -> bytes:
     global _LAST_STAMP
     last = _LAST_STAMP  # one read: safe with threads
-    if last[0] == stamp_ns and type(stamp_ns) is int:
+    if type(stamp_ns) is int and last[0] == stamp_ns:
         return last[1]
     packed = struct.pack("<iI", *stamp_parts(stamp_ns))
     _LAST_STAMP = (stamp_ns, packed) if type(stamp_ns) is int else (None, b"")
