@@ -2,10 +2,11 @@
 
 The run (300 steps of the default scenario: world, commands, clock, odometry, events with and
 without statuses, vehicle markers every 5th step, roster and map markers once) is recorded
-three times: as shipped (``_ChunkMessages``, the compiled marker kernel, events encoded
-directly); with the earlier write path (``_FastMessages``, markers marker by marker in Python,
-events serialized by rclpy and canonicalized by the recorder); and through the mcap library's
-own ``add_message``. The three ``.mcap`` files must be equal byte for byte.
+three times: as shipped (each step's messages handed to ``BagRecorder.write_parts`` in canonical
+order, ``_ChunkMessages``, the compiled marker kernel, events encoded directly); with the earlier
+write path (every message through ``OrderedBag``, ``_FastMessages``, markers marker by marker in Python,
+events and map markers serialized by rclpy and canonicalized by the recorder); and through the
+mcap library's own ``add_message``. The three ``.mcap`` files must be equal byte for byte.
 """
 
 from __future__ import annotations
@@ -20,10 +21,12 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch) -> None:
     from rclpy.serialization import serialize_message
 
+    from evoscen_bringup import inprocess as IP
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract import messages as M
     from evoscen_contract import topics as T
     from evoscen_contract.cdr import VehicleMarkersEncoder
+    from evoscen_contract.markers import road_markers
     from evoscen_eval import recorder as R
     from evoscen_sim.config import load_scenario_config
 
@@ -35,11 +38,16 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
 
     new = record("new")
     with monkeypatch.context() as m:
+        m.setattr(IP._Recorder, "direct", False)  # every message through OrderedBag
         m.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))
         m.setattr(VehicleMarkersEncoder, "encode", VehicleMarkersEncoder.encode_python)
-        m.setattr(M, "encode_diagnostic_array", serialize_message)  # rclpy's bytes: the recorder canonicalizes
+        # events and map markers as rclpy's bytes: the recorder canonicalizes them
+        m.setattr(M.WorldMessages, "events", lambda self, events, t_ns: self._no_events.encode(t_ns) if not events
+                  else serialize_message(T.events_message(events, t_ns)))
+        m.setattr(M, "encode_road_markers", lambda road, t_ns: serialize_message(road_markers(road, t_ns)))
+        rclpy_topics = (T.EVENTS.name, T.MAP_MARKERS.name)
         m.setattr(R.BagRecorder, "write_many",
-                  lambda self, msgs: [self.write(topic, data, t, canonical=canonical and topic != T.EVENTS.name)
+                  lambda self, msgs: [self.write(topic, data, t, canonical=canonical and topic not in rclpy_topics)
                                       for t, topic, data, canonical in msgs] and None)
         old = record("old")
         m.setattr(R._FastMessages, "usable", staticmethod(lambda writer: False))

@@ -404,6 +404,22 @@ def events_message(events: Sequence[Mapping[str, Any]], stamp_ns: int) -> Diagno
     msg = DiagnosticArray()
     msg.header.stamp = stamp_from_ns(stamp_ns)
     msg.header.frame_id = MAP_FRAME
+    msg.status = [
+        DiagnosticStatus(level=bytes((level,)), name=name, message=message, hardware_id=EVENT_HARDWARE_ID,
+                         values=[KeyValue(key=key, value=value) for key, value in values])
+        for level, name, message, values in event_statuses(events)
+    ]
+    return msg
+
+
+def event_statuses(events: Sequence[Mapping[str, Any]]) -> list[tuple[int, str, str, list[tuple[str, str]]]]:
+    """The ``DiagnosticStatus`` fields of each event as :func:`events_message` fills them (and checks
+    them): ``(level, name, message, [(key, value), ...])``; the hardware id is
+    :data:`EVENT_HARDWARE_ID`. What :func:`evoscen_contract.cdr.encode_event_statuses` writes.
+
+    Raises:
+        ValueError: as :func:`events_message`.
+    """
     statuses = []
     for i, event in enumerate(events):
         name = event.get("name")
@@ -412,19 +428,12 @@ def events_message(events: Sequence[Mapping[str, Any]], stamp_ns: int) -> Diagno
         level = event.get("level", DEFAULT_EVENT_LEVELS[name])
         if isinstance(level, bool) or level not in (0, 1, 2, 3):
             raise ValueError(f"event {i} ({name}): level {level!r} is not one of 0, 1, 2, 3")
-        status = DiagnosticStatus()
-        status.level = bytes((int(level),))
-        status.name = name
-        status.message = str(event.get("message", ""))
-        status.hardware_id = EVENT_HARDWARE_ID
-        status.values = [
-            KeyValue(key=str(key), value=_encode_event_value(str(key), value))
+        statuses.append((int(level), name, str(event.get("message", "")), [
+            (str(key), _encode_event_value(str(key), value))
             for key, value in event.items()
             if key not in _RESERVED_EVENT_KEYS
-        ]
-        statuses.append(status)
-    msg.status = statuses
-    return msg
+        ]))
+    return statuses
 
 
 def parse_events(msg: Any) -> list[dict[str, Any]]:

@@ -36,6 +36,22 @@ def test_table_encoder_equals_canonical_serialization(fields, rows, frame_id):
     assert [f.name for f in back.fields] == list(fields)
 
 
+def test_table_encoder_from_columns_equals_encode():
+    """``encode_columns`` (one array of the columns, written out transposed; sizes cached per row
+    count) gives :meth:`TableEncoder.encode`'s bytes of the rows × columns table (compared with the
+    canonical serialization above): 0, 1, 21 and again 1 rows, int and float columns, stamps that
+    repeat and change (the last stamp is remembered)."""
+    rng = np.random.default_rng(11)
+    enc = TableEncoder(WORLD_FIELDS, MAP_FRAME)
+    for rows, stamp_ns in ((0, 5), (1, 5), (21, 5), (21, 100_000_000), (1, 7_300_000_001), (21, 0)):
+        cols = [rng.integers(-5, 50, rows) if k % 3 == 0 else rng.normal(size=rows) * 1e3
+                for k in range(len(WORLD_FIELDS))]
+        table = np.column_stack(cols) if rows else np.zeros((0, len(WORLD_FIELDS)))
+        assert enc.encode_columns(cols, stamp_ns) == enc.encode(table, stamp_ns), (rows, stamp_ns)
+    with pytest.raises(ValueError, match="3 columns"):
+        TableEncoder(("a", "b", "c"), MAP_FRAME).encode_columns([np.zeros(2), np.zeros(2)], 0)
+
+
 def test_table_encoder_rejects_wrong_shape():
     with pytest.raises(ValueError, match="3"):
         TableEncoder(("a", "b", "c"), MAP_FRAME).encode(np.zeros((2, 2)), 0)
@@ -128,8 +144,8 @@ def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
     serialization."""
     from diagnostic_msgs.msg import DiagnosticArray
 
-    from evoscen_contract.cdr import encode_diagnostic_array
-    from evoscen_contract.topics import events_message
+    from evoscen_contract.cdr import encode_diagnostic_array, encode_event_statuses
+    from evoscen_contract.topics import event_statuses, events_message
 
     canon = CanonicalCdr(["diagnostic_msgs/msg/DiagnosticArray"])
     cases = [
@@ -138,6 +154,8 @@ def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
         [{"name": "evoscen/fault", "controller": "x", "level": 0},
          {"name": "evoscen/run_end", "kind": "completed", "message": "run completed: 3 steps"}],
         [{"name": "evoscen/fault", "controller": "ü" * k, "message": "é" * k, "level": k % 4} for k in range(7)],
+        [{"name": "evoscen/lane_change", "kind": "completed", "id": 3, "from_lane": 1, "to_lane": 2},
+         {"name": "evoscen/exposure", "kind": "start", "ids": (4, 5), "level": 1, "note": 2.5}],
     ]
     for k, events in enumerate(cases):
         msg = events_message(events, 12_300_000_000 + k)
@@ -145,3 +163,25 @@ def test_diagnostic_array_encoder_equals_canonical_serialization(frame_id):
         ours = encode_diagnostic_array(msg)
         assert ours == canon("diagnostic_msgs/msg/DiagnosticArray", serialize_message(msg)), events
         assert len(deserialize_message(ours, DiagnosticArray).status) == len(events)
+        # straight from the events, without the rclpy message: the same bytes
+        assert encode_event_statuses(event_statuses(events), 12_300_000_000 + k, frame_id) == ours, events
+
+
+def test_message_pieces_join_to_the_messages():
+    """The pieces the in-process recorder hands to ``BagRecorder.write_parts`` join to the messages'
+    bytes: world, commands, odometry (with its yaw-rate bookkeeping) and clock, several steps."""
+    from evoscen_contract.messages import WorldMessages
+
+    rng = np.random.default_rng(2)
+    a, b = WorldMessages(0.1), WorldMessages(0.1)
+    for k in range(5):
+        n = (1, 21, 21, 3, 0)[k]
+        cols = {f: rng.normal(size=n) * 100 if f not in ("id", "lane") else rng.integers(0, 9, n)
+                for f in WORLD_FIELDS}
+        t = 100_000_000 * k + 7
+        assert b"".join(a.world_parts(cols, t)) == b.world(cols, t)
+        assert b"".join(a.commands_parts(cols["id"], cols["x"], cols["lane"], t)) == \
+            b.commands(cols["id"], cols["x"], cols["lane"], t)
+        if n:
+            assert b"".join(a.odometry_parts(cols, n - 1, t)) == b.odometry(cols, n - 1, t)
+        assert b"".join(a.clock_parts(t)) == b.clock(t)

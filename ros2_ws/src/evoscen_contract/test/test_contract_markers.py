@@ -89,3 +89,39 @@ def test_vehicle_markers_kernel_equals_the_python_path():
     cols["speed"] = np.array([np.nan] + [np.inf] * 20)
     assert enc.encode(cols, 5) == enc.encode_python(cols, 5)
     assert b"nan km/h" in enc.encode(cols, 5)
+
+
+def test_road_markers_encoder_equals_canonical_serialization():
+    """``encode_road_markers`` gives the bytes of the rclpy message (:func:`road_markers`) serialized
+    and canonicalized by the recorder: the shipped road at two stamps, and a made-up road with
+    every case of a marking — solid, broken (every third segment) with 2 to 8 samples, a single
+    sample (no segment: an empty point list), yellow and white, edges and lane lines, -0.0 and
+    huge coordinates — so every alignment of a marker's start and of its points occurs."""
+    from rclpy.serialization import serialize_message
+    from types import SimpleNamespace
+
+    from evoscen_contract.cdr import encode_road_markers
+    from evoscen_eval.recorder import CanonicalCdr
+    from evoscen_sim.road import load_road
+
+    canon = CanonicalCdr(["visualization_msgs/msg/MarkerArray"])
+
+    def reference(road, t_ns: int) -> bytes:
+        return canon("visualization_msgs/msg/MarkerArray", serialize_message(road_markers(road, t_ns)))
+
+    road = load_road()
+    for t_ns in (0, 1_700_000_123):
+        assert encode_road_markers(road, t_ns) == reference(road, t_ns)
+    rng = np.random.default_rng(5)
+    lines = []
+    for k in range(24):
+        n = (1, 2, 3, 4, 5, 7, 8)[k % 7]
+        lines.append(SimpleNamespace(kind=("edge_left", "lane_line", "edge_right", "x")[k % 4],
+                                     type=("solid", "broken")[k % 2], color=("white", "yellow", "standard")[k % 3],
+                                     width_m=(0.12, 0.15, 0.3)[k % 3], x_m=rng.normal(size=n) * 10 ** (k % 9),
+                                     y_m=np.where(rng.random(n) < 0.3, -0.0, rng.normal(size=n))))
+    made_up = SimpleNamespace(lane_markings=lambda: lines)
+    for t_ns in (0, 42):
+        assert encode_road_markers(made_up, t_ns) == reference(made_up, t_ns)
+    empty = SimpleNamespace(lane_markings=lambda: [])
+    assert encode_road_markers(empty, 0) == reference(empty, 0)
