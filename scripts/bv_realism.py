@@ -52,7 +52,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--lane-hold", type=float, default=None, metavar="S",
                     help="models.learned.lane_hold_s (default: the config's, 20 s; 0: no hold)")
     ap.add_argument("--cut-in-decel", type=float, default=None, metavar="B",
-                    help="models.learned.cut_in_decel_mps2 (default: the config's, 4; 0: the linear cut-in gap only)")
+                    help="models.learned.cut_in_decel_mps2 (default: the config's, 0: the linear cut-in gap only)")
+    ap.add_argument("--standing-at-once", choices=("true", "false"), default=None,
+                    help="models.learned.standing_leader_at_once (default: the config's)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
     args = ap.parse_args(argv)
 
@@ -82,6 +84,8 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["models.learned.lane_hold_s"] = args.lane_hold
             if args.cut_in_decel is not None:
                 overrides["models.learned.cut_in_decel_mps2"] = args.cut_in_decel
+            if args.standing_at_once is not None:
+                overrides["models.learned.standing_leader_at_once"] = args.standing_at_once == "true"
             try:
                 cfg = load_scenario_config(args.config, overrides)
             except InputError as exc:

@@ -360,11 +360,15 @@ class ReactionState:
         reaction_steps: N = round(τ / dt); a situation must hold at steps t - N … t.
         cap_frac: bound on braking as a fraction of the full brake (max_decel / max_brake;
             1.0: no bound).
+        standing_at_once: the emergency brake acts without waiting for the alert for a
+            perceived leader that stands still.
     """
 
-    def __init__(self, hosted: int, reaction_steps: int, cap_frac: float) -> None:
+    def __init__(self, hosted: int, reaction_steps: int, cap_frac: float, standing_at_once: bool = False) -> None:
         self.n_react = int(reaction_steps)
         self.cap_frac = float(cap_frac)
+        self.standing_at_once = bool(standing_at_once)
+        """The emergency brake acts at once for a perceived leader standing still (R2)."""
         self.hosted = int(hosted)
         self.seen: np.ndarray | None = None
         self.em_count = np.full(self.hosted, -1, dtype=np.int64)
@@ -407,7 +411,7 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
         return _learned_throttle_kernel(*args)
     update = reaction.advance(view)
     return _driver_throttle_kernel(*args, np.int64(reaction.n_react), reaction.seen, reaction.em_count, update,
-                                   reaction.cap_frac)
+                                   reaction.cap_frac, reaction.standing_at_once)
 
 
 @kernel
@@ -420,14 +424,14 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
     em_on = np.ones(idx.shape[0], dtype=np.bool_)
     return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
                                   v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
-                                  W1, b1, W2, b2, W3, b3, max_action, em_on, 1.0)
+                                  W1, b1, W2, b2, W3, b3, max_action, em_on, False, 1.0)
 
 
 @kernel
 def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
                             d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max, own_w,
                             speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
-                            n_react, seen, em_count, update, cap_frac):
+                            n_react, seen, em_count, update, cap_frac, standing_at_once):
     """The ``driver`` profile (docs/bv-profiles.md): reaction time and bounded braking.
 
     ``seen[k, j, q]``: consecutive steps (capped at N + 1) vehicle ``j`` has occupied lane
@@ -437,6 +441,7 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
     counting on while it still closes in on one of them (need > 0) and reset to 0 when it no
     longer does; the brake acts (with its usual trigger, on the perceived leaders) once the
     count reaches N + 1. Both advance only when ``update`` (once per simulation step).
+    With ``standing_at_once`` the brake also acts, unalerted, on a perceived leader at rest.
     """
     m = idx.shape[0]
     n, num_lanes = present.shape
@@ -473,13 +478,13 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
         em_on[k] = em_count[k] >= full
     return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
                                   v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
-                                  W1, b1, W2, b2, W3, b3, max_action, em_on, cap_frac)
+                                  W1, b1, W2, b2, W3, b3, max_action, em_on, standing_at_once, cap_frac)
 
 
 @kernel
 def _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired,  # noqa: ANN001, ANN202, PLR0913
                            view, v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
-                           W1, b1, W2, b2, W3, b3, max_action, em_on, cap_frac):
+                           W1, b1, W2, b2, W3, b3, max_action, em_on, em_standing, cap_frac):
     m = idx.shape[0]
     out = np.empty(m)
     h = W1.shape[1]
@@ -522,7 +527,7 @@ def _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change
                 for q in range(h):
                     z += max(h2[q], 0.0) * W3[q]
                 u = min(u, max_action * np.tanh(z))
-            if em_on[k]:
+            if em_on[k] or (em_standing and vl == 0.0):  # em_standing: a perceived leader at rest, at once
                 u = min(u, _emergency_one(gap, vl, al, v[i], em_trigger, em_margin, max_brake))  # scalars only
         if cap_frac < 1.0:  # the driver profile's bounded braking
             u = max(u, -cap_frac)

@@ -148,12 +148,14 @@ class LearnedDriver:
             hold (the training environments, and the scenario's BVs before round 2's hold).
         cut_in_decel_mps2: b of the cut-in gap term c²/(2b) under the ``driver`` profile (0: no
             such term); ``None``: the profile's (none). Ignored under ``safety_net``.
+        standing_leader_at_once: under the ``driver`` profile, the emergency brake acts at once
+            for a perceived leader at rest (R2); ``None``: the profile's. Ignored under ``safety_net``.
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
                  config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
                  forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
-                 cut_in_decel_mps2: float | None = None) -> None:
+                 cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         if not lane_hold_s >= 0.0:
             raise ValueError(f"lane_hold_s must be >= 0, got {lane_hold_s}")
@@ -168,6 +170,8 @@ class LearnedDriver:
         if cut_in_decel_mps2 is not None and self.profile.name != "safety_net":  # safety_net: the rules as they were
             self.profile = dataclasses.replace(self.profile,
                                                cut_in_closing_decel_mps2=float(cut_in_decel_mps2) or None)
+        if standing_leader_at_once is not None and self.profile.name != "safety_net":
+            self.profile = dataclasses.replace(self.profile, standing_leader_at_once=bool(standing_leader_at_once))
         self.reaction: ReactionState | None = None
         """The driver profile's state, made at the first step (N needs the step length); None: safety_net."""
         self.forced_merge = forced_merge
@@ -195,7 +199,8 @@ class LearnedDriver:
             p = self.profile
             brake = float(self.vehicle_params.max_brake_mps2)
             cap = 1.0 if p.max_decel_mps2 is None else min(p.max_decel_mps2 / brake, 1.0)
-            self.reaction = ReactionState(self.vehicles.size, p.reaction_steps(float(view.dt_s)), cap)
+            self.reaction = ReactionState(self.vehicles.size, p.reaction_steps(float(view.dt_s)), cap,
+                                          p.standing_leader_at_once)
         if self._throttle_constants is None or self._throttle_road is not view.road:
             vp = self.vehicle_params
             self._throttle_road = view.road

@@ -5,7 +5,7 @@
 * ``learned`` (role ``bv``): the TD3-trained social drivers (:mod:`evoscen_bv.learned`) —
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
-  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s`` and ``cut_in_decel_mps2`` (:class:`LearnedParams`).
+  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2`` and ``standing_leader_at_once`` (:class:`LearnedParams`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from evoscen_sim.config import number, text
+from evoscen_sim.config import flag, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec, register_model
 from evoscen_sim.scenario_params import vehicle_params_from_config
@@ -57,6 +57,11 @@ class LearnedParams:
     reaction time, can match speeds braking at most b (e.g. 4 m/s², MOBIL's b_safe).
     [choice] 0 = no such term, the linear gap 10 m + 1.5 s·c only: with 4 m/s² merging BVs
     waited at standstill and jams formed. ``safety_net`` keeps its rules and ignores the key."""
+    standing_leader_at_once: bool = flag(True)
+    """Under the ``driver`` profile, the emergency brake acts at once, without the reaction
+    time, for a perceived leader at rest (docs/bv-profiles.md, R2) [choice: a vehicle standing
+    in front that the BV has perceived is no surprise]; false: the reaction time applies to it
+    too (the rule before session 12). ``safety_net`` ignores it."""
 
 
 def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
@@ -78,7 +83,8 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
         raise InputError(f"models.learned.policy_dir = {params.policy_dir}: {exc}") from None
     return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config),
                          forced_merge=True, profile=params.profile, lane_hold_s=params.lane_hold_s,
-                         cut_in_decel_mps2=params.cut_in_decel_mps2)
+                         cut_in_decel_mps2=params.cut_in_decel_mps2,
+                         standing_leader_at_once=params.standing_leader_at_once)
 
 
 LEVEL0 = ModelSpec(

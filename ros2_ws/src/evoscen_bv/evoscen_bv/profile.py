@@ -43,6 +43,10 @@ class BVProfile:
     cut_in_closing_decel_mps2: float | None = None
     """b of the further cut-in gap term c²/(2b), c the closing speed (m/s²): the gap in which the
     slower-to-react vehicle matches speeds braking at b; ``None``: no such term."""
+    standing_leader_at_once: bool = False
+    """The emergency brake acts at once (without waiting the reaction time) for a perceived
+    leader standing still: a vehicle standing in front that the BV has already perceived is
+    no surprise (R2, docs/bv-profiles.md). False: the reaction time applies to it too."""
 
     def reaction_steps(self, dt_s: float) -> int:
         """N = round(τ / dt): steps a situation must persist before the BV responds."""
@@ -57,12 +61,16 @@ PROFILES: dict[str, BVProfile] = {
     # al. 1997, NCHRP Report 400), below the simulated car's 8 m/s² full brake; at 6 m/s² the
     # shipped policies' BV-BV collisions rose (docs/bv-profiles.md, measurements).
     # [choice] h = 1.5 s kept: BV-BV realism (docs/bv-profiles.md, measurements).
+    # [choice] standing leaders at once: of the BV-BV collisions in queues at the merge, most were a
+    # BV starting a lane change from standstill that crept into the vehicle standing 1-2 m ahead in
+    # its old lane, its emergency brake waiting the reaction time for a leader it had seen all along
+    # (docs/bv-profiles.md, R2); false keeps the earlier rule (models.learned.standing_leader_at_once).
     # [choice] no c²/(2b) term by default: with b = 4 m/s² (MOBIL's b_safe) the merges in front of
     # much faster traffic stopped colliding, but merging BVs waited at standstill and jams formed
     # (4 % of mainline BV states at standstill against 0.3 %); selectable per scenario with
     # models.learned.cut_in_decel_mps2 (docs/bv-profiles.md, R5).
     "driver": BVProfile("driver", reaction_time_s=1.0, max_decel_mps2=7.0,
-                        cut_in_closing_headway_s=CUT_IN_CLOSING_HEADWAY_S),
+                        cut_in_closing_headway_s=CUT_IN_CLOSING_HEADWAY_S, standing_leader_at_once=True),
     "safety_net": BVProfile("safety_net", reaction_time_s=0.0, max_decel_mps2=None,
                             cut_in_closing_headway_s=CUT_IN_CLOSING_HEADWAY_S),
 }

@@ -318,3 +318,66 @@ def test_cut_in_decel_is_a_scenario_key_with_the_old_rule_selectable():
     with pytest.raises(InputError, match=r"models\.learned\.cut_in_decel_mps2") as e:
         config_from_dict({"models": {"learned": {"cut_in_decel_mps2": -1}}})
     assert "\n" not in str(e.value)
+
+
+def _constant_controller(throttle_z: float):  # noqa: ANN202
+    """A car-following actor whose output is tanh(z) whatever it sees."""
+    from evoscen_bv.td3 import NumpyActor
+
+    h = 4
+    return NumpyActor({"W1": np.zeros((4, h)), "b1": np.zeros(h), "W2": np.zeros((h, h)), "b2": np.zeros(h),
+                       "W3": np.zeros((h, 1)), "b3": np.array([throttle_z]), "max_action": np.array(1.0)})
+
+
+@pytest.mark.parametrize("at_once", [True, False])
+def test_driver_brakes_at_once_for_a_standing_leader_it_has_perceived(road, policies, at_once):
+    """R2, standing leaders: a BV at rest 3 m (bumper gap) behind a standing vehicle, its controller
+    asking for tanh(2) = 0.96 throttle whatever it sees (as a BV creeping into a lane change does).
+    At rest the emergency brake wants nothing (no closing speed), so the driver is not alerted; as it
+    rolls, b = v² / (2 (gap - 2 m)) grows. With ``standing_leader_at_once`` the brake acts at the first
+    step b >= 4 m/s², at -min(b, 7) / 8, as safety_net's does (then it creeps on, braking whenever b
+    reaches the trigger: R9's creep past a standing leader); without it the brake waits N steps of
+    alert and the BV runs into the standing vehicle at ~4 m/s within 2 s."""
+    from evoscen_bv.car_following import _emergency_need
+
+    _, _, training = policies
+    w = hand_built_world(road, s=[400.0, 408.0], lane=[2, 2], speed=[0.0, 0.0])  # bumper gap 8 - 5 = 3 m
+    bv = LearnedDriver(np.array([0]), _constant_controller(2.0), {}, training, np.random.default_rng(0), w.vehicle,
+                       profile="driver", standing_leader_at_once=at_once)
+    assert bv.profile.standing_leader_at_once is at_once
+    first, collisions, us = None, 0, []
+    for k in range(20):
+        gap = w.s[1] - w.s[0] - 0.5 * (w.length[0] + w.length[1])
+        need = _emergency_need(gap, 0.0, 0.0, w.v[0], 2.0)
+        u = float(bv.throttle(w)[0])
+        us.append(u)
+        if first is None and need >= 4.0:
+            first = (k, need, u)
+        collisions += len(w.step(np.array([u, 0.0]), np.zeros(2, dtype=np.int64)).collisions)
+    k, need, u = first
+    assert k > 0  # it rolled first
+    if at_once:
+        assert u == pytest.approx(-min(need, 7.0) / 8.0)
+        assert collisions == 0
+        w = hand_built_world(road, s=[400.0, 408.0], lane=[2, 2], speed=[0.0, 0.0])
+        sn = LearnedDriver(np.array([0]), _constant_controller(2.0), {}, training, np.random.default_rng(0),
+                           w.vehicle, profile="safety_net")
+        for k in range(20):
+            assert float(sn.throttle(w)[0]) == pytest.approx(us[k], abs=1e-12)  # as safety_net (braking < 7 m/s²)
+            w.step(np.array([us[k], 0.0]), np.zeros(2, dtype=np.int64))
+    else:
+        assert u > 0.0  # still the controller's throttle: the alert has just begun
+        assert collisions > 0
+
+
+def test_standing_leader_rule_is_a_scenario_key_with_the_old_rule_selectable():
+    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.scenario import build_bv_driver
+
+    def at_once(models: dict) -> bool:
+        return build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": models})).profile \
+            .standing_leader_at_once
+
+    assert at_once({}) is True and get_profile("driver").standing_leader_at_once is True
+    assert at_once({"learned": {"standing_leader_at_once": False}}) is False
+    assert at_once({"learned": {"profile": "safety_net"}}) is False  # safety_net: the rules as they were
