@@ -5,7 +5,8 @@
 * ``learned`` (role ``bv``): the TD3-trained social drivers (:mod:`evoscen_bv.learned`) —
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
-  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2`` and ``standing_leader_at_once`` (:class:`LearnedParams`).
+  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2``
+  and ``standing_leader_at_once`` (:class:`LearnedParams`).
 """
 
 from __future__ import annotations
