@@ -328,7 +328,9 @@ class ScoreStream:
         # --- exposures (maximal runs of dangerous states, continued across blocks)
         severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -accel / ev.hard_brake_mps2)
         if ev.hard_braking == "conflict":  # a needed deceleration beyond hard braking, as the SUT's own braking
-            severity = np.maximum(severity, drac_sut / ev.hard_brake_mps2)
+            # DRAC is infinite while closing in at contact (gap <= 0): capped where the TTC term is (TTC
+            # floored at 1 ms), so contact is as severe as TTC -> 0 and the report stays finite (JSON)
+            severity = np.maximum(severity, np.minimum(drac_sut / ev.hard_brake_mps2, ev.ttc_threshold_s / 1e-3))
         f_sev = np.maximum(ev.ttc_threshold_s / np.maximum(f_ttc, 1e-3), -f_accel / ev.hard_brake_mps2)
         severity = np.where(rear_danger, np.maximum(severity, f_sev), severity)
         if ev.cut_in_gap_m > 0.0:  # a cut-in: the threshold over the gap (2 at half the threshold), as TTC's

@@ -55,6 +55,33 @@ def rear_run(states: int = 40) -> RunData:
 # ---------------------------------------------------------------------- hand-built runs
 
 
+def test_contact_is_as_severe_as_ttc_zero_and_the_report_stays_finite():
+    """SUT (0) at 20 m/s behind vehicle 1 at 10 m/s in lane 2, bodies 4.8 m: gap 5.2 m at states
+    0..4, then 0 (touching) at states 5..9. At contact TTC = 0 (floored at 1 ms: severity
+    2 s / 1 ms = 2000) and DRAC = 10² / (2·0) = inf; the exposure's severity is 2000, not inf,
+    and the report is valid JSON."""
+    import json
+
+    states = 10
+    c = {f: np.zeros((states, 2)) for f in T.WORLD_FIELDS}
+    c["id"][:] = np.arange(2)
+    c["role"][:, 0] = 1
+    c["length"][:] = 4.8
+    c["width"][:] = 1.9
+    c["s"][:, 0] = 100.0
+    c["s"][:5, 1], c["s"][5:, 1] = 110.0, 104.8
+    c["speed"][:, 0], c["speed"][:, 1] = 20.0, 10.0
+    c["lane"][:] = 2
+    c["target_lane"][:] = 2
+    run = RunData(time_s=np.arange(states) * 0.1, columns=c, ids=np.arange(2), sut_index=0, events=[], dt_s=0.1,
+                  complete=True)
+    assert EV.hard_braking == "conflict"
+    rep = evaluate(run, EV)
+    sev = [x["severity"] for x in rep["safety"]["exposure_list"]]
+    assert sev and max(sev) == pytest.approx(EV.ttc_threshold_s / 1e-3)
+    json.dumps(rep, allow_nan=False)  # raised ValueError (inf) before the cap
+
+
 def test_rear_conflict_after_a_lane_change_by_hand():
     ev = replace(EV, rear_attribution_s=1.0)  # 10 states after the change's last state (9): 5..19 attributed
     rep = evaluate(rear_run(), ev)
@@ -283,8 +310,10 @@ def test_live_monitor_equals_the_evaluator_on_a_simulated_run(mode):
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None, {"steps": 800, "sut.model": "nilsson", "evaluation.ttc_threshold_s": 4.0,
-                                      "evaluation.rear_conflicts": mode})
+    # seed 2: three exposures, rear conflicts among them, with the session-12 BVs (seed 0 has none: they keep
+    # ~30 m and no longer brake for far leaders)
+    cfg = load_scenario_config(None, {"steps": 800, "seed": 2, "sut.model": "nilsson",
+                                      "evaluation.ttc_threshold_s": 4.0, "evaluation.rear_conflicts": mode})
     sc = build_scenario(cfg)
     w = sc.world
     acc = RunAccumulator()
