@@ -98,13 +98,15 @@ def test_driver_emergency_brake_waits_for_the_reaction_time(road, policies):
     From step 1 its deceleration is visible and the emergency brake asks for b ≈ 4.85 m/s² (stop behind
     the point where the leader stops) >= the 4 m/s² trigger. safety_net: the throttle is -b/8 at step 1.
     driver: the trigger holds from step 1, so the emergency brake acts from step 1 + N on (at -b/8, b < 7);
-    before that the BV brakes only as its controller does, less than -b/8."""
+    before that the BV keeps its controller's 0."""
     from evoscen_bv.car_following import _emergency_need
 
     res, needs = {}, {}
     for profile in ("safety_net", "driver"):
         w = hand_built_world(road, s=[400.0, 435.0], lane=[2, 2], speed=[25.0, 25.0])
-        bv = _driver(policies, w, [0], profile)
+        # a controller that asks for 0 whatever it sees, so that only the emergency brake brakes
+        bv = LearnedDriver(np.array([0]), _constant_controller(0.0), {}, policies[2], np.random.default_rng(0),
+                           w.vehicle, profile=profile)
         us, bs = [], []
         for _ in range(N + 3):
             gap = w.s[1] - w.s[0] - 0.5 * (w.length[0] + w.length[1])

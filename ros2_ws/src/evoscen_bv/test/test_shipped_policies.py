@@ -48,7 +48,7 @@ def test_controller_holds_the_target_gap_without_rear_end_collisions(policies):
     gaps = np.array(gaps)
     assert collisions == 0
     lo, hi = TARGET_BAND_M
-    assert lo <= gaps.mean() <= hi, gaps.mean(axis=0)  # measured 23.7 m
+    assert lo <= gaps.mean() <= hi, gaps.mean(axis=0)  # measured 29.8 m (session 12 set; the session-10 set 25.4 m)
     assert np.all(gaps > 5.0)
 
 
@@ -90,7 +90,8 @@ def test_competitive_changes_lanes_most_and_collisions_are_rare():
     mutual, competitive, cooperative = rates[1], rates[2], rates[3]
     # the method's order (docs/method.md §3.3): competitive changes lanes most, cooperative rarely, mutual in between
     assert competitive > mutual > cooperative, rates
-    # rare: at most two collisions among learned BVs in the 6.7 vehicle-hours (measured: one, at 3 m/s)
+    # rare: at most two collisions among learned BVs in the 6.7 vehicle-hours (measured: none; lane changes per
+    # vehicle-hour competitive 118.5 > mutual 79.0 > cooperative 28.5)
     assert collisions <= 2, (collisions, vehicle_hours)
 
 
