@@ -388,6 +388,19 @@ def _marker_prefix(base: int, frame_id: str, ns: str, marker_type: int) -> tuple
     w.pack("iI", 0, 0)  # lifetime
     w.pack("?", False)  # frame_locked
     w.pack("I", 0)  # points[]
+    _write_no_colors_texture_uv(w)
+    return bytes(w.buf), at
+
+
+def _marker_tail(base: int) -> bytes:
+    """The fields after ``text``, starting at payload offset ``base``."""
+    w = _Writer(base)
+    _write_no_mesh(w)
+    return bytes(w.buf)
+
+
+def _write_no_colors_texture_uv(w) -> None:  # noqa: ANN001 - a _Writer or _PayloadWriter
+    """A Marker's empty ``colors``, ``texture_resource``, ``texture`` and ``uv_coordinates``."""
     w.pack("I", 0)  # colors[]
     w.string("")  # texture_resource
     w.pack("iI", 0, 0)  # texture.header.stamp
@@ -395,17 +408,14 @@ def _marker_prefix(base: int, frame_id: str, ns: str, marker_type: int) -> tuple
     w.string("")  # texture.format
     w.pack("I", 0)  # texture.data[]
     w.pack("I", 0)  # uv_coordinates[]
-    return bytes(w.buf), at
 
 
-def _marker_tail(base: int) -> bytes:
-    """The fields after ``text``, starting at payload offset ``base``."""
-    w = _Writer(base)
+def _write_no_mesh(w) -> None:  # noqa: ANN001 - a _Writer or _PayloadWriter
+    """A Marker's fields after ``text``: no mesh."""
     w.string("")  # mesh_resource
     w.string("")  # mesh_file.filename
     w.pack("I", 0)  # mesh_file.data[]
     w.pack("?", False)  # mesh_use_embedded_materials
-    return bytes(w.buf)
 
 
 class VehicleMarkersEncoder:
@@ -586,18 +596,9 @@ def encode_road_markers(road, stamp_ns: int = 0) -> bytes:  # noqa: ANN001 - an 
         if len(points):
             w._align(8)
             w.buf += points.tobytes()
-        w.pack("I", 0)  # colors[]
-        w.string("")  # texture_resource
-        w.pack("iI", 0, 0)  # texture.header.stamp
-        w.string("")  # texture.header.frame_id
-        w.string("")  # texture.format
-        w.pack("I", 0)  # texture.data[]
-        w.pack("I", 0)  # uv_coordinates[]
+        _write_no_colors_texture_uv(w)
         w.string("")  # text
-        w.string("")  # mesh_resource
-        w.string("")  # mesh_file.filename
-        w.pack("I", 0)  # mesh_file.data[]
-        w.pack("?", False)  # mesh_use_embedded_materials
+        _write_no_mesh(w)
     return pad4(_ENCAPSULATION_CDR_LE + bytes(w.buf))
 
 
