@@ -15,8 +15,10 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2`` within
   ``rear_braking_headway_s`` [2 s] of time headway (``rear_braking`` [within_headway]), from the
   start of a SUT lane change to ``rear_attribution_s`` [5 s] after it), or a cut-in (the SUT
-  changing lanes with its new follower less than ``cut_in_gap_m`` [10 m] behind); an exposure is a maximal run of
-  dangerous states; one still open at the end of the run counts (flagged ``open_at_end``).
+  changing lanes with its new follower less than ``cut_in_gap_m`` [10 m] behind), or a lane change
+  beside a vehicle (``beside_lane_change`` [true]: a vehicle in the SUT's target lane overlapping
+  it longitudinally while it changes lanes); an exposure is a maximal run of dangerous states; one still
+  open at the end of the run counts (flagged ``open_at_end``).
 * **Conflicts** (``safety.conflicts``, reported only) — follower TTC, DRAC of the SUT and of
   its follower (SUMO SSM's definitions; states above ``drac_threshold_mps2`` [3 m/s²]), and
   a lane-change PET per SUT lane change (:func:`lane_change_pet`).
@@ -194,6 +196,10 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "cut_in_states": st.n["cut_in"],
         "cut_in_only_dangerous_states": st.n["cut_in_only"],
         "min_cut_in_gap_m": _finite(st.min_cut_in_gap),
+        "beside_lane_change": ev.beside_lane_change,
+        "beside_states": st.n["beside"],
+        "beside_only_dangerous_states": st.n["beside_only"],
+        "min_beside_gap_m": _finite(st.min_beside_gap),
         "min_follower_ttc_s": _finite(st.min_f_ttc),
         "min_follower_ttc_attributed_s": _finite(st.min_f_ttc_att) if st.any_att else None,
         "min_follower_accel_mps2": st.min_f_accel if st.any_follower else None,

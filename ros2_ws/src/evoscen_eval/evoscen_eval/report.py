@@ -137,6 +137,11 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
               if cf.get("cut_in_gap_m") else "not counted (cut_in_gap_m 0)")),
             ("min cut-in gap (m)", cf.get("min_cut_in_gap_m"), "new follower behind the SUT during its lane changes "
                                                               "(– = none)"),
+            ("beside states", cf.get("beside_states", 0),
+             ("SUT changing lanes with a vehicle of its target lane beside it (dangerous)"
+              if cf.get("beside_lane_change") else "not counted (beside_lane_change false)")),
+            ("min beside gap (m)", cf.get("min_beside_gap_m"), "longitudinal gap to the target lane's nearest vehicle "
+                                                               "during SUT lane changes; < 0 = beside (– = none)"),
             ("min follower TTC (s)", cf["min_follower_ttc_s"], "follower onto the SUT (– = never closing)"),
             ("max DRAC SUT (m/s²)", cf["max_drac_sut_mps2"], "SUT behind its leader (– = infinite)"),
             ("max DRAC follower (m/s²)", cf["max_drac_follower_mps2"], "follower behind the SUT (– = infinite)"),

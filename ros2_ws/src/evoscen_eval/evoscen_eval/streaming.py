@@ -37,8 +37,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from evoscen_contract import contract as C
-from evoscen_sim.safety import (attribution_steps, cut_in_dangerous, cut_in_gap, dangerous, drac, exposure_runs,
-                                follower_headway, follower_ttc, rear_dangerous, sut_follower, sut_leader, sut_ttc)
+from evoscen_sim.safety import (attribution_steps, beside_dangerous, beside_gap, beside_severity, cut_in_dangerous,
+                                cut_in_gap, dangerous, drac, exposure_runs, follower_headway, follower_ttc, rear_dangerous,
+                                sut_follower, sut_leader, sut_ttc)
 
 BLOCK_STATES = 256
 """States reduced together (the block size bounds the memory of the stream)."""
@@ -103,6 +104,7 @@ class _Exposure:
     worst: int = -1
     rear_states: int = 0
     cut_in_states: int = 0
+    beside_states: int = 0
 
 
 @dataclass
@@ -167,7 +169,7 @@ class ScoreStream:
         self.finished_changes: list[_Change] = []
         self.n = {key: 0 for key in ("danger", "front", "rear_conflict", "rear_danger", "rear_only", "attributed",
                                      "drac_sut", "drac_follower", "drac_follower_att", "in_view", "cut_in",
-                                     "cut_in_only")}
+                                     "cut_in_only", "beside", "beside_only")}
         self.speed_sum = 0.0
         self.min_ttc = math.inf
         self.min_accel = math.inf
@@ -179,6 +181,7 @@ class ScoreStream:
         self.max_drac_sut = -math.inf
         self.max_drac_f = -math.inf
         self.min_cut_in_gap = math.inf
+        self.min_beside_gap = math.inf
         self.windows: dict[str, list[int]] = {"lane_changes": [], "accel_decel": [], "exposures": []}
         # plots
         self.ttc_hist = np.zeros(len(TTC_BINS) - 1, dtype=np.int64)
@@ -277,7 +280,9 @@ class ScoreStream:
         rear_danger = rear_conflict & attributed
         _, cut_gap = cut_in_gap(s, d, length, width, c["lane"], c["target_lane"], c["lane_change"], sut)
         cut_in = cut_in_dangerous(cut_gap, ev.cut_in_gap_m)
-        danger = front | rear_danger | cut_in
+        beside_j, beside_g = beside_gap(s, length, c["lane"], c["target_lane"], c["lane_change"], sut)
+        beside = beside_dangerous(beside_g, ev.beside_lane_change)
+        danger = front | rear_danger | cut_in | beside
         drac_f = drac(f_gap, f_speed, speed)
         ds = s - s[:, sut:sut + 1]
         in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
@@ -307,6 +312,9 @@ class ScoreStream:
         nb["cut_in"] += int(cut_in.sum())
         nb["cut_in_only"] += int((cut_in & ~front & ~rear_danger).sum())
         self.min_cut_in_gap = min(self.min_cut_in_gap, float(cut_gap.min()))
+        nb["beside"] += int(beside.sum())
+        nb["beside_only"] += int((beside & ~front & ~rear_danger & ~cut_in).sum())
+        self.min_beside_gap = min(self.min_beside_gap, float(beside_g.min()))
         nb["attributed"] += int(attributed.sum())
         nb["drac_sut"] += int((drac_sut > ev.drac_threshold_mps2).sum())
         nb["drac_follower"] += int((drac_f > ev.drac_threshold_mps2).sum())
@@ -335,6 +343,9 @@ class ScoreStream:
         severity = np.where(rear_danger, np.maximum(severity, f_sev), severity)
         if ev.cut_in_gap_m > 0.0:  # a cut-in: the threshold over the gap (2 at half the threshold), as TTC's
             severity = np.where(cut_in, np.maximum(severity, ev.cut_in_gap_m / np.maximum(cut_gap, 1e-3)), severity)
+        if beside.any():  # 1 as the bodies begin to overlap, 2 side by side (safety.beside_severity)
+            lsum = length[rows, np.maximum(beside_j, 0)] + length[:, sut]
+            severity = np.where(beside, np.maximum(severity, beside_severity(beside_g, lsum)), severity)
         run_starts, run_ends = exposure_runs(danger)
         if self._open is not None and not (run_starts.size and run_starts[0] == 0):
             self._close_exposure(k0)
@@ -353,6 +364,7 @@ class ScoreStream:
                 x.severity, x.worst = float(severity[r0 + m]), k0 + r0 + m
             x.rear_states += int(rear_danger[seg].sum())
             x.cut_in_states += int(cut_in[seg].sum())
+            x.beside_states += int(beside[seg].sum())
             if severity[r0 + m] > self._worst_sev:
                 self._worst_sev = float(severity[r0 + m])
                 self.worst_scene = self._scene(tables, times, r0 + m, k0 + r0 + m)
@@ -448,7 +460,7 @@ class ScoreStream:
             "start_state": x.start, "end_state": end, "states": end - x.start, "start_time_s": x.start_time_s,
             "open_at_end": False, "min_ttc_s": _finite(x.min_ttc), "min_accel_mps2": x.min_accel,
             "worst_state": x.worst, "severity": x.severity, "rear_states": x.rear_states,
-            "cut_in_states": x.cut_in_states,
+            "cut_in_states": x.cut_in_states, "beside_states": x.beside_states,
         })
 
     def _add_windows(self, key: str, first: int, sums: np.ndarray) -> None:

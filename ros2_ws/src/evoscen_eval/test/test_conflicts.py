@@ -130,6 +130,36 @@ def test_attribution_window_edges():
     assert none["conflicts"]["rear_conflict_states"] == 33 and none["conflicts"]["rear_conflict_states_attributed"] == 0
 
 
+def test_lane_change_beside_a_vehicle_by_hand():
+    """docs/evaluation.md §3.7: rear_run's change (states 5..9, lane_change 1), vehicle 1 in lane 3 at
+    s = 98 m, 25 m/s like the SUT: |Δs| 2 m < 4.8 m, beside it (gap 2 − 4.8 = −2.8 m) in all five
+    states of the change, whatever it does next. Rear conflicts and cut-ins off, so only the beside
+    rule speaks: one exposure (5, 10), severity 1 + 2.8 / 4.8."""
+    run = rear_run()
+    run.columns["s"][:, 1] = 98.0
+    run.columns["speed"][:, 1] = 25.0
+    only = replace(EV, rear_conflicts="none", cut_in_gap_m=0.0)
+    s = evaluate(run, only)["safety"]
+    assert [(e["start_state"], e["end_state"], e["beside_states"], e["cut_in_states"]) for e in s["exposure_list"]] \
+        == [(5, 10, 5, 0)]
+    assert s["exposure_list"][0]["severity"] == pytest.approx(1.0 + 2.8 / 4.8)
+    cf = s["conflicts"]
+    assert cf["beside_lane_change"] is True and cf["beside_states"] == 5 and cf["beside_only_dangerous_states"] == 5
+    assert cf["min_beside_gap_m"] == pytest.approx(-2.8)
+    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))
+    off = evaluate(run, replace(only, beside_lane_change=False))["safety"]
+    assert off["exposures"] == 0 and off["conflicts"]["beside_states"] == 0
+    assert off["conflicts"]["min_beside_gap_m"] == pytest.approx(-2.8)  # still reported
+    # 5 m behind: gap 0.2 m, clear of the SUT's side: no beside state; with the defaults the cut-in
+    # (the body over the line from state 7, new follower 0.2 m behind) is the exposure, as before
+    run.columns["s"][:, 1] = 95.0
+    clear = evaluate(run, only)["safety"]
+    assert clear["exposures"] == 0 and clear["conflicts"]["min_beside_gap_m"] == pytest.approx(0.2)
+    cut = evaluate(run, replace(EV, rear_conflicts="none"))["safety"]
+    assert [(e["start_state"], e["end_state"], e["beside_states"], e["cut_in_states"]) for e in cut["exposure_list"]] \
+        == [(7, 10, 0, 3)]
+
+
 def test_tailgater_behind_a_lane_keeping_sut_is_not_its_fault():
     run = rear_run()
     c = run.columns
@@ -274,6 +304,36 @@ def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, cut_in_ga
     cf = s["conflicts"]
     assert cf["rear_conflict_states"] > 0 and len(cf["lane_change_pet"]) == 1
     assert cf["lane_change_pet"][0]["follower_id"] == 1 and 0.0 < cf["min_pet_s"] < 1.0
+
+
+def _change_left_at_once(k):
+    return [0.0, 0.0], [1 if k == 0 else 0, 0]
+
+
+@pytest.mark.parametrize("beside, expected", [(True, 1), (False, 0)])
+def test_live_monitor_equals_the_evaluator_on_a_lane_change_beside(road, beside, expected):
+    """The SUT (25 m/s, lane 2) changes left at once while vehicle 1 (22 m/s, lane 3) is 1 m behind
+    its centre, beside it; vehicle 1 drops back at 3 m/s and is 20 m behind, clear, by the time the
+    SUT's body crosses the line. Rear conflicts and cut-ins off: only the beside rule; live == evaluator."""
+    ev = replace(EV, rear_conflicts="none", cut_in_gap_m=0.0, beside_lane_change=beside)
+    world = hand_built_world(road, [300.0, 299.0], [2, 3], [25.0, 22.0], roles=[1, 0])
+    report, live = drive(world, _change_left_at_once, 100, ev)
+    s = report["safety"]
+    assert s["collisions_all"] == 0
+    starts = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "start"]
+    ends = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "end"]
+    assert s["exposures"] == len(starts) == expected
+    assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
+    assert [e["steps"] for e in ends] == [x["states"] for x in s["exposure_list"] if not x["open_at_end"]]
+    if expected:
+        ex = s["exposure_list"][0]
+        assert ex["beside_states"] == ex["states"] and ex["rear_states"] == ex["cut_in_states"] == 0
+        assert starts[0]["ids"] == [0, 1] and "lane change beside vehicle 1" in starts[0]["message"]
+        # the change shows from state 1 (the command of step 0 acts in it), Δs = 1 + 0.3·k m at state k
+        # (3 m/s closing, no throttle): beside while 1 + 0.3·k < 4.8, i.e. states 1..12
+        assert (ex["start_state"], ex["states"]) == (1, 12)
+    # the smallest gap at state 1: 1.3 - 4.8 = -3.5 m
+    assert s["conflicts"]["min_beside_gap_m"] == pytest.approx(-3.5, abs=1e-3)
 
 
 def _cut_in_ahead_of_a_braking_follower(k):

@@ -313,6 +313,10 @@ class EvaluationConfig:
     """A SUT lane change whose new follower is closer than this (m, bumper to bumper) makes the
     state dangerous (a cut-in; the method's rule constraint for BV lane changes: 10 m); 0 = off,
     the definition before cut-ins counted. See docs/evaluation.md."""
+    beside_lane_change: bool = field(default=True, metadata=_check(_Bool()))
+    """A SUT lane change while a vehicle in its target lane overlaps it longitudinally (beside
+    it) makes the state dangerous, whatever that vehicle does next; false = off, the definition
+    before. See docs/evaluation.md §3.7."""
     drac_threshold_mps2: float = field(default=3.0, metadata=_POSITIVE)
     """Reported counts of states whose DRAC exceeds this (m/s^2; SUMO SSM's default 3)."""
     undefined_terms: str = field(default="exclude", metadata=_check(_Str(lambda: UNDEFINED_TERM_RULES)))

@@ -14,7 +14,7 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FA
                                        EVENT_REENTRY, EVENT_RUN_END, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
                                        KIND_END, KIND_START, ROLE_SUT)
 
-from .safety import (RearAttribution, attribution_steps, cut_in_dangerous, cut_in_gap_state, drac_one, follower_headway,
+from .safety import (RearAttribution, attribution_steps, beside_gap_state, cut_in_dangerous, cut_in_gap_state, drac_one, follower_headway,
                      hard_braking_dangerous, rear_dangerous, sut_follower_ttc_state, sut_leader_ttc_state)
 
 
@@ -71,7 +71,8 @@ class ExposureMonitor:
     ``kind: start`` event when an exposure begins (``step``/``time_s`` of the first dangerous
     state, ``ttc_s``, ``accel_mps2``, ``ids`` = the SUT, the vehicle ahead in its path if any,
     the follower in its path when a rear conflict attributed to the SUT makes the state
-    dangerous, and the new follower when a cut-in does) and a ``kind: end`` event when it is over (``steps`` = its length in states).
+    dangerous, the new follower when a cut-in does, and the vehicle beside when a lane change
+    beside one does) and a ``kind: end`` event when it is over (``steps`` = its length in states).
     The definitions are :mod:`evoscen_sim.safety`'s, the evaluator's; the rear-conflict
     attribution window (``evaluation.rear_conflicts``, docs/evaluation.md) is the one state
     this monitor keeps besides the open exposure, fed the SUT's ``lane_change`` column of
@@ -86,6 +87,7 @@ class ExposureMonitor:
         self.rear_braking = evaluation.rear_braking
         self.rear_braking_headway_s = evaluation.rear_braking_headway_s
         self.cut_in_gap_m = evaluation.cut_in_gap_m
+        self.beside_lane_change = evaluation.beside_lane_change
         self.hard_braking = evaluation.hard_braking
         self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
@@ -129,6 +131,12 @@ class ExposureMonitor:
                                                      w.lane_change, sut)  # = safety.cut_in_gap
             cut_in = bool(cut_in_dangerous(np.float64(cut_gap), self.cut_in_gap_m))
             danger = danger or cut_in
+        beside, beside_j, beside_g = False, -1, np.inf
+        if w.lane_change[sut] != 0.0 and self.beside_lane_change:
+            beside_j, beside_g = beside_gap_state(w.s, w.length, w.lane, w.target_lane, w.lane_change,
+                                                  sut)  # = safety.beside_gap
+            beside = bool(beside_g < 0.0)  # = safety.beside_dangerous
+            danger = danger or beside
         if danger and self.start_step is None:
             self.start_step = k
             leader = int(leader)
@@ -140,12 +148,16 @@ class ExposureMonitor:
                          else f"needed deceleration (DRAC) {drac_sut:.2f} m/s^2")
             elif cut_in and not rear:
                 cause = f"cut-in: new follower {int(w.ids[new_follower])} {float(cut_gap):.2f} m behind"
+            elif beside and not rear:
+                cause = f"lane change beside vehicle {int(w.ids[beside_j])} (overlap {-float(beside_g):.2f} m)"
             else:
                 cause = f"follower {int(w.ids[follower])}: TTC {f_ttc:.2f} s, acceleration {f_accel:.2f} m/s^2"
             if rear:
                 ids.append(int(w.ids[follower]))
             if cut_in and int(w.ids[new_follower]) not in ids:
                 ids.append(int(w.ids[new_follower]))
+            if beside and int(w.ids[beside_j]) not in ids:
+                ids.append(int(w.ids[beside_j]))
             return [{"name": EVENT_EXPOSURE, "level": 1, "message": f"SUT dangerous state: {cause}",
                      **common, "ids": ids, "kind": KIND_START, "ttc_s": ttc, "accel_mps2": accel}]
         if not danger and self.start_step is not None:

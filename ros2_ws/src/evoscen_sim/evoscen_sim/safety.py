@@ -20,7 +20,11 @@ Definitions, choices and their reasons: docs/evaluation.md. A state is **dangero
   lanes and its new follower — the nearest vehicle in the SUT's target lane whose centre is
   behind the SUT's and whose body overlaps the SUT's laterally — is less than
   ``cut_in_gap_m`` behind it, bumper to bumper (:func:`cut_in_gap`): the SUT made the change the
-  method's rule constraint forbids every BV (no change with a vehicle within 10 m).
+  method's rule constraint forbids every BV (no change with a vehicle within 10 m), or
+* **[choice]** (``evaluation.beside_lane_change`` [true], false = off) the SUT changes lanes
+  *beside* a vehicle: it is changing lanes while a vehicle in its target lane (or changing into
+  it) overlaps its body longitudinally (:func:`beside_gap`): it steers towards the side of a
+  vehicle, a collision that only that vehicle's braking or the speed difference averts.
 
 **[choice]** "in its path": another vehicle whose body overlaps the SUT's laterally
 (|d_j - d_sut| < (w_j + w_sut)/2 in road coordinates) and whose centre is ahead
@@ -248,6 +252,58 @@ def _behind_in_path_state(s: np.ndarray, d: np.ndarray, length: np.ndarray, widt
     if not np.isfinite(gap):
         return -1, np.inf
     return follower, gap
+
+
+def beside_gap(s: np.ndarray, length: np.ndarray, lane: np.ndarray, target_lane: np.ndarray,
+               lane_change: np.ndarray, sut: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(vehicle, gap)``: the vehicle *beside* the SUT in its target lane while it changes lanes
+    (docs/evaluation.md §3.7).
+
+    While the SUT's ``lane_change`` is non-zero, the candidates are the vehicles j ≠ SUT whose
+    ``lane`` or ``target_lane`` is the SUT's ``target_lane``; gap = |s_j − s_SUT| − (l_j + l_SUT)/2,
+    the longitudinal bumper distance, negative while the bodies overlap longitudinally (j is
+    beside the SUT). Returns the candidate with the smallest gap (the first of equals, as
+    ``argmin``), ``-1`` / ``inf`` when the SUT keeps its lane or there is no candidate.
+    """
+    tgt = target_lane[..., sut:sut + 1]
+    cand = (lane == tgt) | (target_lane == tgt)
+    cand[..., sut] = False
+    gaps = np.where(cand, np.abs(s - s[..., sut:sut + 1]) - 0.5 * (length + length[..., sut:sut + 1]), np.inf)
+    vehicle = np.argmin(gaps, axis=-1)
+    gap = np.take_along_axis(gaps, vehicle[..., None], axis=-1)[..., 0]
+    gap = np.where(lane_change[..., sut] != 0.0, gap, np.inf)
+    vehicle = np.where(np.isfinite(gap), vehicle, -1)
+    return vehicle, gap
+
+
+@kernel
+def beside_gap_state(s: np.ndarray, length: np.ndarray, lane: np.ndarray, target_lane: np.ndarray,
+                     lane_change: np.ndarray, sut: int) -> tuple[int, float]:
+    """:func:`beside_gap` of ONE state (``[V]`` arrays), compiled; bit-identical to it (a test
+    compares them on many states)."""
+    if lane_change[sut] == 0.0:
+        return -1, np.inf
+    tgt, s0, l0 = target_lane[sut], s[sut], length[sut]
+    vehicle, best = -1, np.inf
+    for j in range(s.shape[0]):
+        if j == sut or not (lane[j] == tgt or target_lane[j] == tgt):
+            continue
+        gap = abs(s[j] - s0) - 0.5 * (length[j] + l0)
+        if gap < best:
+            vehicle, best = j, gap
+    return vehicle, best
+
+
+def beside_dangerous(gap_m: np.ndarray, enabled: bool) -> np.ndarray:
+    """Whether each state is a dangerous lane change beside a vehicle: :func:`beside_gap` below 0."""
+    return (gap_m < 0.0) & bool(enabled)
+
+
+def beside_severity(gap_m: np.ndarray, length_sum_m: np.ndarray) -> np.ndarray:
+    """An exposure's severity in a beside state (ranks exposures, docs/evaluation.md §3.7):
+    1 + the longitudinal overlap over the half sum of the two lengths — 1 as the bodies begin to
+    overlap, 2 side by side (the thresholds' 1 and 2 of TTC's threshold/TTC)."""
+    return 1.0 - gap_m / (0.5 * length_sum_m)
 
 
 def cut_in_dangerous(gap_m: np.ndarray, cut_in_gap_m: float) -> np.ndarray:

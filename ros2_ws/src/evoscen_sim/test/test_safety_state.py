@@ -16,6 +16,10 @@ import pytest
 from evoscen_sim.safety import (
     RearAttribution,
     attribution_steps,
+    beside_dangerous,
+    beside_gap,
+    beside_gap_state,
+    beside_severity,
     cut_in_dangerous,
     cut_in_gap,
     cut_in_gap_state,
@@ -247,6 +251,61 @@ def test_cut_in_random_dense_states() -> None:
         target = np.clip(lane + rng.choice([-1.0, 0.0, 1.0], n), 0, 4)
         lc = rng.choice([-1.0, 0.0, 1.0], n)
         _same_cut_in(s, d, rng.uniform(3.5, 12.0, n), rng.uniform(1.6, 2.6, n), lane, target, lc,
+                     int(rng.integers(0, n)))
+
+
+def _same_beside(s, length, lane, target, lc, sut) -> tuple[int, float]:  # noqa: ANN001
+    arrays = [np.ascontiguousarray(x, dtype=float) for x in (s, length, lane, target, lc)]
+    j, gap = beside_gap(*arrays, sut)
+    want = int(j), float(gap)
+    got = beside_gap_state(*arrays, sut)
+    assert got[0] == want[0], f"vehicle beside {got[0]} != {want[0]}"
+    assert np.float64(got[1]).tobytes() == np.float64(want[1]).tobytes(), f"gap {got[1]!r} != {want[1]!r}"
+    return want
+
+
+@pytest.mark.parametrize("case, slt, lc, vehicle, gap", [
+    # the SUT (vehicle 0) at s = 100 in lane 2, changing left (+1) into lane 3; bodies 4.8 m long.
+    # slt = s, lane, target lane of every vehicle; gap = |Δs| - 4.8 (negative: beside)
+    ("beside, 2 m behind: overlap 2.8 m", ([100.0, 98.0], [2, 3], [2, 3]), 1, 1, -2.8),
+    ("beside, 1 m ahead: overlap 3.8 m", ([100.0, 101.0], [2, 3], [2, 3]), 1, 1, -3.8),
+    ("level with the SUT: overlap 4.8 m", ([100.0, 100.0], [2, 3], [2, 3]), 1, 1, -4.8),
+    ("5 m behind: 0.2 m clear", ([100.0, 95.0], [2, 3], [2, 3]), 1, 1, 0.2),
+    ("the SUT keeps its lane", ([100.0, 98.0], [2, 3], [2, 3]), 0, -1, math.inf),
+    # in the SUT's own lane (2), keeping it: not in the target lane
+    ("own lane", ([100.0, 98.0], [2, 2], [2, 2]), 1, -1, math.inf),
+    # lane 4 changing right into lane 3: heading for the same lane from the other side
+    ("changing into the same lane", ([100.0, 97.0], [2, 4], [2, 3]), 1, 1, -1.8),
+    # lane 4 keeping its lane: not in the target lane
+    ("two lanes over", ([100.0, 100.0], [2, 4], [2, 4]), 1, -1, math.inf),
+    # two in lane 3: the smaller gap (|Δs| 3 < 20) whether behind or ahead
+    ("nearest of several", ([100.0, 80.0, 103.0], [2, 3, 3], [2, 3, 3]), 1, 2, -1.8),
+])
+def test_beside_edge_cases(case: str, slt: tuple, lc: int, vehicle: int, gap: float) -> None:
+    s, lane, target = (np.array(x, dtype=float) for x in slt)
+    target[0] = 3.0
+    lcs = np.zeros(s.size)
+    lcs[0] = lc
+    got = _same_beside(s, np.full(s.size, 4.8), lane, target, lcs, 0)
+    assert got[0] == vehicle, case
+    assert got[1] == pytest.approx(gap), case
+    assert bool(beside_dangerous(np.float64(got[1]), True)) == (got[1] < 0.0)
+    assert not beside_dangerous(np.float64(got[1]), False)
+
+
+def test_beside_severity_by_hand() -> None:
+    # two 4.8 m bodies: half sum 4.8; touching 1, overlap 2.4 m 1.5, side by side 2
+    assert beside_severity(np.array([0.0, -2.4, -4.8]), np.full(3, 9.6)).tolist() == [1.0, 1.5, 2.0]
+
+
+def test_beside_random_dense_states() -> None:
+    rng = np.random.default_rng(23)
+    for _ in range(3000):
+        n = int(rng.integers(2, 30))
+        s = np.round(rng.uniform(0.0, 120.0, n), int(rng.integers(0, 3)))
+        lane = rng.integers(0, 5, n).astype(float)
+        target = np.clip(lane + rng.choice([-1.0, 0.0, 1.0], n), 0, 4)
+        _same_beside(s, rng.uniform(3.5, 12.0, n), lane, target, rng.choice([-1.0, 0.0, 1.0], n),
                      int(rng.integers(0, n)))
 
 
