@@ -278,6 +278,17 @@ def _cut_in_front_of_follower(k):
     return [0.0, -0.6 if 32 <= k < 55 else 0.0], [1 if k == 0 else 0, 0]
 
 
+def _live_exposures_match(s: dict, live: list[dict], expected: int) -> list[dict]:
+    """The live ``evoscen/exposure`` start and end events equal the evaluator's exposures (count, first
+    states, lengths); returns the start events."""
+    starts = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "start"]
+    ends = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "end"]
+    assert s["exposures"] == len(starts) == expected
+    assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
+    assert [e["steps"] for e in ends] == [x["states"] for x in s["exposure_list"] if not x["open_at_end"]]
+    return starts
+
+
 @pytest.mark.parametrize("mode, cut_in_gap_m, expected",
                          [("after_lane_change", 0.0, 1), ("all", 0.0, 1), ("none", 0.0, 0), ("none", 10.0, 1)])
 def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, cut_in_gap_m, expected):
@@ -286,11 +297,7 @@ def test_live_monitor_equals_the_evaluator_on_a_sut_cut_in(road, mode, cut_in_ga
     report, live = drive(world, _cut_in_front_of_follower, 150, ev)
     s = report["safety"]
     assert s["collisions_all"] == 0
-    starts = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "start"]
-    ends = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "end"]
-    assert s["exposures"] == len(starts) == expected
-    assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
-    assert [e["steps"] for e in ends] == [x["states"] for x in s["exposure_list"] if not x["open_at_end"]]
+    starts = _live_exposures_match(s, live, expected)
     if expected and mode != "none":
         ex = s["exposure_list"][0]
         assert ex["rear_states"] == ex["states"] and ex["min_ttc_s"] is None  # all from the rear
@@ -320,11 +327,7 @@ def test_live_monitor_equals_the_evaluator_on_a_lane_change_beside(road, beside,
     report, live = drive(world, _change_left_at_once, 100, ev)
     s = report["safety"]
     assert s["collisions_all"] == 0
-    starts = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "start"]
-    ends = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "end"]
-    assert s["exposures"] == len(starts) == expected
-    assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
-    assert [e["steps"] for e in ends] == [x["states"] for x in s["exposure_list"] if not x["open_at_end"]]
+    starts = _live_exposures_match(s, live, expected)
     if expected:
         ex = s["exposure_list"][0]
         assert ex["beside_states"] == ex["states"] and ex["rear_states"] == ex["cut_in_states"] == 0
@@ -353,10 +356,8 @@ def test_live_monitor_equals_the_evaluator_on_a_braking_follower(road, behind_m,
     world = hand_built_world(road, [300.0, 300.0 - behind_m], [2, 3], [28.0, 25.0], roles=[1, 0])
     report, live = drive(world, _cut_in_ahead_of_a_braking_follower, 100, ev)
     s = report["safety"]
-    starts = [e for e in live if e["name"] == T.EVENT_EXPOSURE and e["kind"] == "start"]
     assert s["conflicts"]["min_follower_accel_mps2"] < -EV.hard_brake_mps2  # it did brake hard, in the path
-    assert s["exposures"] == len(starts) == expected
-    assert [e["step"] for e in starts] == [x["start_state"] for x in s["exposure_list"]]
+    starts = _live_exposures_match(s, live, expected)
     if expected:
         assert "follower 1" in starts[0]["message"]
 

@@ -194,14 +194,21 @@ def test_rear_attribution_window_edges() -> None:
 # ---------------------------------------------------------------------- the SUT's cut-ins
 
 
-def _same_cut_in(s, d, length, width, lane, target, lc, sut) -> tuple[int, float]:  # noqa: ANN001, PLR0913
-    arrays = [np.ascontiguousarray(x, dtype=float) for x in (s, d, length, width, lane, target, lc)]
-    f, gap = cut_in_gap(*arrays, sut)
-    want = int(f), float(gap)
-    got = cut_in_gap_state(*arrays, sut)
-    assert got[0] == want[0], f"new follower {got[0]} != {want[0]}"
+def _same_vehicle_and_gap(numpy_fn, state_fn, columns, sut: int, what: str) -> tuple[int, float]:  # noqa: ANN001
+    """``numpy_fn`` (whole-run numpy definition) and ``state_fn`` (its compiled one-state twin) give the
+    same vehicle and the same gap, bit for bit, on one state; returns them."""
+    arrays = [np.ascontiguousarray(x, dtype=float) for x in columns]
+    j, gap = numpy_fn(*arrays, sut)
+    want = int(j), float(gap)
+    got = state_fn(*arrays, sut)
+    assert got[0] == want[0], f"{what} {got[0]} != {want[0]}"
     assert np.float64(got[1]).tobytes() == np.float64(want[1]).tobytes(), f"gap {got[1]!r} != {want[1]!r}"
     return want
+
+
+def _same_cut_in(s, d, length, width, lane, target, lc, sut) -> tuple[int, float]:  # noqa: ANN001, PLR0913
+    return _same_vehicle_and_gap(cut_in_gap, cut_in_gap_state, (s, d, length, width, lane, target, lc), sut,
+                                 "new follower")
 
 
 @pytest.mark.parametrize("case, sdl, lc, follower, gap", [
@@ -255,13 +262,7 @@ def test_cut_in_random_dense_states() -> None:
 
 
 def _same_beside(s, length, lane, target, lc, sut) -> tuple[int, float]:  # noqa: ANN001
-    arrays = [np.ascontiguousarray(x, dtype=float) for x in (s, length, lane, target, lc)]
-    j, gap = beside_gap(*arrays, sut)
-    want = int(j), float(gap)
-    got = beside_gap_state(*arrays, sut)
-    assert got[0] == want[0], f"vehicle beside {got[0]} != {want[0]}"
-    assert np.float64(got[1]).tobytes() == np.float64(want[1]).tobytes(), f"gap {got[1]!r} != {want[1]!r}"
-    return want
+    return _same_vehicle_and_gap(beside_gap, beside_gap_state, (s, length, lane, target, lc), sut, "vehicle beside")
 
 
 @pytest.mark.parametrize("case, slt, lc, vehicle, gap", [
