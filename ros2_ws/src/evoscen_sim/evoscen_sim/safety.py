@@ -23,7 +23,7 @@ Definitions, choices and their reasons: docs/evaluation.md. A state is **dangero
   method's rule constraint forbids every BV (no change with a vehicle within 10 m), or
 * **[choice]** (``evaluation.beside_lane_change`` [true], false = off) the SUT changes lanes
   *beside* a vehicle: it is changing lanes while a vehicle in its target lane (or changing into
-  it) overlaps its body longitudinally (:func:`beside_gap`): it steers towards the side of a
+  it; not one leaving it on the far side) overlaps its body longitudinally (:func:`beside_gap`): it steers towards the side of a
   vehicle, a collision that only that vehicle's braking or the speed difference averts.
 
 **[choice]** "in its path": another vehicle whose body overlaps the SUT's laterally
@@ -260,13 +260,16 @@ def beside_gap(s: np.ndarray, length: np.ndarray, lane: np.ndarray, target_lane:
     (docs/evaluation.md §3.7).
 
     While the SUT's ``lane_change`` is non-zero, the candidates are the vehicles j ≠ SUT whose
-    ``lane`` or ``target_lane`` is the SUT's ``target_lane``; gap = |s_j − s_SUT| − (l_j + l_SUT)/2,
+    ``lane`` or ``target_lane`` is the SUT's ``target_lane`` t, except one in t leaving it on the far
+    side (``target_lane`` t + the SUT's direction: it moves away sideways as the SUT moves in);
+    gap = |s_j − s_SUT| − (l_j + l_SUT)/2,
     the longitudinal bumper distance, negative while the bodies overlap longitudinally (j is
     beside the SUT). Returns the candidate with the smallest gap (the first of equals, as
     ``argmin``), ``-1`` / ``inf`` when the SUT keeps its lane or there is no candidate.
     """
     tgt = target_lane[..., sut:sut + 1]
-    cand = (lane == tgt) | (target_lane == tgt)
+    away = tgt + lane_change[..., sut:sut + 1]  # the lane beyond the target, on the far side
+    cand = ((lane == tgt) | (target_lane == tgt)) & ~((lane == tgt) & (target_lane == away))
     cand[..., sut] = False
     gaps = np.where(cand, np.abs(s - s[..., sut:sut + 1]) - 0.5 * (length + length[..., sut:sut + 1]), np.inf)
     vehicle = np.argmin(gaps, axis=-1)
@@ -284,9 +287,10 @@ def beside_gap_state(s: np.ndarray, length: np.ndarray, lane: np.ndarray, target
     if lane_change[sut] == 0.0:
         return -1, np.inf
     tgt, s0, l0 = target_lane[sut], s[sut], length[sut]
+    away = tgt + lane_change[sut]
     vehicle, best = -1, np.inf
     for j in range(s.shape[0]):
-        if j == sut or not (lane[j] == tgt or target_lane[j] == tgt):
+        if j == sut or not (lane[j] == tgt or target_lane[j] == tgt) or (lane[j] == tgt and target_lane[j] == away):
             continue
         gap = abs(s[j] - s0) - 0.5 * (length[j] + l0)
         if gap < best:

@@ -279,6 +279,10 @@ def _same_beside(s, length, lane, target, lc, sut) -> tuple[int, float]:  # noqa
     ("changing into the same lane", ([100.0, 97.0], [2, 4], [2, 3]), 1, 1, -1.8),
     # lane 4 keeping its lane: not in the target lane
     ("two lanes over", ([100.0, 100.0], [2, 4], [2, 4]), 1, -1, math.inf),
+    # in lane 3 leaving it for lane 4 (the far side): it moves away as the SUT moves in
+    ("leaving on the far side", ([100.0, 98.0], [2, 3], [2, 4]), 1, -1, math.inf),
+    # in lane 3 changing into lane 2, the SUT's: the two swap lanes, towards each other
+    ("swapping lanes", ([100.0, 98.0], [2, 3], [2, 2]), 1, 1, -2.8),
     # two in lane 3: the smaller gap (|Δs| 3 < 20) whether behind or ahead
     ("nearest of several", ([100.0, 80.0, 103.0], [2, 3, 3], [2, 3, 3]), 1, 2, -1.8),
 ])
