@@ -150,10 +150,12 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
             ("min lane-change PET (s)", cf["min_pet_s"], f"over {len(cf['lane_change_pet'])} SUT lane changes"),
         ])]
     if s["exposure_list"]:
-        out += ["\n| exposure | start (s) | states | min TTC (s) | min accel (m/s²) |", "|---|---|---|---|---|"]
+        out += ["\n| exposure | start (s) | states | min TTC (s) | min accel (m/s²) | rear / cut-in / beside states |",
+                "|---|---|---|---|---|---|"]
         for n, x in enumerate(s["exposure_list"][:50], 1):
             out.append(f"| {n} | {x['start_time_s']:.1f} | {x['states']}{' (open)' if x['open_at_end'] else ''} | "
-                       f"{_f(x['min_ttc_s'], 3)} | {_f(x['min_accel_mps2'], 3)} |")
+                       f"{_f(x['min_ttc_s'], 3)} | {_f(x['min_accel_mps2'], 3)} | "
+                       f"{x.get('rear_states', 0)} / {x.get('cut_in_states', 0)} / {x.get('beside_states', 0)} |")
         if len(s["exposure_list"]) > 50:
             out.append(f"\n… and {len(s['exposure_list']) - 50} more (report.json lists all).")
         out.append("")

@@ -15,6 +15,7 @@ import pytest
 
 from evoscen_contract import topics as T
 from evoscen_eval.metrics import evaluate
+from evoscen_eval.report import markdown
 from evoscen_eval.rundata import RunAccumulator, RunData
 from evoscen_eval.testing import drive
 from evoscen_sim.config import EvaluationConfig
@@ -139,7 +140,11 @@ def test_lane_change_beside_a_vehicle_by_hand():
     run.columns["s"][:, 1] = 98.0
     run.columns["speed"][:, 1] = 25.0
     only = replace(EV, rear_conflicts="none", cut_in_gap_m=0.0)
-    s = evaluate(run, only)["safety"]
+    rep = evaluate(run, only)
+    s = rep["safety"]
+    # report.md's exposure table says what made the exposure dangerous: 0 rear, 0 cut-in, 5 beside states
+    row = next(line for line in markdown(rep, []).splitlines() if line.startswith("| 1 | 0.5 | 5 |"))
+    assert row.endswith("| 0 / 0 / 5 |")
     assert [(e["start_state"], e["end_state"], e["beside_states"], e["cut_in_states"]) for e in s["exposure_list"]] \
         == [(5, 10, 5, 0)]
     assert s["exposure_list"][0]["severity"] == pytest.approx(1.0 + 2.8 / 4.8)
