@@ -52,7 +52,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     args = parse_args(argv)
     from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
                                              run_rounds_with_bar, set_up, write_csv)
-    from evoscen_bringup.sensitivity import SCORES, mutation_score, paired, score_of, seeds_needed
+    from evoscen_bringup.sensitivity import SCORES, mutation_score, paired, pairing, score_of, seeds_needed
+    import numpy as np
     from evoscen_sim.config import load_scenario_config
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY, mutant_overrides
@@ -116,14 +117,14 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
         return out
 
     header = ["mutant", "class", "ΔI (intact − mutant)", "ΔI_s", "ΔI_e", "ΔI_i", "Δ collisions (mutant − intact)",
-              "Δ exposures", "Δ min PET (s)", "detected", "seeds needed"]
+              "Δ exposures", "Δ min PET (s)", "detected", "seeds needed", "pairing r"]
     csv_rows, score_rows, md_parts, plot_data = [], [], [], []
     round_rows = []
     for scenario in scenarios:
         driver = next(r.cfg.bvs.driver for r in rounds if meta[r.key][0] == scenario)
         for base in bases:
             intact_key = (scenario, base, INTACT)
-            rows, detected, points = [], [], []
+            rows, detected, points, rs = [], [], [], []
             for m in mutants:
                 key = (scenario, base, m)
                 diffs = {name: paired(per_seed(intact_key, name), per_seed(key, name)) for name in SCORES}
@@ -131,19 +132,24 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
                 d_exp = paired(counts(key, "safety", "exposures"), counts(intact_key, "safety", "exposures"))
                 d_pet = paired(min_pet(intact_key), min_pet(key))
                 need = seeds_needed(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
+                r_pair = pairing(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
+                rs.append(r_pair)
                 hit = diffs["intelligence"].above_zero
                 detected.append(hit)
                 points.append((m, diffs["intelligence"]))
                 rows.append([m, LIBRARY[m].klass, *(fmt_ci(diffs[n].mean, diffs[n].half) for n in SCORES),
                              fmt_ci(d_col.mean, d_col.half, 2), fmt_ci(d_exp.mean, d_exp.half, 2),
-                             fmt_ci(d_pet.mean, d_pet.half, 2), "yes" if hit else "no", "–" if need is None else str(need)])
+                             fmt_ci(d_pet.mean, d_pet.half, 2), "yes" if hit else "no", "–" if need is None else str(need),
+                             "–" if math.isnan(r_pair) else f"{r_pair:.2f}"])
                 csv_rows.append([scenario, driver, base, m, LIBRARY[m].klass,
                                  *(v for n in SCORES for v in (diffs[n].mean, diffs[n].half)),
                                  d_col.mean, d_col.half, d_exp.mean, d_exp.half, d_pet.mean, d_pet.half, int(hit),
-                                 "" if need is None else need, diffs["intelligence"].n])
+                                 "" if need is None else need, diffs["intelligence"].n, r_pair])
             score = mutation_score(detected)
             intact_i = mean_ci(list(per_seed(intact_key, "intelligence").values()))
-            score_rows.append([scenario, driver, base, sum(detected), len(detected), score, *intact_i])
+            finite_r = [x for x in rs if not math.isnan(x)]
+            median_r = float(np.median(finite_r)) if finite_r else math.nan
+            score_rows.append([scenario, driver, base, sum(detected), len(detected), score, *intact_i, median_r])
             md_parts.append(f"## {scenario} (BVs: {driver}), SUT {base}\n\nIntact intelligence "
                             f"{fmt_ci(*intact_i)}; mutation score {sum(detected)}/{len(detected)}"
                             f"{'' if math.isnan(score) else f' = {score:.2f}'}.\n\n"
@@ -161,15 +167,17 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
                *(f"d_{n}_{s}" for n in SCORES for s in ("mean", "ci95")),
                "d_collisions_mean", "d_collisions_ci95", "d_exposures_mean", "d_exposures_ci95", "d_min_pet_mean",
                "d_min_pet_ci95", "detected",
-               "seeds_needed", "seeds"], csv_rows)
+               "seeds_needed", "seeds", "pairing_r"], csv_rows)
     write_csv(args.out / "mutation_scores.csv", ["scenario", "bv_driver", "base", "detected", "mutants",
                                                  "mutation_score", "intact_intelligence_mean",
-                                                 "intact_intelligence_ci95"], score_rows)
+                                                 "intact_intelligence_ci95", "median_pairing_r"], score_rows)
     write_csv(args.out / "rounds.csv", ["scenario", "base", "variant", "seed", "steps", *SCORES, "collisions",
                                         "exposures", "wall_time_s"], round_rows)
-    score_table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", "intact I"],
-                                 [[s, d, b, f"{k}/{n}", "–" if math.isnan(x) else f"{x:.2f}", fmt_ci(m, h)]
-                                  for s, d, b, k, n, x, m, h in score_rows])
+    score_table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", "intact I",
+                                  "median pairing r"],
+                                 [[s, d, b, f"{k}/{n}", "–" if math.isnan(x) else f"{x:.2f}", fmt_ci(m, h),
+                                   "–" if math.isnan(r) else f"{r:.2f}"]
+                                  for s, d, b, k, n, x, m, h, r in score_rows])
     cfg0 = rounds[0].cfg
     wall = sum(results[r.key]["wall_time_s"] for r in rounds)
     text = (f"# Sensitivity experiment (SUT mutation analysis)\n\n{len(bases)} base SUT(s) x {len(mutants)} mutants "
@@ -177,7 +185,8 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
             f"{cfg0.bvs.count} BVs; paired by seed (common random numbers); differences intact − mutant of the "
             f"unweighted scores (Δ collisions/exposures: mutant − intact; Δ min PET: intact − mutant of the run's "
             f"smallest lane-change PET, > 0 when the mutant cuts in closer), mean ± 95 % interval over seeds; "
-            f"detected: the intelligence interval lies above 0; {wall:.0f} s of simulation in all.\n\n"
+            f"detected: the intelligence interval lies above 0; pairing r: correlation over seeds of intact and "
+            f"mutant intelligence; {wall:.0f} s of simulation in all.\n\n"
             f"{score_table}\n" + "\n".join(md_parts) + "\n![sensitivity](sensitivity.png)\n")
     (args.out / "sensitivity.md").write_text(text, encoding="utf-8")
     plot(args.out / "sensitivity.png", plot_data)

@@ -130,11 +130,16 @@ def test_sensitivity_paired_by_seed_tables_and_resumption(tmp_path):
         assert float(r["d_intelligence_ci95"]) == pytest.approx(half)
         assert r["detected"] == str(int(mean - half > 0)) and r["seeds"] == "3"
         assert r["class"] == {"stale": "perception", "weak_braking": "control"}[r["mutant"]]
+        a = [val[(r["scenario"], "intact", s)] for s in (0, 1, 2)]
+        b = [val[(r["scenario"], r["mutant"], s)] for s in (0, 1, 2)]
+        assert float(r["pairing_r"]) == pytest.approx(stats.pearsonr(a, b)[0])
     scores = read_csv(out / "mutation_scores.csv")
     for sc in scores:
         hits = [r for r in rows if r["scenario"] == sc["scenario"] and r["detected"] == "1"]
         assert int(sc["detected"]) == len(hits) and sc["mutants"] == "2"
         assert float(sc["mutation_score"]) == pytest.approx(len(hits) / 2)
+        r_s = sorted(float(r["pairing_r"]) for r in rows if r["scenario"] == sc["scenario"])
+        assert float(sc["median_pairing_r"]) == pytest.approx(sum(r_s) / 2)  # the median of two
     assert "| evolving | learned | mobil |" in res.stdout
     res = script("experiment_sensitivity.py", *args)  # resumable: nothing recomputed
     assert res.returncode == 0 and "18 rounds already done" in res.stderr

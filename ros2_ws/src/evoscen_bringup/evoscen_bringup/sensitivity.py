@@ -11,7 +11,11 @@ paired differences ``intact − mutant`` of every score are summarised per seed.
   seeds (in seed order) lies above zero *for every larger prefix too* (a detection that
   comes and goes with the next seed is not counted before it settles); ``None`` when the
   mutant is not detected with all seeds;
-* **mutation score** of a scenario — detected mutants / all mutants.
+* **mutation score** of a scenario — detected mutants / all mutants;
+* **pairing** — the correlation over seeds of the intact and the mutant intelligence: how
+  much the two runs of a seed share (1: the seed moves both alike, so the paired difference
+  cancels the seed's luck; 0: pairing buys nothing over two independent samples). Reported
+  per mutant and as the median per scenario (docs/sensitivity.md).
 
 Pure functions over per-seed values (no simulation here); the experiment is
 ``scripts/experiment_sensitivity.py``.
@@ -89,6 +93,19 @@ def seeds_needed(intact: Mapping[int, float], mutant: Mapping[int, float]) -> in
         else:
             break
     return needed
+
+
+def pairing(intact: Mapping[int, float], mutant: Mapping[int, float]) -> float:
+    """Pearson correlation over the seeds both have and where both are defined (finite) of the intact
+    and the mutant values; ``nan`` below 3 such seeds or when either side does not vary."""
+    seeds = sorted(set(intact) & set(mutant))
+    a = np.array([intact[s] for s in seeds], dtype=float)
+    b = np.array([mutant[s] for s in seeds], dtype=float)
+    ok = np.isfinite(a) & np.isfinite(b)
+    a, b = a[ok], b[ok]
+    if a.size < 3 or a.std() == 0.0 or b.std() == 0.0:
+        return math.nan
+    return float(np.corrcoef(a, b)[0, 1])
 
 
 def mutation_score(detected: Sequence[bool]) -> float:

@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from evoscen_bringup.sensitivity import mutation_score, paired, score_of, seeds_needed
+from evoscen_bringup.sensitivity import mutation_score, paired, pairing, score_of, seeds_needed
 
 T975_DF1 = 12.706204736   # Student-t 0.975 quantile, 1 degree of freedom
 T975_DF2 = 4.302652730    # 2 degrees of freedom
@@ -68,3 +68,14 @@ def test_mutation_score_and_score_of() -> None:
     assert math.isnan(score_of({**rep, "interaction": {"score": None}}, "interaction"))  # undefined I_i
     with pytest.raises(ValueError, match="score 'bogus': expected one of intelligence"):
         score_of(rep, "bogus")
+
+
+def test_pairing_by_hand() -> None:
+    # intact [1, 2, 3], mutant [2, 4, 7]: deviations [-1, 0, 1] and [-2.33, -0.33, 2.67];
+    # r = 5 / sqrt(2 * 12.6667) = 0.99339
+    assert pairing({0: 1.0, 1: 2.0, 2: 3.0}, {0: 2.0, 1: 4.0, 2: 7.0}) == pytest.approx(5.0 / math.sqrt(2 * 38 / 3))
+    # perfectly opposite; only the shared, finite seeds count (seed 9 only on one side, seed 3 undefined)
+    assert pairing({0: 1.0, 1: 2.0, 2: 3.0, 3: math.nan, 9: 5.0}, {0: 3.0, 1: 2.0, 2: 1.0, 3: 4.0}) == pytest.approx(-1.0)
+    # fewer than 3 seeds, or a side that does not vary: undefined
+    assert math.isnan(pairing({0: 1.0, 1: 2.0}, {0: 1.0, 1: 3.0}))
+    assert math.isnan(pairing({0: 1.0, 1: 2.0, 2: 3.0}, {0: 0.5, 1: 0.5, 2: 0.5}))
