@@ -568,8 +568,28 @@ def run_info_of(scenario: dict | None, external_sut: bool, ids: np.ndarray, sut_
     }
 
 
+RECORDED_BEFORE_KEYS: dict[str, Any] = {
+    "rear_conflicts": "none",
+    "rear_braking": "any",
+    "hard_braking": "own",
+    "cut_in_gap_m": 0.0,
+    "beside_lane_change": False,
+    "undefined_terms": "literal",
+    "accel_activity_form": "literal",
+}
+"""The value of each round-2 evaluation key that reproduces the scores from before the key
+existed (docs/evaluation.md §6). A bag records its run's whole resolved ``evaluation`` section, so
+a key missing there means the bag was recorded before the key existed: it is scored as it was
+then, not with today's default (``--config`` scores it with today's definitions)."""
+
+
 def evaluation_settings_of(scenario: dict | None) -> EvaluationConfig:
-    """The evaluation settings of a recorded scenario dict (the defaults without one)."""
+    """The evaluation settings of a recorded scenario dict (the defaults without one); a round-2 key
+    the recorded section lacks takes its value from before the key existed (:data:`RECORDED_BEFORE_KEYS`)."""
+    if scenario is not None and isinstance(scenario.get("evaluation"), dict):
+        recorded = scenario["evaluation"]
+        return evaluation_from_dict({**{k: v for k, v in RECORDED_BEFORE_KEYS.items() if k not in recorded},
+                                     **recorded}, "the bag's recorded scenario")
     if scenario is not None and scenario.get("evaluation") is not None:
         return evaluation_from_dict(scenario["evaluation"], "the bag's recorded scenario")
     return EvaluationConfig()

@@ -15,10 +15,10 @@ import pytest
 
 from evoscen_contract import topics as T
 from evoscen_eval.metrics import evaluate
-from evoscen_eval.report import markdown
-from evoscen_eval.rundata import RunAccumulator, RunData
+from evoscen_eval.report import markdown, report_of
+from evoscen_eval.rundata import RECORDED_BEFORE_KEYS, RunAccumulator, RunData, evaluation_settings_of
 from evoscen_eval.testing import drive
-from evoscen_sim.config import EvaluationConfig
+from evoscen_sim.config import EvaluationConfig, ScenarioConfig, config_to_dict
 from evoscen_sim.events import ExposureMonitor
 from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
@@ -163,6 +163,31 @@ def test_lane_change_beside_a_vehicle_by_hand():
     cut = evaluate(run, replace(EV, rear_conflicts="none"))["safety"]
     assert [(e["start_state"], e["end_state"], e["beside_states"], e["cut_in_states"]) for e in cut["exposure_list"]] \
         == [(7, 10, 0, 3)]
+
+
+def test_a_bag_recorded_before_a_key_is_scored_as_it_was_then():
+    """A bag records its run's whole resolved evaluation section; a round-2 key missing there means
+    the bag is older than the key, and it takes the value that reproduces the scores from before
+    (docs/evaluation.md §6): the beside hand run of above scores 1 exposure recorded now, 0 recorded
+    before beside_lane_change existed."""
+    now = config_to_dict(ScenarioConfig())
+    now["evaluation"].update(rear_conflicts="none", cut_in_gap_m=0.0)
+    older = {**now, "evaluation": {k: v for k, v in now["evaluation"].items() if k != "beside_lane_change"}}
+    assert evaluation_settings_of(now).beside_lane_change is True
+    assert evaluation_settings_of(older) == replace(evaluation_settings_of(now), beside_lane_change=False)
+    run = rear_run()
+    run.columns["s"][:, 1] = 98.0
+    run.columns["speed"][:, 1] = 25.0
+    run.scenario = now
+    assert report_of(run)["safety"]["exposures"] == 1
+    run.scenario = older
+    assert report_of(run)["safety"]["exposures"] == 0
+    # a round-1 section (none of the round-2 keys): every one of them as it was then
+    round1 = {"evaluation": {k: v for k, v in now["evaluation"].items() if k not in RECORDED_BEFORE_KEYS}}
+    ev = evaluation_settings_of(round1)
+    assert (ev.rear_conflicts, ev.rear_braking, ev.hard_braking, ev.cut_in_gap_m, ev.beside_lane_change,
+            ev.undefined_terms, ev.accel_activity_form) == ("none", "any", "own", 0.0, False, "literal", "literal")
+    assert evaluation_settings_of(None) == EvaluationConfig()  # no recorded scenario: today's defaults
 
 
 def test_tailgater_behind_a_lane_keeping_sut_is_not_its_fault():
