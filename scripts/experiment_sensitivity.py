@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import statistics
 import sys
 from pathlib import Path
 
@@ -53,7 +54,6 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
                                              run_rounds_with_bar, set_up, write_csv)
     from evoscen_bringup.sensitivity import SCORES, mutation_score, paired, pairing, score_of, seeds_needed
-    import numpy as np
     from evoscen_sim.config import load_scenario_config
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY, mutant_overrides
@@ -131,8 +131,9 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
                 d_col = paired(counts(key, "safety", "collisions"), counts(intact_key, "safety", "collisions"))
                 d_exp = paired(counts(key, "safety", "exposures"), counts(intact_key, "safety", "exposures"))
                 d_pet = paired(min_pet(intact_key), min_pet(key))
-                need = seeds_needed(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
-                r_pair = pairing(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
+                i_intact, i_mutant = per_seed(intact_key, "intelligence"), per_seed(key, "intelligence")
+                need = seeds_needed(i_intact, i_mutant)
+                r_pair = pairing(i_intact, i_mutant)
                 rs.append(r_pair)
                 hit = diffs["intelligence"].above_zero
                 detected.append(hit)
@@ -148,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
             score = mutation_score(detected)
             intact_i = mean_ci(list(per_seed(intact_key, "intelligence").values()))
             finite_r = [x for x in rs if not math.isnan(x)]
-            median_r = float(np.median(finite_r)) if finite_r else math.nan
+            median_r = statistics.median(finite_r) if finite_r else math.nan
             score_rows.append([scenario, driver, base, sum(detected), len(detected), score, *intact_i, median_r])
             md_parts.append(f"## {scenario} (BVs: {driver}), SUT {base}\n\nIntact intelligence "
                             f"{fmt_ci(*intact_i)}; mutation score {sum(detected)}/{len(detected)}"

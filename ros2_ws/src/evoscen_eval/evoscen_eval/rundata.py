@@ -586,10 +586,9 @@ then, not with today's default (``--config`` scores it with today's definitions)
 def evaluation_settings_of(scenario: dict | None) -> EvaluationConfig:
     """The evaluation settings of a recorded scenario dict (the defaults without one); a round-2 key
     the recorded section lacks takes its value from before the key existed (:data:`RECORDED_BEFORE_KEYS`)."""
-    if scenario is not None and isinstance(scenario.get("evaluation"), dict):
-        recorded = scenario["evaluation"]
-        return evaluation_from_dict({**{k: v for k, v in RECORDED_BEFORE_KEYS.items() if k not in recorded},
-                                     **recorded}, "the bag's recorded scenario")
-    if scenario is not None and scenario.get("evaluation") is not None:
-        return evaluation_from_dict(scenario["evaluation"], "the bag's recorded scenario")
-    return EvaluationConfig()
+    recorded = None if scenario is None else scenario.get("evaluation")
+    if recorded is None:
+        return EvaluationConfig()
+    if isinstance(recorded, dict):  # anything else: evaluation_from_dict's one-line error
+        recorded = {**RECORDED_BEFORE_KEYS, **recorded}
+    return evaluation_from_dict(recorded, "the bag's recorded scenario")
