@@ -72,9 +72,13 @@ def attacked(tmp_path_factory):
                                     env=_node_env(domain), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         try:
             time.sleep(1.0)  # its endpoints exist before the run's start-up: a stray publisher present from the start
+            # --wait-for: step 0 waits until the intruder's subscription is matched, so it attacks every step.
+            # Without it the run raced the discovery of an outside participant: on a loaded VM (50 % steal) the
+            # intruder matched the world's publisher 1-7 s after its own start, in 2 of 6 trials only after the
+            # 150 steps (0.3 s) were over, and then waited out its 90 s.
             graph = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--steps", str(STEPS),
                                     "--seed", str(SEED), "--domain-id", str(domain), "--discovery-range", "LOCALHOST",
-                                    "--out", str(root / "graph")],
+                                    "--wait-for", "intruder", "--out", str(root / "graph")],
                                    cwd=REPO, env={**os.environ, **reserved_by_caller_env(domain)},
                                    capture_output=True, text=True, timeout=240, check=False)
             out, _ = intruder.communicate(timeout=30)
