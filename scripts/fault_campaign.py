@@ -12,7 +12,9 @@ fault classes taken in turn and their timing drawn from a generator seeded by ``
 * the evaluator stalled (SIGSTOP) for 2-30 s (``--max-stall``), then resumed;
 * a hostile node on the run's domain (``tests/wire_intruder.py``: foreign and malformed
   commands, garbage world messages, forged events) — the world table must equal a clean
-  in-process run of the same seed byte for byte.
+  in-process run of the same seed byte for byte. The run waits for it (``--wait-for intruder``:
+  discovering an outside node can take seconds on a loaded machine) and it must have attacked at
+  least half of the world messages.
 
 For each run: the exit status (documented: 0, 2, 3, 4, 130), seconds from the fault to the end
 of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, whether the bag opens (after
@@ -133,6 +135,8 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
     args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--mode", "graph", "--steps", str(steps),
             "--seed", str(seed), "--out", str(out), "--no-plots", "--deadline", "0.5", "--max-misses", "3",
             "--domain-id", str(domain), "--overwrite"]
+    if fault[0] == "inject":  # step 0 waits until the intruder's subscription is matched: it attacks every step
+        args += ["--wait-for", "intruder"]
     launcher = subprocess.Popen(args, cwd=REPO, env=launcher_env, text=True, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE)
     intruder = None
@@ -193,7 +197,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
             env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                        RMW_IMPLEMENTATION="rmw_fastrtps_cpp", PYTHONPATH=os.pathsep.join(sys.path))
             intruder = subprocess.Popen([sys.executable, str(REPO / "tests" / "wire_intruder.py"), "60"], cwd=REPO,
-                                        env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                                        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         try:
             stdout, stderr = launcher.communicate(timeout=HANG_S)
             hang = False
@@ -210,10 +214,17 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
             with contextlib.suppress(OSError):
                 os.kill(int(pid), signal.SIGKILL)
         if intruder is not None:
-            intruder.kill()
-            _, intruder_err = intruder.communicate()
+            try:  # it ends 3 s after the last world message it saw
+                intruder_out, intruder_err = intruder.communicate(timeout=15)
+            except subprocess.TimeoutExpired:
+                intruder.kill()
+                intruder_out, intruder_err = intruder.communicate()
             if "Traceback" in intruder_err:
                 problems.append("the intruder itself failed")
+            m = re.search(r"for (\d+) world messages", intruder_out)
+            if m is None or int(m.group(1)) < steps // 2:
+                seen = m.group(1) if m else "no count of the"
+                problems.append(f"the intruder attacked {seen} world messages of {steps + 1} (expected at least half)")
     status = launcher.returncode if not hang else None
     traceback = "Traceback" in stderr
     readable, reindexed, lost, identical = None, False, None, None
