@@ -7,8 +7,11 @@ Two figures, each against a reference measured in the same process (these machin
 shared and noisy: compare ratios, not absolute rates):
 
 1. **Recorded / unrecorded** (issue 14's figure): ``run_inprocess`` of the default scenario for
-   ``--steps`` steps without a bag and with one, alternated ``--repeats`` times; steps/s of each
-   and their ratio (median over the repeats). Target: >= 0.5.
+   ``--steps`` steps without a bag, with one written inline (between the steps) and with one
+   written by the forked writer process (``bag_writer="process"``, the default where more than
+   one CPU is usable; docs/recording.md), the three alternated ``--repeats`` times; steps/s of
+   each (wall time from the call until the bag is closed) and the ratios (median over the
+   repeats). Target: >= 0.5. The two bags of a repeat are compared byte for byte.
 2. **The write path**: the messages of one recorded run, read back from its bag, written again
    by :class:`evoscen_eval.recorder.BagRecorder` three ways: the default (the recorder keeps the
    open chunk, ``_ChunkMessages``), ``chunk_writes=False`` (one ``pack`` per message record into
@@ -52,21 +55,29 @@ def main(argv: list[str] | None = None) -> int:
     cfg = load_scenario_config(None, {"steps": args.steps, "bvs.driver": args.bv_driver})
     run_inprocess(cfg, bag_dir=None, steps=200)  # compile the kernels first
     work = Path(tempfile.mkdtemp(prefix="bench_recording_"))
-    off, on = [], []
+    off, inline, proc = [], [], []
+    same = True
     for r in range(args.repeats):
         t0 = time.perf_counter()
         run_inprocess(cfg, bag_dir=None)
         off.append(args.steps / (time.perf_counter() - t0))
-        t0 = time.perf_counter()
-        run_inprocess(cfg, bag_dir=work / f"run{r}" / "bag")
-        on.append(args.steps / (time.perf_counter() - t0))
-        print(f"  pair {r + 1}: unrecorded {off[-1]:8.0f} steps/s   recorded {on[-1]:7.0f} steps/s   "
-              f"ratio {on[-1] / off[-1]:.2f}")
+        for writer, rates in (("inline", inline), ("process", proc)):
+            t0 = time.perf_counter()
+            run_inprocess(cfg, bag_dir=work / f"{writer}{r}" / "bag", bag_writer=writer)
+            rates.append(args.steps / (time.perf_counter() - t0))
+        same &= ((work / f"inline{r}" / "bag" / "bag_0.mcap").read_bytes()
+                 == (work / f"process{r}" / "bag" / "bag_0.mcap").read_bytes())
+        print(f"  repeat {r + 1}: unrecorded {off[-1]:8.0f} steps/s   recorded inline {inline[-1]:7.0f} "
+              f"(ratio {inline[-1] / off[-1]:.2f})   recorded by the writer process {proc[-1]:7.0f} "
+              f"(ratio {proc[-1] / off[-1]:.2f})")
+    med = statistics.median
     print(f"in-process, 1 SUT + 20 BVs ({args.bv_driver}), {args.steps} steps, median of {args.repeats}: "
-          f"unrecorded {statistics.median(off):.0f} steps/s, recorded {statistics.median(on):.0f} steps/s, "
-          f"recorded / unrecorded {statistics.median([b / a for a, b in zip(off, on)]):.2f} (target >= 0.5)")
+          f"unrecorded {med(off):.0f} steps/s; recorded inline {med(inline):.0f} steps/s, "
+          f"recorded / unrecorded {med([b / a for a, b in zip(off, inline)]):.2f}; recorded by the writer process "
+          f"{med(proc):.0f} steps/s, recorded / unrecorded {med([b / a for a, b in zip(off, proc)]):.2f} "
+          f"(target >= 0.5); bags byte-identical: {'yes' if same else 'NO'}")
 
-    messages = read_messages(work / "run0" / "bag")
+    messages = read_messages(work / "inline0" / "bag")
     paths = {"chunk": {}, "fast": {"chunk_writes": False}, "library": {"fast_writes": False}}
     per_message: dict[str, list[float]] = {}
     files = {}

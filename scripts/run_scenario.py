@@ -8,7 +8,9 @@ The bag goes to ``DIR/bag/``, the report (report.json, report.md, plots) to ``DI
 and the resolved configuration to ``DIR/scenario.yaml``.
 ``--config`` defaults to the shipped scenario; ``--steps``, ``--seed``, ``--sut``,
 ``--bvs`` and ``--mix`` override the config's keys (with the same validation). Bad input
-prints one line ``error: ...`` and exits with status 2.
+prints one line ``error: ...`` and exits with status 2. Ctrl-C ends the run with a finished bag
+(its last event ``run_end`` of kind ``interrupted``) and status 130; in-process runs write the
+bag inline or in a writer process (``--bag-writer``, docs/recording.md), the same bytes.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_OK, TOPIC_WORLD
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED, EXIT_OK, TOPIC_WORLD
 
 MODES = ("graph", "inprocess")
 
@@ -52,6 +54,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag and report in OUT/report")
     ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only, no PNG plots")
     ap.add_argument("--quiet", action="store_true", help="no progress bar (inprocess)")
+    ap.add_argument("--bag-writer", default="auto", choices=("auto", "inline", "process"),
+                    help="inprocess: write the bag between the steps (inline) or in a forked writer process "
+                         "(process), the same bytes; auto (default): process when more than one CPU is usable "
+                         "(docs/recording.md)")
     g = ap.add_argument_group("graph mode")
     g.add_argument("--domain-id", help="ROS_DOMAIN_ID of the nodes (default: a free one of 1..100, drawn at random; "
                    "no two evoscen graphs on one host share a domain)")
@@ -148,6 +154,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.domains import reserve_domain
+    from evoscen_bringup.bag_writer import BagWriterError
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import dump_config, load_scenario_config
@@ -201,7 +208,18 @@ def main(argv: list[str] | None = None) -> int:
             bar = tqdm(total=cfg.steps, unit="step", desc=f"{cfg.name} ({args.mode})", file=sys.stderr, mininterval=0.5)
         try:
             summary = run_inprocess(cfg, bag_dir=bag_dir, scenario=scenario, report_dir=report_dir,
-                                    plots=not args.no_plots, progress=(lambda k: bar.update(1)) if bar else None)
+                                    plots=not args.no_plots, progress=(lambda k: bar.update(1)) if bar else None,
+                                    bag_writer=args.bag_writer)
+        except KeyboardInterrupt:  # the run finished its bag first (run_end of kind interrupted)
+            if bar is not None:
+                bar.close()
+                bar = None
+            done = f": the bag {bag_dir} is finished (run_end: interrupted)" if bag_dir is not None else ""
+            print(f"interrupted{done}", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except BagWriterError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return EXIT_NODE_DIED
         finally:
             if bar is not None:
                 bar.close()

@@ -6,7 +6,9 @@ three times: as shipped (each step's messages handed to ``BagRecorder.write_part
 order, ``_ChunkMessages``, the compiled marker kernel, events encoded directly); with the earlier
 write path (every message through ``OrderedBag``, ``_FastMessages``, markers marker by marker in Python,
 events and map markers serialized by rclpy and canonicalized by the recorder); and through the
-mcap library's own ``add_message``. The three ``.mcap`` files must be equal byte for byte.
+mcap library's own ``add_message``; and as shipped with the bag written by a forked writer
+process (``bag_writer="process"``, evoscen_bringup.bag_writer; the others inline). The four
+``.mcap`` files must be equal byte for byte.
 """
 
 from __future__ import annotations
@@ -32,11 +34,12 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
 
     cfg = load_scenario_config(None, {"steps": 300})
 
-    def record(name: str) -> bytes:
-        run_inprocess(cfg, bag_dir=tmp_path / name / "bag")
+    def record(name: str, writer: str = "inline") -> bytes:
+        run_inprocess(cfg, bag_dir=tmp_path / name / "bag", bag_writer=writer)
         return (tmp_path / name / "bag" / "bag_0.mcap").read_bytes()
 
     new = record("new")
+    process = record("process", "process")
     with monkeypatch.context() as m:
         m.setattr(IP._Recorder, "direct", False)  # every message through OrderedBag
         m.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))
@@ -54,3 +57,4 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
         library = record("library")
     assert old == library
     assert new == old
+    assert process == new

@@ -258,7 +258,8 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     clips: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="evoscen-run-") as tmp:
         bag = Path(tmp) / "bag" if record != "none" else None
-        summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False)
+        # inline: a campaign runs one task per CPU, so there is no free core for a writer process
+        summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False, bag_writer="inline")
         if bag is not None:
             scenario_file = (Path(out_dir) / "runs" / run.key / "scenario.yaml").resolve()
             clips = mine_run(bag, summary.report, Path(tmp), clip_s=clip_s, scenario_file=scenario_file,

@@ -18,6 +18,7 @@ to the node graph's.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -115,8 +116,17 @@ class _Recorder:
             self._write_step()
         self.bag.close()
 
-    def world(self, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
-        """``/evoscen/world`` (and the roster and map markers) at ``t_ns``; earlier steps are written."""
+    snapshots = False  # world/state use the columns (ProcessRecorder: the World)
+
+    @property
+    def message_count(self) -> int:
+        """Messages written so far."""
+        return self.bag.message_count
+
+    def world(self, world, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
+        """``/evoscen/world`` (and the roster and map markers) at ``t_ns``; earlier steps are written.
+
+        ``cols``: the world's columns (``world.columns()``; ``world`` is not used)."""
         T, m = self.T, self.msgs
         if self._direct:
             self._add(T.WORLD.name, m.world_parts(cols, t_ns), t_ns)
@@ -130,7 +140,7 @@ class _Recorder:
             self.bag.add(T.MAP_MARKERS.name, m.map_markers(self.road, t_ns), t_ns, canonical=True)
         self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
 
-    def state(self, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001
+    def state(self, world, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001
         """The rest of the state: ``/clock``, odometry, vehicle markers when due."""
         T, m = self.T, self.msgs
         markers = self.markers_every and step_index % self.markers_every == 0
@@ -175,11 +185,14 @@ class _InProcessPort(Port):
         self._cols = None  # the columns of the state being sent
 
     def send_world(self, world, *, roster: bool) -> None:  # noqa: ANN001
-        self._cols = cols = world.columns() if self.rec is not None or self.acc is not None else None
-        if self.rec is not None:
-            self.rec.world(cols, world.time_ns, roster=roster)
-        if self.acc is not None:
-            self.acc.add_world_columns(cols, world.time_ns)
+        rec, acc = self.rec, self.acc
+        # the columns when someone here reads them (the process writer copies the state instead)
+        need = acc is not None or (rec is not None and not rec.snapshots)
+        self._cols = cols = world.columns() if need else None
+        if rec is not None:
+            rec.world(world, cols, world.time_ns, roster=roster)
+        if acc is not None:
+            acc.add_world_columns(cols, world.time_ns)
 
     def send_events(self, events: list[dict], t_ns: int) -> None:
         if self.rec is not None:
@@ -189,7 +202,7 @@ class _InProcessPort(Port):
 
     def send_state(self, world) -> None:  # noqa: ANN001
         if self.rec is not None:
-            self.rec.state(self._cols, self.sc.sut_index, world.step_index, world.time_ns)
+            self.rec.state(world, self._cols, self.sc.sut_index, world.step_index, world.time_ns)
         self._cols = None
 
     def commands(self, step: int) -> Commands:
@@ -224,6 +237,7 @@ def run_inprocess(
     evaluate: bool = False,
     plots: bool = True,
     keep_run: bool = False,
+    bag_writer: str = "auto",
 ) -> RunSummary:
     """Run ``steps`` (default ``cfg.steps``) steps; record to ``bag_dir`` unless it is None.
 
@@ -233,13 +247,26 @@ def run_inprocess(
     ones an offline evaluation of the bag gives, computed as the run goes (scoring memory does
     not grow with the run); ``keep_run`` also keeps the run's arrays (``RunSummary.run``).
 
+    ``bag_writer`` ([choice] bag writer, docs/recording.md): ``"inline"`` writes the bag in this
+    process, between the steps; ``"process"`` hands it to a forked writer process
+    (:mod:`evoscen_bringup.bag_writer`), the same bytes; ``"auto"`` (default) is the process writer
+    when this process may use more than one CPU. ``wall_time_s`` runs from step 0 until the bag is
+    closed.
+
     Ctrl-C (KeyboardInterrupt) ends the run: the bag is finished (``run_end`` event of kind
     ``interrupted``) and the interrupt is raised again; so is any other error.
     """
     sc = scenario if scenario is not None else build_scenario(cfg)
     n_steps = cfg.steps if steps is None else steps
     world = sc.world
-    rec = _Recorder(bag_dir, cfg, world.road) if bag_dir is not None else None
+    rec = None
+    if bag_dir is not None:
+        from .bag_writer import ProcessRecorder, resolve_writer
+
+        if resolve_writer(bag_writer) == "process":
+            rec = ProcessRecorder(bag_dir, cfg, world, n_bv=len(sc.bv_indices))
+        else:
+            rec = _Recorder(bag_dir, cfg, world.road)
     acc = None
     if report_dir is not None or evaluate:
         from evoscen_eval.rundata import RunAccumulator
@@ -259,13 +286,15 @@ def run_inprocess(
     try:
         outcome = loop.run(n_steps)
     finally:
+        t_close = time.perf_counter()
         if rec is not None:
             rec.close()
-    summary.wall_time_s = outcome.wall_s
+        t_close = time.perf_counter() - t_close
+    summary.wall_time_s = outcome.wall_s + t_close if outcome.wall_s is not None else outcome.wall_s
     summary.steps = world.step_index
     summary.sim_time_s = world.time_s
     if rec is not None:
-        summary.message_count = rec.bag.message_count
+        summary.message_count = rec.message_count
         summary.bag_bytes = sum(f.stat().st_size for f in Path(bag_dir).iterdir())
     if outcome.kind == KIND_INTERRUPTED:
         raise KeyboardInterrupt

@@ -86,6 +86,39 @@ class StepResult:
     off_road: list[int] = field(default_factory=list)
 
 
+
+STATE_FLOATS = ("s", "d", "heading_rel", "speed", "accel", "steer", "length", "width")
+"""The float64 state arrays of :meth:`World.state_arrays`, in order (their column names)."""
+STATE_INTS = ("id", "role", "policy", "lane", "target_lane", "lane_change")
+"""The int64 state arrays of :meth:`World.state_arrays`, in order (their column names)."""
+
+
+def state_columns(road, state: tuple) -> dict[str, np.ndarray]:  # noqa: ANN001 - a Road
+    """The world table's named columns from :meth:`World.state_arrays` (what :meth:`World.columns`
+    returns; the one definition, so a copy of the state gives the same columns bit for bit)."""
+    (s, d, psi, v, accel, steer, length, width), (ids, role, policy, lane, target_lane, lane_change) = state
+    x, y, heading = road.frenet_to_cartesian(np.maximum(s, 0.0), d)
+    return {
+        "id": ids,
+        "role": role,
+        "policy": policy,
+        "x": x,
+        "y": y,
+        "yaw": heading + psi,
+        "s": s,
+        "d": d,
+        "heading_rel": psi,
+        "speed": v,
+        "accel": accel,
+        "steer": steer,
+        "lane": lane,
+        "target_lane": target_lane,
+        "lane_change": lane_change,
+        "length": length,
+        "width": width,
+    }
+
+
 class World:
     """State of all vehicles on one road and the fixed-step update (see module docstring)."""
 
@@ -179,26 +212,14 @@ class World:
         State columns are live views that the next :meth:`step` updates in place: copy
         them (``np.column_stack`` does) to keep a snapshot.
         """
-        x, y, heading = self.road.frenet_to_cartesian(np.maximum(self.s, 0.0), self.d)
-        return {
-            "id": self.ids,
-            "role": self.role,
-            "policy": self.policy,
-            "x": x,
-            "y": y,
-            "yaw": heading + self.psi,
-            "s": self.s,
-            "d": self.d,
-            "heading_rel": self.psi,
-            "speed": self.v,
-            "accel": self.accel,
-            "steer": self.steer,
-            "lane": self.lane,
-            "target_lane": self.target_lane,
-            "lane_change": self.lane_change,
-            "length": self.length,
-            "width": self.width,
-        }
+        return state_columns(self.road, self.state_arrays())
+
+    def state_arrays(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """The state :func:`state_columns` needs, as ``(floats, integers)`` (live views, in
+        :data:`STATE_FLOATS` and :data:`STATE_INTS` order): what a recorder copies to rebuild
+        :meth:`columns` elsewhere (evoscen_bringup.bag_writer)."""
+        return ((self.s, self.d, self.psi, self.v, self.accel, self.steer, self.length, self.width),
+                (self.ids, self.role, self.policy, self.lane, self.target_lane, self.lane_change))
 
     # ------------------------------------------------------------------ the step
     def step(self, throttle: np.ndarray, lane_change_request: np.ndarray) -> StepResult:

@@ -1,0 +1,342 @@
+"""Recording off the simulation's core: an in-process run's bag written by a forked writer process.
+
+The in-process runner can write its bag on its own thread (:class:`~evoscen_bringup.inprocess._Recorder`,
+``bag_writer="inline"``) or hand it to a second process (:class:`ProcessRecorder`,
+``bag_writer="process"``; docs/recording.md, "[choice] bag writer"). With the process writer the
+run's step only copies what the bag needs — the world's state arrays (:meth:`World.state_arrays
+<evoscen_sim.world.World.state_arrays>`), the command tables, the events — into shared memory and
+notes each call in a journal; the writer process, forked at the start of the run, replays the
+journal through the same :class:`~evoscen_bringup.inprocess._Recorder` the inline path uses. The
+world table's columns are rebuilt by :func:`evoscen_sim.world.state_columns`, the one definition
+:meth:`World.columns <evoscen_sim.world.World.columns>` uses, so the bag is byte-identical to the
+inline path's (tests/test_recording_paths.py compares the files).
+
+The shared memory is ``slots`` batches of ``steps_per_slot`` steps each. The run fills a batch,
+sends its journal through a pipe and goes on with a free batch; the writer replays a batch and
+hands it back. The run waits only when every batch is still being written (the writer is slower
+than the run) and at the end, when the bag is closed. Errors: the writer's error (a bag directory
+that cannot be created, a full disk) is raised in the run as the same exception; a writer that
+dies is a one-line :class:`BagWriterError`. The writer ignores Ctrl-C (SIGINT goes to the whole
+process group): the run finishes the bag (``run_end`` of kind ``interrupted``) through it, as the
+inline path does; if the run itself goes away, the writer finishes the bag with what it received.
+"""
+
+from __future__ import annotations
+
+import mmap
+import multiprocessing
+import os
+import pickle
+import signal
+from pathlib import Path
+
+import numpy as np
+
+from evoscen_sim.world import STATE_FLOATS, STATE_INTS, state_columns
+
+WRITERS = ("auto", "inline", "process")
+"""``bag_writer`` values of :func:`evoscen_bringup.inprocess.run_inprocess` (docs/recording.md)."""
+
+
+class BagWriterError(RuntimeError):
+    """The writer process ended without finishing the bag (one line: which bag, how it ended)."""
+
+
+def resolve_writer(bag_writer: str) -> str:
+    """``"inline"`` or ``"process"`` for ``bag_writer``; ``"auto"`` is the process writer when this
+    process may use more than one CPU and the platform forks, else inline."""
+    if bag_writer not in WRITERS:
+        raise ValueError(f"bag_writer {bag_writer!r}: expected one of {', '.join(WRITERS)}")
+    if bag_writer != "auto":
+        return bag_writer
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return "inline"
+    try:
+        cpus = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cpus = os.cpu_count() or 1
+    return "process" if cpus > 1 else "inline"
+
+
+def _shared(shape: tuple[int, ...], dtype) -> np.ndarray:  # noqa: ANN001
+    """A zeroed array in anonymous shared memory (a fork's child sees the parent's writes)."""
+    size = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    buf = mmap.mmap(-1, max(size, 1))  # MAP_SHARED | MAP_ANONYMOUS
+    return np.ndarray(shape, dtype=dtype, buffer=buf)
+
+
+class ProcessRecorder:
+    """The in-process runner's recorder with the bag written by a forked process (module docstring).
+
+    Same calls as :class:`~evoscen_bringup.inprocess._Recorder` (``world``, ``state``,
+    ``commands``, ``events``, ``close``, ``message_count``); ``world`` and ``state`` take the
+    :class:`~evoscen_sim.world.World` itself.
+    """
+
+    snapshots = True  # world/state read the World, not its columns
+    slots = 4
+    """Batches in shared memory (the run waits when all of them are with the writer)."""
+    steps_per_slot = 128
+    """Steps per batch: a pipe message and a hand-back per this many steps."""
+
+    def __init__(self, bag_dir: Path, cfg, world, *, n_bv: int) -> None:  # noqa: ANN001
+        from evoscen_contract import topics as T
+
+        slots, steps_per_slot = self.slots, self.steps_per_slot
+
+        self.T = T
+        self.bag_dir = Path(bag_dir)
+        self._topics = (T.COMMANDS_BV.name, T.COMMANDS_SUT.name)
+        n = world.n
+        self._k = steps_per_slot
+        # +1 row: a batch may hold the final state after its last full step (StepLoop._end)
+        self._f = _shared((slots, steps_per_slot + 1, len(STATE_FLOATS), n), np.float64)
+        self._i = _shared((slots, steps_per_slot + 1, len(STATE_INTS), n), np.int64)
+        self._c = (_shared((slots, steps_per_slot + 1, 2, max(n_bv, 1)), np.float64),
+                   _shared((slots, steps_per_slot + 1, 2, 1), np.float64))
+        _warm_up(cfg, world, n_bv)
+        ctx = multiprocessing.get_context("fork")
+        to_writer_r, self._to_writer = ctx.Pipe(duplex=False)
+        self._from_writer, from_writer_w = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_writer_main, name="evoscen-bag-writer", daemon=False,
+                                 args=(to_writer_r, from_writer_w, self.bag_dir, cfg, world.road,
+                                       self._f, self._i, self._c, self._topics))
+        self._proc.start()
+        to_writer_r.close()
+        from_writer_w.close()
+        self._message_count = 0
+        self._closed = False
+        self._free = list(range(slots))
+        self._expect("ready")
+        self._slot = self._free.pop(0)
+        self._journal: list[tuple] = []
+        self._rows = 0  # state rows used in the open batch
+        self._crows = [0, 0]  # command rows used, per command topic
+        self._ids: list = [None, None]  # the ids last journaled, per command topic
+
+    # ------------------------------------------------------------------ the run's side
+
+    def world(self, world, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
+        """Copy the world's state into the open batch and journal ``/evoscen/world`` (+ roster)."""
+        if self._rows >= self._k:
+            self._send_batch()
+        floats, ints = world.state_arrays()
+        row = self._rows
+        self._f[self._slot, row] = floats
+        self._i[self._slot, row] = ints
+        self._rows = row + 1
+        self._journal.append(("W", row, t_ns, roster))
+
+    def state(self, world, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001
+        """Journal the rest of the state (from the row :meth:`world` copied)."""
+        self._journal.append(("S", self._rows - 1, sut_index, step_index, t_ns))
+
+    def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+        which = self._topics.index(topic)
+        row = self._crows[which]
+        if row > self._k:
+            self._send_batch()
+            row = 0
+        table = self._c[which][self._slot, row]
+        table[0, :len(throttle)] = throttle
+        table[1, :len(lane_change)] = lane_change
+        self._crows[which] = row + 1
+        if ids is not self._ids[which]:
+            self._ids[which] = ids
+            sent = np.array(ids)
+        else:
+            sent = None
+        self._journal.append(("C", which, row, len(throttle), sent, t_ns))
+
+    def events(self, events: list[dict], t_ns: int) -> None:
+        self._journal.append(("E", pickle.dumps(events, pickle.HIGHEST_PROTOCOL) if events else None, t_ns))
+
+    @property
+    def message_count(self) -> int:
+        """Messages in the bag (known once it is closed)."""
+        return self._message_count
+
+    def close(self) -> None:
+        """Send what is journaled, wait until the writer has finished the bag (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if self._journal:
+                self._send(("batch", self._slot, self._journal))
+            self._send(("close",))
+            self._expect("done")
+        finally:
+            self._proc.join(timeout=5)
+            if self._proc.is_alive():
+                self._proc.kill()
+                self._proc.join()
+            self._to_writer.close()
+            self._from_writer.close()
+
+    # ------------------------------------------------------------------ plumbing
+
+    def _send_batch(self) -> None:
+        # Ctrl-C is held back while a batch changes hands: an interrupt between sending it and
+        # taking the next one would send it twice (the run finishes the bag after a Ctrl-C)
+        held = _hold_sigint()
+        try:
+            self._send(("batch", self._slot, self._journal))
+            self._journal = []
+            self._rows = 0
+            self._crows = [0, 0]
+            while self._from_writer.poll():  # batches handed back meanwhile
+                self._take(self._from_writer_recv())
+            while not self._free:
+                self._take(self._from_writer_recv())
+            self._slot = self._free.pop(0)
+        finally:
+            _release_sigint(held)
+
+    def _send(self, message: tuple) -> None:
+        try:
+            self._to_writer.send(message)
+        except (BrokenPipeError, ConnectionResetError):
+            self._died()
+
+    def _from_writer_recv(self) -> tuple:
+        try:
+            return self._from_writer.recv()
+        except EOFError:
+            self._died()
+
+    def _take(self, message: tuple) -> None:
+        kind = message[0]
+        if kind == "free":
+            self._free.append(message[1])
+        elif kind == "error":
+            self._closed = True
+            self._proc.join()
+            raise _error_of(message[1], self.bag_dir)
+        elif kind == "done":
+            self._message_count = message[1]
+        elif kind != "ready":
+            raise BagWriterError(f"bag {str(self.bag_dir)!r}: the writer process sent {kind!r}")
+
+    def _expect(self, kind: str) -> None:
+        """Take the writer's messages until one of ``kind`` (errors are raised)."""
+        while True:
+            message = self._from_writer_recv()
+            self._take(message)
+            if message[0] == kind:
+                return
+
+    def _died(self):  # noqa: ANN202 - raises
+        self._closed = True
+        self._proc.join(timeout=5)
+        code = self._proc.exitcode
+        raise BagWriterError(f"bag {str(self.bag_dir)!r}: the writer process ended unexpectedly "
+                             f"(exit code {code}); the bag is incomplete") from None
+
+
+_warmed = False
+
+
+def _warm_up(cfg, world, n_bv: int) -> None:  # noqa: ANN001
+    """Once per process: record one state inline into a scratch bag, so that what the recorder
+    loads or compiles on first use (numba kernels from their cache, the typestore, YAML dumps)
+    is in this process before it forks, instead of being loaded again by every writer process."""
+    global _warmed
+    if _warmed:
+        return
+    import tempfile
+
+    from .inprocess import _Recorder
+
+    with tempfile.TemporaryDirectory(prefix="evoscen-warm-") as tmp:
+        rec = _Recorder(Path(tmp) / "bag", cfg, world.road)
+        cols, t_ns = world.columns(), world.time_ns
+        rec.world(world, cols, t_ns, roster=True)
+        rec.state(world, cols, 0, 0, t_ns)
+        ids = world.ids[: max(n_bv, 1)]
+        rec.commands(rec.T.COMMANDS_BV.name, ids, np.zeros(len(ids)), np.zeros(len(ids), dtype=np.int64), t_ns)
+        rec.events([], t_ns)
+        rec.close()
+    _warmed = True
+
+
+def _hold_sigint():  # noqa: ANN202 - the mask before, or None
+    """Block SIGINT in this thread (the main thread: where Python handles it); the mask before."""
+    try:
+        return signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def _release_sigint(before) -> None:  # noqa: ANN001
+    """Restore the mask :func:`_hold_sigint` found (a Ctrl-C that came meanwhile is raised now)."""
+    if before is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+
+
+def _error_of(payload: tuple, bag_dir: Path) -> BaseException:
+    """The writer's exception as it was raised there (or a one-line BagWriterError)."""
+    pickled, text = payload
+    if pickled is not None:
+        try:
+            return pickle.loads(pickled)
+        except Exception:  # noqa: BLE001 - fall back to the text
+            pass
+    return BagWriterError(f"bag {str(bag_dir)!r}: the writer process failed: {text}")
+
+
+def _writer_main(conn_in, conn_out, bag_dir: Path, cfg, road, f, i, c, topics) -> None:  # noqa: ANN001, PLR0913
+    """The writer process: open the bag, replay batches until ``close`` (or the run's end), close."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle (module docstring)
+    from .inprocess import _Recorder
+
+    try:
+        rec = _Recorder(bag_dir, cfg, road)
+        conn_out.send(("ready",))
+        ids = [None, None]
+        while True:
+            try:
+                message = conn_in.recv()
+            except EOFError:  # the run went away: finish the bag with what came
+                break
+            if message[0] == "close":
+                break
+            _, slot, journal = message
+            _replay(rec, road, journal, f[slot], i[slot], (c[0][slot], c[1][slot]), topics, ids)
+            conn_out.send(("free", slot))
+        rec.close()
+        conn_out.send(("done", rec.message_count))
+    except BaseException as exc:  # noqa: BLE001 - reported to the run, which raises it
+        try:
+            pickled = pickle.dumps(exc)
+        except Exception:  # noqa: BLE001
+            pickled = None
+        try:
+            conn_out.send(("error", (pickled, f"{type(exc).__name__}: {exc}")))
+        except OSError:
+            pass
+
+
+def _replay(rec, road, journal: list, f: np.ndarray, i: np.ndarray, c: tuple, topics: tuple,  # noqa: ANN001
+            ids: list) -> None:
+    """Make the calls of a journal on the inline recorder (same order, same data)."""
+    cols = None
+    for entry in journal:
+        kind = entry[0]
+        if kind == "W":
+            _, row, t_ns, roster = entry
+            fr, ir = f[row], i[row]
+            cols = state_columns(road, (tuple(fr), tuple(ir)))
+            rec.world(None, cols, t_ns, roster=roster)
+        elif kind == "S":
+            _, row, sut_index, step_index, t_ns = entry
+            rec.state(None, cols, sut_index, step_index, t_ns)
+        elif kind == "C":
+            _, which, row, n, sent, t_ns = entry
+            if sent is not None:
+                ids[which] = sent
+            table = c[which][row]
+            rec.commands(topics[which], ids[which], table[0, :n], table[1, :n], t_ns)
+        else:
+            _, pickled, t_ns = entry
+            rec.events(pickle.loads(pickled) if pickled is not None else [], t_ns)
