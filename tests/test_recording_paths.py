@@ -23,7 +23,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch) -> None:
     from rclpy.serialization import serialize_message
 
-    from evoscen_bringup import inprocess as IP
+    from evoscen_bringup.step_recorder import StepRecorder
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract import messages as M
     from evoscen_contract import topics as T
@@ -41,7 +41,7 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
     new = record("new")
     process = record("process", "process")
     with monkeypatch.context() as m:
-        m.setattr(IP._Recorder, "direct", False)  # every message through OrderedBag
+        m.setattr(StepRecorder, "direct", False)  # every message through OrderedBag
         m.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))
         m.setattr(VehicleMarkersEncoder, "encode", VehicleMarkersEncoder.encode_python)
         # events and map markers as rclpy's bytes: the recorder canonicalizes them

@@ -1,12 +1,12 @@
 """Recording off the simulation's core: an in-process run's bag written by a forked writer process.
 
-The in-process runner can write its bag on its own thread (:class:`~evoscen_bringup.inprocess._Recorder`,
+The in-process runner can write its bag on its own thread (:class:`~evoscen_bringup.step_recorder.StepRecorder`,
 ``bag_writer="inline"``) or hand it to a second process (:class:`ProcessRecorder`,
 ``bag_writer="process"``; docs/recording.md, "[choice] bag writer"). With the process writer the
 run's step only copies what the bag needs — the world's state arrays (:meth:`World.state_arrays
 <evoscen_sim.world.World.state_arrays>`), the command tables, the events — into shared memory and
 notes each call in a journal; the writer process, forked at the start of the run, replays the
-journal through the same :class:`~evoscen_bringup.inprocess._Recorder` the inline path uses. The
+journal through the same :class:`~evoscen_bringup.step_recorder.StepRecorder` the inline path uses. The
 world table's columns are rebuilt by :func:`evoscen_sim.world.state_columns`, the one definition
 :meth:`World.columns <evoscen_sim.world.World.columns>` uses, so the bag is byte-identical to the
 inline path's (tests/test_recording_paths.py compares the files).
@@ -34,6 +34,8 @@ import numpy as np
 
 from evoscen_sim.world import STATE_FLOATS, STATE_INTS, state_columns
 
+from .step_recorder import StepRecorder
+
 WRITERS = ("auto", "inline", "process")
 """``bag_writer`` values of :func:`evoscen_bringup.inprocess.run_inprocess` (docs/recording.md)."""
 
@@ -44,13 +46,14 @@ class BagWriterError(RuntimeError):
 
 def resolve_writer(bag_writer: str) -> str:
     """``"inline"`` or ``"process"`` for ``bag_writer``; ``"auto"`` is the process writer when this
-    process may use more than one CPU and the platform forks, else inline."""
+    process may use more than one CPU, the platform forks and this is not a daemonic process,
+    else inline."""
     if bag_writer not in WRITERS:
         raise ValueError(f"bag_writer {bag_writer!r}: expected one of {', '.join(WRITERS)}")
     if bag_writer != "auto":
         return bag_writer
-    if "fork" not in multiprocessing.get_all_start_methods():
-        return "inline"
+    if "fork" not in multiprocessing.get_all_start_methods() or multiprocessing.current_process().daemon:
+        return "inline"  # no fork, or a daemonic process (a pool's worker), which may not have children
     try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
@@ -68,7 +71,7 @@ def _shared(shape: tuple[int, ...], dtype) -> np.ndarray:  # noqa: ANN001
 class ProcessRecorder:
     """The in-process runner's recorder with the bag written by a forked process (module docstring).
 
-    Same calls as :class:`~evoscen_bringup.inprocess._Recorder` (``world``, ``state``,
+    Same calls as :class:`~evoscen_bringup.step_recorder.StepRecorder` (``world``, ``state``,
     ``commands``, ``events``, ``close``, ``message_count``); ``world`` and ``state`` take the
     :class:`~evoscen_sim.world.World` itself.
     """
@@ -98,7 +101,8 @@ class ProcessRecorder:
         ctx = multiprocessing.get_context("fork")
         to_writer_r, self._to_writer = ctx.Pipe(duplex=False)
         self._from_writer, from_writer_w = ctx.Pipe(duplex=False)
-        self._proc = ctx.Process(target=_writer_main, name="evoscen-bag-writer", daemon=False,
+        # daemon: should the run's process end without closing the bag, it does not wait for the writer
+        self._proc = ctx.Process(target=_writer_main, name="evoscen-bag-writer", daemon=True,
                                  args=(to_writer_r, from_writer_w, self.bag_dir, cfg, world.road,
                                        self._f, self._i, self._c, self._topics))
         self._proc.start()
@@ -246,10 +250,8 @@ def _warm_up(cfg, world, n_bv: int) -> None:  # noqa: ANN001
         return
     import tempfile
 
-    from .inprocess import _Recorder
-
     with tempfile.TemporaryDirectory(prefix="evoscen-warm-") as tmp:
-        rec = _Recorder(Path(tmp) / "bag", cfg, world.road)
+        rec = StepRecorder(Path(tmp) / "bag", cfg, world.road)
         cols, t_ns = world.columns(), world.time_ns
         rec.world(world, cols, t_ns, roster=True)
         rec.state(world, cols, 0, 0, t_ns)
@@ -288,10 +290,8 @@ def _error_of(payload: tuple, bag_dir: Path) -> BaseException:
 def _writer_main(conn_in, conn_out, bag_dir: Path, cfg, road, f, i, c, topics) -> None:  # noqa: ANN001, PLR0913
     """The writer process: open the bag, replay batches until ``close`` (or the run's end), close."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle (module docstring)
-    from .inprocess import _Recorder
-
     try:
-        rec = _Recorder(bag_dir, cfg, road)
+        rec = StepRecorder(bag_dir, cfg, road)
         conn_out.send(("ready",))
         ids = [None, None]
         while True:

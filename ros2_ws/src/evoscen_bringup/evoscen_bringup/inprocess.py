@@ -9,7 +9,7 @@ message.
 
 With recording on, every message goes to :class:`~evoscen_eval.recorder.BagRecorder` — what the
 evaluator node uses — in the canonical order :class:`evoscen_eval.recorder.OrderedBag` gives
-(a step at a time, :class:`_Recorder`), with the bytes of
+(a step at a time, :class:`~evoscen_bringup.step_recorder.StepRecorder`), with the bytes of
 :class:`evoscen_contract.messages.WorldMessages` — what the simulation node publishes — and log
 time = simulation time, so the bag is byte-identical for the same config and seed, and equal
 to the node graph's.
@@ -29,6 +29,7 @@ from evoscen_sim.config import ScenarioConfig
 from evoscen_sim.step_loop import Commands, Port, StepLoop
 
 from .scenario import Scenario, build_scenario
+from .step_recorder import StepRecorder
 
 
 @dataclass
@@ -58,117 +59,6 @@ class RunSummary:
         return self.steps / self.wall_time_s if self.wall_time_s > 0 else math.inf
 
 
-class _Recorder:
-    """The contract's messages of an in-process run, written a step at a time in canonical order.
-
-    Every message of a step carries the world's time and the world's message comes first (the
-    step loop's order), so a step is complete when the next world arrives or the run closes; it is
-    then written in the contract's topic order, arrival order within a topic — the order
-    :class:`~evoscen_eval.recorder.OrderedBag` gives — by one
-    :meth:`~evoscen_eval.recorder.BagRecorder.write_parts` call, the tables, clock and odometry as
-    the pieces of their bytes. ``direct = False`` is the earlier path (every message through the
-    ordered bag); tests/test_recording_paths.py records a run both ways and compares the files.
-    """
-
-    direct: bool = True
-
-    def __init__(self, bag_dir: Path, cfg: ScenarioConfig, road) -> None:  # noqa: ANN001
-        from evoscen_contract import topics as T
-        from evoscen_contract.messages import WorldMessages
-        from evoscen_eval.recorder import BagRecorder, OrderedBag
-
-        self.T = T
-        self.msgs = WorldMessages(cfg.dt_s)
-        from evoscen_eval.rundata import SCENARIO_METADATA, scenario_metadata
-
-        bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
-                          chunk_size=cfg.recording.chunk_size_bytes,
-                          metadata={SCENARIO_METADATA: scenario_metadata(cfg)})
-        self.bag = OrderedBag(bag, T.CONTRACT)
-        self.road = road
-        self.markers_every = cfg.recording.markers_every
-        self._direct = self.direct
-        self._rank = {spec.name: k for k, spec in enumerate(T.CONTRACT)}
-        self._slots: list[list] = [[] for _ in T.CONTRACT]  # the open step's (topic, pieces), by topic rank
-        self._t: int | None = None  # its time
-        self._pending = False
-
-    def _add(self, topic: str, parts: tuple, t_ns: int) -> None:
-        """Queue a message of the open step (as pieces of its bytes)."""
-        if t_ns != self._t:
-            self._write_step()
-            self._t = t_ns
-        self._slots[self._rank[topic]].append((topic, parts))
-        self._pending = True
-
-    def _write_step(self) -> None:
-        """Write the open step's messages in canonical order (nothing if none)."""
-        if self._pending:
-            messages = [m for slot in self._slots if slot for m in slot]
-            for slot in self._slots:
-                slot.clear()
-            self._pending = False
-            self.bag.bag.write_parts(self._t, messages)
-
-    def close(self) -> None:
-        """Write what is queued and finish the bag (idempotent)."""
-        if self._direct:
-            self._write_step()
-        self.bag.close()
-
-    snapshots = False  # world/state use the columns (ProcessRecorder: the World)
-
-    @property
-    def message_count(self) -> int:
-        """Messages written so far."""
-        return self.bag.message_count
-
-    def world(self, world, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
-        """``/evoscen/world`` (and the roster and map markers) at ``t_ns``; earlier steps are written.
-
-        ``cols``: the world's columns (``world.columns()``; ``world`` is not used)."""
-        T, m = self.T, self.msgs
-        if self._direct:
-            self._add(T.WORLD.name, m.world_parts(cols, t_ns), t_ns)
-            if roster:
-                self._add(T.ROSTER.name, (m.roster(cols, t_ns),), t_ns)
-                self._add(T.MAP_MARKERS.name, (m.map_markers(self.road, t_ns),), t_ns)
-            return
-        self.bag.flush_before(t_ns)
-        if roster:
-            self.bag.add(T.ROSTER.name, m.roster(cols, t_ns), t_ns, canonical=True)
-            self.bag.add(T.MAP_MARKERS.name, m.map_markers(self.road, t_ns), t_ns, canonical=True)
-        self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
-
-    def state(self, world, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001
-        """The rest of the state: ``/clock``, odometry, vehicle markers when due."""
-        T, m = self.T, self.msgs
-        markers = self.markers_every and step_index % self.markers_every == 0
-        if self._direct:
-            self._add(T.CLOCK.name, m.clock_parts(t_ns), t_ns)
-            self._add(T.SUT_ODOM.name, m.odometry_parts(cols, sut_index, t_ns), t_ns)
-            if markers:
-                self._add(T.MARKERS.name, (m.vehicle_markers(cols, t_ns),), t_ns)
-            return
-        self.bag.add(T.CLOCK.name, m.clock(t_ns), t_ns, canonical=True)
-        self.bag.add(T.SUT_ODOM.name, m.odometry(cols, sut_index, t_ns), t_ns, canonical=True)
-        if markers:
-            self.bag.add(T.MARKERS.name, m.vehicle_markers(cols, t_ns), t_ns, canonical=True)
-
-    def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
-        if self._direct:
-            self._add(topic, self.msgs.commands_parts(ids, throttle, lane_change, t_ns), t_ns)
-        else:
-            self.bag.add(topic, self.msgs.commands(ids, throttle, lane_change, t_ns), t_ns, canonical=True)
-
-    def events(self, events: list[dict], t_ns: int) -> None:
-        # canonical CDR already (evoscen_contract.cdr): no re-serialization
-        if self._direct:
-            self._add(self.T.EVENTS.name, (self.msgs.events(events, t_ns),), t_ns)
-        else:
-            self.bag.add(self.T.EVENTS.name, self.msgs.events(events, t_ns), t_ns, canonical=True)
-
-
 class _InProcessPort(Port):
     """The in-process runner's side of the step loop: the drivers answer, the bag records.
 
@@ -177,7 +67,7 @@ class _InProcessPort(Port):
     calls within a step does not show in it.
     """
 
-    def __init__(self, sc: Scenario, rec: _Recorder | None, acc, summary: RunSummary,  # noqa: ANN001
+    def __init__(self, sc: Scenario, rec: StepRecorder | None, acc, summary: RunSummary,  # noqa: ANN001
                  progress: Callable[[int], None] | None) -> None:
         self.sc, self.rec, self.acc, self.summary, self.progress = sc, rec, acc, summary, progress
         self.bv_ids = sc.world.ids[sc.bv_indices]
@@ -259,14 +149,6 @@ def run_inprocess(
     sc = scenario if scenario is not None else build_scenario(cfg)
     n_steps = cfg.steps if steps is None else steps
     world = sc.world
-    rec = None
-    if bag_dir is not None:
-        from .bag_writer import ProcessRecorder, resolve_writer
-
-        if resolve_writer(bag_writer) == "process":
-            rec = ProcessRecorder(bag_dir, cfg, world, n_bv=len(sc.bv_indices))
-        else:
-            rec = _Recorder(bag_dir, cfg, world.road)
     acc = None
     if report_dir is not None or evaluate:
         from evoscen_eval.rundata import RunAccumulator
@@ -281,9 +163,17 @@ def run_inprocess(
         if report_dir is not None:  # the lane lines of the report's snapshots
             acc.add_map(world.road)
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
-    loop = StepLoop(world, cfg.evaluation, _InProcessPort(sc, rec, acc, summary, progress),
-                    interrupted_text="run interrupted", finish_on_error=True)
-    try:
+    rec = None
+    if bag_dir is not None:
+        from .bag_writer import ProcessRecorder, resolve_writer
+
+        if resolve_writer(bag_writer) == "process":
+            rec = ProcessRecorder(bag_dir, cfg, world, n_bv=len(sc.bv_indices))
+        else:
+            rec = StepRecorder(bag_dir, cfg, world.road)
+    try:  # from here on the bag is closed, whatever happens
+        loop = StepLoop(world, cfg.evaluation, _InProcessPort(sc, rec, acc, summary, progress),
+                        interrupted_text="run interrupted", finish_on_error=True)
         outcome = loop.run(n_steps)
     finally:
         t_close = time.perf_counter()
