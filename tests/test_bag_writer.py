@@ -118,6 +118,30 @@ def test_writer_error_is_raised_in_the_run(tmp_path: Path, monkeypatch) -> None:
     assert exc.value.errno == errno.ENOSPC
 
 
+def test_writer_error_wins_over_its_end(tmp_path: Path, monkeypatch) -> None:
+    """The writer failed and ended before the run wrote to it again: the run's next send finds
+    the pipe broken, and the writer's error (not "ended unexpectedly") is what it raises."""
+    from evoscen_bringup import bag_writer
+    from evoscen_bringup.inprocess import run_inprocess
+
+    def full_disk(*args, **kwargs) -> None:  # noqa: ANN002, ANN003
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    send = bag_writer.ProcessRecorder._send
+
+    def send_then_wait(self, message: tuple) -> None:  # noqa: ANN001
+        send(self, message)
+        if message[0] == "batch":
+            self._proc.join(timeout=30)  # the writer has failed and ended before "close" goes out
+            assert self._proc.exitcode == 0
+
+    monkeypatch.setattr(bag_writer, "_replay", full_disk)
+    monkeypatch.setattr(bag_writer.ProcessRecorder, "_send", send_then_wait)
+    with pytest.raises(OSError) as exc:
+        run_inprocess(_cfg(20), bag_dir=tmp_path / "bag", bag_writer="process")
+    assert exc.value.errno == errno.ENOSPC
+
+
 def _dying_writer(monkeypatch) -> None:  # noqa: ANN001
     from evoscen_bringup import bag_writer
 

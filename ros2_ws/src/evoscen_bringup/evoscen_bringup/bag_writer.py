@@ -145,7 +145,7 @@ class ProcessRecorder:
         table[0, :len(throttle)] = throttle
         table[1, :len(lane_change)] = lane_change
         self._crows[which] = row + 1
-        if ids is not self._ids[which]:
+        if ids is not self._ids[which]:  # the port passes the same ids array every step
             self._ids[which] = ids
             sent = np.array(ids)
         else:
@@ -232,7 +232,18 @@ class ProcessRecorder:
 
     def _died(self):  # noqa: ANN202 - raises
         self._closed = True
+        # a writer that failed said why before it ended: that error, not its end, is the news
+        error = None
+        try:
+            while error is None and self._from_writer.poll():
+                message = self._from_writer.recv()
+                if message[0] == "error":
+                    error = message[1]
+        except (EOFError, OSError):
+            pass
         self._proc.join(timeout=5)
+        if error is not None:
+            raise _error_of(error, self.bag_dir)
         code = self._proc.exitcode
         raise BagWriterError(f"bag {str(self.bag_dir)!r}: the writer process ended unexpectedly "
                              f"(exit code {code}); the bag is incomplete") from None
