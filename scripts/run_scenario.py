@@ -214,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
             if bar is not None:
                 bar.close()
                 bar = None
-            done = f": the bag {bag_dir} is finished (run_end: interrupted)" if bag_dir is not None else ""
+            done = f": the bag {bag_dir} is finished" if bag_dir is not None else ""
             print(f"interrupted{done}", file=sys.stderr)
             return EXIT_INTERRUPTED
         except BagWriterError as exc:

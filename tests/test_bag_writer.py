@@ -176,7 +176,8 @@ def test_cli_dead_writer_exits_4_with_one_line(tmp_path: Path, monkeypatch, caps
                    "the bag is incomplete\n")
 
 
-def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path) -> None:
+@pytest.mark.parametrize("writer", ["process", "inline"])
+def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
     """SIGINT to the process group (what a terminal's Ctrl-C sends: the writer gets it too)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from evoscen_contract.topics import parse_events
@@ -186,7 +187,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path) -> None:
 
     out = tmp_path / "run"
     proc = subprocess.Popen([sys.executable, "scripts/run_scenario.py", "--mode", "inprocess", "--steps", "30000",
-                             "--quiet", "--no-plots", "--bag-writer", "process", "--out", str(out)],
+                             "--quiet", "--no-plots", "--bag-writer", writer, "--out", str(out)],
                             cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True,
                             # as from a terminal: a suite started in the background inherits SIGINT ignored
@@ -202,7 +203,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path) -> None:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
     assert proc.returncode == 130, f"exit status {proc.returncode}\n{stdout}\n{stderr}"
-    assert stderr == f"interrupted: the bag {out / 'bag'} is finished (run_end: interrupted)\n"
+    assert stderr == f"interrupted: the bag {out / 'bag'} is finished\n"
     bag: dict[str, list[int]] = defaultdict(list)
     events = []
     for topic, _type, t_ns, data in open_bag_reader(out / "bag"):
@@ -228,3 +229,29 @@ def test_auto_and_unknown_writers(monkeypatch) -> None:
     assert bag_writer.resolve_writer("inline") == "inline"
     with pytest.raises(ValueError, match="bag_writer 'thread': expected one of auto, inline, process"):
         bag_writer.resolve_writer("thread")
+
+
+def test_ctrl_c_is_noted_then_raised_at_the_second() -> None:
+    """The in-process runner's SIGINT handler: the first is noted, the second raises; the
+    earlier handler comes back; a caller's own handler is left alone."""
+    from evoscen_bringup.inprocess import _CtrlC
+
+    def own(signum, frame) -> None:  # noqa: ANN001
+        pass
+
+    # Python's handler, as in a terminal (a suite started in the background has SIGINT ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with _CtrlC() as ctrl_c:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+            assert ctrl_c.pending
+            with pytest.raises(KeyboardInterrupt):
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(1)
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        signal.signal(signal.SIGINT, own)
+        with _CtrlC():
+            assert signal.getsignal(signal.SIGINT) is own
+    finally:
+        signal.signal(signal.SIGINT, previous)

@@ -18,6 +18,8 @@ to the node graph's.
 from __future__ import annotations
 
 import math
+import signal
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,6 +61,35 @@ class RunSummary:
         return self.steps / self.wall_time_s if self.wall_time_s > 0 else math.inf
 
 
+class _CtrlC:
+    """Ctrl-C during an in-process run takes effect at the next step boundary, as in the
+    simulation node: the first SIGINT is noted and :meth:`_InProcessPort.begin_step` raises
+    KeyboardInterrupt, so a state is never recorded half (its world without its ``/clock``); a
+    second SIGINT raises at once (a step that hangs can still be left). Installed only in the
+    main thread over Python's default handler (a caller's own handler, or SIGINT ignored, is
+    left alone); the earlier handler is back when the run's bag is closed."""
+
+    def __init__(self) -> None:
+        self.pending = False
+        self._previous = None
+
+    def __enter__(self) -> _CtrlC:
+        if (threading.current_thread() is threading.main_thread()
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            self._previous = signal.signal(signal.SIGINT, self._on_sigint)
+        return self
+
+    def _on_sigint(self, signum, frame) -> None:  # noqa: ANN001
+        if self.pending:
+            raise KeyboardInterrupt
+        self.pending = True
+
+    def __exit__(self, *exc) -> None:  # noqa: ANN002
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
+
+
 class _InProcessPort(Port):
     """The in-process runner's side of the step loop: the drivers answer, the bag records.
 
@@ -73,6 +104,12 @@ class _InProcessPort(Port):
         self.bv_ids = sc.world.ids[sc.bv_indices]
         self.sut_ids = sc.world.ids[[sc.sut_index]]
         self._cols = None  # the columns of the state being sent
+        self.ctrl_c: _CtrlC | None = None
+
+    def begin_step(self, step: int) -> None:
+        """A noted Ctrl-C takes effect here (:class:`_CtrlC`)."""
+        if self.ctrl_c is not None and self.ctrl_c.pending:
+            raise KeyboardInterrupt
 
     def send_world(self, world, *, roster: bool) -> None:  # noqa: ANN001
         rec, acc = self.rec, self.acc
@@ -143,8 +180,10 @@ def run_inprocess(
     when this process may use more than one CPU. ``wall_time_s`` runs from step 0 until the bag is
     closed.
 
-    Ctrl-C (KeyboardInterrupt) ends the run: the bag is finished (``run_end`` event of kind
-    ``interrupted``) and the interrupt is raised again; so is any other error.
+    Ctrl-C ends the run at the next step boundary (:class:`_CtrlC`): the bag is finished
+    (``run_end`` event of kind ``interrupted``) and KeyboardInterrupt is raised; any other error
+    also finishes the bag and is raised again. A Ctrl-C after the last step began lets the run
+    complete and then raises KeyboardInterrupt.
     """
     sc = scenario if scenario is not None else build_scenario(cfg)
     n_steps = cfg.steps if steps is None else steps
@@ -171,15 +210,19 @@ def run_inprocess(
             rec = ProcessRecorder(bag_dir, cfg, world, n_bv=len(sc.bv_indices))
         else:
             rec = StepRecorder(bag_dir, cfg, world.road)
-    try:  # from here on the bag is closed, whatever happens
-        loop = StepLoop(world, cfg.evaluation, _InProcessPort(sc, rec, acc, summary, progress),
-                        interrupted_text="run interrupted", finish_on_error=True)
-        outcome = loop.run(n_steps)
-    finally:
-        t_close = time.perf_counter()
-        if rec is not None:
-            rec.close()
-        t_close = time.perf_counter() - t_close
+    with _CtrlC() as ctrl_c:
+        try:  # from here on the bag is closed, whatever happens
+            port = _InProcessPort(sc, rec, acc, summary, progress)
+            port.ctrl_c = ctrl_c
+            loop = StepLoop(world, cfg.evaluation, port, interrupted_text="run interrupted", finish_on_error=True)
+            outcome = loop.run(n_steps)
+        finally:
+            t_close = time.perf_counter()
+            if rec is not None:
+                rec.close()
+            t_close = time.perf_counter() - t_close
+    if ctrl_c.pending:  # noted after the last step began: the run completed, the user asked to stop
+        raise KeyboardInterrupt
     summary.wall_time_s = outcome.wall_s + t_close if outcome.wall_s is not None else outcome.wall_s
     summary.steps = world.step_index
     summary.sim_time_s = world.time_s
