@@ -219,6 +219,44 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
         assert bag[topic] == [j * DT_NS for j in range(k + 1)], topic
 
 
+def test_killed_run_leaves_the_writer_to_finish_the_bag(tmp_path: Path) -> None:
+    """SIGKILL to the run alone: its writer sees the pipe close and finishes the bag with what
+    it received (a readable MCAP with its summary, every per-step topic contiguous from t_0)."""
+    from evoscen_eval.recorder import open_bag_reader
+    from mcap.reader import make_reader
+
+    out = tmp_path / "run"
+    proc = subprocess.Popen([sys.executable, "scripts/run_scenario.py", "--mode", "inprocess", "--steps", "30000",
+                             "--quiet", "--no-plots", "--bag-writer", "process", "--out", str(out)],
+                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    mcap_file, metadata = out / "bag" / "bag_0.mcap", out / "bag" / "metadata.yaml"
+    try:
+        deadline = time.monotonic() + 60
+        while not (mcap_file.exists() and mcap_file.stat().st_size > 2_000_000) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        proc.kill()  # the run only, not its process group
+        proc.communicate(timeout=30)
+        deadline = time.monotonic() + 30
+        while not metadata.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == -signal.SIGKILL
+    assert metadata.exists(), "the writer did not finish the bag after the run was killed"
+    time.sleep(0.5)  # metadata.yaml is the writer's last file
+    stamps: dict[str, list[int]] = defaultdict(list)
+    for topic, _type, t_ns, _data in open_bag_reader(out / "bag"):
+        stamps[topic].append(t_ns)
+    with open(mcap_file, "rb") as f:
+        assert make_reader(f).get_summary().statistics.message_count == sum(len(v) for v in stamps.values())
+    k = len(stamps["/evoscen/world"]) - 1
+    assert 0 < k < 30000
+    for topic in ("/clock", "/evoscen/world", "/evoscen/sut/odom"):
+        assert stamps[topic] == [j * DT_NS for j in range(k + 1)], topic
+
+
 def test_auto_and_unknown_writers(monkeypatch) -> None:
     from evoscen_bringup import bag_writer
 

@@ -103,8 +103,8 @@ class ProcessRecorder:
         self._from_writer, from_writer_w = ctx.Pipe(duplex=False)
         # daemon: should the run's process end without closing the bag, it does not wait for the writer
         self._proc = ctx.Process(target=_writer_main, name="evoscen-bag-writer", daemon=True,
-                                 args=(to_writer_r, from_writer_w, self.bag_dir, cfg, world.road,
-                                       self._f, self._i, self._c, self._topics))
+                                 args=(to_writer_r, from_writer_w, (self._to_writer, self._from_writer),
+                                       self.bag_dir, cfg, world.road, self._f, self._i, self._c, self._topics))
         self._proc.start()
         to_writer_r.close()
         from_writer_w.close()
@@ -298,34 +298,42 @@ def _error_of(payload: tuple, bag_dir: Path) -> BaseException:
     return BagWriterError(f"bag {str(bag_dir)!r}: the writer process failed: {text}")
 
 
-def _writer_main(conn_in, conn_out, bag_dir: Path, cfg, road, f, i, c, topics) -> None:  # noqa: ANN001, PLR0913
+def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f, i, c, topics) -> None:  # noqa: ANN001, PLR0913
     """The writer process: open the bag, replay batches until ``close`` (or the run's end), close."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle (module docstring)
+    for end in run_ends:  # the fork copied the run's ends of the pipes: without closing them here,
+        end.close()       # the run's end would never read as closed (EOF) in this process
+    def tell(message: tuple) -> bool:
+        """Send ``message`` to the run; False if the run is gone (its end of the pipe closed)."""
+        try:
+            conn_out.send(message)
+        except OSError:
+            return False
+        return True
+
     try:
         rec = StepRecorder(bag_dir, cfg, road)
-        conn_out.send(("ready",))
+        tell(("ready",))
         ids = [None, None]
         while True:
             try:
                 message = conn_in.recv()
-            except EOFError:  # the run went away: finish the bag with what came
+            except (EOFError, OSError):  # the run went away: finish the bag with what came
                 break
             if message[0] == "close":
                 break
             _, slot, journal = message
             _replay(rec, road, journal, f[slot], i[slot], (c[0][slot], c[1][slot]), topics, ids)
-            conn_out.send(("free", slot))
+            if not tell(("free", slot)):  # the run went away while this batch was replayed
+                break
         rec.close()
-        conn_out.send(("done", rec.message_count))
+        tell(("done", rec.message_count))
     except BaseException as exc:  # noqa: BLE001 - reported to the run, which raises it
         try:
             pickled = pickle.dumps(exc)
         except Exception:  # noqa: BLE001
             pickled = None
-        try:
-            conn_out.send(("error", (pickled, f"{type(exc).__name__}: {exc}")))
-        except OSError:
-            pass
+        tell(("error", (pickled, f"{type(exc).__name__}: {exc}")))
 
 
 def _replay(rec, road, journal: list, f: np.ndarray, i: np.ndarray, c: tuple, topics: tuple,  # noqa: ANN001
