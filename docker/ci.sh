@@ -3,7 +3,8 @@
 #   1. the engine: docker when its daemon answers, else podman (docker/setup-podman.sh: installs and
 #      configures it and makes the base image from the Debian mirror: no image registry needed)
 #   2. the images: test, runtime, user-sut
-#   3. the whole suite inside the test image, no network
+#   3. the end-to-end suite (marker e2e: node graphs, CLI subprocesses, the wire) inside the test image, no network;
+#      the unit tests ran natively on the same requirements.txt (docs/docker.md)
 #   4. a compose graph (one container per node) whose bag equals the in-process bag of the same
 #      configuration and seed, byte for byte (in-process run in the runtime image)
 #   5. the BV container killed mid-run: the graph ends with the controller fault (status 3) and a
@@ -34,8 +35,8 @@ fi
 check() { ( set +u; . "$root/.venv/bin/activate" && . "$root/ros2_ws/install/setup.sh" && python "$here/check_bag.py" "$@" ); }
 out=$root/runs/ci-container; rm -rf "$out"; mkdir -p "$out"
 
-stage "suite in the test image"
-$ENGINE run --rm --network none --shm-size=256m localhost/evoscen-test:latest make test PYTEST_ARGS="-q -p no:cacheprovider"
+stage "end-to-end suite in the test image"
+$ENGINE run --rm --network none --shm-size=256m localhost/evoscen-test:latest make test PYTEST_ARGS="-q -p no:cacheprovider -m e2e"
 
 stage "compose graph vs in-process bag"
 bash docker/compose-run.sh --out "$out/graph" -- --steps 600 --seed 3 --no-plots
