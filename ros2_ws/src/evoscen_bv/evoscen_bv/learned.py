@@ -34,6 +34,7 @@ from evoscen_contract.contract import POLICY_CODES, SOCIAL_POLICIES
 from evoscen_sim.config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
+from evoscen_sim.traffic import new_trips
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
 from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, forced_merge_targets, observation_grid
@@ -242,8 +243,8 @@ class LearnedDriver:
                 self.hold_until_step[ended] = int(view.step_index) + n
             self._changing = changing
             s = np.asarray(view.s)[self.vehicles]
-            if self._last_s is not None:  # s falls only when a vehicle re-enters: a new vehicle, no hold
-                self.hold_until_step[s < self._last_s] = -1
+            if self._last_s is not None:  # a vehicle that entered anew is a new vehicle: no hold
+                self.hold_until_step[new_trips(self._last_s, s, float(view.dt_s))] = -1
             self._last_s = s.copy()
         request = np.zeros(self.vehicles.size, dtype=np.int64)
         if self.stack is not None and view.step_index % self.config.env.decision_interval_steps == 0:

@@ -149,7 +149,7 @@ def test_safety_net_reproduces_the_old_commands_exactly():
     # lateral loop without the heading-reference cap (evoscen_sim.control; 1.5 rad never binds: asin(0.6) < 0.65)
     # and no lane hold (lane_hold_s: 0; the hold came in round 2, docs/learned-bvs.md)
     old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "round1", "lane_hold_s": 0}},
-           "control.max_heading_ref_rad": 1.5}
+           "control.max_heading_ref_rad": 1.5, "traffic.mode": "loop"}  # and re-entry at the road's start
     assert _commands_digest(old, 400) == OLD_COMMANDS_SHA256
     # the driver profile drives differently
     assert _commands_digest({"models": {"learned": {"policy_dir": "round1"}}}, 400) != OLD_COMMANDS_SHA256

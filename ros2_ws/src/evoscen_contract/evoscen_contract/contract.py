@@ -164,10 +164,11 @@ EVENT_FAULT: str = "evoscen/fault"
 EVENT_OFF_ROAD: str = "evoscen/off_road"
 EVENT_RUN_END: str = "evoscen/run_end"
 EVENT_EXPOSURE: str = "evoscen/exposure"
+EVENT_SHIFT: str = "evoscen/shift"
 #: All event names allowed on ``/evoscen/events``.
 EVENT_NAMES: tuple[str, ...] = (
     EVENT_COLLISION, EVENT_LANE_CHANGE, EVENT_REENTRY, EVENT_OFF_ROAD, EVENT_FAULT, EVENT_RUN_END,
-    EVENT_EXPOSURE,
+    EVENT_EXPOSURE, EVENT_SHIFT,
 )
 
 #: Values of the ``kind`` key (see :data:`EVENT_KINDS`).
@@ -200,6 +201,7 @@ DEFAULT_EVENT_LEVELS: dict[str, int] = {
     EVENT_FAULT: LEVEL_ERROR,
     EVENT_RUN_END: LEVEL_OK,
     EVENT_EXPOSURE: LEVEL_WARN,
+    EVENT_SHIFT: LEVEL_OK,
 }
 #: ``hardware_id`` of every event status.
 EVENT_HARDWARE_ID: str = "evoscen"
@@ -223,6 +225,7 @@ EVENT_KEY_TYPES: dict[str, str] = {
     "steps": "int",  # steps simulated (run_end); states an exposure lasted (exposure end)
     "ttc_s": "float",  # the SUT's time to collision with the vehicle ahead in its path (exposure start; inf if none)
     "accel_mps2": "float",  # the SUT's acceleration (exposure start)
+    "shift_m": "float",  # distance every vehicle was moved back along the road (shift; docs/method.md §1)
 }
 
 # --------------------------------------------------------------------------- exit statuses

@@ -105,12 +105,26 @@ class ExportOptions:
     road: VirtualRoad = VirtualRoad()
 
 
+def unshifted_s(s: np.ndarray) -> np.ndarray:
+    """``s`` (states × vehicles) with the traffic window's shifts undone: each shift moves every
+    vehicle back by one distance (:func:`evoscen_sim.traffic.common_shift`), added back here
+    from the step it happened on, so the arc length grows along a trip as on an endless road."""
+    s = np.asarray(s, dtype=float)
+    if s.shape[0] < 2 or s.shape[1] < 3:  # one or two vehicles: a jump is a re-entry, not a shift
+        return s
+    med = np.median(np.diff(s, axis=0), axis=1)
+    shift = np.where(med < -50.0, med, 0.0)
+    return s - np.concatenate([[0.0], np.cumsum(shift)])[:, None]
+
+
 def _segments(s: np.ndarray, jump_m: float) -> list[tuple[int, int, int]]:
     """(vehicle column, first state, last state) of every track: runs of ``s`` without re-entry."""
     out = []
     k_count, v_count = s.shape
+    ds = np.diff(s, axis=0)
     for v in range(v_count):
-        breaks = np.flatnonzero(np.diff(s[:, v]) < -jump_m) + 1
+        # a jump backwards, or forwards by more than 40 m/s could drive in a second: a new track
+        breaks = np.flatnonzero((ds[:, v] < -jump_m) | (ds[:, v] > 40.0 + jump_m)) + 1
         starts = np.concatenate([[0], breaks])
         stops = np.concatenate([breaks - 1, [k_count - 1]])
         out.extend((v, int(a), int(b)) for a, b in zip(starts, stops))
@@ -138,6 +152,7 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
     road = options.road
     time_s = np.asarray(run.time_s, dtype=np.float64)
     cols = {c: np.asarray(run.columns[c], dtype=np.float64) for c in REQUIRED_COLUMNS}
+    cols["s"] = unshifted_s(cols["s"])  # x grows along the road as if it had no end
     ids = np.asarray(run.ids, dtype=np.int64)
     k_count, v_count = cols["s"].shape
     if "role" in run.columns:

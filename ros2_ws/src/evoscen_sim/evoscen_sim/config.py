@@ -101,6 +101,7 @@ from evoscen_sim.config_schema import (
     ScenarioConfig,
     SpawnConfig,
     SutConfig,
+    TrafficConfig,
     VehicleConfig,
     mix_counts,
 )
@@ -128,6 +129,7 @@ __all__ = [
     "ScenarioConfig",
     "SpawnConfig",
     "SutConfig",
+    "TrafficConfig",
     "VehicleConfig",
     "_parse_yaml",
     "config_from_dict",

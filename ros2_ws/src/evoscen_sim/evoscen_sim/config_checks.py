@@ -177,6 +177,48 @@ class _Range:
         return (lo, hi)
 
 
+class _Numbers:
+    """A list of 1..``max_len`` finite numbers, each within ``[lo, hi]``."""
+
+    takes_str = False
+
+    def __init__(self, lo: float, hi: float, *, max_len: int = 8) -> None:
+        self.lo, self.hi, self.max_len = lo, hi, max_len
+        self.expected = f"expected a list of 1 to {max_len} numbers, each in [{_fmt(lo)}, {_fmt(hi)}]"
+
+    def __call__(self, value: Any) -> tuple[float, ...]:
+        if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= self.max_len:
+            raise _Bad(self.expected)
+        if not all(_is_number(v) and self.lo <= v <= self.hi for v in value):
+            raise _Bad(self.expected)
+        return tuple(float(v) for v in value)
+
+
+class _MeanSd:
+    """A ``[mean, sd]`` pair (``pairs``: a list of 1..8 such pairs) with mean in ``[lo, hi]`` and
+    ``0 <= sd <= sd_hi``."""
+
+    takes_str = False
+
+    def __init__(self, lo: float, hi: float, sd_hi: float, *, pairs: bool = False) -> None:
+        self.lo, self.hi, self.sd_hi, self.pairs = lo, hi, sd_hi, pairs
+        one = f"[mean, sd] with mean in [{_fmt(lo)}, {_fmt(hi)}] and sd in [0, {_fmt(sd_hi)}]"
+        self.expected = f"expected a list of 1 to 8 pairs {one}" if pairs else f"expected a pair {one}"
+
+    def _one(self, value: Any) -> tuple[float, float]:
+        if (not isinstance(value, (list, tuple)) or len(value) != 2 or not all(_is_number(v) for v in value)
+                or not self.lo <= value[0] <= self.hi or not 0.0 <= value[1] <= self.sd_hi):
+            raise _Bad(self.expected)
+        return (float(value[0]), float(value[1]))
+
+    def __call__(self, value: Any) -> Any:
+        if not self.pairs:
+            return self._one(value)
+        if not isinstance(value, (list, tuple)) or not 1 <= len(value) <= 8:
+            raise _Bad(self.expected)
+        return tuple(self._one(v) for v in value)
+
+
 class _Names:
     """A list of non-empty names (ROS node names), optionally from ``choices``, non-empty or
     distinct; stored as a tuple."""

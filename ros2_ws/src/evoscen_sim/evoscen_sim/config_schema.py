@@ -24,6 +24,8 @@ from evoscen_sim.config_checks import (
     _Float,
     _Int,
     _MapPath,
+    _MeanSd,
+    _Numbers,
     _Mix,
     _Range,
     _section,
@@ -102,6 +104,54 @@ class ReentryConfig:
     the mainline, [0, 1]."""
     min_gap_m: float = field(default=15.0, metadata=_check(_Float(0.0)))
     """Bumper-to-bumper gap required at the entry point (m), >= 0."""
+
+
+#: Values of ``traffic.mode``.
+TRAFFIC_MODES: tuple[str, ...] = ("window", "loop")
+
+
+@dataclass(frozen=True)
+class TrafficConfig:
+    """Where the traffic is during the run (docs/method.md §1 [choice]); the defaults of
+    :class:`evoscen_sim.traffic.TrafficParams`."""
+
+    mode: str = field(default="window", metadata=_check(_Str(lambda: TRAFFIC_MODES)))
+    """``window``: a window of traffic moves with the SUT (vehicles leave it and enter at its edges
+    into safe gaps; the window is shifted back along the road where the road is uniform, so the
+    SUT is never moved); ``loop``: vehicles that pass the road's end re-enter at its start (the
+    ``reentry`` section), the SUT too."""
+    behind_m: float = field(default=150.0, metadata=_check(_Float(0.0, 2000.0, lo_open=True)))
+    """Window extent behind the SUT (m), (0, 2000]."""
+    ahead_m: float = field(default=250.0, metadata=_check(_Float(0.0, 2000.0, lo_open=True)))
+    """Window extent ahead of the SUT (m), (0, 2000]."""
+    exit_margin_m: float = field(default=10.0, metadata=_check(_Float(0.0, 500.0)))
+    """A BV leaves once its centre is this far beyond an edge of the window (m), [0, 500]."""
+    lane_density_per_km: tuple[float, ...] = field(
+        default=(12.5, 12.5, 12.5, 12.5), metadata=_check(_Numbers(0.0, 150.0)))
+    """Target density of each mainline lane, rightmost (II) first (vehicles/km), [0, 150]."""
+    lane_speed_mps: tuple[tuple[float, float], ...] = field(
+        default=((26.0, 1.5), (28.0, 1.5), (30.0, 1.5), (32.0, 1.5)),
+        metadata=_check(_MeanSd(0.0, MAX_RANGE_SPEED_MPS, 10.0, pairs=True)))
+    """Entry speed of each mainline lane, rightmost first: [mean, sd] (m/s), truncated at ±2 sd."""
+    ramp_density_per_km: float = field(default=10.0, metadata=_check(_Float(0.0, 150.0)))
+    """Target density of the merge lane while its start is in the window (vehicles/km), [0, 150]."""
+    ramp_speed_mps: tuple[float, float] = field(
+        default=(22.0, 2.0), metadata=_check(_MeanSd(0.0, MAX_RANGE_SPEED_MPS, 10.0)))
+    """Entry speed on the merge lane: [mean, sd] (m/s)."""
+    insertion_headway_s: float = field(default=1.0, metadata=_check(_Float(0.0, 10.0)))
+    """τ of the safe-insertion rule: reaction time before braking (s), [0, 10]."""
+    insertion_decel_mps2: float = field(default=4.5, metadata=_check(_Float(0.0, 10.0, lo_open=True)))
+    """b of the safe-insertion rule (m/s^2), (0, 10] (SUMO's default decel)."""
+    insertion_min_gap_m: float = field(default=2.5, metadata=_check(_Float(0.0, 50.0)))
+    """g0 of the safe-insertion rule: standstill gap (m), [0, 50] (SUMO's default minGap)."""
+    insertion_band_m: float = field(default=50.0, metadata=_check(_Float(0.0, 1000.0)))
+    """When the edge itself is taken, a vehicle may enter the middle of the largest gap of its lane
+    within this distance inside the window from the edge (m), [0, 1000]; 0 = the edge only."""
+    shift_from_m: float = field(default=2000.0, metadata=_check(_Float(0.0, MAX_S_M)))
+    """When the SUT reaches this arc length, every vehicle is moved back by shift_from_m - shift_to_m (m)."""
+    shift_to_m: float = field(default=300.0, metadata=_check(_Float(0.0, MAX_S_M)))
+    """Where the shift puts the SUT (m); the road must be uniform (same lanes, straight) over the
+    window with its exit margins around both points (checked against the map)."""
 
 
 _POSITIVE = _check(_Float(0.0, lo_open=True))
@@ -349,7 +399,9 @@ class ScenarioConfig:
     spawn: SpawnConfig = _section(SpawnConfig)
     """Initial placement."""
     reentry: ReentryConfig = _section(ReentryConfig)
-    """Re-entry of vehicles leaving the map."""
+    """Re-entry of vehicles leaving the map (``traffic.mode: loop``)."""
+    traffic: TrafficConfig = _section(TrafficConfig)
+    """The traffic window around the SUT."""
     vehicle: VehicleConfig = _section(VehicleConfig)
     """Vehicle body and dynamics limits."""
     control: ControlConfig = _section(ControlConfig)

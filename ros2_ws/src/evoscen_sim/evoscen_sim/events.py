@@ -2,7 +2,8 @@
 
 Each dict has ``name`` (``evoscen/<kind>``), optional ``level`` and ``message``, and typed
 key/values (see ``evoscen_contract.contract.EVENT_KEY_TYPES``; names and kinds are the contract's). Order within a step is fixed:
-collisions, completed lane changes, aborted lane changes, re-entries, off-road, then the
+collisions, completed lane changes, aborted lane changes, re-entries (and window entries), off-road,
+the traffic window's shift, then the
 SUT's exposures (:class:`ExposureMonitor`).
 """
 
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FAULT, EVENT_LANE_CHANGE, EVENT_OFF_ROAD,
-                                       EVENT_REENTRY, EVENT_RUN_END, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
+                                       EVENT_REENTRY, EVENT_RUN_END, EVENT_SHIFT, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
                                        KIND_END, KIND_START, ROLE_SUT)
 
 from .safety import (RearAttribution, attribution_steps, beside_gap_state, cut_in_dangerous, cut_in_gap_state, drac_one, follower_headway,
@@ -42,13 +43,16 @@ def step_events(world, result) -> list[dict]:  # noqa: ANN001
     for i in result.off_road:
         events.append({"name": EVENT_OFF_ROAD, "message": f"vehicle {ids[i]} left the road",
                        **common, "ids": [int(ids[i])]})
+    if result.shift_m:
+        events.append({"name": EVENT_SHIFT, "message": f"every vehicle moved back by {result.shift_m:.1f} m "
+                       "(the traffic window; relative positions kept)", **common, "shift_m": float(result.shift_m)})
     return events
 
 
 def has_events(result) -> bool:  # noqa: ANN001
     """Whether a step result produces any event."""
     return bool(result.collisions or result.lane_changes_completed or result.lane_changes_aborted
-                or result.reentries or result.off_road)
+                or result.reentries or result.off_road or result.shift_m)
 
 
 def run_end_event(world, kind: str, message: str) -> dict:  # noqa: ANN001

@@ -8,6 +8,8 @@ passed as they are; the re-entry parameters add a core-only field to the ``reent
 from __future__ import annotations
 
 from .control import ControlParams
+from .errors import InputError
+from .traffic import TrafficParams, check_shift_points
 from .vehicle import VehicleParams
 from .world import ReentryParams
 
@@ -25,3 +27,32 @@ def control_params_from_config(cfg) -> ControlParams:
 def reentry_params_from_config(cfg) -> ReentryParams:
     """:class:`ReentryParams` from ``cfg.reentry``."""
     return ReentryParams(ramp_share=cfg.reentry.ramp_share, min_gap_m=cfg.reentry.min_gap_m)
+
+
+def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # noqa: ANN001 - a RoadModel
+    """:class:`TrafficParams` from ``cfg.traffic`` (None for ``mode: loop``), checked against ``road``.
+
+    Raises:
+        InputError: the window's shift points are not on a uniform stretch of the map, or the
+            per-lane lists do not have one entry per mainline lane.
+    """
+    t = cfg.traffic
+    if t.mode != "window":
+        return None
+    mainline = sum(1 for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0)
+    for key in ("lane_density_per_km", "lane_speed_mps"):
+        if len(getattr(t, key)) != mainline:
+            raise InputError(f"traffic.{key}: expected one entry per mainline lane of the map ({mainline}), "
+                             f"got {len(getattr(t, key))}")
+    params = TrafficParams(
+        behind_m=t.behind_m, ahead_m=t.ahead_m, exit_margin_m=t.exit_margin_m,
+        lane_density_per_km=tuple(t.lane_density_per_km), lane_speed_mps=tuple(tuple(x) for x in t.lane_speed_mps),
+        ramp_density_per_km=t.ramp_density_per_km, ramp_speed_mps=tuple(t.ramp_speed_mps),
+        insertion_headway_s=t.insertion_headway_s, insertion_decel_mps2=t.insertion_decel_mps2,
+        insertion_min_gap_m=t.insertion_min_gap_m, insertion_band_m=t.insertion_band_m,
+        shift_from_m=t.shift_from_m, shift_to_m=t.shift_to_m,
+    )
+    why = check_shift_points(road, params)
+    if why is not None:
+        raise InputError(why)
+    return params

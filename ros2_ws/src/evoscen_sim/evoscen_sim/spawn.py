@@ -90,3 +90,93 @@ def spawn_layout(
         lane=np.array([sut_lane] + lane_list, dtype=np.int64),
         speed_mps=np.concatenate([[sut_speed_mps], v_bv]),
     )
+
+
+def window_layout(
+    road,
+    params,
+    *,
+    bv_policies: np.ndarray,
+    sut_policy: int,
+    sut_lane: int,
+    sut_s_m: float,
+    sut_speed_mps: float,
+    vehicle_length_m: float,
+    rng: np.random.Generator,
+) -> InitialState:
+    """Initial state of ``traffic.mode: window``: the BVs fill the traffic window at its densities.
+
+    Each mainline lane gets its share of the BVs (largest remainder of ``lane_density_per_km``),
+    evenly spaced over ``[sut_s_m - behind_m, sut_s_m + ahead_m]`` from a random offset, the
+    SUT's lane leaving out the slot nearest the SUT; speeds are drawn from the lane's
+    distribution (truncated at ±2 sd) and then, front to back in each lane, lowered where needed
+    so that every vehicle follows its leader by the safe-insertion rule
+    (:func:`evoscen_sim.traffic.insertion_speed`; the SUT's speed is its own, so a BV that the SUT
+    could not follow safely is moved one slot further back). The merge lane starts empty: it is
+    fed when its start comes into the window.
+    """
+    from .traffic import insertion_speed, required_gap
+
+    p = params
+    n_bv = int(len(bv_policies))
+    if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
+        raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
+    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    dens = np.asarray(p.lane_density_per_km, dtype=float)
+    if n_bv and dens.sum() <= 0.0:
+        raise InputError("traffic.lane_density_per_km: all zero, so the window cannot hold the BVs "
+                         f"(bvs.count = {n_bv})")
+    # largest-remainder split of the BVs over the lanes
+    quota = n_bv * dens / dens.sum() if n_bv else np.zeros_like(dens)
+    counts = np.floor(quota).astype(int)
+    for j in np.argsort(-(quota - counts), kind="stable")[: n_bv - int(counts.sum())]:
+        counts[j] += 1
+    lo, hi = sut_s_m - p.behind_m, sut_s_m + p.ahead_m
+    s_list: list[float] = []
+    lane_list: list[int] = []
+    v_list: list[float] = []
+    half = 0.5 * vehicle_length_m
+    for j, lane in enumerate(mainline):
+        n = int(counts[j])
+        if n == 0:
+            continue
+        mean, sd = p.lane_speed_mps[j]
+        slots_n = n + 1 if lane == sut_lane else n
+        pitch = (hi - lo) / slots_n
+        offset = rng.uniform(0.0, pitch)
+        slots = lo + offset + pitch * np.arange(slots_n)
+        if lane == sut_lane:  # the slot nearest the SUT is the SUT's
+            slots = np.delete(slots, int(np.argmin(np.abs(slots - sut_s_m))))
+        v = np.clip(rng.normal(mean, sd, size=n), mean - 2.0 * sd, mean + 2.0 * sd)
+        # front to back: each vehicle follows its leader (the SUT counts in its lane)
+        order = np.argsort(-slots)
+        lead_s, lead_v = np.inf, 0.0
+        for k in order:
+            s = float(slots[k])
+            if lane == sut_lane and lead_s > sut_s_m > s:
+                gap = sut_s_m - s - 2.0 * half
+                lead_s, lead_v = sut_s_m, sut_speed_mps
+                v[k] = insertion_speed(float(v[k]), gap, lead_v, p)
+            elif np.isfinite(lead_s):
+                v[k] = insertion_speed(float(v[k]), lead_s - s - 2.0 * half, lead_v, p)
+            if lane == sut_lane and s > sut_s_m:
+                # the SUT must be able to follow the nearest BV ahead of it
+                nxt = slots[slots > sut_s_m]
+                if s == float(nxt.min()) and s - sut_s_m - 2.0 * half < required_gap(sut_speed_mps, float(v[k]), p):
+                    # as fast as the SUT if its own leader allows it
+                    raised = max(float(v[k]), sut_speed_mps)
+                    v[k] = insertion_speed(raised, lead_s - s - 2.0 * half, lead_v, p) if np.isfinite(lead_s) else raised
+            if not np.isfinite(v[k]) or v[k] < 0.0:
+                v[k] = 0.0
+            lead_s, lead_v = s, float(v[k])
+        s_list.extend(float(x) for x in slots)
+        lane_list.extend([lane] * n)
+        v_list.extend(float(x) for x in v)
+    return InitialState(
+        ids=np.arange(n_bv + 1, dtype=np.int64),
+        roles=np.array([ROLE_SUT] + [ROLE_BV] * n_bv, dtype=np.int64),
+        policies=np.concatenate([[sut_policy], np.asarray(bv_policies, dtype=np.int64)]).astype(np.int64),
+        s_m=np.concatenate([[sut_s_m], np.asarray(s_list, dtype=float)]),
+        lane=np.array([sut_lane] + lane_list, dtype=np.int64),
+        speed_mps=np.concatenate([[sut_speed_mps], np.asarray(v_list, dtype=float)]),
+    )

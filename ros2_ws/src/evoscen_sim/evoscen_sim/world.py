@@ -46,6 +46,7 @@ from .config_schema import ReentryConfig
 from .control import ControlParams, DualPidController, dual_pid_one
 from .jit import kernel
 from .neighbors import Neighborhood, compute_neighborhood
+from .traffic import TrafficParams, TrafficWindow
 from .vehicle import VehicleParams, bicycle_one
 
 @dataclass(frozen=True)
@@ -84,6 +85,9 @@ class StepResult:
     reentries: list[tuple[int, int, float]] = field(default_factory=list)
     """(vehicle, lane, s_m) of vehicles that left the road and re-entered."""
     off_road: list[int] = field(default_factory=list)
+    shift_m: float = 0.0
+    """Distance every vehicle was moved back along the road in this step (the traffic window's
+    shift, :mod:`evoscen_sim.traffic`); 0 when none."""
 
 
 
@@ -132,6 +136,7 @@ class World:
         reentry: ReentryParams,
         dt_s: float,
         rng: np.random.Generator,
+        traffic: TrafficParams | None = None,
     ) -> None:
         self.road = road
         self.vehicle = vehicle
@@ -173,6 +178,10 @@ class World:
                 f"initial state: vehicle {int(self.ids[i])} placed in lane {int(self.lane[i])} "
                 f"at s = {self.s[i]:.1f} m, where that lane does not exist"
             )
+        sut = np.flatnonzero(self.role == ROLE_SUT)
+        self.window: TrafficWindow | None = None
+        if traffic is not None and sut.size:
+            self.window = TrafficWindow(self, traffic, int(sut[0]))
 
     @property
     def time_s(self) -> float:
@@ -268,12 +277,17 @@ class World:
         if newly_off.size:
             result.off_road = [int(i) for i in newly_off]
 
-        # 4. re-entry of vehicles past the end of the road
-        gone = self.s > road.length_m
-        if gone.any():
-            for i in np.flatnonzero(gone):
-                result.reentries.append(self._reenter(int(i)))
-            self._refresh_road_lookups()
+        # 4. the traffic window (shift, exits, entries), or re-entry of vehicles past the road's end
+        if self.window is not None:
+            self.window.after_step(self, result)
+            if result.reentries or result.shift_m:
+                self._refresh_road_lookups()
+        else:
+            gone = self.s > road.length_m
+            if gone.any():
+                for i in np.flatnonzero(gone):
+                    result.reentries.append(self._reenter(int(i)))
+                self._refresh_road_lookups()
 
         # 5. collisions (rising edge of each overlapping pair)
         pairs = overlapping_pairs(self.s, self.d, self.psi, self.length, self.width)
@@ -307,6 +321,13 @@ class World:
         speed = self.v[i]
         if ahead >= 0 and self.s[ahead] - s_entry < p.speed_match_range_m:
             speed = min(speed, self.v[ahead])
+        self._place(i, lane, s_entry, speed)
+        return (i, int(lane), float(s_entry))
+
+    def _place(self, i: int, lane: int, s_entry: float, speed: float) -> None:
+        """Put vehicle ``i`` centred in ``lane`` at ``s_entry``, heading along the road, at ``speed``:
+        a new trip (no lane change, controller reset, contacts forgotten)."""
+        road = self.road
         self.s[i] = s_entry
         self.lane[i] = lane
         self.target_lane[i] = lane
@@ -321,7 +342,6 @@ class World:
         self.controller.reset(np.array([i]))
         for pair in [c for c in self._contacts if i in c]:
             self._contacts.discard(pair)
-        return (i, int(lane), float(s_entry))
 
     def _free_space(self, lane: int, s_entry: float, others: np.ndarray) -> tuple[float, int]:
         """Bumper gap from a vehicle centred at ``s_entry`` to the rearmost vehicle of ``lane``.

@@ -171,13 +171,14 @@ def test_reentry_ramp_share_uses_seeded_generator(road: RoadModel) -> None:
 
 # ---------------------------------------------------------------- density over 10,000 steps
 def test_density_constant_over_10000_steps() -> None:
-    """docs/method.md §1: vehicles leaving the map re-enter, so the number on the road never changes.
+    """docs/method.md §1, ``traffic.mode: loop``: vehicles leaving the map re-enter, so the number on
+    the road never changes.
 
     world.py allows a re-entering vehicle on the approach (s < 0, at most min_gap_m + L
     behind s = 0) when every entry is crowded; in the default scenario that never happens,
     so all 21 vehicles have s in [0, length] at every step.
     """
-    sc = build_scenario(load_scenario_config(None, {"steps": 10000}))
+    sc = build_scenario(load_scenario_config(None, {"steps": 10000, "traffic.mode": "loop"}))
     w = sc.world
     road = sc.road
     n = w.n
@@ -210,7 +211,8 @@ def test_density_constant_over_10000_steps() -> None:
 # ---------------------------------------------------------------- spawn layout
 @pytest.fixture(scope="module")
 def default_scenario():
-    return build_scenario(load_scenario_config(None))
+    """The spawn layout of ``traffic.mode: loop`` (the window's: test_traffic.py)."""
+    return build_scenario(load_scenario_config(None, {"traffic.mode": "loop"}))
 
 
 def test_spawn_sut_and_roles(default_scenario) -> None:

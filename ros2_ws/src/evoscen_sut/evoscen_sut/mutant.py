@@ -63,6 +63,7 @@ import numpy as np
 import yaml
 from evoscen_sim import models as _models
 from evoscen_sim.config import integer, number, text
+from evoscen_sim.traffic import common_shift
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec, get_model, model_names
 from evoscen_sim.view import WorldView
@@ -198,7 +199,13 @@ class MutantDriver:
         if op == "short_view":
             return subview(view, ego, others[view.s[others] - view.s[ego] <= self.params.view_m])
         if op == "stale":
-            self._snapshots.append(view_columns(view))
+            now = view_columns(view)
+            if self._snapshots:  # a window shift moved every vehicle: the remembered states move too
+                shift = common_shift(self._snapshots[-1]["s"], now["s"])
+                if shift:
+                    for old in self._snapshots:
+                        old["s"] = old["s"] + shift
+            self._snapshots.append(now)
             old = self._snapshots[0]  # delay_steps ago, or the oldest seen
             ego_id = view.ids[ego]
             rows = np.flatnonzero(old["id"] != ego_id)

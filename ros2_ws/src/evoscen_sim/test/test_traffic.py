@@ -1,0 +1,193 @@
+"""The traffic window (evoscen_sim.traffic; docs/method.md §1): safe insertion, exits and entries,
+the shift, the window's spawn, and what a run with it looks like."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from evoscen_sim.config import load_scenario_config
+from evoscen_sim.errors import InputError
+from evoscen_sim.road import load_road
+from evoscen_sim.scenario import build_world
+from evoscen_sim.traffic import (TrafficParams, check_shift_points, common_shift, insertion_speed, new_trips,
+                                 required_gap)
+from evoscen_sim.world import ROLE_BV, ROLE_SUT, InitialState, ReentryParams, World
+
+L = 4.8
+P = TrafficParams()
+
+
+@pytest.fixture(scope="module")
+def road():
+    return load_road(load_scenario_config(None).map)
+
+
+def test_required_gap_and_insertion_speed_by_hand() -> None:
+    # 2.5 + 30*1 + (30^2 - 25^2) / (2*4.5) = 32.5 + 275/9
+    assert required_gap(30.0, 25.0, P) == pytest.approx(32.5 + 275.0 / 9.0)
+    # slower than the leader: only the headway binds
+    assert required_gap(20.0, 25.0, P) == pytest.approx(22.5)
+    # 40 m behind a leader at 25 m/s: v = -4.5 + sqrt(4.5^2 + 25^2 + 2*4.5*37.5)
+    v = insertion_speed(30.0, 40.0, 25.0, P)
+    assert v == pytest.approx(-4.5 + math.sqrt(20.25 + 625.0 + 337.5))
+    assert required_gap(v, 25.0, P) == pytest.approx(40.0)
+    assert insertion_speed(24.0, 40.0, 25.0, P) == 24.0  # fits as it is
+    assert insertion_speed(30.0, 12.5, 25.0, P) == pytest.approx(10.0)  # (12.5 - 2.5) / 1 s
+    assert insertion_speed(30.0, 2.0, 25.0, P) == -math.inf  # closer than the standstill gap
+
+
+def _world(road, s, lane, v, params: TrafficParams, seed: int = 0) -> World:
+    n = len(s)
+    init = InitialState(
+        ids=np.arange(n, dtype=np.int64), roles=np.array([ROLE_SUT] + [ROLE_BV] * (n - 1), dtype=np.int64),
+        policies=np.zeros(n, dtype=np.int64), s_m=np.asarray(s, dtype=float),
+        lane=np.asarray(lane, dtype=np.int64), speed_mps=np.asarray(v, dtype=float))
+    cfg = load_scenario_config(None)
+    return World(road, init, vehicle=cfg.vehicle, control=cfg.control, reentry=ReentryParams(), dt_s=0.1,
+                 rng=np.random.default_rng(seed), traffic=params)
+
+
+def _coast(w: World):  # noqa: ANN202
+    return w.step(np.zeros(w.n), np.zeros(w.n, dtype=np.int64))
+
+
+def test_shift_moves_every_vehicle_by_one_distance(road) -> None:
+    w = _world(road, [1999.0, 2050.0, 1900.0], [2, 3, 1], [30.0, 30.0, 30.0], P)
+    before = w.s.copy()
+    res = _coast(w)
+    assert res.shift_m == pytest.approx(1700.0)
+    # each moved the same (same speed, no throttle) and back by 1,700 m
+    moved = w.s - before + 1700.0
+    np.testing.assert_allclose(moved, moved[0], atol=1e-9)
+    assert 2.9 < moved[0] <= 3.0
+    assert w.lane.tolist() == [2, 3, 1] and not res.reentries
+    res = _coast(w)
+    assert res.shift_m == 0.0
+
+
+def test_a_bv_beyond_the_window_enters_at_the_front_edge_into_the_most_wanted_lane(road) -> None:
+    p = replace(P, lane_speed_mps=((25.0, 0.0),) * 4)
+    # the BV is 164.3 m behind the SUT after the step: beyond behind_m + exit_margin_m = 160
+    # (1,500 m: the merge lane is far from the window)
+    w = _world(road, [1500.0, 1336.0], [2, 3], [30.0, 27.0], p)
+    res = _coast(w)
+    assert res.reentries == [(1, 1, pytest.approx(w.s[0] + 250.0))]  # empty window: lanes tie, the first wins
+    assert w.v[1] == 25.0 and w.lane[1] == 1 and w.target_lane[1] == 1
+
+
+def test_an_entry_goes_where_both_it_and_its_follower_can_follow(road) -> None:
+    p = replace(P, lane_speed_mps=((25.0, 0.0),) * 4)
+    # lane 1 is the most wanted (1 of 5 vehicles; lanes 2-4 hold 2 of 5 each) but its front edge is
+    # taken; the middle of the band's largest gap (1,726.75 m) is 18.95 m behind that vehicle,
+    # too close for 25 m/s, the lane's only speed: lane 2 (first of the tied rest) takes it
+    s = [1500.0, 1336.0, 1748.0, 1450.0, 1400.0, 1450.0, 1400.0, 1450.0, 1400.0]
+    lane = [2, 3, 1, 2, 2, 3, 3, 4, 4]
+    w = _world(road, s, lane, [30.0, 27.0, 25.0] + [27.0] * 6, p)
+    res = _coast(w)
+    assert res.reentries == [(1, 2, pytest.approx(w.s[0] + 250.0))]
+    assert w.v[1] == 25.0
+
+
+def test_a_faster_entry_comes_from_behind(road) -> None:
+    p = replace(P, lane_speed_mps=((35.0, 0.0),) * 4)
+    w = _world(road, [1500.0, 1765.0], [2, 3], [30.0, 27.0], p)  # 264.7 m ahead after the step: out
+    res = _coast(w)
+    assert res.reentries == [(1, 1, pytest.approx(w.s[0] - 150.0))]
+    assert w.v[1] == 35.0
+
+
+def test_check_shift_points(road) -> None:
+    assert check_shift_points(road, P) is None
+    assert "below traffic.shift_from_m" in check_shift_points(road, replace(P, shift_to_m=2000.0))
+    # 1,200 m is on the arc: not uniform
+    assert "traffic.shift_from_m = 1200: the road is not uniform" in check_shift_points(road, replace(P, shift_from_m=1200.0))
+    # the window around 500 m reaches the merge lane (600 m)
+    assert "traffic.shift_to_m = 500" in check_shift_points(road, replace(P, shift_to_m=500.0))
+
+
+def test_bad_shift_point_is_one_line_naming_the_key() -> None:
+    cfg = load_scenario_config(None, {"traffic.shift_from_m": 1200.0})
+    with pytest.raises(InputError, match=r"^traffic.shift_from_m = 1200: the road is not uniform"):
+        build_world(cfg)
+    cfg = load_scenario_config(None, {"traffic.lane_density_per_km": [10.0, 10.0]})
+    with pytest.raises(InputError, match=r"traffic.lane_density_per_km: expected one entry per mainline lane of the map \(4\), got 2"):
+        build_world(cfg)
+
+
+def test_new_trips_and_common_shift() -> None:
+    prev = np.array([100.0, 200.0, 300.0, 400.0])
+    assert common_shift(prev, prev + 3.0) == 0.0
+    assert common_shift(prev, prev + 3.0 - 1700.0) == pytest.approx(-1697.0)
+    # a shift is no new trip; a vehicle moved by 400 m (an entry) is
+    now = prev + 3.0 - 1700.0
+    now[2] += 400.0
+    assert new_trips(prev, now, 0.1).tolist() == [False, False, True, False]
+    assert new_trips(prev, prev + np.array([3.0, -11.0, 14.5, 0.0]), 0.1).tolist() == [False, True, True, False]
+
+
+def test_window_spawn_fills_the_window_at_its_densities() -> None:
+    cfg = load_scenario_config(None, {"seed": 12})
+    w = build_world(cfg)
+    rel = w.s[1:] - w.s[0]
+    assert w.n == 21 and (np.abs(rel) > 0).all()
+    assert (rel >= -150.0).all() and (rel <= 250.0).all()
+    # 20 BVs over 4 lanes of equal density: 5 each, none on the merge lane
+    assert np.bincount(w.lane[1:], minlength=5).tolist() == [0, 5, 5, 5, 5]
+    # every BV can follow its leader by the insertion rule (the SUT counts)
+    for lane in range(1, 5):
+        k = np.flatnonzero(w.lane == lane)
+        k = k[np.argsort(w.s[k])]
+        for back, front in zip(k[:-1], k[1:]):
+            if back == 0:
+                continue
+            gap = w.s[front] - w.s[back] - L
+            assert gap >= required_gap(float(w.v[back]), float(w.v[front]), P) - 1e-9
+
+
+def _ttc(gap: float, v_back: float, v_front: float) -> float:
+    return gap / (v_back - v_front) if v_back > v_front else math.inf
+
+
+@pytest.mark.parametrize("driver", ["learned", "level0"])
+def test_a_run_keeps_its_traffic_and_never_moves_the_sut(driver: str) -> None:
+    """2,000 steps, MOBIL as SUT: the SUT moves only by driving (and the shifts), every entry starts
+    without a conflict (TTC >= 2 s to its leader and from its follower in its first 3 s), and BVs
+    are around the SUT all the time."""
+    from evoscen_bringup.scenario import build_scenario
+
+    sc = build_scenario(load_scenario_config(None, {"seed": 40123, "sut.model": "mobil", "bvs.driver": driver}))
+    w = sc.world
+    watch: dict[int, int] = {}  # vehicle -> steps left to watch
+    near = []
+    shifts = 0
+    for k in range(2000):
+        s0, lane0, target0 = float(w.s[0]), int(w.lane[0]), int(w.target_lane[0])
+        res = sc.step()
+        shifts += bool(res.shift_m)
+        ds = float(w.s[0]) - s0 + res.shift_m
+        assert 0.0 <= ds <= 4.0 + 1e-9, f"step {k}: the SUT moved by {ds} m"
+        assert int(w.lane[0]) in (lane0, target0), f"step {k}: the SUT jumped lanes"
+        for i, _, _ in res.reentries:
+            watch[i] = 30
+        for i in list(watch):
+            lane = w.lane[i]
+            same = np.flatnonzero((w.lane == lane) & (np.arange(w.n) != i))
+            ahead = same[w.s[same] > w.s[i]]
+            behind = same[w.s[same] < w.s[i]]
+            if ahead.size:
+                j = ahead[np.argmin(w.s[ahead])]
+                assert _ttc(w.s[j] - w.s[i] - L, w.v[i], w.v[j]) >= 2.0, f"step {k}: entered vehicle {i}"
+            if behind.size:
+                j = behind[np.argmax(w.s[behind])]
+                assert _ttc(w.s[i] - w.s[j] - L, w.v[j], w.v[i]) >= 2.0, f"step {k}: follower of entered {i}"
+            watch[i] -= 1
+            if not watch[i]:
+                del watch[i]
+        near.append(np.count_nonzero(np.abs(w.s[1:] - w.s[0]) <= 100.0))
+    assert shifts >= 1
+    means = [np.mean(near[a:a + 300]) for a in range(0, 1800, 300)]
+    assert min(means) >= 4.0, means
