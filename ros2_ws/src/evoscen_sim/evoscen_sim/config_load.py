@@ -28,7 +28,7 @@ from evoscen_sim.config_checks import _Bad, _join, _show, _unknown_text
 from evoscen_sim.config_schema import EvaluationConfig, ScenarioConfig
 from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_CONFIG_BYTES, check_yaml_depth, read_text_limited
-from evoscen_sim.models import discover, model_names, params_type_of
+from evoscen_sim.models import discover, parameter_names, params_type_of
 from evoscen_sim.share import PACKAGE, share_candidates, share_path
 
 _DEFAULT_CONFIG = "config/default_scenario.yaml"
@@ -232,7 +232,7 @@ def _build_models(raw: Any, path: str, ctx: Context, explicit: set[str]) -> dict
     """The ``models`` section: model name -> validated parameter dataclass."""
     if raw is None:
         return {}
-    with_params = sorted({n for role in ("sut", "bv") for n in model_names(role) if params_type_of(n) is not None})
+    with_params = parameter_names()
     if not isinstance(raw, Mapping):
         ctx.fail(path, raw, "expected a mapping of model name -> parameters (models with parameters: "
                  + ", ".join(with_params) + ")")

@@ -22,7 +22,9 @@ Models come from two places, found by :func:`discover`:
 Parameters live in the scenario YAML under ``models.<name>`` and are validated against the
 model's parameter dataclass with the same checks and one-line errors as every other key
 (declare fields with :func:`evoscen_sim.config.number`, :func:`~evoscen_sim.config.integer`,
-:func:`~evoscen_sim.config.flag`).
+:func:`~evoscen_sim.config.flag`). A parameter set that several models read and that is no
+model itself (``models.krauss``, the SUTs' car following) is registered with
+:func:`register_parameter_set`: valid under ``models``, not as ``sut.model`` or ``bvs.driver``.
 
 This module is the registry the configuration reads (:data:`SUT_MODELS`, :data:`BV_DRIVERS`,
 the valid ``sut.model`` and ``bvs.driver``); it imports nothing of the configuration, so the
@@ -82,6 +84,7 @@ class ModelSpec:
 
 
 _REGISTRY: dict[str, ModelSpec] = {}
+_PARAMETER_SETS: dict[str, type] = {}
 _discovered = False
 
 
@@ -90,11 +93,22 @@ def register_model(spec: ModelSpec) -> None:
     bad = [r for r in spec.roles if r not in ROLES]
     if bad or not spec.roles:
         raise ValueError(f"model {spec.name!r}: roles {spec.roles} must be a non-empty subset of {ROLES}")
+    if spec.name in _PARAMETER_SETS:
+        raise ValueError(f"model {spec.name!r}: the name is taken by the parameter set models.{spec.name}")
     _REGISTRY[spec.name] = spec
     if "sut" in spec.roles:
         register_sut_model(spec.name)
     if "bv" in spec.roles:
         register_bv_driver(spec.name)
+
+
+def register_parameter_set(name: str, params_type: type) -> None:
+    """Make ``models.<name>`` a parameter set validated against ``params_type`` (a frozen
+    dataclass declared like a model's parameters) that is no model: models read it from
+    ``config.models.get(name)`` (absent: the defaults). Idempotent; a model's name is refused."""
+    if name in _REGISTRY:
+        raise ValueError(f"parameter set {name!r}: the name is taken by a model")
+    _PARAMETER_SETS[name] = params_type
 
 
 def unregister_model(name: str) -> None:
@@ -158,7 +172,13 @@ def create_driver(name: str, role: str, vehicles, config, rng) -> Any:  # noqa: 
 
 
 def params_type_of(name: str) -> type | None:
-    """The parameter dataclass of a registered model (None if it has none or is unknown)."""
+    """The parameter dataclass of a registered model or parameter set (None if it has none or is unknown)."""
     discover()
     spec = _REGISTRY.get(name)
-    return None if spec is None else spec.params_type
+    return _PARAMETER_SETS.get(name) if spec is None else spec.params_type
+
+
+def parameter_names() -> tuple[str, ...]:
+    """The names valid under ``models``: the models with parameters and the parameter sets, sorted."""
+    discover()
+    return tuple(sorted({n for n, spec in _REGISTRY.items() if spec.params_type is not None} | set(_PARAMETER_SETS)))

@@ -70,3 +70,30 @@ def test_unknown_model_names_the_key_and_lists_choices():
         config_from_dict({"sut": {"model": "nosuch"}}, source="s.yaml")
     with pytest.raises(InputError, match=r"unknown bvs.driver 'toy_sut': expected one of learned, level0"):
         get_model("toy_sut", "bv")
+
+
+@dataclass(frozen=True)
+class _SharedParams:
+    speed: float = number(10.0, 0.0, 50.0, lo_open=True)
+    """A speed in (0, 50]."""
+
+
+def test_a_parameter_set_is_validated_under_models_but_is_no_model(monkeypatch):
+    from evoscen_sim import models as registry
+
+    monkeypatch.setattr(registry, "_PARAMETER_SETS", dict(registry._PARAMETER_SETS))
+    registry.register_parameter_set("toy_shared", _SharedParams)
+    cfg = config_from_dict({"models": {"toy_shared": {"speed": 20}}}, source="s.yaml")
+    assert cfg.models["toy_shared"] == _SharedParams(speed=20.0)
+    assert "toy_shared" in registry.parameter_names() and "toy_sut" in registry.parameter_names()
+    assert "toy_shared" not in model_names("sut") and "toy_shared" not in model_names("bv")
+    with pytest.raises(InputError) as err:
+        config_from_dict({"models": {"toy_shared": {"speed": 0}}}, source="s.yaml")
+    assert str(err.value) == "s.yaml: key 'models.toy_shared.speed' = 0: expected a number in (0, 50]"
+    with pytest.raises(InputError, match=r"key 'sut.model' = 'toy_shared': expected one of"):
+        config_from_dict({"sut": {"model": "toy_shared"}}, source="s.yaml")
+    # a name is either a model or a parameter set
+    with pytest.raises(ValueError, match="taken by a model"):
+        registry.register_parameter_set("toy_sut", _SharedParams)
+    with pytest.raises(ValueError, match="taken by the parameter set"):
+        register_model(ModelSpec("toy_shared", ("sut",), lambda *a: None))

@@ -70,6 +70,11 @@ uniform on ``(v_max − σ a Δt, v_max]``: mean ``v_max − σ a Δt / 2`` (def
 
 Not ported (not used by the default setup): the ballistic update, ``sigmaStep`` > Δt,
 driver-state perception errors, junction/stop handling, ``apparentDecel`` ≠ decel.
+
+**Parameters.** :class:`KraussParams` is the scenario YAML's ``models.krauss`` section
+(registered by :mod:`evoscen_sut.models`, validated like every key): every model that drives
+with Krauss (Nilsson, MOBIL and Stackelberg, as SUT or as BV driver, and the mutants of them)
+builds its car follower with :func:`krauss_for`, which reads it; absent, SUMO's defaults.
 """
 
 from __future__ import annotations
@@ -83,13 +88,19 @@ from evoscen_sim.neighbors import OWN
 
 __all__ = [
     "EMERGENCY_DECEL_AMPLIFIER",
+    "NAME",
     "NUMERICAL_EPS",
     "KraussCarFollowing",
     "KraussParams",
+    "krauss_for",
     "krauss_next_speed",
+    "krauss_params_from_config",
     "krauss_safe_speed",
     "sumo_follow_speed",
 ]
+
+NAME = "krauss"
+"""The parameter set's name: the scenario YAML's ``models.krauss``."""
 
 NUMERICAL_EPS = 0.001
 """SUMO's ``NUMERICAL_EPS`` (m): the stop gap is shortened by it."""
@@ -99,7 +110,8 @@ EMERGENCY_DECEL_AMPLIFIER = 1.2
 
 @dataclass(frozen=True)
 class KraussParams:
-    """Krauss parameters; defaults are SUMO's default passenger vType (SUMO docs, "Vehicle Type Parameter Defaults")."""
+    """Krauss parameters, the scenario YAML's ``models.krauss``; defaults are SUMO's default
+    passenger vType (SUMO docs, "Vehicle Type Parameter Defaults")."""
 
     accel_mps2: float = number(2.6, 0.0, 20.0, lo_open=True)
     """Maximum acceleration ``accel`` (m/s²); SUMO default 2.6."""
@@ -117,7 +129,8 @@ class KraussParams:
     """Standstill gap ``minGap`` (m, bumper to bumper); SUMO default 2.5."""
     desired_speed_mps: float = number(33.33, 0.0, 60.0, lo_open=True)
     """Desired speed (m/s): SUMO's speedFactor (1) × the 120 km/h limit of the evoscen road;
-    the speed is also capped by the lane speed limit."""
+    the speed is also capped by the lane speed limit (so above 33.33 it changes nothing on the
+    shipped map)."""
 
 
 # ------------------------------------------------------------------------ scalar kernels
@@ -315,3 +328,15 @@ class KraussCarFollowing:
                                     p.min_gap_m, p.accel_mps2, p.decel_mps2, p.emergency_decel_mps2,
                                     p.sigma, p.tau_s, self.dt_s)
         return (v_next - v) / self.dt_s
+
+
+def krauss_params_from_config(config) -> KraussParams:  # noqa: ANN001
+    """The scenario's ``models.krauss`` (:class:`KraussParams`; its defaults when the section is
+    absent or ``config`` has no ``models``)."""
+    params = (getattr(config, "models", None) or {}).get(NAME)
+    return KraussParams() if params is None else params
+
+
+def krauss_for(config, rng: np.random.Generator) -> KraussCarFollowing:  # noqa: ANN001
+    """The Krauss car follower of a scenario: ``models.krauss``, dawdling from ``rng``, the step ``config.dt_s``."""
+    return KraussCarFollowing(krauss_params_from_config(config), rng, config.dt_s)

@@ -3,7 +3,8 @@
 * :class:`KraussLaneChangeDriver`: a lane-change decision on top of SUMO-Krauss car following
   (:mod:`evoscen_sut.krauss`; docs/method.md §4: car following is the same for every SUT),
   with the stop before the end of the merge lane; :func:`lane_change_factory` makes a model's
-  :class:`evoscen_sim.models.ModelSpec` factory from its decision function.
+  :class:`evoscen_sim.models.ModelSpec` factory from its decision function (the car follower's
+  parameters: the scenario's ``models.krauss``, :func:`evoscen_sut.krauss.krauss_for`).
 * :func:`settled`: a new change is requested only once the previous one has settled [choice].
 * :func:`kernel_params`: a model's frozen parameter dataclass as the named tuple its compiled
   kernels read.
@@ -25,7 +26,7 @@ from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import VehicleParams, accel_to_throttle
 
 from .kernel_math import maximum, minimum
-from .krauss import follow_speed_scalar, next_speed_scalar
+from .krauss import follow_speed_scalar, krauss_for, next_speed_scalar
 
 
 @lru_cache(maxsize=128)
@@ -242,19 +243,6 @@ def _krauss_kernel(idx, u, u_target, s, v, length, lane, target_lane, speed_limi
         cmd = maximum(a, 0.0) * (1.0 / max_accel) + minimum(a, 0.0) * (1.0 / max_brake)  # accel_to_throttle
         throttle[k] = minimum(maximum(cmd, -1.0), 1.0)
     return acc, throttle
-
-
-def krauss_for(config: Any, rng: np.random.Generator) -> Any:
-    """The Krauss car follower of a scenario (parameters from ``models.krauss`` if present)."""
-    from . import krauss
-
-    kp = None
-    if hasattr(config, "models"):
-        kp = config.models.get("krauss")
-    if kp is None:
-        from_config = getattr(krauss, "krauss_params_from_config", None)
-        kp = from_config(config) if from_config is not None else krauss.KraussParams()
-    return krauss.KraussCarFollowing(kp, rng, config.dt_s)
 
 
 def lane_change_factory(decision: Any, params_type: type) -> Any:

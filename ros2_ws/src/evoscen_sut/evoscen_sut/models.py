@@ -9,14 +9,17 @@ model (:mod:`evoscen_sut.krauss`), through the same PID low-level control as eve
 * ``mutant`` (SUT): any registered SUT model with one deliberate defect
   (:mod:`evoscen_sut.mutant`, docs/mutants.md).
 
-Their parameters are the scenario YAML's ``models.<name>`` sections.
+Their parameters are the scenario YAML's ``models.<name>`` sections; their Krauss car
+following's, one set for all of them, ``models.krauss`` (:class:`evoscen_sut.krauss.KraussParams`,
+registered here as a parameter set: no model of its own).
 """
 
 from __future__ import annotations
 
-from evoscen_sim.models import register_model
+from evoscen_sim.models import register_model, register_parameter_set
 
-from . import mobil, mutant, nilsson, stackelberg
+from . import krauss, mobil, mutant, nilsson, stackelberg
 
+register_parameter_set(krauss.NAME, krauss.KraussParams)
 for _spec in (nilsson.SPEC, mobil.SPEC, stackelberg.SPEC, mutant.SPEC):
     register_model(_spec)
