@@ -1,4 +1,5 @@
-"""The traffic around the SUT (report.json's ``traffic``), with values derived by hand.
+"""The traffic around the SUT (report.json's ``traffic``, report.md's section, ``traffic.png``),
+with values derived by hand.
 
 In every state the BVs with |s_BV − s_SUT| ≤ 100 m count (same road, any lane; the SUT is the
 vehicle with role SUT); the counts are averaged per 30-s window (300 states at dt 0.1 s) from
@@ -22,6 +23,7 @@ import pytest
 
 from evoscen_eval import streaming
 from evoscen_eval.metrics import evaluate, stream_run
+from evoscen_eval.report import write_report
 from evoscen_eval.testing import make_run
 from evoscen_sim.config import EvaluationConfig
 
@@ -100,3 +102,13 @@ def test_block_size_changes_nothing_and_the_timeline_holds_bucket_means(block, m
     # bucket 0: states 0..255, all 3; bucket 1: 256..511, 44 x 3 + 212 x 1; bucket 2: 512..749, 88 x 1 + 150 x 0
     assert plot.timeline_bvs.tolist() == [3.0, (44 * 3 + 212) / 256, 88 / 238]
 
+
+def test_report_md_and_plot(tmp_path):
+    report = write_report(three_then_one(750), tmp_path)
+    md = (tmp_path / "report.md").read_text()
+    assert "## Traffic around the SUT" in md
+    assert "| mean BVs | 1.6 |" in md  # 1200 / 750
+    assert "| lowest window mean | 0 |" in md and "| states with none | 150 (20.0 %) |" in md
+    assert "| 1 | 0.0 | 300 | 3 |" in md and "| 2 | 30.0 | 300 | 1 |" in md and "| 3 | 60.0 | 150 (partial) | 0 |" in md
+    assert "![traffic](traffic.png)" in md and (tmp_path / "traffic.png").stat().st_size > 0
+    assert report["traffic"]["windows"][-1]["partial"] is True
