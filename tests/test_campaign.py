@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -102,6 +103,16 @@ def test_summary_gives_complexity_per_cell_by_hand(tmp_path):
     assert f"| level0 | 3 | {same}– |" in text
 
 
+def test_traffic_columns_of_a_report():
+    from evoscen_bringup.campaign import traffic_columns
+
+    cols = traffic_columns({"traffic": {"mean_bvs": 2.0, "min_window_mean_bvs": 1.0, "empty_share": 0.25}})
+    assert cols == {"traffic_mean_bvs": 2.0, "traffic_min_window_mean_bvs": 1.0, "traffic_empty_share": 0.25}
+    # a run under half a traffic window has no window mean: NaN, as an undefined score
+    short = traffic_columns({"traffic": {"mean_bvs": 3.0, "min_window_mean_bvs": None, "empty_share": 0.0}})
+    assert short["traffic_mean_bvs"] == 3.0 and math.isnan(short["traffic_min_window_mean_bvs"])
+
+
 def test_expansion_and_keys(tmp_path):
     spec = load_spec(write_spec(tmp_path, SMALL))
     runs = expand(spec, version="v1")
@@ -151,6 +162,8 @@ def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
     row = next(row for row in table if row["key"] == runs[4].key)
     assert row["intelligence"] == here["intelligence"]["score"]
     assert row["collisions"] == here["safety"]["collisions"] and row["seed"] == 1 and row["sut.model"] == "level0"
+    assert row["traffic_mean_bvs"] == here["traffic"]["mean_bvs"]
+    assert row["traffic_empty_share"] == here["traffic"]["empty_share"]
     report = json.loads((out / "runs" / runs[4].key / "report.json").read_text())
     assert report["intelligence"]["score"] == here["intelligence"]["score"]
     summary = (out / "summary.md").read_text()

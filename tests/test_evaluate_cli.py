@@ -42,10 +42,16 @@ def test_offline_report_equals_the_runs_own(recorded_run, tmp_path):
                                             and offline[key]["defined"] is False), key
     assert isinstance(offline["intelligence"]["score"], float)
     assert set(offline["intelligence"]["weighted"]) == {"safety", "efficiency", "interaction"}
-    for name in ("report.md", "ttc.png", "speed.png", "timeline.png"):
+    for name in ("report.md", "ttc.png", "speed.png", "timeline.png", "traffic.png"):
         assert (tmp_path / "off" / name).stat().st_size > 0
     md = (tmp_path / "off" / "report.md").read_text()
     assert "| **intelligence I** |" in md and "![timeline](timeline.png)" in md
+    assert "## Traffic around the SUT" in md and "![traffic](traffic.png)" in md
+    assert md == (recorded_run.out / "report" / "report.md").read_text()  # report.md: live = offline too
+    # 201 states: under one 300-state window but at least half of one, so one partial window
+    traffic = offline["traffic"]
+    assert [(w["start_state"], w["states"], w["partial"]) for w in traffic["windows"]] == [(0, 201, True)]
+    assert traffic["min_window_mean_bvs"] == traffic["mean_bvs"] == traffic["per_window_mean_bvs"][0]
     assert f"report: {tmp_path / 'off' / 'report.md'}" in res.stdout
 
 

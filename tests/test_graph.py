@@ -231,7 +231,7 @@ def test_live_report_equals_offline_and_inprocess(graph_200, tmp_path):
     offline["run"].pop("source")
     assert live == offline == inproc
     assert live["run"]["steps"] == 200 and live["run"]["complete"] is True and live["complexity"]["windows"] == 2
-    for name in ("report.md", "ttc.png", "speed.png", "timeline.png"):
+    for name in ("report.md", "ttc.png", "speed.png", "timeline.png", "traffic.png"):
         assert (graph_200["out"] / "report" / name).stat().st_size > 0, name
     assert "intelligence:" in graph_200["res"].stdout
 

@@ -200,10 +200,10 @@ def test_successful_run_outputs(recorded_run):
     assert Path(summary["bag"]).resolve() == (out / "bag").resolve()
     assert sorted(p.name for p in out.iterdir()) == ["bag", "report", "scenario.yaml"]
     names = {p.name for p in (out / "report").iterdir()}
-    assert {"report.json", "report.md", "speed.png", "timeline.png", "ttc.png"} <= names
+    assert {"report.json", "report.md", "speed.png", "timeline.png", "traffic.png", "ttc.png"} <= names
     report = json.loads((out / "report" / "report.json").read_text())
     # plus a snapshot at the worst exposure (if any) and at each SUT collision (numbered)
-    extra = names - {"report.json", "report.md", "speed.png", "timeline.png", "ttc.png"}
+    extra = names - {"report.json", "report.md", "speed.png", "timeline.png", "traffic.png", "ttc.png"}
     assert ("worst_exposure.png" in extra) == bool(report["safety"]["exposures"]), extra
     assert all(re.fullmatch(r"collision_\d+\.png", n) for n in extra - {"worst_exposure.png"}), extra
     assert re.search(r"^intelligence: [0-9.]+ \(weighted safety [0-9.]+, efficiency [0-9.]+, interaction [0-9.]+\)"

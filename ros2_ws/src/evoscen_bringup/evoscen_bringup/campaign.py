@@ -52,6 +52,9 @@ SCORE_COLUMNS = ("intelligence", "safety", "efficiency", "interaction", "complex
 COUNT_COLUMNS = ("collisions", "exposures")
 KIND_COLUMNS = tuple(f"collisions_{k}" for k in (*COLLISION_KINDS, "unknown"))
 """SUT collisions by what they were (docs/evaluation.md §3.4)."""
+TRAFFIC_COLUMNS = {"traffic_mean_bvs": "mean_bvs", "traffic_min_window_mean_bvs": "min_window_mean_bvs",
+                   "traffic_empty_share": "empty_share"}
+"""The traffic around the SUT (report.json's ``traffic``, docs/evaluation.md §8): column -> key."""
 OBJECT_STORE_BYTES = 100 * 2**20
 """The local Ray's object store: tasks pass a configuration and return a report (kilobytes), so
 100 MiB is plenty, and it fits a container's /dev/shm (ours: 256 MiB) instead of Ray's 30 % of RAM."""
@@ -277,6 +280,7 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     for kind, count in report["safety"]["collisions_by_kind"].items():
         row[f"collisions_{kind}"] = int(count)
     row["exposures"] = int(report["safety"]["exposures"])
+    row.update(traffic_columns(report))
     row["clips"] = len(clips)
     row["wall_time_s"] = time.perf_counter() - t0
     try:
@@ -288,6 +292,13 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     row["pid"] = os.getpid()
     plot = {"ttc_hist": summary.plot.ttc_hist.tolist(), "speed_hist": summary.plot.speed_hist.tolist()}
     return {"row": row, "report": report, "plot": plot, "files": files}
+
+
+def traffic_columns(report: Mapping[str, Any]) -> dict[str, float]:
+    """A run's :data:`TRAFFIC_COLUMNS` from its report (NaN where undefined: no traffic window)."""
+    traffic = report.get("traffic") or {}
+    return {column: math.nan if traffic.get(key) is None else float(traffic[key])
+            for column, key in TRAFFIC_COLUMNS.items()}
 
 
 # ---------------------------------------------------------------------- the campaign
@@ -436,7 +447,8 @@ def write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> lis
 
     rows = collect_rows(runs, out_dir)
     axes = list(spec.grid)
-    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, *KIND_COLUMNS, "clips", "wall_time_s",
+    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, *KIND_COLUMNS, *TRAFFIC_COLUMNS, "clips",
+               "wall_time_s",
                "node", "pid"]
     table = pa.table({c: [row.get(c) for row in rows] for c in columns}) if rows else pa.table(
         {c: pa.array([], type=pa.string()) for c in columns})

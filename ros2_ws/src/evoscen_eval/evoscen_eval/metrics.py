@@ -53,6 +53,11 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   manoeuvres rather than per-step noise; ``literal``: per step), E = SUT exposures starting in it;
   LC, AD, E are averaged over the windows (and over rounds by the experiment) before C is
   computed. A run shorter than one window has no complexity (``null`` and a warning).
+
+Reported beside the scores, read by none (:func:`traffic_of_stream`, docs/evaluation.md §8):
+the **traffic around the SUT** — per state the BVs with |s_BV − s_SUT| ≤ 100 m (any lane),
+averaged per 30-s window, with the run's mean, the lowest window mean and the share of states
+with no BV that near.
 """
 
 from __future__ import annotations
@@ -68,6 +73,7 @@ from evoscen_sim.safety import attribution_steps
 
 from .rundata import RunData, run_info_of
 from .streaming import COLLISION_KINDS, ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
+from .streaming import TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, traffic_window_states
 
 
 # ---------------------------------------------------------------------- formulas (scalars)
@@ -325,6 +331,39 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "interaction": interaction,
         "intelligence": intelligence,
         "complexity": complexity,
+        "traffic": traffic_of_stream(st),
+    }
+
+
+def traffic_of_stream(st: ScoreStream) -> dict[str, Any]:
+    """The report's ``traffic`` section: how many BVs were within ``range_m`` of the SUT along the
+    road (|s_BV − s_SUT|, same state, any lane), per state, averaged per window of
+    ``window_states`` states from state 0. A last partial window is reported (``partial``) when
+    it holds at least half a window; a shorter tail counts in ``mean_bvs`` and ``empty_share``
+    only (``tail_states_left_out``). Reported only: no score reads it."""
+    st.finish()
+    K = st.states
+    W = st.traffic_window_states or traffic_window_states(st.dt_s if st.dt_s is not None else 0.1)
+    windows = []
+    for w, (total, t0) in enumerate(zip(st.traffic_window_sums, st.traffic_window_t0)):
+        n = min(W, K - w * W)
+        if 2 * n < W:  # a tail under half a window: left out of the windows
+            continue
+        windows.append({"start_state": w * W, "states": n, "start_time_s": t0, "mean_bvs": total / n,
+                        "partial": n < W})
+    means = [x["mean_bvs"] for x in windows]
+    return {
+        "range_m": TRAFFIC_RANGE_M,
+        "window_s": TRAFFIC_WINDOW_S,
+        "window_states": W,
+        "mean_bvs": st.traffic_sum / K,
+        "min_window_mean_bvs": min(means) if means else None,
+        "empty_states": st.traffic_empty,
+        "empty_share": st.traffic_empty / K,
+        "per_window_mean_bvs": means,
+        "last_window_partial": bool(windows) and windows[-1]["partial"],
+        "tail_states_left_out": K - sum(x["states"] for x in windows),
+        "windows": windows,
     }
 
 

@@ -8,7 +8,8 @@ by the in-process runner: :func:`write_stream_report` on the run's
 
 Plots (matplotlib, Agg): the SUT's TTC distribution (``ttc.png``) and speed distribution
 (``speed.png``); a timeline of speed, lane and TTC with exposures shaded and collisions
-marked (``timeline.png``); a bird's-eye snapshot of the scene at each SUT collision
+marked (``timeline.png``); the BVs within 100 m of the SUT over time with each 30-s window's mean
+(``traffic.png``); a bird's-eye snapshot of the scene at each SUT collision
 (``collision_<n>.png``, the first :data:`MAX_SNAPSHOTS`) and at the worst exposure
 (``worst_exposure.png``).
 """
@@ -190,10 +191,49 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
         ("windows", c["windows"], "whole windows in the run"),
         ("k1, k2, k3", ", ".join(f"{k:g}" for k in c["k"]), "constants"),
     ])]
+    if "traffic" in report:
+        out += traffic_markdown(report["traffic"])
     if images:
         out.append("\n## Plots\n")
         out += [f"![{Path(name).stem}]({name})\n" for name in images]
     return "\n".join(out) + "\n"
+
+
+TRAFFIC_TABLE_WINDOWS = 50
+"""Up to this many traffic windows report.md lists as a table; more as one line of means."""
+
+
+def traffic_markdown(tr: dict[str, Any]) -> list[str]:
+    """report.md's "Traffic around the SUT": the run's figures, then the mean of each window."""
+    rng, n_w = f"{tr['range_m']:g} m", len(tr["windows"])
+    whole = n_w - int(tr["last_window_partial"])
+    windows = f"{whole} whole, of {tr['window_s']:g} s ({tr['window_states']} states)"
+    if tr["last_window_partial"]:
+        windows += f", and a last partial one of {tr['windows'][-1]['states']} states"
+    if tr["tail_states_left_out"]:
+        windows += (f"; the last {tr['tail_states_left_out']} states (under half a window) are in the mean, "
+                    "not in a window")
+    out = ["\n## Traffic around the SUT\n",
+           f"BVs within {rng} of the SUT along the road (|s_BV − s_SUT| ≤ {rng}, any lane), counted in every "
+           f"state and averaged per {tr['window_s']:g}-s window from the run's start (reported only: no score "
+           "reads it).\n", _table([
+               ("mean BVs", tr["mean_bvs"], f"BVs within {rng}, mean over the run's states"),
+               ("lowest window mean", tr["min_window_mean_bvs"], "the emptiest window (– = no window)"),
+               ("states with none", f"{tr['empty_states']} ({100.0 * tr['empty_share']:.1f} %)",
+                f"states without a BV within {rng}"),
+               ("windows", n_w, windows),
+           ])]
+    if not n_w:
+        return out
+    if n_w <= TRAFFIC_TABLE_WINDOWS:
+        out += ["\n| window | from t (s) | states | mean BVs |", "|---|---|---|---|"]
+        out += [f"| {n} | {x['start_time_s']:.1f} | {x['states']}{' (partial)' if x['partial'] else ''} | "
+                f"{_f(x['mean_bvs'], 3)} |" for n, x in enumerate(tr["windows"], 1)]
+        out.append("")
+    else:
+        out.append(f"\nWindow means, in order{' (the last partial)' if tr['last_window_partial'] else ''}: "
+                   + ", ".join(_f(m, 3) for m in tr["per_window_mean_bvs"]) + "\n")
+    return out
 
 
 # ---------------------------------------------------------------------- plots
@@ -249,6 +289,9 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
                       f"{report['safety']['collisions']} collisions (red){every}")
     names.append(_save(fig, out, "timeline.png"))
 
+    if "traffic" in report:
+        names.append(_traffic_plot(plt, plot, report["traffic"], dt, out))
+
     for n, col in enumerate(report["safety"]["collision_list"][:MAX_SNAPSHOTS], 1):
         scene = plot.collision_scenes.get(min(int(col["state"]), plot.states - 1))
         if scene is not None:
@@ -259,6 +302,31 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
         names.append(_snapshot(plt, w, plot.lane_segments, set(), f"worst exposure at t = {w.time_s:.1f} s: TTC "
                                f"{w.sut_ttc:.2f} s, accel {w.sut_accel:.2f} m/s²", out, "worst_exposure.png"))
     return names
+
+
+def _traffic_plot(plt, plot: PlotData, tr: dict[str, Any], dt: float, out: Path) -> str:  # noqa: ANN001
+    """``traffic.png``: BVs within the range of the SUT over time with each window's mean."""
+    from matplotlib.ticker import MaxNLocator
+
+    fig, ax = plt.subplots(figsize=(10, 3.5))
+    t = plot.timeline_time_s
+    per = "per state" if plot.timeline_stride == 1 else f"mean of each {plot.timeline_stride} states"
+    ax.step(t, plot.timeline_bvs, where="post", lw=0.7, color="0.55", label=f"BVs within {tr['range_m']:g} m ({per})")
+    for n, x in enumerate(tr["windows"]):
+        end = x["start_time_s"] + x["states"] * dt
+        label = ("last partial window's mean" if x["partial"] else
+                 f"{tr['window_s']:g}-s window mean" if n == 0 else None)
+        ax.hlines(x["mean_bvs"], x["start_time_s"], end, colors="tab:blue", lw=2.5, ls=":" if x["partial"] else "-",
+                  label=label)
+    ax.axhline(tr["mean_bvs"], color="tab:red", ls="--", lw=0.8, label=f"run mean {tr['mean_bvs']:.2f}")
+    ax.set_ylim(bottom=-0.25)  # a count of 0 stays visible above the axis
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+    low = tr["min_window_mean_bvs"]
+    ax.set(xlabel="time (s)", ylabel="BVs",
+           title=f"Traffic around the SUT: mean {tr['mean_bvs']:.2f} BVs within {tr['range_m']:g} m, lowest window "
+                 f"{'–' if low is None else f'{low:.2f}'}, none in {100.0 * tr['empty_share']:.1f} % of states")
+    ax.legend(loc="upper right", fontsize=8)
+    return _save(fig, out, "traffic.png")
 
 
 def _save(fig, out: Path, name: str) -> str:  # noqa: ANN001

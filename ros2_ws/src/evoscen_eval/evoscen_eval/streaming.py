@@ -14,13 +14,15 @@ as a whole run would) to
 * the SUT lane change in progress with its interaction sums and its PET window (which runs
   ``rear_attribution_s`` past the change's end, so it can outlive the change by blocks);
 * per-window counts of the complexity windows;
+* the traffic around the SUT: per state the BVs within :data:`TRAFFIC_RANGE_M` of it along
+  the road, summed per :data:`TRAFFIC_WINDOW_S` window, and the states with none (integers);
 * fixed-bin histograms of the SUT's TTC and speed, a timeline of at most
   :data:`TIMELINE_POINTS` points (a longer run is drawn from buckets of 2^n states: the
   first speed and lane and the lowest TTC of each), and the scenes of the report's
   snapshots (the states of the first collisions and of the worst exposure).
 
 What stays proportional to the run is its output: the exposure, collision and lane-change
-lists and the per-window counts (one entry per 100 states). Blocks start at multiples of
+lists and the per-window counts (one entry per 100 states, one per traffic window). Blocks start at multiples of
 :data:`BLOCK_STATES` from state 0 whoever feeds the stream, so the live evaluator, a bag read
 offline and the in-process runner sum in the same order and agree to the last bit.
 
@@ -56,6 +58,11 @@ COLLISION_LOOKBACK_S = 2.0
 COLLISION_KINDS = ("sut_cut_in", "other_cut_in", "both_changing", "sut_rear_end", "rear_ended_by_other")
 """What a SUT collision was (docs/evaluation.md §3.4); "unknown" if its state was not seen."""
 
+TRAFFIC_RANGE_M = 100.0
+"""A BV is around the SUT when |s_BV − s_SUT| is at most this (m; same road, any lane)."""
+TRAFFIC_WINDOW_S = 30.0
+"""The traffic around the SUT is averaged over windows this long (s; 300 states at dt 0.1 s)."""
+
 _F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
 _SCENE_FIELDS = ("x", "y", "yaw", "length", "width", "speed")
 
@@ -89,6 +96,9 @@ class PlotData:
     """Lowest TTC of each timeline bucket."""
     timeline_stride: int
     """States per timeline point (1 up to :data:`TIMELINE_POINTS` states)."""
+    timeline_bvs: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """BVs within :data:`TRAFFIC_RANGE_M` of the SUT: the mean over each timeline bucket (the
+    count itself with one state per point)."""
     collision_scenes: dict[int, Scene] = field(default_factory=dict)
     worst_scene: Scene | None = None
     lane_segments: np.ndarray | None = None
@@ -183,10 +193,17 @@ class ScoreStream:
         self.min_cut_in_gap = math.inf
         self.min_beside_gap = math.inf
         self.windows: dict[str, list[int]] = {"lane_changes": [], "accel_decel": [], "exposures": []}
+        # traffic around the SUT (report's "traffic"): per traffic window the sum of the per-state
+        # counts and the time of its first state; the run's sum and its states with no BV near
+        self.traffic_window_states: int | None = None
+        self.traffic_window_sums: list[int] = []
+        self.traffic_window_t0: list[float] = []
+        self.traffic_sum = 0
+        self.traffic_empty = 0
         # plots
         self.ttc_hist = np.zeros(len(TTC_BINS) - 1, dtype=np.int64)
         self.speed_hist = np.zeros(len(SPEED_BINS) - 1, dtype=np.int64)
-        self._tl: dict[str, list] = {"bucket": [], "t": [], "speed": [], "lane": [], "ttc": []}
+        self._tl: dict[str, list] = {"bucket": [], "t": [], "speed": [], "lane": [], "ttc": [], "bvs": [], "n": []}
         self._stride = 1
         self.collision_scenes: dict[int, Scene] = {}
         self._worst_sev = -math.inf
@@ -287,6 +304,9 @@ class ScoreStream:
         ds = s - s[:, sut:sut + 1]
         in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
         in_view[:, sut] = False
+        near = np.abs(ds) <= TRAFFIC_RANGE_M  # within the state: a shift of every s alike changes nothing
+        near[:, sut] = False
+        bvs_near = near.sum(axis=1)  # [n] BVs within TRAFFIC_RANGE_M of the SUT
 
         # --- lane-change starts of every vehicle (a column becoming non-zero or switching sign)
         lc = c["lane_change"]
@@ -383,6 +403,23 @@ class ScoreStream:
                           minlength=n_w - int(w_idx[0]))
         self._add_windows("exposures", int(w_idx[0]), e_w)
 
+        # --- traffic around the SUT: per-window sums of the per-state counts (integers, so any
+        # block size gives the same), the time of each window's first state, the states with none
+        if self.traffic_window_states is None:
+            self.traffic_window_states = traffic_window_states(dt)
+        TW = self.traffic_window_states
+        t_idx = ks // TW
+        t_sums = np.bincount(t_idx - t_idx[0], weights=bvs_near, minlength=int(t_idx[-1] - t_idx[0]) + 1)
+        for i, value in enumerate(t_sums.tolist()):
+            w = int(t_idx[0]) + i
+            if w < len(self.traffic_window_sums):
+                self.traffic_window_sums[w] += int(value)
+            else:
+                self.traffic_window_sums.append(int(value))
+                self.traffic_window_t0.append(float(times[int(np.argmax(t_idx == w))]))
+        self.traffic_sum += int(bvs_near.sum())
+        self.traffic_empty += int((bvs_near == 0).sum())
+
         # --- the SUT's lane changes: interaction sums and PET windows
         self._track_changes(lc_sut, ks, c, tables, in_view, starts, v, a)
 
@@ -390,7 +427,7 @@ class ScoreStream:
         finite = ttc[np.isfinite(ttc) & (ttc <= TTC_BINS[-1])]
         self.ttc_hist += np.histogram(finite, bins=TTC_BINS)[0]
         self.speed_hist += np.histogram(speed, bins=SPEED_BINS)[0]
-        self._timeline(ks, times, speed, lane, ttc)
+        self._timeline(ks, times, speed, lane, ttc, bvs_near)
         self._collision_scenes(k0, tables, times)
         self._prev_scene_block = (k0, tables, times)
         last = np.maximum.accumulate(np.where(lc != 0, ks[:, None], -1), axis=0)
@@ -540,18 +577,25 @@ class ScoreStream:
         if pet[m] < ch.pet:
             ch.pet, ch.pet_state, ch.pet_follower = float(pet[m]), k0 + lo + m, int(self.ids[j[m]])
 
-    def _timeline(self, ks, times, speed, lane, ttc) -> None:  # noqa: ANN001
+    def _timeline(self, ks, times, speed, lane, ttc, bvs) -> None:  # noqa: ANN001
+        """Per bucket: the first state's time, speed and lane, the lowest TTC, and the sum of the
+        BV counts near the SUT with the bucket's number of states (integers: their mean is exact)."""
         tl = self._tl
         buckets = ks // self._stride
-        for b in np.unique(buckets).tolist():
+        unique, first = np.unique(buckets, return_index=True)  # buckets ascend: each a contiguous run
+        near_sums = np.add.reduceat(bvs, first).tolist()
+        sizes = np.diff(np.append(first, buckets.size)).tolist()
+        for i, b in enumerate(unique.tolist()):
             sel = np.flatnonzero(buckets == b)
             low = float(ttc[sel].min())
             if tl["bucket"] and tl["bucket"][-1] == b:
                 tl["ttc"][-1] = min(tl["ttc"][-1], low)
+                tl["bvs"][-1] += near_sums[i]
+                tl["n"][-1] += sizes[i]
                 continue
             r = int(sel[0])
             for key, value in (("bucket", b), ("t", float(times[r])), ("speed", float(speed[r])),
-                               ("lane", float(lane[r])), ("ttc", low)):
+                               ("lane", float(lane[r])), ("ttc", low), ("bvs", near_sums[i]), ("n", sizes[i])):
                 tl[key].append(value)
         while len(tl["bucket"]) > TIMELINE_POINTS:
             self._stride *= 2
@@ -559,9 +603,11 @@ class ScoreStream:
             for i, b in enumerate(tl["bucket"]):
                 if merged["bucket"] and merged["bucket"][-1] == b // 2:
                     merged["ttc"][-1] = min(merged["ttc"][-1], tl["ttc"][i])
+                    merged["bvs"][-1] += tl["bvs"][i]
+                    merged["n"][-1] += tl["n"][i]
                     continue
                 merged["bucket"].append(b // 2)
-                for key in ("t", "speed", "lane", "ttc"):
+                for key in ("t", "speed", "lane", "ttc", "bvs", "n"):
                     merged[key].append(tl[key][i])
             self._tl = tl = merged
 
@@ -608,13 +654,20 @@ class ScoreStream:
         return PlotData(states=self.states, ttc_hist=self.ttc_hist.copy(), speed_hist=self.speed_hist.copy(),
                         timeline_time_s=np.asarray(tl["t"]), timeline_speed=np.asarray(tl["speed"]),
                         timeline_lane=np.asarray(tl["lane"]), timeline_ttc=np.asarray(tl["ttc"]),
-                        timeline_stride=self._stride, collision_scenes=dict(self.collision_scenes),
+                        timeline_stride=self._stride,
+                        timeline_bvs=np.asarray(tl["bvs"], dtype=np.float64) / np.maximum(np.asarray(tl["n"]), 1),
+                        collision_scenes=dict(self.collision_scenes),
                         worst_scene=self.worst_scene, lane_segments=lane_segments)
 
     @property
     def duration_s(self) -> float:
         """Simulated time from the first state to the last (s)."""
         return self.last_time_s - self.first_time_s
+
+
+def traffic_window_states(dt_s: float) -> int:
+    """States per traffic window: :data:`TRAFFIC_WINDOW_S` over the step (300 at 0.1 s), at least 1."""
+    return max(1, int(round(TRAFFIC_WINDOW_S / dt_s)))
 
 
 def activity_accel(accel: np.ndarray, dt_s: float, form: str, window_s: float) -> np.ndarray:
