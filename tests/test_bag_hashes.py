@@ -15,7 +15,10 @@ false the earlier hashes held, checked), and the shipped BV set was retrained (d
 Session 13: a lane change beside a vehicle is dangerous (``evaluation.beside_lane_change``,
 docs/evaluation.md §3.7): the metadata record gains the key in every bag, and the default mutant's
 ``evoscen/events`` change (its exposure events); every other message of the five runs is byte-identical
-to the session-12 bags (compared per topic).
+to the session-12 bags (compared per topic). Then ``evaluation.count_normalisation`` and
+``evaluation.count_reference_steps`` (docs/evaluation.md §1.1): the metadata record gains the two
+keys in every bag; every message of the five runs is byte-identical to the bags before (compared
+per topic: all nine topics).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
@@ -31,11 +34,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "96aa66ac5392fbaa6c056d92c65efe5953262b6f86eb4f03241011ea5ed94771",  # the shipped default (level0 SUT)
-    "nilsson": "1add2448c7b116a469441d64547972ba4d596719b75e2b67641bccc4c68458c9",
-    "mobil": "b47a3aa5d3754ba3e0cb8ade5fa39d37c07cea9e8c45eeb573f3b7a0a30b83d4",
-    "stackelberg": "4975cf996b792e487b83398bc147bd57052f6f0365ef8460a5e9c90f8d94edf2",
-    "mutant": "bff8aeae1019bc09cfd3bac9a0974d68c2ca8191cb904608aeff0997b522ecef",  # the default mutant
+    None: "ca83707a426fab8bf8d753cc70b6ab8c056386de4722ce1049efcee586b23118",  # the shipped default (level0 SUT)
+    "nilsson": "f8e935bfb10b51f027dbfd7b09ae6142b13532906a45ca2b3291422a75232fda",
+    "mobil": "338b3cae0731a87f59d4ed1eb25f190fc04ab8820d745c4d10a55f8c3bb17c68",
+    "stackelberg": "5cbd91fd271a856732ab2d721ea136e820d64c435348b5a25b0d6c8341719f97",
+    "mutant": "75413a9ed28e5e1dbde2719dcc6ab5a06321c58cf9ba3514ad41aacb5bf73d30",  # the default mutant
 }
 
 

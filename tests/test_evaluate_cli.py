@@ -87,6 +87,74 @@ def test_config_override_changes_the_settings(recorded_run, tmp_path):
     assert rep["intelligence"]["score"] == rep["safety"]["score"]
 
 
+def _copy_bag_with_scenario(src: Path, dst: Path, edit) -> None:  # noqa: ANN001 - edit: dict -> None
+    """Copy the bag ``src`` (a directory) to ``dst`` with its scenario metadata record edited by
+    ``edit(scenario_dict)``; schemas, channels and messages are copied as they are, in file order."""
+    import yaml
+    from evoscen_eval.rundata import SCENARIO_KEY, SCENARIO_METADATA
+    from mcap.records import Channel, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader
+    from mcap.writer import Writer
+
+    dst.mkdir(parents=True)
+    with open(src / "bag_0.mcap", "rb") as f, open(dst / "bag_0.mcap", "wb") as g:
+        out = Writer(g)
+        out.start(profile="ros2")
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for rec in StreamReader(f).records:
+            if isinstance(rec, Metadata):
+                data = dict(rec.metadata)
+                if rec.name == SCENARIO_METADATA:
+                    scenario = yaml.safe_load(data[SCENARIO_KEY])
+                    edit(scenario)
+                    data[SCENARIO_KEY] = yaml.safe_dump(scenario, sort_keys=False)
+                out.add_metadata(rec.name, data)
+            elif isinstance(rec, Schema) and rec.id not in schemas:
+                schemas[rec.id] = out.register_schema(rec.name, rec.encoding, rec.data)
+            elif isinstance(rec, Channel) and rec.id not in channels:
+                channels[rec.id] = out.register_channel(rec.topic, rec.message_encoding, schemas[rec.schema_id],
+                                                        dict(rec.metadata))
+            elif isinstance(rec, Message):
+                out.add_message(channels[rec.channel_id], rec.log_time, rec.data, rec.publish_time, rec.sequence)
+        out.finish()
+
+
+def test_a_bag_recorded_before_count_normalisation_scores_the_counts_as_counted(recorded_run, tmp_path):
+    """A bag whose recorded evaluation section lacks ``count_normalisation`` (recorded before the key
+    existed) is scored as it was then: C and E as counted, not scaled to 3,000 steps (200 steps here:
+    scaled, they would enter I_s 15 times over)."""
+    import math
+
+    from evoscen_eval.metrics import safety_score
+
+    live = json.loads((recorded_run.out / "report" / "report.json").read_text())
+    s = live["safety"]
+    assert (s["count_normalisation"], s["steps"], s["count_factor"]) == ("method_length", 200, 15.0)
+    assert (s["collisions_used"], s["exposures_used"]) == (15 * s["collisions"], 15 * s["exposures"])
+    assert s["score"] == safety_score(15 * s["collisions"], 15 * s["exposures"], 10)
+
+    def drop(scenario: dict) -> None:
+        del scenario["evaluation"]["count_normalisation"], scenario["evaluation"]["count_reference_steps"]
+
+    _copy_bag_with_scenario(recorded_run.bag_dir, tmp_path / "older", drop)
+    res = evaluate(tmp_path / "older", "--out", tmp_path / "o", "--no-plots")
+    assert res.returncode == 0, res.stderr
+    old = json.loads((tmp_path / "o" / "report.json").read_text())
+    o = old["safety"]
+    assert (o["count_normalisation"], o["count_factor"]) == ("literal", 1.0)
+    assert (o["collisions"], o["exposures"], o["collisions_used"], o["exposures_used"]) == \
+        (s["collisions"], s["exposures"], s["collisions"], s["exposures"])
+    assert o["score"] == 0.7 * (1 - min(s["collisions"], 10) / 10) + 0.3 * math.exp(-s["exposures"])
+    # every other number is the run's own
+    for key in ("efficiency", "interaction", "complexity"):
+        assert old[key] == live[key], key
+    # and the copy with the keys kept scores as the run did (the copy itself changes nothing)
+    _copy_bag_with_scenario(recorded_run.bag_dir, tmp_path / "same", lambda scenario: None)
+    assert evaluate(tmp_path / "same", "--out", tmp_path / "s", "--no-plots").returncode == 0
+    assert json.loads((tmp_path / "s" / "report.json").read_text())["safety"] == s
+
+
 @pytest.fixture(scope="module")
 def chunked_run(tmp_path_factory, cli):
     """A 300-step run recorded in small chunks (32 KiB), so a cut file keeps whole chunks."""

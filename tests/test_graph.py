@@ -231,6 +231,10 @@ def test_live_report_equals_offline_and_inprocess(graph_200, tmp_path):
     offline["run"].pop("source")
     assert live == offline == inproc
     assert live["run"]["steps"] == 200 and live["run"]["complete"] is True and live["complexity"]["windows"] == 2
+    # C and E enter I_s scaled to 3,000 steps (evaluation.count_normalisation: method_length), live as offline
+    s = live["safety"]
+    assert (s["count_normalisation"], s["steps"], s["count_factor"]) == ("method_length", 200, 15.0)
+    assert (s["collisions_used"], s["exposures_used"]) == (15 * s["collisions"], 15 * s["exposures"])
     for name in ("report.md", "ttc.png", "speed.png", "timeline.png", "traffic.png"):
         assert (graph_200["out"] / "report" / name).stat().st_size > 0, name
     assert "intelligence:" in graph_200["res"].stdout

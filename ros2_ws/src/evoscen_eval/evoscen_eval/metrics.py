@@ -28,6 +28,12 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   arithmetic (T̄_l = ``no_lane_change_time_s``, I_i = 1).
 * **Collisions C** — the ``evoscen/collision`` events involving the SUT (the simulation
   emits one per contact, not one per overlapping step); ``collisions_all`` counts every pair.
+* **Counts in I_s** (``count_normalisation`` [method_length]) — C and E are counted per run;
+  they enter I_s scaled to the method's run length, C·N_ref/N and E·N_ref/N (N = the steps
+  scored, states − 1; N_ref = ``count_reference_steps`` [3000]), so a 3,000-step run scores its
+  counts as they are and a run's length does not move its expected I_s; ``literal``: as counted
+  (a longer run of the same SUT scores lower). The report gives the raw counts, N, the factor
+  and the counts used.
 * **View** — every other vehicle whose reference point is from ``view_behind_m`` [20 m]
   behind to ``view_ahead_m`` [100 m] ahead of the SUT's, all lanes.
   h̄ = mean number of vehicles in view over the states;
@@ -79,9 +85,27 @@ from .streaming import TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, traffic_window_states
 # ---------------------------------------------------------------------- formulas (scalars)
 
 
-def safety_score(collisions: int, exposures: int, collision_cap: int) -> float:
-    """I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)  (docs/method.md eq. (21))."""
+def safety_score(collisions: float, exposures: float, collision_cap: int) -> float:
+    """I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)  (docs/method.md eq. (21)); C and E as
+    they enter the score (:func:`scored_counts`)."""
     return 0.7 * (1.0 - min(collisions, collision_cap) / collision_cap) + 0.3 * math.exp(-exposures)
+
+
+def scored_counts(collisions: int, exposures: int, steps: int, normalisation: str,
+                  reference_steps: int) -> tuple[float, float, float, str | None]:
+    """C and E as they enter I_s (``evaluation.count_normalisation``): ``method_length`` scales the
+    run's counts to ``reference_steps`` steps, C·N_ref/N and E·N_ref/N with N = ``steps`` (the
+    steps scored: states − 1), so a run of N_ref steps gives its counts unchanged (to the bit);
+    ``literal`` gives the counts as counted. Returns (C, E, the factor N_ref/N, a warning or None):
+    a run of 0 steps (a single state) has no length to scale by, its counts enter as counted."""
+    if normalisation == "literal":
+        return collisions, exposures, 1.0, None
+    if normalisation != "method_length":
+        raise ValueError(f"count normalisation {normalisation!r}: expected 'method_length' or 'literal'")
+    if steps < 1:
+        return collisions, exposures, 1.0, ("a run of 0 steps has no length to scale the safety counts by "
+                                             "(count_normalisation: method_length): C and E enter I_s as counted")
+    return collisions * reference_steps / steps, exposures * reference_steps / steps, reference_steps / steps, None
 
 
 def efficiency_score(mean_in_view: float, max_in_view: int, mean_speed: float, v_max: float,
@@ -157,13 +181,24 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
     exposures = st.exposures
     n_exp = len(exposures)
     sut_collisions = st.sut_collisions
-    i_s = safety_score(len(sut_collisions), n_exp, ev.collision_cap)
+    n_steps = max(K - 1, 0)  # the steps scored: state 0 is the initial one
+    c_used, e_used, factor, count_warning = scored_counts(len(sut_collisions), n_exp, n_steps, ev.count_normalisation,
+                                                          ev.count_reference_steps)
+    if count_warning:
+        warnings_extra.append(count_warning)
+    i_s = safety_score(c_used, e_used, ev.collision_cap)
     safety = {
         "score": i_s,
         "collisions": len(sut_collisions),
         "collisions_all": st.collisions_all,
         "collision_cap": ev.collision_cap,
         "exposures": n_exp,
+        "count_normalisation": ev.count_normalisation,
+        "count_reference_steps": ev.count_reference_steps,
+        "steps": n_steps,
+        "count_factor": factor,
+        "collisions_used": c_used,
+        "exposures_used": e_used,
         "exposures_open_at_end": sum(e["open_at_end"] for e in exposures),
         "dangerous_states": st.n["danger"],
         "min_ttc_s": _finite(st.min_ttc),

@@ -112,11 +112,25 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
             f"| interaction I_i | {_f(i['score'])}{'' if i.get('defined', True) else ' (undefined: no SUT lane change, left out)'}"
             f" | {_f(ew['interaction'])} | {_f(w['interaction'])} |",
             f"| **intelligence I** | | | **{_f(g['score'])}** |\n"]
-    out += ["## Safety\n", "I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)\n", _table([
-        ("C", s["collisions"], "collisions involving the SUT (one per contact)"),
+    scaled = s.get("count_normalisation") == "method_length"
+    formula = ("I_s = 0.7·(1 − min(C', C_max)/C_max) + 0.3·e^(−E'), C' = C·N_ref/N, E' = E·N_ref/N "
+               "(counts scaled to the method's run length)\n" if scaled else "I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)\n")
+    counts = []
+    if "count_normalisation" in s:  # reports from before the key: the counts entered as counted
+        counts = [
+            ("count normalisation", s["count_normalisation"], "method_length: C and E scaled to N_ref steps; "
+                                                               "literal: as counted"),
+            ("N", s["steps"], "steps scored (the run's length)"),
+            ("N_ref", s["count_reference_steps"], "reference length (steps)" + ("" if scaled else ", unused")),
+            ("C'", s["collisions_used"], "C as it enters I_s" + (f" (C·{s['count_factor']:.6g})" if scaled else "")),
+            ("E'", s["exposures_used"], "E as it enters I_s" + (f" (E·{s['count_factor']:.6g})" if scaled else "")),
+        ]
+    out += ["## Safety\n", formula, _table([
+        ("C", s["collisions"], "collisions involving the SUT (one per contact), counted in the run"),
         ("C_max", s["collision_cap"], "collision cap"),
         ("E", s["exposures"], f"exposures (maximal runs of states with TTC < {s['ttc_threshold_s']:g} s "
-                              f"or acceleration < −{s['hard_brake_mps2']:g} m/s²)"),
+                              f"or acceleration < −{s['hard_brake_mps2']:g} m/s²), counted in the run"),
+        *counts,
         ("open at end", s["exposures_open_at_end"], "exposures still open when the run ended (counted)"),
         ("dangerous states", s["dangerous_states"], "states in exposures"),
         ("min TTC (s)", s["min_ttc_s"], "lowest TTC to the vehicle ahead in the SUT's path (– = never closing)"),

@@ -576,16 +576,19 @@ RECORDED_BEFORE_KEYS: dict[str, Any] = {
     "beside_lane_change": False,
     "undefined_terms": "literal",
     "accel_activity_form": "literal",
+    "count_normalisation": "literal",
 }
-"""The value of each round-2 evaluation key that reproduces the scores from before the key
-existed (docs/evaluation.md §6). A bag records its run's whole resolved ``evaluation`` section, so
-a key missing there means the bag was recorded before the key existed: it is scored as it was
-then, not with today's default (``--config`` scores it with today's definitions)."""
+"""The value of each evaluation key added after the first bags that reproduces the scores from
+before the key existed (docs/evaluation.md §6; ``count_reference_steps`` needs none: it acts
+only under ``count_normalisation: method_length``). A bag records its run's whole resolved
+``evaluation`` section, so a key missing there means the bag was recorded before the key
+existed: it is scored as it was then, not with today's default (``--config`` scores it with
+today's definitions)."""
 
 
 def evaluation_settings_of(scenario: dict | None) -> EvaluationConfig:
-    """The evaluation settings of a recorded scenario dict (the defaults without one); a round-2 key
-    the recorded section lacks takes its value from before the key existed (:data:`RECORDED_BEFORE_KEYS`)."""
+    """The evaluation settings of a recorded scenario dict (the defaults without one); a key of
+    :data:`RECORDED_BEFORE_KEYS` the recorded section lacks takes its value from before the key existed."""
     recorded = None if scenario is None else scenario.get("evaluation")
     if recorded is None:
         return EvaluationConfig()

@@ -99,7 +99,10 @@ def test_rear_conflict_after_a_lane_change_by_hand():
     assert cf["max_drac_follower_mps2"] == pytest.approx(25.0 / 10.4) and cf["max_drac_sut_mps2"] == 0.0
     assert cf["drac_follower_states"] == 0  # 2.40 < 3
     assert evaluate(rear_run(), replace(ev, drac_threshold_mps2=2.0))["safety"]["conflicts"]["drac_follower_states"] == 33
-    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))
+    # E = 1 as counted (39 steps scaled to 3,000 under the default: test_count_normalisation.py)
+    lit = evaluate(rear_run(), replace(ev, count_normalisation="literal"))["safety"]
+    assert lit["exposures_used"] == 1 and lit["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))
+    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-3000 / 39))
     # PET: the change over states [5, 10), window to state 19; the new follower (lane 3, in path) from state 7
     pet = cf["lane_change_pet"]
     assert len(pet) == 1
@@ -151,7 +154,9 @@ def test_lane_change_beside_a_vehicle_by_hand():
     cf = s["conflicts"]
     assert cf["beside_lane_change"] is True and cf["beside_states"] == 5 and cf["beside_only_dangerous_states"] == 5
     assert cf["min_beside_gap_m"] == pytest.approx(-2.8)
-    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))
+    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-3000 / 39))  # E = 1 in 39 steps, scaled to 3,000
+    lit = evaluate(run, replace(only, count_normalisation="literal"))["safety"]
+    assert lit["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))  # as counted
     off = evaluate(run, replace(only, beside_lane_change=False))["safety"]
     assert off["exposures"] == 0 and off["conflicts"]["beside_states"] == 0
     assert off["conflicts"]["min_beside_gap_m"] == pytest.approx(-2.8)  # still reported
@@ -186,7 +191,8 @@ def test_a_bag_recorded_before_a_key_is_scored_as_it_was_then():
     round1 = {"evaluation": {k: v for k, v in now["evaluation"].items() if k not in RECORDED_BEFORE_KEYS}}
     ev = evaluation_settings_of(round1)
     assert (ev.rear_conflicts, ev.rear_braking, ev.hard_braking, ev.cut_in_gap_m, ev.beside_lane_change,
-            ev.undefined_terms, ev.accel_activity_form) == ("none", "any", "own", 0.0, False, "literal", "literal")
+            ev.undefined_terms, ev.accel_activity_form, ev.count_normalisation) == \
+        ("none", "any", "own", 0.0, False, "literal", "literal", "literal")
     assert evaluation_settings_of(None) == EvaluationConfig()  # no recorded scenario: today's defaults
 
 

@@ -123,5 +123,7 @@ def test_collision_is_counted_once_not_per_overlapping_step(road):
     s = report["safety"]
     assert s["collisions"] == 1 and s["collisions_all"] == 1
     assert s["collision_list"][0]["ids"] == [0, 1]
-    assert s["score"] == pytest.approx(0.7 * 0.9 + 0.3 * np.exp(-s["exposures"]))
     assert s["exposures"] == 1  # TTC fell below 2 s before the contact: one exposure, not one per step
+    # 30 steps: each count enters I_s scaled to 3,000 steps (count_normalisation: method_length), C' = E' = 100
+    assert (s["steps"], s["count_factor"], s["collisions_used"], s["exposures_used"]) == (30, 100.0, 100.0, 100.0)
+    assert s["score"] == pytest.approx(0.7 * 0.0 + 0.3 * np.exp(-100.0))

@@ -8,6 +8,7 @@ the formulas by hand.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -113,7 +114,11 @@ def test_cut_in_is_one_exposure_and_ttc_uses_the_vehicle_in_the_path():
     ex = s["exposure_list"][0]
     assert (ex["start_state"], ex["end_state"], ex["open_at_end"]) == (10, 20, False)
     assert ex["min_ttc_s"] == pytest.approx(8.0 / 5.0)
-    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))
+    # 39 steps: E = 1 enters I_s as 3000/39 (count_normalisation: method_length); as counted under literal
+    assert s["steps"] == 39 and s["exposures_used"] == pytest.approx(3000 / 39)
+    assert s["score"] == pytest.approx(0.7 + 0.3 * math.exp(-3000 / 39))
+    lit = evaluate(run, replace(EV_LIT, count_normalisation="literal"))["safety"]
+    assert lit["score"] == pytest.approx(0.7 + 0.3 * math.exp(-1))
     # the BV 12.8 m ahead is in view in every state: h = 1; no lane change: T_l = 0 -> e^0 = 1
     e = rep["efficiency"]
     assert e["mean_vehicles_in_view"] == 1.0 and e["max_vehicles_in_view"] == 85

@@ -276,6 +276,8 @@ REAR_BRAKING_RULES = ("within_headway", "any")
 HARD_BRAKING_RULES = ("conflict", "own")
 #: ``evaluation.undefined_terms`` values.
 UNDEFINED_TERM_RULES = ("exclude", "literal")
+#: ``evaluation.count_normalisation`` values.
+COUNT_NORMALISATIONS = ("method_length", "literal")
 
 
 @dataclass(frozen=True)
@@ -311,6 +313,14 @@ class EvaluationConfig:
     """T_l when the SUT completed no lane change (s), used only with undefined_terms: literal."""
     collision_cap: int = field(default=10, metadata=_check(_Int(1)))
     """C_max of the safety score."""
+    count_normalisation: str = field(default="method_length", metadata=_check(_Str(lambda: COUNT_NORMALISATIONS)))
+    """How the safety score's counts C and E enter I_s: method_length = scaled to the method's
+    run length, C*(N_ref/N) and E*(N_ref/N) with N the steps scored and N_ref =
+    count_reference_steps (a run of N_ref steps scores its counts as they are; a shorter or
+    longer run of the same SUT in the same traffic has the same expected I_s); literal = the
+    counts of the run as they are (a longer run scores lower). See docs/evaluation.md §1.1."""
+    count_reference_steps: int = field(default=3000, metadata=_check(_Int(1, MAX_STEPS)))
+    """N_ref of count_normalisation: method_length, in steps (the method's 3,000-step runs)."""
     dv_max_mps: float = field(default=5.0, metadata=_POSITIVE)
     """Normaliser of the BVs' speed fluctuation |v~| (m/s)."""
     da_max_mps2: float = field(default=3.0, metadata=_POSITIVE)

@@ -422,3 +422,14 @@ def test_evaluation_conflict_and_undefined_term_keys(scenario_dir):
     assert "\n" not in message.strip()
     ok = load_scenario_config(None, {"evaluation.rear_conflicts": "none", "evaluation.undefined_terms": "literal"})
     assert (ok.evaluation.rear_conflicts, ok.evaluation.undefined_terms) == ("none", "literal")
+
+
+def test_evaluation_count_normalisation_keys(scenario_dir):
+    ev = load_scenario_config(None).evaluation
+    assert (ev.count_normalisation, ev.count_reference_steps) == ("method_length", 3000)
+    message = load_error(scenario_dir, "evaluation: {count_normalisation: per_step}\n")
+    assert "'evaluation.count_normalisation' = 'per_step'" in message and "method_length, literal" in message
+    message = load_error(scenario_dir, "evaluation: {count_reference_steps: 0}\n")
+    assert "'evaluation.count_reference_steps' = 0" in message
+    ok = load_scenario_config(None, {"evaluation.count_normalisation": "literal", "evaluation.count_reference_steps": 1500})
+    assert (ok.evaluation.count_normalisation, ok.evaluation.count_reference_steps) == ("literal", 1500)
