@@ -147,6 +147,11 @@ class TrafficConfig:
     insertion_band_m: float = field(default=50.0, metadata=_check(_Float(0.0, 1000.0)))
     """When the edge itself is taken, a vehicle may enter the middle of the largest gap of its lane
     within this distance inside the window from the edge (m), [0, 1000]; 0 = the edge only."""
+    warmup_s: float = field(default=20.0, metadata=_check(_Float(0.0, 600.0)))
+    """Before step 0 the traffic evolves this long around the SUT's start (s), [0, 600]: BVs with
+    their own drivers, the SUT driven by the level-0 lane keeper and held at sut.s_m (every vehicle
+    is moved back by the SUT's advance each step), so every SUT model meets the same evolved start;
+    nothing of it is recorded. 0 = start from the window's spawn."""
     shift_from_m: float = field(default=2000.0, metadata=_check(_Float(0.0, MAX_S_M)))
     """When the SUT reaches this arc length, every vehicle is moved back by shift_from_m - shift_to_m (m)."""
     shift_to_m: float = field(default=300.0, metadata=_check(_Float(0.0, MAX_S_M)))

@@ -42,7 +42,7 @@ def bv_policy_codes(cfg: ScenarioConfig, rng: np.random.Generator) -> np.ndarray
 
 def scenario_rngs(seed: int) -> dict[str, np.random.Generator]:
     """The scenario's independent random streams (the same in every runner and node)."""
-    names = ("spawn", "world", "bv", "sut")
+    names = ("spawn", "world", "bv", "sut", "warmup_bv", "warmup_sut")
     return {name: np.random.default_rng(s) for name, s in zip(names, np.random.SeedSequence(seed).spawn(len(names)))}
 
 
@@ -57,8 +57,10 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
             road, traffic, bv_policies=bv_policy_codes(cfg, rngs["spawn"]), sut_policy=POLICY_CODES["sut"],
             sut_lane=cfg.sut.lane, sut_s_m=cfg.sut.s_m, sut_speed_mps=cfg.sut.speed_mps,
             vehicle_length_m=vehicle.length_m, rng=rngs["spawn"])
-        return World(road, initial, vehicle=vehicle, control=control_params_from_config(cfg),
-                     reentry=reentry_params_from_config(cfg), dt_s=cfg.dt_s, rng=rngs["world"], traffic=traffic)
+        world = World(road, initial, vehicle=vehicle, control=control_params_from_config(cfg),
+                      reentry=reentry_params_from_config(cfg), dt_s=cfg.dt_s, rng=rngs["world"], traffic=traffic)
+        warm_up(world, cfg, int(round(traffic.warmup_s / cfg.dt_s)))
+        return world
     initial = spawn_layout(
         road,
         bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
@@ -82,6 +84,42 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
         dt_s=cfg.dt_s,
         rng=rngs["world"],
     )
+
+
+WARMUP_SUT_MODEL = "level0"
+"""Who drives the SUT's vehicle during the warm-up: the lane keeper, the same for every SUT model."""
+
+
+def warm_up(world: World, cfg: ScenarioConfig, steps: int) -> None:
+    """Let the traffic evolve ``steps`` steps around the SUT's start before step 0 (``traffic.warmup_s``).
+
+    The BVs drive with drivers of their own (``bvs.driver``, from the ``warmup_bv`` stream), the
+    SUT's vehicle with :data:`WARMUP_SUT_MODEL` (``warmup_sut`` stream); after every step every
+    vehicle is moved back by the SUT's advance, so the SUT stays at ``sut.s_m`` (the road is uniform
+    around it: checked with the shift points) while the window's exits and entries go on. Then the
+    clock is set back to 0 (lane changes in progress keep their elapsed time) and the drivers are
+    dropped: the run's drivers start fresh on this state, in every runner and node alike, whatever
+    the SUT model — so SUT variants on the same seed meet the same start.
+    """
+    if steps <= 0 or world.window is None:
+        return
+    rngs = scenario_rngs(cfg.seed)
+    bvs = bv_indices(cfg)
+    bv_driver = create_driver(cfg.bvs.driver, "bv", bvs, cfg, rngs["warmup_bv"]) if bvs.size else None
+    sut_driver = create_driver(WARMUP_SUT_MODEL, "sut", [SUT_INDEX], cfg, rngs["warmup_sut"])
+    s_hold = float(world.s[SUT_INDEX])
+    throttle = np.zeros(world.n)
+    lane_change = np.zeros(world.n, dtype=np.int64)
+    for _ in range(steps):
+        if bv_driver is not None:
+            thr, lc = bv_driver.act(world)
+            throttle[bvs], lane_change[bvs] = thr, lc
+        thr, lc = sut_driver.act(world)
+        throttle[SUT_INDEX], lane_change[SUT_INDEX] = thr[0], lc[0]
+        world.step(throttle, lane_change)
+        world.window.hold(world, s_hold)
+        world.refresh()
+    world.restart_clock()
 
 
 def bv_indices(cfg: ScenarioConfig) -> np.ndarray:

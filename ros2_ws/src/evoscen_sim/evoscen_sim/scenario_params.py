@@ -49,10 +49,10 @@ def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # noqa: ANN0
         lane_density_per_km=tuple(t.lane_density_per_km), lane_speed_mps=tuple(tuple(x) for x in t.lane_speed_mps),
         ramp_density_per_km=t.ramp_density_per_km, ramp_speed_mps=tuple(t.ramp_speed_mps),
         insertion_headway_s=t.insertion_headway_s, insertion_decel_mps2=t.insertion_decel_mps2,
-        insertion_min_gap_m=t.insertion_min_gap_m, insertion_band_m=t.insertion_band_m,
+        insertion_min_gap_m=t.insertion_min_gap_m, insertion_band_m=t.insertion_band_m, warmup_s=t.warmup_s,
         shift_from_m=t.shift_from_m, shift_to_m=t.shift_to_m,
     )
-    why = check_shift_points(road, params)
+    why = check_shift_points(road, params, cfg.sut.s_m)
     if why is not None:
         raise InputError(why)
     return params

@@ -61,6 +61,7 @@ class TrafficParams:
     """How far inside the window from its edge a vehicle may enter when the edge itself is taken (m)."""
     shift_from_m: float = 2000.0
     shift_to_m: float = 300.0
+    warmup_s: float = 20.0
 
 
 def required_gap(v_back: float, v_front: float, p: TrafficParams) -> float:
@@ -93,32 +94,36 @@ def insertion_speed(v_wish: float, gap_m: float, v_leader: float, p: TrafficPara
     return min(v_wish, v)
 
 
-def check_shift_points(road, p: TrafficParams) -> str | None:  # noqa: ANN001 - a RoadModel
+def check_shift_points(road, p: TrafficParams, hold_s: float | None = None) -> str | None:  # noqa: ANN001 - a RoadModel
     """Why the shift cannot keep every relative position (None when it can).
 
     The window around the SUT at ``shift_from_m`` and at ``shift_to_m`` (each with the exit
-    margin) must see the same lanes and zero curvature everywhere, and the shift must go back.
+    margin), and at ``hold_s`` (the SUT's start, where it is held during the warm-up) when there is
+    one, must see the same lanes and zero curvature everywhere, and the shift must go back.
     """
     if p.shift_to_m >= p.shift_from_m:
         return (f"traffic.shift_to_m = {p.shift_to_m:g} must be below traffic.shift_from_m = "
                 f"{p.shift_from_m:g} (the window is moved back along the road)")
     lo, hi = p.behind_m + p.exit_margin_m, p.ahead_m + p.exit_margin_m
     ref = None
-    for key, at in (("shift_from_m", p.shift_from_m), ("shift_to_m", p.shift_to_m)):
+    points = [("traffic.shift_from_m", p.shift_from_m), ("traffic.shift_to_m", p.shift_to_m)]
+    if p.warmup_s > 0.0 and hold_s is not None:
+        points.append(("sut.s_m (held there during traffic.warmup_s)", hold_s))
+    for key, at in points:
         a, b = at - lo, at + hi
         if a < 0.0 or b > road.length_m:
-            return (f"traffic.{key} = {at:g}: the window with its exit margin ({a:g} .. {b:g} m) must lie on "
+            return (f"{key} = {at:g}: the window with its exit margin ({a:g} .. {b:g} m) must lie on "
                     f"the road (0 .. {road.length_m:g} m)")
         s = np.linspace(a, b, max(2, int(math.ceil(b - a)) + 1))
         present = road.lane_lookup(s, np.zeros_like(s)).present
         kappa = np.asarray(road.curvature(s), dtype=float)
         if (present != present[0]).any() or (np.abs(kappa) > 1e-12).any():
-            return (f"traffic.{key} = {at:g}: the road is not uniform over the window {a:g} .. {b:g} m "
+            return (f"{key} = {at:g}: the road is not uniform over the window {a:g} .. {b:g} m "
                     f"(lanes or curvature change there); choose a point where it is straight with the "
                     f"same lanes over behind_m + ahead_m + 2 * exit_margin_m")
         if ref is not None and (present[0] != ref).any():
-            return ("traffic.shift_from_m and traffic.shift_to_m: the road has different lanes at the two "
-                    "points; both must see the same lanes")
+            return (f"{points[0][0]}, {key}: the road has different lanes at these points; all must see "
+                    "the same lanes")
         ref = present[0]
     return None
 
@@ -140,6 +145,10 @@ class TrafficWindow:
         self.shift_m = params.shift_from_m - params.shift_to_m
 
     # ------------------------------------------------------------------ one step
+    def hold(self, world, s_hold: float) -> None:  # noqa: ANN001
+        """Move every vehicle back by the SUT's advance beyond ``s_hold`` (the warm-up's treadmill)."""
+        world.s -= float(world.s[self.sut]) - s_hold
+
     def after_step(self, world, result) -> None:  # noqa: ANN001
         """Shift, exits and entries after the world integrated a step (results into ``result``)."""
         p = self.p

@@ -198,6 +198,19 @@ class World:
         self._lanes = self.road.lane_lookup(np.maximum(self.s, 0.0), self.d)
         self._speed_limit: np.ndarray | None = None
 
+    def refresh(self) -> None:
+        """Recompute the per-step road look-ups and neighbourhood after positions were changed from
+        outside :meth:`step` (the warm-up's hold)."""
+        self._neighborhood = None
+        self._refresh_road_lookups()
+
+    def restart_clock(self) -> None:
+        """Make the current state step 0 (after a warm-up): lane changes in progress keep the time
+        they have been under way."""
+        elapsed = self.time_s
+        self.step_index = 0
+        self.lane_change_start_s -= elapsed
+
     def lane_lookup(self):  # noqa: ANN201 - evoscen_sim.road.LaneLookup
         """Lane data (borders, existence, limits) at every vehicle's position (cached per step)."""
         return self._lanes

@@ -130,7 +130,7 @@ def test_new_trips_and_common_shift() -> None:
 
 
 def test_window_spawn_fills_the_window_at_its_densities() -> None:
-    cfg = load_scenario_config(None, {"seed": 12})
+    cfg = load_scenario_config(None, {"seed": 12, "traffic.warmup_s": 0.0})
     w = build_world(cfg)
     rel = w.s[1:] - w.s[0]
     assert w.n == 21 and (np.abs(rel) > 0).all()
@@ -191,3 +191,41 @@ def test_a_run_keeps_its_traffic_and_never_moves_the_sut(driver: str) -> None:
     assert shifts >= 1
     means = [np.mean(near[a:a + 300]) for a in range(0, 1800, 300)]
     assert min(means) >= 4.0, means
+
+
+def test_warm_up_gives_every_sut_variant_the_same_start() -> None:
+    """traffic.warmup_s: the intact SUT and a mutant on the same seed meet byte-identical first states."""
+    from evoscen_sut.mutants import mutant_overrides
+
+    def first_state(overrides: dict) -> bytes:
+        w = build_world(load_scenario_config(None, {"seed": 70001, **overrides}))
+        floats, ints = w.state_arrays()
+        return b"".join(np.ascontiguousarray(a).tobytes() for a in (*floats, *ints))
+
+    intact = first_state({"sut.model": "mobil"})
+    assert first_state(mutant_overrides("mobil", "blind_behind")) == intact
+    assert first_state({"sut.model": "stackelberg"}) == intact
+    # another seed: another start
+    assert first_state({"sut.model": "mobil", "seed": 70002}) != intact
+
+
+def test_warm_up_evolves_the_traffic_and_keeps_the_sut_at_its_start() -> None:
+    cfg = load_scenario_config(None, {"seed": 70001})
+    cold = build_world(load_scenario_config(None, {"seed": 70001, "traffic.warmup_s": 0.0}))
+    warm = build_world(cfg)
+    assert warm.step_index == 0 and warm.time_s == 0.0
+    assert warm.s[0] == pytest.approx(cfg.sut.s_m) and warm.lane[0] == cfg.sut.lane
+    # the BVs have driven 200 steps: none is where the spawn put it, speeds are their drivers'
+    assert (np.abs((warm.s[1:] - warm.s[0]) - (cold.s[1:] - cold.s[0])) > 0.5).all()
+    rel = warm.s[1:] - warm.s[0]
+    assert np.count_nonzero((rel >= -160.0) & (rel <= 260.0)) >= 18  # in the window (a vehicle may wait outside)
+    # a lane change under way at step 0 started at a negative time
+    started = warm.lane_change_start_s[warm.lane_change != 0]
+    assert (started <= 0.0).all()
+
+
+def test_a_start_where_the_sut_cannot_be_held_is_one_line() -> None:
+    cfg = load_scenario_config(None, {"sut.s_m": 500.0})
+    with pytest.raises(InputError, match=r"^sut.s_m \(held there during traffic.warmup_s\) = 500: the road is not uniform"):
+        build_world(cfg)
+    build_world(load_scenario_config(None, {"sut.s_m": 500.0, "traffic.warmup_s": 0.0}))  # no warm-up: allowed
