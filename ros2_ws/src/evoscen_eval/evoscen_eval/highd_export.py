@@ -49,6 +49,8 @@ from typing import Any
 
 import numpy as np
 
+from evoscen_contract.contract import EVENT_REENTRY
+
 from evoscen_eval.highd import HighDRecording, find_neighbours
 
 #: State columns (WORLD_FIELDS) the export needs.
@@ -117,14 +119,21 @@ def unshifted_s(s: np.ndarray) -> np.ndarray:
     return s - np.concatenate([[0.0], np.cumsum(shift)])[:, None]
 
 
-def _segments(s: np.ndarray, jump_m: float) -> list[tuple[int, int, int]]:
-    """(vehicle column, first state, last state) of every track: runs of ``s`` without re-entry."""
+def _segments(s: np.ndarray, jump_m: float, entries: dict[int, set[int]] | None = None) -> list[tuple[int, int, int]]:
+    """(vehicle column, first state, last state) of every track: runs of ``s`` without re-entry.
+
+    ``entries`` (vehicle column -> the states that begin a new trip, from the run's
+    ``evoscen/reentry`` events) are exact; without them a jump of ``s`` backwards by more than
+    ``jump_m``, or forwards by more than 40 m/s could drive in a second plus ``jump_m``, starts a track.
+    """
     out = []
     k_count, v_count = s.shape
     ds = np.diff(s, axis=0)
     for v in range(v_count):
-        # a jump backwards, or forwards by more than 40 m/s could drive in a second: a new track
-        breaks = np.flatnonzero((ds[:, v] < -jump_m) | (ds[:, v] > 40.0 + jump_m)) + 1
+        if entries is not None:
+            breaks = np.array(sorted(k for k in entries.get(v, ()) if 0 < k < k_count), dtype=np.int64)
+        else:
+            breaks = np.flatnonzero((ds[:, v] < -jump_m) | (ds[:, v] > 40.0 + jump_m)) + 1
         starts = np.concatenate([[0], breaks])
         stops = np.concatenate([breaks - 1, [k_count - 1]])
         out.extend((v, int(a), int(b)) for a, b in zip(starts, stops))
@@ -167,7 +176,18 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
 
     # ---- tracks: segments between re-entries, sampled at their frames
     segs = []
-    for v, a, b in _segments(cols["s"], options.reentry_jump_m):
+    entries = None
+    events = getattr(run, "events", None)
+    if events is not None:  # the run's own record of new trips (window entries, re-entries)
+        entries = {}
+        col_of = {int(x): j for j, x in enumerate(ids)}
+        for e in events:
+            if e.get("name") == EVENT_REENTRY:
+                k = int(np.searchsorted(time_s, float(e["time_s"]) - 1e-9))
+                for vid in e.get("ids", ()):
+                    if int(vid) in col_of:
+                        entries.setdefault(col_of[int(vid)], set()).add(k)
+    for v, a, b in _segments(cols["s"], options.reentry_jump_m, entries):
         if options.frame_rate_hz is None:
             frames = np.arange(a, b + 1, dtype=np.int64) + 1
             t_f = time_s[a:b + 1]

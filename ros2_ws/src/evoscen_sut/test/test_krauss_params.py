@@ -27,7 +27,7 @@ from evoscen_sut.mutants import LIBRARY, mutant_overrides
 KRAUSS_SUTS = ("nilsson", "mobil", "stackelberg")
 """The built-in SUT models that drive with Krauss (``level0`` drives with the IDM of its own section)."""
 HAND = [26.55, 26.10, 25.65, 25.20] + [25.0] * 16
-EMPTY_ROAD = {"bvs.count": "0", "spawn.ramp_vehicles": "0", "recording.enabled": "false"}
+EMPTY_ROAD = {"bvs.count": "0", "spawn.ramp_vehicles": "0", "recording.enabled": "false", "traffic.warmup_s": "0"}
 
 
 def _speeds(overrides: dict[str, str], steps: int) -> np.ndarray:
