@@ -129,10 +129,11 @@ class TrafficConfig:
     lane_density_per_km: tuple[float, ...] = field(
         default=(12.5, 12.5, 12.5, 12.5), metadata=_check(_Numbers(0.0, 150.0)))
     """Target density of each mainline lane, rightmost (II) first (vehicles/km), [0, 150]."""
-    lane_speed_mps: tuple[tuple[float, float], ...] = field(
-        default=((26.0, 1.5), (28.0, 1.5), (30.0, 1.5), (32.0, 1.5)),
-        metadata=_check(_MeanSd(0.0, MAX_RANGE_SPEED_MPS, 10.0, pairs=True)))
-    """Entry speed of each mainline lane, rightmost first: [mean, sd] (m/s), truncated at ±2 sd."""
+    lane_speed_mean_mps: tuple[float, ...] = field(
+        default=(26.0, 28.0, 30.0, 32.0), metadata=_check(_Numbers(0.0, MAX_RANGE_SPEED_MPS)))
+    """Mean entry speed of each mainline lane, rightmost first (m/s), [0, 40]."""
+    lane_speed_sd_mps: tuple[float, ...] = field(default=(1.5, 1.5, 1.5, 1.5), metadata=_check(_Numbers(0.0, 10.0)))
+    """Standard deviation of each lane's entry speed (m/s), [0, 10]; draws truncated at ±2 sd."""
     ramp_density_per_km: float = field(default=10.0, metadata=_check(_Float(0.0, 150.0)))
     """Target density of the merge lane while its start is in the window (vehicles/km), [0, 150]."""
     ramp_speed_mps: tuple[float, float] = field(

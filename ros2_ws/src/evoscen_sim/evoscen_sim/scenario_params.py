@@ -40,13 +40,13 @@ def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # noqa: ANN0
     if t.mode != "window":
         return None
     mainline = sum(1 for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0)
-    for key in ("lane_density_per_km", "lane_speed_mps"):
+    for key in ("lane_density_per_km", "lane_speed_mean_mps", "lane_speed_sd_mps"):
         if len(getattr(t, key)) != mainline:
             raise InputError(f"traffic.{key}: expected one entry per mainline lane of the map ({mainline}), "
                              f"got {len(getattr(t, key))}")
     params = TrafficParams(
         behind_m=t.behind_m, ahead_m=t.ahead_m, exit_margin_m=t.exit_margin_m,
-        lane_density_per_km=tuple(t.lane_density_per_km), lane_speed_mps=tuple(tuple(x) for x in t.lane_speed_mps),
+        lane_density_per_km=tuple(t.lane_density_per_km), lane_speed_mps=tuple(zip(t.lane_speed_mean_mps, t.lane_speed_sd_mps)),
         ramp_density_per_km=t.ramp_density_per_km, ramp_speed_mps=tuple(t.ramp_speed_mps),
         insertion_headway_s=t.insertion_headway_s, insertion_decel_mps2=t.insertion_decel_mps2,
         insertion_min_gap_m=t.insertion_min_gap_m, insertion_band_m=t.insertion_band_m, warmup_s=t.warmup_s,
