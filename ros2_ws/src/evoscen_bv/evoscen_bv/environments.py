@@ -178,6 +178,8 @@ class DecisionEnv:
             "sut": {"lane": int(rng.integers(1, 5)), "s_m": float(rng.uniform(200.0, 700.0))},
             # jitter below 5 m: a larger one can put the first ramp vehicle before the merge lane starts
             "spawn": {"ramp_vehicles": min(3, n_bv), "jitter_m": 4.0},
+            # the design the shipped policies were trained in: the spawn block, re-entry at the road's start
+            "traffic": {"mode": "loop"},
         }, source="<training environment>")
         world = build_world(cfg, self.road)
         self.world = world

@@ -230,11 +230,13 @@ def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m
 
 def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa: ANN001
                            closing_headway_s: float = CUT_IN_CLOSING_HEADWAY_S,
-                           closing_decel_mps2: float | None = None) -> np.ndarray:
+                           closing_decel_mps2: float | None = None,
+                           end_margin_m: float = LANE_END_MARGIN_M) -> np.ndarray:
     """The executed actions: ``requested`` with the two rule constraints applied (see module docstring).
 
     ``closing_headway_s``: h of the cut-in gap 10 m + h·c, c the closing speed (0: the
-    method's plain 10 m); ``closing_decel_mps2``: b of the further term c²/(2b), the distance
+    method's plain 10 m); ``end_margin_m``: a change into a lane that ends less than this far
+    ahead becomes keep (``inf``: never into a lane that ends); ``closing_decel_mps2``: b of the further term c²/(2b), the distance
     in which the slower-to-react vehicle of the pair matches speeds braking at b (``None``:
     no such term). Both are the BV profile's (docs/bv-profiles.md, R5).
 
@@ -246,7 +248,7 @@ def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa
     breaks, present_at, length_m = view.road.existence_table()
     lk = view.lane_lookup()
     lane_end_s = np.asarray(view.road.lane_end_s, dtype=float)
-    return _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, LANE_END_MARGIN_M, view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
+    return _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, float(end_margin_m), view.s, view.d, view.psi, view.v, view.lane, view.lane_change,
                               view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
                               CUT_IN_GAP_M, float(closing_headway_s),
                               0.0 if closing_decel_mps2 is None else 1.0 / (2.0 * float(closing_decel_mps2)))

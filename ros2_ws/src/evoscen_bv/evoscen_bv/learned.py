@@ -37,7 +37,8 @@ from evoscen_sim.jit import kernel
 from evoscen_sim.traffic import new_trips
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
-from .lane_change import OBS_DIM, action_to_lane_change, apply_rule_constraints, forced_merge_targets, observation_grid
+from .lane_change import (FORCED_MERGE_M, LANE_END_MARGIN_M, OBS_DIM, action_to_lane_change, apply_rule_constraints,
+                          forced_merge_targets, observation_grid)
 from .profile import get_profile
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
@@ -151,12 +152,17 @@ class LearnedDriver:
             such term); ``None``: the profile's (none). Ignored under ``safety_net``.
         standing_leader_at_once: under the ``driver`` profile, the emergency brake acts at once
             for a perceived leader at rest (R2); ``None``: the profile's. Ignored under ``safety_net``.
+        into_ending_lane: whether a change into a lane that ends 200 m or more ahead is allowed
+            (the training rule, the default here); False: never into a lane that ends.
+        forced_merge_m: with ``forced_merge``, how far before its lane's end a vehicle requests the
+            change to the lane that goes on (:func:`evoscen_bv.lane_change.forced_merge_targets`).
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
                  config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
                  forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
-                 cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None) -> None:
+                 cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None,
+                 into_ending_lane: bool = True, forced_merge_m: float = FORCED_MERGE_M) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         if not lane_hold_s >= 0.0:
             raise ValueError(f"lane_hold_s must be >= 0, got {lane_hold_s}")
@@ -175,7 +181,10 @@ class LearnedDriver:
             self.profile = dataclasses.replace(self.profile, standing_leader_at_once=bool(standing_leader_at_once))
         self.reaction: ReactionState | None = None
         """The driver profile's state, made at the first step (N needs the step length); None: safety_net."""
+        self.end_margin_m = LANE_END_MARGIN_M if into_ending_lane else float("inf")
+        """A change into a lane that ends less than this far ahead becomes keep."""
         self.forced_merge = forced_merge
+        self.forced_merge_m = float(forced_merge_m)
         self.controller = controller
         self.controller_bank = PolicyBank([controller])
         self.config = config
@@ -222,14 +231,14 @@ class LearnedDriver:
         requested = action_to_lane_change(self.stack.forward(obs, self.policy_columns(view, idx)))
         forced = np.zeros(idx.size, dtype=np.int64)
         if self.forced_merge:
-            forced = forced_merge_targets(view, idx)
+            forced = forced_merge_targets(view, idx, self.forced_merge_m)
             requested = np.where(forced != 0, forced, requested)
         allowed = requested
         if self.lane_hold_s > 0.0:  # the hold rewrites the policy's requests, not the road's forced merge
             held = (self.hold_until_step[positions] > int(view.step_index)) & (forced == 0)
             allowed = np.where(held, 0, requested)
         executed = apply_rule_constraints(view, idx, allowed, self.profile.cut_in_closing_headway_s,
-                                          self.profile.cut_in_closing_decel_mps2)
+                                          self.profile.cut_in_closing_decel_mps2, self.end_margin_m)
         return obs, requested, executed
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001

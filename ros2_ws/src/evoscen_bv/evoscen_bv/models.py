@@ -5,7 +5,8 @@
 * ``learned`` (role ``bv``): the TD3-trained social drivers (:mod:`evoscen_bv.learned`) —
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
-  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2``
+  Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2``,
+  ``into_ending_lane``, ``forced_merge_m``
   and ``standing_leader_at_once`` (:class:`LearnedParams`).
 """
 
@@ -58,6 +59,19 @@ class LearnedParams:
     reaction time, can match speeds braking at most b (e.g. 4 m/s², MOBIL's b_safe).
     [choice] 0 = no such term, the linear gap 10 m + 1.5 s·c only: with 4 m/s² merging BVs
     waited at standstill and jams formed. ``safety_net`` keeps its rules and ignores the key."""
+    forced_merge_m: float = number(1000.0, 0.0, 100000.0)
+    """On the last this-many metres of a lane that ends (the merge lane), a BV requests the change
+    to the lane that goes on whatever its policy says; the rule constraints still make it wait for
+    a gap (docs/learned-bvs.md, "Merging"). [choice] 1,000 m (longer than the merge lane: from its
+    start, as drivers join at the first acceptable gap): with 120 m, the earlier value, BVs on the
+    merge lane drove on at 30 m/s, braked hard for its end and, in the dense traffic the window
+    keeps around the merge, stopped there and forced their way in at a crawl (traced in the runs)."""
+    into_ending_lane: bool = flag(False)
+    """Whether a BV may change from a lane that goes on into one that ends (the merge lane) when
+    that lane ends 200 m or more ahead (docs/learned-bvs.md, "Into the merge lane"). [choice] false
+    (default): never — an acceleration lane is for joining the carriageway, and BVs that moved onto
+    it stopped at its end and forced their way back at a crawl, the BV–BV collisions of the
+    traffic window (traced in the runs); true: the rule the policies were trained with."""
     standing_leader_at_once: bool = flag(True)
     """Under the ``driver`` profile, the emergency brake acts at once, without the reaction
     time, for a perceived leader at rest (docs/bv-profiles.md, R2) [choice: a vehicle standing
@@ -85,7 +99,8 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
     return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config),
                          forced_merge=True, profile=params.profile, lane_hold_s=params.lane_hold_s,
                          cut_in_decel_mps2=params.cut_in_decel_mps2,
-                         standing_leader_at_once=params.standing_leader_at_once)
+                         standing_leader_at_once=params.standing_leader_at_once,
+                         into_ending_lane=params.into_ending_lane, forced_merge_m=params.forced_merge_m)
 
 
 LEVEL0 = ModelSpec(

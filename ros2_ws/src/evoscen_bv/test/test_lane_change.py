@@ -17,6 +17,7 @@ from evoscen_bv.lane_change import (
     back_vehicles,
     drivable_area,
     forced_merge_requests,
+    forced_merge_targets,
     individual_reward,
     lane_change_gain,
     observation_grid,
@@ -230,3 +231,29 @@ def test_rule_constraint_no_change_into_a_lane_about_to_end(road):
     # keep; at 700 m (260 m before) it is allowed
     w = hand_built_world(road, s=[800.0, 700.0], lane=[1, 1], speed=[20.0, 20.0])
     assert apply_rule_constraints(w, np.array([0, 1]), np.array([-1, -1])).tolist() == [0, -1]
+
+
+def test_never_into_a_lane_that_ends_when_the_margin_is_infinite(road):
+    # models.learned.into_ending_lane: false: the change at 700 m (260 m before the merge lane's end)
+    # becomes keep too; a change between lanes that go on is untouched
+    w = hand_built_world(road, s=[800.0, 700.0, 1500.0], lane=[1, 1, 2], speed=[20.0, 20.0, 20.0])
+    out = apply_rule_constraints(w, np.array([0, 1, 2]), np.array([-1, -1, -1]), end_margin_m=float("inf"))
+    assert out.tolist() == [0, 0, -1]
+
+
+def test_forced_merge_from_the_merge_lanes_start_with_a_longer_reach(road):
+    # 1,000 m reach (models.learned.forced_merge_m): at 610 m (350 m before the end) the merge is requested
+    w = hand_built_world(road, s=[610.0, 1500.0], lane=[0, 2], speed=[22.0, 25.0])
+    assert forced_merge_targets(w, np.array([0, 1]), 1000.0).tolist() == [1, 0]
+    assert forced_merge_targets(w, np.array([0, 1])).tolist() == [0, 0]  # 120 m: not yet
+
+
+def test_the_learned_driver_takes_both_merge_keys_from_the_scenario():
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.config import load_scenario_config
+
+    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0}))
+    assert sc.bv_driver.end_margin_m == float("inf") and sc.bv_driver.forced_merge_m == 1000.0
+    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models": {"learned": {
+        "into_ending_lane": True, "forced_merge_m": 120.0}}}))
+    assert sc.bv_driver.end_margin_m == 200.0 and sc.bv_driver.forced_merge_m == 120.0
