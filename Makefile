@@ -42,7 +42,7 @@ build: $(REQ_STAMP)
 	fi
 
 demo: setup
-	$(RUN) python scripts/run_scenario.py --out $(DEMO_OUT) --overwrite
+	$(RUN) python scripts/run_scenario.py --sut mobil --out $(DEMO_OUT) --overwrite
 
 test: setup
 	$(RUN) python -m pytest $(PYTEST_ARGS)

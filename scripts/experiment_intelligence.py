@@ -11,7 +11,8 @@ continues where it stopped (a finished round is not recomputed). Writes into ``-
 ``intelligence.csv`` / ``intelligence.md`` (per SUT: the weighted safety, efficiency and
 interaction terms and the intelligence score, mean ± 95 % interval over seeds, with the
 collisions and exposures; below it every pair of SUTs compared on the same seeds: the mean
-per-seed difference of intelligence with its 95 % interval), ``paired.csv``, ``rounds.csv`` (every round), ``ttc.png`` and ``speed.png``
+per-seed difference of intelligence with its 95 % interval, and of the efficiency term), ``paired.csv``,
+``paired_efficiency.csv``, ``rounds.csv`` (every round), ``ttc.png`` and ``speed.png``
 (the SUTs' distributions overlaid, pooled over seeds); prints the table. Exit status: 0 done,
 2 bad input, 130 interrupted.
 """
@@ -94,36 +95,45 @@ def main(argv: list[str] | None = None) -> int:
     write_csv(args.out / "rounds.csv", ["sut", "seed", "steps", "safety", "efficiency", "interaction", "intelligence",
                                         "collisions", "exposures", "mean_speed_mps", "wall_time_s"], round_rows)
     pair_rows, pair_csv = paired_comparisons(suts, rounds, results)
+    eff_rows, eff_csv = paired_comparisons(suts, rounds, results, "efficiency")
     if pair_csv:
         write_csv(args.out / "paired.csv", ["sut_a", "sut_b", "d_intelligence_mean", "d_intelligence_ci95", "seeds",
                                             "significant"], pair_csv)
+        write_csv(args.out / "paired_efficiency.csv", ["sut_a", "sut_b", "d_efficiency_mean", "d_efficiency_ci95",
+                                                       "seeds", "significant"], eff_csv)
     any_cfg = rounds[0].cfg
     table = markdown_table(header, rows)
     pair_table = (markdown_table(["A", "B", "I(A) − I(B), paired by seed", "seeds", "significant (95 %)"], pair_rows)
                   if pair_rows else "")
+    eff_table = (markdown_table(["A", "B", "I_e(A) − I_e(B), paired by seed", "seeds", "significant (95 %)"], eff_rows)
+                 if eff_rows else "")
     text = (f"# Intelligence experiment\n\n{len(suts)} SUTs x {seeds} seeds ({first}..{first + seeds - 1}), "
             f"{any_cfg.steps} steps, {any_cfg.bvs.count} BVs ({any_cfg.bvs.driver}, mix {args.mix}); weights "
             f"{any_cfg.evaluation.weight_safety:g}/{any_cfg.evaluation.weight_efficiency:g}/"
             f"{any_cfg.evaluation.weight_interaction:g}; mean ± 95 % interval over seeds.\n\n{table}\n"
             + (f"Paired comparisons (the same seeds: same traffic and random streams; mean ± 95 % interval of "
-               f"the per-seed difference):\n\n{pair_table}\n" if pair_table else "") +
+               f"the per-seed difference):\n\n{pair_table}\nThe efficiency term I_e alone, paired the same way:\n\n"
+               f"{eff_table}\n" if pair_table else "") +
             "![TTC](ttc.png)\n\n![speed](speed.png)\n")
     (args.out / "intelligence.md").write_text(text, encoding="utf-8")
     plot_distributions(args.out, suts, rounds, results)
     print(table, end="")
     if pair_table:
         print("\n" + pair_table, end="")
+        print("\n" + eff_table, end="")
     print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, rounds.csv, ttc.png, speed.png"
-          + (", paired.csv" if pair_csv else ""))
+          + (", paired.csv, paired_efficiency.csv" if pair_csv else ""))
     return EXIT_OK
 
 
-def paired_comparisons(suts: list[str], rounds, results) -> tuple[list[list[str]], list[list]]:  # noqa: ANN001
-    """Every pair of SUTs: the per-seed difference of intelligence, mean ± 95 % interval (shared seeds)."""
+def paired_comparisons(suts: list[str], rounds, results, section: str = "intelligence"  # noqa: ANN001
+                       ) -> tuple[list[list[str]], list[list]]:
+    """Every pair of SUTs: the per-seed difference of ``section``'s score (intelligence, or a term:
+    efficiency, safety, interaction), mean ± 95 % interval (shared seeds)."""
     from evoscen_bringup.experiments import fmt_ci
     from evoscen_bringup.sensitivity import paired
 
-    scores = {sut: {r.cfg.seed: results[r.key]["report"]["intelligence"]["score"] for r in rounds if r.label == sut}
+    scores = {sut: {r.cfg.seed: results[r.key]["report"][section]["score"] for r in rounds if r.label == sut}
               for sut in suts}
     rows, csv_rows = [], []
     for i, a in enumerate(suts):

@@ -69,6 +69,13 @@ def test_intelligence_paired_comparisons(intelligence):
         assert float(p["d_intelligence_ci95"]) == pytest.approx(half)
         assert p["seeds"] == "2" and p["significant"] == str(int(abs(sum(d) / 2) > half))
     assert "paired by seed" in (out / "intelligence.md").read_text()
+    # the efficiency term, paired the same way (rounds.csv holds the unweighted I_e)
+    eff = {(r["sut"], int(r["seed"])): float(r["efficiency"]) for r in rounds}
+    for p in read_csv(out / "paired_efficiency.csv"):
+        d = [eff[(p["sut_a"], s)] - eff[(p["sut_b"], s)] for s in (0, 1)]
+        assert float(p["d_efficiency_mean"]) == pytest.approx(sum(d) / 2)
+        assert float(p["d_efficiency_ci95"]) == pytest.approx(stats.t.ppf(0.975, 1) * abs(d[0] - d[1]) / 2)
+    assert "I_e(A) − I_e(B), paired by seed" in (out / "intelligence.md").read_text()
 
 
 def test_intelligence_resumes_without_recomputing(intelligence):
