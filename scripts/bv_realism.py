@@ -3,12 +3,16 @@
 
     python scripts/bv_realism.py [--profiles driver safety_net] [--seeds 1 2 3 4 5]
                                  [--steps 3000] [--sut level0] [--config FILE] [--policy-dir DIR] [--json OUT]
-                                 [--cut-in-headway H] [--lane-hold S]
+                                 [--cut-in-headway H] [--lane-hold S] [--traffic window|loop]
 
 Runs every (profile, seed) in process (``bvs.driver: learned``, no bag) and prints, per
 profile, the pooled figures of :func:`evoscen_eval.bv_realism.bv_realism`: BV lane changes
-per vehicle-km (HighD: ~0.12), BV-BV collisions per vehicle-hour, SUT collisions, and the
-BVs' time-headway distribution. Bad input prints one line ``error: ...`` and exits 2.
+per vehicle-km, BV-BV collisions per vehicle-hour, SUT collisions, and the BVs' time-headway
+distribution, with highD's published figure beside each one that has one
+(:data:`evoscen_eval.bv_realism.HIGHD_REFERENCE`; lane changes: ~0.12 per vehicle-km).
+``--traffic`` sets ``traffic.mode`` (window: the traffic moves with the SUT; loop: vehicles
+re-enter at the road's start), so the same seeds compare both. Bad input prints one line
+``error: ...`` and exits 2.
 """
 
 from __future__ import annotations
@@ -55,6 +59,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="models.learned.cut_in_decel_mps2 (default: the config's, 0: the linear cut-in gap only)")
     ap.add_argument("--standing-at-once", choices=("true", "false"), default=None,
                     help="models.learned.standing_leader_at_once (default: the config's)")
+    ap.add_argument("--traffic", choices=("window", "loop"), default=None,
+                    help="traffic.mode: window (the traffic moves with the SUT) or loop (re-entry at the road's start); "
+                         "default: the config's")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
     args = ap.parse_args(argv)
 
@@ -86,6 +93,8 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["models.learned.cut_in_decel_mps2"] = args.cut_in_decel
             if args.standing_at_once is not None:
                 overrides["models.learned.standing_leader_at_once"] = args.standing_at_once == "true"
+            if args.traffic is not None:
+                overrides["traffic.mode"] = args.traffic
             try:
                 cfg = load_scenario_config(args.config, overrides)
             except InputError as exc:
@@ -102,18 +111,24 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{profile} seed {seed}: {f['bv_lane_changes']} BV lane changes, {f['bv_bv_collisions']} BV-BV "
                   f"and {f['sut_collisions']} SUT collisions ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
         out[profile] = combine(figures)
+    from evoscen_eval.bv_realism import HIGHD_REFERENCE, HIGHD_SOURCE
+
     width = max(len(label) for _, label, _ in KEYS)
-    print(" " * width + "".join(f"  {p:>12}" for p in out))
+    print(f"traffic.mode: {cfg.traffic.mode}")
+    print(" " * width + "".join(f"  {p:>12}" for p in out) + f"  {'highD':>12}")
     for key, label, fmt in KEYS:
-        print(label.ljust(width) + "".join(f"  {fmt.format(out[p][key]):>12}" for p in out))
+        ref = fmt.format(HIGHD_REFERENCE[key]) if key in HIGHD_REFERENCE else "-"
+        print(label.ljust(width) + "".join(f"  {fmt.format(out[p][key]):>12}" for p in out) + f"  {ref:>12}")
     from evoscen_eval.bv_realism import lane_changes_per_km_by_policy
 
     for name in ("competitive", "mutual", "cooperative"):
         rates = [lane_changes_per_km_by_policy(out[p]).get(name, float("nan")) for p in out]
         print(f"LC / veh-km, {name}".ljust(width) + "".join(f"  {r:>12.3f}" for r in rates))
+    print(f"highD: {HIGHD_SOURCE}")
     if args.json:
         args.json.write_text(json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
-                                                  for k, v in vars(args).items()}, "figures": out}, indent=2))
+                                                  for k, v in vars(args).items()}, "traffic_mode": cfg.traffic.mode,
+                                         "figures": out, "highd": HIGHD_REFERENCE}, indent=2))
     return EXIT_OK
 
 

@@ -32,7 +32,19 @@ in-process run's ``RunSummary.run``) and reports, over the background vehicles (
   where |accel| > 1 m/s² in both and the sign differs: a controller alternating between
   braking and accelerating every step).
 
-``scripts/bv_realism.py`` runs a few seeds in process and prints these for each BV profile.
+Under the traffic window (``traffic.mode: window``, :mod:`evoscen_sim.traffic`) the arc length
+``s`` jumps: a shift moves every vehicle back by ``shift_from_m - shift_to_m`` (1,700 m) in one
+step, and an entry moves one vehicle by up to a few hundred metres, often into another lane. None
+of the figures reads a step of ``s`` or of the ``lane`` column: vehicle-km is speed·dt (the
+distance driven, whatever the jumps), lane changes are completed lane-change events (an entry
+into another lane is none), and THW and the driving figures are read state by state (a shift
+keeps every relative position). ``test_bv_realism.py`` checks this on a hand-built run with a
+shift and an entry and on a short window run (vehicle-km against the distance driven with the
+shifts undone and the entries left out).
+
+:data:`HIGHD_REFERENCE` holds the highD figures these can be set beside, with their source
+(:data:`HIGHD_SOURCE`). ``scripts/bv_realism.py`` runs a few seeds in process and prints these
+for each BV profile, with the highD figure beside each one that has one.
 """
 
 from __future__ import annotations
@@ -46,6 +58,16 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_LANE_CHANGE, KIND_
 
 POLICY_NAMES = {POLICY_CODES[name]: name for name in SOCIAL_POLICIES}
 """The world table's ``policy`` codes of the learned BVs' social types (code -> name)."""
+
+HIGHD_LANE_CHANGES = 5600
+HIGHD_VEHICLE_KM = 45000.0
+HIGHD_REFERENCE: dict[str, float] = {"bv_lane_changes_per_vehicle_km": HIGHD_LANE_CHANGES / HIGHD_VEHICLE_KM}
+"""Published highD aggregates, by the key of the figure they stand beside: 5,600 complete lane
+changes over 45,000 km driven (0.124 per vehicle-km). No published aggregate of highD's time
+headway (median, share below 1 s) was found to cite, so THW has no reference value here; compare
+distributions with ``scripts/experiment_fidelity.py`` and your own copy of highD instead."""
+HIGHD_SOURCE = ("Krajewski, Bock, Kloeker, Eckstein: The highD Dataset, IEEE ITSC 2018, doi:10.1109/ITSC.2018.8569552 "
+                "(abstract: 16.5 h, 110,000 vehicles, 45,000 km, 5,600 complete lane changes)")
 
 
 def time_headways(s: np.ndarray, lane: np.ndarray, speed: np.ndarray, length: np.ndarray, bv: np.ndarray,

@@ -114,3 +114,91 @@ def test_driving_figures_by_hand():
     g = combine([f, f])
     assert g["main_line_states"] == 12 and g["phantom_braking_share"] == pytest.approx(2 / 6)
     assert g["accel_flip_share"] == pytest.approx(2 / 9)
+
+
+def _window_run() -> RunData:
+    """A run under the traffic window (traffic.mode: window), by hand: SUT 10, BVs 11, 12, 13; four states
+    0.5 s apart, lengths 5 m.
+
+    State 0 -> 1: every vehicle drives (SUT 30, BV 11 20, BV 12 25, BV 13 28 m/s: +15, +10, +12.5, +14 m) and
+    the window shifts every vehicle back by 1,700 m (an ``evoscen/shift`` event).
+    State 1 -> 2: BV 13 has left the window behind and enters it again at its front edge in lane 4 at
+    26 m/s: its s jumps from 114 to 570 m and its lane column from 1 to 4 (an ``evoscen/reentry``
+    event, no lane change).
+    State 2 -> 3: BV 11 completes a lane change 2 -> 3 (an ``evoscen/lane_change`` completed event)."""
+    k, v = 4, 4
+    c = {name: np.zeros((k, v)) for name in T.WORLD_FIELDS}
+    c["id"][:] = [10, 11, 12, 13]
+    c["role"][:] = [1, 0, 0, 0]
+    c["policy"][:] = [0, 2, 2, 2]
+    c["length"][:] = 5.0
+    c["s"][:] = [[1990.0, 1960.0, 2100.0, 1800.0],
+                 [305.0, 270.0, 412.5, 114.0],
+                 [320.0, 280.0, 425.0, 570.0],
+                 [335.0, 290.0, 437.5, 583.0]]
+    c["lane"][:] = [[2, 2, 3, 1], [2, 2, 3, 1], [2, 2, 3, 4], [2, 3, 3, 4]]
+    c["target_lane"][:] = [[2, 2, 3, 1], [2, 3, 3, 1], [2, 3, 3, 4], [2, 3, 3, 4]]
+    c["speed"][:] = [[30.0, 20.0, 25.0, 28.0], [30.0, 20.0, 25.0, 28.0],
+                     [30.0, 20.0, 25.0, 26.0], [30.0, 20.0, 25.0, 26.0]]
+    events = [
+        {"name": "evoscen/shift", "step": 1, "shift_m": 1700.0},
+        {"name": "evoscen/reentry", "step": 2, "ids": [13], "to_lane": 4},
+        {"name": "evoscen/lane_change", "kind": "completed", "step": 3, "ids": [11], "from_lane": 2, "to_lane": 3},
+    ]
+    return RunData(time_s=np.arange(k) * 0.5, columns=c, ids=c["id"][0].astype(np.int64), sut_index=0,
+                   events=events, dt_s=0.5)
+
+
+def test_window_shift_and_entry_add_no_distance_and_no_lane_change():
+    run = _window_run()
+    f = bv_realism(run)
+    # vehicle-km = sum over states 0..2 of speed * dt: BV 11 3 x 20, BV 12 3 x 25, BV 13 28 + 28 + 26 = 217 m/s
+    # x 0.5 s = 108.5 m; neither the shift (1,700 m back for all) nor BV 13's entry (+456 m) counts
+    assert f["bv_vehicle_km"] == pytest.approx(0.1085)
+    assert f["bv_vehicle_hours"] == pytest.approx(3 * 3 * 0.5 / 3600.0)
+    # what the positions would give instead: |ds| summed (the jumps counted), or the shift undone but the entry not
+    s = run.columns["s"][:, 1:]
+    assert np.abs(np.diff(s, axis=0)).sum() / 1000.0 > 5.0
+    undone = s + np.array([[0.0], [1700.0], [1700.0], [1700.0]])  # the shift undone, the entry kept: +442 m
+    assert np.diff(undone, axis=0).sum() / 1000.0 == pytest.approx(0.1085 - 0.014 + 0.456)
+    # one lane change (BV 11's completed event); BV 13's entry into lane 4 moves its lane column but is none
+    lane_moves = int((np.diff(run.columns["lane"][:, 1:], axis=0) != 0).sum())
+    assert lane_moves == 2
+    assert f["bv_lane_changes"] == 1
+    assert f["bv_lane_changes_per_vehicle_km"] == pytest.approx(1.0 / 0.1085)
+    assert f["by_policy"] == {"competitive": {"lane_changes": 1, "vehicle_km": pytest.approx(0.1085)}}
+    # THW at each state in its own frame: BV 11 behind the SUT (lane 2) at 25, 30, 35 m / 20 m/s; at state 3 BV 11
+    # is in lane 3, 142.5 m behind BV 12 (> 100 m: no sample); BVs 12 and 13 never have a leader in range
+    assert f["thw_samples"] == 3
+    assert f["thw_median_s"] == pytest.approx(1.5)
+    assert f["thw_share_below_1s"] == 0.0
+    assert f["bv_bv_collisions"] == 0 and f["sut_collisions"] == 0
+
+
+def test_window_run_vehicle_km_matches_the_distance_driven():
+    """A short in-process run under the window (level-0 BVs, 700 steps: the SUT passes the shift point once):
+    vehicle-km (speed * dt) equals the distance the BVs drove along the road, i.e. the steps of the arc
+    length with the shift undone and the steps where a BV began a new trip (entries) left out, within 1 %
+    (the body's heading and the lateral motion make the two differ a little); and the lane changes are the
+    completed events only, fewer than the lane column's changes (entries into other lanes move it too)."""
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_eval.highd_export import unshifted_s
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.traffic import new_trips
+
+    cfg = load_scenario_config(None, {"steps": 700, "seed": 7, "bvs.driver": "level0", "traffic.mode": "window"})
+    run = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False, keep_run=True).run
+    assert run.events_named("evoscen/shift") and run.events_named("evoscen/reentry")
+    f = bv_realism(run)
+    c = run.columns
+    bv = c["role"][0] == 0
+    s = c["s"]
+    trips = np.array([new_trips(s[k], s[k + 1], run.dt_s) for k in range(s.shape[0] - 1)])
+    driven = np.diff(unshifted_s(s), axis=0)
+    km = float(driven[:, bv][~trips[:, bv]].sum()) / 1000.0
+    assert f["bv_vehicle_km"] == pytest.approx(km, rel=0.01)
+    completed = [e for e in run.events_named("evoscen/lane_change", "completed") if e["ids"][0] != run.ids[0]]
+    assert f["bv_lane_changes"] == len(completed)
+    moved = (np.diff(c["lane"], axis=0) != 0)[:, bv]
+    assert (moved & trips[:, bv]).any()  # some entry put a BV into another lane ...
+    assert f["bv_lane_changes"] <= int((moved & ~trips[:, bv]).sum())  # ... and is not counted
