@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from evoscen_contract.contract import EVENT_REENTRY
+from evoscen_contract.contract import EVENT_REENTRY, EVENT_SHIFT
 
 from evoscen_eval.highd import HighDRecording, find_neighbours
 
@@ -107,16 +107,24 @@ class ExportOptions:
     road: VirtualRoad = VirtualRoad()
 
 
-def unshifted_s(s: np.ndarray) -> np.ndarray:
-    """``s`` (states × vehicles) with the traffic window's shifts undone: each shift moves every
-    vehicle back by one distance (:func:`evoscen_sim.traffic.common_shift`), added back here
-    from the step it happened on, so the arc length grows along a trip as on an endless road."""
+def unshifted_s(s: np.ndarray, shifts: dict[int, float] | None = None) -> np.ndarray:
+    """``s`` (states × vehicles) with the traffic window's shifts undone, so the arc length grows
+    along a trip as on an endless road. ``shifts``: the ``shift_m`` of each ``evoscen/shift`` event by
+    the state it led to (exact); without them a shift is recognised as a fall of the median step
+    of more than 50 m (:func:`evoscen_sim.traffic.common_shift`: exact to within the vehicles'
+    differences of driving in that step)."""
     s = np.asarray(s, dtype=float)
-    if s.shape[0] < 2 or s.shape[1] < 3:  # one or two vehicles: a jump is a re-entry, not a shift
+    if s.shape[0] < 2:
         return s
-    med = np.median(np.diff(s, axis=0), axis=1)
-    shift = np.where(med < -50.0, med, 0.0)
-    return s - np.concatenate([[0.0], np.cumsum(shift)])[:, None]
+    back = np.zeros(s.shape[0])
+    if shifts is not None:
+        for k, m in shifts.items():
+            if 0 < k < s.shape[0]:
+                back[k] = m
+    elif s.shape[1] >= 3:  # one or two vehicles: a jump is a re-entry, not a shift
+        med = np.median(np.diff(s, axis=0), axis=1)
+        back[1:] = np.where(med < -50.0, -med, 0.0)
+    return s + np.cumsum(back)[:, None]
 
 
 def _segments(s: np.ndarray, jump_m: float, entries: dict[int, set[int]] | None = None) -> list[tuple[int, int, int]]:
@@ -161,8 +169,13 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
     road = options.road
     time_s = np.asarray(run.time_s, dtype=np.float64)
     cols = {c: np.asarray(run.columns[c], dtype=np.float64) for c in REQUIRED_COLUMNS}
-    cols["s"] = unshifted_s(cols["s"])  # x grows along the road as if it had no end
     ids = np.asarray(run.ids, dtype=np.int64)
+    events = getattr(run, "events", None)
+    shifts = None
+    if events is not None:
+        shifts = {int(np.searchsorted(time_s, float(e["time_s"]) - 1e-9)): float(e["shift_m"])
+                  for e in events if e.get("name") == EVENT_SHIFT}
+    cols["s"] = unshifted_s(cols["s"], shifts)  # x grows along the road as if it had no end
     k_count, v_count = cols["s"].shape
     if "role" in run.columns:
         role = np.asarray(run.columns["role"], dtype=np.float64)[0].astype(np.int32)
@@ -177,7 +190,6 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
     # ---- tracks: segments between re-entries, sampled at their frames
     segs = []
     entries = None
-    events = getattr(run, "events", None)
     if events is not None:  # the run's own record of new trips (window entries, re-entries)
         entries = {}
         col_of = {int(x): j for j, x in enumerate(ids)}

@@ -186,3 +186,13 @@ def test_neighbours_in_both_directions() -> None:
     # same lane: preceding / following by centre
     nb = find_neighbours(np.ones(3, int), np.full(3, 5), np.array([10.0, 50.0, 30.0]), np.full(3, 4.0), np.full(3, 2))
     assert nb.preceding.tolist() == [2, -1, 1] and nb.following.tolist() == [-1, 2, 0]
+
+
+def test_unshifted_s_undoes_the_exact_shift_of_the_events() -> None:
+    from evoscen_eval.highd_export import unshifted_s
+
+    s = np.array([[1990.0, 2000.0, 2100.0], [1993.0, 2002.5 - 1700.0, 2103.0 - 1700.0]])
+    s[1, 0] -= 1700.0
+    np.testing.assert_allclose(unshifted_s(s, {1: 1700.0}), [[1990.0, 2000.0, 2100.0], [1993.0, 2002.5, 2103.0]])
+    # without the events: the median step (here 3 m of driving + the shift) is taken for the shift
+    np.testing.assert_allclose(unshifted_s(s)[1], [1990.0, 1999.5, 2100.0])

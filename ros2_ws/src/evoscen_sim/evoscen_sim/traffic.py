@@ -189,8 +189,8 @@ class TrafficWindow:
             rows.append(((count - target) / target, lane, mean, sd))
         if self.has_ramp and p.ramp_density_per_km > 0.0:
             start, end = float(road.lane_start_s[MERGE_LANE]), float(road.lane_end_s[MERGE_LANE])
-            if lo <= start <= hi:
-                target = p.ramp_density_per_km * (min(end, hi) - start) / 1000.0
+            target = p.ramp_density_per_km * (min(end, hi) - start) / 1000.0
+            if lo <= start <= hi and target > 0.0:  # (the start exactly at the front edge: no room yet)
                 count = int(np.count_nonzero(inside & (occupied == MERGE_LANE)))
                 rows.append(((count - target) / target, MERGE_LANE, *p.ramp_speed_mps))
         rows.sort(key=lambda r: (r[0], r[1]))

@@ -229,3 +229,11 @@ def test_a_start_where_the_sut_cannot_be_held_is_one_line() -> None:
     with pytest.raises(InputError, match=r"^sut.s_m \(held there during traffic.warmup_s\) = 500: the road is not uniform"):
         build_world(cfg)
     build_world(load_scenario_config(None, {"sut.s_m": 500.0, "traffic.warmup_s": 0.0}))  # no warm-up: allowed
+
+
+def test_the_merge_lanes_start_exactly_at_the_front_edge_is_no_wanted_lane() -> None:
+    # SUT at 350 m: the window's front edge (600 m) is the merge lane's start, no room there yet
+    w = build_world(load_scenario_config(None, {"traffic.warmup_s": 0.0}))
+    rows = w.window._targets(w, 350.0)
+    assert [r[1] for r in rows if r[1] == 0] == []
+    assert any(r[1] == 0 for r in w.window._targets(w, 360.0))  # 10 m of it in the window: wanted
