@@ -1,6 +1,6 @@
-"""The "your first SUT" example (examples/first_sut/) is code that runs.
+"""The "your first SUT" walk-through (docs/plugins.md §2) is code that runs.
 
-* ``examples/first_sut/first_sut.py`` decides as its docstring says, in situations built by hand
+* ``examples/first_sut/first_sut.py`` decides as the walk-through says, in situations built by hand
   (:func:`evoscen_sim.testing.hand_built_world`);
 * registered in this process (:func:`evoscen_sim.models.register_model`) it is the SUT of an
   in-process run started as ``run_scenario.py --sut first_sut``, and a bad ``models.first_sut``
@@ -8,14 +8,19 @@
 * installed from its ``pyproject.toml`` (into a temporary directory, never into the checkout's
   ``.venv``) its entry point is found by the command line, and the node graph and the in-process
   runner write the same bag (e2e);
+* the code blocks of docs/plugins.md that quote a file are that file, and the walk-through
+  shows all of ``first_sut.py``; the signatures and names the page lists are the code's.
 """
 
 from __future__ import annotations
 
 import importlib.util
+import inspect
+import re
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -23,8 +28,12 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = REPO / "examples" / "first_sut"
+DOC = REPO / "docs" / "plugins.md"
 sys.path.insert(0, str(REPO / "scripts"))
 
+MARKER = re.compile(r"^\s*# --8<-- \[(start|end):([a-z_]+)\]\s*$")
+INCLUDE = re.compile(r"<!-- include: (?P<path>[^#\s,]+)(?:#(?P<region>[a-z_]+))?(?P<dedented>, dedented)? -->\n"
+                     r"```[a-z]*\n(?P<body>.*?)```", re.S)
 
 
 def load_example():
@@ -306,3 +315,84 @@ def test_installed_example_bad_parameter_is_one_line(installed, tmp_path):
     assert res.returncode == 2
     assert line == (f"error: {config}: key 'models.first_sut.settle_tolerance_m' = 2.5: "
                     "expected a number in [0, 1.75] (line 3)"), line
+
+
+# ------------------------------------------------------------------ the page and the code agree
+
+
+def regions(path: Path) -> dict[str, str]:
+    """The ``# --8<-- [start:NAME]`` ... ``[end:NAME]`` regions of a file (marker lines left out)."""
+    out: dict[str, list[str]] = {}
+    open_name = None
+    for line in path.read_text(encoding="utf-8").splitlines():
+        m = MARKER.match(line)
+        if m is None:
+            if open_name is not None:
+                out[open_name].append(line)
+            continue
+        kind, name = m.groups()
+        if kind == "start":
+            assert open_name is None and name not in out, f"{path}: region {name} opened twice or nested"
+            out[name], open_name = [], name
+        else:
+            assert open_name == name, f"{path}: region {name} closed but {open_name} is open"
+            open_name = None
+    assert open_name is None, f"{path}: region {open_name} not closed"
+    return {name: "\n".join(lines) + "\n" for name, lines in out.items()}
+
+
+def doc_includes() -> list[tuple[str, str | None, str]]:
+    """(path, region or None, the code block under it, dedented?) for every ``<!-- include: ... -->``
+    of the page (``<!-- include: PATH#REGION, dedented -->``: the region with its common indentation removed)."""
+    return [(m["path"], m["region"], m["body"], bool(m["dedented"]))
+            for m in INCLUDE.finditer(DOC.read_text(encoding="utf-8"))]
+
+
+def test_doc_code_blocks_are_the_files():
+    included = doc_includes()
+    assert included, "docs/plugins.md quotes no file"
+    for path, region, body, dedented in included:
+        file = REPO / path
+        expected = file.read_text(encoding="utf-8") if region is None else regions(file)[region]
+        if dedented:
+            expected = textwrap.dedent(expected)
+        assert body == expected, f"docs/plugins.md: the block under 'include: {path}#{region}' differs from the file"
+
+
+def test_walk_through_shows_all_of_the_example():
+    shown = [region for path, region, _, dedented in doc_includes()
+             if path == "examples/first_sut/first_sut.py" and not dedented]
+    code = EXAMPLE / "first_sut.py"
+    assert sorted(shown) == sorted(regions(code)), "every region of first_sut.py is quoted once in docs/plugins.md"
+    inside = {line for text in regions(code).values() for line in text.splitlines()}
+    outside = [line for line in code.read_text(encoding="utf-8").splitlines()
+               if line.strip() and not MARKER.match(line) and line not in inside]
+    assert not outside, f"lines of first_sut.py in no region (not in the walk-through): {outside}"
+    assert any(path == "examples/first_sut/pyproject.toml" and region is None for path, region, _, _ in doc_includes())
+
+
+def test_doc_lists_the_declarators_with_their_signatures():
+    from evoscen_sim import config_checks
+
+    text = DOC.read_text(encoding="utf-8")
+    block = text.split("<!-- signatures: evoscen_sim.config_checks -->\n```python\n", 1)[1].split("```", 1)[0]
+    listed = [line for line in block.splitlines() if line and not line.startswith("#")]
+    names = ("number", "integer", "flag", "text", "number_range", "names")
+    expected = []
+    for name in names:
+        sig = inspect.signature(getattr(config_checks, name)).replace(return_annotation=inspect.Signature.empty)
+        expected.append(name + str(sig).replace("'", ""))
+    assert listed == expected
+
+
+def test_doc_names_every_view_attribute_and_road_query():
+    from evoscen_sim.road import RoadModel
+    from evoscen_sim.view import TrafficView
+
+    text = DOC.read_text(encoding="utf-8")
+    view = [n for n in dir(TrafficView) if not n.startswith("_")] + list(TrafficView.__annotations__)
+    road = [n for n, _ in inspect.getmembers(RoadModel, inspect.isfunction) if not n.startswith("_")]
+    road += ["length_m", "num_lanes", "lane_ids", "lane_start_s", "lane_end_s", "lane_full_width_end_s",
+             "lane_width_m", "map"]
+    missing = sorted({n for n in view + road if f"`{n}" not in text})
+    assert not missing, f"docs/plugins.md does not name: {missing}"
