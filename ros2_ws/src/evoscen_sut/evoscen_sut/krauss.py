@@ -131,6 +131,13 @@ class KraussParams:
     """Desired speed (m/s): SUMO's speedFactor (1) × the 120 km/h limit of the evoscen road;
     the speed is also capped by the lane speed limit (so above 33.33 it changes nothing on the
     shipped map)."""
+    speed_factor_sd: float = number(0.1, 0.0, 1.0)
+    """Standard deviation of the speed factor of every Krauss-driven vehicle but the SUT (the
+    Nilsson and MOBIL BVs): each gets desired_speed_mps × f, f drawn once from a normal
+    distribution of mean 1 cut to [0.2, 2] (SUMO's default passenger vType: speedDev 0.1,
+    ``normc(1, 0.1, 0.2, 2)``). [choice] 0.1: with every BV at the SUT's desired speed (0, the
+    earlier form) rule-based BVs in the traffic window formed one platoon with the SUT: no BV
+    changed lanes in 3,000 steps (traced). The SUT (vehicle 0) always has f = 1."""
 
 
 # ------------------------------------------------------------------------ scalar kernels
@@ -289,12 +296,20 @@ class KraussCarFollowing:
         dt_s: the step the acceleration is held for (the scenario's ``dt_s``).
     """
 
-    def __init__(self, params: KraussParams, rng: np.random.Generator, dt_s: float) -> None:
+    def __init__(self, params: KraussParams, rng: np.random.Generator, dt_s: float,
+                 speed_factors: dict[int, float] | None = None) -> None:
         if not dt_s > 0.0:
             raise ValueError(f"KraussCarFollowing: dt_s = {dt_s} must be > 0")
         self.params = params
         self.rng = rng
         self.dt_s = float(dt_s)
+        self.speed_factors = dict(speed_factors or {})
+        """Speed factor by world index (missing: 1), :func:`draw_speed_factors`."""
+
+    def factors(self, idx: np.ndarray) -> np.ndarray:
+        """The speed factor of each vehicle ``idx`` (1 where none was drawn)."""
+        f = self.speed_factors
+        return np.array([f.get(int(i), 1.0) for i in idx], dtype=float) if f else np.ones(len(idx))
 
     def acceleration(self, view, vehicles: np.ndarray, lane_offset: np.ndarray | None = None) -> np.ndarray:
         """Next-step acceleration (m/s²) of ``vehicles`` (world indices).
@@ -322,7 +337,7 @@ class KraussCarFollowing:
         v_lead = nb.leader_speed_mps[idx, col]
         v = np.asarray(view.v, dtype=float)[idx]
         p = self.params
-        v_max = np.fmin(np.asarray(view.speed_limit_mps, dtype=float)[idx], p.desired_speed_mps)
+        v_max = np.fmin(np.asarray(view.speed_limit_mps, dtype=float)[idx], p.desired_speed_mps * self.factors(idx))
         v_next = _next_speed_kernel(np.ascontiguousarray(v), np.ascontiguousarray(v_max),
                                     np.ascontiguousarray(gap), np.ascontiguousarray(v_lead), u,
                                     p.min_gap_m, p.accel_mps2, p.decel_mps2, p.emergency_decel_mps2,
@@ -337,6 +352,30 @@ def krauss_params_from_config(config) -> KraussParams:  # noqa: ANN001
     return KraussParams() if params is None else params
 
 
-def krauss_for(config, rng: np.random.Generator) -> KraussCarFollowing:  # noqa: ANN001
-    """The Krauss car follower of a scenario: ``models.krauss``, dawdling from ``rng``, the step ``config.dt_s``."""
-    return KraussCarFollowing(krauss_params_from_config(config), rng, config.dt_s)
+SUT_INDEX = 0
+"""The SUT's world index: it never gets a speed factor other than 1."""
+
+
+def draw_speed_factors(params: KraussParams, vehicles, rng: np.random.Generator) -> dict[int, float]:  # noqa: ANN001
+    """One speed factor per vehicle but the SUT, in the order of ``vehicles``: normal(1,
+    ``speed_factor_sd``), drawn again until it lies in [0.2, 2] (SUMO's ``normc``); none (no
+    draw) when ``speed_factor_sd`` is 0."""
+    out: dict[int, float] = {}
+    if params.speed_factor_sd <= 0.0:
+        return out
+    for i in np.asarray(vehicles, dtype=np.int64):
+        if int(i) == SUT_INDEX:
+            continue
+        f = rng.normal(1.0, params.speed_factor_sd)
+        while not 0.2 <= f <= 2.0:
+            f = rng.normal(1.0, params.speed_factor_sd)
+        out[int(i)] = float(f)
+    return out
+
+
+def krauss_for(config, rng: np.random.Generator, vehicles=None) -> KraussCarFollowing:  # noqa: ANN001
+    """The Krauss car follower of a scenario: ``models.krauss``, dawdling from ``rng``, the step
+    ``config.dt_s``; the speed factors of ``vehicles`` (all but the SUT) drawn first from ``rng``."""
+    params = krauss_params_from_config(config)
+    factors = draw_speed_factors(params, vehicles, rng) if vehicles is not None else None
+    return KraussCarFollowing(params, rng, config.dt_s, factors)

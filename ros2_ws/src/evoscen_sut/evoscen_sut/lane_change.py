@@ -137,7 +137,7 @@ class KraussLaneChangeDriver:
         n_changing = _count_changing(idx, lane, target_lane)
         u_target = kr.rng.random(n_changing) if n_changing else _NO_DRAWS
         nb = view.neighborhood()
-        return _krauss_kernel(idx, u, u_target, view.s, view.v, view.length, lane, target_lane,
+        return _krauss_kernel(idx, kr.factors(idx), u, u_target, view.s, view.v, view.length, lane, target_lane,
                               view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, view.road.kernel_tables(),
                               _krauss_params(kr.params, self.vehicle_params, self.stop_margin_m,
                                              float(kr.dt_s), float(view.dt_s)))
@@ -208,7 +208,7 @@ def _count_changing(idx, lane, target_lane):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _krauss_kernel(idx, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
+def _krauss_kernel(idx, factor, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
                    leader_speed, road, prm):
     """:class:`KraussLaneChangeDriver`'s acceleration and throttle (class docstring)."""
     min_gap, accel, decel, emergency, sigma, tau = (prm.min_gap_m, prm.accel_mps2, prm.decel_mps2,
@@ -223,7 +223,8 @@ def _krauss_kernel(idx, u, u_target, s, v, length, lane, target_lane, speed_limi
         i = idx[k]
         vi = v[i]
         lim = speed_limit[i]
-        v_max = desired if np.isnan(lim) else (lim if np.isnan(desired) else min(lim, desired))  # np.fmin
+        want = desired * factor[k]
+        v_max = want if np.isnan(lim) else (lim if np.isnan(want) else min(lim, want))  # np.fmin
         v_next = next_speed_scalar(vi, v_max, gap_front[i, 2] - min_gap, leader_speed[i, 2], u[k], accel, decel,
                                    emergency, sigma, tau, dt)
         a = (v_next - vi) / dt
@@ -253,7 +254,7 @@ def lane_change_factory(decision: Any, params_type: type) -> Any:
     def make_driver(vehicles: np.ndarray, params: Any, config: Any,
                     rng: np.random.Generator) -> KraussLaneChangeDriver:
         params = params_type() if params is None else params
-        return KraussLaneChangeDriver(vehicles, decision, params, krauss_for(config, rng),
+        return KraussLaneChangeDriver(vehicles, decision, params, krauss_for(config, rng, vehicles),
                                       vehicle_params_from_config(config), params.merge_stop_margin_m)
 
     make_driver.__module__ = decision.__module__  # the factory belongs to its model's module

@@ -76,7 +76,7 @@ def test_models_krauss_is_validated_into_krauss_params(tmp_path: Path) -> None:
     ("emergency_decel_mps2", "31", "key 'models.krauss.emergency_decel_mps2' = 31: expected a number in (0, 30]"),
     ("min_gap_m", "-1", "key 'models.krauss.min_gap_m' = -1: expected a number in [0, 20]"),
     ("desired_speed", "25", "key 'models.krauss.desired_speed': unknown key; allowed keys: accel_mps2, "
-     "decel_mps2, emergency_decel_mps2, sigma, tau_s, min_gap_m, desired_speed_mps; did you mean "
+     "decel_mps2, emergency_decel_mps2, sigma, tau_s, min_gap_m, desired_speed_mps, speed_factor_sd; did you mean "
      "'desired_speed_mps'?"),
 ])
 def test_bad_values_are_one_line_errors_naming_key_value_and_what_is_allowed(key, value, expected) -> None:
@@ -185,3 +185,32 @@ def test_level0_keeps_its_own_car_following() -> None:
     plain = _speeds({"sut.model": "level0"}, 30)
     keyed = _speeds({"sut.model": "level0", "models.krauss.desired_speed_mps": "25", "models.krauss.sigma": "0"}, 30)
     assert np.array_equal(plain, keyed) and plain[-1] > 27.0
+
+
+# ------------------------------------------------------------------------------ speed factors
+def test_speed_factors_are_drawn_for_every_vehicle_but_the_sut() -> None:
+    from evoscen_sut.krauss import draw_speed_factors
+
+    p = KraussParams()
+    f = draw_speed_factors(p, [0, 1, 2, 3], np.random.default_rng(5))
+    assert sorted(f) == [1, 2, 3]  # the SUT (0) gets none
+    # the same draws by hand: normal(1, 0.1) from the same generator, in vehicle order
+    g = np.random.default_rng(5)
+    assert [f[i] for i in (1, 2, 3)] == [g.normal(1.0, 0.1) for _ in range(3)]
+    assert draw_speed_factors(dataclasses.replace(p, speed_factor_sd=0.0), [1, 2], np.random.default_rng(5)) == {}
+    wide = draw_speed_factors(dataclasses.replace(p, speed_factor_sd=1.0), range(1, 2000), np.random.default_rng(1))
+    assert min(wide.values()) >= 0.2 and max(wide.values()) <= 2.0  # cut to [0.2, 2] by drawing again
+
+
+def test_a_krauss_bv_settles_at_its_own_desired_speed() -> None:
+    """A Nilsson BV alone on the road (σ = 0, desired 25 m/s): it settles at 25·f, f its speed factor."""
+    from evoscen_bringup.scenario import build_scenario
+
+    cfg = load_scenario_config(None, EMPTY_ROAD | {"bvs.count": "1", "bvs.driver": "nilsson", "sut.s_m": "1500",
+                                                   "models": {"krauss": {"desired_speed_mps": 25.0, "sigma": 0.0}}})
+    sc = build_scenario(cfg)
+    f = sc.bv_driver.krauss.speed_factors[1]
+    assert f != 1.0
+    for _ in range(400):
+        sc.step()
+    assert sc.world.v[1] == pytest.approx(min(25.0 * f, 33.33), abs=1e-6)
