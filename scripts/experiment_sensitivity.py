@@ -293,7 +293,8 @@ def comparison_rows(designs: list, summaries: dict, computes: dict, walls: dict)
     Returns the per-scenario rows (Markdown, CSV) and the per-mutant rows (Markdown, CSV): per
     scenario and design the detected mutants, the mutation score, the median 95 % half-width of
     intact − mutant intelligence, the median pairing r, n (runs per variant), SUT and simulated
-    steps per variant; per mutant both designs' intervals with n and detection.
+    steps per variant, the runs' summed wall time (``walls``: design -> (scenario, base) -> s);
+    per mutant both designs' intervals with n and detection.
     """
     from evoscen_bringup.experiments import fmt_ci
 
@@ -379,13 +380,13 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     detected = {d.name: sum(s.detected for s in summaries[d.name].values()) for d in designs}
     table = markdown_table(["scenario", "SUT", "design", "runs x steps", "detected", "mutation score",
                             "median half-width", "median pairing r", "SUT steps / variant",
-                            "simulated steps / variant", "simulation s"], md)
+                            "simulated steps / variant", "run time (s, summed)"], md)
     mut_header = ["scenario", "SUT", "mutant"]
     for d in designs:
         mut_header += [f"{d.name}: ΔI (95 % CI, n)", f"{d.name}: detected"]
     write_csv(args.out / "designs.csv", ["scenario", "base", "design", "runs", "steps", "detected", "mutants",
                                          "mutation_score", "median_ci95", "median_pairing_r", "sut_steps",
-                                         "warmup_steps", "simulated_steps", "simulation_s"], rows)
+                                         "warmup_steps", "simulated_steps", "run_time_s"], rows)
     write_csv(args.out / "designs_mutants.csv",
               ["scenario", "base", "mutant", *(f"{d.name}_{k}" for d in designs
                                                for k in ("d_intelligence_mean", "d_intelligence_ci95", "n",

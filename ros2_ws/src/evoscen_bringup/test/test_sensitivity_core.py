@@ -140,3 +140,15 @@ def test_sharper_design_detections_first_then_narrower_interval() -> None:
     assert sharper_design({"episodes": [narrow], "long": [narrow]}) is None  # a tie on both
     # detections add up over scenarios: 1 + 0 against 0 + 0
     assert sharper_design({"episodes": [s["episodes"], wide], "long": [narrow, narrow]}) == "episodes"
+
+
+def test_design_summary_medians_are_medians() -> None:
+    # three mutants on seeds 0..2, intact [1, 2, 3]:
+    #   a [0, 1, 2]: d = [1, 1, 1], half 0, r 1
+    #   b [1, 0, 3]: d = [0, 2, 0], sd sqrt(4/3), half t2 * 2/3; r = 2 / sqrt(2 * 42/9)
+    #   c [3, 2, 1]: d = [-2, 0, 2], sd 2, half t2 * 2/sqrt(3); r -1
+    s = summarise_design({0: 1.0, 1: 2.0, 2: 3.0}, {"a": {0: 0.0, 1: 1.0, 2: 2.0}, "b": {0: 1.0, 1: 0.0, 2: 3.0},
+                                                     "c": {0: 3.0, 1: 2.0, 2: 1.0}})
+    assert s.median_half == pytest.approx(T975_DF2 * 2.0 / 3.0, rel=1e-9)      # not the mean of the three
+    assert s.median_r == pytest.approx(2.0 / math.sqrt(2.0 * 42.0 / 9.0))
+    assert (s.detected, s.mutants) == (1, 3)
