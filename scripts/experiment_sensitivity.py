@@ -3,20 +3,34 @@
 
     python scripts/experiment_sensitivity.py [--out DIR] [--config FILE] [--base mobil]
                                             [--mutants all|NAME,...] [--scenarios evolving,level0,nilsson,mobil]
-                                            [--seeds 10] [--first-seed S] [--steps 3000] [--jobs N]
+                                            [--design episodes|long] [--episodes 100] [--episode-steps 300]
+                                            [--seeds 10] [--steps 3000] [--first-seed S] [--jobs N]
+    python scripts/experiment_sensitivity.py --compare-designs [--first-seed S] [--long-first-seed S] ...
 
 For every base SUT model (``--base``, comma-separated) and every scenario, the intact model and
 each mutant of the library (:mod:`evoscen_sut.mutants`, docs/mutants.md) run on the same seeds
-(common random numbers) for ``--steps`` steps in-process. Scenarios: ``evolving`` — the BVs as
-the configuration drives them (the shipped default: learned social drivers); any BV driver
-name (``level0``, ``nilsson``, ``mobil``) — every BV driven by that model. Per mutant and
-scenario: the paired difference intact − mutant of the intelligence score and of each
-sub-score, with its 95 % interval over seeds, *detected* when the intelligence interval lies
-above zero, and the seeds needed to detect it; per scenario the mutation score (detected /
-all). Rounds run on ``--jobs`` Ray workers (the campaign engine) and are saved as they finish: an interrupted
-experiment continues where it stopped. Writes ``sensitivity.md``, ``sensitivity.csv``,
+(common random numbers) in-process. Two test designs (docs/sensitivity.md): ``long`` —
+``--seeds`` runs of ``--steps`` steps — and ``episodes`` — ``--episodes`` short runs of
+``--episode-steps`` steps, each its own seed (initial state after the warm-up, random
+streams); without ``--design`` the design whose flags are given runs, else
+:data:`DEFAULT_DESIGN`. Scenarios: ``evolving`` — the BVs as the configuration drives them
+(the shipped default: learned social drivers); any BV driver name (``level0``, ``nilsson``,
+``mobil``) — every BV driven by that model. Per mutant and scenario: the paired difference
+intact − mutant of the intelligence score and of each sub-score, with its 95 % interval over
+seeds, *detected* when the intelligence interval lies above zero, and the seeds needed to
+detect it; per scenario the mutation score (detected / all). Rounds run on ``--jobs`` Ray
+workers (the campaign engine) and are saved as they finish: an interrupted experiment
+continues where it stopped. Writes ``sensitivity.md``, ``sensitivity.csv``,
 ``mutation_scores.csv``, ``rounds.csv`` and ``sensitivity.png`` into ``--out`` and prints the
-tables. Exit status: 0 done, 2 bad input, 130 interrupted.
+tables.
+
+``--compare-designs`` runs both designs at equal compute (the same SUT steps per variant:
+episodes × episode steps = seeds × steps, default 100 × 300 = 10 × 3,000; the long design's
+seeds follow the episodes' unless ``--long-first-seed``), writes each design's files into
+``--out/episodes`` and ``--out/long`` and the comparison into ``designs.md``, ``designs.csv``
+(per scenario: detected, median interval half-width, median pairing r, steps) and
+``designs_mutants.csv`` (per mutant both intervals). Exit status: 0 done, 2 bad input, 130
+interrupted.
 """
 
 from __future__ import annotations
@@ -24,7 +38,6 @@ from __future__ import annotations
 import argparse
 import math
 import os
-import statistics
 import sys
 from pathlib import Path
 
@@ -32,6 +45,13 @@ import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 
 INTACT = "intact"
+DEFAULT_DESIGN = "episodes"
+"""The design run when neither ``--design`` nor a design's own flags are given: the sharper one at equal
+compute in the measured comparison (docs/sensitivity.md "Two designs")."""
+EPISODES, EPISODE_STEPS = "100", "300"
+"""The episodes design's defaults: 100 episodes × 300 steps (= the long design's SUT steps)."""
+SEEDS, STEPS = "10", "3000"
+"""The long design's defaults: 10 seeds × 3,000 steps (the method's run length)."""
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -42,66 +62,136 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--mutants", default="all", help="'all' or comma-separated mutant names of the library")
     ap.add_argument("--scenarios", default="evolving,level0,nilsson,mobil",
                     help="comma-separated: evolving (the config's BV driver) and/or BV driver names")
-    ap.add_argument("--seeds", default="10", help="seeds per SUT variant and scenario (default 10)")
-    ap.add_argument("--first-seed", default="0", help="first seed (default 0)")
-    ap.add_argument("--steps", default="3000", help="steps per round (default 3000)")
+    ap.add_argument("--design", help=f"episodes (--episodes short runs of --episode-steps) or long (--seeds runs of "
+                                     f"--steps); default: the design whose flags are given, else {DEFAULT_DESIGN}")
+    ap.add_argument("--episodes", help=f"episodes design: episodes (seeds) per SUT variant and scenario "
+                                       f"(default {EPISODES})")
+    ap.add_argument("--episode-steps", help=f"episodes design: steps per episode (default {EPISODE_STEPS})")
+    ap.add_argument("--seeds", help=f"long design: seeds per SUT variant and scenario (default {SEEDS})")
+    ap.add_argument("--steps", help=f"long design: steps per run (default {STEPS})")
+    ap.add_argument("--first-seed", default="0", help="first seed (default 0; with --compare-designs the episodes')")
+    ap.add_argument("--long-first-seed", help="with --compare-designs: the long design's first seed (default: the "
+                                              "seed after the episodes')")
+    ap.add_argument("--compare-designs", action="store_true",
+                    help="run both designs at equal SUT steps and compare their detection")
     ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
     return ap.parse_args(argv)
 
 
-def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear report
-    args = parse_args(argv)
-    from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
-                                             run_rounds_with_bar, set_up, write_csv)
-    from evoscen_bringup.sensitivity import SCORES, mutation_score, paired, pairing, score_of, seeds_needed
-    from evoscen_sim.config import load_scenario_config
+def resolve_designs(args: argparse.Namespace) -> list:
+    """The designs to run (:class:`evoscen_bringup.sensitivity.Design`): one, or both with ``--compare-designs``.
+
+    Raises InputError (one line) on a bad combination or value: ``--design`` with the other
+    design's flags, both designs' flags without ``--design``, ``--compare-designs`` with
+    ``--design``, ``--long-first-seed`` without ``--compare-designs``, unequal SUT steps.
+    """
+    from evoscen_bringup.experiments import positive_int
+    from evoscen_bringup.sensitivity import DESIGNS, Design
     from evoscen_sim.errors import InputError
-    from evoscen_sut.mutants import LIBRARY, mutant_overrides
 
-    Built = tuple[list[str], list[str], list[str], list[Round], dict[str, tuple[str, str, str]], int, int, int]
+    ep_flags = [f for f, v in (("--episodes", args.episodes), ("--episode-steps", args.episode_steps)) if v is not None]
+    long_flags = [f for f, v in (("--seeds", args.seeds), ("--steps", args.steps)) if v is not None]
+    if args.design is not None and args.design not in DESIGNS:
+        raise InputError(f"--design {args.design!r}: expected one of {', '.join(DESIGNS)}")
+    if args.compare_designs and args.design is not None:
+        raise InputError("--compare-designs runs both designs: leave out --design")
+    if args.long_first_seed is not None and not args.compare_designs:
+        raise InputError("--long-first-seed applies with --compare-designs only (one design starts at --first-seed)")
+    names = list(DESIGNS)
+    if not args.compare_designs:
+        name = args.design
+        if name is None:
+            if ep_flags and long_flags:
+                raise InputError(f"{ep_flags[0]} (episodes design) and {long_flags[0]} (long design) together: "
+                                 f"choose one --design, or --compare-designs to run both")
+            name = "episodes" if ep_flags else "long" if long_flags else DEFAULT_DESIGN
+        other = long_flags if name == "episodes" else ep_flags
+        if other:
+            raise InputError(f"{other[0]} does not apply to --design {name} (episodes: --episodes, --episode-steps; "
+                             f"long: --seeds, --steps)")
+        names = [name]
 
-    def build() -> Built:
-        seeds = positive_int("--seeds", args.seeds)
-        first = positive_int("--first-seed", args.first_seed, 0)
-        jobs = positive_int("--jobs", args.jobs)
-        bases = distinct_names("--base", args.base)
-        scenarios = distinct_names("--scenarios", args.scenarios)
-        mutants = list(LIBRARY) if args.mutants.strip() == "all" else distinct_names("--mutants", args.mutants)
-        unknown = [m for m in mutants if m not in LIBRARY]
-        if unknown:
-            raise InputError(f"--mutants: unknown mutant {unknown[0]!r}: expected 'all' or names from "
-                             f"{', '.join(LIBRARY)}")
-        variants: list[tuple[str, str, dict[str, str]]] = []  # (base, mutant or intact, overrides)
-        for base in bases:
-            variants.append((base, INTACT, {"sut.model": base}))
-            variants += [(base, m, mutant_overrides(base, m)) for m in mutants]
-        rounds: list[Round] = []
-        meta: dict[str, tuple[str, str, str]] = {}  # round key -> (scenario, base, variant)
+    def value(option: str, text: str | None, default: str) -> int:
+        return positive_int(option, default if text is None else text)
+
+    first = positive_int("--first-seed", args.first_seed, 0)
+    episodes = Design("episodes", value("--episodes", args.episodes, EPISODES),
+                      value("--episode-steps", args.episode_steps, EPISODE_STEPS), first)
+    long_first = first
+    if args.compare_designs:
+        long_first = (first + episodes.runs if args.long_first_seed is None
+                      else positive_int("--long-first-seed", args.long_first_seed, 0))
+    long = Design("long", value("--seeds", args.seeds, SEEDS), value("--steps", args.steps, STEPS), long_first)
+    if args.compare_designs and episodes.runs * episodes.steps != long.runs * long.steps:
+        raise InputError(f"--compare-designs needs equal compute: episodes {episodes.runs} x {episodes.steps} = "
+                         f"{episodes.runs * episodes.steps} SUT steps per variant, long {long.runs} x {long.steps} = "
+                         f"{long.runs * long.steps}")
+    return [d for d in (episodes, long) if d.name in names]
+
+
+def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants: list[str],
+                 config: Path | None) -> tuple[list, dict[str, tuple[str, str, str, str]]]:
+    """The rounds of every design: per scenario, SUT variant (intact, then each mutant) and seed of the
+    design, one run of the design's steps. Returns the rounds and their key -> (design, scenario,
+    base, variant); every variant of a scenario runs on the same seeds (paired)."""
+    from evoscen_bringup.experiments import Round
+    from evoscen_sim.config import load_scenario_config
+    from evoscen_sut.mutants import mutant_overrides
+
+    variants: list[tuple[str, str, dict[str, str]]] = []  # (base, mutant or intact, overrides)
+    for base in bases:
+        variants.append((base, INTACT, {"sut.model": base}))
+        variants += [(base, m, mutant_overrides(base, m)) for m in mutants]
+    rounds = []
+    meta: dict[str, tuple[str, str, str, str]] = {}
+    for design in designs:
         for scenario in scenarios:
             for base, variant, sut_overrides in variants:
-                for seed in range(first, first + seeds):
-                    overrides = {**sut_overrides, "seed": str(seed), "steps": args.steps,
+                for seed in design.seeds:
+                    overrides = {**sut_overrides, "seed": str(seed), "steps": str(design.steps),
                                  "recording.enabled": "false"}
                     if scenario != "evolving":
                         overrides["bvs.driver"] = scenario
-                    rnd = Round(f"{scenario}--{base}--{variant}", load_scenario_config(args.config, overrides))
+                    rnd = Round(f"{scenario}--{base}--{variant}", load_scenario_config(config, overrides))
                     rounds.append(rnd)
-                    meta[rnd.key] = (scenario, base, variant)
-        return bases, scenarios, mutants, rounds, meta, jobs, seeds, first
+                    meta[rnd.key] = (design.name, scenario, base, variant)
+    return rounds, meta
 
-    built = set_up(args.out, build)
-    if built is None:
-        return EXIT_BAD_INPUT
-    bases, scenarios, mutants, rounds, meta, jobs, seeds, first = built
 
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity")
-    if results is None:
-        return EXIT_INTERRUPTED
+def warmup_steps(cfg) -> int:  # noqa: ANN001 - a ScenarioConfig
+    """Steps of the warm-up before every run (``traffic.warmup_s / dt_s``; none without the traffic window)."""
+    return int(round(cfg.traffic.warmup_s / cfg.dt_s)) if cfg.traffic.mode == "window" else 0
 
+
+def compute_text(design, cfg, variants: int) -> str:  # noqa: ANN001
+    """One paragraph: the design's SUT steps (what equal compute equalises) and its warm-up (extra compute)."""
+    from evoscen_bringup.sensitivity import design_compute
+
+    w = warmup_steps(cfg)
+    c = design_compute(design, w)
+    warm = (f"the warm-up (traffic.warmup_s = {cfg.traffic.warmup_s:g} s, {w} steps) runs before every run and is "
+            f"extra compute, the same per run in either design: {design.runs} x {w} = {c.warmup_steps:,} steps"
+            if w else "no warm-up (traffic.warmup_s = 0 or no traffic window)")
+    return (f"Design {design.name}: {design.runs} {design.unit}s (seeds {design.seeds[0]}..{design.seeds[-1]}) x "
+            f"{design.steps:,} steps = {c.sut_steps:,} SUT steps per variant and scenario; {warm}; "
+            f"{c.total:,} simulated steps per variant and scenario, {c.total * variants:,} in all "
+            f"({variants} variant-scenario pairs, {design.runs * variants:,} runs).")
+
+
+def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases: list[str],  # noqa: ANN001, PLR0915
+              scenarios: list[str], mutants: list[str]) -> tuple[dict, str]:
+    """One design's tables and files in ``out`` (sensitivity.md/.csv, mutation_scores.csv, rounds.csv,
+    sensitivity.png). Returns (scenario, base) -> :class:`DesignSummary` and the score table (Markdown)."""
+    from evoscen_bringup.experiments import fmt_ci, markdown_table, mean_ci, write_csv
+    from evoscen_bringup.sensitivity import SCORES, paired, score_of, seeds_needed, summarise_design
+    from evoscen_sut.mutants import LIBRARY
+
+    out.mkdir(parents=True, exist_ok=True)
+    rounds = [r for r in rounds if meta[r.key][0] == design.name]
     # seed -> report, per (scenario, base, variant)
     reports: dict[tuple[str, str, str], dict[int, dict]] = {}
     for rnd in rounds:
-        reports.setdefault(meta[rnd.key], {})[rnd.cfg.seed] = results[rnd.key]["report"]
+        reports.setdefault(meta[rnd.key][1:], {})[rnd.cfg.seed] = results[rnd.key]["report"]
 
     def per_seed(key: tuple[str, str, str], name: str) -> dict[int, float]:
         return {s: score_of(r, name) for s, r in reports[key].items()}
@@ -116,64 +206,66 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
             out[s] = math.nan if v is None else float(v)
         return out
 
+    unit = design.unit
     header = ["mutant", "class", "ΔI (intact − mutant)", "ΔI_s", "ΔI_e", "ΔI_i", "Δ collisions (mutant − intact)",
-              "Δ exposures", "Δ min PET (s)", "detected", "seeds needed", "pairing r"]
+              "Δ exposures", "Δ min PET (s)", "detected", f"{unit}s needed", "pairing r"]
     csv_rows, score_rows, md_parts, plot_data = [], [], [], []
+    summaries = {}
     round_rows = []
     for scenario in scenarios:
-        driver = next(r.cfg.bvs.driver for r in rounds if meta[r.key][0] == scenario)
+        driver = next(r.cfg.bvs.driver for r in rounds if meta[r.key][1] == scenario)
         for base in bases:
             intact_key = (scenario, base, INTACT)
-            rows, detected, points, rs = [], [], [], []
+            summary = summarise_design(per_seed(intact_key, "intelligence"),
+                                       {m: per_seed((scenario, base, m), "intelligence") for m in mutants})
+            summaries[(scenario, base)] = summary
+            rows, points = [], []
             for m in mutants:
                 key = (scenario, base, m)
                 diffs = {name: paired(per_seed(intact_key, name), per_seed(key, name)) for name in SCORES}
                 d_col = paired(counts(key, "safety", "collisions"), counts(intact_key, "safety", "collisions"))
                 d_exp = paired(counts(key, "safety", "exposures"), counts(intact_key, "safety", "exposures"))
                 d_pet = paired(min_pet(intact_key), min_pet(key))
-                i_intact, i_mutant = per_seed(intact_key, "intelligence"), per_seed(key, "intelligence")
-                need = seeds_needed(i_intact, i_mutant)
-                r_pair = pairing(i_intact, i_mutant)
-                rs.append(r_pair)
+                need = seeds_needed(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
+                r_pair = summary.pairing_r[m]
                 hit = diffs["intelligence"].above_zero
-                detected.append(hit)
                 points.append((m, diffs["intelligence"]))
                 rows.append([m, LIBRARY[m].klass, *(fmt_ci(diffs[n].mean, diffs[n].half) for n in SCORES),
                              fmt_ci(d_col.mean, d_col.half, 2), fmt_ci(d_exp.mean, d_exp.half, 2),
                              fmt_ci(d_pet.mean, d_pet.half, 2), "yes" if hit else "no", "–" if need is None else str(need),
                              "–" if math.isnan(r_pair) else f"{r_pair:.2f}"])
-                csv_rows.append([scenario, driver, base, m, LIBRARY[m].klass,
+                csv_rows.append([design.name, scenario, driver, base, m, LIBRARY[m].klass,
                                  *(v for n in SCORES for v in (diffs[n].mean, diffs[n].half)),
                                  d_col.mean, d_col.half, d_exp.mean, d_exp.half, d_pet.mean, d_pet.half, int(hit),
                                  "" if need is None else need, diffs["intelligence"].n, r_pair])
-            score = mutation_score(detected)
             intact_i = mean_ci(list(per_seed(intact_key, "intelligence").values()))
-            finite_r = [x for x in rs if not math.isnan(x)]
-            median_r = statistics.median(finite_r) if finite_r else math.nan
-            score_rows.append([scenario, driver, base, sum(detected), len(detected), score, *intact_i, median_r])
+            score_rows.append([scenario, driver, base, summary.detected, summary.mutants, summary.score, *intact_i,
+                               summary.median_r])
+            score = summary.score
             md_parts.append(f"## {scenario} (BVs: {driver}), SUT {base}\n\nIntact intelligence "
-                            f"{fmt_ci(*intact_i)}; mutation score {sum(detected)}/{len(detected)}"
+                            f"{fmt_ci(*intact_i)}; mutation score {summary.detected}/{summary.mutants}"
                             f"{'' if math.isnan(score) else f' = {score:.2f}'}.\n\n"
                             + markdown_table(header, rows))
             plot_data.append((f"{scenario} / {base}", points))
     for rnd in rounds:
-        scenario, base, variant = meta[rnd.key]
+        _, scenario, base, variant = meta[rnd.key]
         r = results[rnd.key]
         rep = r["report"]
-        round_rows.append([scenario, base, variant, r["seed"], r["steps"], *(score_of(rep, n) for n in SCORES),
-                           rep["safety"]["collisions"], rep["safety"]["exposures"], r["wall_time_s"]])
+        round_rows.append([design.name, scenario, base, variant, r["seed"], r["steps"],
+                           *(score_of(rep, n) for n in SCORES), rep["safety"]["collisions"],
+                           rep["safety"]["exposures"], r["wall_time_s"]])
 
-    write_csv(args.out / "sensitivity.csv",
-              ["scenario", "bv_driver", "base", "mutant", "class",
+    write_csv(out / "sensitivity.csv",
+              ["design", "scenario", "bv_driver", "base", "mutant", "class",
                *(f"d_{n}_{s}" for n in SCORES for s in ("mean", "ci95")),
                "d_collisions_mean", "d_collisions_ci95", "d_exposures_mean", "d_exposures_ci95", "d_min_pet_mean",
                "d_min_pet_ci95", "detected",
                "seeds_needed", "seeds", "pairing_r"], csv_rows)
-    write_csv(args.out / "mutation_scores.csv", ["scenario", "bv_driver", "base", "detected", "mutants",
-                                                 "mutation_score", "intact_intelligence_mean",
-                                                 "intact_intelligence_ci95", "median_pairing_r"], score_rows)
-    write_csv(args.out / "rounds.csv", ["scenario", "base", "variant", "seed", "steps", *SCORES, "collisions",
-                                        "exposures", "wall_time_s"], round_rows)
+    write_csv(out / "mutation_scores.csv", ["scenario", "bv_driver", "base", "detected", "mutants",
+                                            "mutation_score", "intact_intelligence_mean",
+                                            "intact_intelligence_ci95", "median_pairing_r"], score_rows)
+    write_csv(out / "rounds.csv", ["design", "scenario", "base", "variant", "seed", "steps", *SCORES, "collisions",
+                                   "exposures", "wall_time_s"], round_rows)
     score_table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", "intact I",
                                   "median pairing r"],
                                  [[s, d, b, f"{k}/{n}", "–" if math.isnan(x) else f"{x:.2f}", fmt_ci(m, h),
@@ -181,18 +273,143 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
                                   for s, d, b, k, n, x, m, h, r in score_rows])
     cfg0 = rounds[0].cfg
     wall = sum(results[r.key]["wall_time_s"] for r in rounds)
+    variants = len(scenarios) * len(bases) * (1 + len(mutants))
     text = (f"# Sensitivity experiment (SUT mutation analysis)\n\n{len(bases)} base SUT(s) x {len(mutants)} mutants "
-            f"x {len(scenarios)} scenarios x {seeds} seeds ({first}..{first + seeds - 1}), {cfg0.steps} steps, "
-            f"{cfg0.bvs.count} BVs; paired by seed (common random numbers); differences intact − mutant of the "
+            f"x {len(scenarios)} scenarios x {design.runs} {unit}s ({design.seeds[0]}..{design.seeds[-1]}), "
+            f"{design.steps} steps, {cfg0.bvs.count} BVs; paired by {unit} (common random numbers: a seed fixes the "
+            f"initial state after the warm-up and every random stream); differences intact − mutant of the "
             f"unweighted scores (Δ collisions/exposures: mutant − intact; Δ min PET: intact − mutant of the run's "
-            f"smallest lane-change PET, > 0 when the mutant cuts in closer), mean ± 95 % interval over seeds; "
-            f"detected: the intelligence interval lies above 0; pairing r: correlation over seeds of intact and "
-            f"mutant intelligence; {wall:.0f} s of simulation in all.\n\n"
+            f"smallest lane-change PET, > 0 when the mutant cuts in closer), mean ± 95 % interval over {unit}s; "
+            f"detected: the intelligence interval lies above 0; pairing r: correlation over {unit}s of intact and "
+            f"mutant intelligence; {wall:.0f} s of simulation in all.\n\n{compute_text(design, cfg0, variants)}\n\n"
             f"{score_table}\n" + "\n".join(md_parts) + "\n![sensitivity](sensitivity.png)\n")
-    (args.out / "sensitivity.md").write_text(text, encoding="utf-8")
-    plot(args.out / "sensitivity.png", plot_data)
-    print(score_table, end="")
-    print(f"written: {args.out / 'sensitivity.md'}, sensitivity.csv, mutation_scores.csv, rounds.csv, sensitivity.png")
+    (out / "sensitivity.md").write_text(text, encoding="utf-8")
+    plot(out / "sensitivity.png", plot_data)
+    return summaries, score_table
+
+
+def comparison_rows(designs: list, summaries: dict, computes: dict, walls: dict) -> tuple[list, list, list, list]:
+    """The design comparison from each design's summaries ((scenario, base) -> DesignSummary, per design name).
+
+    Returns the per-scenario rows (Markdown, CSV) and the per-mutant rows (Markdown, CSV): per
+    scenario and design the detected mutants, the mutation score, the median 95 % half-width of
+    intact − mutant intelligence, the median pairing r, n (runs per variant), SUT and simulated
+    steps per variant, the runs' summed wall time (``walls``: design -> (scenario, base) -> s);
+    per mutant both designs' intervals with n and detection.
+    """
+    from evoscen_bringup.experiments import fmt_ci
+
+    def num(x: float, digits: int) -> str:
+        return "–" if math.isnan(x) else f"{x:.{digits}f}"
+
+    md, rows, md_m, rows_m = [], [], [], []
+    first = designs[0].name
+    for scenario, base in summaries[first]:
+        for d in designs:
+            s = summaries[d.name][(scenario, base)]
+            c = computes[d.name]
+            md.append([scenario, base, d.name, f"{d.runs} x {d.steps}", f"{s.detected}/{s.mutants}", num(s.score, 2),
+                       num(s.median_half, 4), num(s.median_r, 2), f"{c.sut_steps:,}", f"{c.total:,}",
+                       f"{walls[d.name].get((scenario, base), math.nan):.0f}"])
+            rows.append([scenario, base, d.name, d.runs, d.steps, s.detected, s.mutants, s.score, s.median_half,
+                         s.median_r, c.sut_steps, c.warmup_steps, c.total,
+                         walls[d.name].get((scenario, base), math.nan)])
+        for m in summaries[first][(scenario, base)].per_mutant:
+            cells, values = [], []
+            for d in designs:
+                p = summaries[d.name][(scenario, base)].per_mutant[m]
+                cells += [f"{fmt_ci(p.mean, p.half)} (n {p.n})", "yes" if p.above_zero else "no"]
+                values += [p.mean, p.half, p.n, int(p.above_zero)]
+            md_m.append([scenario, base, m, *cells])
+            rows_m.append([scenario, base, m, *values])
+    return md, rows, md_m, rows_m
+
+
+def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear report
+    args = parse_args(argv)
+    from evoscen_bringup.experiments import distinct_names, markdown_table, positive_int, run_rounds_with_bar, set_up
+    from evoscen_bringup.experiments import write_csv
+    from evoscen_bringup.sensitivity import design_compute, sharper_design
+    from evoscen_sim.errors import InputError
+    from evoscen_sut.mutants import LIBRARY
+
+    def build():  # noqa: ANN202
+        designs = resolve_designs(args)
+        jobs = positive_int("--jobs", args.jobs)
+        bases = distinct_names("--base", args.base)
+        scenarios = distinct_names("--scenarios", args.scenarios)
+        mutants = list(LIBRARY) if args.mutants.strip() == "all" else distinct_names("--mutants", args.mutants)
+        unknown = [m for m in mutants if m not in LIBRARY]
+        if unknown:
+            raise InputError(f"--mutants: unknown mutant {unknown[0]!r}: expected 'all' or names from "
+                             f"{', '.join(LIBRARY)}")
+        rounds, meta = build_rounds(designs, bases, scenarios, mutants, args.config)
+        return designs, bases, scenarios, mutants, rounds, meta, jobs
+
+    built = set_up(args.out, build)
+    if built is None:
+        return EXIT_BAD_INPUT
+    designs, bases, scenarios, mutants, rounds, meta, jobs = built
+
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity")
+    if results is None:
+        return EXIT_INTERRUPTED
+
+    cfg0 = rounds[0].cfg
+    variants = len(scenarios) * len(bases) * (1 + len(mutants))
+    if not args.compare_designs:
+        (design,) = designs
+        _, score_table = summarise(design, rounds, results, meta, args.out, bases, scenarios, mutants)
+        print(compute_text(design, cfg0, variants))
+        print(score_table, end="")
+        print(f"written: {args.out / 'sensitivity.md'}, sensitivity.csv, mutation_scores.csv, rounds.csv, "
+              f"sensitivity.png")
+        return EXIT_OK
+
+    summaries, computes, walls = {}, {}, {}
+    for d in designs:
+        summaries[d.name], _ = summarise(d, rounds, results, meta, args.out / d.name, bases, scenarios, mutants)
+        computes[d.name] = design_compute(d, warmup_steps(cfg0))
+        walls[d.name] = {}
+        for r in rounds:
+            name, scenario, base = meta[r.key][:3]
+            if name == d.name:
+                walls[d.name][(scenario, base)] = (walls[d.name].get((scenario, base), 0.0)
+                                                   + results[r.key]["wall_time_s"])
+    md, rows, md_m, rows_m = comparison_rows(designs, summaries, computes, walls)
+    verdict = sharper_design({d.name: list(summaries[d.name].values()) for d in designs})
+    detected = {d.name: sum(s.detected for s in summaries[d.name].values()) for d in designs}
+    table = markdown_table(["scenario", "SUT", "design", "runs x steps", "detected", "mutation score",
+                            "median half-width", "median pairing r", "SUT steps / variant",
+                            "simulated steps / variant", "run time (s, summed)"], md)
+    mut_header = ["scenario", "SUT", "mutant"]
+    for d in designs:
+        mut_header += [f"{d.name}: ΔI (95 % CI, n)", f"{d.name}: detected"]
+    write_csv(args.out / "designs.csv", ["scenario", "base", "design", "runs", "steps", "detected", "mutants",
+                                         "mutation_score", "median_ci95", "median_pairing_r", "sut_steps",
+                                         "warmup_steps", "simulated_steps", "run_time_s"], rows)
+    write_csv(args.out / "designs_mutants.csv",
+              ["scenario", "base", "mutant", *(f"{d.name}_{k}" for d in designs
+                                               for k in ("d_intelligence_mean", "d_intelligence_ci95", "n",
+                                                         "detected"))], rows_m)
+    totals = ", ".join(f"{d.name} {detected[d.name]}" for d in designs)
+    sharper = ("neither (tie on detections and median half-width)" if verdict is None else
+               f"{verdict} (detected over all scenarios: {totals}; ties go to the narrower median half-width)")
+    compute = "\n".join(f"- {compute_text(d, cfg0, variants)}" for d in designs)
+    text = (f"# Test designs compared: episodes vs long runs at equal compute\n\nBoth designs give every SUT "
+            f"variant the same SUT steps; intact and mutants are paired per seed (an episode, or a long run), "
+            f"95 % Student-t intervals of intact − mutant intelligence over the n runs; detected: the interval "
+            f"lies above 0; median half-width and median pairing r over the mutants of a scenario. The designs' "
+            f"seeds are {designs[0].seeds[0]}..{designs[0].seeds[-1]} and "
+            f"{designs[1].seeds[0]}..{designs[1].seeds[-1]}.\n\n{compute}\n\nSharper design: {sharper}.\n\n"
+            f"{table}\n## Per mutant\n\n{markdown_table(mut_header, md_m)}\nEach design's own tables: "
+            + ", ".join(f"[{d.name}/sensitivity.md]({d.name}/sensitivity.md)" for d in designs) + ".\n")
+    (args.out / "designs.md").write_text(text, encoding="utf-8")
+    print(compute)
+    print(table, end="")
+    print(f"sharper design: {sharper}")
+    print(f"written: {args.out / 'designs.md'}, designs.csv, designs_mutants.csv, "
+          + ", ".join(f"{d.name}/" for d in designs))
     return EXIT_OK
 
 

@@ -152,7 +152,62 @@ def test_sensitivity_paired_by_seed_tables_and_resumption(tmp_path):
     assert res.returncode == 0 and "18 rounds already done" in res.stderr
 
 
+def _paired_by_hand(val: dict, variant: str, seeds: list[int]) -> tuple[float, float]:
+    d = [val[("intact", s)] - val[(variant, s)] for s in seeds]
+    mean = sum(d) / len(d)
+    sd = math.sqrt(sum((x - mean) ** 2 for x in d) / (len(d) - 1))
+    return mean, stats.t.ppf(0.975, len(d) - 1) * sd / math.sqrt(len(d))
+
+
+def test_sensitivity_episodes_design(tmp_path):
+    out = tmp_path / "ep"
+    res = script("experiment_sensitivity.py", "--out", out, "--design", "episodes", "--episodes", 2,
+                 "--episode-steps", 20, "--first-seed", 5, "--jobs", 1, "--mutants", "stale", "--scenarios", "level0")
+    assert res.returncode == 0, res.stderr
+    rounds = read_csv(out / "rounds.csv")
+    assert sorted((r["variant"], int(r["seed"])) for r in rounds) == [("intact", 5), ("intact", 6), ("stale", 5),
+                                                                     ("stale", 6)]
+    assert {(r["design"], r["steps"]) for r in rounds} == {("episodes", "20")}
+    val = {(r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+    (row,) = read_csv(out / "sensitivity.csv")
+    mean, half = _paired_by_hand(val, "stale", [5, 6])
+    assert float(row["d_intelligence_mean"]) == pytest.approx(mean)
+    assert float(row["d_intelligence_ci95"]) == pytest.approx(half) and row["seeds"] == "2"
+    assert ("Design episodes: 2 episodes (seeds 5..6) x 20 steps = 40 SUT steps per variant and scenario; the "
+            "warm-up (traffic.warmup_s = 20 s, 200 steps) runs before every run and is extra compute") in res.stdout
+    assert "paired by episode" in (out / "sensitivity.md").read_text()
+
+
+def test_sensitivity_compare_designs(tmp_path):
+    out = tmp_path / "cmp"
+    res = script("experiment_sensitivity.py", "--out", out, "--compare-designs", "--episodes", 4, "--episode-steps",
+                 20, "--seeds", 2, "--steps", 40, "--jobs", 2, "--mutants", "stale", "--scenarios", "level0")
+    assert res.returncode == 0, res.stderr
+    for name in ("designs.md", "designs.csv", "designs_mutants.csv", "episodes/sensitivity.md", "long/rounds.csv"):
+        assert (out / name).stat().st_size > 0, name
+    (mrow,) = read_csv(out / "designs_mutants.csv")
+    rows = {r["design"]: r for r in read_csv(out / "designs.csv")}
+    for design, seeds, steps in (("episodes", [0, 1, 2, 3], 20), ("long", [4, 5], 40)):  # disjoint seeds
+        rounds = read_csv(out / design / "rounds.csv")
+        assert sorted({int(r["seed"]) for r in rounds}) == seeds and {r["steps"] for r in rounds} == {str(steps)}
+        val = {(r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+        mean, half = _paired_by_hand(val, "stale", seeds)
+        assert float(mrow[f"{design}_d_intelligence_mean"]) == pytest.approx(mean)
+        assert float(mrow[f"{design}_d_intelligence_ci95"]) == pytest.approx(half)
+        assert mrow[f"{design}_n"] == str(len(seeds)) and mrow[f"{design}_detected"] == str(int(mean - half > 0))
+        row = rows[design]
+        assert float(row["median_ci95"]) == pytest.approx(half)  # one mutant: its half-width
+        assert row["detected"] == mrow[f"{design}_detected"] and row["sut_steps"] == "80"  # 4 x 20 = 2 x 40
+        assert row["warmup_steps"] == str(200 * len(seeds))
+        assert row["simulated_steps"] == str(80 + 200 * len(seeds))
+    assert "sharper design: " in res.stdout
+
+
 @pytest.mark.parametrize("name, args, expected", [
+    ("experiment_sensitivity.py", ["--design", "long", "--episodes", "5"],
+     "error: --episodes does not apply to --design long"),
+    ("experiment_sensitivity.py", ["--compare-designs", "--seeds", "5"],
+     "error: --compare-designs needs equal compute: episodes 100 x 300 = 30000 SUT steps per variant, long 5 x 3000"),
     ("experiment_sensitivity.py", ["--mutants", "stale,bogus"], "error: --mutants: unknown mutant 'bogus'"),
     ("experiment_sensitivity.py", ["--base", "mobil,mobil"], "error: --base 'mobil,mobil': expected distinct"),
     ("experiment_sensitivity.py", ["--seeds", "-1"], "error: --seeds = '-1': expected an integer >= 1"),

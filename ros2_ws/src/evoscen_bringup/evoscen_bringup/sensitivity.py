@@ -17,6 +17,13 @@ paired differences ``intact − mutant`` of every score are summarised per seed.
   cancels the seed's luck; 0: pairing buys nothing over two independent samples). Reported
   per mutant and as the median per scenario (docs/sensitivity.md).
 
+Test designs (docs/sensitivity.md "Two designs"): ``long`` — a few seeds of long runs (the
+method's 3,000 steps) — and ``episodes`` — many short runs, each its own seed (its initial
+state after the warm-up and its random streams), intact and mutants paired per episode.
+:class:`Design` holds one, :func:`design_compute` its simulated steps (equal compute = the
+same SUT steps per variant), :func:`summarise_design` a scenario's detection under it and
+:func:`sharper_design` the comparison's verdict.
+
 Pure functions over per-seed values (no simulation here); the experiment is
 ``scripts/experiment_sensitivity.py``.
 """
@@ -24,6 +31,7 @@ Pure functions over per-seed values (no simulation here); the experiment is
 from __future__ import annotations
 
 import math
+import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -120,3 +128,111 @@ def score_of(report: Mapping, name: str) -> float:
         raise ValueError(f"score {name!r}: expected one of {', '.join(SCORES)}")
     value = report[name]["score"]
     return math.nan if value is None else float(value)
+
+
+DESIGNS = ("episodes", "long")
+"""The test designs: ``episodes`` (N short runs of T steps) and ``long`` (seeds × long runs)."""
+
+
+@dataclass(frozen=True)
+class Design:
+    """A test design: ``runs`` runs (seeds ``first_seed`` ..) of ``steps`` steps per SUT variant and scenario."""
+
+    name: str
+    runs: int
+    steps: int
+    first_seed: int
+
+    @property
+    def seeds(self) -> range:
+        """The seeds of the runs (one per run: an episode's or a long run's)."""
+        return range(self.first_seed, self.first_seed + self.runs)
+
+    @property
+    def unit(self) -> str:
+        """What one run is called: ``episode`` or ``seed``."""
+        return "episode" if self.name == "episodes" else "seed"
+
+
+@dataclass(frozen=True)
+class Compute:
+    """Simulated steps of a design per SUT variant and scenario."""
+
+    sut_steps: int
+    """Steps the SUT drives and is scored on (runs × steps): what equal compute equalises."""
+    warmup_steps: int
+    """Warm-up steps before the runs (runs × warm-up steps per run): extra compute."""
+
+    @property
+    def total(self) -> int:
+        """All simulated steps, warm-ups included."""
+        return self.sut_steps + self.warmup_steps
+
+
+def design_compute(design: Design, warmup_steps_per_run: int) -> Compute:
+    """The simulated steps of ``design`` per variant and scenario, with ``warmup_steps_per_run``
+    (``traffic.warmup_s / dt_s``; 0 without a window) before every run."""
+    return Compute(design.runs * design.steps, design.runs * warmup_steps_per_run)
+
+
+def _median(values: Sequence[float]) -> float:
+    finite = [v for v in values if not math.isnan(v)]
+    return statistics.median(finite) if finite else math.nan
+
+
+@dataclass(frozen=True)
+class DesignSummary:
+    """One scenario's detection under one design (the intelligence score, paired per seed)."""
+
+    per_mutant: dict[str, Paired]
+    """``intact − mutant`` intelligence per mutant: mean, 95 % half-width, n."""
+    pairing_r: dict[str, float]
+    """Pairing r per mutant (:func:`pairing`)."""
+
+    @property
+    def detected(self) -> int:
+        """Mutants whose interval lies above zero."""
+        return sum(p.above_zero for p in self.per_mutant.values())
+
+    @property
+    def mutants(self) -> int:
+        return len(self.per_mutant)
+
+    @property
+    def score(self) -> float:
+        """The mutation score, detected / all."""
+        return mutation_score([p.above_zero for p in self.per_mutant.values()])
+
+    @property
+    def median_half(self) -> float:
+        """Median over the mutants of the 95 % half-width (undefined ones left out; ``nan`` if none)."""
+        return _median([p.half for p in self.per_mutant.values()])
+
+    @property
+    def median_r(self) -> float:
+        """Median over the mutants of the pairing r (undefined ones left out; ``nan`` if none)."""
+        return _median(list(self.pairing_r.values()))
+
+
+def summarise_design(intact: Mapping[int, float], mutants: Mapping[str, Mapping[int, float]]) -> DesignSummary:
+    """A scenario's detection from per-seed intelligence scores: ``intact`` (seed → I) and each
+    mutant's (name → seed → I), paired per seed (:func:`paired`, :func:`pairing`)."""
+    return DesignSummary({m: paired(intact, v) for m, v in mutants.items()},
+                         {m: pairing(intact, v) for m, v in mutants.items()})
+
+
+def sharper_design(summaries: Mapping[str, Sequence[DesignSummary]]) -> str | None:
+    """The sharper of the designs (name → its summaries, one per scenario and base SUT): the one that
+    detects more mutants over all of them; on a tie the one whose median half-width over every (scenario,
+    mutant) is narrower. None when they tie on both (or a half-width is undefined)."""
+    detected = {name: sum(s.detected for s in sums) for name, sums in summaries.items()}
+    best = max(detected.values())
+    leaders = [name for name, k in detected.items() if k == best]
+    if len(leaders) == 1:
+        return leaders[0]
+    halves = {name: _median([p.half for s in summaries[name] for p in s.per_mutant.values()]) for name in leaders}
+    if any(math.isnan(h) for h in halves.values()):
+        return None
+    narrowest = min(halves.values())
+    leaders = [name for name, h in halves.items() if h == narrowest]
+    return leaders[0] if len(leaders) == 1 else None
