@@ -135,6 +135,8 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
         print(f"graph: waiting up to {opts.startup_timeout_s:g} s for your SUT node on /evoscen/commands/sut "
               f"(ROS_DOMAIN_ID={domain})", file=sys.stderr)
     result = run_graph(cfg, out, bag_dir, opts)
+    if result.status == EXIT_HOST_FAULT:  # the recorder said in one line what became of the bag
+        return result.status
     counts: dict[str, int] = {}
     if not any(bag_dir.glob("*.mcap")) if bag_dir.is_dir() else True:
         print(f"error: no bag was written in {bag_dir} (the run ended during start-up)", file=sys.stderr)

@@ -224,20 +224,34 @@ def small_fs(tmp_path: Path):  # noqa: ANN201
         subprocess.run(["umount", "-l", str(mnt)], check=False)
 
 
+def _cli(out: Path, mode: str, steps: int = STEPS) -> list[str]:
+    argv = [sys.executable, str(REPO / "scripts" / "run_scenario.py"), "--mode", "graph" if mode == "graph" else "inprocess",
+            "--steps", str(steps), "--seed", "5", "--sut", "mobil", "--out", str(out)]
+    return argv if mode == "graph" else [*argv, "--quiet", "--bag-writer", mode]
+
+
+def _error_line(stderr: str) -> str:
+    """The one error line (the graph launcher's and the simulation's informational lines aside)."""
+    assert "Traceback" not in stderr, stderr
+    errors = [ln for ln in stderr.splitlines() if ln.startswith("error:")]
+    assert len(errors) == 1, stderr
+    return errors[0]
+
+
 @pytest.mark.e2e
-@pytest.mark.parametrize("writer", ["inline", "process"])
-def test_cli_on_a_full_tmpfs(tmp_path: Path, small_fs: Path, reference: Path, writer: str) -> None:
+@pytest.mark.parametrize("mode", ["inline", "process", "graph"])
+def test_cli_on_a_full_tmpfs(tmp_path: Path, small_fs: Path, reference: Path, mode: str) -> None:
     out = small_fs / "run"
-    proc = subprocess.run([sys.executable, str(REPO / "scripts" / "run_scenario.py"), "--mode", "inprocess",
-                           "--steps", str(STEPS), "--seed", "5", "--sut", "mobil", "--out", str(out), "--quiet",
-                           "--bag-writer", writer], capture_output=True, text=True, timeout=300, check=False)
-    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    proc = subprocess.run(_cli(out, mode), capture_output=True, text=True, timeout=300, check=False)
     assert proc.returncode == 5, proc.stderr
-    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    line = _error_line(proc.stderr)
+    if mode != "graph":
+        assert len([ln for ln in proc.stderr.splitlines() if ln.strip()]) == 1, proc.stderr
     bag = out / "bag"
-    assert lines[0].startswith(f"error: cannot write {bag / 'bag_0.mcap'}: No space left on device (ENOSPC)")
-    m = re.search(r"holds the (\d+) world states", lines[0])
-    assert m and f"python scripts/reindex.py {bag}" in lines[0]
+    who = "evoscen_eval: " if mode == "graph" else ""
+    assert line.startswith(f"error: {who}cannot write {bag / 'bag_0.mcap'}: No space left on device (ENOSPC)")
+    m = re.search(r"holds the (\d+) world states", line)
+    assert m and f"python scripts/reindex.py {bag}" in line
     size = (bag / "bag_0.mcap").stat().st_size
     ends = [end for end, _t in _chunks(reference)]
     assert size in ends  # cut back to a chunk boundary of the undisturbed run
@@ -250,3 +264,74 @@ def test_cli_on_a_full_tmpfs(tmp_path: Path, small_fs: Path, reference: Path, wr
     assert r.returncode == 0, r.stderr
     assert f"{n} world states" in r.stdout
     assert _worlds(copy / "bag_0.mcap") == kept
+
+
+class _ReadOnly(_FullDisk):
+    """A raw file whose file system turns read-only once ``budget[0]`` bytes are written: the write
+    that would cross it fails whole with EROFS, and the file can no longer be truncated either."""
+
+    def write(self, data) -> int:  # noqa: ANN001
+        if len(data) > self._budget[0]:
+            self._budget[0] = 0
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+        self._budget[0] -= len(data)
+        return self._f.write(data)
+
+    def fileno(self) -> int:
+        if self._budget[0] <= 0:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+        return self._f.fileno()
+
+
+@pytest.mark.parametrize("writer", ["inline", "process"])
+def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypatch: pytest.MonkeyPatch,
+                                       writer: str) -> None:
+    """Every write fails from some point on (the file system remounted read-only): one line naming
+    the cause and the reindexer; the reindexer reads exactly the states written before it."""
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_eval import recorder
+    from evoscen_eval.reindex import reindex_bag
+    from evoscen_sim.errors import HostFault
+
+    chunks = _chunks(reference)
+    k = len(chunks) // 3
+    capacity = (chunks[k - 1][0] + chunks[k][0]) // 2
+    n, kept = _expected(reference, capacity)
+    bag = tmp_path / "bag"
+    budget = [capacity]
+    real = recorder._open_file  # noqa: SLF001
+
+    def fake(path: Path):  # noqa: ANN202
+        if not str(path).startswith(str(bag)):
+            return real(path)
+        if budget[0] <= 0:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return _ReadOnly(path, budget)
+
+    monkeypatch.setattr(recorder, "_open_file", fake)
+    with pytest.raises(HostFault) as info:
+        run_inprocess(_cfg(), bag_dir=bag, bag_writer=writer)
+    fault = info.value
+    assert fault.errno == errno.EROFS and fault.bag_state == "reindex" and fault.steps == n
+    assert "Read-only file system (EROFS)" in fault.line() and f"reindex.py {bag}" in fault.line()
+    monkeypatch.undo()
+    reindex_bag(bag, keep_original=False)
+    assert _worlds(bag / "bag_0.mcap") == kept
+
+
+def test_bag_directory_removed_mid_run(tmp_path: Path) -> None:
+    """The bag's directory is removed while the run writes: one line naming metadata.yaml, the bag gone."""
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_sim.errors import HostFault
+
+    bag = tmp_path / "out" / "bag"
+
+    def remove(k: int) -> None:
+        if k == 100:
+            shutil.rmtree(tmp_path / "out")
+
+    with pytest.raises(HostFault) as info:
+        run_inprocess(_cfg(200), bag_dir=bag, bag_writer="inline", progress=remove)
+    assert info.value.bag_state == "lost" and info.value.errno == errno.ENOENT
+    line = info.value.line()
+    assert str(bag / "metadata.yaml") in line and "is gone" in line and "\n" not in line
