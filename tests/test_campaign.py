@@ -364,3 +364,60 @@ def test_critical_events_become_clips_pictures_and_reproducible_commands(tmp_pat
     assert kinds == sorted(kinds)  # every collision before every exposure
     sev = [float(r[5]) for r in rows if r[1] == "exposure"]
     assert sev == sorted(sev, reverse=True)
+
+
+def test_a_full_disk_mid_campaign_stops_it_and_the_same_command_resumes(tmp_path):
+    """The output's disk fills mid-campaign (a real tmpfs sized for about half the runs' files):
+    one line, status 5, no run marked done that was not written whole; after space is freed the
+    same command computes exactly the rest, and the results equal an undisturbed campaign's."""
+    import pyarrow.parquet as pq
+
+    if os.geteuid() != 0:
+        pytest.skip("needs root to mount a tmpfs")
+    spec = write_spec(tmp_path, SMALL)
+    ref = tmp_path / "ref"
+    proc = _cli(spec, ref)
+    _out, err = _finish(proc, 300)
+    assert proc.returncode == 0, err
+    page = 4096
+    per_run = [sum(-(-f.stat().st_size // page) * page for f in d.iterdir()) for d in sorted((ref / "runs").iterdir())]
+    mnt = tmp_path / "fs"
+    mnt.mkdir()
+    size_kib = (sum(per_run[:3]) + page) // 1024
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_kib}k", "tmpfs", str(mnt)]).returncode:
+        pytest.skip("cannot mount a tmpfs")
+    try:
+        out = mnt / "out"
+        proc = _cli(spec, out)
+        _out, err = _finish(proc, 300)
+        assert proc.returncode == 5, err
+        assert "Traceback" not in err
+        errors = [ln for ln in err.splitlines() if ln.startswith("error:")]
+        assert len(errors) == 1 and "No space left on device (ENOSPC)" in errors[0], err
+        assert "run the same command again to continue" in errors[0]
+        done = _results(out)
+        assert 1 <= len(done) < 6
+        for p in done:  # every run marked done is whole
+            json.loads(p.read_text())
+            assert (p.parent / "report.json").is_file() and (p.parent / "plot.json").is_file()
+        assert not list(out.rglob("*.tmp"))
+        kept = {p: p.stat().st_mtime_ns for p in done}
+        assert subprocess.run(["mount", "-o", "remount,size=64m", str(mnt)]).returncode == 0  # space freed
+        again = _cli(spec, out)
+        stdout, err = _finish(again, 300)
+        assert again.returncode == 0, err
+        assert f"{6 - len(kept)} runs computed" in stdout and f"{len(kept)} already done" in stdout
+        assert all(p.stat().st_mtime_ns == t for p, t in kept.items())
+        volatile = {"wall_time_s", "node", "pid"}
+
+        def rows(d: Path) -> list[dict]:
+            table = pq.read_table(d / "results.parquet").to_pylist()
+            return sorted(({k: v for k, v in row.items() if k not in volatile} for row in table), key=lambda r: r["key"])
+
+        got, want = rows(out), rows(ref)
+        assert len(got) == 6 == len({r["key"] for r in got})
+        assert json.dumps(got, sort_keys=True) == json.dumps(want, sort_keys=True)
+        for d in sorted((ref / "runs").iterdir()):
+            assert (out / "runs" / d.name / "report.json").read_bytes() == (d / "report.json").read_bytes()
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
