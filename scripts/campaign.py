@@ -53,8 +53,13 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    from evoscen_bringup.campaign import end_leftovers
     from tqdm import tqdm
 
+    left = end_leftovers(out)
+    if left:
+        print(f"campaign: ended {len(left)} Ray process(es) left running by an earlier driver of {out} that was killed: "
+              + ", ".join(f"{name} (pid {pid})" for pid, name in left), file=sys.stderr)
     done_before = sum((out / "runs" / r.key / "result.json").exists() for r in runs)
     print(f"campaign {spec.name}: {len(runs)} runs ({len(runs) // len(spec.seeds)} cells x {len(spec.seeds)} seeds), "
           f"{done_before} already done; results in {out}", file=sys.stderr)
