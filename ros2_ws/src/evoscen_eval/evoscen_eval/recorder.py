@@ -361,17 +361,19 @@ def _open_file(path: Path):  # noqa: ANN202 - a raw binary file
 
 
 class _BagFile:
-    """The MCAP file as the writer sees it: every write goes whole to the operating system or
-    raises :class:`~evoscen_sim.errors.HostFault` (a full disk, a read-only or vanished output);
-    ``flush`` marks a point where every message counted so far is on disk (:meth:`BagRecorder.flush`
-    and the 1-s chunks), the point the file is cut back to after a fault, so that it ends with a
-    complete chunk. Unbuffered: the recorder writes whole chunks (a few writes a chunk), so no
-    buffer can hold bytes that a fault would leave half written."""
+    """The MCAP file as the writer sees it: what is written is held until :meth:`flush` (the 1-s
+    chunks, :meth:`BagRecorder.flush`, the end), which hands it to the operating system whole or
+    raises :class:`~evoscen_sim.errors.HostFault` (a full disk, a read-only or vanished output).
+    A flush that succeeded is a point where every message counted so far is on disk, the point the
+    file is cut back to after a fault, so that it ends with a complete chunk. Nothing reaches the
+    file between those points (the file stays empty until the first chunk, as with a buffered
+    file), so a fault can only leave the bytes of one flush half written."""
 
     def __init__(self, path: Path, owner: BagRecorder) -> None:
         self.path = path
         self._owner = owner
         self._f = _open_file(path)
+        self._held: list = []
         self._pos = 0
         self.good = 0  # the end of the last complete chunk on disk
 
@@ -379,27 +381,35 @@ class _BagFile:
         owner = self._owner
         if owner._fault is not None:  # noqa: SLF001 - nothing more after a fault
             raise owner._fault  # noqa: SLF001
-        view = memoryview(data).cast("B")
-        total = len(view)
+        n = len(data) if not isinstance(data, memoryview) else data.nbytes
+        self._held.append(bytes(data))
+        self._pos += n
+        return n
+
+    def _write_out(self) -> None:
+        held, self._held = self._held, []
         try:
-            while view:
-                n = self._f.write(view)
-                if not n:
-                    raise OSError(errno.EIO, "the file took no bytes")
-                view = view[n:]
+            for data in held:
+                view = memoryview(data)
+                while view:
+                    n = self._f.write(view)
+                    if not n:
+                        raise OSError(errno.EIO, "the file took no bytes")
+                    view = view[n:]
         except OSError as exc:
-            raise owner._fault_of(exc, self.path) from None  # noqa: SLF001
-        self._pos += total
-        return total
+            raise self._owner._fault_of(exc, self.path) from None  # noqa: SLF001
 
     def tell(self) -> int:
         return self._pos
 
     def flush(self) -> None:
-        """Everything written so far is with the operating system: a point to cut back to."""
-        if self._owner._fault is None:  # noqa: SLF001
-            self.good = self._pos
-            self._owner._on_safe_point()  # noqa: SLF001
+        """Hand everything written so far to the operating system: a point to cut back to."""
+        owner = self._owner
+        if owner._fault is not None:  # noqa: SLF001
+            raise owner._fault  # noqa: SLF001
+        self._write_out()
+        self.good = self._pos
+        owner._on_safe_point()  # noqa: SLF001
 
     def cut_back(self) -> None:
         """Truncate the file to its last complete chunk (frees what a fault left half written)."""
@@ -547,7 +557,6 @@ class BagRecorder:
         self._end_ns: int | None = None
         self._message_count = 0
         self._closed = False
-        self._stream.flush()  # the header, schemas and channels: the file's first safe point
 
     # ------------------------------------------------------------------ faults of the host
 
@@ -577,6 +586,9 @@ class BagRecorder:
         fault.steps = self._safe_counts.get(_WORLD_TOPIC, 0)
         if not self.mcap_path.exists():
             fault.bag_state = "lost"
+            return
+        if self._stream.good == 0:  # not even the first chunk reached the disk
+            fault.bag_state = "empty"
             return
         fault.bag_state = "reindex"
         if not self._finish_on_fault:
@@ -967,6 +979,7 @@ class BagRecorder:
                 self._chunk.finalize()  # where the library's finish() writes its open chunk
                 self._stream.flush()  # every message is on disk: the summary is all that is left
             self._writer.finish()
+            self._stream.flush()
         except HostFault:
             self._finish_after_fault()
             raise

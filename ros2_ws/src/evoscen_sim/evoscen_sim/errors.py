@@ -55,6 +55,8 @@ class HostFault(RuntimeError):
             return f"{what}; {fix}, then run again"
         if self.bag_state == "finished":
             return f"{what}; the bag {self.bag_dir} is finished, with{steps} readable as it is; {fix}, then run again"
+        if self.bag_state == "empty":
+            return f"{what}; the bag {self.bag_dir} holds no step (the first second did not fit); {fix}, then run again"
         if self.bag_state == "lost":
             return f"{what}; the bag {self.bag_dir} is gone (its directory was removed); {fix}, then run again"
         return (f"{what}; the bag {self.bag_dir} holds{steps} but could not be finished; {fix}, then run: "
