@@ -203,8 +203,11 @@ def main(argv: list[str] | None = None) -> int:
             # and held until the graph has ended
             with reserve_domain(args.domain_id) as domain:
                 prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
-                dump_config(cfg, out / "scenario.yaml")
-                return run_graph_mode(args, cfg, out, bag_dir, report_dir, domain)
+                try:
+                    dump_config(cfg, out / "scenario.yaml")
+                    return run_graph_mode(args, cfg, out, bag_dir, report_dir, domain)
+                except OSError as exc:  # scenario.yaml, the parameter files: before step 0
+                    raise HostFault.of(exc, exc.filename or out) from None
         prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
         try:
             dump_config(cfg, out / "scenario.yaml")
