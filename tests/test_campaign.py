@@ -454,3 +454,26 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     assert not (out / DRIVER_FILE).exists()
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
     assert len(keys) == 16 == len(set(keys))
+
+
+def test_a_fault_of_the_host_in_a_worker_is_found_behind_rays_error():
+    """A run's HostFault raised in a Ray worker reaches the driver wrapped by Ray; the driver finds
+    it (and stops the campaign with one line instead of failing every run alike)."""
+    import ray
+
+    from evoscen_bringup.campaign import _host_fault_of
+    from evoscen_sim.errors import HostFault
+
+    def full() -> None:
+        raise HostFault.of(OSError(28, "No space left on device"), "/tmp/evoscen-run-x/bag/bag_0.mcap")
+
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    try:
+        with pytest.raises(Exception) as info:  # noqa: PT011 - Ray's wrapper, whatever its class
+            ray.get(ray.remote(num_cpus=1, max_retries=0)(full).remote())
+    finally:
+        ray.shutdown()
+    fault = _host_fault_of(info.value)
+    assert fault is not None and fault.cause == "No space left on device (ENOSPC)"
+    assert str(fault.path) == "/tmp/evoscen-run-x/bag/bag_0.mcap"
+    assert _host_fault_of(RuntimeError("not the disk")) is None

@@ -335,3 +335,36 @@ def test_bag_directory_removed_mid_run(tmp_path: Path) -> None:
     assert info.value.bag_state == "lost" and info.value.errno == errno.ENOENT
     line = info.value.line()
     assert str(bag / "metadata.yaml") in line and "is gone" in line and "\n" not in line
+
+
+@pytest.mark.e2e
+def test_evaluate_cli_on_a_full_disk(tmp_path: Path, small_fs: Path) -> None:
+    """scripts/evaluate.py whose report does not fit: one line naming the file, status 5."""
+    from evoscen_bringup.inprocess import run_inprocess
+
+    bag = tmp_path / "bag"
+    run_inprocess(_cfg(50), bag_dir=bag, bag_writer="inline")
+    st = os.statvfs(small_fs)
+    (small_fs / "filler").write_bytes(b"\0" * max(st.f_bavail * st.f_frsize - 4096, 0))
+    proc = subprocess.run([sys.executable, str(REPO / "scripts" / "evaluate.py"), str(bag), "--out",
+                           str(small_fs / "report")], capture_output=True, text=True, timeout=120, check=False)
+    assert proc.returncode == 5, proc.stderr
+    line = _error_line(proc.stderr)
+    assert line.startswith(f"error: cannot write {small_fs / 'report'}") and "(ENOSPC)" in line, line
+    assert "bag" not in line.split(";")[1]  # no bag of this command's own to speak of
+
+
+@pytest.mark.e2e
+def test_cli_report_that_does_not_fit_keeps_the_finished_bag(tmp_path: Path, small_fs: Path) -> None:
+    """The bag fits, the report's plots do not: one line naming the report, the bag finished."""
+    st = os.statvfs(small_fs)
+    (small_fs / "filler").write_bytes(b"\0" * max(st.f_bavail * st.f_frsize - 300 * 1024, 0))  # 300 KiB left
+    out = small_fs / "run"
+    proc = subprocess.run(_cli(out, "inline", steps=100), capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 5, proc.stderr
+    line = _error_line(proc.stderr)
+    assert line.startswith(f"error: cannot write {out / 'report'}") and "(ENOSPC)" in line, line
+    assert f"the bag {out / 'bag'} is finished, with the 101 world states" in line
+    assert (out / "bag" / "metadata.yaml").is_file()
+    worlds = _worlds(out / "bag" / "bag_0.mcap")
+    assert [t for t, _ in worlds] == [k * 100_000_000 for k in range(101)]

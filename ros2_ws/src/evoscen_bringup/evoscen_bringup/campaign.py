@@ -341,12 +341,16 @@ def _host_fault_of(exc: BaseException):  # noqa: ANN202 - HostFault | None
     """The :class:`~evoscen_sim.errors.HostFault` behind a task's error (Ray wraps it), or None."""
     from evoscen_sim.errors import HostFault
 
-    seen = 0
-    while exc is not None and seen < 8:
-        if isinstance(exc, HostFault):
+    for _ in range(8):
+        if exc is None:
+            return None
+        inner = getattr(exc, "cause", None)  # Ray's RayTaskError: the task's own exception
+        if isinstance(inner, BaseException):  # (the wrapper is a HostFault too, without its fields)
+            exc = inner
+        elif isinstance(exc, HostFault):
             return exc
-        exc = getattr(exc, "cause", None) or exc.__cause__
-        seen += 1
+        else:
+            exc = exc.__cause__
     return None
 
 

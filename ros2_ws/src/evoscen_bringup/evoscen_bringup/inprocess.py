@@ -236,11 +236,15 @@ def run_inprocess(
     if outcome.kind == KIND_INTERRUPTED:
         raise KeyboardInterrupt
     if acc is not None:
+        from evoscen_sim.errors import HostFault
+
         try:
             summary.run, summary.report, summary.plot = _report(acc, cfg, report_dir, plots, keep_run)
-        except OSError as exc:  # a full disk, a read-only or vanished report directory: the bag is finished
-            from evoscen_sim.errors import HostFault
-
+        except HostFault as fault:  # a full disk, a read-only report directory: the bag is finished
+            fault.bag_dir, fault.steps = bag_dir, summary.steps + 1
+            fault.bag_state = "finished" if bag_dir is not None else None
+            raise
+        except OSError as exc:
             raise HostFault.of(exc, exc.filename or report_dir, bag_dir=bag_dir, steps=summary.steps + 1,
                                bag_state="finished" if bag_dir is not None else None) from None
     return summary

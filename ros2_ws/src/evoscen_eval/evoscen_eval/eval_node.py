@@ -272,9 +272,9 @@ class EvaluatorNode:
         except (InputError, ValueError) as exc:
             print(f"error: {NODE_NAME}: no report: {exc}", file=sys.stderr)
             return status or EXIT_FAULT
-        except OSError as exc:  # the bag is finished; the report could not be written
-            fault = HostFault.of(exc, exc.filename or self.report_dir, bag_dir=self.bag.bag.bag_dir,
-                                 bag_state="finished")
+        except (HostFault, OSError) as exc:  # the bag is finished; the report could not be written
+            fault = exc if isinstance(exc, HostFault) else HostFault.of(exc, exc.filename or self.report_dir)
+            fault.bag_dir, fault.bag_state = self.bag.bag.bag_dir, "finished"
             print(f"error: {NODE_NAME}: {fault.line()}", file=sys.stderr)
             return EXIT_HOST_FAULT
         return status

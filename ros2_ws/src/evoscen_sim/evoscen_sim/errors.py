@@ -37,6 +37,10 @@ class HostFault(RuntimeError):
         self.bag_state = bag_state
         self.steps = steps
 
+    #: errno values that are the host's, not the user's: a full disk or quota, a read-only file
+    #: system, an I/O error, a file too large for the file system.
+    ERRNOS = frozenset({28, 122, 30, 5, 27})  # ENOSPC, EDQUOT, EROFS, EIO, EFBIG
+
     @classmethod
     def of(cls, exc: OSError, path, **kw) -> HostFault:  # noqa: ANN001
         """The fault of an operating-system error ``exc`` writing ``path``."""
