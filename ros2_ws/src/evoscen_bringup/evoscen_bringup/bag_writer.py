@@ -174,6 +174,9 @@ class ProcessRecorder:
         if self._closed:
             if self._fault is None and self._flag[0]:  # failed after the last step's check
                 self._writer_failed()
+            if self._fault is not None:  # the writer has ended (it reported its fault, then returned)
+                self._to_writer.close()
+                self._from_writer.close()
             return
         self._closed = True
         try:
