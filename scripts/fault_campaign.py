@@ -96,9 +96,9 @@ class GraphResult:
     reindexed: bool
     steps_lost: int | None
     world_identical: bool | None = None
-    orphans: int = 0  # processes of the run left running after it ended (driver-kill: after the resume)
     problems: list[str] = field(default_factory=list)
     stderr_tail: str = ""  # the launcher's last lines, kept for runs with a problem
+    orphans: int = 0  # processes of the run left running after it ended (driver-kill: after the resume)
 
 
 def _fault_classes() -> list[tuple]:

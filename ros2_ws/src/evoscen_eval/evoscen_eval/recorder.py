@@ -374,8 +374,12 @@ class _BagFile:
         self._owner = owner
         self._f = _open_file(path)
         self._held: list = []
+        self._held_bytes = 0
         self._pos = 0
         self.good = 0  # the end of the last complete chunk on disk
+
+    HOLD_BYTES = 16 * 1024 * 1024
+    """Bytes held at most between two flushes (bags written without the 1-s bound)."""
 
     def write(self, data) -> int:  # noqa: ANN001
         owner = self._owner
@@ -384,10 +388,13 @@ class _BagFile:
         n = len(data) if not isinstance(data, memoryview) else data.nbytes
         self._held.append(bytes(data))
         self._pos += n
+        self._held_bytes += n
+        if self._held_bytes > self.HOLD_BYTES:  # no flush for long (no time bound): out, not a safe point
+            self._write_out()
         return n
 
     def _write_out(self) -> None:
-        held, self._held = self._held, []
+        held, self._held, self._held_bytes = self._held, [], 0
         try:
             for data in held:
                 view = memoryview(data)
