@@ -368,3 +368,23 @@ def test_cli_report_that_does_not_fit_keeps_the_finished_bag(tmp_path: Path, sma
     assert (out / "bag" / "metadata.yaml").is_file()
     worlds = _worlds(out / "bag" / "bag_0.mcap")
     assert [t for t, _ in worlds] == [k * 100_000_000 for k in range(101)]
+
+
+def test_bytes_held_between_flushes_are_bounded_and_change_nothing(tmp_path: Path, reference: Path,
+                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past HOLD_BYTES the bag file writes out without waiting for a flush: the same file, byte for byte."""
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_eval import recorder
+
+    writes = []
+    real = recorder._BagFile._write_out  # noqa: SLF001
+
+    def counted(self) -> None:  # noqa: ANN001
+        writes.append(1)
+        real(self)
+
+    monkeypatch.setattr(recorder._BagFile, "HOLD_BYTES", 1000)  # noqa: SLF001
+    monkeypatch.setattr(recorder._BagFile, "_write_out", counted)  # noqa: SLF001
+    run_inprocess(_cfg(), bag_dir=tmp_path / "held" / "bag", bag_writer="inline")
+    assert len(writes) > len(_chunks(reference)) + 1  # more write-outs than flushes
+    assert (tmp_path / "held" / "bag" / "bag_0.mcap").read_bytes() == reference.read_bytes()
