@@ -10,7 +10,9 @@ and ``report.json`` per run, ``results.parquet`` (one row per run) and ``summary
 means with 95 % intervals; paired differences with ``compare``). A run whose result exists is
 never recomputed: run the same command again after Ctrl-C to continue. ``--address`` joins a
 running Ray cluster (``ray start --head``); by default Ray starts here with ``--cpus`` workers
-(default: every CPU). Exit status: 0 done, 2 bad input, 3 some runs failed, 130 interrupted.
+(default: every CPU). Exit status: 0 done, 2 bad input, 3 some runs failed, 5 a fault of the host
+(a full disk, an unwritable output: one line; the run it hit is not marked done, the same command
+continues once it is gone), 130 interrupted.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -38,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.campaign import expand, load_spec, run_campaign, write_results
     from evoscen_bringup.experiments import positive_int
-    from evoscen_sim.errors import InputError
+    from evoscen_sim.errors import HostFault, InputError
 
     try:
         cpus = positive_int("--cpus", args.cpus)
@@ -51,8 +53,13 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    from evoscen_bringup.campaign import end_leftovers
     from tqdm import tqdm
 
+    left = end_leftovers(out)
+    if left:
+        print(f"campaign: ended {len(left)} Ray process(es) left running by an earlier driver of {out} that was killed: "
+              + ", ".join(f"{name} (pid {pid})" for pid, name in left), file=sys.stderr)
     done_before = sum((out / "runs" / r.key / "result.json").exists() for r in runs)
     print(f"campaign {spec.name}: {len(runs)} runs ({len(runs) // len(spec.seeds)} cells x {len(spec.seeds)} seeds), "
           f"{done_before} already done; results in {out}", file=sys.stderr)
@@ -73,7 +80,16 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
     finally:
         bar.close()
-    write_results(spec, runs, out)
+    fix = "free space on the disk (or make the output directory writable), then run the same command again to continue"
+    if result.host_fault is not None:  # one line; the finished runs are kept, that run is not marked done
+        print(f"error: campaign stopped: {result.host_fault}; {fix} ({result.already_done + result.computed} "
+              f"of {len(runs)} runs done are kept)", file=sys.stderr)
+        return EXIT_HOST_FAULT
+    try:
+        write_results(spec, runs, out)
+    except HostFault as exc:
+        print(f"error: campaign: {exc}; {fix} (every finished run is kept)", file=sys.stderr)
+        return EXIT_HOST_FAULT
     print(f"{result.computed} runs computed in {result.wall_s:.1f} s on {len(result.nodes) or 0} node(s), "
           f"{result.already_done} already done; {out / 'results.parquet'}, {out / 'summary.md'}")
     for line in result.failed:

@@ -11,7 +11,8 @@ evaluated up to the damage, with one warning saying how many steps were read and
 command that rebuilds such a bag (``scripts/reindex.py BAG``); ``--reindex`` runs it first.
 
 ``--out`` defaults to ``<the bag's directory>/../report_offline``; an existing non-empty
-directory is replaced only with ``--overwrite``. Exit status: 0 done, 2 bad input.
+directory is replaced only with ``--overwrite``. Exit status: 0 done, 2 bad input, 5 the report could not be
+written (a full disk, a read-only file system: one line naming the file).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_HOST_FAULT, EXIT_OK
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -71,8 +72,14 @@ def main(argv: list[str] | None = None) -> int:
             shutil.rmtree(out)
         for warning in run.warnings:
             print(f"warning: {warning}", file=sys.stderr)
-        report = write_stream_report(run.stream, run.info, run.warnings, out, plots=not args.no_plots,
-                                     source=str(bag_path), lane_segments=run.lane_segments)
+        from evoscen_sim.errors import HostFault
+
+        try:
+            report = write_stream_report(run.stream, run.info, run.warnings, out, plots=not args.no_plots,
+                                         source=str(bag_path), lane_segments=run.lane_segments)
+        except HostFault as fault:  # a full disk, a read-only file system
+            print(f"error: {fault.line()}", file=sys.stderr)
+            return EXIT_HOST_FAULT
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -16,7 +16,22 @@ fault classes taken in turn and their timing drawn from a generator seeded by ``
   discovering an outside node can take seconds on a loaded machine) and it must have attacked at
   least half of the world messages.
 
-For each run: the exit status (documented: 0, 2, 3, 4, 130), seconds from the fault to the end
+Faults of the host (docs/recording.md, "Faults of the host"; ``sudo``/root for the tmpfs):
+
+* ``enospc:inline``, ``enospc:process``, ``enospc:graph``: the run's output on a tmpfs of a size
+  drawn from 150 to 1,500 KiB (the script mounts it and removes it), so the disk fills at a random
+  step: status 5 with one ``error:`` line (0 if everything fit), and the bag (after ``reindex`` if
+  the line asks for it) holds exactly the world states the line names, steps 0..N-1;
+* ``vanish:process``: the output directory removed while the bag is written (at a size drawn
+  from 20 to 400 kB): status 5, one line saying the bag is gone;
+* ``driver-kill``: a campaign of 8 short runs whose driver alone is SIGKILLed after its first
+  result, then the same command: status 0, every run exactly once, no process of the killed
+  driver's Ray left running.
+
+The read-only output is not a class: a file system with files open for writing cannot be
+remounted read-only (EBUSY); the tests simulate it at the bag file's writes (EROFS).
+
+For each run: the exit status (documented: 0, 2, 3, 4, 5, 130), seconds from the fault to the end
 of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, whether the bag opens (after
 ``reindex`` if it has to), and steps lost (world states published by the simulation but missing
 from the bag; ≤ 10 = 1 s allowed after a SIGKILLed evaluator, 0 otherwise). To count what the
@@ -83,12 +98,196 @@ class GraphResult:
     world_identical: bool | None = None
     problems: list[str] = field(default_factory=list)
     stderr_tail: str = ""  # the launcher's last lines, kept for runs with a problem
+    orphans: int = 0  # processes of the run left running after it ended (driver-kill: after the resume)
 
 
 def _fault_classes() -> list[tuple]:
     kills = [("kill", sig, node, phase) for phase in ("lockstep", "startup") for node in NODES
              for sig in ("SIGKILL", "SIGTERM")]
-    return kills + [("stall",), ("inject",)]
+    host = [("enospc", runner) for runner in ("inline", "process", "graph")]
+    return kills + [("stall",), ("inject",)] + host + [("vanish", "process"), ("driver-kill",)]
+
+
+HOST_FAULT_STATUS = 5  # evoscen_contract.contract.EXIT_HOST_FAULT
+
+
+def _mount_tmpfs(path: Path, size_kib: int) -> str | None:
+    """Mount a tmpfs of ``size_kib`` KiB at ``path``; None, or why it could not."""
+    path.mkdir(parents=True, exist_ok=True)
+    r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_kib}k", "tmpfs", str(path)],
+                       capture_output=True, text=True, check=False)
+    return None if r.returncode == 0 else f"cannot mount a tmpfs (root needed): {r.stderr.strip()}"
+
+
+def _check_host_fault_end(stderr: str, status: int | None, problems: list[str]) -> str | None:
+    """The one ``error:`` line of a run ended by a fault of the host (problems noted); None if none."""
+    errors = [ln for ln in stderr.splitlines() if ln.startswith("error:")]
+    if status not in (0, HOST_FAULT_STATUS):
+        problems.append(f"exit status {status}, expected {HOST_FAULT_STATUS} (or 0 if everything fit)")
+    if status == HOST_FAULT_STATUS and len(errors) != 1:
+        problems.append(f"{len(errors)} error lines, expected one")
+    return errors[0] if errors else None
+
+
+def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path) -> GraphResult:
+    """One run with a fault of the host (module docstring): a full disk, the output removed, the
+    campaign driver killed."""
+    kind = fault[0]
+    problems: list[str] = []
+    status, hang, stderr, end_s = None, False, "", None
+    readable, reindexed, lost, orphans = None, False, None, 0
+    if kind == "driver-kill":
+        return _driver_kill(fault, seed, steps, rng, work)
+    out_root = work / f"host-{seed}"
+    mounted = False
+    if kind == "enospc":
+        size = rng.randint(150, 1500)  # KiB: the disk fills at a random step
+        why = _mount_tmpfs(out_root, size)
+        if why is not None:
+            problems.append(why)
+            return GraphResult(" ".join(fault), seed, None, None, False, False, None, False, None, problems=problems)
+        mounted = True
+    out = out_root / "run"
+    runner = fault[1]
+    args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--steps", str(steps), "--seed", str(seed),
+            "--out", str(out), "--no-plots"]
+    args += ["--mode", "graph"] if runner == "graph" else ["--mode", "inprocess", "--quiet", "--bag-writer", runner]
+    try:
+        proc = subprocess.Popen(args, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        if kind == "vanish":
+            mcap, at = out / "bag" / "bag_0.mcap", rng.randint(20_000, 400_000)
+            end = time.monotonic() + 60
+            while proc.poll() is None and time.monotonic() < end and not (mcap.exists() and mcap.stat().st_size > at):
+                time.sleep(0.01)
+            shutil.rmtree(out, ignore_errors=True)
+            t_fault = time.monotonic()
+        try:
+            _stdout, stderr = proc.communicate(timeout=HANG_S)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _stdout, stderr = proc.communicate()
+            hang = True
+        if kind == "vanish":
+            end_s = time.monotonic() - t_fault
+        status = None if hang else proc.returncode
+        line = _check_host_fault_end(stderr, status, problems)
+        bag = out / "bag"
+        if kind == "enospc" and bag.is_dir():
+            copy = work / f"host-{seed}-bag"
+            shutil.copytree(bag, copy)
+            world = _world_steps(copy)
+            if world is None:
+                from evoscen_eval.reindex import reindex_bag
+
+                with contextlib.suppress(Exception):
+                    reindex_bag(copy, keep_original=False)
+                    reindexed = True
+                world = _world_steps(copy)
+            shutil.rmtree(copy, ignore_errors=True)
+            readable = world is not None
+            if world is not None:
+                gaps = (world[-1] + 1 - len(world)) if world else 0
+                m = re.search(r"the (\d+) world states", line or "")
+                stated = int(m.group(1)) if m else None
+                if status == HOST_FAULT_STATUS and stated is None:
+                    problems.append("the error line does not say how many world states the bag holds")
+                lost = gaps + (abs(stated - len(world)) if stated is not None else 0)
+                if line and "reindex.py" in line and not reindexed:
+                    problems.append("the line asks for reindex.py, but the bag was finished")
+        elif kind == "vanish" and status == HOST_FAULT_STATUS and line and "is gone" not in line:
+            problems.append("the line does not say the bag is gone")
+    finally:
+        for pid in subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split():
+            orphans += 1
+            with contextlib.suppress(OSError):
+                os.kill(int(pid), signal.SIGKILL)
+        if mounted:
+            subprocess.run(["umount", "-l", str(out_root)], check=False)
+        shutil.rmtree(out_root, ignore_errors=True)
+    traceback = "Traceback" in stderr
+    if hang:
+        problems.append("hang")
+    if traceback:
+        problems.append("traceback")
+    if readable is False:
+        problems.append("bag unreadable after reindex")
+    if lost:
+        problems.append(f"{lost} steps lost (allowed 0 beyond the states the line names)")
+    if orphans:
+        problems.append(f"{orphans} processes of the run left running")
+    tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
+    return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost,
+                       orphans=orphans, problems=problems, stderr_tail=tail)
+
+
+def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path) -> GraphResult:
+    """A campaign whose driver is SIGKILLed mid-run (its process alone), then the same command: it
+    must end the killed driver's Ray processes, and every run must be done exactly once."""
+    import pyarrow.parquet as pq
+
+    from evoscen_bringup.campaign import DRIVER_FILE, _session_processes, _zombie
+
+    problems: list[str] = []
+    camp = work / f"campaign-{seed}"
+    camp.mkdir(parents=True, exist_ok=True)
+    spec = camp / "spec.yaml"
+    n_seeds = 4
+    spec.write_text(f"name: faults\nsteps: {min(steps, 600)}\nseeds: {{first: {seed}, count: {n_seeds}}}\n"
+                    "grid:\n  sut.model: [mobil, level0]\n", encoding="utf-8")
+    out = camp / "out"
+    cmd = [sys.executable, str(SCRIPTS / "campaign.py"), str(spec), "--out", str(out), "--cpus", "2"]
+    first = subprocess.Popen(cmd, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             start_new_session=True)
+    session, hang, status, stderr, orphans, lost = None, False, None, "", 0, None
+    try:
+        end = time.monotonic() + HANG_S
+        while time.monotonic() < end and first.poll() is None and not (
+                (out / DRIVER_FILE).exists() and list((out / "runs").glob("*/result.json"))):
+            time.sleep(0.05)
+        if (out / DRIVER_FILE).exists():
+            session = json.loads((out / DRIVER_FILE).read_text())["session_dir"]
+        time.sleep(rng.uniform(0.0, 1.0))
+        if first.poll() is None:
+            os.kill(first.pid, signal.SIGKILL)  # the driver only
+        first.communicate(timeout=30)
+        again = subprocess.Popen(cmd, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                 start_new_session=True)
+        try:
+            _stdout, stderr = again.communicate(timeout=HANG_S * 2)
+            status = again.returncode
+        except subprocess.TimeoutExpired:
+            os.killpg(again.pid, signal.SIGKILL)
+            _stdout, stderr = again.communicate()
+            hang = True
+        if session is not None:
+            alive = [p for p, _ in _session_processes(session) if not _zombie(p)]
+            orphans = len(alive)
+            for p in alive:
+                with contextlib.suppress(OSError):
+                    os.kill(p, signal.SIGKILL)
+        if status == 0:
+            keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
+            if len(keys) != len(set(keys)):
+                problems.append("a run counted twice")
+            lost = 2 * n_seeds - len(set(keys))
+    finally:
+        for p in (first,):
+            if p.poll() is None:
+                p.kill()
+        shutil.rmtree(camp, ignore_errors=True)
+    if status != 0 and not hang:
+        problems.append(f"the resumed campaign ended {status}, not 0")
+    if hang:
+        problems.append("hang")
+    if "Traceback" in stderr:
+        problems.append("traceback")
+    if lost:
+        problems.append(f"{lost} runs missing after the resume")
+    if orphans:
+        problems.append(f"{orphans} Ray processes of the killed driver left running")
+    tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
+    return GraphResult(" ".join(fault), seed, status, None, hang, "Traceback" in stderr, None, False, lost,
+                       orphans=orphans, problems=problems, stderr_tail=tail)
 
 
 def _children(launcher: subprocess.Popen, module: str) -> list[int]:
@@ -463,7 +662,8 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="fault_campaign.py", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--graph-runs", type=int, default=18, help="graph runs with a fault (default 18: each class once)")
+    ap.add_argument("--graph-runs", type=int, default=len(_fault_classes()),
+                    help=f"runs with a fault (default {len(_fault_classes())}: each class once)")
     ap.add_argument("--fuzz", type=int, default=50, help="fuzzed inputs (default 50)")
     ap.add_argument("--steps", type=int, default=3000, help="steps of each graph run (default 3000)")
     ap.add_argument("--seed", type=int, default=0, help="seed of the campaign's generator (default 0)")
@@ -499,7 +699,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for i in range(args.graph_runs):
             fault = classes[i % len(classes)]
-            r = graph_run(fault, 1000 + i, args.steps, rng, work, clean_world, args.max_stall)
+            if fault[0] in ("enospc", "vanish", "driver-kill"):
+                r = host_run(fault, 1000 + i, args.steps, rng, work)
+            else:
+                r = graph_run(fault, 1000 + i, args.steps, rng, work, clean_world, args.max_stall)
             graph.append(r)
             print(f"graph {i + 1}/{args.graph_runs} [{r.fault}]: status {r.status}, "
                   f"end {'-' if r.end_s is None else f'{r.end_s:.1f} s'}, lost {r.steps_lost}"
@@ -523,7 +726,9 @@ def main(argv: list[str] | None = None) -> int:
         ("  bags written", sum(r.bag_readable is not None for r in graph)),
         ("  bags unreadable after reindex", sum(r.bag_readable is False for r in graph)),
         ("  bags that needed reindex", sum(r.reindexed for r in graph)),
-        ("  steps lost beyond the allowance", sum(any("steps lost" in p for p in r.problems) for r in graph)),
+        ("  steps lost beyond the allowance", sum(any("steps lost" in p or "runs missing" in p for p in r.problems)
+                                                  for r in graph)),
+        ("  orphan processes", sum(r.orphans for r in graph)),
         ("  slowest end after a kill (s)", f"{max(ends):.1f}" if ends else "-"),
         ("  attacked runs with a different world", sum(r.world_identical is False for r in graph)),
         ("  runs with a problem", sum(bool(r.problems) for r in graph)),

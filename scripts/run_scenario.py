@@ -10,7 +10,10 @@ and the resolved configuration to ``DIR/scenario.yaml``.
 ``--bvs`` and ``--mix`` override the config's keys (with the same validation). Bad input
 prints one line ``error: ...`` and exits with status 2. Ctrl-C ends the run with a finished bag
 (its last event ``run_end`` of kind ``interrupted``) and status 130; in-process runs write the
-bag inline or in a writer process (``--bag-writer``, docs/recording.md), the same bytes.
+bag inline or in a writer process (``--bag-writer``, docs/recording.md), the same bytes. An
+output that cannot be written (a full disk, a read-only or removed output directory) stops the
+run at the next step boundary with one line ``error: cannot write FILE: CAUSE; ...`` saying what
+became of the bag and what to do, and status 5.
 """
 
 from __future__ import annotations
@@ -21,7 +24,8 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED, EXIT_OK, TOPIC_WORLD
+from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED,
+                                      EXIT_OK, TOPIC_WORLD)
 
 MODES = ("graph", "inprocess")
 
@@ -131,6 +135,8 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
         print(f"graph: waiting up to {opts.startup_timeout_s:g} s for your SUT node on /evoscen/commands/sut "
               f"(ROS_DOMAIN_ID={domain})", file=sys.stderr)
     result = run_graph(cfg, out, bag_dir, opts)
+    if result.status == EXIT_HOST_FAULT:  # the recorder said in one line what became of the bag
+        return result.status
     counts: dict[str, int] = {}
     if not any(bag_dir.glob("*.mcap")) if bag_dir.is_dir() else True:
         print(f"error: no bag was written in {bag_dir} (the run ended during start-up)", file=sys.stderr)
@@ -158,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import dump_config, load_scenario_config
-    from evoscen_sim.errors import InputError
+    from evoscen_sim.errors import HostFault, InputError
     from evoscen_sim.limits import parse_cli_int, parse_cli_path
 
     try:
@@ -197,10 +203,16 @@ def main(argv: list[str] | None = None) -> int:
             # and held until the graph has ended
             with reserve_domain(args.domain_id) as domain:
                 prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
-                dump_config(cfg, out / "scenario.yaml")
-                return run_graph_mode(args, cfg, out, bag_dir, report_dir, domain)
+                try:
+                    dump_config(cfg, out / "scenario.yaml")
+                    return run_graph_mode(args, cfg, out, bag_dir, report_dir, domain)
+                except OSError as exc:  # scenario.yaml, the parameter files: before step 0
+                    raise HostFault.of(exc, exc.filename or out) from None
         prepare_output(out, bag_dir, report_dir, overwrite=args.overwrite)
-        dump_config(cfg, out / "scenario.yaml")
+        try:
+            dump_config(cfg, out / "scenario.yaml")
+        except OSError as exc:
+            raise HostFault.of(exc, out / "scenario.yaml") from None
         bar = None
         if not args.quiet:
             from tqdm import tqdm
@@ -220,12 +232,20 @@ def main(argv: list[str] | None = None) -> int:
         except BagWriterError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_NODE_DIED
+        except HostFault:
+            if bar is not None:  # the error line on a line of its own
+                bar.close()
+                bar = None
+            raise
         finally:
             if bar is not None:
                 bar.close()
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except HostFault as exc:
+        print(f"error: {exc.line()}", file=sys.stderr)
+        return EXIT_HOST_FAULT
     print(f"steps: {summary.steps}  simulated: {summary.sim_time_s:.1f} s  wall: {summary.wall_time_s:.2f} s  "
           f"({summary.steps_per_s:.0f} steps/s)")
     print(f"collisions: {summary.collisions}  lane changes: {summary.lane_changes}  re-entries: {summary.reentries}  "

@@ -364,3 +364,116 @@ def test_critical_events_become_clips_pictures_and_reproducible_commands(tmp_pat
     assert kinds == sorted(kinds)  # every collision before every exposure
     sev = [float(r[5]) for r in rows if r[1] == "exposure"]
     assert sev == sorted(sev, reverse=True)
+
+
+def test_a_full_disk_mid_campaign_stops_it_and_the_same_command_resumes(tmp_path):
+    """The output's disk fills mid-campaign (a real tmpfs sized for about half the runs' files):
+    one line, status 5, no run marked done that was not written whole; after space is freed the
+    same command computes exactly the rest, and the results equal an undisturbed campaign's."""
+    import pyarrow.parquet as pq
+
+    if os.geteuid() != 0:
+        pytest.skip("needs root to mount a tmpfs")
+    spec = write_spec(tmp_path, SMALL)
+    ref = tmp_path / "ref"
+    proc = _cli(spec, ref)
+    _out, err = _finish(proc, 300)
+    assert proc.returncode == 0, err
+    page = 4096
+    per_run = [sum(-(-f.stat().st_size // page) * page for f in d.iterdir()) for d in sorted((ref / "runs").iterdir())]
+    mnt = tmp_path / "fs"
+    mnt.mkdir()
+    size_kib = (sum(per_run[:3]) + page) // 1024
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_kib}k", "tmpfs", str(mnt)]).returncode:
+        pytest.skip("cannot mount a tmpfs")
+    try:
+        out = mnt / "out"
+        proc = _cli(spec, out)
+        _out, err = _finish(proc, 300)
+        assert proc.returncode == 5, err
+        assert "Traceback" not in err
+        errors = [ln for ln in err.splitlines() if ln.startswith("error:")]
+        assert len(errors) == 1 and "No space left on device (ENOSPC)" in errors[0], err
+        assert "run the same command again to continue" in errors[0]
+        done = _results(out)
+        assert 1 <= len(done) < 6
+        for p in done:  # every run marked done is whole
+            json.loads(p.read_text())
+            assert (p.parent / "report.json").is_file() and (p.parent / "plot.json").is_file()
+        assert not list(out.rglob("*.tmp"))
+        kept = {p: p.stat().st_mtime_ns for p in done}
+        assert subprocess.run(["mount", "-o", "remount,size=64m", str(mnt)]).returncode == 0  # space freed
+        again = _cli(spec, out)
+        stdout, err = _finish(again, 300)
+        assert again.returncode == 0, err
+        assert f"{6 - len(kept)} runs computed" in stdout and f"{len(kept)} already done" in stdout
+        assert all(p.stat().st_mtime_ns == t for p, t in kept.items())
+        volatile = {"wall_time_s", "node", "pid"}
+
+        def rows(d: Path) -> list[dict]:
+            table = pq.read_table(d / "results.parquet").to_pylist()
+            return sorted(({k: v for k, v in row.items() if k not in volatile} for row in table), key=lambda r: r["key"])
+
+        got, want = rows(out), rows(ref)
+        assert len(got) == 6 == len({r["key"] for r in got})
+        assert json.dumps(got, sort_keys=True) == json.dumps(want, sort_keys=True)
+        for d in sorted((ref / "runs").iterdir()):
+            assert (out / "runs" / d.name / "report.json").read_bytes() == (d / "report.json").read_bytes()
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(tmp_path):
+    """SIGKILL to the driver alone (its Ray's agents outlive it, reparented to init): the same
+    command names and ends them, then completes the campaign with every run exactly once."""
+    import pyarrow.parquet as pq
+
+    from evoscen_bringup.campaign import DRIVER_FILE, _session_processes
+
+    spec, out = write_spec(tmp_path, LONG), tmp_path / "out"
+    proc = _cli(spec, out)
+    try:
+        _wait_for(lambda: len(_results(out)) >= 1 and (out / DRIVER_FILE).exists())
+        session = json.loads((out / DRIVER_FILE).read_text())["session_dir"]
+        os.kill(proc.pid, signal.SIGKILL)  # the driver only, not its process group
+        proc.wait(timeout=30)
+    finally:
+        _finish(proc, 30)
+    time.sleep(2)
+    left = [pid for pid, _ in _session_processes(session)]
+    assert left  # Ray's agents outlive a driver killed with SIGKILL (measured: ray::DashboardAgent, ray::RuntimeEnvAgent)
+    again = _cli(spec, out)
+    stdout, err = _finish(again, 400)
+    assert again.returncode == 0, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("campaign: ended")]
+    # (some of Ray's processes may still be ending by themselves when it starts: the agents are not)
+    assert len(lines) == 1 and any(f"(pid {pid})" in lines[0] for pid in left), err
+    assert _session_processes(session) == [] or all(
+        Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+        for pid, _ in _session_processes(session))
+    assert not (out / DRIVER_FILE).exists()
+    keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
+    assert len(keys) == 16 == len(set(keys))
+
+
+def test_a_fault_of_the_host_in_a_worker_is_found_behind_rays_error():
+    """A run's HostFault raised in a Ray worker reaches the driver wrapped by Ray; the driver finds
+    it (and stops the campaign with one line instead of failing every run alike)."""
+    import ray
+
+    from evoscen_bringup.campaign import _host_fault_of
+    from evoscen_sim.errors import HostFault
+
+    def full() -> None:
+        raise HostFault.of(OSError(28, "No space left on device"), "/tmp/evoscen-run-x/bag/bag_0.mcap")
+
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    try:
+        with pytest.raises(Exception) as info:  # noqa: PT011 - Ray's wrapper, whatever its class
+            ray.get(ray.remote(num_cpus=1, max_retries=0)(full).remote())
+    finally:
+        ray.shutdown()
+    fault = _host_fault_of(info.value)
+    assert fault is not None and fault.cause == "No space left on device (ENOSPC)"
+    assert str(fault.path) == "/tmp/evoscen-run-x/bag/bag_0.mcap"
+    assert _host_fault_of(RuntimeError("not the disk")) is None

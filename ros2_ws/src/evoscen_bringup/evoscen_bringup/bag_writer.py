@@ -15,8 +15,10 @@ The shared memory is ``slots`` batches of ``steps_per_slot`` steps each. The run
 sends its journal through a pipe and goes on with a free batch; the writer replays a batch and
 hands it back. The run waits only when every batch is still being written (the writer is slower
 than the run) and at the end, when the bag is closed. Errors: the writer's error (a bag directory
-that cannot be created, a full disk) is raised in the run as the same exception; a writer that
-dies is a one-line :class:`BagWriterError`. The writer ignores Ctrl-C (SIGINT goes to the whole
+that cannot be created, a full disk) is raised in the run as the same exception; a fault of the
+host (:class:`~evoscen_sim.errors.HostFault`) is flagged in shared memory, so the run stops at its
+next step boundary, and comes once the writer has finished the bag from what reached the disk
+(or cut it back for the reindexer); a writer that dies is a one-line :class:`BagWriterError`. The writer ignores Ctrl-C (SIGINT goes to the whole
 process group): the run finishes the bag (``run_end`` of kind ``interrupted``) through it, as the
 inline path does; if the run itself goes away, the writer finishes the bag with what it received.
 """
@@ -32,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from evoscen_sim.errors import HostFault
 from evoscen_sim.world import STATE_FLOATS, STATE_INTS, state_columns
 
 from .step_recorder import StepRecorder
@@ -97,6 +100,8 @@ class ProcessRecorder:
         self._i = _shared((slots, steps_per_slot + 1, len(STATE_INTS), n), np.int64)
         self._c = (_shared((slots, steps_per_slot + 1, 2, max(n_bv, 1)), np.float64),
                    _shared((slots, steps_per_slot + 1, 2, 1), np.float64))
+        self._flag = _shared((1,), np.int8)  # set by the writer when it failed (checked every step)
+        self._fault: BaseException | None = None
         _warm_up(cfg, world, n_bv)
         ctx = multiprocessing.get_context("fork")
         to_writer_r, self._to_writer = ctx.Pipe(duplex=False)
@@ -104,7 +109,8 @@ class ProcessRecorder:
         # daemon: should the run's process end without closing the bag, it does not wait for the writer
         self._proc = ctx.Process(target=_writer_main, name="evoscen-bag-writer", daemon=True,
                                  args=(to_writer_r, from_writer_w, (self._to_writer, self._from_writer),
-                                       self.bag_dir, cfg, world.road, self._f, self._i, self._c, self._topics))
+                                       self.bag_dir, cfg, world.road, self._f, self._i, self._c, self._topics,
+                                       self._flag))
         self._proc.start()
         to_writer_r.close()
         from_writer_w.close()
@@ -121,7 +127,10 @@ class ProcessRecorder:
     # ------------------------------------------------------------------ the run's side
 
     def world(self, world, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
-        """Copy the world's state into the open batch and journal ``/evoscen/world`` (+ roster)."""
+        """Copy the world's state into the open batch and journal ``/evoscen/world`` (+ roster);
+        a writer that failed (a fault of the host) stops the run here, at the step boundary."""
+        if self._flag[0]:
+            self._writer_failed()
         if self._rows >= self._k:
             self._send_batch()
         floats, ints = world.state_arrays()
@@ -163,6 +172,11 @@ class ProcessRecorder:
     def close(self) -> None:
         """Send what is journaled, wait until the writer has finished the bag (idempotent)."""
         if self._closed:
+            if self._fault is None and self._flag[0]:  # failed after the last step's check
+                self._writer_failed()
+            if self._fault is not None:  # the writer has ended (it reported its fault, then returned)
+                self._to_writer.close()
+                self._from_writer.close()
             return
         self._closed = True
         try:
@@ -209,6 +223,12 @@ class ProcessRecorder:
         except EOFError:
             self._died()
 
+    def _writer_failed(self):  # noqa: ANN202 - raises
+        """The writer's error (it finished what it could of the bag first), the same each time."""
+        if self._fault is None:
+            self._expect("error")
+        raise self._fault
+
     def _take(self, message: tuple) -> None:
         kind = message[0]
         if kind == "free":
@@ -216,7 +236,8 @@ class ProcessRecorder:
         elif kind == "error":
             self._closed = True
             self._proc.join()
-            raise _error_of(message[1], self.bag_dir)
+            self._fault = _error_of(message[1], self.bag_dir)
+            raise self._fault
         elif kind == "done":
             self._message_count = message[1]
         elif kind != "ready":
@@ -231,6 +252,8 @@ class ProcessRecorder:
                 return
 
     def _died(self):  # noqa: ANN202 - raises
+        if self._fault is not None:
+            raise self._fault
         self._closed = True
         # a writer that failed said why before it ended: that error, not its end, is the news
         error = None
@@ -243,7 +266,8 @@ class ProcessRecorder:
             pass
         self._proc.join(timeout=5)
         if error is not None:
-            raise _error_of(error, self.bag_dir)
+            self._fault = _error_of(error, self.bag_dir)
+            raise self._fault from None
         code = self._proc.exitcode
         raise BagWriterError(f"bag {str(self.bag_dir)!r}: the writer process ended unexpectedly "
                              f"(exit code {code}); the bag is incomplete") from None
@@ -298,7 +322,8 @@ def _error_of(payload: tuple, bag_dir: Path) -> BaseException:
     return BagWriterError(f"bag {str(bag_dir)!r}: the writer process failed: {text}")
 
 
-def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f, i, c, topics) -> None:  # noqa: ANN001, PLR0913
+def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f, i, c, topics,  # noqa: ANN001, PLR0913
+                 flag) -> None:  # noqa: ANN001
     """The writer process: open the bag, replay batches until ``close`` (or the run's end), close."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle (module docstring)
     for end in run_ends:  # the fork copied the run's ends of the pipes: without closing them here,
@@ -311,6 +336,7 @@ def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f
             return False
         return True
 
+    rec = None
     try:
         rec = StepRecorder(bag_dir, cfg, road)
         tell(("ready",))
@@ -329,6 +355,13 @@ def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f
         rec.close()
         tell(("done", rec.message_count))
     except BaseException as exc:  # noqa: BLE001 - reported to the run, which raises it
+        if isinstance(exc, HostFault):
+            flag[0] = 1  # the run stops at its next step boundary and waits for the error
+            if rec is not None:
+                try:  # the bag finished from what reached the disk, or cut back for the reindexer
+                    rec.close()
+                except BaseException:  # noqa: BLE001 - the same fault again
+                    pass
         try:
             pickled = pickle.dumps(exc)
         except Exception:  # noqa: BLE001

@@ -97,6 +97,9 @@ class CampaignResult:
     interrupted: bool = False
     wall_s: float = 0.0
     nodes: set[str] = field(default_factory=set)
+    host_fault: str | None = None
+    """Why the campaign stopped for a fault of the host (a full disk, an unwritable output): one
+    line naming the file and the run; the run was not marked done, the same command resumes."""
 
 
 # ---------------------------------------------------------------------- the spec
@@ -252,25 +255,13 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     worker's disk is not the driver's."""
     import tempfile
 
-    from evoscen_eval.clips import mine_run
-
-    from .inprocess import run_inprocess
+    from evoscen_sim.errors import HostFault
 
     t0 = time.perf_counter()
-    files: dict[str, bytes] = {}
-    clips: list[dict[str, Any]] = []
-    with tempfile.TemporaryDirectory(prefix="evoscen-run-") as tmp:
-        bag = Path(tmp) / "bag" if record != "none" else None
-        # inline: a campaign runs one task per CPU, so there is no free core for a writer process
-        summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False, bag_writer="inline")
-        if bag is not None:
-            scenario_file = (Path(out_dir) / "runs" / run.key / "scenario.yaml").resolve()
-            clips = mine_run(bag, summary.report, Path(tmp), clip_s=clip_s, scenario_file=scenario_file,
-                             run_name=run.key)
-            for f in sorted(Path(tmp).rglob("*")):
-                rel = f.relative_to(tmp)
-                if f.is_file() and (record == "all" or rel.parts[0] != "bag"):
-                    files[rel.as_posix()] = f.read_bytes()
+    try:
+        summary, files, clips = _simulate(run, out_dir, record, clip_s)
+    except OSError as exc:  # the worker's temporary directory (the bag, the clips): a fault of the host
+        raise HostFault.of(exc, exc.filename or tempfile.gettempdir()) from None
     report = summary.report
     row: dict[str, Any] = {"key": run.key, **dict(run.cell), "seed": run.seed, "steps": summary.steps}
     for name in SCORE_COLUMNS:
@@ -294,6 +285,31 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     return {"row": row, "report": report, "plot": plot, "files": files}
 
 
+def _simulate(run: CampaignRun, out_dir: str, record: str, clip_s: float):  # noqa: ANN202
+    """The run's summary, files and clips (:func:`execute`), recorded in a temporary directory."""
+    import tempfile
+
+    from evoscen_eval.clips import mine_run
+
+    from .inprocess import run_inprocess
+
+    files: dict[str, bytes] = {}
+    clips: list[dict[str, Any]] = []
+    with tempfile.TemporaryDirectory(prefix="evoscen-run-") as tmp:
+        bag = Path(tmp) / "bag" if record != "none" else None
+        # inline: a campaign runs one task per CPU, so there is no free core for a writer process
+        summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False, bag_writer="inline")
+        if bag is not None:
+            scenario_file = (Path(out_dir) / "runs" / run.key / "scenario.yaml").resolve()
+            clips = mine_run(bag, summary.report, Path(tmp), clip_s=clip_s, scenario_file=scenario_file,
+                             run_name=run.key)
+            for f in sorted(Path(tmp).rglob("*")):
+                rel = f.relative_to(tmp)
+                if f.is_file() and (record == "all" or rel.parts[0] != "bag"):
+                    files[rel.as_posix()] = f.read_bytes()
+    return summary, files, clips
+
+
 def traffic_columns(report: Mapping[str, Any]) -> dict[str, float]:
     """A run's :data:`TRAFFIC_COLUMNS` from its report (NaN where undefined: no traffic window)."""
     traffic = report.get("traffic") or {}
@@ -309,10 +325,33 @@ def result_path(out_dir: Path, key: str) -> Path:
 
 
 def _write_atomic(path: Path, text: str) -> None:
+    """``path`` with ``text``, whole or not at all (a temporary file renamed; removed on failure)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def _host_fault_of(exc: BaseException):  # noqa: ANN202 - HostFault | None
+    """The :class:`~evoscen_sim.errors.HostFault` behind a task's error (Ray wraps it), or None."""
+    from evoscen_sim.errors import HostFault
+
+    for _ in range(8):
+        if exc is None:
+            return None
+        inner = getattr(exc, "cause", None)  # Ray's RayTaskError: the task's own exception
+        if isinstance(inner, BaseException):  # (the wrapper is a HostFault too, without its fields)
+            exc = inner
+        elif isinstance(exc, HostFault):
+            return exc
+        else:
+            exc = exc.__cause__
+    return None
 
 
 def _write_files(run_dir: Path, files: Mapping[str, bytes]) -> None:
@@ -337,6 +376,7 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
     (finished runs are kept; ``interrupted`` is set). :func:`write_results` writes the table.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
+    end_leftovers(out_dir)  # of a driver that was killed (scripts/campaign.py names them)
     todo = [r for r in runs if not result_path(out_dir, r.key).exists()]
     result = CampaignResult(runs=len(runs), already_done=len(runs) - len(todo))
     t0 = time.monotonic()
@@ -382,7 +422,12 @@ def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult
     started = not ray.is_initialized()
     if started:
         local = {} if address else {"num_cpus": cpus, "object_store_memory": OBJECT_STORE_BYTES}
-        ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False, **local)
+        ctx = ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                       **local)
+        if not address:  # this driver's own Ray: noted, so that the next driver can end what a kill leaves
+            session = (getattr(ctx, "address_info", None) or {}).get("session_dir")
+            if session:
+                _note_driver(out_dir, session)
     arm()
     task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute)
     pending = {task.remote(r, str(out_dir), record, clip_s): r for r in todo}
@@ -394,23 +439,35 @@ def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult
                 try:
                     done = ray.get(ref)
                 except Exception as exc:  # noqa: BLE001 - the task failed after its retries
+                    fault = _host_fault_of(exc)
+                    if fault is not None:  # the worker's disk: every other run would fail alike
+                        result.host_fault = (f"run {run.key} (seed {run.seed}): cannot write {fault.path} on its "
+                                             f"worker: {fault.cause}")
+                        raise _HostFaultStop from None
                     result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): "
                                          f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
                     continue
                 path = result_path(out_dir, run.key)
-                _write_files(path.parent, done["files"])
-                _write_atomic(path.with_name("scenario.yaml"),
-                              yaml.safe_dump(config_to_dict(run.cfg), sort_keys=False))
-                _write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
-                _write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
-                _write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
+                try:
+                    _write_files(path.parent, done["files"])
+                    _write_atomic(path.with_name("scenario.yaml"),
+                                  yaml.safe_dump(config_to_dict(run.cfg), sort_keys=False))
+                    _write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
+                    _write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
+                    _write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
+                except OSError as exc:  # not marked done: the same command computes it again
+                    from evoscen_sim.errors import HostFault
+
+                    fault = HostFault.of(exc, exc.filename or path.parent)
+                    result.host_fault = f"run {run.key} (seed {run.seed}): {fault}"
+                    raise _HostFaultStop from None
                 result.computed += 1
                 result.nodes.add(done["row"]["node"])
                 if progress is not None:
                     rate = result.computed / max(time.monotonic() - t0, 1e-9)
                     progress(result.already_done + result.computed, total, rate)
-    except KeyboardInterrupt:
-        result.interrupted = True
+    except (KeyboardInterrupt, _HostFaultStop) as exc:
+        result.interrupted = isinstance(exc, KeyboardInterrupt)
         if not started:  # a cluster's workers outlive this driver: ask them to drop our tasks
             for ref in pending:
                 with contextlib.suppress(Exception):
@@ -420,6 +477,90 @@ def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult
     finally:
         if started:
             ray.shutdown()
+            with contextlib.suppress(OSError):
+                (out_dir / DRIVER_FILE).unlink()
+
+
+DRIVER_FILE = ".campaign-driver.json"
+"""In ``OUT``, while a driver with its own local Ray runs: its pid, start time and Ray session directory."""
+
+
+def _start_time(pid: int) -> str | None:
+    """The process's start time (clock ticks since boot; None if there is no such process)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat.rsplit(")", 1)[1].split()[19]
+
+
+def _note_driver(out_dir: Path, session_dir: str) -> None:
+    with contextlib.suppress(OSError):  # only a help for the next start: never a reason to stop
+        _write_atomic(out_dir / DRIVER_FILE, json.dumps({"pid": os.getpid(), "start": _start_time(os.getpid()),
+                                                          "session_dir": session_dir}) + "\n")
+
+
+def _session_processes(session_dir: str) -> list[tuple[int, str]]:
+    """(pid, name) of the processes of a Ray session: its directory in their command line or open
+    among their files (Ray's agents rename themselves, ``ray::DashboardAgent``, but keep their logs open)."""
+    found = []
+    for proc in Path("/proc").iterdir():
+        if not proc.name.isdigit() or int(proc.name) == os.getpid():
+            continue
+        try:
+            cmdline = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+            hit = session_dir in cmdline
+            if not hit:
+                for fd in (proc / "fd").iterdir():
+                    with contextlib.suppress(OSError):
+                        if os.readlink(fd).startswith(session_dir):
+                            hit = True
+                            break
+        except OSError:
+            continue  # gone meanwhile, or not ours to read
+        if hit:
+            found.append((int(proc.name), cmdline.split(" ")[0] or proc.name))
+    return found
+
+
+def end_leftovers(out_dir: Path, grace_s: float = 3.0) -> list[tuple[int, str]]:
+    """End the Ray processes that a campaign driver killed before its end (SIGKILL: no clean-up)
+    left running for ``out_dir``; returns them, (pid, name). Nothing if that driver still runs."""
+    import signal
+
+    path = out_dir / DRIVER_FILE
+    try:
+        info = json.loads(path.read_text(encoding="utf-8"))
+        pid, start, session = int(info["pid"]), info.get("start"), str(info["session_dir"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    if _start_time(pid) is not None and _start_time(pid) == start:
+        return []  # that driver is still running
+    found = _session_processes(session) if session.startswith("/") and "session_" in session else []
+    for p, _name in found:
+        with contextlib.suppress(OSError):
+            os.kill(p, signal.SIGTERM)
+    end = time.monotonic() + grace_s
+    while time.monotonic() < end and any(_start_time(p) is not None and not _zombie(p) for p, _ in found):
+        time.sleep(0.1)
+    for p, _name in found:
+        if _start_time(p) is not None and not _zombie(p):
+            with contextlib.suppress(OSError):
+                os.kill(p, signal.SIGKILL)
+    with contextlib.suppress(OSError):
+        path.unlink()
+    return found
+
+
+def _zombie(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
+
+
+class _HostFaultStop(Exception):
+    """Stops the campaign's loop after a fault of the host (``CampaignResult.host_fault`` says which)."""
 
 
 def load_result(out_dir: Path, key: str) -> dict[str, Any]:
@@ -441,7 +582,20 @@ def collect_rows(runs: Sequence[CampaignRun], out_dir: Path) -> list[dict[str, A
 
 
 def write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> list[dict[str, Any]]:
-    """``results.parquet`` (one row per finished run of the spec) and ``summary.md``."""
+    """``results.parquet`` (one row per finished run of the spec) and ``summary.md``, each written
+    whole or not at all (a temporary file renamed). An output that cannot be written is a
+    :class:`~evoscen_sim.errors.HostFault` naming the file (the runs' results are kept)."""
+    from evoscen_sim.errors import HostFault
+
+    try:
+        return _write_results(spec, runs, out_dir)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            (out_dir / "results.parquet.tmp").unlink()
+        raise HostFault.of(exc, exc.filename or out_dir) from None
+
+
+def _write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> list[dict[str, Any]]:
     import pyarrow as pa
     import pyarrow.parquet as pq
 

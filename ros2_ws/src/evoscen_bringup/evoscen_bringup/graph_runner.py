@@ -18,7 +18,7 @@ processes (``python -m <pkg>.<node> --ros-args --params-file ...``), and supervi
   as a backstop; the simulation node's death sends SIGTERM to the evaluator (which finishes the
   bag) and SIGINT to the controllers, SIGKILL after 5 s;
 * the exit status is one of :data:`EXIT_OK` 0, :data:`EXIT_BAD_INPUT` 2, :data:`EXIT_FAULT` 3,
-  :data:`EXIT_NODE_DIED` 4, :data:`EXIT_INTERRUPTED` 130 (:func:`graph_status`), never a raw
+  :data:`EXIT_NODE_DIED` 4, :data:`EXIT_HOST_FAULT` 5, :data:`EXIT_INTERRUPTED` 130 (:func:`graph_status`), never a raw
   signal number.
 
 Environment of the nodes: ``ROS_DOMAIN_ID`` (a free one of 1..100 unless given: reserved on this
@@ -42,7 +42,8 @@ from pathlib import Path
 import yaml
 
 from evoscen_bringup.domains import reserve_domain
-from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED, EXIT_OK, NODE_BV,
+from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED,
+                                       EXIT_OK, NODE_BV,
                                        NODE_EVAL, NODE_EXIT_STATUSES, NODE_SIM, NODE_SUT)
 from evoscen_sim.config import ScenarioConfig
 from evoscen_sim.node_params import scenario_parameters
@@ -213,6 +214,12 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 if name == NODE_SIM or name in died or p.poll() in (None, 0):
                     continue  # 0: a controller answered the final state, the recorder got run_end
                 started = ready_file.exists()
+                if name == NODE_EVAL and p.returncode == EXIT_HOST_FAULT:
+                    # the recorder could not write (a full disk): it said so in one line and
+                    # finished what it could of the bag; not a death: stop the run now
+                    died[name] = "could not write its output"
+                    stop_sim_at = time.monotonic()
+                    continue
                 note(name, f"ended early ({describe_status(p.returncode)})"
                      + ("" if started else " during start-up"))
                 if name == NODE_EVAL or not started:
@@ -286,7 +293,8 @@ def graph_status(node_status: dict[str, int | None], died: dict[str, str], inter
     """The launcher's exit status (table in docs/recording.md).
 
     The simulation node's own verdict first (2 bad input, 3 a controller fault: it ended the
-    run cleanly and said why), then a node that died (4), then an interruption (130), then any
+    run cleanly and said why), then 2 from any node, then 5 from the recorder (a fault of the
+    host: it could not write the bag), then a node that died (4), then an interruption (130), then any
     other node's failure (2 as it is, anything else 4); 0 only if every node ended with 0.
     """
     sim = node_status.get(NODE_SIM)
@@ -295,6 +303,8 @@ def graph_status(node_status: dict[str, int | None], died: dict[str, str], inter
     others = [s for n, s in node_status.items() if n != NODE_SIM and s not in (0, None)]
     if EXIT_BAD_INPUT in others:
         return EXIT_BAD_INPUT
+    if EXIT_HOST_FAULT in others:  # the recorder could not write: it stopped the run (its one line)
+        return EXIT_HOST_FAULT
     if died:
         return EXIT_NODE_DIED
     if interrupted or sim == EXIT_INTERRUPTED:

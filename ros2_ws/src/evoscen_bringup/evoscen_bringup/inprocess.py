@@ -182,7 +182,11 @@ def run_inprocess(
 
     Ctrl-C ends the run at the next step boundary (:class:`_CtrlC`): the bag is finished
     (``run_end`` event of kind ``interrupted``) and KeyboardInterrupt is raised; any other error
-    also finishes the bag and is raised again. A Ctrl-C after the last step began lets the run
+    also finishes the bag and is raised again. A fault of the host (a full disk, an output
+    directory made read-only or removed) is :class:`~evoscen_sim.errors.HostFault`, raised at
+    the step boundary after the failed write, with the bag finished from every step that reached
+    the disk, or cut back to them for ``scripts/reindex.py`` when there is no room to finish it
+    (``HostFault.bag_state``); a report that cannot be written is one too, the bag finished. A Ctrl-C after the last step began lets the run
     complete and then raises KeyboardInterrupt.
     """
     sc = scenario if scenario is not None else build_scenario(cfg)
@@ -232,7 +236,17 @@ def run_inprocess(
     if outcome.kind == KIND_INTERRUPTED:
         raise KeyboardInterrupt
     if acc is not None:
-        summary.run, summary.report, summary.plot = _report(acc, cfg, report_dir, plots, keep_run)
+        from evoscen_sim.errors import HostFault
+
+        try:
+            summary.run, summary.report, summary.plot = _report(acc, cfg, report_dir, plots, keep_run)
+        except HostFault as fault:  # a full disk, a read-only report directory: the bag is finished
+            fault.bag_dir, fault.steps = bag_dir, summary.steps + 1
+            fault.bag_state = "finished" if bag_dir is not None else None
+            raise
+        except OSError as exc:
+            raise HostFault.of(exc, exc.filename or report_dir, bag_dir=bag_dir, steps=summary.steps + 1,
+                               bag_state="finished" if bag_dir is not None else None) from None
     return summary
 
 

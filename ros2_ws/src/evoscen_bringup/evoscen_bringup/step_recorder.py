@@ -65,10 +65,13 @@ class StepRecorder:
             self.bag.bag.write_parts(self._t, messages)
 
     def close(self) -> None:
-        """Write what is queued and finish the bag (idempotent)."""
-        if self._direct:
-            self._write_step()
-        self.bag.close()
+        """Write what is queued and finish the bag (idempotent); after a fault of the host
+        (:class:`~evoscen_sim.errors.HostFault`) the bag is finished from what reached the disk."""
+        try:
+            if self._direct:
+                self._write_step()
+        finally:
+            self.bag.close()
 
     snapshots = False  # world/state use the columns (ProcessRecorder: the World)
 

@@ -233,13 +233,17 @@ EVENT_KEY_TYPES: dict[str, str] = {
 #: Exit statuses (docs/recording.md). Every node and the graph launcher end with one of
 #: them, never a raw signal number: 0 completed, 2 bad input (one line ``error: ...`` on
 #: stderr), 3 a controller fault (the simulation node aborted the run), 4 a node died or
-#: ended before the run did (the launcher only; named on stderr), 130 interrupted.
+#: ended before the run did (the launcher only; named on stderr), 5 a fault of the host: an
+#: output could not be written (disk full, output directory read-only or gone; one line naming
+#: the file, the cause and what to do), 130 interrupted.
 EXIT_OK: int = 0
 EXIT_BAD_INPUT: int = 2
 EXIT_FAULT: int = 3
 EXIT_NODE_DIED: int = 4
+EXIT_HOST_FAULT: int = 5
 EXIT_INTERRUPTED: int = 130
 #: Statuses with which a node ends by itself; anything else (a signal, 1) is a death.
-NODE_EXIT_STATUSES: tuple[int, ...] = (EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED)
+NODE_EXIT_STATUSES: tuple[int, ...] = (EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED)
 #: Statuses of the graph launcher (``scripts/run_scenario.py --mode graph``).
-GRAPH_EXIT_STATUSES: tuple[int, ...] = (EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_NODE_DIED, EXIT_INTERRUPTED)
+GRAPH_EXIT_STATUSES: tuple[int, ...] = (EXIT_OK, EXIT_BAD_INPUT, EXIT_FAULT, EXIT_NODE_DIED, EXIT_HOST_FAULT,
+                                         EXIT_INTERRUPTED)

@@ -69,6 +69,7 @@ from evoscen_contract.contract import (  # noqa: F401  (re-exported)
     EVENT_RUN_END,
     EXIT_BAD_INPUT,
     EXIT_FAULT,
+    EXIT_HOST_FAULT,
     EXIT_INTERRUPTED,
     EXIT_NODE_DIED,
     EXIT_OK,

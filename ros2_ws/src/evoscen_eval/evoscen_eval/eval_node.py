@@ -52,7 +52,8 @@ from dataclasses import dataclass
 from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.cdr import TableEncoder, decode_table, events_count, is_run_end
-from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
+from evoscen_contract.contract import EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_OK
+from evoscen_sim.errors import HostFault
 from evoscen_sim.config_checks import flag, integer, number, text
 from evoscen_sim.node_params import own_parameters, run_node, scenario_from_node
 
@@ -158,6 +159,8 @@ class EvaluatorNode:
                     continue
                 try:
                     self._record(topic, data)
+                except HostFault:  # the disk, not the message: ends the recording (run())
+                    raise
                 except Exception as exc:  # noqa: BLE001 - no message may end the recorder
                     self._refuse(topic, gid, f"unreadable ({exc!r:.200})")
         # every per-step topic has one message per step, each topic in order: all messages
@@ -214,6 +217,7 @@ class EvaluatorNode:
     def run(self) -> int:
         """Record until the run ends; returns the exit status."""
         status = EXIT_OK
+        fault: HostFault | None = None
         last_message = time.monotonic()
         try:
             # until the run_end event and the final world state (same stamp) are in, and then
@@ -232,8 +236,16 @@ class EvaluatorNode:
                 self.pump.wait(0.02 if self.run_end_ns is not None else 0.1)
         except KeyboardInterrupt:
             status = EXIT_INTERRUPTED
+        except HostFault as exc:  # a full disk, a read-only or removed output directory
+            fault = exc
         finally:
-            self.bag.close()
+            try:
+                self.bag.close()  # after a fault: finished from what reached the disk, or cut back to it
+            except HostFault as exc:
+                fault = fault or exc
+        if fault is not None:  # one line, once the bag's state is known; no report
+            print(f"error: {NODE_NAME}: {fault.line()}", file=sys.stderr)
+            return EXIT_HOST_FAULT
         if self.refused:
             print(f"warning: {NODE_NAME}: {self.refused} message(s) not recorded (untrusted or unreadable)",
                   file=sys.stderr)
@@ -260,6 +272,11 @@ class EvaluatorNode:
         except (InputError, ValueError) as exc:
             print(f"error: {NODE_NAME}: no report: {exc}", file=sys.stderr)
             return status or EXIT_FAULT
+        except (HostFault, OSError) as exc:  # the bag is finished; the report could not be written
+            fault = exc if isinstance(exc, HostFault) else HostFault.of(exc, exc.filename or self.report_dir)
+            fault.bag_dir, fault.bag_state = self.bag.bag.bag_dir, "finished"
+            print(f"error: {NODE_NAME}: {fault.line()}", file=sys.stderr)
+            return EXIT_HOST_FAULT
         return status
 
 

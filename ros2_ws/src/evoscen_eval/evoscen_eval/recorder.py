@@ -51,6 +51,8 @@ from types import TracebackType
 from typing import Any, BinaryIO
 
 import bisect
+import errno
+import os
 import re
 import struct
 
@@ -62,10 +64,11 @@ from mcap.records import ChunkIndex, MessageIndex
 from mcap.writer import CompressionType, Writer
 
 from evoscen_contract.cdr import pad4
+from evoscen_contract.contract import TOPIC_WORLD as _WORLD_TOPIC
 from evoscen_contract.qos import rosbag2_qos_yaml
 from evoscen_contract.topics import TopicSpec
 from evoscen_eval.schemas import message_definition, type_description_hash
-from evoscen_sim.errors import InputError
+from evoscen_sim.errors import HostFault, InputError
 
 #: MCAP header ``library`` string. Deliberately version-free so that bags stay
 #: byte-identical across library upgrades that do not change the encoding.
@@ -352,6 +355,83 @@ class _ChunkMessages:
         self._reset()
 
 
+def _open_file(path: Path):  # noqa: ANN202 - a raw binary file
+    """The bag file, opened for writing unbuffered (tests replace this to simulate a full disk)."""
+    return open(path, "wb", buffering=0)  # noqa: SIM115
+
+
+class _BagFile:
+    """The MCAP file as the writer sees it: what is written is held until :meth:`flush` (the 1-s
+    chunks, :meth:`BagRecorder.flush`, the end), which hands it to the operating system whole or
+    raises :class:`~evoscen_sim.errors.HostFault` (a full disk, a read-only or vanished output).
+    A flush that succeeded is a point where every message counted so far is on disk, the point the
+    file is cut back to after a fault, so that it ends with a complete chunk. Nothing reaches the
+    file between those points (the file stays empty until the first chunk, as with a buffered
+    file), so a fault can only leave the bytes of one flush half written."""
+
+    def __init__(self, path: Path, owner: BagRecorder) -> None:
+        self.path = path
+        self._owner = owner
+        self._f = _open_file(path)
+        self._held: list = []
+        self._held_bytes = 0
+        self._pos = 0
+        self.good = 0  # the end of the last complete chunk on disk
+
+    HOLD_BYTES = 16 * 1024 * 1024
+    """Bytes held at most between two flushes (bags written without the 1-s bound)."""
+
+    def write(self, data) -> int:  # noqa: ANN001
+        owner = self._owner
+        if owner._fault is not None:  # noqa: SLF001 - nothing more after a fault
+            raise owner._fault  # noqa: SLF001
+        n = len(data) if not isinstance(data, memoryview) else data.nbytes
+        self._held.append(bytes(data))
+        self._pos += n
+        self._held_bytes += n
+        if self._held_bytes > self.HOLD_BYTES:  # no flush for long (no time bound): out, not a safe point
+            self._write_out()
+        return n
+
+    def _write_out(self) -> None:
+        held, self._held, self._held_bytes = self._held, [], 0
+        try:
+            for data in held:
+                view = memoryview(data)
+                while view:
+                    n = self._f.write(view)
+                    if not n:
+                        raise OSError(errno.EIO, "the file took no bytes")
+                    view = view[n:]
+        except OSError as exc:
+            raise self._owner._fault_of(exc, self.path) from None  # noqa: SLF001
+
+    def tell(self) -> int:
+        return self._pos
+
+    def flush(self) -> None:
+        """Hand everything written so far to the operating system: a point to cut back to."""
+        owner = self._owner
+        if owner._fault is not None:  # noqa: SLF001
+            raise owner._fault  # noqa: SLF001
+        self._write_out()
+        self.good = self._pos
+        owner._on_safe_point()  # noqa: SLF001
+
+    def cut_back(self) -> None:
+        """Truncate the file to its last complete chunk (frees what a fault left half written)."""
+        try:
+            os.ftruncate(self._f.fileno(), self.good)
+        except (OSError, ValueError):
+            pass  # a read-only file system: the reader stops at the cut-short record
+
+    def close(self) -> None:
+        try:
+            self._f.close()
+        except OSError:
+            pass
+
+
 class BagRecorder:
     """Write a rosbag2 bag directory (MCAP storage) from serialized CDR messages.
 
@@ -406,6 +486,7 @@ class BagRecorder:
         file_name: str | None = None,
         fast_writes: bool = True,
         chunk_writes: bool = True,
+        finish_on_fault: bool = True,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
         if compression not in _COMPRESSIONS:
@@ -432,8 +513,11 @@ class BagRecorder:
         self.file_name: str = file_name or f"{self.bag_dir.name}_0.mcap"
         self.mcap_path: Path = self.bag_dir / self.file_name
         self.metadata_path: Path = self.bag_dir / "metadata.yaml"
+        self._fault: HostFault | None = None
+        self._finish_on_fault = finish_on_fault
+        self._safe_counts: dict[str, int] = {}
         try:
-            self._stream: BinaryIO = open(self.mcap_path, "wb")  # noqa: SIM115
+            self._stream: _BagFile = _BagFile(self.mcap_path, self)
         except OSError as exc:
             raise InputError(
                 f"bag directory {str(self.bag_dir)!r}: cannot create {self.file_name}: "
@@ -480,6 +564,49 @@ class BagRecorder:
         self._end_ns: int | None = None
         self._message_count = 0
         self._closed = False
+
+    # ------------------------------------------------------------------ faults of the host
+
+    def _on_safe_point(self) -> None:
+        """Every message counted so far is on disk: note the counts (what a cut-back bag holds)."""
+        topics = getattr(self, "_topics", None)
+        if topics is not None:
+            self._safe_counts = {name: st.message_count for name, st in topics.items()}
+
+    def _fault_of(self, exc: OSError, path: Path) -> HostFault:
+        """The first fault of the host: noted (nothing more is written), the file cut back."""
+        if self._fault is None:
+            self._fault = HostFault.of(exc, path, bag_dir=self.bag_dir)
+            self._stream.cut_back()
+        return self._fault
+
+    @property
+    def fault(self) -> HostFault | None:
+        """The fault of the host that stopped this bag's writes (None if none)."""
+        return self._fault
+
+    def _finish_after_fault(self) -> None:
+        """After a fault: finish the bag from its complete chunks if there is room (the
+        reindexer's way), else leave it cut back to them for ``scripts/reindex.py``."""
+        fault = self._fault
+        self._stream.close()
+        fault.steps = self._safe_counts.get(_WORLD_TOPIC, 0)
+        if not self.mcap_path.exists():
+            fault.bag_state = "lost"
+            return
+        if self._stream.good == 0:  # not even the first chunk reached the disk
+            fault.bag_state = "empty"
+            return
+        fault.bag_state = "reindex"
+        if not self._finish_on_fault:
+            return
+        from .reindex import reindex_bag
+
+        try:
+            result = reindex_bag(self.bag_dir, keep_original=False)
+        except (OSError, InputError, HostFault):
+            return
+        fault.bag_state, fault.steps = "finished", result.steps
 
     # ------------------------------------------------------------------ setup
 
@@ -849,21 +976,31 @@ class BagRecorder:
         if self._closed:
             return
         self._closed = True
+        if self._fault is not None:  # raised already where the write failed
+            self._finish_after_fault()
+            return
         info_text, meta_text = _dump_metadata_yaml(self.metadata()["rosbag2_bagfile_information"])
         try:
             self._writer.add_metadata("rosbag2", {"serialized_metadata": info_text})
             if self._chunk is not None:
                 self._chunk.finalize()  # where the library's finish() writes its open chunk
+                self._stream.flush()  # every message is on disk: the summary is all that is left
             self._writer.finish()
+            self._stream.flush()
+        except HostFault:
+            self._finish_after_fault()
+            raise
         finally:
             self._stream.close()
         try:
             self.metadata_path.write_text(meta_text, encoding="utf-8")
         except OSError as exc:
-            raise InputError(
-                f"bag directory {str(self.bag_dir)!r}: cannot write metadata.yaml: "
-                f"{exc.strerror or exc}"
-            ) from None
+            # the MCAP file is complete: only metadata.yaml is missing (the reindexer writes it)
+            self._fault = HostFault.of(exc, self.metadata_path, bag_dir=self.bag_dir,
+                                       steps=self._topics[_WORLD_TOPIC].message_count
+                                       if _WORLD_TOPIC in self._topics else 0)
+            self._fault.bag_state = "reindex" if self.mcap_path.exists() else "lost"
+            raise self._fault from None
 
     def __enter__(self) -> BagRecorder:
         """Return self (the bag is already open)."""
@@ -1113,8 +1250,10 @@ class OrderedBag:
     def close(self) -> None:
         """Write everything still queued and close the bag (idempotent)."""
         if not self.bag.closed:
-            self.flush_before(2**63 - 1)
-            self.bag.close()
+            try:
+                self.flush_before(2**63 - 1)
+            finally:  # after a fault of the host too: the bag is finished from what reached the disk
+                self.bag.close()
 
     @property
     def message_count(self) -> int:

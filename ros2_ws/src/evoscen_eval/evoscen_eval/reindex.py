@@ -139,7 +139,8 @@ def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult
     tmp = Path(tempfile.mkdtemp(prefix=".reindex-", dir=bag_dir))
     try:
         rec = BagRecorder(tmp / "bag", topics, compression=_compression_of(path), chunk_size=DEFAULT_CHUNK_SIZE,
-                          canonicalize=False, metadata=metadata, file_name=path.name)
+                          canonicalize=False, metadata=metadata, file_name=path.name,
+                          finish_on_fault=False)
         world_stamps: set[int] = set()
         for m in messages:
             topic = topic_of.get(m.channel_id)

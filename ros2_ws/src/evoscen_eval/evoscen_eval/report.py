@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from evoscen_sim.config import EvaluationConfig
-from evoscen_sim.errors import InputError
+from evoscen_sim.errors import HostFault, InputError
 
 from .metrics import evaluate, report_of_stream, run_info, stream_run
 from .rundata import RunData, evaluation_settings_of
@@ -48,7 +48,8 @@ def write_report(run: RunData, out_dir: Path | str, *, override: EvaluationConfi
                  plots: bool = True, source: str | None = None) -> dict[str, Any]:
     """Score ``run`` and write ``report.json``, ``report.md`` and (``plots``) the PNGs into ``out_dir``.
 
-    Returns the report dict. InputError if ``out_dir`` cannot be written.
+    Returns the report dict. InputError if ``out_dir`` cannot be written; HostFault if the disk is
+    full or the file system read-only (:data:`~evoscen_sim.errors.HostFault.ERRNOS`).
     """
     stream = stream_run(run, evaluation_settings(run, override))
     return write_stream_report(stream, run_info(run), list(run.warnings), out_dir, plots=plots, source=source,
@@ -69,6 +70,8 @@ def write_stream_report(stream: ScoreStream, info: dict[str, Any], warnings: lis
         (out / "report.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
         (out / "report.md").write_text(markdown(report, images), encoding="utf-8")
     except OSError as exc:
+        if exc.errno in HostFault.ERRNOS:  # a full disk, a read-only file system: the host's, not the input's
+            raise HostFault.of(exc, exc.filename or out) from None
         raise InputError(f"report directory {str(out)!r}: cannot write: {exc.strerror or exc}") from None
     return report
 
