@@ -35,9 +35,11 @@ class StepRecorder:
         self.msgs = WorldMessages(cfg.dt_s)
         from evoscen_eval.rundata import SCENARIO_METADATA, scenario_metadata
 
+        from evoscen_eval.reindex import finish_bag
+
         bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
                           chunk_size=cfg.recording.chunk_size_bytes,
-                          metadata={SCENARIO_METADATA: scenario_metadata(cfg)})
+                          metadata={SCENARIO_METADATA: scenario_metadata(cfg)}, finish_after_fault=finish_bag)
         self.bag = OrderedBag(bag, T.CONTRACT)
         self.road = road
         self.markers_every = cfg.recording.markers_every

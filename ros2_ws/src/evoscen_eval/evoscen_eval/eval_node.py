@@ -123,9 +123,12 @@ class EvaluatorNode:
             self.acc.start_scoring(evaluation_settings_of(recorded), float(recorded["dt_s"]))
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         rec = self.cfg.recording
+        from .reindex import finish_bag
+
         self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,
                                           chunk_size=rec.chunk_size_bytes,
-                                          metadata={SCENARIO_METADATA: self.metadata}),
+                                          metadata={SCENARIO_METADATA: self.metadata},
+                                          finish_after_fault=finish_bag),
                               T.CONTRACT)
         if self.acc is not None:  # the scores see exactly what the bag gets, in the bag's order
             self.bag.on_write = self.acc.add_bytes

@@ -486,7 +486,7 @@ class BagRecorder:
         file_name: str | None = None,
         fast_writes: bool = True,
         chunk_writes: bool = True,
-        finish_on_fault: bool = True,
+        finish_after_fault: Callable[[Path], int] | None = None,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
         if compression not in _COMPRESSIONS:
@@ -514,7 +514,10 @@ class BagRecorder:
         self.mcap_path: Path = self.bag_dir / self.file_name
         self.metadata_path: Path = self.bag_dir / "metadata.yaml"
         self._fault: HostFault | None = None
-        self._finish_on_fault = finish_on_fault
+        self._fault_finisher = finish_after_fault
+        """Finishes the bag directory from its complete chunks after a fault and returns the world
+        states in it (``evoscen_eval.reindex.finish_bag``; None: leave it for ``scripts/reindex.py``).
+        Passed in, so that the recorder does not import the reindexer that imports it."""
         self._safe_counts: dict[str, int] = {}
         try:
             self._stream: _BagFile = _BagFile(self.mcap_path, self)
@@ -598,15 +601,13 @@ class BagRecorder:
             fault.bag_state = "empty"
             return
         fault.bag_state = "reindex"
-        if not self._finish_on_fault:
+        if self._fault_finisher is None:
             return
-        from .reindex import reindex_bag
-
         try:
-            result = reindex_bag(self.bag_dir, keep_original=False)
+            steps = self._fault_finisher(self.bag_dir)
         except (OSError, InputError, HostFault):
             return
-        fault.bag_state, fault.steps = "finished", result.steps
+        fault.bag_state, fault.steps = "finished", steps
 
     # ------------------------------------------------------------------ setup
 

@@ -139,8 +139,7 @@ def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult
     tmp = Path(tempfile.mkdtemp(prefix=".reindex-", dir=bag_dir))
     try:
         rec = BagRecorder(tmp / "bag", topics, compression=_compression_of(path), chunk_size=DEFAULT_CHUNK_SIZE,
-                          canonicalize=False, metadata=metadata, file_name=path.name,
-                          finish_on_fault=False)
+                          canonicalize=False, metadata=metadata, file_name=path.name)
         world_stamps: set[int] = set()
         for m in messages:
             topic = topic_of.get(m.channel_id)
@@ -177,3 +176,10 @@ def _compression_of(path: Path) -> str:
     except Exception:  # noqa: BLE001 - a damaged file: the default
         pass
     return "zstd"
+
+
+def finish_bag(bag_dir: Path) -> int:
+    """Finish a bag cut back to its complete chunks after a fault of the host, in place (what
+    :class:`~evoscen_eval.recorder.BagRecorder` calls as its ``finish_after_fault``); returns the
+    world states it holds. Raises as :func:`reindex_bag`."""
+    return reindex_bag(bag_dir, keep_original=False).steps
