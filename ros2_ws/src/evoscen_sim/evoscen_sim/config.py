@@ -71,7 +71,7 @@ from __future__ import annotations
 from typing import Any
 
 from evoscen_sim import models as _registry
-from evoscen_sim.config_checks import POLICIES, flag, integer, number, number_range, text
+from evoscen_sim.config_checks import POLICIES, flag, integer, names, number, number_range, text
 from evoscen_sim.config_load import (
     config_from_dict,
     config_to_dict,
@@ -141,6 +141,7 @@ __all__ = [
     "load_scenario_config",
     "mix_counts",
     "number",
+    "names",
     "number_range",
     "register_bv_driver",
     "register_sut_model",

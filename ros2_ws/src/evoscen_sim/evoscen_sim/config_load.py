@@ -213,7 +213,14 @@ def build(cls: type, raw: Any, path: str, ctx: Context,
         if "models" in f.metadata:
             kwargs[f.name] = _build_models(value, key_path, ctx, explicit)
             continue
-        checker = f.metadata["check"] if "check" in f.metadata else ctx.default_check(f)
+        if "check" in f.metadata:
+            checker = f.metadata["check"]
+        elif ctx.default_check is not None:  # the training configuration's dataclasses
+            checker = ctx.default_check(f)
+        else:  # a plug-in's field declared without a declarator
+            ctx.fail(key_path, value, f"a field declared with number(), integer(), flag(), text(), number_range() or "
+                                      f"names() (evoscen_sim.config); {cls.__module__}.{cls.__qualname__}.{f.name} "
+                                      f"has no declarator, so it cannot be set")
         if isinstance(value, str) and not checker.takes_str and ctx.from_cli(key_path):
             value = _parse_cli_scalar(value)
         try:

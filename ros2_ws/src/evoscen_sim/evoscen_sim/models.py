@@ -130,6 +130,7 @@ def discover() -> None:
             importlib.import_module(module)
         except ImportError:  # a partial install (e.g. evoscen_sim alone): those models are absent
             pass
+    builtin = set(_REGISTRY)
     for role, group in ENTRY_POINT_GROUPS.items():
         for ep in metadata.entry_points(group=group):
             try:
@@ -139,6 +140,11 @@ def discover() -> None:
             if not isinstance(spec, ModelSpec):
                 raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) is not an "
                                  f"evoscen_sim.models.ModelSpec (got {type(spec).__name__})")
+            taken = ("a built-in model" if spec.name in builtin else
+                     f"the parameter set models.{spec.name}" if spec.name in _PARAMETER_SETS else None)
+            if taken is not None:
+                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) registers the model "
+                                 f"{spec.name!r}, the name of {taken}: give the plug-in's model another name")
             if role not in spec.roles:
                 spec = ModelSpec(spec.name, (*spec.roles, role), spec.factory, spec.params_type, spec.description)
             register_model(spec)

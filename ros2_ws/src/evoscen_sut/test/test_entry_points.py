@@ -61,6 +61,16 @@ PLUGIN = textwrap.dedent('''
     SPEC = ModelSpec(name="my_sut", roles=("sut",), factory=make, params_type=MySutParams,
                      description="a user's plug-in SUT (test)")
     NOT_A_SPEC = {"name": "broken"}
+    CLASH = ModelSpec(name="mobil", roles=("sut",), factory=make, params_type=MySutParams, description="clash")
+    KRAUSS = ModelSpec(name="krauss", roles=("sut",), factory=make, params_type=MySutParams, description="clash")
+
+
+    @dataclass(frozen=True)
+    class PlainParams:
+        gain: float = 0.5
+
+
+    PLAIN = ModelSpec(name="plain_sut", roles=("sut",), factory=make, params_type=PlainParams, description="plain")
 ''')
 
 RUN_INPROCESS = textwrap.dedent('''
@@ -171,3 +181,22 @@ def test_broken_entry_point_is_named(tmp_path: Path, value: str, needle: str, vi
              "--out", str(tmp_path / "out")] if via_cli else ["-c", RUN_INPROCESS, str(cfg)])
     line = one_line_error(run(argv, plugin))
     assert "entry point 'broken'" in line and "'evoscen.sut'" in line and value in line and needle in line, line
+
+
+@pytest.mark.parametrize("name, taken", [("CLASH", "a built-in model"), ("KRAUSS", "the parameter set models.krauss")])
+def test_a_plugin_named_like_a_builtin_or_a_parameter_set_is_one_line(tmp_path: Path, name: str, taken: str) -> None:
+    site = make_plugin_dir(tmp_path / "site", f"[evoscen.sut]\nclash = my_sut_plugin:{name}\n")
+    cfg = write_config(tmp_path / "scenario.yaml", {})
+    line = one_line_error(run(["-c", RUN_INPROCESS, str(cfg)], site))
+    assert f"entry point 'clash' in group 'evoscen.sut' (my_sut_plugin:{name}) registers the model" in line
+    assert f"the name of {taken}: give the plug-in's model another name" in line
+
+
+def test_a_parameter_field_without_a_declarator_is_one_line(tmp_path: Path) -> None:
+    site = make_plugin_dir(tmp_path / "site", "[evoscen.sut]\nplain_sut = my_sut_plugin:PLAIN\n")
+    cfg = tmp_path / "scenario.yaml"
+    cfg.write_text(yaml.safe_dump({"steps": 10, "sut": {"model": "plain_sut"}, "models": {"plain_sut": {"gain": 1.0}}}),
+                   encoding="utf-8")
+    line = one_line_error(run(["-c", RUN_INPROCESS, str(cfg)], site))
+    assert "key 'models.plain_sut.gain' = 1.0" in line
+    assert "my_sut_plugin.PlainParams.gain has no declarator, so it cannot be set" in line
