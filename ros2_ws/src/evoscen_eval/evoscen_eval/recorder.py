@@ -52,6 +52,7 @@ from typing import Any, BinaryIO
 
 import bisect
 import errno
+import contextlib
 import os
 import re
 import struct
@@ -420,10 +421,10 @@ class _BagFile:
 
     def cut_back(self) -> None:
         """Truncate the file to its last complete chunk (frees what a fault left half written)."""
-        try:
+        # Where the file cannot be truncated (a file system made read-only, a closed file) it is
+        # left as it is: readers and the reindexer stop at the last complete record anyway.
+        with contextlib.suppress(OSError, ValueError):
             os.ftruncate(self._f.fileno(), self.good)
-        except (OSError, ValueError):
-            pass  # a read-only file system: the reader stops at the cut-short record
 
     def close(self) -> None:
         try:
