@@ -6,16 +6,16 @@ History: the hashes of commit 76c0247 (before the architecture work) held throug
 refactorings until ``evaluation.rear_braking`` (issue 17): the scenario metadata record gained
 its two keys and some ``evoscen/exposure`` events changed; the world, command, clock and
 odometry messages stayed identical to the byte (compared per topic). Then, meant to change
-behaviour (issue 17, round 2's last evaluation and BV changes): the learned BVs' lane hold
+behaviour (issue 17, evaluation and BV changes): the learned BVs' lane hold
 (``models.learned.lane_hold_s``: the world changes), cut-ins and the ``conflict`` reading of
 hard braking (``evaluation.cut_in_gap_m``, ``evaluation.hard_braking``: the metadata record
-and the ``evoscen/exposure`` events change). Session 12: the ``driver`` profile's emergency brake
+and the ``evoscen/exposure`` events change). Then the ``driver`` profile's emergency brake
 acts at once for a perceived leader at rest (``models.learned.standing_leader_at_once``; with it
 false the earlier hashes held, checked), and the shipped BV set was retrained (docs/learned-bvs.md).
-Session 13: a lane change beside a vehicle is dangerous (``evaluation.beside_lane_change``,
+Then a lane change beside a vehicle is dangerous (``evaluation.beside_lane_change``,
 docs/evaluation.md §3.7): the metadata record gains the key in every bag, and the default mutant's
 ``evoscen/events`` change (its exposure events); every other message of the five runs is byte-identical
-to the session-12 bags (compared per topic). Then ``evaluation.count_normalisation`` and
+to the bags before (compared per topic). Then ``evaluation.count_normalisation`` and
 ``evaluation.count_reference_steps`` (docs/evaluation.md §1.1): the metadata record gains the two
 keys in every bag; every message of the five runs is byte-identical to the bags before (compared
 per topic: all nine topics). Then, meant to change behaviour: the traffic window with its warm-up
@@ -24,6 +24,9 @@ per topic: all nine topics). Then, meant to change behaviour: the traffic window
 (``models.krauss.speed_factor_sd``): every world changes. With ``traffic.mode: loop`` and the three
 keys at their earlier values the earlier design drives as before: tests/test_profiles.py checks
 every command of 400 steps that way (not the whole bags: their metadata record lists the new keys).
+Then, meant to change behaviour: a learned BV that must merge adapts its speed to a gap
+(``models.learned.merge_seek``, docs/learned-bvs.md, "Merging"): the worlds change wherever a BV
+is on the merge lane beside traffic, and the metadata record gains the key.
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
@@ -39,11 +42,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "d22ce12d2820777e4cb3973b490fb5ed45c8ba34146770f3cc929355a3fc8dc3",  # the shipped default (level0 SUT)
-    "nilsson": "e928f19fd8a66c1b62ed5be23b8d006d30e8771c72b7a311786c4a0a190303c6",
-    "mobil": "c20fd7358178a96d808edf98288d6e06f07eaa36b986c8742f2759b1b5221afb",
-    "stackelberg": "b06b1058fbff4edc5937ddc7a04211214ee25d5ee1ba949605c2390cf6bd35df",
-    "mutant": "4f85421a345f7f1f5acbe7922eae3a0b9a2904c0f6a7531328e09e9da35fe5af",  # the default mutant
+    None: "7e10d190219cdbdb8b561a945cfe6ae696055874105d7681ee40ae14f6b3d1b7",  # the shipped default (level0 SUT)
+    "nilsson": "4e620bcae33e83da81767e7101611b713c34edfcc6ca917204e5b9a08aacdc0d",
+    "mobil": "9d7448d68e1838184856386204ef0cfa10aeb0b7f0cf6acf680fd68f4a11f68d",
+    "stackelberg": "397c0a1f6c030c8c9bb32ccb18e68d64dd49ef6c88c235d8ddcf9b6495e2dfc7",
+    "mutant": "926aebd036e3f33d35f2dbfbec32d387b65203a1f32d3478a541cf34166e1199",  # the default mutant
 }
 
 

@@ -355,3 +355,99 @@ def social_reward(kind: str, space: float, brake: float, speed: float, p: Reward
     if kind == "cooperative":
         return p.coop_space_weight * space + p.coop_speed_weight * speed
     raise ValueError(f"unknown reward kind {kind!r}: expected mutual, competitive or cooperative")
+
+
+@dataclass(frozen=True)
+class MergeSeekParams:
+    """The merge's speed adaptation (:func:`merge_seek_accel`; docs/learned-bvs.md, "Merging").
+
+    [choice] An IDM regulator (Treiber, Hennecke, Helbing 2000) on the blocking vehicle of the
+    target lane, its desired gap the cut-in gap the rule constraints ask for; a = 1.0 m/s²,
+    b = 1.5 m/s², T = 1.0 s, δ = 4 are Treiber's highway values; braking bounded at 3 m/s²,
+    below MOBIL's b_safe of 4 m/s² (a driver dropping back to slot in brakes, but not hard).
+    """
+
+    accel_mps2: float = 1.0
+    comfortable_decel_mps2: float = 1.5
+    time_headway_s: float = 1.0
+    delta: float = 4.0
+    max_decel_mps2: float = 3.0
+
+
+def merge_seek_accel(view, idx: np.ndarray, targets: np.ndarray, desired_speed: np.ndarray,  # noqa: ANN001
+                     closing_headway_s: float = CUT_IN_CLOSING_HEADWAY_S,
+                     closing_decel_mps2: float | None = None,
+                     params: MergeSeekParams = MergeSeekParams()) -> np.ndarray:
+    """Acceleration bound (m/s², ``inf`` for none) of each vehicle ``idx`` that must merge.
+
+    A vehicle with ``targets[k]`` != 0 (the forced merge's target lane offset) that is not
+    changing lanes finds the vehicles of the target lane that block its change — those the
+    rule constraints (:func:`apply_rule_constraints`) would refuse it for: bumper gap below
+    10 m + h·c (+ c²/(2b)) — among those ahead of it or alongside (whose front is ahead of its
+    rear), and drops back behind the rearmost of them: the bound is the IDM
+    acceleration towards it as a leader, with the cut-in gap as the desired gap (negative
+    gaps, a blocker alongside, brake at ``max_decel_mps2``). With no blocker there is no bound
+    (the change goes ahead at the next decision). A vehicle wholly behind it never makes it
+    brake: braking for a faster vehicle behind only raises the closing speed, and with it the
+    gap the change needs (tried: the merging BVs braked to a standstill).
+
+    [choice] Why (docs/learned-bvs.md, "Merging"): the decision policies only choose lanes, and
+    the car-following controller regulates the gap to the vehicle ahead in the vehicle's own
+    lane, so a BV beside traffic at its own speed kept beside it until the merge lane ended,
+    stopped there and later merged at a crawl in front of traffic 30 m/s faster — six of seven
+    BV–BV collisions of the traffic window. Drivers on an acceleration lane adapt their speed to
+    a gap; SUMO's LC2013 likewise adapts the speed of a vehicle that must change lanes.
+    """
+    idx = np.asarray(idx, dtype=np.int64)
+    lk = view.lane_lookup()
+    return _merge_seek_kernel(idx, np.asarray(targets, dtype=np.int64), np.asarray(desired_speed, dtype=float),
+                              view.s, view.d, view.psi, view.v, view.lane, view.lane_change, view.target_lane,
+                              view.length, view.width, lk.d_right, lk.d_left, lk.present, CUT_IN_GAP_M,
+                              float(closing_headway_s),
+                              0.0 if not closing_decel_mps2 else 1.0 / (2.0 * float(closing_decel_mps2)),
+                              params.accel_mps2, params.comfortable_decel_mps2, params.time_headway_s, params.delta,
+                              params.max_decel_mps2)
+
+
+@kernel
+def _merge_seek_kernel(idx, targets, desired, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+                       d_right, d_left, present, min_gap, closing_headway, closing_square, a_max, b_comf, headway,
+                       delta, b_max):
+    m = idx.shape[0]
+    n = s.shape[0]
+    out = np.full(m, np.inf)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    for k in range(m):
+        i = idx[k]
+        if targets[k] == 0 or lane_change[i] != 0:
+            continue
+        tgt = lane[i] + targets[k]
+        if tgt < 0 or tgt >= present.shape[1]:
+            continue
+        best = -1
+        for j in range(n):  # the rearmost blocker in the target lane
+            if j == i or not (target_lane[j] == tgt or occ[j, tgt]):
+                continue
+            ds = s[j] - s[i]
+            closing = v[i] - v[j] if ds > 0.0 else v[j] - v[i]
+            c = max(closing, 0.0)
+            need = min_gap + closing_headway * c + closing_square * c * c
+            if ds + 0.5 * (length[i] + length[j]) <= 0.0:  # wholly behind: it passes or stays behind
+                continue
+            if abs(ds) - 0.5 * (length[i] + length[j]) < need and (best < 0 or s[j] < s[best]):
+                best = j
+        if best < 0:
+            continue
+        gap = s[best] - s[i] - 0.5 * (length[i] + length[best])
+        dv = v[i] - v[best]
+        c = max(dv, 0.0)
+        s_star = min_gap + closing_headway * c + closing_square * c * c + v[i] * headway \
+            + v[i] * dv / (2.0 * np.sqrt(a_max * b_comf))
+        s_star = max(s_star, min_gap)
+        v0 = max(desired[k], 1.0)
+        if gap <= 0.1:
+            acc = -b_max
+        else:
+            acc = a_max * (1.0 - (v[i] / v0) ** delta - (s_star / gap) ** 2)
+        out[k] = max(acc, -b_max)
+    return out

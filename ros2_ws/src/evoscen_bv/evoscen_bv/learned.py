@@ -35,10 +35,11 @@ from evoscen_sim.config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 from evoscen_sim.traffic import new_trips
+from evoscen_sim.vehicle import accel_to_throttle
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
 from .lane_change import (FORCED_MERGE_M, LANE_END_MARGIN_M, OBS_DIM, action_to_lane_change, apply_rule_constraints,
-                          forced_merge_targets, observation_grid)
+                          forced_merge_targets, merge_seek_accel, observation_grid)
 from .profile import get_profile
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
@@ -156,13 +157,17 @@ class LearnedDriver:
             (the training rule, the default here); False: never into a lane that ends.
         forced_merge_m: with ``forced_merge``, how far before its lane's end a vehicle requests the
             change to the lane that goes on (:func:`evoscen_bv.lane_change.forced_merge_targets`).
+        merge_seek: with ``forced_merge``, a vehicle that must merge adapts its speed to drop
+            back behind the target lane's vehicles that block it
+            (:func:`evoscen_bv.lane_change.merge_seek_accel`); False: it keeps the controller's throttle.
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
                  config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
                  forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
                  cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None,
-                 into_ending_lane: bool = True, forced_merge_m: float = FORCED_MERGE_M) -> None:
+                 into_ending_lane: bool = True, forced_merge_m: float = FORCED_MERGE_M,
+                 merge_seek: bool = False) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         if not lane_hold_s >= 0.0:
             raise ValueError(f"lane_hold_s must be >= 0, got {lane_hold_s}")
@@ -185,6 +190,7 @@ class LearnedDriver:
         """A change into a lane that ends less than this far ahead becomes keep."""
         self.forced_merge = forced_merge
         self.forced_merge_m = float(forced_merge_m)
+        self.merge_seek = bool(merge_seek)
         self.controller = controller
         self.controller_bank = PolicyBank([controller])
         self.config = config
@@ -219,6 +225,21 @@ class LearnedDriver:
         return learned_throttle(view, self.vehicles, self.desired_speed_mps, self.controller_bank,
                                 self.config.car_following, 0.0, 0.0, self._throttle_constants, self.reaction)
 
+    def _merge_seek_bound(self, view, throttle: np.ndarray) -> np.ndarray:  # noqa: ANN001
+        """``throttle`` bounded by the merge's speed adaptation (:func:`merge_seek_accel`) for the
+        hosted vehicles that must merge (few: those on a lane that ends)."""
+        targets = forced_merge_targets(view, self.vehicles, self.forced_merge_m)
+        if not targets.any():
+            return throttle
+        bound = merge_seek_accel(view, self.vehicles, targets, self.desired_speed_mps,
+                                 self.profile.cut_in_closing_headway_s, self.profile.cut_in_closing_decel_mps2)
+        limited = np.isfinite(bound)
+        if not limited.any():
+            return throttle
+        out = np.array(throttle, dtype=float)
+        out[limited] = np.minimum(out[limited], accel_to_throttle(bound[limited], self.vehicle_params))
+        return out
+
     def policy_columns(self, view, idx: np.ndarray) -> np.ndarray:  # noqa: ANN001
         """Column of :attr:`stack` (decision policy) of every vehicle in ``idx``, from its policy code."""
         col = self.column_of_code[np.clip(view.policy[idx], 0, self.column_of_code.size - 1)]
@@ -244,6 +265,8 @@ class LearnedDriver:
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
         throttle = self.throttle(view)
+        if self.forced_merge and self.merge_seek:
+            throttle = self._merge_seek_bound(view, throttle)
         if self.lane_hold_s > 0.0:
             changing = np.asarray(view.lane_change)[self.vehicles] != 0
             ended = self._changing & ~changing

@@ -6,7 +6,7 @@
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
   Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2``,
-  ``into_ending_lane``, ``forced_merge_m``
+  ``into_ending_lane``, ``forced_merge_m``, ``merge_seek``
   and ``standing_leader_at_once`` (:class:`LearnedParams`).
 """
 
@@ -72,6 +72,13 @@ class LearnedParams:
     (default): never — an acceleration lane is for joining the carriageway, and BVs that moved onto
     it stopped at its end and forced their way back at a crawl, the BV–BV collisions of the
     traffic window (traced in the runs); true: the rule the policies were trained with."""
+    merge_seek: bool = flag(True)
+    """Whether a BV that must merge adapts its speed to a gap (docs/learned-bvs.md, "Merging";
+    :func:`evoscen_bv.lane_change.merge_seek_accel`): it drops back behind the vehicles of the
+    lane it must join that block its change. [choice] true (default): without it a BV beside
+    traffic at its own speed stayed beside it to the merge lane's end, stopped and merged at a
+    crawl in front of traffic 30 m/s faster (six of seven BV–BV collisions of the traffic window,
+    traced in the runs); false: the controller's throttle only, as before."""
     standing_leader_at_once: bool = flag(True)
     """Under the ``driver`` profile, the emergency brake acts at once, without the reaction
     time, for a perceived leader at rest (docs/bv-profiles.md, R2) [choice: a vehicle standing
@@ -100,7 +107,8 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
                          forced_merge=True, profile=params.profile, lane_hold_s=params.lane_hold_s,
                          cut_in_decel_mps2=params.cut_in_decel_mps2,
                          standing_leader_at_once=params.standing_leader_at_once,
-                         into_ending_lane=params.into_ending_lane, forced_merge_m=params.forced_merge_m)
+                         into_ending_lane=params.into_ending_lane, forced_merge_m=params.forced_merge_m,
+                         merge_seek=params.merge_seek)
 
 
 LEVEL0 = ModelSpec(

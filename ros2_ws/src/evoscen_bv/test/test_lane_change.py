@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from evoscen_bv.lane_change import (
+    merge_seek_accel,
     cell_centres_m,
     RewardParams,
     action_to_lane_change,
@@ -257,3 +258,37 @@ def test_the_learned_driver_takes_both_merge_keys_from_the_scenario():
     sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models": {"learned": {
         "into_ending_lane": True, "forced_merge_m": 120.0}}}))
     assert sc.bv_driver.end_margin_m == 200.0 and sc.bv_driver.forced_merge_m == 120.0
+    assert sc.bv_driver.merge_seek is True  # the default
+    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models.learned.merge_seek": False}))
+    assert sc.bv_driver.merge_seek is False
+
+
+def test_merge_seek_drops_back_behind_a_blocker_alongside_or_just_ahead(road):
+    # the merging vehicle 0 on the merge lane (0) at 700 m, its forced target lane 1 (+1); vehicles 4.8 m long
+    one = np.array([1])
+    des = np.array([30.0])
+    # alongside at the same speed: a negative bumper gap -> the bounded braking of 3 m/s²
+    w = hand_built_world(road, s=[700, 702], lane=[0, 1], speed=[25, 25])
+    assert merge_seek_accel(w, np.array([0]), one, des).tolist() == [-3.0]
+    # 30 m ahead at the same speed: bumper gap 25.2 m >= the 10 m the change needs -> no bound
+    w = hand_built_world(road, s=[700, 730], lane=[0, 1], speed=[25, 25])
+    assert merge_seek_accel(w, np.array([0]), one, des).tolist() == [np.inf]
+    # wholly behind (front 0.2 m behind its rear), too close for the change: it never makes it brake
+    w = hand_built_world(road, s=[700, 690.2], lane=[0, 1], speed=[25, 25])
+    assert merge_seek_accel(w, np.array([0]), one, des).tolist() == [np.inf]
+    # just ahead and faster (v 20 behind 25): bumper gap 9.2 m < 10 m; IDM with s* = max(10 + 20·1 +
+    # 20·(-5)/(2·sqrt(1·1.5)), 10) = 10: a = 1·(1 - (20/30)^4 - (10/9.2)^2) = -0.3789
+    w = hand_built_world(road, s=[700, 714], lane=[0, 1], speed=[20, 25])
+    a = merge_seek_accel(w, np.array([0]), one, des)[0]
+    assert a == pytest.approx(1.0 - (20 / 30) ** 4 - (10 / 9.2) ** 2, abs=1e-9)
+    # no forced target: no bound
+    w = hand_built_world(road, s=[700, 702], lane=[0, 1], speed=[25, 25])
+    assert merge_seek_accel(w, np.array([0]), np.array([0]), des).tolist() == [np.inf]
+    # two blockers (one alongside, one 9.2 m ahead): the rearmost, alongside, sets the bound
+    w = hand_built_world(road, s=[700, 702, 723.8], lane=[0, 1, 1], speed=[25, 25, 25])
+    assert merge_seek_accel(w, np.array([0]), one, des).tolist() == [-3.0]
+    # 30 m ahead, 10 m/s slower: bumper gap 25.2 m >= 10 + 1.5·10 = 25 m -> no bound; the profile's
+    # closing term (c²/(2b), b = 4) widens what blocks: 10 + 15 + 100/8 = 37.5 m > 25.2 m
+    w = hand_built_world(road, s=[700, 730], lane=[0, 1], speed=[25, 15])
+    assert merge_seek_accel(w, np.array([0]), one, des).tolist() == [np.inf]
+    assert merge_seek_accel(w, np.array([0]), one, des, closing_decel_mps2=4.0)[0] < 0.0

@@ -145,11 +145,11 @@ computed with the code before profiles existed (commit 33305ed) on the developme
 
 
 def test_safety_net_reproduces_the_old_commands_exactly():
-    # the old commands came from round 1's policies (shipped then; kept as policy_dir: round1) and a
+    # the old commands came from the first shipped policies (kept as policy_dir: round1) and a
     # lateral loop without the heading-reference cap (evoscen_sim.control; 1.5 rad never binds: asin(0.6) < 0.65)
-    # and no lane hold (lane_hold_s: 0; the hold came in round 2, docs/learned-bvs.md)
+    # and no lane hold (lane_hold_s: 0; docs/learned-bvs.md), no speed adaptation of merging BVs (merge_seek)
     old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "round1", "lane_hold_s": 0,
-                                  "into_ending_lane": True, "forced_merge_m": 120.0}},
+                                  "into_ending_lane": True, "forced_merge_m": 120.0, "merge_seek": False}},
            "control.max_heading_ref_rad": 1.5, "traffic.mode": "loop"}  # and re-entry at the road's start
     assert _commands_digest(old, 400) == OLD_COMMANDS_SHA256
     # the driver profile drives differently
