@@ -160,6 +160,9 @@ class LearnedDriver:
         merge_seek: with ``forced_merge``, a vehicle that must merge adapts its speed to drop
             back behind the target lane's vehicles that block it
             (:func:`evoscen_bv.lane_change.merge_seek_accel`); False: it keeps the controller's throttle.
+        hold_on_entry: with ``lane_hold_s``, a vehicle that enters anew (the traffic window's entries,
+            re-entries) starts with a lane hold, as a vehicle that has settled in its lane; False:
+            without one (it may change lanes at its first decision).
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
@@ -167,7 +170,7 @@ class LearnedDriver:
                  forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
                  cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None,
                  into_ending_lane: bool = True, forced_merge_m: float = FORCED_MERGE_M,
-                 merge_seek: bool = False) -> None:
+                 merge_seek: bool = False, hold_on_entry: bool = False) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         if not lane_hold_s >= 0.0:
             raise ValueError(f"lane_hold_s must be >= 0, got {lane_hold_s}")
@@ -191,6 +194,7 @@ class LearnedDriver:
         self.forced_merge = forced_merge
         self.forced_merge_m = float(forced_merge_m)
         self.merge_seek = bool(merge_seek)
+        self.hold_on_entry = bool(hold_on_entry)
         self.controller = controller
         self.controller_bank = PolicyBank([controller])
         self.config = config
@@ -275,8 +279,10 @@ class LearnedDriver:
                 self.hold_until_step[ended] = int(view.step_index) + n
             self._changing = changing
             s = np.asarray(view.s)[self.vehicles]
-            if self._last_s is not None:  # a vehicle that entered anew is a new vehicle: no hold
-                self.hold_until_step[new_trips(self._last_s, s, float(view.dt_s))] = -1
+            if self._last_s is not None:  # a vehicle that entered anew: held (hold_on_entry) or free
+                entered = new_trips(self._last_s, s, float(view.dt_s))
+                n = int(round(self.lane_hold_s / float(view.dt_s)))
+                self.hold_until_step[entered] = int(view.step_index) + n if self.hold_on_entry else -1
             self._last_s = s.copy()
         request = np.zeros(self.vehicles.size, dtype=np.int64)
         if self.stack is not None and view.step_index % self.config.env.decision_interval_steps == 0:

@@ -6,7 +6,7 @@
   every BV drives with the trained car-following controller and decides lane changes with
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
   Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2``,
-  ``into_ending_lane``, ``forced_merge_m``, ``merge_seek``
+  ``into_ending_lane``, ``forced_merge_m``, ``merge_seek``, ``hold_on_entry``
   and ``standing_leader_at_once`` (:class:`LearnedParams`).
 """
 
@@ -79,6 +79,14 @@ class LearnedParams:
     traffic at its own speed stayed beside it to the merge lane's end, stopped and merged at a
     crawl in front of traffic 30 m/s faster (six of seven BV–BV collisions of the traffic window,
     traced in the runs); false: the controller's throttle only, as before."""
+    hold_on_entry: bool = flag(True)
+    """Whether a BV that enters anew (the traffic window's entries at its edges and at the merge
+    lane's start) starts with the lane hold (docs/learned-bvs.md, "Lane hold"). [choice] true
+    (default): an entry places the vehicle where it can follow safely at a speed that fits the
+    gap — the state of a vehicle that has been driving in that lane — so it is held like one that
+    has settled there; without it 37 % of the entries were followed by a lane change within 5 s
+    (14 % of all BV lane changes of the window; traced in the runs). false: no hold on entry, as
+    before. The forced merge is exempt either way."""
     standing_leader_at_once: bool = flag(True)
     """Under the ``driver`` profile, the emergency brake acts at once, without the reaction
     time, for a perceived leader at rest (docs/bv-profiles.md, R2) [choice: a vehicle standing
@@ -108,7 +116,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
                          cut_in_decel_mps2=params.cut_in_decel_mps2,
                          standing_leader_at_once=params.standing_leader_at_once,
                          into_ending_lane=params.into_ending_lane, forced_merge_m=params.forced_merge_m,
-                         merge_seek=params.merge_seek)
+                         merge_seek=params.merge_seek, hold_on_entry=params.hold_on_entry)
 
 
 LEVEL0 = ModelSpec(

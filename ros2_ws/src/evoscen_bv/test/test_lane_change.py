@@ -258,9 +258,10 @@ def test_the_learned_driver_takes_both_merge_keys_from_the_scenario():
     sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models": {"learned": {
         "into_ending_lane": True, "forced_merge_m": 120.0}}}))
     assert sc.bv_driver.end_margin_m == 200.0 and sc.bv_driver.forced_merge_m == 120.0
-    assert sc.bv_driver.merge_seek is True  # the default
-    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models.learned.merge_seek": False}))
-    assert sc.bv_driver.merge_seek is False
+    assert sc.bv_driver.merge_seek is True and sc.bv_driver.hold_on_entry is True  # the defaults
+    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models.learned.merge_seek": False,
+                                                    "models.learned.hold_on_entry": False}))
+    assert sc.bv_driver.merge_seek is False and sc.bv_driver.hold_on_entry is False
 
 
 def test_merge_seek_drops_back_behind_a_blocker_alongside_or_just_ahead(road):

@@ -288,6 +288,17 @@ def test_lane_hold_spares_the_forced_merge_and_is_reset_by_a_reentry(road, polic
     w.s[1] = 100.0
     bv.act(w)
     assert bv.hold_until_step.tolist() == [10**6, -1]
+    # with hold_on_entry the entered vehicle starts a fresh hold of 20 s = 200 steps from this step
+    entry = LearnedDriver(np.array([0, 1]), controller, {1: _constant_actor(-1)}, training,
+                          np.random.default_rng(0), w.vehicle, forced_merge=True, profile="driver", lane_hold_s=20.0,
+                          hold_on_entry=True)
+    entry.hold_until_step[:] = 10**6
+    entry.act(w)
+    w.s[1] = 1400.0  # 1,300 m forwards in one step: an entry
+    entry.act(w)
+    assert entry.hold_until_step.tolist() == [10**6, int(w.step_index) + 200]
+    _, requested, executed = entry.decide(w, np.array([0, 1]))
+    assert requested.tolist() == [1, -1] and executed.tolist() == [1, 0]  # the forced merge exempt, the entry held
     with pytest.raises(ValueError, match="lane_hold_s must be >= 0"):
         LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), w.vehicle, lane_hold_s=-1.0)
 
