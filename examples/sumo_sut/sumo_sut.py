@@ -59,6 +59,10 @@ SUMO_VERSION = "1.28.0"
 NETCONVERT_OPTIONS = ("--opendrive.import-all-lanes", "false", "--no-turnarounds", "true", "--offset.disable-normalization", "true")
 SUT_ID = "sut"
 ROUTE_ID = "road"
+#: vehicle.moveTo's reason: a normal move (TraCI's MOVE_NORMAL). SUMO treats a long automatic move as a
+#: teleport and resets the lane-change model's memory (LC2013's speed-gain wish), which would make the
+#: traffic window's shift (1700 m back) delay the SUT's next change by about 1 s.
+MOVE_REASON = 2
 
 
 class SumoInstanceError(RuntimeError):
@@ -316,7 +320,7 @@ class SumoSut:
                 veh.setSpeedMode(vid, 0)
             self.present.add(vid)
         lane_id, pos = place
-        veh.moveTo(vid, lane_id, pos)
+        veh.moveTo(vid, lane_id, pos, MOVE_REASON)
         veh.setPreviousSpeed(vid, speed, accel)
         if type_id == "bv":
             veh.setSpeed(vid, speed)
