@@ -146,6 +146,22 @@ def test_a_fast_follower_closing_in_the_target_lane_it_waits(ss, cfg, road):
     assert at["others_s"][1] - at["s"] > 4.8, (first, at["s"], at["others_s"])  # the follower is ahead by then
 
 
+def test_vehicles_entering_and_leaving_are_seen_at_once(ss, cfg, road):
+    """A BV waiting before the road's start is not in SUMO; when it begins a new trip 20 m ahead of the
+    SUT at 10 m/s (a window entry: same index, a jump) the SUT brakes in that very step; when it is
+    gone again, the SUT speeds up again."""
+    world = world_of(road, [300, -50], [1, 1], [25, 10])
+    sut = sut_driver(ss, cfg, sigma=0.0)
+    assert drive(world, sut, 1)[0]["throttle"] == pytest.approx(2.6 / 3.0)  # free road: Krauss accel
+    assert "v1" not in sut.present
+    world.s[1] = world.s[0] + 20.0 + 4.8  # 20 m ahead, bumper to bumper
+    world.refresh()
+    assert drive(world, sut, 1)[0]["throttle"] < -0.3 and "v1" in sut.present  # brakes hard
+    world.s[1] = -50.0
+    world.refresh()
+    assert drive(world, sut, 1)[0]["throttle"] == pytest.approx(2.6 / 3.0) and "v1" not in sut.present
+
+
 def test_the_shift_changes_nothing_but_s(ss, cfg, road):
     """The traffic window moves everyone back 1700 m (docs/plugins.md §10): the driver answers the
     same lane changes as without it, at the same steps, and the same throttle within 0.05 (0.15 m/s²:
