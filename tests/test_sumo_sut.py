@@ -251,6 +251,20 @@ def test_bad_parameters_are_one_line_naming_the_plugin(registered):
     assert str(err.value).endswith("did you mean 'tau_s'?"), str(err.value)
 
 
+def test_a_bad_parameter_on_the_command_line_is_one_line_and_nothing_runs(registered, tmp_path, capsys):
+    import run_scenario
+
+    config = tmp_path / "scenario.yaml"
+    config.write_text("sut: {model: sumo_sut}\nmodels:\n  sumo_sut: {sigma: 1.5}\n", encoding="utf-8")
+    code = run_scenario.main(["--mode", "inprocess", "--config", str(config), "--steps", "10", "--no-record",
+                              "--quiet", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert code == 2 and "Traceback" not in err and len(lines) == 1, err
+    assert lines[0] == f"error: {config}: key 'models.sumo_sut.sigma' = 1.5: expected a number in [0, 1] (line 3)"
+    assert not (tmp_path / "out").exists()
+
+
 def test_sl2015_changes_left_past_a_slow_leader_too(ss, cfg, road):
     world = world_of(road, [300, 340], [2, 2], [25, 20])
     log = drive(world, sut_driver(ss, cfg, lane_change_model="SL2015"), 100)

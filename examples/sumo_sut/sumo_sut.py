@@ -374,7 +374,12 @@ def make(vehicles: np.ndarray, params: SumoSutParams, config, rng: np.random.Gen
     xodr = resolve_map_path(config.map)
     net = convert_map(Path(xodr))
     seed = int(rng.integers(0, 2**31 - 1))  # SUMO's --seed: its dawdling and lane-change draws
-    return SumoSut(vehicles, params, config, seed, net, load_road(xodr))
+    driver = SumoSut(vehicles, params, config, seed, net, load_road(xodr))
+    missing = [lane for lane, spans in driver.net.spans.items() if not spans]
+    if missing:
+        raise InputError(f"{xodr}: its SUMO network ({net}) has no car lane for evoscen lane(s) "
+                         f"{', '.join(map(str, missing))}: the SUMO SUT needs every lane of the map in SUMO")
+    return driver
 
 
 SPEC = ModelSpec(name=NAME, roles=("sut",), factory=make, params_type=SumoSutParams,
