@@ -176,6 +176,14 @@ def test_sensitivity_episodes_design(tmp_path):
     assert ("Design episodes: 2 episodes (seeds 5..6) x 20 steps = 40 SUT steps per variant and scenario; the "
             "warm-up (traffic.warmup_s = 20 s, 200 steps) runs before every run and is extra compute") in res.stdout
     assert "paired by episode" in (out / "sensitivity.md").read_text()
+    # the surrogate-safety rates per SUT-km: paired mutant − intact from the rounds' own rates
+    for col in ("ssm_front_ttc_episodes_per_km", "ssm_rear_pet_events_per_km", "ssm_rear_tit_s2_per_km"):
+        rate = {(r["variant"], int(r["seed"])): float(r[col]) for r in rounds}
+        d = [rate[("stale", s)] - rate[("intact", s)] for s in (5, 6)]
+        assert float(row[f"d_{col}_mean"]) == pytest.approx(sum(d) / 2)
+        assert float(row[f"d_{col}_ci95"]) == pytest.approx(stats.t.ppf(0.975, 1) * abs(d[0] - d[1]) / 2, abs=1e-12)
+    assert row["ssm_n"] == "2"
+    assert "Surrogate safety of the SUT per SUT-km" in (out / "sensitivity.md").read_text()
 
 
 def test_sensitivity_compare_designs(tmp_path):
