@@ -52,6 +52,16 @@ def test_intelligence_table_and_files(intelligence):
         total = sum(float(row[f"{k}_weighted_mean"]) for k in ("safety", "efficiency", "interaction"))
         assert total == pytest.approx(mean)
     assert "| mobil |" in res.stdout and "| SUT | safety (weighted)" in res.stdout
+    # surrogate-safety rates per SUT-km: each SUT's mean ± interval of its rounds' rates
+    ssm = read_csv(out / "surrogate_safety.csv")
+    assert [r["sut"] for r in ssm] == ["nilsson", "mobil", "stackelberg"]
+    for row in ssm:
+        for col in ("front_ttc_episodes_per_km", "rear_pet_events_per_km", "rear_tit_s2_per_km"):
+            vals = [float(r[f"ssm_{col}"]) for r in rounds if r["sut"] == row["sut"]]
+            assert float(row[f"{col}_mean"]) == pytest.approx(sum(vals) / 2)
+            assert float(row[f"{col}_ci95"]) == pytest.approx(stats.t.ppf(0.975, 1) * abs(vals[0] - vals[1]) / 2,
+                                                              abs=1e-12)
+    assert "| SUT | TTC<3 s front /km" in res.stdout
 
 
 def test_intelligence_paired_comparisons(intelligence):
