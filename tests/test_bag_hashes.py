@@ -24,6 +24,10 @@ per topic: all nine topics). Then, meant to change behaviour: the traffic window
 (``models.krauss.speed_factor_sd``): every world changes. With ``traffic.mode: loop`` and the three
 keys at their earlier values the earlier design drives as before: tests/test_profiles.py checks
 every command of 400 steps that way (not the whole bags: their metadata record lists the new keys).
+Then ``evaluation.ssm_ttc_threshold_s`` and ``evaluation.ssm_pet_threshold_s`` (the surrogate-safety
+profile, docs/evaluation.md; read by the evaluator only): the metadata record gains the two keys in
+every bag; every message of the default and the default mutant's runs is byte-identical to the bags
+before (compared per topic: all nine topics, and the recorded scenario differs only by the two keys).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
@@ -39,11 +43,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "d22ce12d2820777e4cb3973b490fb5ed45c8ba34146770f3cc929355a3fc8dc3",  # the shipped default (level0 SUT)
-    "nilsson": "e928f19fd8a66c1b62ed5be23b8d006d30e8771c72b7a311786c4a0a190303c6",
-    "mobil": "c20fd7358178a96d808edf98288d6e06f07eaa36b986c8742f2759b1b5221afb",
-    "stackelberg": "b06b1058fbff4edc5937ddc7a04211214ee25d5ee1ba949605c2390cf6bd35df",
-    "mutant": "4f85421a345f7f1f5acbe7922eae3a0b9a2904c0f6a7531328e09e9da35fe5af",  # the default mutant
+    None: "253311a8b4664b8c1a50c6a2751026ddc2ce77d6b724f8b334790642f81742a5",  # the shipped default (level0 SUT)
+    "nilsson": "c0188ad7b69b8cb906cdbfa7aef6827e78d2429e5c7f9e4847739e8b46400e7d",
+    "mobil": "3876b5591e1441eac626c8fb13255ae3e0ac52f423f25f053a8884501d275b3d",
+    "stackelberg": "a2355a03059ccd44f2346496f806a592eff3439f8ae2b12dc52894d215518f49",
+    "mutant": "2e56a2ab3f77ff4036176d01e2dc983dd4e6dbb3220d4209ceeee3cd7330700f",  # the default mutant
 }
 
 
