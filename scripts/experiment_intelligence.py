@@ -11,8 +11,9 @@ continues where it stopped (a finished round is not recomputed). Writes into ``-
 ``intelligence.csv`` / ``intelligence.md`` (per SUT: the weighted safety, efficiency and
 interaction terms and the intelligence score, mean ± 95 % interval over seeds, with the
 collisions and exposures; below it every pair of SUTs compared on the same seeds: the mean
-per-seed difference of intelligence with its 95 % interval, and of the efficiency term), ``paired.csv``,
-``paired_efficiency.csv``, ``rounds.csv`` (every round), ``ttc.png`` and ``speed.png``
+per-seed difference of intelligence with its 95 % interval, and of the efficiency term; then per SUT
+its surrogate-safety rates per SUT-km, docs/evaluation.md), ``surrogate_safety.csv``, ``paired.csv``,
+``paired_efficiency.csv``, ``rounds.csv`` (every round, with its rates), ``ttc.png`` and ``speed.png``
 (the SUTs' distributions overlaid, pooled over seeds); prints the table. Exit status: 0 done,
 2 bad input, 130 interrupted.
 """
@@ -73,7 +74,9 @@ def main(argv: list[str] | None = None) -> int:
 
     header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
               "collisions", "exposures", "seeds"]
-    rows, csv_rows, round_rows = [], [], []
+    from evoscen_bringup.sensitivity import SSM_RATES, ssm_label, ssm_rate
+
+    rows, csv_rows, round_rows, ssm_rows, ssm_csv = [], [], [], [], []
     for sut in suts:
         rs = [results[r.key] for r in rounds if r.label == sut]
         reps = [r["report"] for r in rs]
@@ -83,17 +86,24 @@ def main(argv: list[str] | None = None) -> int:
         exp = mean_ci([x["safety"]["exposures"] for x in reps])
         rows.append([sut, *(fmt_ci(*c) for c in cols), fmt_ci(*total), fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
         csv_rows.append([sut, *(v for c in (*cols, total, col, exp) for v in c), len(reps)])
+        rates = [mean_ci([v for v in (ssm_rate(x, side, m) for x in reps) if v == v]) for side, m in SSM_RATES]  # v == v: not nan
+        ssm_rows.append([sut, *(fmt_ci(*c, 2) for c in rates), str(len(reps))])
+        ssm_csv.append([sut, *(v for c in rates for v in c), len(reps)])
         for r in rs:
             x = r["report"]
             round_rows.append([sut, r["seed"], r["steps"], x["safety"]["score"], x["efficiency"]["score"],
                                x["interaction"]["score"], x["intelligence"]["score"], x["safety"]["collisions"],
-                               x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"], r["wall_time_s"]])
+                               x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"], r["wall_time_s"],
+                               *(ssm_rate(x, side, m) for side, m in SSM_RATES)])
     write_csv(args.out / "intelligence.csv",
               ["sut", *(f"{k}_{s}" for k in ("safety_weighted", "efficiency_weighted", "interaction_weighted",
                                              "intelligence", "collisions", "exposures") for s in ("mean", "ci95")),
                "seeds"], csv_rows)
     write_csv(args.out / "rounds.csv", ["sut", "seed", "steps", "safety", "efficiency", "interaction", "intelligence",
-                                        "collisions", "exposures", "mean_speed_mps", "wall_time_s"], round_rows)
+                                        "collisions", "exposures", "mean_speed_mps", "wall_time_s",
+                                        *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES)], round_rows)
+    write_csv(args.out / "surrogate_safety.csv",
+              ["sut", *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "seeds"], ssm_csv)
     pair_rows, pair_csv = paired_comparisons(suts, rounds, results)
     eff_rows, eff_csv = paired_comparisons(suts, rounds, results, "efficiency")
     if pair_csv:
@@ -103,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
                                                        "seeds", "significant"], eff_csv)
     any_cfg = rounds[0].cfg
     table = markdown_table(header, rows)
+    first_report = results[rounds[0].key]["report"]
+    ssm_table = markdown_table(["SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "seeds"], ssm_rows)
     pair_table = (markdown_table(["A", "B", "I(A) − I(B), paired by seed", "seeds", "significant (95 %)"], pair_rows)
                   if pair_rows else "")
     eff_table = (markdown_table(["A", "B", "I_e(A) − I_e(B), paired by seed", "seeds", "significant (95 %)"], eff_rows)
@@ -114,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
             + (f"Paired comparisons (the same seeds: same traffic and random streams; mean ± 95 % interval of "
                f"the per-seed difference):\n\n{pair_table}\nThe efficiency term I_e alone, paired the same way:\n\n"
                f"{eff_table}\n" if pair_table else "") +
+            "Surrogate safety of each SUT per SUT-km (docs/evaluation.md; front: the SUT behind its leader, rear: its "
+            f"follower behind it), mean ± 95 % interval over seeds:\n\n{ssm_table}\n"
             "![TTC](ttc.png)\n\n![speed](speed.png)\n")
     (args.out / "intelligence.md").write_text(text, encoding="utf-8")
     plot_distributions(args.out, suts, rounds, results)
@@ -121,7 +135,9 @@ def main(argv: list[str] | None = None) -> int:
     if pair_table:
         print("\n" + pair_table, end="")
         print("\n" + eff_table, end="")
-    print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, rounds.csv, ttc.png, speed.png"
+    print("\n" + ssm_table, end="")
+    print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, surrogate_safety.csv, rounds.csv, ttc.png, "
+          "speed.png"
           + (", paired.csv, paired_efficiency.csv" if pair_csv else ""))
     return EXIT_OK
 

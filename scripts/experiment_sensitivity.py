@@ -183,7 +183,8 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     """One design's tables and files in ``out`` (sensitivity.md/.csv, mutation_scores.csv, rounds.csv,
     sensitivity.png). Returns (scenario, base) -> :class:`DesignSummary` and the score table (Markdown)."""
     from evoscen_bringup.experiments import fmt_ci, markdown_table, mean_ci, write_csv
-    from evoscen_bringup.sensitivity import SCORES, paired, score_of, seeds_needed, summarise_design
+    from evoscen_bringup.sensitivity import (SCORES, SSM_RATES, paired, score_of, seeds_needed, ssm_label, ssm_rate,
+                                             summarise_design)
     from evoscen_sut.mutants import LIBRARY
 
     out.mkdir(parents=True, exist_ok=True)
@@ -206,7 +207,12 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
             out[s] = math.nan if v is None else float(v)
         return out
 
+    def rates(key: tuple[str, str, str], side: str, measure: str) -> dict[int, float]:
+        return {s: ssm_rate(r, side, measure) for s, r in reports[key].items()}
+
     unit = design.unit
+    first_report = next(iter(next(iter(reports.values())).values()))
+    ssm_header = ["mutant", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "n"]
     header = ["mutant", "class", "ΔI (intact − mutant)", "ΔI_s", "ΔI_e", "ΔI_i", "Δ collisions (mutant − intact)",
               "Δ exposures", "Δ min PET (s)", "detected", f"{unit}s needed", "pairing r"]
     csv_rows, score_rows, md_parts, plot_data = [], [], [], []
@@ -220,12 +226,18 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                                        {m: per_seed((scenario, base, m), "intelligence") for m in mutants})
             summaries[(scenario, base)] = summary
             rows, points = [], []
+            intact_rates = [mean_ci([v for v in rates(intact_key, side, ms).values() if not math.isnan(v)])
+                            for side, ms in SSM_RATES]
+            ssm_rows = [["intact (mean)", *(fmt_ci(mean, half, 2) for mean, half in intact_rates),
+                         str(len(reports[intact_key]))]]
             for m in mutants:
                 key = (scenario, base, m)
                 diffs = {name: paired(per_seed(intact_key, name), per_seed(key, name)) for name in SCORES}
                 d_col = paired(counts(key, "safety", "collisions"), counts(intact_key, "safety", "collisions"))
                 d_exp = paired(counts(key, "safety", "exposures"), counts(intact_key, "safety", "exposures"))
                 d_pet = paired(min_pet(intact_key), min_pet(key))
+                d_ssm = [paired(rates(key, side, ms), rates(intact_key, side, ms)) for side, ms in SSM_RATES]
+                ssm_rows.append([m, *(fmt_ci(d.mean, d.half, 2) for d in d_ssm), str(d_ssm[0].n)])
                 need = seeds_needed(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
                 r_pair = summary.pairing_r[m]
                 hit = diffs["intelligence"].above_zero
@@ -237,7 +249,8 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                 csv_rows.append([design.name, scenario, driver, base, m, LIBRARY[m].klass,
                                  *(v for n in SCORES for v in (diffs[n].mean, diffs[n].half)),
                                  d_col.mean, d_col.half, d_exp.mean, d_exp.half, d_pet.mean, d_pet.half, int(hit),
-                                 "" if need is None else need, diffs["intelligence"].n, r_pair])
+                                 "" if need is None else need, diffs["intelligence"].n, r_pair,
+                                 *(v for d in d_ssm for v in (d.mean, d.half)), d_ssm[0].n])
             intact_i = mean_ci(list(per_seed(intact_key, "intelligence").values()))
             score_rows.append([scenario, driver, base, summary.detected, summary.mutants, summary.score, *intact_i,
                                summary.median_r])
@@ -245,7 +258,10 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
             md_parts.append(f"## {scenario} (BVs: {driver}), SUT {base}\n\nIntact intelligence "
                             f"{fmt_ci(*intact_i)}; mutation score {summary.detected}/{summary.mutants}"
                             f"{'' if math.isnan(score) else f' = {score:.2f}'}.\n\n"
-                            + markdown_table(header, rows))
+                            + markdown_table(header, rows)
+                            + f"\nSurrogate safety of the SUT per SUT-km (docs/evaluation.md): the intact model's mean "
+                            f"± 95 % interval over {unit}s, then each mutant's paired difference mutant − intact "
+                            f"(> 0: more conflicts), n {unit}s.\n\n" + markdown_table(ssm_header, ssm_rows))
             plot_data.append((f"{scenario} / {base}", points))
     for rnd in rounds:
         _, scenario, base, variant = meta[rnd.key]
@@ -253,19 +269,23 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
         rep = r["report"]
         round_rows.append([design.name, scenario, base, variant, r["seed"], r["steps"],
                            *(score_of(rep, n) for n in SCORES), rep["safety"]["collisions"],
-                           rep["safety"]["exposures"], r["wall_time_s"]])
+                           rep["safety"]["exposures"], r["wall_time_s"],
+                           *(ssm_rate(rep, side, ms) for side, ms in SSM_RATES)])
 
     write_csv(out / "sensitivity.csv",
               ["design", "scenario", "bv_driver", "base", "mutant", "class",
                *(f"d_{n}_{s}" for n in SCORES for s in ("mean", "ci95")),
                "d_collisions_mean", "d_collisions_ci95", "d_exposures_mean", "d_exposures_ci95", "d_min_pet_mean",
                "d_min_pet_ci95", "detected",
-               "seeds_needed", "seeds", "pairing_r"], csv_rows)
+               "seeds_needed", "seeds", "pairing_r",
+               *(f"d_ssm_{side}_{ms}_per_km_{s}" for side, ms in SSM_RATES for s in ("mean", "ci95")), "ssm_n"],
+              csv_rows)
     write_csv(out / "mutation_scores.csv", ["scenario", "bv_driver", "base", "detected", "mutants",
                                             "mutation_score", "intact_intelligence_mean",
                                             "intact_intelligence_ci95", "median_pairing_r"], score_rows)
     write_csv(out / "rounds.csv", ["design", "scenario", "base", "variant", "seed", "steps", *SCORES, "collisions",
-                                   "exposures", "wall_time_s"], round_rows)
+                                   "exposures", "wall_time_s",
+                                   *(f"ssm_{side}_{ms}_per_km" for side, ms in SSM_RATES)], round_rows)
     score_table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", "intact I",
                                   "median pairing r"],
                                  [[s, d, b, f"{k}/{n}", "–" if math.isnan(x) else f"{x:.2f}", fmt_ci(m, h),

@@ -28,6 +28,10 @@ Then, meant to change behaviour: a learned BV that must merge adapts its speed t
 (``models.learned.merge_seek``, docs/learned-bvs.md, "Merging"): the worlds change wherever a BV
 is on the merge lane beside traffic; and a learned BV that enters anew starts with the lane hold
 (``models.learned.hold_on_entry``, "Lane hold"); the metadata record gains both keys.
+Then ``evaluation.ssm_ttc_threshold_s`` and ``evaluation.ssm_pet_threshold_s`` (the surrogate-safety
+profile, docs/evaluation.md; read by the evaluator only): the metadata record gains the two keys in
+every bag; every message of the default and the default mutant's runs is byte-identical to the bags
+before (compared per topic: all nine topics, and the recorded scenario differs only by the two keys).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.

@@ -52,6 +52,16 @@ def test_intelligence_table_and_files(intelligence):
         total = sum(float(row[f"{k}_weighted_mean"]) for k in ("safety", "efficiency", "interaction"))
         assert total == pytest.approx(mean)
     assert "| mobil |" in res.stdout and "| SUT | safety (weighted)" in res.stdout
+    # surrogate-safety rates per SUT-km: each SUT's mean ± interval of its rounds' rates
+    ssm = read_csv(out / "surrogate_safety.csv")
+    assert [r["sut"] for r in ssm] == ["nilsson", "mobil", "stackelberg"]
+    for row in ssm:
+        for col in ("front_ttc_episodes_per_km", "rear_pet_events_per_km", "rear_tit_s2_per_km"):
+            vals = [float(r[f"ssm_{col}"]) for r in rounds if r["sut"] == row["sut"]]
+            assert float(row[f"{col}_mean"]) == pytest.approx(sum(vals) / 2)
+            assert float(row[f"{col}_ci95"]) == pytest.approx(stats.t.ppf(0.975, 1) * abs(vals[0] - vals[1]) / 2,
+                                                              abs=1e-12)
+    assert "| SUT | TTC<3 s front /km" in res.stdout
 
 
 def test_intelligence_paired_comparisons(intelligence):
@@ -176,6 +186,14 @@ def test_sensitivity_episodes_design(tmp_path):
     assert ("Design episodes: 2 episodes (seeds 5..6) x 20 steps = 40 SUT steps per variant and scenario; the "
             "warm-up (traffic.warmup_s = 20 s, 200 steps) runs before every run and is extra compute") in res.stdout
     assert "paired by episode" in (out / "sensitivity.md").read_text()
+    # the surrogate-safety rates per SUT-km: paired mutant − intact from the rounds' own rates
+    for col in ("ssm_front_ttc_episodes_per_km", "ssm_rear_pet_events_per_km", "ssm_rear_tit_s2_per_km"):
+        rate = {(r["variant"], int(r["seed"])): float(r[col]) for r in rounds}
+        d = [rate[("stale", s)] - rate[("intact", s)] for s in (5, 6)]
+        assert float(row[f"d_{col}_mean"]) == pytest.approx(sum(d) / 2)
+        assert float(row[f"d_{col}_ci95"]) == pytest.approx(stats.t.ppf(0.975, 1) * abs(d[0] - d[1]) / 2, abs=1e-12)
+    assert row["ssm_n"] == "2"
+    assert "Surrogate safety of the SUT per SUT-km" in (out / "sensitivity.md").read_text()
 
 
 def test_sensitivity_compare_designs(tmp_path):

@@ -130,6 +130,30 @@ def score_of(report: Mapping, name: str) -> float:
     return math.nan if value is None else float(value)
 
 
+SSM_RATES = (("front", "ttc_episodes"), ("rear", "ttc_episodes"), ("front", "drac_episodes"),
+             ("rear", "drac_episodes"), ("rear", "pet_events"), ("front", "tet_s"), ("rear", "tet_s"),
+             ("front", "tit_s2"), ("rear", "tit_s2"))
+"""The surrogate-safety rates per SUT-km the experiments compare (side, measure of the report's
+``surrogate_safety``; docs/evaluation.md "Surrogate safety"; the front has no PET)."""
+
+
+def ssm_rate(report: Mapping, side: str, measure: str) -> float:
+    """A surrogate-safety rate per SUT-km of a ``report.json`` dict; ``nan`` where the report has
+    none (a report from before the section, or a run of 0 km)."""
+    value = (((report.get("surrogate_safety") or {}).get(side) or {}).get("per_km") or {}).get(measure)
+    return math.nan if value is None else float(value)
+
+
+def ssm_label(side: str, measure: str, report: Mapping | None = None) -> str:
+    """A column name for a rate: ``TTC<3 front /km`` (thresholds from ``report``, else SUMO SSM's defaults)."""
+    ss = (report or {}).get("surrogate_safety") or {}
+    ttc, drac, pet = (f"{ss.get(k, d):g}" for k, d in (("ttc_threshold_s", 3.0), ("drac_threshold_mps2", 3.0),
+                                                        ("pet_threshold_s", 2.0)))
+    name = {"ttc_episodes": f"TTC<{ttc} s", "drac_episodes": f"DRAC>{drac}", "pet_events": f"PET<{pet} s",
+            "tet_s": "TET (s)", "tit_s2": "TIT (s²)"}[measure]
+    return f"{name} {side} /km"
+
+
 DESIGNS = ("episodes", "long")
 """The test designs: ``episodes`` (N short runs of T steps) and ``long`` (seeds × long runs)."""
 

@@ -22,6 +22,10 @@ The **[choice]** points the method leaves open, as implemented (all configurable
 * **Conflicts** (``safety.conflicts``, reported only) — follower TTC, DRAC of the SUT and of
   its follower (SUMO SSM's definitions; states above ``drac_threshold_mps2`` [3 m/s²]), and
   a lane-change PET per SUT lane change (:func:`lane_change_pet`).
+* **Surrogate safety** (``surrogate_safety``, reported only, :func:`surrogate_safety_of_stream`)
+  — on the SUT's front and rear: episodes of TTC < ``ssm_ttc_threshold_s`` [3 s] and of DRAC >
+  ``drac_threshold_mps2`` [3 m/s²], SUT lane changes with PET < ``ssm_pet_threshold_s`` [2 s]
+  (rear: the new follower), TET and TIT (Minderhoud & Bovy 2001), each also per SUT-km.
 * **Undefined terms** (``undefined_terms`` [exclude]) — without a completed SUT lane change
   T̄_l is undefined and I_e is the density-speed term alone; without any SUT lane change I_i
   is undefined (``null``) and I renormalises the remaining weights. ``literal``: the old
@@ -79,7 +83,7 @@ from evoscen_sim.safety import attribution_steps
 
 from .rundata import RunData, run_info_of
 from .streaming import COLLISION_KINDS, ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
-from .streaming import TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, traffic_window_states
+from .streaming import SSM_SIDES, TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, traffic_window_states
 
 
 # ---------------------------------------------------------------------- formulas (scalars)
@@ -367,7 +371,39 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "intelligence": intelligence,
         "complexity": complexity,
         "traffic": traffic_of_stream(st),
+        "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
     }
+
+
+def surrogate_safety_of_stream(st: ScoreStream, pets: list[float | None]) -> dict[str, Any]:
+    """The report's ``surrogate_safety`` section (docs/evaluation.md, "Surrogate safety"): per side
+    of the SUT (front: the SUT behind the vehicle ahead in its path; rear: the vehicle behind in
+    its path behind the SUT) the episodes of TTC below ``ssm_ttc_threshold_s`` and of DRAC above
+    ``drac_threshold_mps2`` (an episode: a maximal run of such states with the same counterpart),
+    TET = dt · (states with TTC below the threshold) (s) and TIT = dt · Σ (threshold − TTC) over
+    them (s²); on the rear the SUT lane changes whose PET (``pets``: each change's, None without a
+    new follower) is below ``ssm_pet_threshold_s`` (the front has no PET: ``null``). Each count
+    and sum also per SUT-km (distance = dt · Σ speed over the states; ``null`` at 0 km).
+    Reported only: no score reads it."""
+    st.finish()
+    ev = st.ev
+    dt = st.dt_s if st.dt_s is not None else 0.1
+    km = dt * st.speed_sum / 1000.0
+    pet_events = sum(1 for p in pets if p is not None and p < ev.ssm_pet_threshold_s)
+    out: dict[str, Any] = {
+        "ttc_threshold_s": ev.ssm_ttc_threshold_s,
+        "drac_threshold_mps2": ev.drac_threshold_mps2,
+        "pet_threshold_s": ev.ssm_pet_threshold_s,
+        "sut_km": km,
+    }
+    for side in SSM_SIDES:
+        acc = st.ssm[side]
+        counts = {"ttc_episodes": acc["ttc_episodes"], "drac_episodes": acc["drac_episodes"],
+                  "pet_events": pet_events if side == "rear" else None,
+                  "tet_s": dt * acc["ttc_states"], "tit_s2": dt * acc["tit_sum_s"]}
+        out[side] = {**counts, "ttc_states": acc["ttc_states"],
+                     "per_km": {k: (None if v is None or km <= 0.0 else v / km) for k, v in counts.items()}}
+    return out
 
 
 def traffic_of_stream(st: ScoreStream) -> dict[str, Any]:

@@ -177,6 +177,8 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
         if len(s["exposure_list"]) > 50:
             out.append(f"\n… and {len(s['exposure_list']) - 50} more (report.json lists all).")
         out.append("")
+    if "surrogate_safety" in report:
+        out += surrogate_markdown(report["surrogate_safety"])
     out += ["\n## Efficiency\n", "I_e = 0.5·(density-speed term + e^(−T̄_l/3))\n", _table([
         ("v̄ (m/s)", e["mean_speed_mps"], "mean SUT speed"),
         ("h̄", e["mean_vehicles_in_view"], "mean vehicles in the SUT's view"),
@@ -214,6 +216,27 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
         out.append("\n## Plots\n")
         out += [f"![{Path(name).stem}]({name})\n" for name in images]
     return "\n".join(out) + "\n"
+
+
+def surrogate_markdown(ss: dict[str, Any]) -> list[str]:
+    """report.md's "Surrogate safety": per side of the SUT the counts and sums, and each per SUT-km."""
+    f, r = ss["front"], ss["rear"]
+    rows = [("ttc_episodes", f"TTC < {ss['ttc_threshold_s']:g} s episodes", "episodes"),
+            ("drac_episodes", f"DRAC > {ss['drac_threshold_mps2']:g} m/s² episodes", "episodes"),
+            ("pet_events", f"PET < {ss['pet_threshold_s']:g} s lane changes", "lane changes"),
+            ("tet_s", f"TET (TTC < {ss['ttc_threshold_s']:g} s)", "s"),
+            ("tit_s2", "TIT", "s²")]
+    out = ["\n## Surrogate safety\n",
+           f"The SUT's conflicts on both sides over {ss['sut_km']:.3f} SUT-km (front: the SUT behind the vehicle "
+           "ahead in its path; rear: the vehicle behind in its path behind the SUT, and for PET the new follower "
+           "of each SUT lane change); an episode is a maximal run of states beyond the threshold with the same "
+           "other vehicle (reported only: no score reads it).\n",
+           "| measure | front | rear | front per SUT-km | rear per SUT-km | unit |", "|---|---|---|---|---|---|"]
+    for key, name, unit in rows:
+        out.append(f"| {name} | {_f(f[key])} | {_f(r[key])} | {_f(f['per_km'][key])} | {_f(r['per_km'][key])} | "
+                   f"{unit} |")
+    out.append("")
+    return out
 
 
 TRAFFIC_TABLE_WINDOWS = 50

@@ -14,6 +14,11 @@ as a whole run would) to
 * the SUT lane change in progress with its interaction sums and its PET window (which runs
   ``rear_attribution_s`` past the change's end, so it can outlive the change by blocks);
 * per-window counts of the complexity windows;
+* the surrogate-safety profile of the SUT (:data:`SSM_SIDES`: front = the SUT behind its leader,
+  rear = its follower behind it): states and episodes below the SSM TTC threshold, their
+  time-integrated TTC, episodes above the DRAC threshold (an episode is a maximal run of
+  states below (above) the threshold with the same counterpart; the counterpart of the
+  previous block's last state is carried, so an episode can continue into the next block);
 * the traffic around the SUT: per state the BVs within :data:`TRAFFIC_RANGE_M` of it along
   the road, summed per :data:`TRAFFIC_WINDOW_S` window, and the states with none (integers);
 * fixed-bin histograms of the SUT's TTC and speed, a timeline of at most
@@ -62,6 +67,10 @@ TRAFFIC_RANGE_M = 100.0
 """A BV is around the SUT when |s_BV − s_SUT| is at most this (m; same road, any lane)."""
 TRAFFIC_WINDOW_S = 30.0
 """The traffic around the SUT is averaged over windows this long (s; 300 states at dt 0.1 s)."""
+
+SSM_SIDES = ("front", "rear")
+"""The sides of the surrogate-safety profile: front = the SUT following the vehicle ahead in its
+path (its TTC and DRAC), rear = the vehicle behind in its path following the SUT (the follower's)."""
 
 _F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
 _SCENE_FIELDS = ("x", "y", "yaw", "length", "width", "speed")
@@ -191,6 +200,12 @@ class ScoreStream:
         self.max_drac_sut = -math.inf
         self.max_drac_f = -math.inf
         self.min_cut_in_gap = math.inf
+        # surrogate-safety profile per side: states below the SSM TTC threshold, their sum of
+        # (threshold - TTC), TTC and DRAC episodes; the counterpart of the last state of the
+        # previous block while it was below (above) the threshold, else -1
+        self.ssm = {side: {"ttc_states": 0, "tit_sum_s": 0.0, "ttc_episodes": 0, "drac_episodes": 0}
+                    for side in SSM_SIDES}
+        self._ssm_last = {(side, m): -1 for side in SSM_SIDES for m in ("ttc", "drac")}
         self.min_beside_gap = math.inf
         self.windows: dict[str, list[int]] = {"lane_changes": [], "accel_decel": [], "exposures": []}
         # traffic around the SUT (report's "traffic"): per traffic window the sum of the per-state
@@ -352,6 +367,8 @@ class ScoreStream:
             self.min_f_accel = min(self.min_f_accel, float(f_accel[has_f].min()))
         self.max_drac_sut = max(self.max_drac_sut, float(drac_sut.max()))
         self.max_drac_f = max(self.max_drac_f, float(drac_f.max()))
+        self._ssm_block("front", ttc, drac_sut, leader)
+        self._ssm_block("rear", f_ttc, drac_f, follower)
 
         # --- exposures (maximal runs of dangerous states, continued across blocks)
         severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -accel / ev.hard_brake_mps2)
@@ -436,6 +453,24 @@ class ScoreStream:
         self._last_lc = last[-1].copy()
         self._classify_collisions(k0, tables, last)
         self._prev_lc_block = (k0, tables, last)
+
+    def _ssm_block(self, side: str, ttc: np.ndarray, drac_v: np.ndarray, other: np.ndarray) -> None:
+        """Add a block's states to one side's surrogate-safety sums (``other``: the counterpart's
+        index per state, -1 for none; a TTC below or a DRAC above its threshold has one)."""
+        acc, thr = self.ssm[side], self.ev.ssm_ttc_threshold_s
+        below = ttc < thr
+        acc["ttc_states"] += int(below.sum())
+        acc["tit_sum_s"] += float((thr - ttc[below]).sum())
+        acc["ttc_episodes"] += self._episodes((side, "ttc"), below, other)
+        acc["drac_episodes"] += self._episodes((side, "drac"), drac_v > self.ev.drac_threshold_mps2, other)
+
+    def _episodes(self, key: tuple[str, str], on: np.ndarray, other: np.ndarray) -> int:
+        """Episodes starting in this block: states ``on`` whose previous state was not, or was with
+        another counterpart (the previous block's last state carried in ``_ssm_last``)."""
+        cp = np.where(on, other, -1)
+        prev = np.concatenate(([self._ssm_last[key]], cp[:-1]))
+        self._ssm_last[key] = int(cp[-1])
+        return int((on & (cp != prev)).sum())
 
     def _classify_collisions(self, k0: int, tables: np.ndarray, last: np.ndarray, clamp: int | None = None) -> None:
         """What each SUT collision whose state is in this block or the previous one was: who was

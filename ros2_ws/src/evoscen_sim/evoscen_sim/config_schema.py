@@ -385,6 +385,12 @@ class EvaluationConfig:
     before. See docs/evaluation.md §3.7."""
     drac_threshold_mps2: float = field(default=3.0, metadata=_POSITIVE)
     """Reported counts of states whose DRAC exceeds this (m/s^2; SUMO SSM's default 3)."""
+    ssm_ttc_threshold_s: float = field(default=3.0, metadata=_POSITIVE)
+    """Surrogate-safety profile (reported only): TTC below this (s) is a TTC episode and counts
+    in TET/TIT (SUMO SSM's default 3; its DRAC threshold is ``drac_threshold_mps2``)."""
+    ssm_pet_threshold_s: float = field(default=2.0, metadata=_POSITIVE)
+    """Surrogate-safety profile (reported only): a SUT lane change whose PET is below this (s)
+    is a PET event (SUMO SSM's default 2)."""
     undefined_terms: str = field(default="exclude", metadata=_check(_Str(lambda: UNDEFINED_TERM_RULES)))
     """A score term undefined in the run (T_l without a completed SUT lane change; I_i without
     any SUT lane change): exclude = left out and the remaining weights renormalised;

@@ -420,6 +420,11 @@ def test_evaluation_conflict_and_undefined_term_keys(scenario_dir):
     message = load_error(scenario_dir, "evaluation: {drac_threshold_mps2: 0}\n")
     assert "'evaluation.drac_threshold_mps2' = 0" in message
     assert "\n" not in message.strip()
+    assert (ev.ssm_ttc_threshold_s, ev.ssm_pet_threshold_s) == (3.0, 2.0)  # SUMO SSM's defaults
+    message = load_error(scenario_dir, "evaluation: {ssm_ttc_threshold_s: 0}\n")
+    assert "'evaluation.ssm_ttc_threshold_s' = 0: expected a number > 0" in message
+    message = load_error(scenario_dir, "evaluation: {ssm_pet_threshold_s: fast}\n")
+    assert "'evaluation.ssm_pet_threshold_s' = 'fast': expected a number > 0" in message
     ok = load_scenario_config(None, {"evaluation.rear_conflicts": "none", "evaluation.undefined_terms": "literal"})
     assert (ok.evaluation.rear_conflicts, ok.evaluation.undefined_terms) == ("none", "literal")
 
