@@ -34,6 +34,7 @@ configuration can import it.
 from __future__ import annotations
 
 import importlib
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata
@@ -174,7 +175,71 @@ def create_driver(name: str, role: str, vehicles, config, rng) -> Any:  # noqa: 
     params = config.models.get(name) if spec.params_type is not None else None
     if spec.params_type is not None and params is None:
         params = spec.params_type()
-    return spec.factory(np.asarray(vehicles, dtype=np.int64), params, config, rng)
+    vehicles = np.asarray(vehicles, dtype=np.int64)
+    driver = spec.factory(vehicles, params, config, rng)
+    _remember(driver, (name, role, len(vehicles)))
+    return driver
+
+
+_BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""driver -> (model name, role, number of vehicles), for :func:`checked_answer`'s error line."""
+_BUILT_BY_ID: dict[int, tuple[str, str, int]] = {}
+"""The same for drivers that cannot be weakly referenced or hashed (keyed by ``id``)."""
+
+
+def _remember(driver: Any, what: tuple[str, str, int]) -> None:
+    try:
+        _BUILT[driver] = what
+    except TypeError:
+        _BUILT_BY_ID[id(driver)] = what
+
+
+def _built(driver: Any) -> tuple[str, str, int] | None:
+    try:
+        what = _BUILT.get(driver)
+    except TypeError:
+        what = None
+    return what if what is not None else _BUILT_BY_ID.get(id(driver))
+
+
+def checked_answer(driver: Any, answer: Any, count: int | None = None) -> tuple[Any, Any]:
+    """``driver``'s answer ``act(view) -> (throttle, lane_change)``, checked where every runner takes it.
+
+    Returns ``answer`` as it is when it is a pair of ``count`` finite throttle values and ``count``
+    lane-change values in {-1, 0, +1} (``count``: the vehicles the driver was built for by
+    :func:`create_driver`); otherwise an :class:`InputError` of one line naming the model and its
+    role, what it returned and what is expected (the command-line tools: ``error: ...``, exit 2).
+    A finite throttle outside [-1, 1] is not refused here (the in-process runner clips it; see
+    docs/plugins.md §3).
+    """
+    import numpy as np
+
+    name, role, built = _built(driver) or (type(driver).__name__, "driver", None)
+    count = built if count is None else count
+    who = f"{role} model {name!r}: act() returned"
+    if not isinstance(answer, (tuple, list)) or len(answer) != 2:
+        got = f"a {type(answer).__name__}" + (f" of {len(answer)}" if isinstance(answer, (tuple, list)) else "")
+        raise InputError(f"{who} {got}; expected a pair (throttle, lane_change) of arrays, one entry per vehicle")
+    out = []
+    for what, value in zip(("throttle", "lane_change"), answer):
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"{who} a {what} of type {type(value).__name__}; expected an array of numbers, "
+                             "one per vehicle") from None
+        if count is not None and arr.shape != (count,):
+            raise InputError(f"{who} a {what} of shape {arr.shape}; expected shape ({count},), one per vehicle")
+        out.append(arr)
+    throttle, lane_change = out
+    bad = ~np.isfinite(throttle)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{who} throttle {throttle[k]} (entry {k}); expected a finite number in [-1, 1]")
+    bad = ~((lane_change == 0.0) | (np.abs(lane_change) == 1.0))  # nan too
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{who} lane_change {lane_change[k]:g} (entry {k}); expected -1, 0 or 1")
+    return answer[0], answer[1]
 
 
 def params_type_of(name: str) -> type | None:
