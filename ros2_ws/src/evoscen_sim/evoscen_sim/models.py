@@ -202,6 +202,22 @@ def _built(driver: Any) -> tuple[str, str, int] | None:
     return what if what is not None else _BUILT_BY_ID.get(id(driver))
 
 
+def _fine(throttle: Any, lane_change: Any, count: int | None) -> bool:
+    """A quick yes for the common answer: two arrays of ``count``, finite throttle, integer lane changes in {-1, 0, 1}."""
+    import numpy as np
+
+    if type(throttle) is not np.ndarray or type(lane_change) is not np.ndarray:
+        return False
+    if throttle.ndim != 1 or throttle.shape != lane_change.shape or (count is not None and len(throttle) != count):
+        return False
+    if lane_change.dtype.kind not in "iu" or throttle.dtype.kind != "f":
+        return False
+    if not throttle.size:
+        return not lane_change.size
+    # the sum of throttle values is finite exactly when they all are (|values| far below overflow)
+    return bool(np.isfinite(throttle.sum())) and bool(lane_change.size) and int(np.abs(lane_change).max()) <= 1
+
+
 def checked_answer(driver: Any, answer: Any, count: int | None = None) -> tuple[Any, Any]:
     """``driver``'s answer ``act(view) -> (throttle, lane_change)``, checked where every runner takes it.
 
@@ -214,8 +230,12 @@ def checked_answer(driver: Any, answer: Any, count: int | None = None) -> tuple[
     """
     import numpy as np
 
-    name, role, built = _built(driver) or (type(driver).__name__, "driver", None)
-    count = built if count is None else count
+    built = _built(driver)
+    if count is None and built is not None:
+        count = built[2]
+    if (type(answer) is tuple and len(answer) == 2 and _fine(answer[0], answer[1], count)):
+        return answer  # every step, twice: the common case in a few µs
+    name, role, _ = built or (type(driver).__name__, "driver", None)
     who = f"{role} model {name!r}: act() returned"
     if not isinstance(answer, (tuple, list)) or len(answer) != 2:
         got = f"a {type(answer).__name__}" + (f" of {len(answer)}" if isinstance(answer, (tuple, list)) else "")
@@ -231,6 +251,9 @@ def checked_answer(driver: Any, answer: Any, count: int | None = None) -> tuple[
             raise InputError(f"{who} a {what} of shape {arr.shape}; expected shape ({count},), one per vehicle")
         out.append(arr)
     throttle, lane_change = out
+    if throttle.ndim != 1 or throttle.shape != lane_change.shape:
+        raise InputError(f"{who} a throttle of shape {throttle.shape} and a lane_change of shape {lane_change.shape}; "
+                         "expected two arrays of the same length, one entry per vehicle")
     bad = ~np.isfinite(throttle)
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
@@ -239,7 +262,7 @@ def checked_answer(driver: Any, answer: Any, count: int | None = None) -> tuple[
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
         raise InputError(f"{who} lane_change {lane_change[k]:g} (entry {k}); expected -1, 0 or 1")
-    return answer[0], answer[1]
+    return answer
 
 
 def params_type_of(name: str) -> type | None:
