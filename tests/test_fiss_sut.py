@@ -97,11 +97,16 @@ def test_a_follower_closing_fast_in_the_target_lane_makes_it_wait(fs, cfg, road)
 def test_the_merge_lane_is_left_and_where_it_cannot_be_it_waits_braking(fs, cfg, road):
     assert decide(fs, cfg, road, [700], [0], [22])[1] == 1  # lane 0 ends at 960 m: left, though nobody is ahead
     # a vehicle beside it in lane 1 at 900 m: no change, and no trajectory stays in the lane past its end
-    # 60 m ahead: the planner finds none valid, the adapter keeps the lane and brakes
+    # 60 m ahead: the planner finds none valid, the adapter keeps the lane and brakes: IDM with the lane's
+    # end as a standing obstacle (60 m - half its length - lane_end_margin_m ahead): full braking
     sut = driver(fs, cfg)
     throttle, request = sut.act(world_of(road, [900, 900], [0, 1], [22, 22]))
     assert request[0] == 0 and not sut.last[0].success
-    assert throttle[0] == pytest.approx(-fs.FissSutParams().fallback_decel_mps2 / cfg.vehicle.max_brake_mps2)
+    p = fs.FissSutParams()
+    gap = road.lane_end_s[0] - 900 - 2.4 - p.lane_end_margin_m
+    wanted = p.min_gap_m + 22 * p.time_headway_s + 22 * 22 / (2 * np.sqrt(p.fallback_accel_mps2 * p.fallback_comfort_decel_mps2))
+    expected = p.fallback_accel_mps2 * (1 - (22 / 30) ** 4 - (wanted / gap) ** 2)
+    assert throttle[0] == pytest.approx(max(expected / cfg.vehicle.max_brake_mps2, -1.0)) and throttle[0] < -0.3
 
 
 def drive(world, sut, steps: int) -> list:

@@ -20,13 +20,16 @@ The frame is the road's own: x is the arc length ``s`` along the road's referenc
 offset ``d`` (the shipped road's curvature, at most 1/2000 m, is left out; steering is the
 simulation's lateral controller's, not the planner's). Of the chosen trajectory the adapter takes
 
-* **the acceleration** over the next step, ``(s_d(dt) - s_d(0)) / dt``, turned into throttle with
-  ``accel_to_throttle`` and the scenario's vehicle limits;
+* **the acceleration**: the planned speed's mean change over the first ``preview_s`` (0.5 s),
+  ``(s_d(preview_s) - s_d(0)) / preview_s``, turned into throttle with ``accel_to_throttle`` and the
+  scenario's vehicle limits;
 * **the target lane**: the trajectory's end lane; +1 / -1 (a neighbouring lane) is the lane-change
   request.
 
-When no candidate is valid (``PlanResult.success`` false) it keeps its lane and brakes at
-``fallback_decel_mps2``. The planner runs single-threaded without a time budget, so its answer
+When no candidate is valid (``PlanResult.success`` false) it keeps its lane and follows with IDM
+(Treiber et al. 2000) behind its leader, stopping ``lane_end_margin_m`` before the end of a lane that
+ends (fiss-planner's own ``LocalPlanner`` keeps its previous plan and then brakes; the adapter calls the
+planner directly and has none). The planner runs single-threaded without a time budget, so its answer
 depends only on what it is given: the same in both runners. It draws no random numbers.
 """
 
@@ -36,8 +39,9 @@ from dataclasses import dataclass
 
 import fiss_planner as fp
 import numpy as np
-from evoscen_sim.config import integer, number, number_range, text
+from evoscen_sim.config import flag, integer, number, number_range, text
 from evoscen_sim.models import ModelSpec
+from evoscen_sim.neighbors import OWN
 from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import accel_to_throttle
 
@@ -70,8 +74,18 @@ class FissSutParams:
     """Hard minimum gap to any vehicle (m); fiss-planner's safety.min_gap."""
     min_ttc_s: float = number(1.5, 0.0, 10.0)
     """Hard minimum time to collision (s); fiss-planner's safety.min_ttc."""
+    ignore_rear_in_lane: bool = flag(True)
+    """Vehicles behind in the own lane do not reject a trajectory; fiss-planner's
+    collision.ignore_rear_in_lane (its default: false). Adapter default true: with false a
+    tailgater rejects every candidate and the SUT ends up braking in dense traffic (seed 4 of the
+    shipped scenario: 1,423 of 3,000 steps without a valid trajectory, then stopped for good)."""
     ending_lane_cost: float = number(20.0, 0.0, 1000.0)
     """Extra cost of a trajectory ending in a lane that ends (the merge lane); adapter default."""
+    preview_s: float = number(0.5, 0.0, 2.0)
+    """The command is the trajectory's mean acceleration over its first ``preview_s`` (s; at least one
+    step). Adapter default 0.5 s: each step plans again from the acceleration just realised, so over
+    one step (0.1 s) the command follows the plan's jerk only slowly; behind the merge of seed 5 the
+    SUT then braked to 1 m/s (0.5 s and 1 s: no such stop on seeds 0-5)."""
     look_ahead_m: float = number(150.0, 0.0, 500.0)
     """Vehicles up to this far ahead (centre to centre, m) are given to the planner; adapter default."""
     look_behind_m: float = number(60.0, 0.0, 500.0)
@@ -81,8 +95,12 @@ class FissSutParams:
     settle_tolerance_m: float = number(0.5, 0.0, 1.75)
     """A lane change is offered only within this distance of the lane's centre line (m), as the
     built-in MOBIL and Nilsson wait (docs/plugins.md §8)."""
-    fallback_decel_mps2: float = number(4.0, 0.0, 8.0)
-    """Deceleration when no trajectory is valid (m/s²); adapter default, at most vehicle.max_brake_mps2."""
+    fallback_accel_mps2: float = number(1.5, 0.0, 3.0, lo_open=True)
+    """Fallback (no valid trajectory): IDM maximum acceleration a (m/s²); Treiber's highway value."""
+    fallback_comfort_decel_mps2: float = number(2.0, 0.0, 8.0, lo_open=True)
+    """Fallback: IDM comfortable deceleration b (m/s²); Treiber's highway value."""
+    lane_end_margin_m: float = number(15.0, 0.0, 100.0)
+    """Fallback: on a lane that ends, stop this far before its end (m); the built-in models' merge_stop_margin_m."""
 
 
 STATION_M = 2.0
@@ -101,6 +119,7 @@ def planner_config(p: FissSutParams, dt_s: float) -> fp.PlannerConfig:
     cfg.cost.w_lane_change = p.lane_change_weight
     cfg.safety.min_gap = p.min_gap_m
     cfg.safety.min_ttc = p.min_ttc_s
+    cfg.collision.ignore_rear_in_lane = p.ignore_rear_in_lane
     cfg.validate()
     return cfg
 
@@ -199,13 +218,41 @@ class FissSut:
                                          target_speed=target)
         self.last[row] = result
         if not result.success:
-            return -p.fallback_decel_mps2, 0
+            return self.fallback(view, i), 0
         traj = result.trajectory
         s_d = np.asarray(traj.s_d)
-        accel = (s_d[1] - s_d[0]) / self.dt_s if s_d.size > 1 else 0.0
+        k = min(max(int(round(p.preview_s / self.dt_s)), 1), s_d.size - 1)
+        accel = (s_d[k] - s_d[0]) / (k * self.dt_s) if k > 0 else 0.0
         offset = int(traj.lane)
         request = offset if (offset in (-1, 1) and ref_lane == lane and self.may_change(view, i, lane)) else 0
         return float(accel), request
+
+    def idm(self, v: float, v0: float, gap_m: float, v_leader: float) -> float:
+        """IDM acceleration (m/s²) at speed ``v`` behind a leader ``gap_m`` ahead at ``v_leader``."""
+        p = self.p
+        free = 1.0 - (v / v0) ** 4 if v0 > 0.0 else -1.0
+        if not np.isfinite(gap_m):  # no leader: gap inf, speed nan
+            return p.fallback_accel_mps2 * free
+        if gap_m <= 0.0:
+            return -self.vehicle.max_brake_mps2
+        braking = v * (v - v_leader) / (2.0 * np.sqrt(p.fallback_accel_mps2 * p.fallback_comfort_decel_mps2))
+        wanted = p.min_gap_m + max(0.0, v * p.time_headway_s + braking)
+        return p.fallback_accel_mps2 * (free - (wanted / gap_m) ** 2)
+
+    def fallback(self, view, i: int) -> float:  # noqa: ANN001
+        """No valid trajectory: keep the lane (no request) and follow with IDM behind the leader in the own
+        lane, during a change also the target lane's, and before the end of a lane that ends."""
+        nb = view.neighborhood()
+        v, s, lane = float(view.v[i]), float(view.s[i]), int(view.lane[i])
+        v0 = float(np.fmin(self.p.desired_speed_mps, view.speed_limit_mps[i]))
+        accel = self.idm(v, v0, nb.gap_front_m[i, OWN], nb.leader_speed_mps[i, OWN])
+        col = OWN + int(view.target_lane[i]) - lane
+        if col != OWN:
+            accel = min(accel, self.idm(v, v0, nb.gap_front_m[i, col], nb.leader_speed_mps[i, col]))
+        to_end = float(view.road.distance_to_lane_end(int(view.target_lane[i]), s))
+        if np.isfinite(to_end):
+            accel = min(accel, self.idm(v, v0, to_end - 0.5 * float(view.length[i]) - self.p.lane_end_margin_m, 0.0))
+        return accel
 
 
 def make(vehicles: np.ndarray, params: FissSutParams, config, rng: np.random.Generator) -> FissSut:  # noqa: ANN001
