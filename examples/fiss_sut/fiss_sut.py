@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import fiss_planner as fp
 import numpy as np
 from evoscen_sim.config import flag, integer, number, number_range, text
+from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.neighbors import OWN
 from evoscen_sim.scenario_params import vehicle_params_from_config
@@ -58,7 +59,7 @@ class FissSutParams:
     """Which of fiss-planner's planners: fop, fop_plus, fiss, fiss_plus (its default)."""
     desired_speed_mps: float = number(30.0, 0.0, 40.0, lo_open=True)
     """The planner's target speed (m/s), capped by the lane's speed limit; adapter default."""
-    horizon_s: tuple = number_range((3.0, 5.0), 0.5, 10.0)
+    horizon_s: tuple[float, float] = number_range((3.0, 5.0), 0.5, 10.0)
     """[min, max] duration of the sampled trajectories (s); fiss-planner's sampling.min_t, max_t."""
     num_speed: int = integer(5, 1, 20)
     """Sampled end speeds; fiss-planner's sampling.num_speed."""
@@ -120,7 +121,10 @@ def planner_config(p: FissSutParams, dt_s: float) -> fp.PlannerConfig:
     cfg.safety.min_gap = p.min_gap_m
     cfg.safety.min_ttc = p.min_ttc_s
     cfg.collision.ignore_rear_in_lane = p.ignore_rear_in_lane
-    cfg.validate()
+    try:
+        cfg.validate()
+    except (RuntimeError, ValueError) as exc:  # its own check, beyond the declarators': one line, no traceback
+        raise InputError(f"models.fiss: fiss-planner {fp.__version__} refuses the configuration: {exc}") from None
     return cfg
 
 
