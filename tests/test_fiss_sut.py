@@ -328,3 +328,41 @@ def test_a_bad_answer_in_the_node_graph_is_one_error_line_naming_the_model(bad_p
     errors = [line for line in res.stderr.splitlines() if line.startswith("error: ")]
     assert res.returncode == 2 and "Traceback" not in res.stderr, (res.returncode, res.stderr)
     assert errors == [f"error: evoscen_sut: sut model 'bad_sut': {BAD['nan']}"], res.stderr
+
+
+def test_a_bad_bv_answer_is_one_line_before_anything_is_written(tmp_path, capsys):
+    """A BV model's answer is checked already in the warm-up (before the output directory is touched)."""
+    import run_scenario
+
+    from evoscen_sim.models import ModelSpec, register_model, unregister_model
+
+    class ShortBv:
+        def __init__(self, vehicles) -> None:  # noqa: ANN001
+            self.n = len(vehicles)
+
+        def act(self, view):  # noqa: ANN001, ANN202
+            return np.zeros(self.n - 1), np.zeros(self.n - 1, dtype=np.int64)
+
+    config = tmp_path / "scenario.yaml"
+    config.write_text("bvs: {driver: short_bv}\n", encoding="utf-8")
+    register_model(ModelSpec(name="short_bv", roles=("bv",), factory=lambda v, p, c, r: ShortBv(v)))
+    try:
+        code = run_scenario.main(["--mode", "inprocess", "--config", str(config), "--steps", "20", "--quiet",
+                                  "--out", str(tmp_path / "out")])
+    finally:
+        unregister_model("short_bv")
+    line = one_error_line(capsys.readouterr().err)
+    assert code == 2 and line == ("error: bv model 'short_bv': act() returned a throttle of shape (19,); "
+                                  "expected shape (20,), one per vehicle"), line
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_launcher_reports_a_refused_answer_before_the_deadline_fault_it_causes():
+    from evoscen_bringup.graph_runner import graph_status
+    from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, NODE_BV, NODE_EVAL, NODE_SIM,
+                                           NODE_SUT)
+
+    nodes = {NODE_SIM: EXIT_FAULT, NODE_EVAL: 0, NODE_BV: 0, NODE_SUT: EXIT_BAD_INPUT}
+    assert graph_status(nodes, {NODE_SUT: "refused its driver's answer"}, False) == EXIT_BAD_INPUT
+    assert graph_status({**nodes, NODE_SIM: EXIT_INTERRUPTED}, {}, False) == EXIT_BAD_INPUT
+    assert graph_status({**nodes, NODE_SUT: 0}, {}, False) == EXIT_FAULT  # a fault of its own stays 3
