@@ -7,6 +7,9 @@ PY          := $(VENV)/bin/python
 WS          := ros2_ws
 INSTALL     := $(WS)/install
 REQ_STAMP   := $(VENV)/.requirements-installed
+# the example plug-in packages under examples/ that make setup installs (see $(EXAMPLES_STAMP) below)
+EXAMPLE_PACKAGES := examples/fiss_sut
+EXAMPLES_STAMP   := $(VENV)/.examples-installed
 # Run anything with the workspace overlay (colcon's install/setup.sh) on top of the venv.
 RUN         := . $(VENV)/bin/activate && . $(INSTALL)/setup.sh &&
 DEMO_OUT    ?= runs/demo
@@ -14,13 +17,21 @@ PYTEST_ARGS ?=
 
 .PHONY: setup build demo test test-fast lint bench clean
 
-setup: $(REQ_STAMP) build
+setup: $(REQ_STAMP) $(EXAMPLES_STAMP) build
 
 $(REQ_STAMP): requirements.txt requirements-runtime.txt
 	@$(PYTHON_BOOT) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null || { \
 	    echo "error: Python 3.11 not found (PYTHON_BOOT='$(PYTHON_BOOT)'); the ROS 2 Jazzy wheels need CPython 3.11: install it or run make PYTHON_BOOT=/path/to/python3.11"; exit 2; }
 	test -x $(PY) || $(PYTHON_BOOT) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	touch $@
+
+# The example plug-in packages (docs/plugins.md §17), installed editable into the .venv so that the
+# suite tests them; their own pinned dependencies come from the index, evoscen's pins are kept
+# (-c requirements-runtime.txt); the build backend is the .venv's setuptools (--no-build-isolation).
+$(EXAMPLES_STAMP): $(REQ_STAMP) $(addsuffix /pyproject.toml,$(EXAMPLE_PACKAGES))
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-build-isolation -c requirements-runtime.txt \
+	    $(addprefix -e ,$(EXAMPLE_PACKAGES))
 	touch $@
 
 # --symlink-install: the install tree links to the sources (Python modules, share files), so an

@@ -220,6 +220,13 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                     died[name] = "could not write its output"
                     stop_sim_at = time.monotonic()
                     continue
+                if name in (NODE_SUT, NODE_BV) and p.returncode == EXIT_BAD_INPUT and ready_file.exists():
+                    # a controller refused its driver's answer (NaN, a wrong shape: models.checked_answer)
+                    # and said so in one line: bad input, not a death; stop the run now rather than
+                    # let the simulation wait out its deadlines
+                    died[name] = "refused its driver's answer"
+                    stop_sim_at = time.monotonic()
+                    continue
                 note(name, f"ended early ({describe_status(p.returncode)})"
                      + ("" if started else " during start-up"))
                 if name == NODE_EVAL or not started:
@@ -292,17 +299,20 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
 def graph_status(node_status: dict[str, int | None], died: dict[str, str], interrupted: bool) -> int:
     """The launcher's exit status (table in docs/recording.md).
 
-    The simulation node's own verdict first (2 bad input, 3 a controller fault: it ended the
-    run cleanly and said why), then 2 from any node, then 5 from the recorder (a fault of the
+    The simulation node's bad input (2) first, then 2 from any node (a bad parameter, or a controller
+    that refused its driver's answer: a controller fault that follows is its consequence), then the
+    simulation node's 3 (a controller fault: it ended the run cleanly and said why), then 5 from the recorder (a fault of the
     host: it could not write the bag), then a node that died (4), then an interruption (130), then any
     other node's failure (2 as it is, anything else 4); 0 only if every node ended with 0.
     """
     sim = node_status.get(NODE_SIM)
-    if sim in (EXIT_BAD_INPUT, EXIT_FAULT):
+    if sim == EXIT_BAD_INPUT:
         return sim
     others = [s for n, s in node_status.items() if n != NODE_SIM and s not in (0, None)]
-    if EXIT_BAD_INPUT in others:
-        return EXIT_BAD_INPUT
+    if EXIT_BAD_INPUT in others:  # before the simulation's fault: a controller that refused its driver's
+        return EXIT_BAD_INPUT     # answer left the lockstep, and any fault that followed is its consequence
+    if sim == EXIT_FAULT:
+        return sim
     if EXIT_HOST_FAULT in others:  # the recorder could not write: it stopped the run (its one line)
         return EXIT_HOST_FAULT
     if died:

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from evoscen_sim.config import ScenarioConfig
+from evoscen_sim.models import checked_answer
 from evoscen_sim.road import RoadModel
 from evoscen_sim.scenario import (  # noqa: F401  (re-exported for users of this module)
     POLICY_CODES,
@@ -41,8 +42,8 @@ class Scenario:
 
     def commands(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Ask every driver: ``(bv_throttle, bv_lane_change, sut_throttle, sut_lane_change)``."""
-        bv_thr, bv_lc = self.bv_driver.act(self.world)
-        sut_thr, sut_lc = self.sut.act(self.world)
+        bv_thr, bv_lc = checked_answer(self.bv_driver, self.bv_driver.act(self.world))
+        sut_thr, sut_lc = checked_answer(self.sut, self.sut.act(self.world))
         return bv_thr, bv_lc, sut_thr, sut_lc
 
     def step(self) -> tuple:

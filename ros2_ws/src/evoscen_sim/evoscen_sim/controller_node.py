@@ -37,9 +37,11 @@ from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
 from evoscen_contract import wire
 from evoscen_contract.cdr import decode_table
-from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 from .config_checks import names, number
+from .errors import InputError
+from .models import checked_answer
 from .node_params import own_parameters, run_node, scenario_from_node
 from .road import load_road
 from .view import WorldView
@@ -111,7 +113,7 @@ class ControllerNode:
         self.n_vehicles = world.n
         spare, _ = build(params, self.cfg)
         table = decode_table(self.msgs.world(world.columns(), world.time_ns))
-        throttle, lane_change = spare.act(WorldView(self.road, table.columns(), 0, self.cfg.dt_s))
+        throttle, lane_change = checked_answer(spare, spare.act(WorldView(self.road, table.columns(), 0, self.cfg.dt_s)))
         WorldMessages(self.cfg.dt_s).commands(table.data[self.vehicles, 0], np.asarray(throttle, float),
                                               np.asarray(lane_change, float), 0)
 
@@ -161,7 +163,7 @@ class ControllerNode:
         if t_ns >= self.final_ns:
             return False
         view = WorldView(self.road, table.columns(), t_ns // self.dt_ns, self.cfg.dt_s)
-        throttle, lane_change = self.driver.act(view)
+        throttle, lane_change = checked_answer(self.driver, self.driver.act(view))
         ids = view.ids[self.vehicles]
         self.pub.publish(self.msgs.commands(ids, np.asarray(throttle, float), np.asarray(lane_change, float), t_ns))
         return True
@@ -198,6 +200,9 @@ class ControllerNode:
                 self.pump.wait(0.1)
         except KeyboardInterrupt:
             return EXIT_INTERRUPTED
+        except InputError as exc:  # the driver's answer is malformed (checked_answer): one line, no traceback
+            print(f"error: {self.name}: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
 
 
 def run_controller(name: str, command_spec: T.TopicSpec, build: Callable, args: list[str] | None) -> int:

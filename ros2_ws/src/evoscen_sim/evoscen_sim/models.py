@@ -34,6 +34,7 @@ configuration can import it.
 from __future__ import annotations
 
 import importlib
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata
@@ -174,7 +175,94 @@ def create_driver(name: str, role: str, vehicles, config, rng) -> Any:  # noqa: 
     params = config.models.get(name) if spec.params_type is not None else None
     if spec.params_type is not None and params is None:
         params = spec.params_type()
-    return spec.factory(np.asarray(vehicles, dtype=np.int64), params, config, rng)
+    vehicles = np.asarray(vehicles, dtype=np.int64)
+    driver = spec.factory(vehicles, params, config, rng)
+    _remember(driver, (name, role, len(vehicles)))
+    return driver
+
+
+_BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""driver -> (model name, role, number of vehicles), for :func:`checked_answer`'s error line."""
+_BUILT_BY_ID: dict[int, tuple[str, str, int]] = {}
+"""The same for drivers that cannot be weakly referenced or hashed (keyed by ``id``)."""
+
+
+def _remember(driver: Any, what: tuple[str, str, int]) -> None:
+    try:
+        _BUILT[driver] = what
+    except TypeError:
+        _BUILT_BY_ID[id(driver)] = what
+
+
+def _built(driver: Any) -> tuple[str, str, int] | None:
+    try:
+        what = _BUILT.get(driver)
+    except TypeError:
+        what = None
+    return what if what is not None else _BUILT_BY_ID.get(id(driver))
+
+
+def _fine(throttle: Any, lane_change: Any, count: int | None) -> bool:
+    """A quick yes for the common answer: two arrays of ``count``, finite throttle, integer lane changes in {-1, 0, 1}."""
+    import numpy as np
+
+    if type(throttle) is not np.ndarray or type(lane_change) is not np.ndarray:
+        return False
+    if throttle.ndim != 1 or throttle.shape != lane_change.shape or (count is not None and len(throttle) != count):
+        return False
+    if lane_change.dtype.kind not in "iu" or throttle.dtype.kind != "f":
+        return False
+    if not throttle.size:
+        return not lane_change.size
+    # the sum of throttle values is finite exactly when they all are (|values| far below overflow)
+    return bool(np.isfinite(throttle.sum())) and bool(lane_change.size) and int(np.abs(lane_change).max()) <= 1
+
+
+def checked_answer(driver: Any, answer: Any, count: int | None = None) -> tuple[Any, Any]:
+    """``driver``'s answer ``act(view) -> (throttle, lane_change)``, checked where every runner takes it.
+
+    Returns ``answer`` as it is when it is a pair of ``count`` finite throttle values and ``count``
+    lane-change values in {-1, 0, +1} (``count``: the vehicles the driver was built for by
+    :func:`create_driver`); otherwise an :class:`InputError` of one line naming the model and its
+    role, what it returned and what is expected (the command-line tools: ``error: ...``, exit 2).
+    A finite throttle outside [-1, 1] is not refused here (the in-process runner clips it; see
+    docs/plugins.md §3).
+    """
+    import numpy as np
+
+    built = _built(driver)
+    if count is None and built is not None:
+        count = built[2]
+    if (type(answer) is tuple and len(answer) == 2 and _fine(answer[0], answer[1], count)):
+        return answer  # every step, twice: the common case in a few µs
+    name, role, _ = built or (type(driver).__name__, "driver", None)
+    who = f"{role} model {name!r}: act() returned"
+    if not isinstance(answer, (tuple, list)) or len(answer) != 2:
+        got = f"a {type(answer).__name__}" + (f" of {len(answer)}" if isinstance(answer, (tuple, list)) else "")
+        raise InputError(f"{who} {got}; expected a pair (throttle, lane_change) of arrays, one entry per vehicle")
+    out = []
+    for what, value in zip(("throttle", "lane_change"), answer):
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"{who} a {what} of type {type(value).__name__}; expected an array of numbers, "
+                             "one per vehicle") from None
+        if count is not None and arr.shape != (count,):
+            raise InputError(f"{who} a {what} of shape {arr.shape}; expected shape ({count},), one per vehicle")
+        out.append(arr)
+    throttle, lane_change = out
+    if throttle.ndim != 1 or throttle.shape != lane_change.shape:
+        raise InputError(f"{who} a throttle of shape {throttle.shape} and a lane_change of shape {lane_change.shape}; "
+                         "expected two arrays of the same length, one entry per vehicle")
+    bad = ~np.isfinite(throttle)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{who} throttle {throttle[k]} (entry {k}); expected a finite number in [-1, 1]")
+    bad = ~((lane_change == 0.0) | (np.abs(lane_change) == 1.0))  # nan too
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{who} lane_change {lane_change[k]:g} (entry {k}); expected -1, 0 or 1")
+    return answer
 
 
 def params_type_of(name: str) -> type | None:

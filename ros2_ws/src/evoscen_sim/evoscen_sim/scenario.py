@@ -14,7 +14,7 @@ import numpy as np
 from evoscen_contract.contract import POLICY_CODES
 
 from .config import ScenarioConfig, mix_counts
-from .models import create_driver
+from .models import checked_answer, create_driver
 from .road import RoadModel, load_road
 from .scenario_params import (control_params_from_config, reentry_params_from_config, traffic_params_from_config,
                               vehicle_params_from_config)
@@ -112,9 +112,9 @@ def warm_up(world: World, cfg: ScenarioConfig, steps: int) -> None:
     lane_change = np.zeros(world.n, dtype=np.int64)
     for _ in range(steps):
         if bv_driver is not None:
-            thr, lc = bv_driver.act(world)
+            thr, lc = checked_answer(bv_driver, bv_driver.act(world))
             throttle[bvs], lane_change[bvs] = thr, lc
-        thr, lc = sut_driver.act(world)
+        thr, lc = checked_answer(sut_driver, sut_driver.act(world))
         throttle[SUT_INDEX], lane_change[SUT_INDEX] = thr[0], lc[0]
         world.step(throttle, lane_change)
         world.window.hold(world, s_hold)
