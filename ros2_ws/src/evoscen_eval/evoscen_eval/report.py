@@ -160,6 +160,9 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
               if cf.get("beside_lane_change") else "not counted (beside_lane_change false)")),
             ("min beside gap (m)", cf.get("min_beside_gap_m"), "longitudinal gap to the target lane's nearest vehicle "
                                                                "during SUT lane changes; < 0 = beside (– = none)"),
+            ("headway states", cf.get("headway_states", 0),
+             (f"SUT following its leader under {cf['headway_threshold_s']:g} s of time headway, not falling back "
+              "(dangerous)" if cf.get("headway_threshold_s") else "not counted (headway_threshold_s 0)")),
             ("min follower TTC (s)", cf["min_follower_ttc_s"], "follower onto the SUT (– = never closing)"),
             ("max DRAC SUT (m/s²)", cf["max_drac_sut_mps2"], "SUT behind its leader (– = infinite)"),
             ("max DRAC follower (m/s²)", cf["max_drac_follower_mps2"], "follower behind the SUT (– = infinite)"),

@@ -577,6 +577,7 @@ RECORDED_BEFORE_KEYS: dict[str, Any] = {
     "undefined_terms": "literal",
     "accel_activity_form": "literal",
     "count_normalisation": "literal",
+    "headway_threshold_s": 0.0,
 }
 """The value of each evaluation key added after the first bags that reproduces the scores from
 before the key existed (docs/evaluation.md §6; ``count_reference_steps`` needs none: it acts

@@ -45,7 +45,8 @@ import numpy as np
 
 from evoscen_contract import contract as C
 from evoscen_sim.safety import (attribution_steps, beside_dangerous, beside_gap, beside_severity, cut_in_dangerous,
-                                cut_in_gap, dangerous, drac, exposure_runs, follower_headway, follower_ttc, rear_dangerous,
+                                cut_in_gap, dangerous, drac, exposure_runs, follower_headway, follower_ttc, headway_dangerous,
+                                rear_dangerous,
                                 sut_follower, sut_leader, sut_ttc)
 
 BLOCK_STATES = 256
@@ -124,6 +125,7 @@ class _Exposure:
     rear_states: int = 0
     cut_in_states: int = 0
     beside_states: int = 0
+    headway_states: int = 0
 
 
 @dataclass
@@ -188,7 +190,7 @@ class ScoreStream:
         self.finished_changes: list[_Change] = []
         self.n = {key: 0 for key in ("danger", "front", "rear_conflict", "rear_danger", "rear_only", "attributed",
                                      "drac_sut", "drac_follower", "drac_follower_att", "in_view", "cut_in",
-                                     "cut_in_only", "beside", "beside_only")}
+                                     "cut_in_only", "beside", "beside_only", "headway", "headway_only")}
         self.speed_sum = 0.0
         self.min_ttc = math.inf
         self.min_accel = math.inf
@@ -307,6 +309,7 @@ class ScoreStream:
         drac_sut = drac(gap, speed, l_speed)
         front = dangerous(ttc, accel, ev.ttc_threshold_s, ev.hard_brake_mps2, ev.hard_braking, drac_sut, thw,
                           ev.rear_braking_headway_s)
+        tailgate = headway_dangerous(gap, speed, l_speed, ev.headway_threshold_s)
         rear_conflict = rear_dangerous(f_ttc, f_accel, thw, ev.ttc_threshold_s, ev.hard_brake_mps2,
                                        ev.rear_braking, ev.rear_braking_headway_s)
         rear_danger = rear_conflict & attributed
@@ -314,7 +317,7 @@ class ScoreStream:
         cut_in = cut_in_dangerous(cut_gap, ev.cut_in_gap_m)
         beside_j, beside_g = beside_gap(s, length, c["lane"], c["target_lane"], c["lane_change"], sut)
         beside = beside_dangerous(beside_g, ev.beside_lane_change)
-        danger = front | rear_danger | cut_in | beside
+        danger = front | rear_danger | cut_in | beside | tailgate
         drac_f = drac(f_gap, f_speed, speed)
         ds = s - s[:, sut:sut + 1]
         in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
@@ -350,6 +353,8 @@ class ScoreStream:
         nb["beside"] += int(beside.sum())
         nb["beside_only"] += int((beside & ~front & ~rear_danger & ~cut_in).sum())
         self.min_beside_gap = min(self.min_beside_gap, float(beside_g.min()))
+        nb["headway"] += int(tailgate.sum())
+        nb["headway_only"] += int((tailgate & ~front & ~rear_danger & ~cut_in & ~beside).sum())
         nb["attributed"] += int(attributed.sum())
         nb["drac_sut"] += int((drac_sut > ev.drac_threshold_mps2).sum())
         nb["drac_follower"] += int((drac_f > ev.drac_threshold_mps2).sum())
@@ -383,6 +388,10 @@ class ScoreStream:
         if beside.any():  # 1 as the bodies begin to overlap, 2 side by side (safety.beside_severity)
             lsum = length[rows, np.maximum(beside_j, 0)] + length[:, sut]
             severity = np.where(beside, np.maximum(severity, beside_severity(beside_g, lsum)), severity)
+        if tailgate.any():  # tailgating: the threshold over the time headway (2 at half the threshold)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                h_sev = ev.headway_threshold_s / np.maximum(gap / np.maximum(speed, 1e-3), 1e-3)
+            severity = np.where(tailgate, np.maximum(severity, h_sev), severity)
         run_starts, run_ends = exposure_runs(danger)
         if self._open is not None and not (run_starts.size and run_starts[0] == 0):
             self._close_exposure(k0)
@@ -402,6 +411,7 @@ class ScoreStream:
             x.rear_states += int(rear_danger[seg].sum())
             x.cut_in_states += int(cut_in[seg].sum())
             x.beside_states += int(beside[seg].sum())
+            x.headway_states += int(tailgate[seg].sum())
             if severity[r0 + m] > self._worst_sev:
                 self._worst_sev = float(severity[r0 + m])
                 self.worst_scene = self._scene(tables, times, r0 + m, k0 + r0 + m)
@@ -532,7 +542,7 @@ class ScoreStream:
             "start_state": x.start, "end_state": end, "states": end - x.start, "start_time_s": x.start_time_s,
             "open_at_end": False, "min_ttc_s": _finite(x.min_ttc), "min_accel_mps2": x.min_accel,
             "worst_state": x.worst, "severity": x.severity, "rear_states": x.rear_states,
-            "cut_in_states": x.cut_in_states, "beside_states": x.beside_states,
+            "cut_in_states": x.cut_in_states, "beside_states": x.beside_states, "headway_states": x.headway_states,
         })
 
     def _add_windows(self, key: str, first: int, sums: np.ndarray) -> None:

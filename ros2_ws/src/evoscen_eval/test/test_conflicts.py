@@ -191,8 +191,8 @@ def test_a_bag_recorded_before_a_key_is_scored_as_it_was_then():
     round1 = {"evaluation": {k: v for k, v in now["evaluation"].items() if k not in RECORDED_BEFORE_KEYS}}
     ev = evaluation_settings_of(round1)
     assert (ev.rear_conflicts, ev.rear_braking, ev.hard_braking, ev.cut_in_gap_m, ev.beside_lane_change,
-            ev.undefined_terms, ev.accel_activity_form, ev.count_normalisation) == \
-        ("none", "any", "own", 0.0, False, "literal", "literal", "literal")
+            ev.undefined_terms, ev.accel_activity_form, ev.count_normalisation, ev.headway_threshold_s) == \
+        ("none", "any", "own", 0.0, False, "literal", "literal", "literal", 0.0)
     assert evaluation_settings_of(None) == EvaluationConfig()  # no recorded scenario: today's defaults
 
 
@@ -396,6 +396,30 @@ def test_live_monitor_equals_the_evaluator_on_a_braking_follower(road, behind_m,
     starts = _live_exposures_match(s, live, expected)
     if expected:
         assert "follower 1" in starts[0]["message"]
+
+
+def _follow_close(k):
+    # no throttle and no lane change: both keep 25 m/s, the gap stays as placed
+    return [0.0, 0.0], [0, 0]
+
+
+@pytest.mark.parametrize("threshold, gap_m, expected_states", [(1.0, 20.0, 101), (1.0, 30.0, 0), (0.0, 20.0, 0)])
+def test_live_monitor_equals_the_evaluator_on_a_tailgating_sut(road, threshold, gap_m, expected_states):
+    """The SUT follows vehicle 1 in its lane, both at 25 m/s, bumper gap 20 m (time headway 20/25 =
+    0.8 s < 1 s at the leader's speed, not falling back: dangerous in all 101 states) or 30 m (1.2 s:
+    never); with the rule off (threshold 0) never. TTC is infinite (equal speeds): only the headway
+    rule. Live exposure events == the evaluator's."""
+    ev = replace(EV, headway_threshold_s=threshold, rear_conflicts="none")
+    world = hand_built_world(road, [300.0, 300.0 + gap_m + 4.8], [2, 2], [25.0, 25.0], roles=[1, 0])
+    report, live = drive(world, _follow_close, 100, ev)
+    s = report["safety"]
+    starts = _live_exposures_match(s, live, 1 if expected_states else 0)
+    assert s["conflicts"]["headway_states"] == expected_states
+    if expected_states:
+        ex = s["exposure_list"][0]
+        assert (ex["start_state"], ex["states"], ex["headway_states"]) == (0, 101, 101) and ex["open_at_end"]
+        assert "time headway 0.80 s to vehicle 1" in starts[0]["message"]
+        assert s["conflicts"]["headway_only_dangerous_states"] == 101
 
 
 @pytest.mark.parametrize("mode", ["all", "after_lane_change"])

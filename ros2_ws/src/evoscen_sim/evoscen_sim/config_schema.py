@@ -383,6 +383,10 @@ class EvaluationConfig:
     """A SUT lane change while a vehicle in its target lane overlaps it longitudinally (beside
     it) makes the state dangerous, whatever that vehicle does next; false = off, the definition
     before. See docs/evaluation.md §3.7."""
+    headway_threshold_s: float = field(default=1.0, metadata=_NON_NEGATIVE)
+    """The SUT following its leader with a time headway (gap / own speed) below this (s) without
+    falling back (own speed >= the leader's) makes the state dangerous: tailgating; 0 = off, the
+    definition before (the method's TTC and hard braking only). See docs/evaluation.md §2."""
     drac_threshold_mps2: float = field(default=3.0, metadata=_POSITIVE)
     """Reported counts of states whose DRAC exceeds this (m/s^2; SUMO SSM's default 3)."""
     ssm_ttc_threshold_s: float = field(default=3.0, metadata=_POSITIVE)

@@ -16,7 +16,8 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FA
                                        KIND_END, KIND_START, ROLE_SUT)
 
 from .safety import (RearAttribution, attribution_steps, beside_gap_state, cut_in_dangerous, cut_in_gap_state, drac_one, follower_headway,
-                     hard_braking_dangerous, rear_dangerous, sut_follower_ttc_state, sut_leader_ttc_state)
+                     hard_braking_dangerous, headway_dangerous, rear_dangerous, sut_follower_ttc_state,
+                     sut_leader_ttc_state)
 
 
 def step_events(world, result) -> list[dict]:  # noqa: ANN001
@@ -93,6 +94,7 @@ class ExposureMonitor:
         self.cut_in_gap_m = evaluation.cut_in_gap_m
         self.beside_lane_change = evaluation.beside_lane_change
         self.hard_braking = evaluation.hard_braking
+        self.headway_threshold_s = evaluation.headway_threshold_s
         self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
         self._rear: RearAttribution | None = None
@@ -116,12 +118,16 @@ class ExposureMonitor:
                 f_gap = (w.s[sut] - w.s[follower]) - 0.5 * (w.length[follower] + w.length[sut])
                 f_thw = float(follower_headway(np.float64(f_gap), np.float64(w.v[follower])))
         drac_sut = 0.0
-        if conflict_rule and leader >= 0:  # the arithmetic of safety.sut_leader and drac, bit for bit
+        tailgating = False
+        if leader >= 0:  # the arithmetic of safety.sut_leader, drac and headway_dangerous, bit for bit
             gap = (w.s[leader] - w.s[sut]) - 0.5 * (w.length[leader] + w.length[sut])
-            drac_sut = drac_one(float(gap), float(w.v[sut]), float(w.v[leader]))
+            if conflict_rule:
+                drac_sut = drac_one(float(gap), float(w.v[sut]), float(w.v[leader]))
+            tailgating = bool(headway_dangerous(np.float64(gap), np.float64(w.v[sut]), np.float64(w.v[leader]),
+                                                self.headway_threshold_s))
         braking = bool(hard_braking_dangerous(accel, drac_sut, f_thw, self.hard_brake_mps2, self.hard_braking,
                                               self.rear_braking_headway_s))
-        danger = bool(ttc < self.ttc_threshold_s) or braking  # = safety.dangerous
+        danger = bool(ttc < self.ttc_threshold_s) or braking or tailgating  # = safety.dangerous | headway_dangerous
         rear = False
         if attributed:
             f_accel = float(w.accel[follower]) if follower >= 0 else 0.0
@@ -150,6 +156,8 @@ class ExposureMonitor:
             elif braking:
                 cause = (f"acceleration {accel:.2f} m/s^2" if drac_sut <= self.hard_brake_mps2
                          else f"needed deceleration (DRAC) {drac_sut:.2f} m/s^2")
+            elif tailgating:
+                cause = f"time headway {float(gap) / float(w.v[sut]):.2f} s to vehicle {int(w.ids[leader])}"
             elif cut_in and not rear:
                 cause = f"cut-in: new follower {int(w.ids[new_follower])} {float(cut_gap):.2f} m behind"
             elif beside and not rear:

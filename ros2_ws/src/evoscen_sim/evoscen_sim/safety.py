@@ -26,6 +26,12 @@ Definitions, choices and their reasons: docs/evaluation.md. A state is **dangero
   it; not one leaving it on the far side) overlaps its body longitudinally (:func:`beside_gap`): it steers towards the side of a
   vehicle, a collision that only that vehicle's braking or the speed difference averts.
 
+* **[choice]** (``evaluation.headway_threshold_s`` [1 s], 0 = off) the SUT *tailgates*: it
+  follows the leader in its path with a time headway (bumper-to-bumper gap / its own speed)
+  below the threshold without falling back (its speed at least the leader's)
+  (:func:`headway_dangerous`): following that close leaves no time to react to a leader that
+  brakes, whether or not the two close in (TTC is infinite at equal speeds).
+
 **[choice]** "in its path": another vehicle whose body overlaps the SUT's laterally
 (|d_j - d_sut| < (w_j + w_sut)/2 in road coordinates) and whose centre is ahead
 (s_j > s_sut) — behind (s_j < s_sut) for the follower. The nearest such vehicle is the
@@ -126,6 +132,26 @@ def dangerous(ttc: np.ndarray, sut_accel: np.ndarray, ttc_threshold_s: float, ha
     the threshold, or hard braking as ``hard_braking`` reads it (:func:`hard_braking_dangerous`)."""
     return (ttc < ttc_threshold_s) | hard_braking_dangerous(sut_accel, drac_sut, follower_thw_s, hard_brake_mps2,
                                                               hard_braking, headway_s)
+
+
+def headway_dangerous(gap_m: np.ndarray | float, sut_speed: np.ndarray | float, leader_speed: np.ndarray | float,
+                      threshold_s: float) -> np.ndarray:
+    """Whether the SUT follows its leader too closely (docs/evaluation.md §2, "tailgating"):
+    time headway gap / v_SUT below ``threshold_s`` while v_SUT >= v_leader and v_SUT > 0.
+
+    ``gap_m``: bumper-to-bumper gap to the leader in the SUT's path (``inf`` without one; negative
+    when the bodies overlap); ``leader_speed``: ``nan`` without a leader. ``threshold_s`` 0: never.
+    A SUT that has dropped below the threshold and is falling back (slower than its leader, as
+    after a vehicle cut in ahead of it) is not tailgating.
+    """
+    gap = np.asarray(gap_m, dtype=float)
+    v = np.asarray(sut_speed, dtype=float)
+    vl = np.asarray(leader_speed, dtype=float)
+    if threshold_s <= 0.0:
+        return np.zeros(np.broadcast(gap, v, vl).shape, dtype=bool)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        thw = np.where(v > 0.0, gap / np.where(v > 0.0, v, 1.0), np.inf)
+    return np.isfinite(gap) & (v > 0.0) & (thw < threshold_s) & (v >= vl)
 
 
 def hard_braking_dangerous(sut_accel: np.ndarray, drac_sut: np.ndarray | float, follower_thw_s: np.ndarray | float,

@@ -26,6 +26,7 @@ from evoscen_sim.safety import (
     drac,
     drac_one,
     follower_ttc,
+    headway_dangerous,
     rear_attributed,
     sut_follower,
     sut_follower_ttc_state,
@@ -324,3 +325,15 @@ def test_drac_one_is_drac_bit_for_bit() -> None:
     want = drac(gap, v, vl)
     got = np.array([drac_one(float(g), float(a), float(b)) for g, a, b in zip(gap, v, vl)])
     assert got.tobytes() == want.tobytes()
+
+
+def test_headway_rule_by_hand():
+    """Time headway gap / v_SUT below the threshold while not falling back (v_SUT >= v_leader)."""
+    gap = np.array([20.0, 20.0, 20.0, 26.0, np.inf, 20.0, -1.0])
+    v = np.array([25.0, 25.0, 24.0, 25.0, 25.0, 0.0, 10.0])
+    vl = np.array([25.0, 26.0, 20.0, 20.0, np.nan, 0.0, 10.0])
+    # 0.8 s level: yes; 0.8 s but the leader pulls away: no; 0.83 s closing: yes; 1.04 s: no; no leader: no;
+    # at rest: no; bodies overlapping (negative gap), level: yes
+    assert headway_dangerous(gap, v, vl, 1.0).tolist() == [True, False, True, False, False, False, True]
+    assert not headway_dangerous(gap, v, vl, 0.0).any()  # off
+    assert headway_dangerous(np.float64(20.0), np.float64(25.0), np.float64(25.0), 0.8).tolist() is False  # 0.8 < 0.8: no
