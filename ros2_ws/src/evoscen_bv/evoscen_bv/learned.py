@@ -99,6 +99,8 @@ class HardBrakeState:
         self.until_step = np.full(n, -1, dtype=np.int64)
         """Steps before this one brake (the episode in progress); -1: none."""
         self.decel = np.zeros(n)
+        self.driven_m = 0.0
+        """Distance driven by the hosted vehicles while their odometers ran (the exposure)."""
         self.episodes: list[tuple[int, int, float, float]] = []
         """Every episode started: (hosted position, step, deceleration m/s², duration s)."""
 
@@ -129,6 +131,7 @@ class HardBrakeState:
                 if (not braking[k] and gap <= HARD_BRAKE_VIEW_M and v[k] > p.min_speed_mps
                         and int(np.asarray(view.lane_change)[leader]) == 0):
                     self.to_go_m[k] -= v[k] * dt
+                    self.driven_m += v[k] * dt
                     if self.to_go_m[k] <= 0.0:
                         self.start(k, step, dt)
                         braking[k] = True
