@@ -62,6 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--traffic", choices=("window", "loop"), default=None,
                     help="traffic.mode: window (the traffic moves with the SUT) or loop (re-entry at the road's start); "
                          "default: the config's")
+    ap.add_argument("--hard-brake", choices=("true", "false"), default=None,
+                    help="models.learned.hard_brake: the SUT's leader brakes hard now and then (default: the config's)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
     args = ap.parse_args(argv)
 
@@ -95,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["models.learned.standing_leader_at_once"] = args.standing_at_once == "true"
             if args.traffic is not None:
                 overrides["traffic.mode"] = args.traffic
+            if args.hard_brake is not None:
+                overrides["models.learned.hard_brake"] = args.hard_brake == "true"
             try:
                 cfg = load_scenario_config(args.config, overrides)
             except InputError as exc:

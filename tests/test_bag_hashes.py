@@ -32,6 +32,11 @@ Then ``evaluation.ssm_ttc_threshold_s`` and ``evaluation.ssm_pet_threshold_s`` (
 profile, docs/evaluation.md; read by the evaluator only): the metadata record gains the two keys in
 every bag; every message of the default and the default mutant's runs is byte-identical to the bags
 before (compared per topic: all nine topics, and the recorded scenario differs only by the two keys).
+Then the learned BVs' hard braking of the SUT's leader (``models.learned.hard_brake`` and the
+``hard_brake_*`` keys, docs/learned-bvs.md, "Hard braking"): the metadata record gains the keys in
+every bag; no episode starts in the five runs, and every message of the default and the default
+mutant's runs is byte-identical between ``hard_brake`` true and false (compared per topic: all nine
+topics); with it false every command of 1,000 steps equals the code before (test_hard_brake.py).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
@@ -47,11 +52,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "72c26bdf32c8bd4f490a7c8d419d44ac52bc68942c9f3738409bffbcecf0f22d",  # the shipped default (level0 SUT)
-    "nilsson": "1caf8f5c3fd4b2a58719de4ad21a5a78bdbd7ee6f13f91a693fc064fc85bfc3d",
-    "mobil": "907747feaac2b3aaab9855e2193a808cfc1ede140de68e22c7f11ab1e7f35461",
-    "stackelberg": "f2ec1b9bde2b332227dd9970fb04f8e99f127bf89afba1a847e8b1d76441722a",
-    "mutant": "20150da823084e3c82df2ba87b41ec1cc432ebc846a715510cfaa0e6f4362d7a",  # the default mutant
+    None: "afb73a5b651e52d314f227ee9f084ee6955dc18d9fa44d8df84845aa5f144573",  # the shipped default (level0 SUT)
+    "nilsson": "69f055e1ad5be3601d41f35a91fcd56a8488ccbb9f125fe16a18804d46368f29",
+    "mobil": "cbbb3d7b34d282f863f01ff10f5e167e71b4e6fad3dffb91434d437da114a7a1",
+    "stackelberg": "50f307096041814e6f6fcb4988fc1dd229597e77da844a43d5479a935172c4e5",
+    "mutant": "bd864f5554c33f812c0c2231bf39abc6c12348f6469ca5fb25d44c7ae2baf5c8",  # the default mutant
 }
 
 

@@ -30,10 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-from evoscen_contract.contract import POLICY_CODES, SOCIAL_POLICIES
+from evoscen_contract.contract import POLICY_CODES, ROLE_SUT, SOCIAL_POLICIES
 from evoscen_sim.config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
+from evoscen_sim.safety import sut_leader_ttc_state
 from evoscen_sim.traffic import new_trips
 from evoscen_sim.vehicle import accel_to_throttle
 
@@ -49,6 +50,96 @@ POLICY_FILES = {"mutual": "mutual.npz", "competitive": "competitive.npz", "coope
 CONTROLLER_FILE = "controller.npz"
 POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
 """The world's policy codes of the social types (``evoscen_contract.contract.POLICY_CODES``)."""
+
+
+HARD_BRAKE_VIEW_M = 100.0
+"""A hard-braking episode starts only for a BV that is the SUT's leader (the nearest vehicle ahead
+whose body overlaps the SUT's path, :func:`evoscen_sim.safety.sut_leader`) with a bumper-to-bumper
+gap of at most this many metres. [choice] 100 m: the vehicle a driver follows at highway speed
+(3.3 s at 30 m/s); a leader farther away braking hard is no challenge."""
+
+
+@dataclasses.dataclass(frozen=True)
+class HardBrakeParams:
+    """The run-time hard-braking rule of the learned BVs (docs/learned-bvs.md, "Hard braking").
+
+    While a BV is the SUT's leader (:data:`HARD_BRAKE_VIEW_M`), on the main line (not changing
+    lanes) and at ``min_speed_mps`` or faster, hard-braking episodes start as a Poisson process
+    of ``per_1000km`` events per 1,000 km it drives so; an episode brakes at a deceleration
+    drawn uniformly from ``decel_mps2`` for a duration drawn uniformly from ``duration_s`` and
+    ends early when the BV's speed falls to ``min_speed_mps`` (never into a standstill).
+    """
+
+    per_1000km: float = 11.8
+    decel_mps2: tuple[float, float] = (4.0, 7.0)
+    duration_s: tuple[float, float] = (1.0, 3.0)
+    min_speed_mps: float = 10.0
+
+    def __post_init__(self) -> None:
+        lo, hi = self.decel_mps2
+        dlo, dhi = self.duration_s
+        if not (self.per_1000km > 0.0 and 0.0 < lo <= hi and 0.0 < dlo <= dhi and self.min_speed_mps >= 0.0):
+            raise ValueError(f"HardBrakeParams: bad values {self}")
+
+
+class HardBrakeState:
+    """Per hosted vehicle: the distance left, as the SUT's leader, to its next hard-braking
+    episode (exponential draws, mean 1,000 km / ``per_1000km``), and the episode in progress.
+
+    All draws come from ``rng`` in a fixed order (at construction one distance per vehicle; at
+    each start: deceleration, duration, next distance), so a seed gives the same episodes in
+    every runner.
+    """
+
+    def __init__(self, n: int, params: HardBrakeParams, rng: np.random.Generator) -> None:
+        self.params = params
+        self.rng = rng
+        self.mean_m = 1.0e6 / params.per_1000km
+        self.to_go_m = rng.exponential(self.mean_m, size=n)
+        self.until_step = np.full(n, -1, dtype=np.int64)
+        """Steps before this one brake (the episode in progress); -1: none."""
+        self.decel = np.zeros(n)
+        self.driven_m = 0.0
+        """Distance driven by the hosted vehicles while their odometers ran (the exposure)."""
+        self.episodes: list[tuple[int, int, float, float]] = []
+        """Every episode started: (hosted position, step, deceleration m/s², duration s)."""
+
+    def start(self, k: int, step: int, dt_s: float) -> None:
+        p = self.params
+        decel = float(self.rng.uniform(*p.decel_mps2))
+        duration = float(self.rng.uniform(*p.duration_s))
+        self.to_go_m[k] += self.rng.exponential(self.mean_m)  # the overshoot carries: exact in distance
+        self.decel[k] = decel
+        self.until_step[k] = step + max(1, int(round(duration / dt_s)))
+        self.episodes.append((k, step, decel, duration))
+
+    def bound(self, view, vehicles: np.ndarray, throttle: np.ndarray, vehicle_params) -> np.ndarray:  # noqa: ANN001
+        """``throttle`` with the episodes' braking; advances the odometers and starts episodes."""
+        p = self.params
+        step, dt = int(view.step_index), float(view.dt_s)
+        v = np.asarray(view.v)[vehicles]
+        self.until_step[v <= p.min_speed_mps] = -1  # never into a standstill
+        braking = self.until_step > step
+        sut = np.flatnonzero(np.asarray(view.role) == ROLE_SUT)
+        if sut.size:
+            s, d, length = np.asarray(view.s), np.asarray(view.d), np.asarray(view.length)
+            leader, _ = sut_leader_ttc_state(s, d, np.asarray(view.v), length, np.asarray(view.width), int(sut[0]))
+            hosted = np.flatnonzero(vehicles == leader) if leader >= 0 else np.zeros(0, dtype=np.int64)
+            if hosted.size:
+                k = int(hosted[0])
+                gap = (s[leader] - s[sut[0]]) - 0.5 * (length[leader] + length[sut[0]])
+                if (not braking[k] and gap <= HARD_BRAKE_VIEW_M and v[k] > p.min_speed_mps
+                        and int(np.asarray(view.lane_change)[leader]) == 0):
+                    self.to_go_m[k] -= v[k] * dt
+                    self.driven_m += v[k] * dt
+                    if self.to_go_m[k] <= 0.0:
+                        self.start(k, step, dt)
+                        braking[k] = True
+        if not braking.any():
+            return throttle
+        out = np.array(throttle, dtype=float)
+        out[braking] = np.minimum(out[braking], accel_to_throttle(-self.decel[braking], vehicle_params))
+        return out
 
 
 def shipped_policy_dir() -> Path:
@@ -163,6 +254,9 @@ class LearnedDriver:
         hold_on_entry: with ``lane_hold_s``, a vehicle that enters anew (the traffic window's entries,
             re-entries) starts with a lane hold, as a vehicle that has settled in its lane; False:
             without one (it may change lanes at its first decision).
+        hard_brake: the run-time hard braking of the SUT's leader (:class:`HardBrakeParams`,
+            docs/learned-bvs.md, "Hard braking"); its draws come from a generator seeded by one
+            draw from ``rng`` after the desired speeds. ``None``: no hard braking (no draw).
     """
 
     def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
@@ -170,7 +264,8 @@ class LearnedDriver:
                  forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
                  cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None,
                  into_ending_lane: bool = True, forced_merge_m: float = FORCED_MERGE_M,
-                 merge_seek: bool = False, hold_on_entry: bool = False) -> None:
+                 merge_seek: bool = False, hold_on_entry: bool = False,
+                 hard_brake: HardBrakeParams | None = None) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         if not lane_hold_s >= 0.0:
             raise ValueError(f"lane_hold_s must be >= 0, got {lane_hold_s}")
@@ -207,6 +302,10 @@ class LearnedDriver:
         self.default_column = int(self.column_of_code[default_code]) if decision_actors else -1
         lo, hi = config.env.desired_speed_mps
         self.desired_speed_mps = rng.uniform(lo, hi, size=self.vehicles.size)
+        self.hard_brake: HardBrakeState | None = None
+        if hard_brake is not None:
+            child = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
+            self.hard_brake = HardBrakeState(self.vehicles.size, hard_brake, child)
         self._throttle_constants: tuple | None = None
         self._throttle_road = None
         self.last_request = np.zeros(self.vehicles.size, dtype=np.int64)
@@ -271,6 +370,8 @@ class LearnedDriver:
         throttle = self.throttle(view)
         if self.forced_merge and self.merge_seek:
             throttle = self._merge_seek_bound(view, throttle)
+        if self.hard_brake is not None:
+            throttle = self.hard_brake.bound(view, self.vehicles, throttle, self.vehicle_params)
         if self.lane_hold_s > 0.0:
             changing = np.asarray(view.lane_change)[self.vehicles] != 0
             ended = self._changing & ~changing

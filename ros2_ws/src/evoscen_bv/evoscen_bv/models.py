@@ -7,7 +7,10 @@
   the policy of its code in the world (competitive, mutual, cooperative: ``bvs.mix``).
   Parameters ``models.learned``: ``policy_dir``, ``on_missing``, ``profile``, ``lane_hold_s``, ``cut_in_decel_mps2``,
   ``into_ending_lane``, ``forced_merge_m``, ``merge_seek``, ``hold_on_entry``
-  and ``standing_leader_at_once`` (:class:`LearnedParams`).
+  ``standing_leader_at_once`` and the hard braking of the SUT's leader ``hard_brake``,
+  ``hard_brake_per_1000km``, ``hard_brake_decel_min_mps2``, ``hard_brake_decel_max_mps2``,
+  ``hard_brake_duration_min_s``, ``hard_brake_duration_max_s``, ``hard_brake_min_speed_mps``
+  (:class:`LearnedParams`).
 """
 
 from __future__ import annotations
@@ -92,6 +95,30 @@ class LearnedParams:
     time, for a perceived leader at rest (docs/bv-profiles.md, R2) [choice: a vehicle standing
     in front that the BV has perceived is no surprise]; false: the reaction time applies to it
     too (the rule before session 12). ``safety_net`` ignores it."""
+    hard_brake: bool = flag(True)
+    """Whether the BV that is the SUT's leader (within 100 m) brakes hard now and then, as leaders
+    do in naturalistic traffic (docs/learned-bvs.md, "Hard braking";
+    :class:`evoscen_bv.learned.HardBrakeParams`): episodes start as a Poisson process per km it
+    drives as the SUT's leader, brake at a drawn deceleration for a drawn duration, and end early at
+    ``hard_brake_min_speed_mps``. true (default); false: no hard braking, the BVs as before."""
+    hard_brake_per_1000km: float = number(11.8, 0.001, 1.0e6)
+    """Hard-braking episodes per 1,000 km driven as the SUT's leader: 11.8 = 19 per 1,000 miles, the
+    average US driver's hard-braking events in Allstate's Drivewise telematics 2016–2017 (America's
+    Best Drivers Report; all roads, not highways only — an upper figure for a highway)."""
+    hard_brake_decel_min_mps2: float = number(4.0, 0.1, 8.0)
+    """Lower end of the uniform draw of an episode's deceleration. [choice] 4 m/s² (about 0.4 g, the
+    upper end of the thresholds naturalistic studies use for "hard braking", 3–4 m/s²): no
+    published distribution of the deceleration was found."""
+    hard_brake_decel_max_mps2: float = number(7.0, 0.1, 8.0)
+    """Upper end of the deceleration draw. [choice] 7 m/s², the ``driver`` profile's braking bound."""
+    hard_brake_duration_min_s: float = number(1.0, 0.1, 60.0)
+    """Lower end of the uniform draw of an episode's duration. [choice] 1 s: no published
+    distribution of the duration was found."""
+    hard_brake_duration_max_s: float = number(3.0, 0.1, 60.0)
+    """Upper end of the duration draw. [choice] 3 s (at most 21 m/s of speed lost)."""
+    hard_brake_min_speed_mps: float = number(10.0, 0.0, 100.0)
+    """An episode starts only above, and ends early at, this speed: a leader never brakes into a
+    standstill on the main line. [choice] 10 m/s."""
 
 
 def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
@@ -116,7 +143,23 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
                          cut_in_decel_mps2=params.cut_in_decel_mps2,
                          standing_leader_at_once=params.standing_leader_at_once,
                          into_ending_lane=params.into_ending_lane, forced_merge_m=params.forced_merge_m,
-                         merge_seek=params.merge_seek, hold_on_entry=params.hold_on_entry)
+                         merge_seek=params.merge_seek, hold_on_entry=params.hold_on_entry,
+                         hard_brake=hard_brake_params(params))
+
+
+def hard_brake_params(params: LearnedParams):  # noqa: ANN201
+    """The :class:`evoscen_bv.learned.HardBrakeParams` of ``params``; ``None`` with ``hard_brake: false``."""
+    from .learned import HardBrakeParams
+
+    if not params.hard_brake:
+        return None
+    try:
+        return HardBrakeParams(params.hard_brake_per_1000km,
+                               (params.hard_brake_decel_min_mps2, params.hard_brake_decel_max_mps2),
+                               (params.hard_brake_duration_min_s, params.hard_brake_duration_max_s),
+                               params.hard_brake_min_speed_mps)
+    except ValueError:
+        raise InputError("models.learned.hard_brake_*: the minimum of a range exceeds its maximum") from None
 
 
 LEVEL0 = ModelSpec(
