@@ -38,13 +38,15 @@ def add_scenario_options(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--sut", help="SUT model name (overrides 'sut.model')")
     ap.add_argument("--bvs", help="number of background vehicles (overrides 'bvs.count')")
     ap.add_argument("--mix", help="policy mix competitive:mutual:cooperative, e.g. 4:3:3 (overrides 'bvs.mix')")
+    ap.add_argument("--bv-nodes", help="BV nodes: by_policy, single or a number N (overrides 'bvs.nodes'; "
+                    "docs/architecture.md §5, \"BV nodes\")")
 
 
 def scenario_overrides(args: argparse.Namespace) -> dict[str, str]:
     """The configuration keys the scenario options override (only those given)."""
     return {key: value for key, value in (
         ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
-        ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+        ("bvs.count", args.bvs), ("bvs.mix", args.mix), ("bvs.nodes", args.bv_nodes)) if value is not None}
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:

@@ -24,6 +24,12 @@ per topic: all nine topics). Then, meant to change behaviour: the traffic window
 (``models.krauss.speed_factor_sd``): every world changes. With ``traffic.mode: loop`` and the three
 keys at their earlier values the earlier design drives as before: tests/test_profiles.py checks
 every command of 400 steps that way (not the whole bags: their metadata record lists the new keys).
+Then BV nodes (``bvs.nodes``, docs/architecture.md §5, "BV nodes"): the metadata record gains the key
+in every bag, and with the default ``by_policy`` the BV commands go out on one topic per BV node
+(``/evoscen/commands/bv_competitive``, ``_mutual``, ``_cooperative``) instead of ``/evoscen/commands/bv``.
+Compared per topic with the bags before, default scenario, 3,000 steps: with ``bvs.nodes: single``
+every message of all nine topics is byte-identical; with ``by_policy`` every message of the eight
+other topics is (the world does not depend on the split).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
@@ -39,11 +45,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "d22ce12d2820777e4cb3973b490fb5ed45c8ba34146770f3cc929355a3fc8dc3",  # the shipped default (level0 SUT)
-    "nilsson": "e928f19fd8a66c1b62ed5be23b8d006d30e8771c72b7a311786c4a0a190303c6",
-    "mobil": "c20fd7358178a96d808edf98288d6e06f07eaa36b986c8742f2759b1b5221afb",
-    "stackelberg": "b06b1058fbff4edc5937ddc7a04211214ee25d5ee1ba949605c2390cf6bd35df",
-    "mutant": "4f85421a345f7f1f5acbe7922eae3a0b9a2904c0f6a7531328e09e9da35fe5af",  # the default mutant
+    None: "7831c20e9b2568fd9a413943f5c2c98c29d1eeba157443c9eccf02bd99826565",  # the shipped default (level0 SUT)
+    "nilsson": "4af8c8b0809942d7d0536cbff59fb2da69930dc03349b6c93322a1bd18ceebe8",
+    "mobil": "c6e03691abe305bf235a1d58d835f269b8eeb1a34684ab3103cfd3c6d96b37b0",
+    "stackelberg": "d6df12661738a09520a422f37de2cb61b86dc607dc9895ab23ebf87dc36d49a1",
+    "mutant": "2f2ae6d5cf9029a1a1db9a09cd6ec040e53a6dab330343484281be2571f2c774",  # the default mutant
 }
 
 

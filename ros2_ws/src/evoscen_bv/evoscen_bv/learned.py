@@ -202,6 +202,19 @@ class LearnedDriver:
         self.last_request = np.zeros(self.vehicles.size, dtype=np.int64)
         """Requested (pre-constraint) actions of the last decision, for training and tests."""
 
+    def restrict(self, positions: np.ndarray) -> None:
+        """Host only the vehicles at ``positions`` of :attr:`vehicles`, each with the state it was
+        built with (its desired speed: the draws do not depend on the split), so that a BV node's
+        share drives exactly as in the one driver of all BVs (:mod:`evoscen_sim.bv_nodes`). Before
+        the first :meth:`act` (the per-vehicle state of the profile is made there, for the hosted ones)."""
+        if self.reaction is not None or self._last_s is not None:
+            raise RuntimeError("LearnedDriver.restrict: after the first act")
+        self.vehicles = self.vehicles[positions]
+        self._changing = self._changing[positions]
+        self.hold_until_step = self.hold_until_step[positions]
+        self.desired_speed_mps = self.desired_speed_mps[positions]
+        self.last_request = self.last_request[positions]
+
     def throttle(self, view) -> np.ndarray:  # noqa: ANN001
         """The controller's throttle for every hosted vehicle (one compiled pass, see
         :func:`evoscen_bv.car_following.learned_throttle`)."""
