@@ -252,8 +252,11 @@ def test_the_learned_driver_takes_both_merge_keys_from_the_scenario():
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
+    # every BV node's driver (bvs.nodes: by_policy, three of them) takes them
     sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0}))
-    assert sc.bv_driver.end_margin_m == float("inf") and sc.bv_driver.forced_merge_m == 1000.0
+    drivers = [d for _, d in sc.bv_driver.parts]
+    assert len(drivers) == 3
+    assert all(d.end_margin_m == float("inf") and d.forced_merge_m == 1000.0 for d in drivers)
     sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models": {"learned": {
         "into_ending_lane": True, "forced_merge_m": 120.0}}}))
-    assert sc.bv_driver.end_margin_m == 200.0 and sc.bv_driver.forced_merge_m == 120.0
+    assert all(d.end_margin_m == 200.0 and d.forced_merge_m == 120.0 for _, d in sc.bv_driver.parts)
