@@ -73,7 +73,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     g.add_argument("--max-misses", default="5", help="consecutive missed deadlines that abort (default 5)")
     g.add_argument("--wait-for", nargs="+", default=[], metavar="NODE",
                    help="node names of your own nodes (a monitor, a bridge) to wait for before step 0, "
-                        "so they receive every step")
+                        "so they receive every step; a BV node of the scenario named here (evoscen_bv_mutual) "
+                        "is not started: start it by hand with OUT/params/<name>.yaml (docs/architecture.md §5)")
     g.add_argument("--external-sut", action="store_true",
                    help="do not start evoscen's SUT node: your own node answers on /evoscen/commands/sut "
                         "(see examples/README.md)")

@@ -168,3 +168,52 @@ def test_bv_node_with_a_name_outside_the_partition_is_one_line(tmp_path):
     assert res.returncode == 2, res.stderr
     assert lines == ["error: BV node 'evoscen_bv_nosuch' is not one of this scenario's BV nodes (bvs.nodes = "
                      "by_policy): evoscen_bv_competitive, evoscen_bv_mutual, evoscen_bv_cooperative"], lines
+
+
+@pytest.mark.e2e
+def test_bv_node_started_by_hand_joins_the_run(tmp_path):
+    """``--wait-for evoscen_bv_mutual``: the launcher starts every node but that BV node, which is
+    started by hand from the parameter file the launcher wrote (the commands of docs/architecture.md
+    §5, "BV nodes"); the simulation waits for it, and the bag is the in-process run's, byte for byte."""
+    import os
+    import time
+
+    from evoscen_bringup.domains import reserve_domain, reserved_by_caller_env
+    from evoscen_bringup.graph_runner import node_environment
+
+    out, inproc = tmp_path / "graph", tmp_path / "inproc"
+    with reserve_domain(None) as domain:
+        launcher = subprocess.Popen(
+            [sys.executable, "scripts/run_scenario.py", "--mode", "graph", "--steps", "150", "--seed", "5",
+             "--out", str(out), "--no-plots", "--domain-id", str(domain), "--wait-for", "evoscen_bv_mutual"],
+            cwd=REPO, env=dict(os.environ, **reserved_by_caller_env(domain)), text=True,
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        params = out / "params" / "evoscen_bv_mutual.yaml"
+        end = time.monotonic() + 60
+        while not params.exists() and time.monotonic() < end:
+            time.sleep(0.05)
+        assert params.exists(), "the launcher wrote no parameter file for the BV node to start by hand"
+        by_hand = subprocess.Popen(
+            [sys.executable, "-m", "evoscen_bv.bv_node", "--ros-args", "--params-file", str(params),
+             "-r", "__node:=evoscen_bv_mutual"],
+            cwd=REPO, env=node_environment(domain, "LOCALHOST"), text=True,
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        try:
+            stdout, stderr = launcher.communicate(timeout=180)
+            hand_out, _ = by_hand.communicate(timeout=60)
+        finally:
+            for p in (launcher, by_hand):
+                if p.poll() is None:
+                    p.kill()
+                    p.communicate()
+    assert launcher.returncode == 0, f"{stdout}\n{stderr}"
+    assert by_hand.returncode == 0, hand_out
+    # the launcher started and supervised the other nodes only
+    assert ("nodes: evoscen_eval=0, evoscen_bv_competitive=0, evoscen_bv_cooperative=0, evoscen_sut=0, "
+            "evoscen_sim=0") in stdout, stdout
+    res = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "inprocess", "--steps", "150",
+                          "--seed", "5", "--out", str(inproc), "--no-plots", "--quiet"],
+                         cwd=REPO, capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    assert (out / "bag" / "bag_0.mcap").read_bytes() == (inproc / "bag" / "bag_0.mcap").read_bytes()
+    assert (out / "bag" / "metadata.yaml").read_bytes() == (inproc / "bag" / "metadata.yaml").read_bytes()

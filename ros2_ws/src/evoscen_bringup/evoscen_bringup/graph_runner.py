@@ -85,7 +85,10 @@ class GraphOptions:
     node_args: dict[str, dict] = field(default_factory=dict)
     """Extra parameters per node name (tests)."""
     wait_for: tuple[str, ...] = ()
-    """Users' node names the simulation waits for before step 0 (so they see every step)."""
+    """Users' node names the simulation waits for before step 0 (so they see every step). A BV node
+    of the scenario named here is not started by the launcher: it is started by hand (another
+    terminal or machine, same domain) with its parameter file ``OUT/params/<name>.yaml``, and the
+    simulation waits for it like for every controller."""
     report_dir: Path | None = None
     """Where the evaluator writes the report (report.json, report.md, plots); None = no report."""
     report_plots: bool = True
@@ -134,7 +137,9 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
         own[name] = dict(bv_own)
     if opts.wait_for:  # the controllers wait for users' nodes too (a parameter file cannot type [])
         for name in (*bv_names, NODE_SUT):
-            own[name]["wait_for_nodes"] = list(opts.wait_for)
+            others = [n for n in opts.wait_for if n != name]  # a BV node started by hand: not for itself
+            if others:
+                own[name]["wait_for_nodes"] = others
     paths = {}
     for name in own:
         params = {**own[name], **opts.node_args.get(name, {}), "scenario": scenario}
@@ -188,8 +193,8 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     env = node_environment(domain_id, opts.discovery_range)
     wanted = []  # (node name, module): one BV node per share of bvs.nodes, each under its own name
     for name, module in NODES:
-        if name == NODE_BV:
-            wanted += [(bv, module) for bv in bv_node_names(cfg)]
+        if name == NODE_BV:  # a BV node named in wait_for is started by hand, not here (docs/architecture.md §5)
+            wanted += [(bv, module) for bv in bv_node_names(cfg) if bv not in opts.wait_for]
         elif name != NODE_SUT or not opts.external_sut:
             wanted.append((name, module))
     procs: dict[str, subprocess.Popen] = {}

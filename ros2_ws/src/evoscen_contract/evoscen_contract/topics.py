@@ -195,9 +195,10 @@ COMMANDS_BV = TopicSpec(
     rate="every step (answer to the world at t_k)",
     description=(
         "BV commands: flat table, one row per hosted BV, columns COMMAND_FIELDS; "
-        "stamp = t_k of the world step answered, frame 'map'. One topic per BV node: this one for "
-        "`bvs.nodes: single`; `/evoscen/commands/bv_<part>` from node `evoscen_bv_<part>` otherwise "
-        "(`bv_competitive`, `bv_mutual`, `bv_cooperative`, `bv_level0`, ...; `bv_0` ... `bv_<N-1>`)"
+        "stamp = t_k of the world step answered, frame 'map'. One topic per BV node, "
+        "`/evoscen/commands/bv_<part>` from node `evoscen_bv_<part>` (`bvs.nodes`: by_policy, the default, "
+        "as listed here; `bv_level0`, ... for a rule-based driver; `bv_0` ... `bv_<N-1>` for N nodes; "
+        "`/evoscen/commands/bv` from `evoscen_bv` for `single`)"
     ),
     fields=COMMAND_FIELDS,
     subscribers=(NODE_SIM, NODE_EVAL),
@@ -328,19 +329,19 @@ def contract_markdown() -> str:
         "|---|---|---|---|---|---|---|",
     ]
     def shown(name: str) -> str:  # the BV nodes: one per share of bvs.nodes (docs/architecture.md §5)
-        return f"`{bv_node_name('<part>')}` (`{NODE_BV}`)" if name == NODE_BV else f"`{name}`"
+        return f"`{bv_node_name('<part>')}`" if name == NODE_BV else f"`{name}`"
 
-    for spec in CONTRACT:
+    # the BV nodes' rows: those of the default scenario (bvs.nodes: by_policy, the learned mix)
+    rows = contract_for([bv_node_name(p) for p in ("competitive", "mutual", "cooperative")])
+    for spec in rows:
         subs = ", ".join(shown(s) for s in spec.subscribers)
-        topic = (f"`{command_topic(bv_node_name('<part>'))}` (`{spec.name}`)" if spec is COMMANDS_BV
-                 else f"`{spec.name}`")
         lines.append(
-            f"| {topic} | `{spec.type_name}` | {shown(spec.publisher)} | {subs} | {spec.qos.short()} "
+            f"| `{spec.name}` | `{spec.type_name}` | {shown(spec.publisher)} | {subs} | {spec.qos.short()} "
             f"| {spec.rate} | {spec.description} |"
         )
     lines += ["", "Table columns (float64, one row per vehicle):", ""]
     lines += ["| table | columns |", "|---|---|"]
-    for spec in CONTRACT:
+    for spec in rows:
         if spec.fields:
             lines.append(f"| `{spec.name}` | {', '.join(f'`{f}`' for f in spec.fields)} |")
     lines += ["", "| column | meaning (unit) |", "|---|---|"]

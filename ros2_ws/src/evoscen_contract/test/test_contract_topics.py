@@ -74,8 +74,9 @@ def test_contract_markdown_lists_every_topic() -> None:
     md = contract_markdown()
     assert md.splitlines()[0] == "| topic | type | publisher | subscribers | QoS | rate | meaning |"
     for spec in CONTRACT:
-        if spec.name == "/evoscen/commands/bv":  # one topic per BV node (bvs.nodes), the single node's in brackets
-            assert f"| `/evoscen/commands/bv_<part>` (`{spec.name}`) | `{spec.type_name}` |" in md
+        if spec.name == "/evoscen/commands/bv":  # one topic per BV node: the default scenario's three
+            for part in ("competitive", "mutual", "cooperative"):
+                assert f"| `/evoscen/commands/bv_{part}` | `{spec.type_name}` | `evoscen_bv_{part}` |" in md
         else:
             assert f"| `{spec.name}` | `{spec.type_name}` |" in md
     assert "`heading_rel`" in md

@@ -117,6 +117,7 @@ class SimulationNode(Port):
         self.wait_for_nodes = list(own.wait_for_nodes)
         self.discovery_settle_s = own.discovery_settle_s
         self.recorder_lag_steps = own.recorder_lag_steps
+        self.flow_waits, self.flow_wait_s = 0, 0.0  # flow control's waits for acknowledgements (stats_file)
         self.ready_file = own.ready_file
 
         # the controllers and their command topics: one per BV node of bvs.nodes and the SUT
@@ -442,11 +443,14 @@ class SimulationNode(Port):
         recorder reads every topic and takes them together, so the per-step topics it alone
         reads (clock, odometry, events) bound its lag just as well.
         """
+        t0 = time.perf_counter()
         for name, pub in self.pub.items():
             if name == T.WORLD.name:
                 continue
             while not pub.wait_for_all_acked(graph.duration(0.1)):
                 self._check_interrupt()
+        self.flow_waits += 1
+        self.flow_wait_s += time.perf_counter() - t0
 
     def _check_alone(self) -> None:
         others = self.node.count_publishers(T.WORLD.name) - 1
@@ -493,7 +497,8 @@ class SimulationNode(Port):
             import json
 
             with open(self.stats_file, "w", encoding="utf-8") as f:
-                json.dump({"steps": steps, "loop_wall_s": seconds, "steps_per_s": rate}, f)
+                json.dump({"steps": steps, "loop_wall_s": seconds, "steps_per_s": rate,
+                           "flow_control_waits": self.flow_waits, "flow_control_wait_s": self.flow_wait_s}, f)
 
 
 def main(args: list[str] | None = None) -> int:
