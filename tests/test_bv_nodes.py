@@ -217,3 +217,26 @@ def test_bv_node_started_by_hand_joins_the_run(tmp_path):
     assert res.returncode == 0, res.stderr
     assert (out / "bag" / "bag_0.mcap").read_bytes() == (inproc / "bag" / "bag_0.mcap").read_bytes()
     assert (out / "bag" / "metadata.yaml").read_bytes() == (inproc / "bag" / "metadata.yaml").read_bytes()
+
+
+@pytest.mark.e2e
+def test_graph_with_an_empty_bv_node_equals_inprocess(tmp_path):
+    """3 BVs over 4 BV nodes (``--bv-nodes 4``): evoscen_bv_3 hosts nobody and still answers every
+    step with an empty table; the graph's bag is the in-process run's, byte for byte."""
+    from evoscen_eval.recorder import open_bag_reader
+
+    common = ["--steps", "120", "--seed", "2", "--bvs", "3", "--bv-nodes", "4", "--no-plots"]
+    graph = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", *common,
+                            "--out", str(tmp_path / "graph")], cwd=REPO, capture_output=True, text=True, timeout=240)
+    assert graph.returncode == 0, graph.stdout + graph.stderr
+    assert ("nodes: evoscen_eval=0, evoscen_bv_0=0, evoscen_bv_1=0, evoscen_bv_2=0, evoscen_bv_3=0, evoscen_sut=0, "
+            "evoscen_sim=0") in graph.stdout, graph.stdout
+    inproc = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "inprocess", *common, "--quiet",
+                             "--out", str(tmp_path / "inproc")], cwd=REPO, capture_output=True, text=True, timeout=240)
+    assert inproc.returncode == 0, inproc.stderr
+    g, i = tmp_path / "graph" / "bag", tmp_path / "inproc" / "bag"
+    assert (g / "bag_0.mcap").read_bytes() == (i / "bag_0.mcap").read_bytes()
+    from evoscen_contract.cdr import decode_table
+
+    empty = [decode_table(d).data.shape[0] for t, _ty, _ns, d in open_bag_reader(g) if t == "/evoscen/commands/bv_3"]
+    assert empty == [0] * 120
