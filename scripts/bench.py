@@ -2,6 +2,7 @@
 """Benchmark: in-process simulation speed, recorded-bag size, and SUMO for reference.
 
     python scripts/bench.py [--mode inprocess|graph] [--steps 5000] [--repeats 5] [--bag-steps 10000] [--no-sumo]
+                            [--bv-driver level0|learned] [--bv-nodes single,by_policy]
 
 Prints, for the shipped default scenario (1 SUT + 20 BVs, dt 0.1 s) with the BV drivers of
 ``--bv-driver`` (default ``level0``, the rule-based drivers SUMO is compared with; ``learned``:
@@ -20,6 +21,11 @@ start-up) in ``--graph-repeats`` runs of ``--graph-steps`` steps, each followed 
 in-process run (recording off, 10x the steps: about as long) and their ratio — the in-process
 figure shows how much of the shared machine the run got; then the best and median graph rate and
 the in-process rate of the same scenario with recording on (the graph always records).
+
+Then, in graph mode, the BV-node partitions of ``--bv-nodes`` (``bvs.nodes``; default ``single`` and
+``by_policy``) in ``--graph-repeats`` interleaved rounds: the median lockstep rate of each and its
+ratio to the first. With ``--bv-driver learned``, ``by_policy`` is three BV nodes (competitive,
+mutual, cooperative); with the rule-based ``level0`` it is one.
 
 With ``--learned``: the learned BVs' cost — the in-process rate of the default scenario
 with ``bvs.driver: learned`` vs ``level0``, the driver's time per step, and one batched
@@ -77,12 +83,13 @@ def recorded_run(steps: int, driver: str) -> dict:
                 "bag_mb": summary.bag_bytes / 1e6, "messages": summary.message_count}
 
 
-def graph_run(steps: int, driver: str) -> dict:
-    """One graph run of ``steps`` steps: the simulation node's lockstep rate."""
+def graph_run(steps: int, driver: str, nodes: str = "by_policy") -> dict:
+    """One graph run of ``steps`` steps with BV nodes ``nodes`` (``bvs.nodes``): the simulation
+    node's lockstep rate and its flow control's waits (``flow_control_wait_s``)."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None, {"steps": steps, "bvs.driver": driver})
+    cfg = load_scenario_config(None, {"steps": steps, "bvs.driver": driver, "bvs.nodes": nodes})
     with tempfile.TemporaryDirectory() as tmp:
         stats = Path(tmp) / "stats.json"
         result = run_graph(cfg, Path(tmp), Path(tmp) / "bag",
@@ -96,6 +103,19 @@ def graph_run(steps: int, driver: str) -> dict:
 
 INPROCESS_PER_GRAPH_STEP = 10
 """In-process steps timed beside each graph step (the in-process runner is ~10-20x faster)."""
+
+
+def partition_figures(steps: int, repeats: int, driver: str, partitions: list[str]) -> dict:
+    """``repeats`` rounds of one graph run per BV-node partition (``bvs.nodes``), interleaved so
+    that each round's runs see about the same load; the median rate of each and their ratio to the
+    first (docs/architecture.md §5, "BV nodes")."""
+    rates: dict[str, list[float]] = {p: [] for p in partitions}
+    for _ in range(repeats):
+        for p in partitions:
+            rates[p].append(graph_run(steps, driver, p)["steps_per_s"])
+    med = {p: statistics.median(r) for p, r in rates.items()}
+    return {"rates": rates, "median_steps_per_s": med,
+            "ratio_to_first": {p: med[p] / med[partitions[0]] for p in partitions}}
 
 
 def graph_figures(steps: int, repeats: int, driver: str) -> dict:
@@ -152,7 +172,8 @@ def learned_bv_costs(steps: int, repeats: int) -> dict:
 
     out: dict = {}
     for driver in ("level0", "learned"):
-        cfg = load_scenario_config(None, {"bvs.driver": driver})
+        # one driver of all BVs (bvs.nodes: single): the batched cost measured below is that driver's
+        cfg = load_scenario_config(None, {"bvs.driver": driver, "bvs.nodes": "single"})
         rates = []
         for _ in range(repeats):
             sc = build_scenario(cfg)
@@ -240,6 +261,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="graph: also the lockstep rate of the node graph (default: in-process only)")
     ap.add_argument("--graph-steps", type=int, default=5000, help="steps of each graph run (default 5000)")
     ap.add_argument("--graph-repeats", type=int, default=3, help="graph runs (default 3)")
+    ap.add_argument("--bv-nodes", default="single,by_policy",
+                    help="graph: also compare these BV-node partitions (bvs.nodes), comma-separated, the first "
+                         "the reference (default single,by_policy; with --bv-driver learned by_policy is three BV "
+                         "nodes, with level0 one; empty: skip)")
     ap.add_argument("--sut-models", action="store_true", help="also the per-decision cost of every SUT model")
     ap.add_argument("--learned", action="store_true",
                     help="also the learned BVs' inference cost and the in-process rate with learned vs level-0 BVs")
@@ -254,6 +279,12 @@ def main(argv: list[str] | None = None) -> int:
                   f"{'an integer >= 0 (0 = skip)' if lowest == 0 else 'a positive integer'}", file=sys.stderr)
             return EXIT_BAD_INPUT
 
+    partitions = [p.strip() for p in args.bv_nodes.split(",") if p.strip()]
+    for p in partitions:
+        if not (p in ("single", "by_policy") or (p.isdigit() and 1 <= int(p) <= 32)):
+            print(f"error: --bv-nodes = {args.bv_nodes!r}: expected comma-separated by_policy, single or numbers "
+                  "in [1, 32]", file=sys.stderr)
+            return EXIT_BAD_INPUT
     drv = args.bv_driver
     out: dict = {"python": sys.version.split()[0], "bv_driver": drv}
     rates = time_inprocess(args.steps, args.repeats, drv)
@@ -282,6 +313,14 @@ def main(argv: list[str] | None = None) -> int:
         rec = out.get("recorded") or recorded_run(args.graph_steps, drv)
         print(f"  same scenario in-process: {rec['steps_per_s']:8.0f} steps/s recording on, "
               f"{out['inprocess_median_steps_per_s']:8.0f} steps/s recording off")
+        if partitions:
+            pf = partition_figures(args.graph_steps, args.graph_repeats, drv, partitions)
+            out["graph"]["partitions"] = pf
+            print(f"BV nodes (bvs.nodes; {drv} BVs), {args.graph_steps} steps x {args.graph_repeats}, interleaved:")
+            for p in partitions:
+                runs_text = " ".join(f"{r:.0f}" for r in pf["rates"][p])
+                print(f"  {p:10s} median {pf['median_steps_per_s'][p]:8.0f} steps/s lockstep   "
+                      f"{pf['ratio_to_first'][p] * 100:5.1f} % of {partitions[0]}   (runs: {runs_text})")
     if args.sut_models:
         costs = sut_model_costs(args.steps, drv)
         out["sut_models"] = costs

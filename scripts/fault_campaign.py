@@ -7,8 +7,9 @@
 Graph runs (``run_scenario.py --mode graph``, deadline 0.5 s, 3 misses), one fault each, the
 fault classes taken in turn and their timing drawn from a generator seeded by ``--seed``:
 
-* SIGKILL or SIGTERM to each node (simulation, BV, SUT, evaluator), during start-up or during
-  the lockstep (16 classes);
+* SIGKILL or SIGTERM to each node (simulation, each of the three BV nodes of ``bvs.nodes:
+  by_policy`` — competitive, mutual, cooperative —, SUT, evaluator), during start-up or during the
+  lockstep (24 classes); a BV node killed in the lockstep must be named in the simulation's error line;
 * the evaluator stalled (SIGSTOP) for 2-30 s (``--max-stall``), then resumed;
 * a hostile node on the run's domain (``tests/wire_intruder.py``: foreign and malformed
   commands, garbage world messages, forged events) — the world table must equal a clean
@@ -77,8 +78,10 @@ from evoscen_contract.contract import EXIT_BAD_INPUT, GRAPH_EXIT_STATUSES, TOPIC
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPTS = REPO / "scripts"
-NODES = {"sim": "evoscen_sim.sim_node", "bv": "evoscen_bv.bv_node", "sut": "evoscen_sut.sut_node",
-         "eval": "evoscen_eval.eval_node"}
+NODES = {"sim": "evoscen_sim.sim_node", "bv_competitive": "evoscen_bv.bv_node", "bv_mutual": "evoscen_bv.bv_node",
+         "bv_cooperative": "evoscen_bv.bv_node", "sut": "evoscen_sut.sut_node", "eval": "evoscen_eval.eval_node"}
+"""The nodes of the default graph by class name: the BV nodes are those of ``bvs.nodes: by_policy``
+(docs/architecture.md §5, "BV nodes"), one program each under its own node name."""
 END_LIMIT_S = 10.0
 HANG_S = 120.0
 DT_NS = 100_000_000
@@ -290,8 +293,11 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
                        orphans=orphans, problems=problems, stderr_tail=tail)
 
 
-def _children(launcher: subprocess.Popen, module: str) -> list[int]:
-    out = subprocess.run(["pgrep", "-P", str(launcher.pid), "-f", rf"\s-m {re.escape(module)}(\s|$)"],
+def _children(launcher: subprocess.Popen, module: str, node: str = "") -> list[int]:
+    """The launcher's children running ``module`` (a BV node: the one named ``evoscen_<node>``)."""
+    pattern = (rf"\s__node:=evoscen_{re.escape(node)}(\s|$)" if node.startswith("bv_")
+               else rf"\s-m {re.escape(module)}(\s|$)")
+    out = subprocess.run(["pgrep", "-P", str(launcher.pid), "-f", pattern],
                          capture_output=True, text=True, check=False).stdout
     return [int(p) for p in out.split()]
 
@@ -357,12 +363,12 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
             _, sig, node, phase = fault
             if phase == "startup":
                 end = time.monotonic() + 60
-                while not _children(launcher, NODES[node]) and time.monotonic() < end and launcher.poll() is None:
+                while not _children(launcher, NODES[node], node) and time.monotonic() < end and launcher.poll() is None:
                     time.sleep(0.02)
                 time.sleep(rng.uniform(0.0, 1.0))
             elif running():
                 time.sleep(rng.uniform(0.0, 1.0))
-            pids = _children(launcher, NODES[node])
+            pids = _children(launcher, NODES[node], node)
             sim = _children(launcher, NODES["sim"]) if (node == "eval" and phase == "lockstep"
                                                          and sig == "SIGKILL") else []
             if pids and sim:
@@ -477,6 +483,11 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
         problems.append(f"ended {end_s:.1f} s after the fault")
     if identical is False:
         problems.append("world table differs from the clean run")
+    if kind == "kill" and fault[2].startswith("bv_") and status == 3:
+        # a BV node killed in the lockstep: the simulation's one error line names that node
+        named = f"controller 'evoscen_{fault[2]}'"
+        if not any(ln.startswith("error: evoscen_sim:") and named in ln for ln in stderr.splitlines()):
+            problems.append(f"no error line naming {named}")
     if kind == "inject" and status != 0:
         problems.append(f"attacked run ended {status}, not 0")
     shutil.rmtree(out, ignore_errors=True)

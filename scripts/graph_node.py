@@ -6,7 +6,9 @@
                                  [--external-sut] [--deadline S] [--max-misses N]
                                  [--startup-timeout S]
 
-NODE is ``sim``, ``bv``, ``sut`` or ``eval``. Every container of a graph must get the same
+NODE is ``sim``, ``bv``, ``sut`` or ``eval``; ``bv`` with ``--bv-node NAME`` is the BV node NAME of
+``bvs.nodes`` (``--bv-nodes``), without it every BV node of the scenario, each a process of this one
+(one BV container for all, as before BV nodes). Every container of a graph must get the same
 scenario options: each writes the same parameter files that ``run_scenario.py --mode graph``
 writes (``evoscen_bringup.graph_runner.write_parameter_files``) and then becomes its node
 (``python -m <package>.<node> --ros-args --params-file ...``), so the bag is the one the
@@ -36,6 +38,9 @@ NODE_NAMES = {"sim": "evoscen_sim", "bv": "evoscen_bv", "sut": "evoscen_sut", "e
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="graph_node.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("node", choices=sorted(NODE_NAMES), help="the node this process becomes")
+    ap.add_argument("--bv-node", default=None, metavar="NAME",
+                    help="bv: which BV node of bvs.nodes (evoscen_bv_mutual, ...); default: every BV node of "
+                         "the scenario, each a process of this one (docs/architecture.md §5, \"BV nodes\")")
     add_scenario_options(ap)
     ap.add_argument("--out", type=Path, default=Path("/data/run"), help="output directory of the evaluator")
     ap.add_argument("--overwrite", action="store_true", help="eval: replace an existing bag and report in DIR")
@@ -90,9 +95,47 @@ def main(argv: list[str] | None = None) -> int:
     params = write_parameter_files(cfg, Path(tempfile.mkdtemp(prefix="evoscen-params-")), bag_dir, opts)
     module = dict(NODES)[name]
     env = node_environment(int(domain), discovery)
+    if args.node == "bv":  # the BV nodes of bvs.nodes: the one named, else every one (a process each)
+        from evoscen_sim.bv_nodes import bv_node_names
+
+        names = bv_node_names(cfg)
+        if args.bv_node is not None and args.bv_node not in names:
+            print(f"error: --bv-node = {args.bv_node!r}: expected one of this scenario's BV nodes (bvs.nodes = "
+                  f"{cfg.bvs.nodes}): {', '.join(names) or 'none (bvs.count is 0)'}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        names = [args.bv_node] if args.bv_node is not None else names
+        argvs = {n: [sys.executable, "-m", module, "--ros-args", "--params-file", str(params[n]), "-r", f"__node:={n}"]
+                 for n in names}
+        print(f"graph_node: {', '.join(names)} (ROS_DOMAIN_ID={domain}, discovery {discovery})", file=sys.stderr,
+              flush=True)
+        if len(argvs) == 1:
+            os.execve(sys.executable, next(iter(argvs.values())), env)
+        return _run_all(argvs, env)
     print(f"graph_node: {name} (ROS_DOMAIN_ID={domain}, discovery {discovery})", file=sys.stderr, flush=True)
     os.execve(sys.executable, [sys.executable, "-m", module, "--ros-args", "--params-file", str(params[name])], env)
     return 0  # not reached
+
+
+def _run_all(argvs: dict[str, list[str]], env: dict[str, str]) -> int:
+    """Run several BV nodes as children until all have ended; SIGINT/SIGTERM are passed on to them.
+    The exit status is the first non-zero one of the nodes (a signal as 128 + its number), else 0."""
+    import signal
+    import subprocess
+
+    procs = {n: subprocess.Popen(argv, env=env) for n, argv in argvs.items()}
+
+    def forward(signum, frame):  # noqa: ANN001, ANN202
+        for p in procs.values():
+            if p.poll() is None:
+                p.send_signal(signum)
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, forward)
+    codes = [p.wait() for p in procs.values()]
+    bad = [c for c in codes if c != 0]
+    if not bad:
+        return 0
+    return bad[0] if bad[0] > 0 else 128 - bad[0]
 
 
 if __name__ == "__main__":

@@ -38,13 +38,15 @@ def add_scenario_options(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--sut", help="SUT model name (overrides 'sut.model')")
     ap.add_argument("--bvs", help="number of background vehicles (overrides 'bvs.count')")
     ap.add_argument("--mix", help="policy mix competitive:mutual:cooperative, e.g. 4:3:3 (overrides 'bvs.mix')")
+    ap.add_argument("--bv-nodes", help="BV nodes: by_policy, single or a number N (overrides 'bvs.nodes'; "
+                    "docs/architecture.md §5, \"BV nodes\")")
 
 
 def scenario_overrides(args: argparse.Namespace) -> dict[str, str]:
     """The configuration keys the scenario options override (only those given)."""
     return {key: value for key, value in (
         ("steps", args.steps), ("seed", args.seed), ("sut.model", args.sut),
-        ("bvs.count", args.bvs), ("bvs.mix", args.mix)) if value is not None}
+        ("bvs.count", args.bvs), ("bvs.mix", args.mix), ("bvs.nodes", args.bv_nodes)) if value is not None}
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -71,7 +73,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     g.add_argument("--max-misses", default="5", help="consecutive missed deadlines that abort (default 5)")
     g.add_argument("--wait-for", nargs="+", default=[], metavar="NODE",
                    help="node names of your own nodes (a monitor, a bridge) to wait for before step 0, "
-                        "so they receive every step")
+                        "so they receive every step; a BV node of the scenario named here (evoscen_bv_mutual) "
+                        "is not started: start it by hand with OUT/params/<name>.yaml (docs/architecture.md §5)")
     g.add_argument("--external-sut", action="store_true",
                    help="do not start evoscen's SUT node: your own node answers on /evoscen/commands/sut "
                         "(see examples/README.md)")

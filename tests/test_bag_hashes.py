@@ -37,6 +37,12 @@ Then the learned BVs' hard braking of the SUT's leader (``models.learned.hard_br
 every bag; no episode starts in the five runs, and every message of the default and the default
 mutant's runs is byte-identical between ``hard_brake`` true and false (compared per topic: all nine
 topics); with it false every command of 1,000 steps equals the code before (test_hard_brake.py).
+Then BV nodes (``bvs.nodes``, docs/architecture.md §5, "BV nodes"): the metadata record gains the key
+in every bag, and with the default ``by_policy`` the BV commands go out on one topic per BV node
+(``/evoscen/commands/bv_competitive``, ``_mutual``, ``_cooperative``) instead of ``/evoscen/commands/bv``.
+Compared per topic with the bags before, default scenario, 3,000 steps: with ``bvs.nodes: single``
+every message of all nine topics is byte-identical; with ``by_policy`` every message of the eight
+other topics is (the world does not depend on the split).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.

@@ -20,7 +20,11 @@ DT_NS = 100_000_000  # dt_s = 0.1 of the shipped config
 N_VEHICLES = 21  # 20 BVs + the SUT
 
 # topics published in every step / once; /evoscen/events after every step plus the run_end event
-ALWAYS = {"/clock", "/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut",
+# the BV nodes of the default config (bvs.nodes: by_policy, 20 BVs at 4:3:3 = 8 + 6 + 6), one topic each
+BV_ROWS = {"/evoscen/commands/bv_competitive": 8, "/evoscen/commands/bv_mutual": 6,
+           "/evoscen/commands/bv_cooperative": 6}
+BV_NODES = [f"evoscen_{t.rsplit('/', 1)[1]}" for t in BV_ROWS]
+ALWAYS = {"/clock", "/evoscen/world", *BV_ROWS, "/evoscen/commands/sut",
           "/evoscen/sut/odom", "/evoscen/roster"}
 
 
@@ -60,7 +64,7 @@ def _expected_counts(steps: int) -> dict[str, int]:
         "/clock": steps + 1,
         "/evoscen/world": steps + 1,
         "/evoscen/sut/odom": steps + 1,
-        "/evoscen/commands/bv": steps,
+        **dict.fromkeys(BV_ROWS, steps),
         "/evoscen/commands/sut": steps,
         "/evoscen/events": steps + 1,  # one after each step (empty if nothing happened) + run_end
         "/evoscen/roster": 1,
@@ -79,11 +83,11 @@ def test_rosbags_topics_types_and_counts(recorded_run, rosbags_messages):
     steps = recorded_run.steps
     # every contract topic is declared (events too, even if empty), with the contract's type
     assert {name: c.msgtype for name, c in meta["connections"].items()} == {
-        spec.name: spec.type_name for spec in T.CONTRACT}
+        spec.name: spec.type_name for spec in T.contract_for(BV_NODES)}
     for _name, conn in meta["connections"].items():
         assert conn.ext.serialization_format == "cdr"
     present = set(messages)
-    assert ALWAYS <= present <= {spec.name for spec in T.CONTRACT}
+    assert ALWAYS <= present <= {spec.name for spec in T.contract_for(BV_NODES)}
     s = recorded_run.summary
     counts = {topic: len(v) for topic, v in messages.items()}
     assert counts == _expected_counts(steps)
@@ -105,7 +109,7 @@ def test_rosbags_stamps_and_clock(recorded_run, rosbags_messages):
         assert stamps == [k * DT_NS for k in range(steps + 1)], topic
         assert [t for t, _, _ in messages[topic]] == stamps
         assert {m.header.frame_id for _, _, m in messages[topic]} == {"map"}
-    for topic in ("/evoscen/commands/bv", "/evoscen/commands/sut"):
+    for topic in (*BV_ROWS, "/evoscen/commands/sut"):
         stamps = [_ns(m.header.stamp) for _, _, m in messages[topic]]
         assert stamps == [k * DT_NS for k in range(steps)], topic  # answer to the world at t_k
     (_, _, roster), = messages["/evoscen/roster"]
@@ -125,7 +129,7 @@ def test_rosbags_tables(recorded_run, rosbags_messages):
         cols = table_columns(m)
         assert len(cols["id"]) == N_VEHICLES
         assert sorted(cols["id"].tolist()) == list(range(N_VEHICLES))
-    for topic, rows in (("/evoscen/commands/bv", N_VEHICLES - 1), ("/evoscen/commands/sut", 1)):
+    for topic, rows in (*BV_ROWS.items(), ("/evoscen/commands/sut", 1)):
         for _, _, m in messages[topic]:
             assert table_fields(m) == T.COMMAND_FIELDS
             cols = table_columns(m)
@@ -133,7 +137,7 @@ def test_rosbags_tables(recorded_run, rosbags_messages):
             assert np.all(np.abs(cols["throttle"]) <= 1.0)
             assert set(cols["lane_change"].tolist()) <= {-1.0, 0.0, 1.0}
         ids = {tuple(table_columns(m)["id"].tolist()) for _, _, m in messages[topic]}
-        assert ids == ({tuple(range(1, N_VEHICLES))} if rows > 1 else {(0.0,)})
+        assert len(ids) == 1 and (ids == {(0.0,)} if rows == 1 else 0.0 not in next(iter(ids)))
     (_, _, roster), = messages["/evoscen/roster"]
     assert table_fields(roster) == T.ROSTER_FIELDS
     r = table_columns(roster)
@@ -232,13 +236,13 @@ def test_mcap_summary_and_channels(recorded_run, mcap_messages):
     assert summary.statistics.message_count == total == recorded_run.summary["messages"]
     assert summary.statistics.message_start_time == 0
     assert summary.statistics.message_end_time == recorded_run.steps * DT_NS
-    assert summary.statistics.channel_count == len(T.CONTRACT)
+    assert summary.statistics.channel_count == len(T.contract_for(BV_NODES))
     per_channel = {summary.channels[cid].topic: n for cid, n in summary.statistics.channel_message_counts.items()}
     assert per_channel == {topic: len(v) for topic, v in mcap_messages.items()}
 
-    assert {c.topic for c in summary.channels.values()} == set(T.TOPICS)
+    assert {c.topic for c in summary.channels.values()} == {s.name for s in T.contract_for(BV_NODES)}
     for channel in summary.channels.values():
-        spec = T.TOPICS[channel.topic]
+        spec = T.spec_of(channel.topic)
         assert channel.message_encoding == "cdr"
         schema = summary.schemas[channel.schema_id]
         assert schema.encoding == "ros2msg"
@@ -261,11 +265,11 @@ def test_mcap_ros2_decodes_everything(recorded_run, mcap_messages, rosbags_messa
         assert len(msgs) == len(rb[topic])
         for m in msgs:
             assert m.schema.encoding == "ros2msg" and m.channel.message_encoding == "cdr"
-            assert m.schema.name == T.TOPICS[topic].type_name
+            assert m.schema.name == T.spec_of(topic).type_name
             assert m.ros_msg is not None
             assert m.log_time_ns == m.publish_time_ns
     # both readers decode the tables to the same numbers
-    for topic in ("/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut", "/evoscen/roster"):
+    for topic in ("/evoscen/world", *BV_ROWS, "/evoscen/commands/sut", "/evoscen/roster"):
         for m, (_, _, r) in zip(mcap_messages[topic], rb[topic], strict=True):
             assert np.array_equal(table_array(m.ros_msg), table_array(r))
             assert _ns(m.ros_msg.header.stamp) == _ns(r.header.stamp) == m.log_time_ns
@@ -348,9 +352,9 @@ def test_metadata_yaml_matches_bag(recorded_run, mcap_messages):
     assert meta["version"] == 9
     assert meta["ros_distro"] == "jazzy"
     topics = {t["topic_metadata"]["name"]: t for t in meta["topics_with_message_count"]}
-    assert set(topics) == set(T.TOPICS)
+    assert set(topics) == {s.name for s in T.contract_for(BV_NODES)}
     for name, t in topics.items():
-        spec = T.TOPICS[name]
+        spec = T.spec_of(name)
         assert t["topic_metadata"]["type"] == spec.type_name
         assert t["topic_metadata"]["serialization_format"] == "cdr"
         assert t["topic_metadata"]["offered_qos_profiles"] == spec.offered_qos_profiles()

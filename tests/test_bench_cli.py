@@ -37,3 +37,13 @@ def test_unknown_bv_driver_is_refused():
     res = bench("--bv-driver", "sumo")
     assert res.returncode == 2
     assert "--bv-driver: invalid choice: 'sumo'" in res.stderr
+
+
+@pytest.mark.parametrize("value", ["single,nosuch", "0", "by_policy,33"])
+def test_bad_bv_node_partitions_are_refused(value):
+    res = bench("--mode", "graph", "--bv-nodes", value)
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert lines == [f"error: --bv-nodes = {value!r}: expected comma-separated by_policy, single or numbers "
+                     "in [1, 32]"], res.stderr
+    assert "steps/s" not in res.stdout

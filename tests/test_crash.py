@@ -25,7 +25,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # noqa: E402 (the graph tests' helpers)
-from test_graph import PER_STEP_STATE, REPO, _children, _error_lines, _events, _launch, \
+from test_graph import BV_TOPICS, PER_STEP_STATE, REPO, _children, _error_lines, _events, _launch, \
     _mcap_summary_count, _read_bag, _running, _stamps, _steps, _terminate
 
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
@@ -176,6 +176,6 @@ def test_stalled_recorder_kills_nothing_and_loses_nothing(tmp_path):
     bag = _read_bag(out / "bag")
     for topic in PER_STEP_STATE:
         assert _steps(_stamps(bag, topic)) == list(range(steps + 1)), topic
-    for topic in ("/evoscen/commands/bv", "/evoscen/commands/sut"):
+    for topic in (*BV_TOPICS, "/evoscen/commands/sut"):
         assert _steps(_stamps(bag, topic)) == list(range(steps)), topic
     assert not [ev for _, ev in _events(bag) if ev["name"] == "evoscen/fault"]

@@ -44,7 +44,7 @@ def start_graph_with_external_sut(out: Path, domain_id: int, *, steps: int, exam
     from evoscen_sim.config import load_scenario_config
 
     out.mkdir(parents=True, exist_ok=True)
-    cfg = load_scenario_config(None, {"steps": steps, "seed": SEED})
+    cfg = load_scenario_config(None, {"steps": steps, "seed": SEED, "bvs.nodes": "single"})  # one BV node, started here
     params = write_parameter_files(cfg, out, out / "bag", GraphOptions(startup_timeout_s=60.0, external_sut=True))
     env = node_environment(domain_id, "LOCALHOST")
     commands = {

@@ -43,6 +43,26 @@ def test_reduced_fault_campaign(tmp_path: Path) -> None:
     assert not bad, bad
 
 
+def test_fault_campaign_kills_each_bv_node(tmp_path: Path) -> None:
+    """Each BV node of the default graph (bvs.nodes: by_policy) SIGKILLed in the lockstep, one run
+    each: the simulation aborts on its misses (status 3, a controller fault: docs/recording.md), its
+    one error line names the killed node (the campaign checks it), the bag is finished and readable,
+    nothing is lost, no traceback, no hang."""
+    out = tmp_path / "bv.json"
+    names = ("bv_competitive", "bv_mutual", "bv_cooperative")
+    res = subprocess.run(
+        [sys.executable, str(REPO / "scripts" / "fault_campaign.py"), "--graph-runs", "3", "--classes",
+         ",".join(f"kill:SIGKILL:{n}:lockstep" for n in names), "--fuzz", "0", "--steps", "1500",
+         "--seed", "5", "--json", str(out)],
+        cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, f"{res.stdout}\n{res.stderr}"
+    runs = json.loads(out.read_text())["graph"]
+    assert [r["fault"] for r in runs] == [f"kill SIGKILL {n} lockstep" for n in names]
+    for r in runs:
+        assert r["status"] == 3 and not r["problems"], r
+        assert r["bag_readable"] and r["steps_lost"] == 0 and not r["traceback"] and not r["hang"], r
+
+
 def test_reduced_host_fault_classes(tmp_path: Path) -> None:
     """The faults of the host, one run each: a disk that fills at a random step (in-process with
     both writers and in the graph), the output removed mid-run, the campaign driver killed then

@@ -39,7 +39,11 @@ REPO = Path(__file__).resolve().parents[1]
 SCRIPT = "scripts/run_scenario.py"
 DT_NS = 100_000_000  # dt_s of the shipped config
 N_VEHICLES = 21  # 1 SUT + 20 BVs (shipped config)
-NODES = ("evoscen_eval", "evoscen_bv", "evoscen_sut", "evoscen_sim")
+BV_NODES = ("evoscen_bv_competitive", "evoscen_bv_mutual", "evoscen_bv_cooperative")
+"""The BV nodes of the default scenario (bvs.nodes: by_policy, mix 4:3:3; docs/architecture.md §5, "BV nodes")."""
+BV_TOPICS = tuple("/evoscen/commands/" + n.removeprefix("evoscen_") for n in BV_NODES)
+NODES = ("evoscen_eval", *BV_NODES, "evoscen_sut", "evoscen_sim")
+NODES_LINE = "nodes: evoscen_eval=0, " + ", ".join(f"{n}=0" for n in BV_NODES) + ", evoscen_sut=0, evoscen_sim="
 PER_STEP_STATE = ("/clock", "/evoscen/world", "/evoscen/sut/odom")  # published at t_0 .. t_N
 
 
@@ -189,11 +193,11 @@ def test_graph_run_completes(graph_200):
     assert res.returncode == 0, f"graph run failed ({res.returncode}):\n{res.stdout}\n{res.stderr}"
     assert not _error_lines(res.stderr) and "Traceback" not in res.stderr, res.stderr
     assert re.search(r"^steps: 200\b", res.stdout, re.MULTILINE), res.stdout
-    assert re.search(r"nodes: evoscen_eval=0, evoscen_bv=0, evoscen_sut=0, evoscen_sim=0", res.stdout), res.stdout
+    assert NODES_LINE + "0" in res.stdout, res.stdout
     bag = _read_bag(bag_dir)
     for topic in PER_STEP_STATE:
         assert _steps(_stamps(bag, topic)) == list(range(201)), topic
-    for topic in ("/evoscen/commands/bv", "/evoscen/commands/sut"):
+    for topic in (*BV_TOPICS, "/evoscen/commands/sut"):
         assert _steps(_stamps(bag, topic)) == list(range(200)), topic
     assert len(bag["/evoscen/roster"]) == 1
     # events after every step (stamped t_1 .. t_200, empty when nothing happened), then run_end
@@ -211,7 +215,7 @@ def test_graph_bag_equals_inprocess_bag(graph_200):
     g, i = _read_bag(g_dir), _read_bag(i_dir)
     assert sorted(g) == sorted(i), "different topics"
     # message by message first, for a failure that says where
-    for topic in ("/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut", *sorted(i)):
+    for topic in ("/evoscen/world", *BV_TOPICS, "/evoscen/commands/sut", *sorted(i)):
         assert _stamps(g, topic) == _stamps(i, topic), f"{topic}: different stamps"
         for (t, a), (_, b) in zip(g[topic], i[topic]):
             assert a == b, f"{topic} at t = {t / 1e9:g} s: graph and in-process messages differ"
@@ -259,7 +263,7 @@ def test_parameter_files_written_and_load_back(graph_200):
         assert params["scenario"]["bvs"]["count"] == 20
     sim = yaml.safe_load((out / "params" / "evoscen_sim.yaml").read_text())["evoscen_sim"]["ros__parameters"]
     assert (sim["deadline_s"], sim["max_misses"]) == (2.0, 5)
-    assert sim["controllers"] == ["evoscen_bv", "evoscen_sut"]
+    assert sim["controllers"] == [*BV_NODES, "evoscen_sut"]
     ev = yaml.safe_load((out / "params" / "evoscen_eval.yaml").read_text())["evoscen_eval"]["ros__parameters"]
     assert Path(ev["bag_dir"]) == out / "bag"
 
@@ -267,24 +271,29 @@ def test_parameter_files_written_and_load_back(graph_200):
 # --------------------------------------------------------------------------- a controller dies
 
 
-@pytest.fixture(scope="module")
-def killed_bv(tmp_path_factory):
-    """A long run whose BV node is SIGKILLed mid-run (deadline 0.5 s, 3 misses abort)."""
+@pytest.fixture(scope="module", params=BV_NODES)
+def killed_bv(request, tmp_path_factory):
+    """A long run one of whose BV nodes (each in turn) is SIGKILLed mid-run (deadline 0.5 s, 3 misses abort)."""
+    name = request.param
     out = tmp_path_factory.mktemp("killbv") / "run"
     with _running(out / "bag", "--steps", 5000, "--seed", 5, "--deadline", 0.5, "--max-misses", 3, "--out", out,
                   settle_s=0.3) as launcher:
-        bv = _children(launcher, "evoscen_bv.bv_node")
-        assert len(bv) == 1, f"expected one evoscen_bv.bv_node child of the launcher, found {bv}"
+        assert len(_children(launcher, "evoscen_bv.bv_node")) == len(BV_NODES)
+        cmd = ["pgrep", "-P", str(launcher.pid), "-f", rf"\s__node:={name}(\s|$)"]
+        bv = [int(p) for p in subprocess.run(cmd, capture_output=True, text=True, check=False).stdout.split()]
+        assert len(bv) == 1, f"expected one child of the launcher named {name}, found {bv}"
         os.kill(bv[0], signal.SIGKILL)
         t_kill = time.monotonic()
         stdout, stderr = launcher.communicate(timeout=120)
         after_kill = time.monotonic() - t_kill
-    return {"out": out, "rc": launcher.returncode, "stdout": stdout, "stderr": stderr, "after_kill": after_kill}
+    return {"name": name, "out": out, "rc": launcher.returncode, "stdout": stdout, "stderr": stderr,
+            "after_kill": after_kill}
 
 
 def test_killed_controller_aborts_cleanly(killed_bv):
     rc, stderr, bag_dir = killed_bv["rc"], killed_bv["stderr"], killed_bv["out"] / "bag"
-    print(f"\nBV killed: launcher ended {killed_bv['after_kill']:.1f} s after the kill")
+    name = killed_bv["name"]
+    print(f"\n{name} killed: launcher ended {killed_bv['after_kill']:.1f} s after the kill")
     # 3 deadlines of 0.5 s, then the nodes end: the controllers as soon as the simulation node has
     # withdrawn its publishers - not when its participant's lease runs out (20 s: was 22 s here)
     assert killed_bv["after_kill"] < 15.0, f"the graph took {killed_bv['after_kill']:.1f} s to end after the kill"
@@ -292,8 +301,8 @@ def test_killed_controller_aborts_cleanly(killed_bv):
     assert "Traceback" not in stderr, stderr
     errors = _error_lines(stderr)
     assert len(errors) == 1, f"expected one 'error:' line, got {errors}\n{stderr}"
-    assert re.fullmatch(r"error: evoscen_sim: controller 'evoscen_bv' missed 3 consecutive deadline\(s\) .*", errors[0]), errors
-    assert "evoscen_bv=-9" in killed_bv["stdout"], killed_bv["stdout"]  # the launcher reports the dead node
+    assert re.fullmatch(rf"error: evoscen_sim: controller '{name}' missed 3 consecutive deadline\(s\) .*", errors[0]), errors
+    assert f"{name}=-9" in killed_bv["stdout"], killed_bv["stdout"]  # the launcher reports the dead node
 
     bag = _read_bag(bag_dir)
     assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())
@@ -304,7 +313,7 @@ def test_killed_controller_aborts_cleanly(killed_bv):
     # CI: the SUT node at K-2) - which is a 'deadline' fault that holds its command, never an abort.
     assert faults and faults[-1]["kind"] == "abort", faults
     assert all(f["kind"] == "deadline" for f in faults[:-1]), faults
-    faults = [f for f in faults if f["controller"] == "evoscen_bv"]
+    faults = [f for f in faults if f["controller"] == name]
     assert [(f["kind"], f["misses"]) for f in faults[-3:]] == [("deadline", 1), ("deadline", 2), ("abort", 3)], faults
     faults = faults[-3:]
     k = faults[-1]["step"]  # the step at which the run stopped (world t_K published, never integrated)
@@ -318,7 +327,9 @@ def test_killed_controller_aborts_cleanly(killed_bv):
         assert _stamps(bag, topic) == sorted(_stamps(bag, topic)), topic
     sut = set(_steps(_stamps(bag, "/evoscen/commands/sut")))
     assert set(range(k)) <= sut <= set(range(k + 1))
-    bv = _steps(_stamps(bag, "/evoscen/commands/bv"))
+    bv = _steps(_stamps(bag, BV_TOPICS[BV_NODES.index(name)]))
+    for other in set(BV_TOPICS) - {BV_TOPICS[BV_NODES.index(name)]}:  # the live BV nodes answered every step
+        assert set(range(k)) <= set(_steps(_stamps(bag, other))) <= set(range(k + 1)), other
     # It died before its answer to K-2 reached the simulation node: either before publishing it
     # (commands 0 .. K-3), or while publishing it - the shared-memory transport hands a sample to
     # each reader in turn, so a process killed mid-publication can leave its last answer with the
@@ -361,11 +372,11 @@ def test_sigint_to_launcher_leaves_finished_bag(tmp_path):
     assert 0 < k < 5000
     for topic in PER_STEP_STATE:
         assert sorted(set(_steps(_stamps(bag, topic)))) == list(range(k + 1)), topic
-    for topic in ("/evoscen/commands/bv", "/evoscen/commands/sut"):
+    for topic in (*BV_TOPICS, "/evoscen/commands/sut"):
         assert set(range(k)) <= set(_steps(_stamps(bag, topic))) <= set(range(k + 1)), topic
     assert not [ev for _, ev in events if ev["name"] == "evoscen/fault"]
     # every node ended by itself (nothing had to be killed)
-    assert re.search(r"nodes: evoscen_eval=0, evoscen_bv=0, evoscen_sut=0, evoscen_sim=130", stdout), stdout
+    assert NODES_LINE + "130" in stdout, stdout
 
 
 def test_killed_recorder_is_one_error_line(tmp_path):
@@ -394,7 +405,7 @@ def test_bad_node_parameters_are_one_line_errors(tmp_path, own_domain):
     from evoscen_bringup.graph_runner import GraphOptions, write_parameter_files
     from evoscen_sim.config import load_scenario_config
 
-    cfg = load_scenario_config(None, {"steps": 50})
+    cfg = load_scenario_config(None, {"steps": 50, "bvs.nodes": "single"})  # the BV node under its plain name
     files = write_parameter_files(cfg, tmp_path, tmp_path / "bag", GraphOptions())
 
     def edit(node: str, change) -> Path:
@@ -453,7 +464,7 @@ def test_bad_own_parameter_is_one_line_naming_file_key_value_expected(tmp_path, 
     from evoscen_bringup.graph_runner import GraphOptions, write_parameter_files
     from evoscen_sim.config import load_scenario_config
 
-    files = write_parameter_files(load_scenario_config(None, {"steps": 20}), tmp_path, tmp_path / "bag", GraphOptions())
+    files = write_parameter_files(load_scenario_config(None, {"steps": 20, "bvs.nodes": "single"}), tmp_path, tmp_path / "bag", GraphOptions())
     module, cases = _BAD_OWN[node]
     procs, wanted = [], []
     for i, (key, value, expected) in enumerate(cases):
@@ -486,11 +497,11 @@ def test_own_parameters_name_the_node_or_the_command_line(monkeypatch):
 
     monkeypatch.setattr(graph, "_init_args", ["sim"])
     own = own_parameters(SimParams, {"scenario": {}, "use_sim_time": False, "deadline_s": 3}, "evoscen_sim")
-    assert (own.deadline_s, own.max_misses, own.controllers) == (3.0, 5, ("evoscen_bv", "evoscen_sut"))
+    assert (own.deadline_s, own.max_misses, own.controllers) == (3.0, 5, ())  # (): the scenario's BV nodes and the SUT
     with pytest.raises(InputError) as exc:
         own_parameters(SimParams, {"controllers": ["evoscen_bv", "evoscen_bv"]}, "evoscen_sim")
     assert str(exc.value) == ("evoscen_sim: key 'controllers' = ['evoscen_bv', 'evoscen_bv']: expected a "
-                              "non-empty list of distinct names from evoscen_bv, evoscen_sut")
+                              "list of distinct non-empty node names")
     monkeypatch.setattr(graph, "_init_args", ["sim", "--ros-args", "--params-file", "/nonexistent.yaml",
                                               "-p", "wait_for_nodes:=['']"])
     with pytest.raises(InputError) as exc:

@@ -231,12 +231,21 @@ def _metadata_records(bag: Path) -> dict[str, dict[str, str]]:
         return {m.name: dict(m.metadata) for m in make_reader(f).iter_metadata() if m.name != "rosbag2"}
 
 
+def contract_of(bag: Path) -> tuple:
+    """The contract rows of ``bag``'s run: its BV nodes' command topics in the bag's order."""
+    from evoscen_contract import topics as T
+    from evoscen_eval.recorder import open_bag_reader
+
+    names = dict.fromkeys(T.NODE_BV + topic[len(T.TOPIC_COMMANDS_BV):] for topic, _type, _t, _d in open_bag_reader(bag)
+                          if T.is_bv_command_topic(topic))
+    return T.contract_for(list(names))
+
+
 def rewrite_bag(src: Path, dst: Path, transform, topics=None) -> Path:  # noqa: ANN001
     """Copy ``src`` to ``dst`` message by message through ``transform(topic, t_ns, data) -> [(topic, t, data)]``."""
-    from evoscen_contract.topics import CONTRACT
     from evoscen_eval.recorder import BagRecorder, open_bag_reader
 
-    with BagRecorder(dst, topics or CONTRACT, canonicalize=False, metadata=_metadata_records(src)) as bag:
+    with BagRecorder(dst, topics or contract_of(src), canonicalize=False, metadata=_metadata_records(src)) as bag:
         for topic, _type, t, data in open_bag_reader(src):
             for out in transform(topic, t, data):
                 bag.write(*out)
@@ -292,7 +301,8 @@ def test_world_topic_of_another_type_is_refused_at_once(short_bag, tmp_path):
 
     from evoscen_contract import topics as T
 
-    foreign = [replace(s, type_name="sensor_msgs/msg/Imu") if s.name == T.WORLD.name else s for s in T.CONTRACT]
+    foreign = [replace(s, type_name="sensor_msgs/msg/Imu") if s.name == T.WORLD.name else s
+               for s in contract_of(short_bag)]
     bag = rewrite_bag(short_bag, tmp_path / "foreign" / "bag", lambda topic, t, d: [(topic, d, t)], foreign)
     one_error_line(script("evaluate.py", bag, "--no-plots", "--out", tmp_path / "rep"),
                    "'/evoscen/world' is recorded with type 'sensor_msgs/msg/Imu'", "expected 'sensor_msgs/msg/PointCloud2'")

@@ -227,7 +227,8 @@ def _observer_env(domain_id: int) -> dict[str, str]:
 def test_readme_table_parses():
     topics, columns = readme_contract()
     names = [t["name"] for t in topics]
-    for expected in ("/clock", "/evoscen/world", "/evoscen/commands/bv", "/evoscen/commands/sut",
+    for expected in ("/clock", "/evoscen/world", "/evoscen/commands/bv_competitive", "/evoscen/commands/bv_mutual",
+                     "/evoscen/commands/bv_cooperative", "/evoscen/commands/sut",
                      "/evoscen/sut/odom", "/evoscen/events", "/evoscen/roster"):
         assert expected in names
     assert columns["/evoscen/world"][:3] == ["id", "role", "policy"]
@@ -305,7 +306,9 @@ def test_observer_receives_every_step(observed):
     assert clock["count"] == STEPS + 1, counts
     assert clock["last_clock_ns"] == STEPS * dt_ns and max(clock["stamps"]) == STEPS * dt_ns
 
-    for topic, rows in (("/evoscen/commands/bv", N_VEHICLES - 1), ("/evoscen/commands/sut", 1)):
+    # the default scenario's BV nodes (by_policy; 20 BVs at 4:3:3 = 8 + 6 + 6), one topic each
+    for topic, rows in (("/evoscen/commands/bv_competitive", 8), ("/evoscen/commands/bv_mutual", 6),
+                        ("/evoscen/commands/bv_cooperative", 6), ("/evoscen/commands/sut", 1)):
         cmd = s[topic]
         assert cmd["count"] == STEPS, (topic, counts)
         assert sorted(cmd["stamps"]) == [k * dt_ns for k in range(STEPS)], topic

@@ -171,7 +171,7 @@ def test_existing_bag_needs_overwrite(cli, tmp_path):
     assert replaced.stderr == "warning: 8 states is shorter than one complexity window (100 states): no complexity score\n"
     assert sorted(p.name for p in bag.iterdir()) == ["bag_0.mcap", "metadata.yaml"]
     counts = _read_bag_topics(bag)
-    assert counts["/clock"] == 8 and counts["/evoscen/commands/bv"] == 7  # the new run's, not 6/5
+    assert counts["/clock"] == 8 and counts["/evoscen/commands/bv_mutual"] == 7  # the new run's, not 6/5
 
 
 def test_overwrite_keeps_old_bag_when_input_is_bad(cli, tmp_path, truncated_xodr):
@@ -262,6 +262,7 @@ def test_explicit_config_and_scenario_yaml_reproduce_the_run(cli, cli_concurrent
 
 
 def test_overrides_bvs_mix_sut(cli, tmp_path, summary_of):
+    import numpy as np
     from evoscen_contract import topics as T
     from evoscen_contract.tables import table_columns
     from evoscen_sim.config import load_scenario_config
@@ -285,9 +286,15 @@ def test_overrides_bvs_mix_sut(cli, tmp_path, summary_of):
             worlds.append(table_columns(m.ros_msg))
         elif m.channel.topic == T.ROSTER.name:
             roster.append(table_columns(m.ros_msg))
-        elif m.channel.topic == T.COMMANDS_BV.name:
+        elif T.is_bv_command_topic(m.channel.topic):  # one table per BV node and step (bvs.nodes)
             bv_cmds.append(table_columns(m.ros_msg))
-    assert len(worlds) == steps + 1 and len(roster) == 1 and len(bv_cmds) == steps
+    bv_topics = {m.channel.topic for m in read_ros2_messages(str(out / "bag" / "bag_0.mcap"))
+                 if T.is_bv_command_topic(m.channel.topic)}
+    # 5 BVs at 1:1:1 (mix_counts) = 2 + 2 + 1: one node per policy, each answering every step
+    assert bv_topics == {"/evoscen/commands/bv_competitive", "/evoscen/commands/bv_mutual",
+                         "/evoscen/commands/bv_cooperative"}
+    assert len(worlds) == steps + 1 and len(roster) == 1 and len(bv_cmds) == 3 * steps
+    bv_cmds = [{"id": np.concatenate([c["id"] for c in bv_cmds[k:k + 3]])} for k in range(0, len(bv_cmds), 3)]
     for w in worlds:
         assert len(w["id"]) == 6
         assert sorted(w["id"].tolist()) == [0, 1, 2, 3, 4, 5]

@@ -25,6 +25,8 @@ import pytest
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 REPO = Path(__file__).resolve().parents[1]
+BV_TOPICS = ("/evoscen/commands/bv_competitive", "/evoscen/commands/bv_mutual", "/evoscen/commands/bv_cooperative")
+"""The BV nodes' command topics of the default scenario (bvs.nodes: by_policy; the intruder attacks each)."""
 STEPS = 150
 SEED = 9
 DT_NS = 100_000_000  # dt_s of the shipped config
@@ -97,7 +99,8 @@ def test_attacked_run_completes_without_traceback(attacked):
     res = attacked["graph"]
     assert res.returncode == 0, f"exit {res.returncode}:\n{res.stdout}\n{res.stderr}"
     assert "Traceback" not in res.stderr, res.stderr
-    assert "nodes: evoscen_eval=0, evoscen_bv=0, evoscen_sut=0, evoscen_sim=0" in res.stdout, res.stdout
+    assert ("nodes: evoscen_eval=0, evoscen_bv_competitive=0, evoscen_bv_mutual=0, evoscen_bv_cooperative=0, "
+            "evoscen_sut=0, evoscen_sim=0") in res.stdout, res.stdout
     assert "intruder: sent" in attacked["intruder"], attacked["intruder"]
     assert int(attacked["intruder"].split("for ")[1].split()[0]) >= STEPS // 2, attacked["intruder"]
 
@@ -106,7 +109,7 @@ def test_world_equals_clean_run_byte_for_byte(attacked):
     g, c = _read_bag(attacked["out"] / "bag"), _read_bag(attacked["clean"] / "bag")
     assert _steps(g, "/evoscen/world") == list(range(STEPS + 1))
     assert g["/evoscen/world"] == c["/evoscen/world"]
-    for topic in ("/evoscen/commands/sut", "/evoscen/commands/bv"):  # only the real controllers' commands
+    for topic in ("/evoscen/commands/sut", *BV_TOPICS):  # only the real controllers' commands
         assert g[topic] == c[topic], topic
 
 
@@ -116,7 +119,7 @@ def test_fault_events_name_topic_publisher_and_reason(attacked):
     wire = [ev for ev in faults if ev.get("kind") == "wire"]
     assert wire and len(wire) == len(faults), faults[:3]
     topics = {ev["topic"] for ev in wire}
-    assert topics == {"/evoscen/commands/sut", "/evoscen/commands/bv"}, topics
+    assert topics == {"/evoscen/commands/sut", *BV_TOPICS}, topics
     for ev in wire:
         assert ev["publisher"] and ev["reason"] and ev["topic"] in ev["message"], ev
     foreign = [ev for ev in wire if "not from a registered publisher" in ev["reason"]]

@@ -35,7 +35,12 @@ def main() -> int:
     graph.init(sys.argv)
     node = graph.make_node("intruder")
     # a second world publisher at start-up would make the simulation refuse the domain: it comes with step 0
-    pubs = {spec.name: graph.publisher(node, spec) for spec in (T.COMMANDS_SUT, T.COMMANDS_BV, T.EVENTS)}
+    # every BV command topic of the default scenario (bvs.nodes: by_policy) and the single node's
+    from evoscen_sim.bv_nodes import bv_node_names
+    from evoscen_sim.config import load_scenario_config
+
+    bv_specs = [T.COMMANDS_BV] + [T.bv_command_spec(n) for n in bv_node_names(load_scenario_config(None))]
+    pubs = {spec.name: graph.publisher(node, spec) for spec in (T.COMMANDS_SUT, *bv_specs, T.EVENTS)}
     world_sub = graph.subscription(node, T.WORLD, raw=True)
     pump = graph.MessagePump(node, [world_sub])
     cmd = TableEncoder(T.COMMAND_FIELDS, "map")
@@ -65,7 +70,8 @@ def main() -> int:
                 rng.integers(0, 256, 64, dtype=np.uint8).tobytes(),
             ]
             pubs[T.COMMANDS_SUT.name].publish(cmd.encode(np.array([[0.0, -1.0, 0.0]]), t_ns))
-            pubs[T.COMMANDS_BV.name].publish(variants[k % len(variants)])
+            for j, spec in enumerate(bv_specs):
+                pubs[spec.name].publish(variants[(k + j) % len(variants)])
             pubs[T.WORLD.name].publish(rng.integers(0, 256, 64, dtype=np.uint8).tobytes() if k % 2
                                        else data[: len(data) // 2])
             events = [{"name": T.EVENT_COLLISION, "step": k, "time_s": t_ns / 1e9, "ids": [0, 3],

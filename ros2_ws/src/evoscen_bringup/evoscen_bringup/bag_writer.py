@@ -144,6 +144,10 @@ class ProcessRecorder:
         """Journal the rest of the state (from the row :meth:`world` copied)."""
         self._journal.append(("S", self._rows - 1, sut_index, step_index, t_ns))
 
+    def bv_commands(self, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+        """The commands of all BVs; the writer splits them by BV node (``StepRecorder.bv_commands``)."""
+        self.commands(self.T.COMMANDS_BV.name, ids, throttle, lane_change, t_ns)
+
     def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
         which = self._topics.index(topic)
         row = self._crows[which]
@@ -290,8 +294,9 @@ def _warm_up(cfg, world, n_bv: int) -> None:  # noqa: ANN001
         cols, t_ns = world.columns(), world.time_ns
         rec.world(world, cols, t_ns, roster=True)
         rec.state(world, cols, 0, 0, t_ns)
-        ids = world.ids[: max(n_bv, 1)]
-        rec.commands(rec.T.COMMANDS_BV.name, ids, np.zeros(len(ids)), np.zeros(len(ids), dtype=np.int64), t_ns)
+        if n_bv:
+            ids = world.ids[1:n_bv + 1]
+            rec.bv_commands(ids, np.zeros(len(ids)), np.zeros(len(ids), dtype=np.int64), t_ns)
         rec.events([], t_ns)
         rec.close()
     _warmed = True
@@ -388,7 +393,10 @@ def _replay(rec, road, journal: list, f: np.ndarray, i: np.ndarray, c: tuple, to
             if sent is not None:
                 ids[which] = sent
             table = c[which][row]
-            rec.commands(topics[which], ids[which], table[0, :n], table[1, :n], t_ns)
+            if topics[which] == rec.T.COMMANDS_BV.name:  # all BVs: split by BV node
+                rec.bv_commands(ids[which], table[0, :n], table[1, :n], t_ns)
+            else:
+                rec.commands(topics[which], ids[which], table[0, :n], table[1, :n], t_ns)
         else:
             _, pickled, t_ns = entry
             rec.events(pickle.loads(pickled) if pickled is not None else [], t_ns)

@@ -45,15 +45,18 @@ from evoscen_bringup.domains import reserve_domain
 from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED,
                                        EXIT_OK, NODE_BV,
                                        NODE_EVAL, NODE_EXIT_STATUSES, NODE_SIM, NODE_SUT)
+from evoscen_sim.bv_nodes import bv_node_names
 from evoscen_sim.config import ScenarioConfig
 from evoscen_sim.node_params import scenario_parameters
 
 NODES = (
     (NODE_EVAL, "evoscen_eval.eval_node"),
-    (NODE_BV, "evoscen_bv.bv_node"),
+    (NODE_BV, "evoscen_bv.bv_node"),  # one process per BV node of bvs.nodes (bv_node_names)
     (NODE_SUT, "evoscen_sut.sut_node"),
     (NODE_SIM, "evoscen_sim.sim_node"),
 )
+BV_MODULE = "evoscen_bv.bv_node"
+"""The program of every BV node; the launcher names each one (``-r __node:=evoscen_bv_<part>``)."""
 DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
 STOP_GRACE_S = 5.0
 """How long nodes get to end by themselves when the run ended before step 0 or the simulation died."""
@@ -82,7 +85,10 @@ class GraphOptions:
     node_args: dict[str, dict] = field(default_factory=dict)
     """Extra parameters per node name (tests)."""
     wait_for: tuple[str, ...] = ()
-    """Users' node names the simulation waits for before step 0 (so they see every step)."""
+    """Users' node names the simulation waits for before step 0 (so they see every step). A BV node
+    of the scenario named here is not started by the launcher: it is started by hand (another
+    terminal or machine, same domain) with its parameter file ``OUT/params/<name>.yaml``, and the
+    simulation waits for it like for every controller."""
     report_dir: Path | None = None
     """Where the evaluator writes the report (report.json, report.md, plots); None = no report."""
     report_plots: bool = True
@@ -109,7 +115,8 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
     params_dir = out_dir / "params"
     params_dir.mkdir(parents=True, exist_ok=True)
     scenario = scenario_parameters(cfg)
-    controllers = ([NODE_BV] if cfg.bvs.count > 0 else []) + [NODE_SUT]
+    bv_names = bv_node_names(cfg)
+    controllers = bv_names + [NODE_SUT]
     own = {
         NODE_SIM: {"deadline_s": opts.deadline_s, "max_misses": opts.max_misses,
                         "startup_timeout_s": opts.startup_timeout_s, "controllers": controllers, "recorder": True,
@@ -125,11 +132,16 @@ def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opt
                          **({"report_dir": str(opts.report_dir), "report_plots": opts.report_plots}
                             if opts.report_dir is not None else {})},
     }
+    bv_own = {**own.pop(NODE_BV), **opts.node_args.get(NODE_BV, {})}
+    for name in bv_names:  # every BV node of bvs.nodes: the BV node's settings (node_args under evoscen_bv too)
+        own[name] = dict(bv_own)
     if opts.wait_for:  # the controllers wait for users' nodes too (a parameter file cannot type [])
-        for name in (NODE_BV, NODE_SUT):
-            own[name]["wait_for_nodes"] = list(opts.wait_for)
+        for name in (*bv_names, NODE_SUT):
+            others = [n for n in opts.wait_for if n != name]  # a BV node started by hand: not for itself
+            if others:
+                own[name]["wait_for_nodes"] = others
     paths = {}
-    for name, _ in NODES:
+    for name in own:
         params = {**own[name], **opts.node_args.get(name, {}), "scenario": scenario}
         path = params_dir / f"{name}.yaml"
         path.write_text(yaml.safe_dump({name: {"ros__parameters": params}}, sort_keys=False), encoding="utf-8")
@@ -179,8 +191,12 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     params = write_parameter_files(cfg, out_dir, bag_dir, opts)
     ready_file.unlink(missing_ok=True)
     env = node_environment(domain_id, opts.discovery_range)
-    wanted = [(name, module) for name, module in NODES
-              if (name != NODE_BV or cfg.bvs.count > 0) and (name != NODE_SUT or not opts.external_sut)]
+    wanted = []  # (node name, module): one BV node per share of bvs.nodes, each under its own name
+    for name, module in NODES:
+        if name == NODE_BV:  # a BV node named in wait_for is started by hand, not here (docs/architecture.md §5)
+            wanted += [(bv, module) for bv in bv_node_names(cfg) if bv not in opts.wait_for]
+        elif name != NODE_SUT or not opts.external_sut:
+            wanted.append((name, module))
     procs: dict[str, subprocess.Popen] = {}
     t0 = time.monotonic()
     interrupted = False
@@ -201,8 +217,9 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     old = {sig: signal.signal(sig, forward) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         for name, module in wanted:
+            rename = ["-r", f"__node:={name}"] if module == BV_MODULE else []
             procs[name] = subprocess.Popen(
-                [sys.executable, "-m", module, "--ros-args", "--params-file", str(params[name])],
+                [sys.executable, "-m", module, "--ros-args", "--params-file", str(params[name]), *rename],
                 env=env, start_new_session=True,  # Ctrl-C reaches the launcher only; it decides
             )
         sim = procs[NODE_SIM]

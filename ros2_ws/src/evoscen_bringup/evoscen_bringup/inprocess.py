@@ -138,7 +138,7 @@ class _InProcessPort(Port):
         if rec is not None:
             t_ns = sc.world.time_ns
             if len(self.bv_ids):  # no BVs, no BV controller: no BV commands (as in the node graph)
-                rec.commands(rec.T.COMMANDS_BV.name, self.bv_ids, bv_thr, bv_lc, t_ns)
+                rec.bv_commands(self.bv_ids, bv_thr, bv_lc, t_ns)  # one message per BV node (bvs.nodes)
             rec.commands(rec.T.COMMANDS_SUT.name, self.sut_ids, sut_thr, sut_lc, t_ns)
         throttle, lane_change = sc.assemble(bv_thr, bv_lc, sut_thr, sut_lc)
         return Commands(throttle, lane_change)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from evoscen_sim.config import ScenarioConfig
+from evoscen_sim.bv_nodes import build_bv_drivers
 from evoscen_sim.models import checked_answer
 from evoscen_sim.road import RoadModel
 from evoscen_sim.scenario import (  # noqa: F401  (re-exported for users of this module)
@@ -34,7 +35,8 @@ class Scenario:
     road: RoadModel
     world: World
     bv_driver: object
-    """Driver of all BVs (``act(view) -> (throttle, lane_change)``), from the model registry."""
+    """Driver of all BVs (``act(view) -> (throttle, lane_change)``), from the model registry: one
+    driver per BV node of ``bvs.nodes`` (:func:`evoscen_sim.bv_nodes.build_bv_drivers`)."""
     sut: object
     """Driver of the SUT, from the model registry."""
     bv_indices: np.ndarray
@@ -70,5 +72,5 @@ class Scenario:
 def build_scenario(cfg: ScenarioConfig) -> Scenario:
     """Road, spawn layout, world and drivers for ``cfg`` (deterministic in ``cfg.seed``)."""
     world = build_world(cfg)
-    return Scenario(config=cfg, road=world.road, world=world, bv_driver=build_bv_driver(cfg),
+    return Scenario(config=cfg, road=world.road, world=world, bv_driver=build_bv_drivers(cfg),
                     sut=build_sut_driver(cfg), bv_indices=bv_indices(cfg))

@@ -37,15 +37,25 @@ class StepRecorder:
 
         from evoscen_eval.reindex import finish_bag
 
-        bag = BagRecorder(bag_dir, T.CONTRACT, compression=cfg.recording.compression,
+        import numpy as np
+
+        from evoscen_sim.bv_nodes import bv_nodes
+        from evoscen_sim.scenario import bv_indices
+
+        # the BV nodes of bvs.nodes, each with its command topic (the graph's: docs/architecture.md
+        # §5, "BV nodes"); positions: where its BVs are among all BVs
+        nodes = bv_nodes(cfg)
+        contract = T.contract_for([n.name for n in nodes])
+        self.bv_parts = [(n.topic, np.searchsorted(bv_indices(cfg), n.rows)) for n in nodes]
+        bag = BagRecorder(bag_dir, contract, compression=cfg.recording.compression,
                           chunk_size=cfg.recording.chunk_size_bytes,
                           metadata={SCENARIO_METADATA: scenario_metadata(cfg)}, finish_after_fault=finish_bag)
-        self.bag = OrderedBag(bag, T.CONTRACT)
+        self.bag = OrderedBag(bag, contract)
         self.road = road
         self.markers_every = cfg.recording.markers_every
         self._direct = self.direct
-        self._rank = {spec.name: k for k, spec in enumerate(T.CONTRACT)}
-        self._slots: list[list] = [[] for _ in T.CONTRACT]  # the open step's (topic, pieces), by topic rank
+        self._rank = {spec.name: k for k, spec in enumerate(contract)}
+        self._slots: list[list] = [[] for _ in contract]  # the open step's (topic, pieces), by topic rank
         self._t: int | None = None  # its time
         self._pending = False
 
@@ -119,6 +129,12 @@ class StepRecorder:
             self._add(topic, self.msgs.commands_parts(ids, throttle, lane_change, t_ns), t_ns)
         else:
             self.bag.add(topic, self.msgs.commands(ids, throttle, lane_change, t_ns), t_ns, canonical=True)
+
+    def bv_commands(self, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+        """The commands of all BVs (in world-index order), one message per BV node on its topic, as the
+        BV nodes of the graph answer (an empty table from a node without BVs)."""
+        for topic, pos in self.bv_parts:
+            self.commands(topic, ids[pos], throttle[pos], lane_change[pos], t_ns)
 
     def events(self, events: list[dict], t_ns: int) -> None:
         # canonical CDR already (evoscen_contract.cdr): no re-serialization

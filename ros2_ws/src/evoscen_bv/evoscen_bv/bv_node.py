@@ -1,9 +1,18 @@
-"""The BV node: hosts the background vehicles and answers for all of them in one message per step.
+"""A BV node: hosts its share of the background vehicles and answers for them in one message per step.
 
-    python -m evoscen_bv.bv_node --ros-args --params-file bv.yaml   (or: ros2 run evoscen_bv bv_node ...)
+    python -m evoscen_bv.bv_node --ros-args --params-file bv.yaml [-r __node:=evoscen_bv_<part>]
 
-The driver is ``scenario.bvs.driver`` from the model registry (default: learned), built for all
-BVs with the same seeded stream as in-process, so the commands are the same bytes.
+The scenario's ``bvs.nodes`` splits the BVs over BV nodes (:mod:`evoscen_sim.bv_nodes`;
+docs/architecture.md §5, "BV nodes"): the node's name says which share it hosts — ``evoscen_bv``
+(``single``: all BVs), ``evoscen_bv_competitive``, ``evoscen_bv_mutual``, ``evoscen_bv_cooperative``,
+``evoscen_bv_level0``, … (``by_policy``), ``evoscen_bv_0`` … (a number) — given with ROS's node-name
+remapping, the parameter file keyed by that name; it publishes on ``/evoscen/commands/bv_<part>``
+(``/evoscen/commands/bv`` for ``single``). A name that is not one of the scenario's BV nodes is a
+one-line error naming them (exit 2).
+
+The driver is ``scenario.bvs.driver`` from the model registry (default: learned), built like the
+driver of all BVs with the same seeded stream as in-process and cut to the node's share
+(:func:`evoscen_sim.scenario.build_bv_driver`), so the commands are the same bytes.
 Parameters: ``scenario.*``, ``command_subscribers`` [[evoscen_sim, evoscen_eval]], ``startup_timeout_s`` [30],
 ``idle_timeout_s`` [60] (see :mod:`evoscen_sim.controller_node`).
 """
@@ -13,17 +22,23 @@ from __future__ import annotations
 import sys
 
 from evoscen_contract import topics as T
+from evoscen_sim.bv_nodes import bv_node_of
 from evoscen_sim.controller_node import run_controller
-from evoscen_sim.scenario import build_bv_driver, bv_indices
+from evoscen_sim.scenario import build_bv_driver
 
 
-def _build(params, cfg):  # noqa: ANN001, ANN202
-    return build_bv_driver(cfg), bv_indices(cfg)
+def _spec(cfg, name):  # noqa: ANN001, ANN202
+    return T.bv_command_spec(bv_node_of(cfg, name).name)
+
+
+def _build(params, cfg, name):  # noqa: ANN001, ANN202
+    rows = bv_node_of(cfg, name).rows
+    return build_bv_driver(cfg, rows), rows
 
 
 def main(args: list[str] | None = None) -> int:
     """Entry point."""
-    return run_controller(T.NODE_BV, T.COMMANDS_BV, _build, args)
+    return run_controller(T.NODE_BV, _spec, _build, args)
 
 
 if __name__ == "__main__":

@@ -86,16 +86,17 @@ class HardBrakeState:
     """Per hosted vehicle: the distance left, as the SUT's leader, to its next hard-braking
     episode (exponential draws, mean 1,000 km / ``per_1000km``), and the episode in progress.
 
-    All draws come from ``rng`` in a fixed order (at construction one distance per vehicle; at
-    each start: deceleration, duration, next distance), so a seed gives the same episodes in
-    every runner.
+    Each vehicle draws from its own generator, seeded from ``rng`` at construction (one seed per
+    vehicle, in vehicle order), in a fixed order (at construction its first distance; at each of
+    its starts: deceleration, duration, next distance), so a seed gives the same episodes in
+    every runner and whatever the split of the BVs into BV nodes (:meth:`restrict`).
     """
 
     def __init__(self, n: int, params: HardBrakeParams, rng: np.random.Generator) -> None:
         self.params = params
-        self.rng = rng
+        self.rngs = [np.random.default_rng(int(x)) for x in rng.integers(0, 2**63 - 1, size=n)]
         self.mean_m = 1.0e6 / params.per_1000km
-        self.to_go_m = rng.exponential(self.mean_m, size=n)
+        self.to_go_m = np.array([g.exponential(self.mean_m) for g in self.rngs])
         self.until_step = np.full(n, -1, dtype=np.int64)
         """Steps before this one brake (the episode in progress); -1: none."""
         self.decel = np.zeros(n)
@@ -104,11 +105,18 @@ class HardBrakeState:
         self.episodes: list[tuple[int, int, float, float]] = []
         """Every episode started: (hosted position, step, deceleration m/s², duration s)."""
 
+    def restrict(self, positions: np.ndarray) -> None:
+        """Keep the vehicles at ``positions`` only, each with its own generator and state."""
+        self.rngs = [self.rngs[int(k)] for k in positions]
+        self.to_go_m, self.until_step, self.decel = (self.to_go_m[positions], self.until_step[positions],
+                                                     self.decel[positions])
+
     def start(self, k: int, step: int, dt_s: float) -> None:
         p = self.params
-        decel = float(self.rng.uniform(*p.decel_mps2))
-        duration = float(self.rng.uniform(*p.duration_s))
-        self.to_go_m[k] += self.rng.exponential(self.mean_m)  # the overshoot carries: exact in distance
+        rng = self.rngs[k]
+        decel = float(rng.uniform(*p.decel_mps2))
+        duration = float(rng.uniform(*p.duration_s))
+        self.to_go_m[k] += rng.exponential(self.mean_m)  # the overshoot carries: exact in distance
         self.decel[k] = decel
         self.until_step[k] = step + max(1, int(round(duration / dt_s)))
         self.episodes.append((k, step, decel, duration))
@@ -310,6 +318,21 @@ class LearnedDriver:
         self._throttle_road = None
         self.last_request = np.zeros(self.vehicles.size, dtype=np.int64)
         """Requested (pre-constraint) actions of the last decision, for training and tests."""
+
+    def restrict(self, positions: np.ndarray) -> None:
+        """Host only the vehicles at ``positions`` of :attr:`vehicles`, each with the state it was
+        built with (its desired speed: the draws do not depend on the split), so that a BV node's
+        share drives exactly as in the one driver of all BVs (:mod:`evoscen_sim.bv_nodes`). Before
+        the first :meth:`act` (the per-vehicle state of the profile is made there, for the hosted ones)."""
+        if self.reaction is not None or self._last_s is not None:
+            raise RuntimeError("LearnedDriver.restrict: after the first act")
+        self.vehicles = self.vehicles[positions]
+        self._changing = self._changing[positions]
+        self.hold_until_step = self.hold_until_step[positions]
+        self.desired_speed_mps = self.desired_speed_mps[positions]
+        self.last_request = self.last_request[positions]
+        if self.hard_brake is not None:
+            self.hard_brake.restrict(positions)
 
     def throttle(self, view) -> np.ndarray:  # noqa: ANN001
         """The controller's throttle for every hosted vehicle (one compiled pass, see

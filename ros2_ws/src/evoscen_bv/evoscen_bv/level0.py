@@ -68,6 +68,12 @@ class Level0Driver:
         lo, hi = params.desired_speed_range_mps
         self.desired_speed_mps = rng.uniform(lo, hi, size=self.vehicles.size)
 
+    def restrict(self, positions: np.ndarray) -> None:
+        """Host only the vehicles at ``positions`` of :attr:`vehicles`, each with the state it was
+        built with (a BV node's share: :mod:`evoscen_sim.bv_nodes`); before the first :meth:`act`."""
+        self.vehicles = self.vehicles[positions]
+        self.desired_speed_mps = self.desired_speed_mps[positions]
+
     def act(self, world) -> tuple[np.ndarray, np.ndarray]:  # world: evoscen_sim.world.World
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
         p = self.params

@@ -107,6 +107,7 @@ def test_an_episode_ends_at_the_speed_floor(policies):
     p = HardBrakeParams(per_1000km=1.0e6, decel_mps2=(7.0, 7.0), duration_s=(3.0, 3.0), min_speed_mps=10.0)
     drv = LearnedDriver(np.array([1]), controller, {}, training, np.random.default_rng(1), world.vehicle,
                         hard_brake=p)
+    drv.hard_brake.to_go_m[:] = 0.0  # the episode starts at the first step, at 12 m/s
     throttle = np.zeros(2)
     braking = []
     for _ in range(20):

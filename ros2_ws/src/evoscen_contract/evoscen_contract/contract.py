@@ -45,6 +45,27 @@ TOPIC_ROSTER: str = "/evoscen/roster"
 TOPIC_MARKERS: str = "/evoscen/markers"
 TOPIC_MAP_MARKERS: str = "/evoscen/map_markers"
 
+
+
+def bv_node_name(part: str) -> str:
+    """The name of the BV node hosting partition ``part`` of the BVs (``bvs.nodes``;
+    docs/architecture.md §5, "BV nodes"): ``evoscen_bv`` for the one node of ``single`` (part
+    ``""``), ``evoscen_bv_<part>`` otherwise (``evoscen_bv_competitive``, ``evoscen_bv_0``)."""
+    return NODE_BV if not part else f"{NODE_BV}_{part}"
+
+
+def command_topic(node: str) -> str:
+    """The command topic of controller ``node``: ``/evoscen/commands/`` + the node's name without
+    ``evoscen_`` (``evoscen_sut`` -> ``/evoscen/commands/sut``, ``evoscen_bv_mutual`` ->
+    ``/evoscen/commands/bv_mutual``): one topic per controller node, each with one publisher."""
+    return "/evoscen/commands/" + node.removeprefix("evoscen_")
+
+
+def is_bv_command_topic(topic: str) -> bool:
+    """Whether ``topic`` is a BV node's command topic (``/evoscen/commands/bv`` or ``..._<part>``)."""
+    return topic == TOPIC_COMMANDS_BV or topic.startswith(TOPIC_COMMANDS_BV + "_")
+
+
 #: ROS 2 type name (``pkg/msg/Type``) of every topic, in the contract's (README) order.
 TOPIC_TYPES: dict[str, str] = {
     TOPIC_CLOCK: "rosgraph_msgs/msg/Clock",

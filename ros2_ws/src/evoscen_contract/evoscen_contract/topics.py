@@ -110,6 +110,9 @@ from evoscen_contract.contract import (  # noqa: F401  (re-exported)
     TOPIC_TYPES,
     TOPIC_WORLD,
     WORLD_FIELDS,
+    bv_node_name,
+    command_topic,
+    is_bv_command_topic,
 )
 
 _RESERVED_EVENT_KEYS = ("name", "level", "message")
@@ -192,7 +195,10 @@ COMMANDS_BV = TopicSpec(
     rate="every step (answer to the world at t_k)",
     description=(
         "BV commands: flat table, one row per hosted BV, columns COMMAND_FIELDS; "
-        "stamp = t_k of the world step answered, frame 'map'"
+        "stamp = t_k of the world step answered, frame 'map'. One topic per BV node, "
+        "`/evoscen/commands/bv_<part>` from node `evoscen_bv_<part>` (`bvs.nodes`: by_policy, the default, "
+        "as listed here; `bv_level0`, ... for a rule-based driver; `bv_0` ... `bv_<N-1>` for N nodes; "
+        "`/evoscen/commands/bv` from `evoscen_bv` for `single`)"
     ),
     fields=COMMAND_FIELDS,
     subscribers=(NODE_SIM, NODE_EVAL),
@@ -278,6 +284,39 @@ CONTRACT: tuple[TopicSpec, ...] = (CLOCK, WORLD, COMMANDS_BV, COMMANDS_SUT, SUT_
 TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in CONTRACT}
 
 
+def bv_command_spec(node: str) -> TopicSpec:
+    """The command topic of BV node ``node`` (:func:`evoscen_contract.contract.bv_node_name`): the
+    row of :data:`COMMANDS_BV` under the node's own topic name and publisher (docs/architecture.md
+    §5, "BV nodes": one topic per node)."""
+    if node == NODE_BV:
+        return COMMANDS_BV
+    import dataclasses
+
+    return dataclasses.replace(COMMANDS_BV, name=command_topic(node), publisher=node)
+
+
+def contract_for(bv_nodes: Sequence[str]) -> tuple[TopicSpec, ...]:
+    """The contract of a run whose BVs are hosted by ``bv_nodes`` (in partition order): :data:`CONTRACT`
+    with :data:`COMMANDS_BV` replaced by one command topic per BV node, in that order (the bag's
+    channels and its per-step topic order). No BV nodes (no BVs): :data:`CONTRACT` as it is."""
+    if not bv_nodes or list(bv_nodes) == [NODE_BV]:
+        return CONTRACT
+    out: list[TopicSpec] = []
+    for spec in CONTRACT:
+        out += [bv_command_spec(n) for n in bv_nodes] if spec is COMMANDS_BV else [spec]
+    return tuple(out)
+
+
+def spec_of(topic: str) -> TopicSpec | None:
+    """The contract row of ``topic``, a BV node's command topic (``/evoscen/commands/bv_<part>``)
+    included; None for a topic outside the contract."""
+    if topic in TOPICS:
+        return TOPICS[topic]
+    if is_bv_command_topic(topic):
+        return bv_command_spec(NODE_BV + topic[len(TOPIC_COMMANDS_BV):])
+    return None
+
+
 def contract_markdown() -> str:
     """Render the contract as Markdown for the README.
 
@@ -289,15 +328,20 @@ def contract_markdown() -> str:
         "| topic | type | publisher | subscribers | QoS | rate | meaning |",
         "|---|---|---|---|---|---|---|",
     ]
-    for spec in CONTRACT:
-        subs = ", ".join(f"`{s}`" for s in spec.subscribers)
+    def shown(name: str) -> str:  # the BV nodes: one per share of bvs.nodes (docs/architecture.md §5)
+        return f"`{bv_node_name('<part>')}`" if name == NODE_BV else f"`{name}`"
+
+    # the BV nodes' rows: those of the default scenario (bvs.nodes: by_policy, the learned mix)
+    rows = contract_for([bv_node_name(p) for p in ("competitive", "mutual", "cooperative")])
+    for spec in rows:
+        subs = ", ".join(shown(s) for s in spec.subscribers)
         lines.append(
-            f"| `{spec.name}` | `{spec.type_name}` | `{spec.publisher}` | {subs} | {spec.qos.short()} "
+            f"| `{spec.name}` | `{spec.type_name}` | {shown(spec.publisher)} | {subs} | {spec.qos.short()} "
             f"| {spec.rate} | {spec.description} |"
         )
     lines += ["", "Table columns (float64, one row per vehicle):", ""]
     lines += ["| table | columns |", "|---|---|"]
-    for spec in CONTRACT:
+    for spec in rows:
         if spec.fields:
             lines.append(f"| `{spec.name}` | {', '.join(f'`{f}`' for f in spec.fields)} |")
     lines += ["", "| column | meaning (unit) |", "|---|---|"]

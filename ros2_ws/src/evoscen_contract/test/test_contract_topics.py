@@ -74,8 +74,29 @@ def test_contract_markdown_lists_every_topic() -> None:
     md = contract_markdown()
     assert md.splitlines()[0] == "| topic | type | publisher | subscribers | QoS | rate | meaning |"
     for spec in CONTRACT:
-        assert f"| `{spec.name}` | `{spec.type_name}` |" in md
+        if spec.name == "/evoscen/commands/bv":  # one topic per BV node: the default scenario's three
+            for part in ("competitive", "mutual", "cooperative"):
+                assert f"| `/evoscen/commands/bv_{part}` | `{spec.type_name}` | `evoscen_bv_{part}` |" in md
+        else:
+            assert f"| `{spec.name}` | `{spec.type_name}` |" in md
     assert "`heading_rel`" in md
+
+
+def test_bv_command_topics_follow_the_node_names() -> None:
+    from evoscen_contract import topics as T
+
+    assert T.command_topic("evoscen_sut") == "/evoscen/commands/sut"
+    assert T.bv_command_spec("evoscen_bv") is T.COMMANDS_BV
+    spec = T.bv_command_spec(T.bv_node_name("mutual"))
+    assert (spec.name, spec.publisher, spec.fields) == ("/evoscen/commands/bv_mutual", "evoscen_bv_mutual",
+                                                        T.COMMANDS_BV.fields)
+    names = [s.name for s in T.contract_for(["evoscen_bv_competitive", "evoscen_bv_0"])]
+    assert names == ["/clock", "/evoscen/world", "/evoscen/commands/bv_competitive", "/evoscen/commands/bv_0",
+                     "/evoscen/commands/sut", "/evoscen/sut/odom", "/evoscen/events", "/evoscen/roster",
+                     "/evoscen/markers", "/evoscen/map_markers"]
+    assert T.contract_for([]) == T.contract_for(["evoscen_bv"]) == CONTRACT
+    assert T.spec_of("/evoscen/commands/bv_3").publisher == "evoscen_bv_3"
+    assert T.spec_of("/evoscen/nosuch") is None and T.spec_of("/evoscen/commands/bvx") is None
 
 
 def test_events_round_trip() -> None:

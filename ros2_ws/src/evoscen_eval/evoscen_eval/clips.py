@@ -75,8 +75,11 @@ def cut_clip(messages: list[tuple[str, int, bytes]], metadata: dict, out_dir: Pa
             inside.append((topic, t_ns, data))
         else:
             break
+    # the run's command topics: one per BV node, in the bag's order (docs/architecture.md §5, "BV nodes")
+    bv_nodes = list(dict.fromkeys(T.NODE_BV + topic[len(T.TOPIC_COMMANDS_BV):] for topic, _t, _d in messages
+                                  if T.is_bv_command_topic(topic)))
     n = 0
-    with BagRecorder(out_dir, T.CONTRACT, metadata=metadata) as bag:
+    with BagRecorder(out_dir, T.contract_for(bv_nodes), metadata=metadata) as bag:
         for topic, (t_ns, data) in sorted(before.items(), key=lambda item: item[1][0]):
             bag.write(topic, data, log_time_ns=t_ns)
             n += 1

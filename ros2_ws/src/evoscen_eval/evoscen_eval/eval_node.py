@@ -63,8 +63,6 @@ from .rundata import SCENARIO_KEY, SCENARIO_METADATA, RunAccumulator, scenario_m
 NODE_NAME = T.NODE_EVAL
 # topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
 _CANONICAL_TOPICS = {T.CLOCK.name, T.WORLD.name, T.SUT_ODOM.name, T.ROSTER.name, T.MARKERS.name}
-# tables from any publisher (a user's SUT node may serialize with rclpy): re-encoded canonically
-_TABLE_TOPICS = {T.COMMANDS_BV.name, T.COMMANDS_SUT.name}
 MAX_WARNINGS = 20
 """Refused messages logged (one line each); the rest are counted."""
 
@@ -125,23 +123,32 @@ class EvaluatorNode:
         rec = self.cfg.recording
         from .reindex import finish_bag
 
-        self.bag = OrderedBag(BagRecorder(bag_dir, T.CONTRACT, compression=rec.compression,
+        # one command topic per BV node of bvs.nodes, in the partition's order (docs/architecture.md
+        # §5, "BV nodes"): the bag's channels and per-step order are the in-process runner's
+        from evoscen_sim.bv_nodes import bv_node_names
+
+        bv_names = bv_node_names(self.cfg)
+        contract = T.contract_for(bv_names)
+        bv_specs = [spec for spec in contract if T.is_bv_command_topic(spec.name)]
+        self.table_topics = {T.COMMANDS_SUT.name, *(spec.name for spec in bv_specs)}
+        self.bag = OrderedBag(BagRecorder(bag_dir, contract, compression=rec.compression,
                                           chunk_size=rec.chunk_size_bytes,
                                           metadata={SCENARIO_METADATA: self.metadata},
                                           finish_after_fault=finish_bag),
-                              T.CONTRACT)
+                              contract)
         if self.acc is not None:  # the scores see exactly what the bag gets, in the bag's order
             self.bag.on_write = self.acc.add_bytes
-        self.subs = {spec.name: graph.subscription(self.node, spec, raw=True) for spec in T.CONTRACT}
+        self.subs = {spec.name: graph.subscription(self.node, spec, raw=True) for spec in contract}
         self.takers = {name: graph.SourceTaker(sub) for name, sub in self.subs.items()}
-        trusted = {spec.name: [T.NODE_SIM] for spec in T.CONTRACT if spec.publisher == T.NODE_SIM}
-        trusted[T.COMMANDS_BV.name] = [T.NODE_BV]
+        trusted = {spec.name: [T.NODE_SIM] for spec in contract if spec.publisher == T.NODE_SIM}
+        for spec in bv_specs:
+            trusted[spec.name] = [spec.publisher]
         trusted[T.COMMANDS_SUT.name] = None if self.external_sut else [T.NODE_SUT]
-        self.gate = graph.SourceGate(self.node, trusted, exclude=[T.NODE_SIM, T.NODE_BV, T.NODE_EVAL])
+        self.gate = graph.SourceGate(self.node, trusted, exclude=[T.NODE_SIM, T.NODE_BV, *bv_names, T.NODE_EVAL])
         self.refused = 0
         self.pump = graph.MessagePump(self.node, self.subs.values())
         self._encoders: dict = {}
-        per_step = [T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.COMMANDS_SUT] + ([T.COMMANDS_BV] if self.cfg.bvs.count else [])
+        per_step = [T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.COMMANDS_SUT] + (bv_specs if self.cfg.bvs.count else [])
         self.latest = {spec.name: -1 for spec in per_step}
         self.markers_every = self.cfg.recording.markers_every
         self.latest_markers = -self.markers_every * self.dt_ns  # the first markers are due at t = 0
@@ -184,7 +191,7 @@ class EvaluatorNode:
         canonical = topic in _CANONICAL_TOPICS
         if topic == T.EVENTS.name and events_count(data) == 0:
             canonical = True  # a step without events: the simulation's canonical template
-        if topic in _TABLE_TOPICS:
+        if topic in self.table_topics:
             if t_ns >= self.cfg.steps * self.dt_ns or (self.run_end_ns is not None and t_ns >= self.run_end_ns):
                 return  # an answer to the final state: no step follows it, the simulation ignores it
             if t_ns % self.dt_ns:

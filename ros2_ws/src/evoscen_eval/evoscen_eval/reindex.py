@@ -121,11 +121,10 @@ def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult
                     pass
     if not channels:
         raise InputError(f"bag {str(path)!r}: no channel records readable; nothing to recover")
-    specs = {spec.name: spec for spec in T.CONTRACT}
     topics = []
     for cid in sorted(channels):
         ch = channels[cid]
-        spec = specs.get(ch.topic)
+        spec = T.spec_of(ch.topic)  # the BV nodes' command topics too (docs/architecture.md §5, "BV nodes")
         if spec is None:
             raise InputError(f"bag {str(path)!r}: channel {ch.topic!r} is not an evoscen contract topic; "
                              "only evoscen bags can be reindexed")

@@ -243,6 +243,31 @@ class _Names:
         return tuple(value)
 
 
+#: The named partitions of ``bvs.nodes`` (docs/architecture.md §5, "BV nodes").
+BV_NODE_MODES: tuple[str, ...] = ("by_policy", "single")
+MAX_BV_NODES = 32
+"""At most this many BV nodes for ``bvs.nodes: N`` (each is a process of the graph)."""
+
+
+class _BvNodes:
+    """``bvs.nodes``: ``by_policy``, ``single`` or a number of nodes N in [1, MAX_BV_NODES]
+    (a string of digits too: a ROS parameter or an override may arrive as text)."""
+
+    takes_str = True
+    expected = (f"expected by_policy, single or a number of nodes in [1, {MAX_BV_NODES}]")
+
+    def __call__(self, value: Any) -> str | int:
+        if isinstance(value, str) and value.strip().isdigit():
+            value = int(value.strip())
+        if isinstance(value, str):
+            if value not in BV_NODE_MODES:
+                raise _Bad(self.expected + _suggest(value, BV_NODE_MODES))
+            return value
+        if not _is_int(value) or not 1 <= value <= MAX_BV_NODES:
+            raise _Bad(self.expected)
+        return int(value)
+
+
 _MIX_STRING = re.compile(r"^\s*(\d+)\s*:\s*(\d+)\s*:\s*(\d+)\s*$")
 
 

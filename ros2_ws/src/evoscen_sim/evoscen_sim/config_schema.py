@@ -20,6 +20,7 @@ from evoscen_sim import models as _registry
 from evoscen_sim.config_checks import (
     POLICIES,
     _Bool,
+    _BvNodes,
     _check,
     _Float,
     _Int,
@@ -63,6 +64,14 @@ class BvConfig:
     driver: str = field(default="learned", metadata=_check(_Str(lambda: _registry.BV_DRIVERS)))
     """BV driver implementation, one of :data:`evoscen_sim.models.BV_DRIVERS`: ``learned`` (default; the shipped
     TD3 policies of ``evoscen_bv``, the mix applies), ``level0``, ..."""
+    nodes: str | int = field(default="by_policy", metadata=_check(_BvNodes()))
+    """How the BVs are split over BV nodes (processes of the graph; the in-process runner models the
+    same split): ``by_policy`` (default) one node per driver type present — competitive, mutual,
+    cooperative for the learned drivers, one node named after the driver (``level0``, ``nilsson``,
+    ``mobil``, a plug-in's) otherwise; ``single`` one node for all BVs; a number N in [1, 32]: the BVs
+    split by id into N nodes of consecutive ids. A vehicle keeps its id and its driver type for the
+    whole run (an entry at a window edge reuses its slot), so it stays with its node. The world, the
+    events and the scores do not depend on the split (docs/architecture.md §5, "BV nodes")."""
 
 
 @dataclass(frozen=True)

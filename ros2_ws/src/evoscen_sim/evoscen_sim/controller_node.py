@@ -68,17 +68,22 @@ class ControllerNode:
     """One controller (see the module docstring).
 
     Args:
-        name: node name (``evoscen_bv``, ``evoscen_sut``).
-        command_spec: the contract topic it publishes.
-        build: ``build(params, cfg) -> (driver, vehicle indices)`` from the node's parameters
-            and the validated scenario configuration.
+        name: node name (``evoscen_bv``, ``evoscen_sut``); a name given on the command line
+            (``--ros-args -r __node:=evoscen_bv_mutual``) replaces it: a BV node of ``bvs.nodes``
+            is the same program under the name of its share (docs/architecture.md §5, "BV nodes").
+        command_spec: the contract topic it publishes, or ``command_spec(cfg, name)`` giving it
+            (raises InputError for a name the scenario has no controller of).
+        build: ``build(params, cfg, name) -> (driver, vehicle indices)`` from the node's parameters,
+            the validated scenario configuration and the node's name.
     """
 
-    def __init__(self, name: str, command_spec: T.TopicSpec, build: Callable) -> None:
-        self.name = name
+    def __init__(self, name: str, command_spec: T.TopicSpec | Callable, build: Callable) -> None:
         self.node = graph.make_node(name)
+        self.name = name = self.node.get_name()
         params = graph.node_parameters(self.node)
         self.cfg = scenario_from_node(params, name)
+        if not isinstance(command_spec, T.TopicSpec):
+            command_spec = command_spec(self.cfg, name)
         own = own_parameters(ControllerParams, params, name)
         self.command_subscribers = list(own.command_subscribers)
         self.startup_timeout_s = own.startup_timeout_s
@@ -86,7 +91,8 @@ class ControllerNode:
         self.wait_for_nodes = list(own.wait_for_nodes)
         self.discovery_settle_s = own.discovery_settle_s
         self._first_seen: dict[str, float] = {}
-        self.driver, self.vehicles = build(params, self.cfg)
+        self.driver, self.vehicles = build(params, self.cfg, name)
+        self._build_args = (params, name)
         self.road = load_road(self.cfg.map)
         self.msgs = WorldMessages(self.cfg.dt_s)
         self.dt_ns = round(self.cfg.dt_s * 1e9)
@@ -97,9 +103,9 @@ class ControllerNode:
         self.pub = graph.publisher(self.node, command_spec)
         self.pump = graph.MessagePump(self.node, [self.world_sub])
         self.final_ns = self.cfg.steps * self.dt_ns  # the final state of a completed run
-        self._warm_up(build, params)  # while discovery runs in the middleware's threads
+        self._warm_up(build)  # while discovery runs in the middleware's threads
 
-    def _warm_up(self, build: Callable, params: dict) -> None:
+    def _warm_up(self, build: Callable) -> None:
         """Answer the initial world once with a spare driver, so that step 0 is not the slow one.
 
         The compiled kernels (road look-up, neighbourhood, the driver's own) are loaded from
@@ -111,7 +117,8 @@ class ControllerNode:
 
         world = build_world(self.cfg)
         self.n_vehicles = world.n
-        spare, _ = build(params, self.cfg)
+        params, name = self._build_args
+        spare, _ = build(params, self.cfg, name)
         table = decode_table(self.msgs.world(world.columns(), world.time_ns))
         throttle, lane_change = checked_answer(spare, spare.act(WorldView(self.road, table.columns(), 0, self.cfg.dt_s)))
         WorldMessages(self.cfg.dt_s).commands(table.data[self.vehicles, 0], np.asarray(throttle, float),
@@ -205,6 +212,6 @@ class ControllerNode:
             return EXIT_BAD_INPUT
 
 
-def run_controller(name: str, command_spec: T.TopicSpec, build: Callable, args: list[str] | None) -> int:
+def run_controller(name: str, command_spec: T.TopicSpec | Callable, build: Callable, args: list[str] | None) -> int:
     """``main`` of a controller node: one-line errors for bad parameters (exit 2)."""
     return run_node(lambda: ControllerNode(name, command_spec, build), args)

@@ -194,6 +194,14 @@ def _remember(driver: Any, what: tuple[str, str, int]) -> None:
         _BUILT_BY_ID[id(driver)] = what
 
 
+def rehosted(driver: Any, count: int) -> None:
+    """Record that ``driver`` (built by :func:`create_driver`) now drives ``count`` vehicles (a BV
+    node's share, :func:`evoscen_sim.scenario.build_bv_driver`), for :func:`checked_answer`."""
+    what = _built(driver)
+    if what is not None:
+        _remember(driver, (what[0], what[1], int(count)))
+
+
 def _built(driver: Any) -> tuple[str, str, int] | None:
     try:
         what = _BUILT.get(driver)

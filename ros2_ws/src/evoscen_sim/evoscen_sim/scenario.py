@@ -14,7 +14,7 @@ import numpy as np
 from evoscen_contract.contract import POLICY_CODES
 
 from .config import ScenarioConfig, mix_counts
-from .models import checked_answer, create_driver
+from .models import checked_answer, create_driver, rehosted
 from .road import RoadModel, load_road
 from .scenario_params import (control_params_from_config, reentry_params_from_config, traffic_params_from_config,
                               vehicle_params_from_config)
@@ -127,9 +127,48 @@ def bv_indices(cfg: ScenarioConfig) -> np.ndarray:
     return np.arange(1, cfg.bvs.count + 1)
 
 
-def build_bv_driver(cfg: ScenarioConfig):  # noqa: ANN201
-    """The driver of all BVs (what the BV node hosts)."""
-    return create_driver(cfg.bvs.driver, "bv", bv_indices(cfg), cfg, scenario_rngs(cfg.seed)["bv"])
+def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):  # noqa: ANN201
+    """The driver of the BVs at world indices ``rows`` (default: all BVs; what one BV node hosts).
+
+    It is built for all BVs from the ``bv`` stream, then keeps only ``rows``
+    (docs/architecture.md §5, "BV nodes"), so every vehicle draws what it draws in the driver of
+    all BVs and the world does not depend on ``bvs.nodes``: a driver with a ``restrict(positions)``
+    method (the built-in BV drivers) keeps their state only; any other (a plug-in) is run for all
+    BVs and its answer cut to ``rows`` (:class:`RowsOf`) — exact whatever it draws per step.
+    """
+    bvs = bv_indices(cfg)
+    driver = create_driver(cfg.bvs.driver, "bv", bvs, cfg, scenario_rngs(cfg.seed)["bv"])
+    if rows is None or np.array_equal(rows, bvs):
+        return driver
+    positions = np.searchsorted(bvs, np.asarray(rows, dtype=np.int64))
+    if positions.size == 0:
+        return NoVehicles()
+    if hasattr(driver, "restrict"):
+        driver.restrict(positions)
+        rehosted(driver, positions.size)  # its answers are checked against its share
+        return driver
+    return RowsOf(driver, positions)
+
+
+class RowsOf:
+    """A driver of all BVs whose answer is cut to the BVs at ``positions`` (see :func:`build_bv_driver`)."""
+
+    def __init__(self, driver, positions: np.ndarray) -> None:  # noqa: ANN001
+        self.driver, self.positions = driver, positions
+        self.vehicles = np.asarray(driver.vehicles)[positions] if hasattr(driver, "vehicles") else None
+
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+        throttle, lane_change = self.driver.act(view)
+        return np.asarray(throttle)[self.positions], np.asarray(lane_change)[self.positions]
+
+
+class NoVehicles:
+    """The driver of a BV node without BVs (``bvs.nodes`` larger than ``bvs.count``): empty answers."""
+
+    vehicles = np.zeros(0, dtype=np.int64)
+
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+        return np.zeros(0), np.zeros(0, dtype=np.int64)
 
 
 def build_sut_driver(cfg: ScenarioConfig, model: str | None = None):  # noqa: ANN201

@@ -6,7 +6,7 @@ The steps are run by the step loop the in-process runner drives too
 (:class:`evoscen_sim.step_loop.StepLoop`); this node is the loop's port on the graph. Step k:
 publish ``/clock``, ``/evoscen/world`` and ``/evoscen/sut/odom`` at t_k (and the
 latched ``/evoscen/roster`` before the first step); wait until every registered controller
-(``controllers``: the BV node, the SUT node) has answered with commands stamped t_k;
+(``controllers``: the BV nodes, the SUT node) has answered with commands stamped t_k;
 integrate to t_{k+1}; publish what happened on ``/evoscen/events`` (every step; an empty
 array when nothing happened, so every per-step topic has one message per step and the
 recorder knows when a step is complete). After the last step the
@@ -22,7 +22,7 @@ error naming the controller, exit status 3. Ctrl-C ends the run after the curren
 
 Parameters: ``scenario.*`` (the scenario configuration, validated like the YAML file),
 ``deadline_s`` [2.0], ``startup_timeout_s`` [30.0], ``max_misses`` [5], ``controllers``
-[``["evoscen_bv", "evoscen_sut"]``], ``recorder`` [true]: wait for the evaluator node,
+[``[]``: every BV node of ``bvs.nodes`` and ``evoscen_sut``], ``recorder`` [true]: wait for the evaluator node,
 ``external_sut`` [false]: the SUT's commands come from a user's node (any name),
 ``stats_file`` [""]: write the lockstep rate there (JSON), ``discovery_settle_s`` [0.5]: at
 start-up, how long discovery must stay quiet (all endpoints matched) before step 0,
@@ -56,13 +56,13 @@ from evoscen_contract import wire
 from evoscen_contract.contract import EXIT_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 from .config_checks import flag, integer, names, number, text
+from .errors import InputError
 from .node_params import own_parameters, run_node, scenario_from_node
 from .events import fault_event, step_events
 from .scenario import SUT_INDEX, build_world
 from .step_loop import Commands, Port, RunAborted, StepLoop
 
 NODE_NAME = T.NODE_SIM
-CONTROLLER_TOPICS = {T.NODE_BV: T.COMMANDS_BV, T.NODE_SUT: T.COMMANDS_SUT}
 LEAVE_ANNOUNCE_S = 0.05  # see SimulationNode._leave
 WIRE_EVENTS_PER_STEP = 4
 """At most this many wire ``fault`` events per step (distinct topic/publisher/reason; the rest are counted)."""
@@ -81,8 +81,8 @@ class SimParams:
     deadline_s: float = number(2.0, 0.0, lo_open=True)
     startup_timeout_s: float = number(30.0, 0.0, lo_open=True)
     max_misses: int = integer(5, 1)
-    controllers: tuple[str, ...] = names((T.NODE_BV, T.NODE_SUT), tuple(sorted(CONTROLLER_TOPICS)),
-                                         non_empty=True, distinct=True)
+    controllers: tuple[str, ...] = names((), distinct=True)
+    """[] (default): every BV node of the scenario's ``bvs.nodes`` and the SUT node."""
     recorder: bool = flag(True)
     stats_file: str = text("", allow_empty=True)
     external_sut: bool = flag(False)
@@ -117,15 +117,31 @@ class SimulationNode(Port):
         self.wait_for_nodes = list(own.wait_for_nodes)
         self.discovery_settle_s = own.discovery_settle_s
         self.recorder_lag_steps = own.recorder_lag_steps
+        self.flow_waits, self.flow_wait_s = 0, 0.0  # flow control's waits for acknowledgements (stats_file)
         self.ready_file = own.ready_file
 
+        # the controllers and their command topics: one per BV node of bvs.nodes and the SUT
+        # (docs/architecture.md §5, "BV nodes")
+        from .bv_nodes import bv_nodes
+
+        bvs = bv_nodes(self.cfg)
+        self.controller_topics = {**{b.name: T.bv_command_spec(b.name) for b in bvs}, T.NODE_SUT: T.COMMANDS_SUT}
+        self.controller_rows = {b.name: b.rows for b in bvs}
+        self.controller_rows[T.NODE_SUT] = np.array([SUT_INDEX])
+        if not self.controllers:
+            self.controllers = list(self.controller_topics)
+        unknown = [c for c in self.controllers if c not in self.controller_topics]
+        if unknown:
+            raise InputError(f"{NODE_NAME}: key 'controllers' = {list(self.controllers)}: expected names from "
+                             f"{', '.join(self.controller_topics)} (the scenario's BV nodes, bvs.nodes = "
+                             f"{self.cfg.bvs.nodes}, and the SUT node)")
         self.world = build_world(self.cfg)
         self.loop = StepLoop(self.world, self.cfg.evaluation, self, interrupted_text="run interrupted (SIGINT)")
         self.msgs = WorldMessages(self.cfg.dt_s)
         n = self.node
         self.pub = {spec.name: graph.publisher(n, spec)
                     for spec in (T.CLOCK, T.WORLD, T.SUT_ODOM, T.EVENTS, T.ROSTER, T.MARKERS, T.MAP_MARKERS)}
-        self.subs = {c: graph.subscription(n, CONTROLLER_TOPICS[c], raw=True) for c in self.controllers}
+        self.subs = {c: graph.subscription(n, self.controller_topics[c], raw=True) for c in self.controllers}
         self.takers = {c: graph.SourceTaker(sub) for c, sub in self.subs.items()}
         self.pump = graph.MessagePump(n, self.subs.values())
         ids = self.world.columns()["id"]
@@ -262,7 +278,7 @@ class SimulationNode(Port):
         publisher is foreign for the whole run (see docs/wire.md).
         """
         for c in self.controllers:
-            topic = CONTROLLER_TOPICS[c].name
+            topic = self.controller_topics[c].name
             anyone = c == T.NODE_SUT and self.external_sut
             self.sources[c] = {gid: name for gid, name in graph.publisher_names(self.node, topic).items()
                                if anyone or name == c}
@@ -315,7 +331,7 @@ class SimulationNode(Port):
         deadline = time.monotonic() + timeout_s
         while True:
             for c in self.controllers:
-                taker, topic = self.takers[c], CONTROLLER_TOPICS[c].name
+                taker, topic = self.takers[c], self.controller_topics[c].name
                 while (got := taker.take()) is not None:
                     data, gid = got
                     self._one_command(c, topic, data, gid, t_ns, pending, malformed)
@@ -427,11 +443,14 @@ class SimulationNode(Port):
         recorder reads every topic and takes them together, so the per-step topics it alone
         reads (clock, odometry, events) bound its lag just as well.
         """
+        t0 = time.perf_counter()
         for name, pub in self.pub.items():
             if name == T.WORLD.name:
                 continue
             while not pub.wait_for_all_acked(graph.duration(0.1)):
                 self._check_interrupt()
+        self.flow_waits += 1
+        self.flow_wait_s += time.perf_counter() - t0
 
     def _check_alone(self) -> None:
         others = self.node.count_publishers(T.WORLD.name) - 1
@@ -441,8 +460,7 @@ class SimulationNode(Port):
                              f"{T.WORLD.name} (another evoscen graph or a replay); choose another domain")
 
     def _rows_of(self, controller: str) -> np.ndarray:
-        role = self.world.role
-        return np.flatnonzero(role == T.ROLE_SUT) if controller == T.NODE_SUT else np.flatnonzero(role == T.ROLE_BV)
+        return self.controller_rows[controller]
 
     def run(self) -> int:
         """The whole run (:class:`~evoscen_sim.step_loop.StepLoop` with this port); returns the exit status."""
@@ -479,7 +497,8 @@ class SimulationNode(Port):
             import json
 
             with open(self.stats_file, "w", encoding="utf-8") as f:
-                json.dump({"steps": steps, "loop_wall_s": seconds, "steps_per_s": rate}, f)
+                json.dump({"steps": steps, "loop_wall_s": seconds, "steps_per_s": rate,
+                           "flow_control_waits": self.flow_waits, "flow_control_wait_s": self.flow_wait_s}, f)
 
 
 def main(args: list[str] | None = None) -> int:
