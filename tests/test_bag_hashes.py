@@ -44,6 +44,11 @@ Compared per topic with the bags before, default scenario, 3,000 steps: with ``b
 every message of all nine topics is byte-identical; with ``by_policy`` every message of the eight
 other topics is (the world does not depend on the split).
 
+Then the tailgating rule (``evaluation.headway_threshold_s``, docs/evaluation.md §2 item 6: the
+metadata record gains the key, the default mutant's exposure events change) and the hard braking of
+the SUT's leader with its episodes drawn per vehicle (``models.learned.hard_brake*``), with the BV
+nodes of ``bvs.nodes`` (their command topics): regenerated after merging them together.
+
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
 """
@@ -58,11 +63,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "afb73a5b651e52d314f227ee9f084ee6955dc18d9fa44d8df84845aa5f144573",  # the shipped default (level0 SUT)
-    "nilsson": "69f055e1ad5be3601d41f35a91fcd56a8488ccbb9f125fe16a18804d46368f29",
-    "mobil": "cbbb3d7b34d282f863f01ff10f5e167e71b4e6fad3dffb91434d437da114a7a1",
-    "stackelberg": "50f307096041814e6f6fcb4988fc1dd229597e77da844a43d5479a935172c4e5",
-    "mutant": "bd864f5554c33f812c0c2231bf39abc6c12348f6469ca5fb25d44c7ae2baf5c8",  # the default mutant
+    None: "c9e7073cefdc1f0c4bd48bb71e59e18963205da7f86e982ad9da0599e228565d",  # the shipped default (level0 SUT)
+    "nilsson": "971ae303520d602b46ab4a9cbfb10cc13e87ea6e34350f3e7fbcbeb749875058",
+    "mobil": "1f555eee106bb75845903744aad20efdaba9fe11c92a15a5fd8495ca966b0f2b",
+    "stackelberg": "b9afdeb2764a62ff9e7004bba1edb4d032deacae1ea78ad8a87caf9ea78037c0",
+    "mutant": "8b2aff5a98190aea94a97c2f11fb874398a455114e8bea2eca9b4ca41d8b47a8",  # the default mutant
 }
 
 
