@@ -45,7 +45,8 @@ import numpy as np
 
 from evoscen_contract import contract as C
 from evoscen_sim.safety import (attribution_steps, beside_dangerous, beside_gap, beside_severity, cut_in_dangerous,
-                                cut_in_gap, dangerous, drac, exposure_runs, follower_headway, follower_ttc, headway_dangerous,
+                                cut_in_gap, dangerous, drac, exposure_runs, follower_headway, follower_ttc,
+                                grace_steps, headway_dangerous, held_longer_than,
                                 rear_dangerous,
                                 sut_follower, sut_leader, sut_ttc)
 
@@ -187,6 +188,7 @@ class ScoreStream:
         self.collision_kinds: dict[int, str] = {}  # index in sut_collisions -> kind
         # reductions
         self.exposures: list[dict] = []
+        self._headway_run = 0  # states of the tailgating condition held unbroken up to the last state seen
         self.finished_changes: list[_Change] = []
         self.n = {key: 0 for key in ("danger", "front", "rear_conflict", "rear_danger", "rear_only", "attributed",
                                      "drac_sut", "drac_follower", "drac_follower_att", "in_view", "cut_in",
@@ -309,7 +311,8 @@ class ScoreStream:
         drac_sut = drac(gap, speed, l_speed)
         front = dangerous(ttc, accel, ev.ttc_threshold_s, ev.hard_brake_mps2, ev.hard_braking, drac_sut, thw,
                           ev.rear_braking_headway_s)
-        tailgate = headway_dangerous(gap, speed, l_speed, ev.headway_threshold_s)
+        tailgate, self._headway_run = held_longer_than(headway_dangerous(gap, speed, l_speed, ev.headway_threshold_s),
+                                                       grace_steps(ev.headway_grace_s, dt), self._headway_run)
         rear_conflict = rear_dangerous(f_ttc, f_accel, thw, ev.ttc_threshold_s, ev.hard_brake_mps2,
                                        ev.rear_braking, ev.rear_braking_headway_s)
         rear_danger = rear_conflict & attributed

@@ -403,13 +403,15 @@ def _follow_close(k):
     return [0.0, 0.0], [0, 0]
 
 
-@pytest.mark.parametrize("threshold, gap_m, expected_states", [(1.0, 20.0, 101), (1.0, 30.0, 0), (0.0, 20.0, 0)])
-def test_live_monitor_equals_the_evaluator_on_a_tailgating_sut(road, threshold, gap_m, expected_states):
+@pytest.mark.parametrize("threshold, grace_s, gap_m, expected_states",
+                         [(1.0, 0.0, 20.0, 101), (1.0, 2.0, 20.0, 81), (1.0, 0.0, 30.0, 0), (0.0, 0.0, 20.0, 0)])
+def test_live_monitor_equals_the_evaluator_on_a_tailgating_sut(road, threshold, grace_s, gap_m, expected_states):
     """The SUT follows vehicle 1 in its lane, both at 25 m/s, bumper gap 20 m (time headway 20/25 =
     0.8 s < 1 s at the leader's speed, not falling back: dangerous in all 101 states) or 30 m (1.2 s:
     never); with the rule off (threshold 0) never. TTC is infinite (equal speeds): only the headway
-    rule. Live exposure events == the evaluator's."""
-    ev = replace(EV, headway_threshold_s=threshold, rear_conflicts="none")
+    rule. With a grace of 2 s (20 states) a state is dangerous once the condition has held for more
+    than 20 states: from state 20 on, 81 states. Live exposure events == the evaluator's."""
+    ev = replace(EV, headway_threshold_s=threshold, headway_grace_s=grace_s, rear_conflicts="none")
     world = hand_built_world(road, [300.0, 300.0 + gap_m + 4.8], [2, 2], [25.0, 25.0], roles=[1, 0])
     report, live = drive(world, _follow_close, 100, ev)
     s = report["safety"]
@@ -417,9 +419,11 @@ def test_live_monitor_equals_the_evaluator_on_a_tailgating_sut(road, threshold, 
     assert s["conflicts"]["headway_states"] == expected_states
     if expected_states:
         ex = s["exposure_list"][0]
-        assert (ex["start_state"], ex["states"], ex["headway_states"]) == (0, 101, 101) and ex["open_at_end"]
+        start = 101 - expected_states
+        assert (ex["start_state"], ex["states"], ex["headway_states"]) == (start, expected_states, expected_states)
+        assert ex["open_at_end"]
         assert "time headway 0.80 s to vehicle 1" in starts[0]["message"]
-        assert s["conflicts"]["headway_only_dangerous_states"] == 101
+        assert s["conflicts"]["headway_only_dangerous_states"] == expected_states
 
 
 @pytest.mark.parametrize("mode", ["all", "after_lane_change"])

@@ -396,6 +396,10 @@ class EvaluationConfig:
     """The SUT following its leader with a time headway (gap / own speed) below this (s) without
     falling back (own speed >= the leader's) makes the state dangerous: tailgating; 0 = off, the
     definition before (the method's TTC and hard braking only). See docs/evaluation.md §2."""
+    headway_grace_s: float = field(default=2.0, metadata=_NON_NEGATIVE)
+    """The tailgating condition makes a state dangerous only once it has held for more than this
+    long without a break (s): a SUT that finds itself too close — a vehicle cut in ahead of it — and
+    restores the gap within it is not tailgating; 0 = from its first state. See docs/evaluation.md §2."""
     drac_threshold_mps2: float = field(default=3.0, metadata=_POSITIVE)
     """Reported counts of states whose DRAC exceeds this (m/s^2; SUMO SSM's default 3)."""
     ssm_ttc_threshold_s: float = field(default=3.0, metadata=_POSITIVE)

@@ -16,7 +16,7 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FA
                                        KIND_END, KIND_START, ROLE_SUT)
 
 from .safety import (RearAttribution, attribution_steps, beside_gap_state, cut_in_dangerous, cut_in_gap_state, drac_one, follower_headway,
-                     hard_braking_dangerous, headway_dangerous, rear_dangerous, sut_follower_ttc_state,
+                     grace_steps, hard_braking_dangerous, headway_dangerous, rear_dangerous, sut_follower_ttc_state,
                      sut_leader_ttc_state)
 
 
@@ -95,6 +95,8 @@ class ExposureMonitor:
         self.beside_lane_change = evaluation.beside_lane_change
         self.hard_braking = evaluation.hard_braking
         self.headway_threshold_s = evaluation.headway_threshold_s
+        self.headway_grace_s = evaluation.headway_grace_s
+        self._headway_run = 0
         self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
         self._rear: RearAttribution | None = None
@@ -125,6 +127,8 @@ class ExposureMonitor:
                 drac_sut = drac_one(float(gap), float(w.v[sut]), float(w.v[leader]))
             tailgating = bool(headway_dangerous(np.float64(gap), np.float64(w.v[sut]), np.float64(w.v[leader]),
                                                 self.headway_threshold_s))
+        self._headway_run = self._headway_run + 1 if tailgating else 0  # = safety.held_longer_than
+        tailgating = self._headway_run > grace_steps(self.headway_grace_s, w.dt_s)
         braking = bool(hard_braking_dangerous(accel, drac_sut, f_thw, self.hard_brake_mps2, self.hard_braking,
                                               self.rear_braking_headway_s))
         danger = bool(ttc < self.ttc_threshold_s) or braking or tailgating  # = safety.dangerous | headway_dangerous

@@ -30,7 +30,10 @@ Definitions, choices and their reasons: docs/evaluation.md. A state is **dangero
   follows the leader in its path with a time headway (bumper-to-bumper gap / its own speed)
   below the threshold without falling back (its speed at least the leader's)
   (:func:`headway_dangerous`): following that close leaves no time to react to a leader that
-  brakes, whether or not the two close in (TTC is infinite at equal speeds).
+  brakes, whether or not the two close in (TTC is infinite at equal speeds). The state is
+  dangerous once the condition has held for more than ``evaluation.headway_grace_s`` [2 s]
+  without a break (:func:`held_longer_than`): a SUT that finds itself too close after a vehicle
+  cut in ahead and restores the gap within it is not tailgating.
 
 **[choice]** "in its path": another vehicle whose body overlaps the SUT's laterally
 (|d_j - d_sut| < (w_j + w_sut)/2 in road coordinates) and whose centre is ahead
@@ -152,6 +155,24 @@ def headway_dangerous(gap_m: np.ndarray | float, sut_speed: np.ndarray | float, 
     with np.errstate(divide="ignore", invalid="ignore"):
         thw = np.where(v > 0.0, gap / np.where(v > 0.0, v, 1.0), np.inf)
     return np.isfinite(gap) & (v > 0.0) & (thw < threshold_s) & (v >= vl)
+
+
+def grace_steps(grace_s: float, dt_s: float) -> int:
+    """The tailgating grace in states: round(grace / dt)."""
+    return int(round(grace_s / dt_s)) if grace_s > 0.0 else 0
+
+
+def held_longer_than(condition: np.ndarray, steps: int, carry: int = 0) -> tuple[np.ndarray, int]:
+    """Whether each state's ``condition`` has held for more than ``steps`` consecutive states up to
+    and including it, counting ``carry`` states of an unbroken run before the first (a block of a
+    longer run); returns (that, the run length at the last state: the next block's carry)."""
+    cond = np.asarray(condition, dtype=bool)
+    run = np.empty(cond.shape[0], dtype=np.int64)
+    r = int(carry)
+    for k, c in enumerate(cond.tolist()):
+        r = r + 1 if c else 0
+        run[k] = r
+    return run > steps, r
 
 
 def hard_braking_dangerous(sut_accel: np.ndarray, drac_sut: np.ndarray | float, follower_thw_s: np.ndarray | float,

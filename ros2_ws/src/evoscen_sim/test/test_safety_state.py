@@ -27,6 +27,7 @@ from evoscen_sim.safety import (
     drac_one,
     follower_ttc,
     headway_dangerous,
+    held_longer_than,
     rear_attributed,
     sut_follower,
     sut_follower_ttc_state,
@@ -337,3 +338,17 @@ def test_headway_rule_by_hand():
     assert headway_dangerous(gap, v, vl, 1.0).tolist() == [True, False, True, False, False, False, True]
     assert not headway_dangerous(gap, v, vl, 0.0).any()  # off
     assert headway_dangerous(np.float64(20.0), np.float64(25.0), np.float64(25.0), 0.8).tolist() is False  # 0.8 < 0.8: no
+
+
+def test_headway_grace_counts_unbroken_runs_across_blocks():
+    cond = np.array([1, 1, 1, 0, 1, 1, 1, 1], dtype=bool)
+    held, carry = held_longer_than(cond, 2)  # more than 2 states unbroken: the 3rd of a run on
+    assert held.tolist() == [False, False, True, False, False, False, True, True] and carry == 4
+    # the same states split into blocks of 3 and 5, the run carried over: the same answer
+    a, c = held_longer_than(cond[:3], 2)
+    b, c = held_longer_than(cond[3:], 2, c)
+    assert np.concatenate([a, b]).tolist() == held.tolist() and c == 4
+    # a run still unbroken at a block's end continues in the next
+    a, c = held_longer_than(np.array([True, True]), 2)
+    b, _ = held_longer_than(np.array([True, False]), 2, c)
+    assert (a.tolist(), b.tolist()) == ([False, False], [True, False])
