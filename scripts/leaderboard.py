@@ -38,8 +38,8 @@ from pathlib import Path
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 
-EPISODES, EPISODE_STEPS, FIRST_SEED = "40", "300", "20000"
-"""The defaults: 40 episodes of 300 steps per SUT on seeds 20000.. (docs/experiments.md "Leaderboard":
+EPISODES, EPISODE_STEPS, FIRST_SEED = "200", "300", "20000"
+"""The defaults: 200 episodes of 300 steps per SUT on seeds 20000.. (docs/experiments.md "Leaderboard":
 sized so that every SUT shipped and both example plug-ins run within 20 minutes on 2 cores)."""
 REFERENCE = "mobil"
 TERMS = ("safety", "efficiency", "interaction")
@@ -161,20 +161,19 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
                          *col, *exp, len(reps), *(v for r in rates for v in r), ""])
         ssm_rows.append([str(rank), sut, *(fmt_ci(*r, 2) for r in rates), str(len(reps))])
         plot_rows.append((sut, stats[sut], None if isinstance(d, str) or d is None else d))
-    n_cols = 2 + 2 * len(TERMS) + 3 + 1 + 4 + 1 + 2 * len(SSM_RATES)
+    csv_header = ["rank", "sut", "status", "intelligence_mean", "intelligence_ci95",
+                  *(f"{t}_weighted_{s}" for t in TERMS for s in ("mean", "ci95")),
+                  f"d_intelligence_vs_{args.reference}_mean", f"d_intelligence_vs_{args.reference}_ci95", "paired_n",
+                  "significant", "collisions_mean", "collisions_ci95", "exposures_mean", "exposures_ci95", "episodes",
+                  *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "error"]
     for sut in suts:
         if sut in failed:
             count, error = failed[sut]
             rows.append(["–", sut, f"failed ({count}/{episodes} episodes): {error}", *["–"] * 3, "–", "–", "–", "–",
                          "–"])
-            csv_rows.append(["", sut, "failed", *[""] * (n_cols - 1), f"{count}/{episodes} episodes: {error}"])
+            csv_rows.append(["", sut, "failed", *[""] * (len(csv_header) - 4), f"{count}/{episodes} episodes: {error}"])
 
-    write_csv(args.out / "leaderboard.csv",
-              ["rank", "sut", "status", "intelligence_mean", "intelligence_ci95",
-               *(f"{t}_weighted_{s}" for t in TERMS for s in ("mean", "ci95")),
-               f"d_intelligence_vs_{args.reference}_mean", f"d_intelligence_vs_{args.reference}_ci95", "paired_n",
-               "significant", "collisions_mean", "collisions_ci95", "exposures_mean", "exposures_ci95", "episodes",
-               *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "error"], csv_rows)
+    write_csv(args.out / "leaderboard.csv", csv_header, csv_rows)
     episode_rows = []
     for rnd in rounds:
         if rnd.label in failed:
