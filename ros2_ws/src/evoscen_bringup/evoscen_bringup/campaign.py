@@ -354,6 +354,17 @@ def _host_fault_of(exc: BaseException):  # noqa: ANN202 - HostFault | None
     return None
 
 
+def _task_error(exc: BaseException) -> str:
+    """One line for a failed task: the task's own exception (Ray wraps it), its type and first line."""
+    for _ in range(8):
+        inner = getattr(exc, "cause", None)  # Ray's RayTaskError: the task's own exception
+        if not isinstance(inner, BaseException) or inner is exc:
+            break
+        exc = inner
+    text = str(exc)
+    return f"{type(exc).__name__}: {text.splitlines()[0] if text else ''}"
+
+
 def _write_files(run_dir: Path, files: Mapping[str, bytes]) -> None:
     """A run's files from its worker (clips, bag), replacing any of an earlier, interrupted attempt."""
     import shutil
@@ -444,8 +455,7 @@ def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult
                         result.host_fault = (f"run {run.key} (seed {run.seed}): cannot write {fault.path} on its "
                                              f"worker: {fault.cause}")
                         raise _HostFaultStop from None
-                    result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): "
-                                         f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}")
+                    result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): {_task_error(exc)}")
                     continue
                 path = result_path(out_dir, run.key)
                 try:

@@ -49,12 +49,15 @@ class Round:
 
 
 def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
-               progress: Callable[[int, int, str], None] | None = None) -> dict[str, dict[str, Any]]:
+               progress: Callable[[int, int, str], None] | None = None,
+               failures: dict[str, str] | None = None) -> dict[str, dict[str, Any]]:
     """Run the rounds not finished yet on a local Ray of ``jobs`` workers; returns every round's
     result by key (``label``, ``seed``, ``steps``, ``wall_time_s``, ``report``, ``ttc_hist``,
     ``speed_hist``). ``progress(done, total, text)`` as rounds finish (the saved ones first).
     KeyboardInterrupt after Ctrl-C (finished rounds are kept); RuntimeError naming the rounds
-    that failed after their retries.
+    that failed after their retries — unless ``failures`` is given: then each failed round's
+    error (one line: the exception's type and first line) goes into it by key, and the
+    returned dict has the rounds that finished.
     """
     from .campaign import CampaignRun, load_result, result_path, run_campaign
 
@@ -72,9 +75,15 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     if result is not None and result.interrupted:
         raise KeyboardInterrupt
     if result is not None and result.failed:
-        raise RuntimeError(f"{len(result.failed)} round(s) failed: {result.failed[0]}")
+        if failures is None:
+            raise RuntimeError(f"{len(result.failed)} round(s) failed: {result.failed[0]}")
+        for line in result.failed:  # "<key> (<cell>, seed <s>): <error>"
+            key, _, rest = line.partition(" ")
+            failures[key] = rest.split("): ", 1)[-1]
     out = {}
     for rnd, run in zip(rounds, runs):
+        if failures is not None and rnd.key in failures:
+            continue
         saved = load_result(out_dir, run.key)
         row = saved["row"]
         out[rnd.key] = {"label": rnd.label, "seed": rnd.cfg.seed, "steps": row["steps"],
@@ -130,9 +139,10 @@ def set_up(out_dir: Path, build: Callable[[], T]) -> T | None:
     return built
 
 
-def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, desc: str
-                        ) -> dict[str, dict[str, Any]] | None:
-    """:func:`run_rounds` behind a tqdm progress bar (stderr); None after Ctrl-C (finished rounds are kept)."""
+def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, desc: str,
+                        failures: dict[str, str] | None = None) -> dict[str, dict[str, Any]] | None:
+    """:func:`run_rounds` behind a tqdm progress bar (stderr); None after Ctrl-C (finished rounds are kept).
+    ``failures``: as for :func:`run_rounds` (failed rounds collected, not fatal)."""
     import sys
 
     from tqdm import tqdm
@@ -145,7 +155,7 @@ def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, de
         bar.refresh()
 
     try:
-        return run_rounds(rounds, out_dir, jobs=jobs, progress=progress)
+        return run_rounds(rounds, out_dir, jobs=jobs, progress=progress, failures=failures)
     except KeyboardInterrupt:
         bar.close()
         print(f"interrupted: finished rounds are kept in {out_dir / 'runs'}; run again to continue",

@@ -1,0 +1,264 @@
+#!/usr/bin/env python3
+"""The planner leaderboard: every installed SUT in the default test, ranked by intelligence.
+
+    python scripts/leaderboard.py [--out DIR] [--config FILE] [--suts all|NAME,...] [--reference mobil]
+                                  [--episodes N] [--episode-steps 300] [--first-seed 20000] [--jobs N]
+
+Every SUT model installed — the built-ins and the ``evoscen.sut`` plug-ins (docs/plugins.md);
+not the sensitivity experiment's ``mutant`` wrapper, which is a defect of another model — runs
+the default test (docs/sensitivity.md, the episodes design): ``--episodes`` short in-process
+runs of ``--episode-steps`` steps among the configuration's BVs (the shipped default: learned
+social drivers), each episode its own seed from ``--first-seed`` on. Every SUT gets the same
+seeds (the same initial traffic after the warm-up and the same random streams) and the same
+SUT steps, so the SUTs are compared paired, episode by episode. Per SUT: the intelligence score
+and its three weighted terms (safety, efficiency, interaction), mean ± 95 % Student-t interval
+over the episodes, n, the collisions and exposures per episode, the surrogate-safety rates per
+SUT-km (docs/evaluation.md §9), and the paired difference of intelligence against
+``--reference`` (SUT − reference, mean ± 95 % interval over the shared episodes; significant
+when the interval excludes 0). SUTs are ranked by mean intelligence (ties: by name). A SUT whose
+runs fail is listed as failed with the first error, not ranked; the others are still ranked.
+
+Runs go on ``--jobs`` Ray workers (the campaign engine, one run per worker process) and are saved
+as they finish: an interrupted leaderboard continues where it stopped. Writes into ``--out``:
+``leaderboard.md`` (the ranked table, the surrogate-safety table, the command), ``leaderboard.csv``
+(one row per SUT, ranked, failed SUTs last), ``episodes.csv`` (every episode of every SUT) and
+``leaderboard.png`` (intelligence with its interval and the paired difference against the
+reference, per SUT); prints the tables. Exit status: 0 done (failed SUTs included), 2 bad
+input, 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from pathlib import Path
+
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
+
+EPISODES, EPISODE_STEPS, FIRST_SEED = "200", "300", "20000"
+"""The defaults: 200 episodes of 300 steps per SUT on seeds 20000.. (docs/experiments.md §4: the built-ins and
+both example plug-ins, 1,200 runs, took 7 min 36 s on 2 cores; the budget is 20 minutes)."""
+REFERENCE = "mobil"
+TERMS = ("safety", "efficiency", "interaction")
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    ap = argparse.ArgumentParser(prog="leaderboard.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("runs/leaderboard"), help="output directory")
+    ap.add_argument("--config", type=Path, help="base scenario YAML (default: the shipped default)")
+    ap.add_argument("--suts", default="all", help="'all' (every installed SUT model) or comma-separated SUT models")
+    ap.add_argument("--reference", default=REFERENCE, help=f"the SUT the others are compared with (default {REFERENCE})")
+    ap.add_argument("--episodes", default=EPISODES, help=f"episodes (seeds) per SUT (default {EPISODES})")
+    ap.add_argument("--episode-steps", default=EPISODE_STEPS, help=f"steps per episode (default {EPISODE_STEPS})")
+    ap.add_argument("--first-seed", default=FIRST_SEED, help=f"first episode's seed (default {FIRST_SEED})")
+    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
+    return ap.parse_args(argv)
+
+
+def installed_suts() -> list[str]:
+    """Every SUT model installed, in registration order (built-ins, then plug-ins), without the mutant wrapper."""
+    from evoscen_sim import models
+    from evoscen_sut.mutant import NAME as MUTANT
+
+    models.discover()
+    return [name for name in models.SUT_MODELS if name != MUTANT]
+
+
+def resolve_suts(text: str, reference: str) -> list[str]:
+    """The SUTs of ``--suts`` (InputError of one line: unknown, twice, the mutant wrapper, no reference)."""
+    from evoscen_bringup.experiments import distinct_names
+    from evoscen_sim.errors import InputError
+
+    installed = installed_suts()
+    suts = installed if text.strip() == "all" else distinct_names("--suts", text, "SUT model names")
+    for name in suts:
+        if name not in installed:
+            raise InputError(f"--suts: {name!r} is no installed SUT model to rank: expected 'all' or names from "
+                             f"{', '.join(installed)}")
+    if reference not in suts:
+        raise InputError(f"--reference {reference!r} is not among the SUTs ranked ({', '.join(suts)})")
+    return suts
+
+
+def ranked(means: dict[str, float]) -> list[str]:
+    """SUT names by mean intelligence, highest first; ties (and nan, last) by name."""
+    return sorted(means, key=lambda s: (math.isnan(means[s]), -means[s] if not math.isnan(means[s]) else 0.0, s))
+
+
+def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear report
+    args = parse_args(argv)
+    from evoscen_bringup.experiments import (Round, fmt_ci, markdown_table, mean_ci, positive_int,
+                                             run_rounds_with_bar, set_up, write_csv)
+    from evoscen_bringup.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
+    from evoscen_sim.config import load_scenario_config
+
+    def build():  # noqa: ANN202
+        episodes = positive_int("--episodes", args.episodes)
+        steps = positive_int("--episode-steps", args.episode_steps)
+        first = positive_int("--first-seed", args.first_seed, 0)
+        jobs = positive_int("--jobs", args.jobs)
+        suts = resolve_suts(args.suts, args.reference)
+        rounds = [Round(sut, load_scenario_config(args.config, {"sut.model": sut, "seed": str(seed),
+                                                                "steps": str(steps), "recording.enabled": "false"}))
+                  for sut in suts for seed in range(first, first + episodes)]
+        return suts, rounds, episodes, steps, first, jobs
+
+    built = set_up(args.out, build)
+    if built is None:
+        return EXIT_BAD_INPUT
+    suts, rounds, episodes, steps, first, jobs = built
+
+    failures: dict[str, str] = {}
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="leaderboard", failures=failures)
+    if results is None:
+        return EXIT_INTERRUPTED
+
+    failed: dict[str, tuple[int, str]] = {}  # SUT -> (failed episodes, first error)
+    for rnd in rounds:
+        if rnd.key in failures:
+            count, first_error = failed.get(rnd.label, (0, failures[rnd.key]))
+            failed[rnd.label] = (count + 1, first_error)
+    ok = [s for s in suts if s not in failed]
+    reports = {s: {r.cfg.seed: results[r.key]["report"] for r in rounds if r.label == s} for s in ok}
+    intel = {s: {seed: score_of(rep, "intelligence") for seed, rep in reports[s].items()} for s in ok}
+    stats = {s: mean_ci([v for v in intel[s].values() if not math.isnan(v)]) for s in ok}
+    order = ranked({s: stats[s][0] for s in ok})
+    ref = args.reference if args.reference in ok else None
+
+    def weighted(rep: dict, term: str) -> float:
+        value = rep["intelligence"]["weighted"].get(term)
+        return math.nan if value is None else float(value)
+
+    def ci(values) -> tuple[float, float]:  # noqa: ANN001
+        return mean_ci([v for v in values if not math.isnan(v)])
+
+    rows, csv_rows, ssm_rows, plot_rows = [], [], [], []
+    for rank, sut in enumerate(order, 1):
+        reps = list(reports[sut].values())
+        terms = [ci(weighted(x, t) for x in reps) for t in TERMS]
+        col = ci(float(x["safety"]["collisions"]) for x in reps)
+        exp = ci(float(x["safety"]["exposures"]) for x in reps)
+        rates = [ci(ssm_rate(x, side, m) for x in reps) for side, m in SSM_RATES]
+        if ref is None:
+            d = None
+        elif sut == ref:
+            d = "reference"
+        else:
+            d = paired(intel[sut], intel[ref])
+        if isinstance(d, str) or d is None:
+            d_text, sig_text, d_csv, sig = ("reference" if d else "–"), "–", [math.nan, math.nan, 0], ""
+        else:
+            sig = d.n >= 2 and math.isfinite(d.half) and abs(d.mean) > d.half
+            d_text = fmt_ci(d.mean, d.half)
+            sig_text = ("yes, " + ("higher" if d.mean > 0 else "lower")) if sig else "no"
+            d_csv, sig = [d.mean, d.half, d.n], int(sig)
+        rows.append([str(rank), sut, fmt_ci(*stats[sut]), *(fmt_ci(*t) for t in terms), d_text, sig_text,
+                     fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
+        csv_rows.append([rank, sut, "ok", *stats[sut], *(v for t in terms for v in t), *d_csv, sig,
+                         *col, *exp, len(reps), *(v for r in rates for v in r), ""])
+        ssm_rows.append([str(rank), sut, *(fmt_ci(*r, 2) for r in rates), str(len(reps))])
+        plot_rows.append((sut, stats[sut], None if isinstance(d, str) or d is None else d))
+    csv_header = ["rank", "sut", "status", "intelligence_mean", "intelligence_ci95",
+                  *(f"{t}_weighted_{s}" for t in TERMS for s in ("mean", "ci95")),
+                  f"d_intelligence_vs_{args.reference}_mean", f"d_intelligence_vs_{args.reference}_ci95", "paired_n",
+                  "significant", "collisions_mean", "collisions_ci95", "exposures_mean", "exposures_ci95", "episodes",
+                  *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "error"]
+    for sut in suts:
+        if sut in failed:
+            count, error = failed[sut]
+            rows.append(["–", sut, f"failed ({count}/{episodes} episodes): {error}", *["–"] * 3, "–", "–", "–", "–",
+                         "–"])
+            csv_rows.append(["", sut, "failed", *[""] * (len(csv_header) - 4), f"{count}/{episodes} episodes: {error}"])
+
+    write_csv(args.out / "leaderboard.csv", csv_header, csv_rows)
+    episode_rows = []
+    for rnd in rounds:
+        if rnd.label in failed:
+            continue
+        r = results[rnd.key]
+        x = r["report"]
+        episode_rows.append([rnd.label, r["seed"], r["steps"], score_of(x, "intelligence"),
+                             *(weighted(x, t) for t in TERMS), *(score_of(x, t) for t in TERMS),
+                             x["safety"]["collisions"], x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"],
+                             r["wall_time_s"], *(ssm_rate(x, side, m) for side, m in SSM_RATES)])
+    write_csv(args.out / "episodes.csv",
+              ["sut", "seed", "steps", "intelligence", *(f"{t}_weighted" for t in TERMS), *TERMS, "collisions",
+               "exposures", "mean_speed_mps", "wall_time_s", *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES)],
+              episode_rows)
+
+    header = ["rank", "SUT", "intelligence", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)",
+              f"ΔI vs {args.reference} (paired)", "significant (95 %)", "collisions / episode", "exposures / episode",
+              "n"]
+    table = markdown_table(header, rows)
+    first_report = next((results[r.key]["report"] for r in rounds if r.label in ok), None)
+    ssm_table = markdown_table(["rank", "SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "n"],
+                               ssm_rows) if ssm_rows else ""
+    cfg0 = rounds[0].cfg
+    wall = sum(results[r.key]["wall_time_s"] for r in rounds if r.key in results)
+    ref_note = (f"ΔI: the SUT's intelligence minus {args.reference}'s on the same episodes, mean ± 95 % interval of "
+                f"the per-episode difference; significant when the interval excludes 0."
+                if ref else f"The reference {args.reference} failed: no paired differences.")
+    text = (f"# Planner leaderboard\n\n{len(suts)} SUTs x {episodes} episodes (seeds {first}..{first + episodes - 1}) "
+            f"x {steps} steps, after a warm-up of {cfg0.traffic.warmup_s:g} s, among {cfg0.bvs.count} BVs "
+            f"({cfg0.bvs.driver}); weights {cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
+            f"{cfg0.evaluation.weight_interaction:g}; mean ± 95 % interval over the episodes; ranked by mean "
+            f"intelligence. {ref_note} {wall:.0f} s of simulation in all.\n\n{table}\n"
+            + (f"Surrogate safety per SUT-km (docs/evaluation.md §9; front: the SUT behind its leader, rear: its "
+               f"follower behind it), mean ± 95 % interval over the episodes:\n\n{ssm_table}\n" if ssm_table else "")
+            + "![leaderboard](leaderboard.png)\n\nMade by:\n\n    python scripts/leaderboard.py "
+            + " ".join(a for a in (argv if argv is not None else sys.argv[1:])) + "\n")
+    (args.out / "leaderboard.md").write_text(text, encoding="utf-8")
+    if plot_rows:
+        plot(args.out / "leaderboard.png", plot_rows, args.reference if ref else None)
+    print(table, end="")
+    if ssm_table:
+        print("\n" + ssm_table, end="")
+    for sut, (count, error) in failed.items():
+        print(f"failed: {sut}: {count}/{episodes} episodes: {error}", file=sys.stderr)
+    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv"
+          + (", leaderboard.png" if plot_rows else ""))
+    return EXIT_OK
+
+
+def plot(path: Path, rows, reference: str | None) -> None:  # noqa: ANN001
+    """Per SUT (ranked, top first): intelligence with its 95 % interval; beside it the paired
+    difference against the reference with its interval (green/red: significantly higher/lower)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = 2 if reference else 1
+    fig, axes = plt.subplots(1, panels, figsize=(5.0 * panels, 0.45 * len(rows) + 1.6), sharey=True, squeeze=False)
+    ys = range(len(rows))
+    ax = axes[0][0]
+    for y, (_sut, (mean, half), _d) in zip(ys, rows):
+        h = 0.0 if math.isnan(half) else half
+        ax.errorbar([mean], [y], xerr=[[h], [h]], fmt="o", color="tab:blue", capsize=3)
+    ax.set_yticks(list(ys), [r[0] for r in rows])
+    ax.invert_yaxis()
+    ax.set_xlabel("intelligence (mean, 95 % CI)")
+    ax.set_title("Leaderboard", fontsize=10)
+    if reference:
+        ax = axes[0][1]
+        for y, (_sut, _s, d) in zip(ys, rows):
+            if d is None:
+                ax.plot([0.0], [y], "D", color="k")
+                continue
+            h = 0.0 if math.isnan(d.half) else d.half
+            sig = d.n >= 2 and math.isfinite(d.half) and abs(d.mean) > d.half
+            color = ("tab:green" if d.mean > 0 else "tab:red") if sig else "tab:gray"
+            ax.errorbar([d.mean], [y], xerr=[[h], [h]], fmt="o", color=color, capsize=3)
+        ax.axvline(0.0, color="k", lw=0.8)
+        ax.set_xlabel(f"ΔI − {reference}, paired by episode (95 % CI)")
+        ax.set_title(f"Against {reference}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
