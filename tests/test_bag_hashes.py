@@ -47,7 +47,8 @@ other topics is (the world does not depend on the split).
 Then the tailgating rule (``evaluation.headway_threshold_s``, docs/evaluation.md §2 item 6: the
 metadata record gains the key, the default mutant's exposure events change) and the hard braking of
 the SUT's leader with its episodes drawn per vehicle (``models.learned.hard_brake*``), with the BV
-nodes of ``bvs.nodes`` (their command topics): regenerated after merging them together.
+nodes of ``bvs.nodes`` (their command topics): regenerated after merging them together; then the
+tailgating rule's grace (``evaluation.headway_grace_s``: the metadata record, the mutant's exposures).
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
@@ -63,11 +64,11 @@ import pytest
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
-    None: "c9e7073cefdc1f0c4bd48bb71e59e18963205da7f86e982ad9da0599e228565d",  # the shipped default (level0 SUT)
-    "nilsson": "971ae303520d602b46ab4a9cbfb10cc13e87ea6e34350f3e7fbcbeb749875058",
-    "mobil": "1f555eee106bb75845903744aad20efdaba9fe11c92a15a5fd8495ca966b0f2b",
-    "stackelberg": "b9afdeb2764a62ff9e7004bba1edb4d032deacae1ea78ad8a87caf9ea78037c0",
-    "mutant": "8b2aff5a98190aea94a97c2f11fb874398a455114e8bea2eca9b4ca41d8b47a8",  # the default mutant
+    None: "15dd1faa6d268ba0a7582fa2c2a3856b5acffd7d5b2e65ccfcc3e1ecbd0a0d2d",  # the shipped default (level0 SUT)
+    "nilsson": "ebec3714d96ca35c061953a6c992c5e55806f0adbb4e75a56c2386d84c160f36",
+    "mobil": "fe1a00529871d3ddd0cfcded8f4098887332171fb0a7ba9c7750ac9c3f3b1277",
+    "stackelberg": "d6d152fac0f49f33b0a75e91a5d6c7d4f15433c9e9440549a13fbc009c20f6de",
+    "mutant": "2fc9dda0822bed48f965ea3b08f3117fc59b2790d6c21953b20cc2ac9966262a",  # the default mutant
 }
 
 
