@@ -56,8 +56,11 @@ else
 fi
 [ ${#scen[@]} -eq 0 ] && scen=(--steps 3000 --seed 0)
 steps=3000; bv_nodes=by_policy
-for ((i=0; i<${#scen[@]}-1; i++)); do
-  case ${scen[$i]} in --steps) steps=${scen[$((i+1))]} ;; --bv-nodes) bv_nodes=${scen[$((i+1))]} ;; esac
+for ((i=0; i<${#scen[@]}; i++)); do
+  case ${scen[$i]} in
+    --steps) steps=${scen[$((i+1))]:-$steps} ;; --steps=*) steps=${scen[$i]#--steps=} ;;
+    --bv-nodes) bv_nodes=${scen[$((i+1))]:-$bv_nodes} ;; --bv-nodes=*) bv_nodes=${scen[$i]#--bv-nodes=} ;;
+  esac
 done
 # the BV containers: one per BV node of the default partition, or one for all BV nodes
 [ -n "$bvc" ] || { [ "$bv_nodes" = by_policy ] && bvc=per-node || bvc=one; }

@@ -86,6 +86,10 @@ def test_other_partitions_use_one_bv_container(tmp_path: Path) -> None:
     assert rc == 0, err
     assert "--profile bv-one" in next(c for c in calls if " up " in f" {c} ")
     assert "node bv: exit 0" in err and "bv-mutual" not in err
+    rc, err, calls = run(tmp_path, codes, "--", "--steps", "10", "--bv-nodes=3")
+    assert rc == 0 and "--profile bv-one" in next(c for c in calls if " up " in f" {c} ")
+    rc, err, calls = run(tmp_path, BY_POLICY, "--", "--steps", "10", "--bv-nodes", "by_policy")
+    assert rc == 0 and "--profile bv-by-policy" in next(c for c in calls if " up " in f" {c} ")
     rc, err, calls = run(tmp_path, codes, "--bv-containers", "one", "--", "--steps", "10")
     assert rc == 0 and "--profile bv-one" in next(c for c in calls if " up " in f" {c} ")
     rc, err, _ = run(tmp_path, {**codes, "bv": 137, "sim": 3}, "--bv-containers", "one", "--", "--steps", "10")
