@@ -83,7 +83,7 @@ clean:
 DOCKER_DEMO_OUT ?= runs/docker-demo
 
 docker-build:
-	bash docker/build.sh test runtime user-sut
+	bash docker/build.sh test runtime user-sut fiss-sut
 
 # the whole suite inside the test image, no network (loopback only: DDS stays inside the container)
 docker-test:

@@ -2,18 +2,21 @@
 # The container job of CI (.ci/run runs it after the native suite; .github/workflows/ci.yml too):
 #   1. the engine: docker when its daemon answers, else podman (docker/setup-podman.sh: installs and
 #      configures it and makes the base image from the Debian mirror: no image registry needed)
-#   2. the images: test, runtime, user-sut
+#   2. the images: test, runtime, user-sut, fiss-sut (the runtime image + the fiss plug-in)
 #   3. the end-to-end suite (marker e2e: node graphs, CLI subprocesses, the wire) inside the test image, no network;
 #      the unit tests ran natively on the same requirements.txt (docs/docker.md)
-#   4. a compose graph (one container per node) whose bag equals the in-process bag of the same
-#      configuration and seed, byte for byte (in-process run in the runtime image)
-#   5. the BV container killed mid-run: the graph ends with the controller fault (status 3) and a
-#      readable bag whose last fault is the BV node's abort
+#   4. a compose graph (one container per node, three BV containers: one per BV node of the default
+#      partition) whose bag equals the in-process bag of the same configuration and seed, byte for
+#      byte (in-process run in the runtime image)
+#   5. one of the three BV containers killed mid-run: the graph ends with status 4 (a node died;
+#      the deadline abort is its consequence) and a readable bag whose last fault is that BV node's abort
 #   6. a user's SUT container built only from examples/ drives the SUT in a compose graph
+#   7. the third-party planner FISS+ (the fiss plug-in) as the SUT node in its own container: the
+#      bag equals the in-process bag of --sut fiss on the same seed and steps, byte for byte
 # Needs the project's .venv on the host (make setup) for the bag checks (docker/check_bag.py).
 #   docker/ci.sh              everything above
 #   docker/ci.sh --build      steps 1-2 only (.ci/run runs them at low priority beside the native suite)
-#   docker/ci.sh --no-build   steps 3-6 (the images are there)
+#   docker/ci.sh --no-build   steps 3-7 (the images are there)
 set -euo pipefail
 mode=${1:-all}
 case $mode in all|--build|--no-build) ;; *) echo "error: docker/ci.sh: unknown option '$mode' (expected --build or --no-build)" >&2; exit 2 ;; esac
@@ -26,7 +29,7 @@ if [ "$mode" != --no-build ]; then
   fi
   . docker/engine.sh
   stage "images ($ENGINE)"
-  bash docker/build.sh test runtime user-sut
+  bash docker/build.sh test runtime user-sut fiss-sut
   [ "$mode" = --build ] && { stage "images built"; exit 0; }
 fi
 . docker/engine.sh
@@ -45,7 +48,7 @@ $ENGINE run --rm -v "$out/inprocess:/data" localhost/evoscen:latest --mode inpro
   --quiet --out /data --overwrite >/dev/null
 check equal "$out/graph/bag" "$out/inprocess/bag"
 
-stage "BV container killed mid-run"
+stage "BV container killed mid-run (bv-mutual of three)"
 proj=evoscen-ci-kill-$$
 bash docker/compose-run.sh --out "$out/kill" --project "$proj" -- --steps 20000 --seed 5 --deadline 0.5 --max-misses 3 \
   --no-plots &
@@ -55,15 +58,22 @@ for _ in $(seq 1 240); do  # until the run is under way: the bag grows past its 
   [ "$size" -gt 200000 ] && break
   sleep 0.5
 done
-bv=$($ENGINE ps -q --filter "label=com.docker.compose.project=$proj" --filter "label=com.docker.compose.service=bv")
-[ -n "$bv" ] || { echo "error: no running BV container to kill"; exit 1; }
+bv=$($ENGINE ps -q --filter "label=com.docker.compose.project=$proj" --filter "label=com.docker.compose.service=bv-mutual")
+[ -n "$bv" ] || { echo "error: no running bv-mutual container to kill"; exit 1; }
 $ENGINE kill "$bv" >/dev/null
 rc=0; wait $run || rc=$?
-echo "graph status after the BV kill: $rc (expected 3: a controller fault)"
-[ "$rc" = 3 ] || exit 1
-check aborted "$out/kill/bag" evoscen_bv
+echo "graph status after the BV kill: $rc (expected 4: a node died)"
+[ "$rc" = 4 ] || exit 1
+check aborted "$out/kill/bag" evoscen_bv_mutual
 
 stage "a user's SUT container (examples/)"
 bash docker/compose-run.sh --out "$out/user-sut" --user-sut -- --steps 300 --seed 1 --no-plots
 check complete "$out/user-sut/bag" 300
+
+stage "the fiss planner in its own SUT container vs in-process"
+bash docker/compose-run.sh --out "$out/fiss" --fiss-sut -- --steps 300 --seed 3 --no-plots
+mkdir -p "$out/fiss-inprocess"; [ "$(id -u)" = 0 ] && chown 10001:10001 "$out/fiss-inprocess"
+$ENGINE run --rm -v "$out/fiss-inprocess:/data" localhost/evoscen-fiss:latest --mode inprocess --sut fiss --steps 300 \
+  --seed 3 --no-plots --quiet --out /data --overwrite >/dev/null
+check equal "$out/fiss/bag" "$out/fiss-inprocess/bag"
 stage "done"

@@ -6,8 +6,10 @@ mutant of the run's ``sut.model``, :mod:`evoscen_sut.mutants`, or ``intact``); t
 every combination of the axes' values (a *cell*) for every seed. Each run is one Ray task of
 one CPU that simulates and scores the run in-process (:func:`evoscen_bringup.inprocess.run_inprocess`).
 
-**Once.** A run is keyed by a hash of its whole resolved configuration and of the code
-version (:func:`code_version`: the content of evoscen's packages, maps and shipped policies).
+**Once.** A run is keyed by a hash of its whole resolved configuration, of the code
+version (:func:`code_version`: the content of evoscen's packages, maps and shipped policies) and,
+for a run that uses a plug-in model, of that plug-in (:func:`plugin_versions`: its distribution's
+name and version and the content of its module's files).
 Its result (``OUT/runs/<key>/result.json`` with its ``report.json`` beside) is written by the
 driver, atomically, when the task returns; a run whose result exists is never run again, so
 an interrupted campaign resumes where it stopped, and the results table
@@ -219,9 +221,69 @@ def expand(spec: Spec, version: str | None = None) -> list[CampaignRun]:
 
 
 def run_key(cfg: ScenarioConfig, version: str) -> str:
-    """The run's key: SHA-256 of its whole resolved configuration and the code version (20 hex digits)."""
-    text = json.dumps(config_to_dict(cfg), sort_keys=True, default=str)
-    return hashlib.sha256(f"{version}\n{text}".encode()).hexdigest()[:20]
+    """The run's key: SHA-256 of its whole resolved configuration, the code version and the plug-ins
+    the run uses (:func:`plugin_versions`; a run without one keeps the key it had before plug-ins
+    were part of it) — 20 hex digits."""
+    d = config_to_dict(cfg)
+    text = json.dumps(d, sort_keys=True, default=str)
+    plugins = plugin_versions(d)
+    head = f"{version}\n{plugins}" if plugins else version
+    return hashlib.sha256(f"{head}\n{text}".encode()).hexdigest()[:20]
+
+
+def plugin_versions(config: dict[str, Any]) -> str:
+    """The plug-in models a resolved configuration (:func:`config_to_dict`) names — any of its values
+    or ``models`` keys that is a plug-in's model name: ``sut.model``, ``bvs.driver``, a mutant's
+    ``models.mutant.base`` — each as ``name=distribution==version:hash`` (:func:`plugin_fingerprint`),
+    sorted and joined by ``;``; empty when it names none."""
+    from evoscen_sim.models import plugin_entry_point
+
+    names: set[str] = set()
+
+    def walk(value: Any) -> None:
+        if isinstance(value, str):
+            names.add(value)
+        elif isinstance(value, dict):
+            for v in value.values():
+                walk(v)
+        elif isinstance(value, (list, tuple)):
+            for v in value:
+                walk(v)
+
+    walk(config)
+    names.update(str(k) for k in (config.get("models") or {}))
+    parts = []
+    for name in sorted(names):
+        ep = plugin_entry_point(name)
+        if ep is not None:
+            dist = ep.dist
+            parts.append(f"{name}={plugin_fingerprint(ep.module, dist.name if dist else '?', dist.version if dist else '?')}")
+    return ";".join(parts)
+
+
+@functools.lru_cache(maxsize=None)
+def plugin_fingerprint(module: str, dist_name: str, dist_version: str) -> str:
+    """``distribution==version:hash``: the hash (16 hex digits) covers the files of the plug-in's
+    top-level module — every file of its package directory (``__pycache__`` left out), or the one
+    ``.py`` file of a single-module plug-in — so an edited plug-in (an editable install, a changed
+    file in place) gets new keys even when its version stays. Cached per process, like
+    :func:`code_version`."""
+    import importlib.util
+
+    top = module.split(".")[0]
+    spec = importlib.util.find_spec(top)
+    files: list[tuple[str, Path]] = []
+    if spec is not None and spec.submodule_search_locations:
+        root = Path(next(iter(spec.submodule_search_locations))).resolve()
+        files = [(f.relative_to(root).as_posix(), f) for f in sorted(root.rglob("*"))
+                 if f.is_file() and "__pycache__" not in f.parts]
+    elif spec is not None and spec.origin and Path(spec.origin).is_file():
+        files = [(Path(spec.origin).name, Path(spec.origin))]
+    h = hashlib.sha256()
+    for rel, f in files:
+        h.update(rel.encode())
+        h.update(hashlib.sha256(f.read_bytes()).digest())
+    return f"{dist_name}=={dist_version}:{h.hexdigest()[:16]}"
 
 
 @functools.lru_cache(maxsize=1)

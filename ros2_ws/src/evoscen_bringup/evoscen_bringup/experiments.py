@@ -8,10 +8,10 @@ A *round* is one in-process run of a scenario configuration (no bag), scored lik
 
 * **parallel** — one Ray task of one CPU per round, ``jobs`` workers on a local Ray;
 * **resumable** — each finished round is saved under ``OUT/runs/<key>/`` (``result.json``,
-  ``report.json``, ``plot.json``), the key a hash of the round's whole resolved configuration
-  and of the code version; a round whose result exists is read back instead of run again,
-  and a changed setting (steps, model parameters, evaluation settings …) or changed code
-  gives a new key, so a stale result is never reused;
+  ``report.json``, ``plot.json``), the key a hash of the round's whole resolved configuration,
+  of the code version and of the plug-in the round uses; a round whose result exists is read back
+  instead of run again, and a changed setting (steps, model parameters, evaluation settings …),
+  changed code or a changed plug-in gives a new key, so a stale result is never reused;
 * **summarised** — :func:`mean_ci` gives mean ± the half-width of the 95 % Student-t interval
   over rounds (seeds).
 
@@ -42,7 +42,7 @@ class Round:
 
     @property
     def key(self) -> str:
-        """The round's campaign key (:func:`evoscen_bringup.campaign.run_key`: configuration and code version)."""
+        """The round's campaign key (:func:`evoscen_bringup.campaign.run_key`: configuration, code version, plug-ins)."""
         from .campaign import code_version, run_key
 
         return run_key(self.cfg, code_version())

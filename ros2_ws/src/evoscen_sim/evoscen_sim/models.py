@@ -86,6 +86,8 @@ class ModelSpec:
 
 _REGISTRY: dict[str, ModelSpec] = {}
 _PARAMETER_SETS: dict[str, type] = {}
+_PLUGINS: dict[str, metadata.EntryPoint] = {}
+"""Model name -> the entry point that registered it (plug-ins only), for :func:`plugin_entry_point`."""
 _discovered = False
 
 
@@ -116,6 +118,7 @@ def unregister_model(name: str) -> None:
     """Remove a model from the registry (tests; plug-ins are normally permanent)."""
     global SUT_MODELS, BV_DRIVERS
     _REGISTRY.pop(name, None)
+    _PLUGINS.pop(name, None)
     SUT_MODELS = tuple(n for n in SUT_MODELS if n != name)
     BV_DRIVERS = tuple(n for n in BV_DRIVERS if n != name)
 
@@ -149,6 +152,14 @@ def discover() -> None:
             if role not in spec.roles:
                 spec = ModelSpec(spec.name, (*spec.roles, role), spec.factory, spec.params_type, spec.description)
             register_model(spec)
+            _PLUGINS[spec.name] = ep
+
+
+def plugin_entry_point(name: str) -> metadata.EntryPoint | None:
+    """The entry point that registered model ``name`` (its distribution: ``.dist``; its module:
+    ``.module``), or None for a built-in model or an unknown name."""
+    discover()
+    return _PLUGINS.get(name)
 
 
 def model_names(role: str) -> tuple[str, ...]:
