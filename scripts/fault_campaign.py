@@ -9,7 +9,11 @@ fault classes taken in turn and their timing drawn from a generator seeded by ``
 
 * SIGKILL or SIGTERM to each node (simulation, each of the three BV nodes of ``bvs.nodes:
   by_policy`` — competitive, mutual, cooperative —, SUT, evaluator), during start-up or during the
-  lockstep (24 classes); a BV node killed in the lockstep must be named in the simulation's error line;
+  lockstep (24 classes): a death, status 4 with the launcher's ``error: graph: node NAME ...`` line
+  naming the node (a SIGTERMed simulation ends the run as interrupted instead: 130 in the lockstep,
+  4 or 130 in start-up, as the signal comes before or after its handler is installed); a
+  controller (BV or SUT node) killed in the lockstep must also leave the simulation's ``fault``
+  event of kind ``abort`` naming it in the finished bag, and that ``error:`` line must be the only one;
 * the evaluator stalled (SIGSTOP) for 2-30 s (``--max-stall``), then resumed;
 * a hostile node on the run's domain (``tests/wire_intruder.py``: foreign and malformed
   commands, garbage world messages, forged events) — the world table must equal a clean
@@ -311,6 +315,30 @@ def _world_steps(bag: Path) -> list[int] | None:
         return None
 
 
+def _fault_events(bag: Path) -> list[tuple[str, str]] | None:
+    """``(kind, controller)`` of every ``fault`` event of the bag, in order; None if unreadable."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from evoscen_contract.contract import TOPIC_EVENTS
+    from evoscen_contract.topics import parse_events
+    from evoscen_eval.recorder import open_bag_reader
+    from rclpy.serialization import deserialize_message
+
+    try:
+        return [(ev.get("kind", ""), ev.get("controller", "")) for topic, _type, _t, d in open_bag_reader(bag)
+                if topic == TOPIC_EVENTS for ev in parse_events(deserialize_message(d, DiagnosticArray))
+                if ev["name"] == "evoscen/fault"]
+    except Exception:  # noqa: BLE001 - unreadable, whatever the reason
+        return None
+
+
+def expected_kill_statuses(fault: tuple) -> tuple[int, ...]:
+    """The exit statuses a kill class may end with (docs/recording.md, "Endings and exit statuses")."""
+    _, sig, node, phase = fault
+    if node == "sim" and sig == "SIGTERM":  # the simulation ends the run as interrupted
+        return (130,) if phase == "lockstep" else (4, 130)  # start-up: before its handler is installed, a death
+    return (4,)
+
+
 def _world_bytes(bag: Path) -> list[bytes]:
     from evoscen_eval.recorder import open_bag_reader
 
@@ -433,7 +461,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
                 problems.append(f"the intruder attacked {m.group(1)} world messages of {steps + 1} (expected at least half)")
     status = launcher.returncode if not hang else None
     traceback = "Traceback" in stderr
-    readable, reindexed, lost, identical = None, False, None, None
+    readable, reindexed, lost, identical, fault_events = None, False, None, None, None
     if (out / "bag").exists():
         world = _world_steps(out / "bag")
         if world is None:
@@ -444,6 +472,8 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
                 reindexed = True
             world = _world_steps(out / "bag")
         readable = world is not None
+        if readable:
+            fault_events = _fault_events(out / "bag")
         if world:
             m = re.search(r"evoscen_sim: lockstep: (\d+) steps", stderr)
             published = int(m.group(1)) + 1 if m else None  # states 0..K
@@ -483,11 +513,23 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
         problems.append(f"ended {end_s:.1f} s after the fault")
     if identical is False:
         problems.append("world table differs from the clean run")
-    if kind == "kill" and fault[2].startswith("bv_") and status == 3:
-        # a BV node killed in the lockstep: the simulation's one error line names that node
-        named = f"controller 'evoscen_{fault[2]}'"
-        if not any(ln.startswith("error: evoscen_sim:") and named in ln for ln in stderr.splitlines()):
-            problems.append(f"no error line naming {named}")
+    if kind == "kill" and status is not None:
+        expected = expected_kill_statuses(fault)
+        if status not in expected:
+            problems.append(f"exit status {status}, expected {' or '.join(map(str, expected))}")
+        node = f"evoscen_{fault[2]}"
+        errors = [ln for ln in stderr.splitlines() if ln.startswith("error:")]
+        if status == 4 and not any(ln.startswith(f"error: graph: node {node} ") for ln in errors):
+            problems.append(f"no launcher's error line naming {node}")
+        if status == 4 and fault[3] == "lockstep" and fault[2] not in ("sim", "eval"):
+            # a controller killed in the lockstep: the launcher's line is the one error line, and the
+            # simulation's deadline abort (its consequence) is in the finished bag, naming it
+            if len(errors) != 1:
+                problems.append(f"{len(errors)} error lines, expected the launcher's one")
+            if fault_events is None or ("abort", node) not in fault_events:
+                problems.append(f"no fault event of kind abort naming {node} in the bag")
+            if reindexed:
+                problems.append("the bag was not finished (it needed reindex)")
     if kind == "inject" and status != 0:
         problems.append(f"attacked run ended {status}, not 0")
     shutil.rmtree(out, ignore_errors=True)

@@ -45,9 +45,9 @@ def test_reduced_fault_campaign(tmp_path: Path) -> None:
 
 def test_fault_campaign_kills_each_bv_node(tmp_path: Path) -> None:
     """Each BV node of the default graph (bvs.nodes: by_policy) SIGKILLed in the lockstep, one run
-    each: the simulation aborts on its misses (status 3, a controller fault: docs/recording.md), its
-    one error line names the killed node (the campaign checks it), the bag is finished and readable,
-    nothing is lost, no traceback, no hang."""
+    each: a death, status 4 (docs/recording.md), the launcher's one error line naming the killed node
+    and the simulation's abort fault event naming it in the finished bag (the campaign checks both),
+    nothing lost, no traceback, no hang."""
     out = tmp_path / "bv.json"
     names = ("bv_competitive", "bv_mutual", "bv_cooperative")
     res = subprocess.run(
@@ -59,7 +59,8 @@ def test_fault_campaign_kills_each_bv_node(tmp_path: Path) -> None:
     runs = json.loads(out.read_text())["graph"]
     assert [r["fault"] for r in runs] == [f"kill SIGKILL {n} lockstep" for n in names]
     for r in runs:
-        assert r["status"] == 3 and not r["problems"], r
+        assert r["status"] == 4 and not r["problems"], r
+        assert r["reindexed"] is False, r  # finished by the evaluator, not rebuilt
         assert r["bag_readable"] and r["steps_lost"] == 0 and not r["traceback"] and not r["hang"], r
 
 
