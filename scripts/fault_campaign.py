@@ -33,11 +33,18 @@ Faults of the host (docs/recording.md, "Faults of the host"; ``sudo``/root for t
   result, then the same command: status 0, every run exactly once, no process of the killed
   driver's Ray left running.
 
-The read-only output is not a class: a file system with files open for writing cannot be
-remounted read-only (EBUSY); the tests simulate it at the bag file's writes (EROFS).
+* ``readonly:inline``, ``readonly:process``, ``readonly:graph``: the run's output on a small
+  ext4 file system (a 64 MiB image on a loop device, mounted ``errors=remount-ro``) that is made
+  read-only while the bag is written (at a size drawn from 20 to 400 kB), as the kernel does on an
+  I/O error: ext4's ``trigger_fs_error``. Writes to the files already open then fail with EROFS,
+  for root too (``mount -o remount,ro`` refuses a file system with files open for writing: EBUSY).
+  Status 5, one ``error:`` line naming the bag file and ``Read-only file system (EROFS)``, the run
+  ended within 10 s of the fault, and the bag, read-only so not finished, holds after ``reindex``
+  (of a copy) exactly the world states the line names, steps 0..N-1.
 
 For each run: the exit status (documented: 0, 2, 3, 4, 5, 130), seconds from the fault to the end
-of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, whether the bag opens (after
+of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, orphans (processes of the run
+still running once the launcher ended: 0 allowed), whether the bag opens (after
 ``reindex`` if it has to), and steps lost (world states published by the simulation but missing
 from the bag; ≤ 10 = 1 s allowed after a SIGKILLed evaluator, 0 otherwise). To count what the
 evaluator had been sent, a SIGKILL to it during the lockstep freezes the simulation (SIGSTOP)
@@ -111,7 +118,7 @@ class GraphResult:
 def _fault_classes() -> list[tuple]:
     kills = [("kill", sig, node, phase) for phase in ("lockstep", "startup") for node in NODES
              for sig in ("SIGKILL", "SIGTERM")]
-    host = [("enospc", runner) for runner in ("inline", "process", "graph")]
+    host = [(kind, runner) for kind in ("enospc", "readonly") for runner in ("inline", "process", "graph")]
     return kills + [("stall",), ("inject",)] + host + [("vanish", "process"), ("driver-kill",)]
 
 
@@ -124,6 +131,38 @@ def _mount_tmpfs(path: Path, size_kib: int) -> str | None:
     r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_kib}k", "tmpfs", str(path)],
                        capture_output=True, text=True, check=False)
     return None if r.returncode == 0 else f"cannot mount a tmpfs (root needed): {r.stderr.strip()}"
+
+
+READ_ONLY_IMAGE_MIB = 64
+
+
+def mount_ext4(path: Path, image: Path, size_mib: int = READ_ONLY_IMAGE_MIB) -> str | None:
+    """An ext4 file system of ``size_mib`` MiB in the file ``image`` (sparse), mounted at ``path`` on
+    a loop device with ``errors=remount-ro``; None, or why it could not."""
+    path.mkdir(parents=True, exist_ok=True)
+    with open(image, "wb") as f:
+        f.truncate(size_mib << 20)
+    r = subprocess.run(["mkfs.ext4", "-q", "-F", str(image)], capture_output=True, text=True, check=False)
+    if r.returncode != 0:
+        return f"cannot make an ext4 file system in {image}: {r.stderr.strip()}"
+    r = subprocess.run(["mount", "-o", "loop,errors=remount-ro", str(image), str(path)],
+                       capture_output=True, text=True, check=False)
+    return None if r.returncode == 0 else f"cannot mount {image} (root and a loop device needed): {r.stderr.strip()}"
+
+
+def make_read_only(path: Path) -> str | None:
+    """Make the ext4 file system mounted at ``path`` read-only now, files open for writing and all,
+    as the kernel does on an I/O error under ``errors=remount-ro`` (``/sys/fs/ext4/DEV/trigger_fs_error``);
+    None, or why it could not."""
+    where = os.path.realpath(path)
+    devs = [ln.split()[0] for ln in Path("/proc/mounts").read_text().splitlines() if ln.split()[1] == where]
+    if not devs:
+        return f"{where} is not a mount point"
+    try:
+        Path(f"/sys/fs/ext4/{Path(devs[-1]).name}/trigger_fs_error").write_text("fault campaign: read-only\n")
+    except OSError as exc:
+        return f"cannot make {where} read-only: {exc}"
+    return None
 
 
 def _check_host_fault_end(stderr: str, status: int | None, problems: list[str]) -> str | None:
@@ -154,6 +193,13 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
             problems.append(why)
             return GraphResult(" ".join(fault), seed, None, None, False, False, None, False, None, problems=problems)
         mounted = True
+    elif kind == "readonly":
+        why = mount_ext4(out_root, work / f"host-{seed}.img")
+        if why is not None:
+            problems.append(why)
+            (work / f"host-{seed}.img").unlink(missing_ok=True)
+            return GraphResult(" ".join(fault), seed, None, None, False, False, None, False, None, problems=problems)
+        mounted = True
     out = out_root / "run"
     runner = fault[1]
     args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--steps", str(steps), "--seed", str(seed),
@@ -168,18 +214,37 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
                 time.sleep(0.01)
             shutil.rmtree(out, ignore_errors=True)
             t_fault = time.monotonic()
+        elif kind == "readonly":
+            mcap, at = out / "bag" / "bag_0.mcap", rng.randint(20_000, 400_000)
+            end = time.monotonic() + 90
+            while proc.poll() is None and time.monotonic() < end and not (mcap.exists() and mcap.stat().st_size > at):
+                time.sleep(0.01)
+            if proc.poll() is not None:
+                problems.append("the run ended before its output was made read-only")
+            why = make_read_only(out_root)
+            if why is not None:
+                problems.append(why)
+            t_fault = time.monotonic()
         try:
             _stdout, stderr = proc.communicate(timeout=HANG_S)
         except subprocess.TimeoutExpired:
             proc.kill()
             _stdout, stderr = proc.communicate()
             hang = True
-        if kind == "vanish":
+        if kind in ("vanish", "readonly"):
             end_s = time.monotonic() - t_fault
         status = None if hang else proc.returncode
         line = _check_host_fault_end(stderr, status, problems)
         bag = out / "bag"
-        if kind == "enospc" and bag.is_dir():
+        if kind == "readonly" and status == HOST_FAULT_STATUS and line is not None and not (
+                line.startswith(f"error: {'evoscen_eval: ' if runner == 'graph' else ''}cannot write "
+                                f"{bag / 'bag_0.mcap'}: Read-only file system (EROFS)")):
+            problems.append("the line does not name the bag file and EROFS")
+        if kind == "readonly" and status != HOST_FAULT_STATUS:
+            problems.append(f"exit status {status}, expected {HOST_FAULT_STATUS}")
+        if kind == "readonly" and end_s is not None and end_s > END_LIMIT_S:
+            problems.append(f"ended {end_s:.1f} s after the fault")
+        if kind in ("enospc", "readonly") and bag.is_dir():
             copy = work / f"host-{seed}-bag"
             shutil.copytree(bag, copy)
             world = _world_steps(copy)
@@ -209,8 +274,9 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
             with contextlib.suppress(OSError):
                 os.kill(int(pid), signal.SIGKILL)
         if mounted:
-            subprocess.run(["umount", "-l", str(out_root)], check=False)
+            subprocess.run(["umount", "-l", str(out_root)], check=False)  # a loop device is freed with it
         shutil.rmtree(out_root, ignore_errors=True)
+        (work / f"host-{seed}.img").unlink(missing_ok=True)
     traceback = "Traceback" in stderr
     if hang:
         problems.append("hang")
@@ -376,6 +442,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
     t_fault = None
     kind = fault[0]
     problems: list[str] = []
+    orphans = 0
     mcap = out / "bag" / "bag_0.mcap"
 
     def running(timeout: float = 90.0) -> bool:
@@ -444,6 +511,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
             launcher.kill()
             launcher.wait()
         for pid in subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split():
+            orphans += 1  # a node process of the run (its parameter file is under OUT) left running
             with contextlib.suppress(OSError):
                 os.kill(int(pid), signal.SIGKILL)
         if intruder is not None:
@@ -532,10 +600,12 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
                 problems.append("the bag was not finished (it needed reindex)")
     if kind == "inject" and status != 0:
         problems.append(f"attacked run ended {status}, not 0")
+    if orphans:
+        problems.append(f"{orphans} processes of the run left running")
     shutil.rmtree(out, ignore_errors=True)
     tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
     return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost, identical,
-                       problems, tail)
+                       problems, tail, orphans)
 
 
 # --------------------------------------------------------------------------- fuzzing
@@ -752,7 +822,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for i in range(args.graph_runs):
             fault = classes[i % len(classes)]
-            if fault[0] in ("enospc", "vanish", "driver-kill"):
+            if fault[0] in ("enospc", "readonly", "vanish", "driver-kill"):
                 r = host_run(fault, 1000 + i, args.steps, rng, work)
             else:
                 r = graph_run(fault, 1000 + i, args.steps, rng, work, clean_world, args.max_stall)

@@ -321,8 +321,11 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 p.wait()
         for sig, handler in old.items():
             signal.signal(sig, handler)
-        ready_file.unlink(missing_ok=True)
-        deaths_file.unlink(missing_ok=True)
+        for marker in (ready_file, deaths_file):
+            try:
+                marker.unlink(missing_ok=True)
+            except OSError:  # the output became read-only or was removed: the recorder's line says so
+                pass
     node_status = {name: p.returncode for name, p in procs.items()}
     status = graph_status(node_status, died, interrupted, deaths)
     if status == EXIT_NODE_DIED:
