@@ -9,7 +9,11 @@ fault classes taken in turn and their timing drawn from a generator seeded by ``
 
 * SIGKILL or SIGTERM to each node (simulation, each of the three BV nodes of ``bvs.nodes:
   by_policy`` — competitive, mutual, cooperative —, SUT, evaluator), during start-up or during the
-  lockstep (24 classes); a BV node killed in the lockstep must be named in the simulation's error line;
+  lockstep (24 classes): a death, status 4 with the launcher's ``error: graph: node NAME ...`` line
+  naming the node (a SIGTERMed simulation ends the run as interrupted instead: 130 in the lockstep,
+  4 or 130 in start-up, as the signal comes before or after its handler is installed); a
+  controller (BV or SUT node) killed in the lockstep must also leave the simulation's ``fault``
+  event of kind ``abort`` naming it in the finished bag, and that ``error:`` line must be the only one;
 * the evaluator stalled (SIGSTOP) for 2-30 s (``--max-stall``), then resumed;
 * a hostile node on the run's domain (``tests/wire_intruder.py``: foreign and malformed
   commands, garbage world messages, forged events) — the world table must equal a clean
@@ -29,11 +33,18 @@ Faults of the host (docs/recording.md, "Faults of the host"; ``sudo``/root for t
   result, then the same command: status 0, every run exactly once, no process of the killed
   driver's Ray left running.
 
-The read-only output is not a class: a file system with files open for writing cannot be
-remounted read-only (EBUSY); the tests simulate it at the bag file's writes (EROFS).
+* ``readonly:inline``, ``readonly:process``, ``readonly:graph``: the run's output on a small
+  ext4 file system (a 64 MiB image on a loop device, mounted ``errors=remount-ro``) that is made
+  read-only while the bag is written (at a size drawn from 20 to 400 kB), as the kernel does on an
+  I/O error: ext4's ``trigger_fs_error``. Writes to the files already open then fail with EROFS,
+  for root too (``mount -o remount,ro`` refuses a file system with files open for writing: EBUSY).
+  Status 5, one ``error:`` line naming the bag file and ``Read-only file system (EROFS)``, the run
+  ended within 10 s of the fault, and the bag, read-only so not finished, holds after ``reindex``
+  (of a copy) exactly the world states the line names, steps 0..N-1.
 
 For each run: the exit status (documented: 0, 2, 3, 4, 5, 130), seconds from the fault to the end
-of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, whether the bag opens (after
+of the graph (≤ 10 s), a hang (no end within 120 s), tracebacks, orphans (processes of the run
+still running once the launcher ended: 0 allowed), whether the bag opens (after
 ``reindex`` if it has to), and steps lost (world states published by the simulation but missing
 from the bag; ≤ 10 = 1 s allowed after a SIGKILLed evaluator, 0 otherwise). To count what the
 evaluator had been sent, a SIGKILL to it during the lockstep freezes the simulation (SIGSTOP)
@@ -107,7 +118,7 @@ class GraphResult:
 def _fault_classes() -> list[tuple]:
     kills = [("kill", sig, node, phase) for phase in ("lockstep", "startup") for node in NODES
              for sig in ("SIGKILL", "SIGTERM")]
-    host = [("enospc", runner) for runner in ("inline", "process", "graph")]
+    host = [(kind, runner) for kind in ("enospc", "readonly") for runner in ("inline", "process", "graph")]
     return kills + [("stall",), ("inject",)] + host + [("vanish", "process"), ("driver-kill",)]
 
 
@@ -120,6 +131,38 @@ def _mount_tmpfs(path: Path, size_kib: int) -> str | None:
     r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_kib}k", "tmpfs", str(path)],
                        capture_output=True, text=True, check=False)
     return None if r.returncode == 0 else f"cannot mount a tmpfs (root needed): {r.stderr.strip()}"
+
+
+READ_ONLY_IMAGE_MIB = 64
+
+
+def mount_ext4(path: Path, image: Path, size_mib: int = READ_ONLY_IMAGE_MIB) -> str | None:
+    """An ext4 file system of ``size_mib`` MiB in the file ``image`` (sparse), mounted at ``path`` on
+    a loop device with ``errors=remount-ro``; None, or why it could not."""
+    path.mkdir(parents=True, exist_ok=True)
+    with open(image, "wb") as f:
+        f.truncate(size_mib << 20)
+    r = subprocess.run(["mkfs.ext4", "-q", "-F", str(image)], capture_output=True, text=True, check=False)
+    if r.returncode != 0:
+        return f"cannot make an ext4 file system in {image}: {r.stderr.strip()}"
+    r = subprocess.run(["mount", "-o", "loop,errors=remount-ro", str(image), str(path)],
+                       capture_output=True, text=True, check=False)
+    return None if r.returncode == 0 else f"cannot mount {image} (root and a loop device needed): {r.stderr.strip()}"
+
+
+def make_read_only(path: Path) -> str | None:
+    """Make the ext4 file system mounted at ``path`` read-only now, files open for writing and all,
+    as the kernel does on an I/O error under ``errors=remount-ro`` (``/sys/fs/ext4/DEV/trigger_fs_error``);
+    None, or why it could not."""
+    where = os.path.realpath(path)
+    devs = [ln.split()[0] for ln in Path("/proc/mounts").read_text().splitlines() if ln.split()[1] == where]
+    if not devs:
+        return f"{where} is not a mount point"
+    try:
+        Path(f"/sys/fs/ext4/{Path(devs[-1]).name}/trigger_fs_error").write_text("fault campaign: read-only\n")
+    except OSError as exc:
+        return f"cannot make {where} read-only: {exc}"
+    return None
 
 
 def _check_host_fault_end(stderr: str, status: int | None, problems: list[str]) -> str | None:
@@ -150,6 +193,13 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
             problems.append(why)
             return GraphResult(" ".join(fault), seed, None, None, False, False, None, False, None, problems=problems)
         mounted = True
+    elif kind == "readonly":
+        why = mount_ext4(out_root, work / f"host-{seed}.img")
+        if why is not None:
+            problems.append(why)
+            (work / f"host-{seed}.img").unlink(missing_ok=True)
+            return GraphResult(" ".join(fault), seed, None, None, False, False, None, False, None, problems=problems)
+        mounted = True
     out = out_root / "run"
     runner = fault[1]
     args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--steps", str(steps), "--seed", str(seed),
@@ -164,18 +214,37 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
                 time.sleep(0.01)
             shutil.rmtree(out, ignore_errors=True)
             t_fault = time.monotonic()
+        elif kind == "readonly":
+            mcap, at = out / "bag" / "bag_0.mcap", rng.randint(20_000, 400_000)
+            end = time.monotonic() + 90
+            while proc.poll() is None and time.monotonic() < end and not (mcap.exists() and mcap.stat().st_size > at):
+                time.sleep(0.01)
+            if proc.poll() is not None:
+                problems.append("the run ended before its output was made read-only")
+            why = make_read_only(out_root)
+            if why is not None:
+                problems.append(why)
+            t_fault = time.monotonic()
         try:
             _stdout, stderr = proc.communicate(timeout=HANG_S)
         except subprocess.TimeoutExpired:
             proc.kill()
             _stdout, stderr = proc.communicate()
             hang = True
-        if kind == "vanish":
+        if kind in ("vanish", "readonly"):
             end_s = time.monotonic() - t_fault
         status = None if hang else proc.returncode
         line = _check_host_fault_end(stderr, status, problems)
         bag = out / "bag"
-        if kind == "enospc" and bag.is_dir():
+        if kind == "readonly" and status == HOST_FAULT_STATUS and line is not None and not (
+                line.startswith(f"error: {'evoscen_eval: ' if runner == 'graph' else ''}cannot write "
+                                f"{bag / 'bag_0.mcap'}: Read-only file system (EROFS)")):
+            problems.append("the line does not name the bag file and EROFS")
+        if kind == "readonly" and status != HOST_FAULT_STATUS:
+            problems.append(f"exit status {status}, expected {HOST_FAULT_STATUS}")
+        if kind == "readonly" and end_s is not None and end_s > END_LIMIT_S:
+            problems.append(f"ended {end_s:.1f} s after the fault")
+        if kind in ("enospc", "readonly") and bag.is_dir():
             copy = work / f"host-{seed}-bag"
             shutil.copytree(bag, copy)
             world = _world_steps(copy)
@@ -205,8 +274,9 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
             with contextlib.suppress(OSError):
                 os.kill(int(pid), signal.SIGKILL)
         if mounted:
-            subprocess.run(["umount", "-l", str(out_root)], check=False)
+            subprocess.run(["umount", "-l", str(out_root)], check=False)  # a loop device is freed with it
         shutil.rmtree(out_root, ignore_errors=True)
+        (work / f"host-{seed}.img").unlink(missing_ok=True)
     traceback = "Traceback" in stderr
     if hang:
         problems.append("hang")
@@ -311,6 +381,30 @@ def _world_steps(bag: Path) -> list[int] | None:
         return None
 
 
+def _fault_events(bag: Path) -> list[tuple[str, str]] | None:
+    """``(kind, controller)`` of every ``fault`` event of the bag, in order; None if unreadable."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from evoscen_contract.contract import TOPIC_EVENTS
+    from evoscen_contract.topics import parse_events
+    from evoscen_eval.recorder import open_bag_reader
+    from rclpy.serialization import deserialize_message
+
+    try:
+        return [(ev.get("kind", ""), ev.get("controller", "")) for topic, _type, _t, d in open_bag_reader(bag)
+                if topic == TOPIC_EVENTS for ev in parse_events(deserialize_message(d, DiagnosticArray))
+                if ev["name"] == "evoscen/fault"]
+    except Exception:  # noqa: BLE001 - unreadable, whatever the reason
+        return None
+
+
+def expected_kill_statuses(fault: tuple) -> tuple[int, ...]:
+    """The exit statuses a kill class may end with (docs/recording.md, "Endings and exit statuses")."""
+    _, sig, node, phase = fault
+    if node == "sim" and sig == "SIGTERM":  # the simulation ends the run as interrupted
+        return (130,) if phase == "lockstep" else (4, 130)  # start-up: before its handler is installed, a death
+    return (4,)
+
+
 def _world_bytes(bag: Path) -> list[bytes]:
     from evoscen_eval.recorder import open_bag_reader
 
@@ -348,6 +442,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
     t_fault = None
     kind = fault[0]
     problems: list[str] = []
+    orphans = 0
     mcap = out / "bag" / "bag_0.mcap"
 
     def running(timeout: float = 90.0) -> bool:
@@ -416,6 +511,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
             launcher.kill()
             launcher.wait()
         for pid in subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split():
+            orphans += 1  # a node process of the run (its parameter file is under OUT) left running
             with contextlib.suppress(OSError):
                 os.kill(int(pid), signal.SIGKILL)
         if intruder is not None:
@@ -433,7 +529,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
                 problems.append(f"the intruder attacked {m.group(1)} world messages of {steps + 1} (expected at least half)")
     status = launcher.returncode if not hang else None
     traceback = "Traceback" in stderr
-    readable, reindexed, lost, identical = None, False, None, None
+    readable, reindexed, lost, identical, fault_events = None, False, None, None, None
     if (out / "bag").exists():
         world = _world_steps(out / "bag")
         if world is None:
@@ -444,6 +540,8 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
                 reindexed = True
             world = _world_steps(out / "bag")
         readable = world is not None
+        if readable:
+            fault_events = _fault_events(out / "bag")
         if world:
             m = re.search(r"evoscen_sim: lockstep: (\d+) steps", stderr)
             published = int(m.group(1)) + 1 if m else None  # states 0..K
@@ -483,17 +581,31 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
         problems.append(f"ended {end_s:.1f} s after the fault")
     if identical is False:
         problems.append("world table differs from the clean run")
-    if kind == "kill" and fault[2].startswith("bv_") and status == 3:
-        # a BV node killed in the lockstep: the simulation's one error line names that node
-        named = f"controller 'evoscen_{fault[2]}'"
-        if not any(ln.startswith("error: evoscen_sim:") and named in ln for ln in stderr.splitlines()):
-            problems.append(f"no error line naming {named}")
+    if kind == "kill" and status is not None:
+        expected = expected_kill_statuses(fault)
+        if status not in expected:
+            problems.append(f"exit status {status}, expected {' or '.join(map(str, expected))}")
+        node = f"evoscen_{fault[2]}"
+        errors = [ln for ln in stderr.splitlines() if ln.startswith("error:")]
+        if status == 4 and not any(ln.startswith(f"error: graph: node {node} ") for ln in errors):
+            problems.append(f"no launcher's error line naming {node}")
+        if status == 4 and fault[3] == "lockstep" and fault[2] not in ("sim", "eval"):
+            # a controller killed in the lockstep: the launcher's line is the one error line, and the
+            # simulation's deadline abort (its consequence) is in the finished bag, naming it
+            if len(errors) != 1:
+                problems.append(f"{len(errors)} error lines, expected the launcher's one")
+            if fault_events is None or ("abort", node) not in fault_events:
+                problems.append(f"no fault event of kind abort naming {node} in the bag")
+            if reindexed:
+                problems.append("the bag was not finished (it needed reindex)")
     if kind == "inject" and status != 0:
         problems.append(f"attacked run ended {status}, not 0")
+    if orphans:
+        problems.append(f"{orphans} processes of the run left running")
     shutil.rmtree(out, ignore_errors=True)
     tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
     return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost, identical,
-                       problems, tail)
+                       problems, tail, orphans)
 
 
 # --------------------------------------------------------------------------- fuzzing
@@ -710,7 +822,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for i in range(args.graph_runs):
             fault = classes[i % len(classes)]
-            if fault[0] in ("enospc", "vanish", "driver-kill"):
+            if fault[0] in ("enospc", "readonly", "vanish", "driver-kill"):
                 r = host_run(fault, 1000 + i, args.steps, rng, work)
             else:
                 r = graph_run(fault, 1000 + i, args.steps, rng, work, clean_world, args.max_stall)

@@ -45,9 +45,9 @@ def test_reduced_fault_campaign(tmp_path: Path) -> None:
 
 def test_fault_campaign_kills_each_bv_node(tmp_path: Path) -> None:
     """Each BV node of the default graph (bvs.nodes: by_policy) SIGKILLed in the lockstep, one run
-    each: the simulation aborts on its misses (status 3, a controller fault: docs/recording.md), its
-    one error line names the killed node (the campaign checks it), the bag is finished and readable,
-    nothing is lost, no traceback, no hang."""
+    each: a death, status 4 (docs/recording.md), the launcher's one error line naming the killed node
+    and the simulation's abort fault event naming it in the finished bag (the campaign checks both),
+    nothing lost, no traceback, no hang."""
     out = tmp_path / "bv.json"
     names = ("bv_competitive", "bv_mutual", "bv_cooperative")
     res = subprocess.run(
@@ -59,14 +59,16 @@ def test_fault_campaign_kills_each_bv_node(tmp_path: Path) -> None:
     runs = json.loads(out.read_text())["graph"]
     assert [r["fault"] for r in runs] == [f"kill SIGKILL {n} lockstep" for n in names]
     for r in runs:
-        assert r["status"] == 3 and not r["problems"], r
+        assert r["status"] == 4 and not r["problems"], r
+        assert r["reindexed"] is False, r  # finished by the evaluator, not rebuilt
         assert r["bag_readable"] and r["steps_lost"] == 0 and not r["traceback"] and not r["hang"], r
 
 
 def test_reduced_host_fault_classes(tmp_path: Path) -> None:
-    """The faults of the host, one run each: a disk that fills at a random step (in-process with
-    both writers and in the graph), the output removed mid-run, the campaign driver killed then
-    resumed — 0 tracebacks, 0 hangs, 0 steps lost beyond the states the line names, 0 orphans."""
+    """The faults of the host, one run each: a disk that fills at a random step and an output made
+    read-only mid-run (each in-process with both writers and in the graph), the output removed
+    mid-run, the campaign driver killed then resumed — 0 tracebacks, 0 hangs, 0 steps lost beyond
+    the states the line names, 0 orphans."""
     import os
 
     if os.geteuid() != 0:
@@ -78,15 +80,19 @@ def test_reduced_host_fault_classes(tmp_path: Path) -> None:
     subprocess.run(["umount", "-l", str(probe)], check=False)
     out = tmp_path / "host.json"
     res = subprocess.run(
-        [sys.executable, str(REPO / "scripts" / "fault_campaign.py"), "--graph-runs", "5", "--classes",
-         "enospc:inline,enospc:process,enospc:graph,vanish:process,driver-kill", "--fuzz", "0", "--steps", "3000",
+        [sys.executable, str(REPO / "scripts" / "fault_campaign.py"), "--graph-runs", "8", "--classes",
+         "enospc:inline,enospc:process,enospc:graph,vanish:process,driver-kill,readonly:inline,readonly:process,"
+         "readonly:graph", "--fuzz", "0", "--steps", "3000",
          "--seed", "7", "--json", str(out)],
-        cwd=REPO, capture_output=True, text=True, timeout=600)
+        cwd=REPO, capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, f"{res.stdout}\n{res.stderr}"
     runs = json.loads(out.read_text())["graph"]
     assert [r["fault"] for r in runs] == ["enospc inline", "enospc process", "enospc graph", "vanish process",
-                                          "driver-kill"]
+                                          "driver-kill", "readonly inline", "readonly process", "readonly graph"]
     for r in runs[:3]:  # 3,000 steps never fit in 1,500 KiB
         assert r["status"] == 5 and r["bag_readable"] and r["steps_lost"] == 0, r
     assert runs[3]["status"] == 5 and runs[4]["status"] == 0 and runs[4]["steps_lost"] == 0
+    for r in runs[5:]:  # read-only: never finished, rebuilt by reindex; ended within 10 s of the fault
+        assert r["status"] == 5 and r["bag_readable"] and r["reindexed"] and r["steps_lost"] == 0, r
+        assert r["end_s"] is not None and r["end_s"] <= 10.0, r
     assert all(not r["traceback"] and not r["hang"] and r["orphans"] == 0 and not r["problems"] for r in runs)

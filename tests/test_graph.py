@@ -297,11 +297,15 @@ def test_killed_controller_aborts_cleanly(killed_bv):
     # 3 deadlines of 0.5 s, then the nodes end: the controllers as soon as the simulation node has
     # withdrawn its publishers - not when its participant's lease runs out (20 s: was 22 s here)
     assert killed_bv["after_kill"] < 15.0, f"the graph took {killed_bv['after_kill']:.1f} s to end after the kill"
-    assert rc == 3, f"exit status {rc}, expected 3 (controller fault)\n{stderr}"
+    # a death (4), not the simulation's controller fault (3) that follows it (docs/recording.md)
+    assert rc == 4, f"exit status {rc}, expected 4 (a node died)\n{stderr}"
     assert "Traceback" not in stderr, stderr
     errors = _error_lines(stderr)
-    assert len(errors) == 1, f"expected one 'error:' line, got {errors}\n{stderr}"
-    assert re.fullmatch(rf"error: evoscen_sim: controller '{name}' missed 3 consecutive deadline\(s\) .*", errors[0]), errors
+    assert errors == [f"error: graph: node {name} ended early (killed by SIGKILL (signal 9)); the run ended early "
+                      "(exit status 4)"], f"expected the launcher's one 'error:' line naming {name}\n{stderr}"
+    # the simulation's deadline abort, said as the consequence it is (no 'error:')
+    assert re.search(rf"^evoscen_sim: controller '{name}' missed 3 consecutive deadline\(s\) of 0.5 s at step \d+; "
+                     r"run aborted \(its process had ended: the launcher names it\)$", stderr, re.M), stderr
     assert f"{name}=-9" in killed_bv["stdout"], killed_bv["stdout"]  # the launcher reports the dead node
 
     bag = _read_bag(bag_dir)
@@ -348,6 +352,59 @@ def test_killed_controller_bag_has_one_message_per_step(killed_bv):
     for topic in (*PER_STEP_STATE, "/evoscen/commands/sut"):
         dup = {t: n for t, n in Counter(_stamps(bag, topic)).items() if n > 1}
         assert not dup, f"{topic}: several messages with the same stamp {dup}"
+
+
+def test_stalled_controller_is_a_controller_fault(tmp_path):
+    """A BV node alive but stopped (SIGSTOP) misses its deadlines: the simulation's abort (3), its one
+    'error:' line naming the node, the abort in the bag; not a death (4), which needs a process that ended."""
+    name = BV_NODES[0]
+    out = tmp_path / "run"
+    with _running(out / "bag", "--steps", 5000, "--seed", 5, "--deadline", 0.5, "--max-misses", 3, "--out", out,
+                  "--no-plots", settle_s=0.3) as launcher:
+        cmd = ["pgrep", "-P", str(launcher.pid), "-f", rf"\s__node:={name}(\s|$)"]
+        bv = [int(p) for p in subprocess.run(cmd, capture_output=True, text=True, check=False).stdout.split()]
+        assert len(bv) == 1, bv
+        os.kill(bv[0], signal.SIGSTOP)
+        end = time.monotonic() + 60
+        while _children(launcher, "evoscen_sim.sim_node") and time.monotonic() < end:
+            time.sleep(0.1)
+        os.kill(bv[0], signal.SIGCONT)  # the run is over: it sees the world's publisher gone and ends
+        stdout, stderr = launcher.communicate(timeout=90)
+    assert launcher.returncode == 3, f"exit status {launcher.returncode}, expected 3\n{stdout}\n{stderr}"
+    assert "Traceback" not in stderr, stderr
+    errors = _error_lines(stderr)
+    assert len(errors) == 1 and re.fullmatch(
+        rf"error: evoscen_sim: controller '{name}' missed 3 consecutive deadline\(s\) of 0.5 s at step \d+; "
+        r"run aborted", errors[0]), errors
+    assert "ended early" not in stderr, stderr
+    faults = [ev for _, ev in _events(_read_bag(out / "bag")) if ev["name"] == "evoscen/fault"]
+    assert faults[-1]["kind"] == "abort" and faults[-1]["controller"] == name, faults
+
+
+def test_exit_status_precedence():
+    """graph_status, the table's order (docs/recording.md): a death before the deadline abort it causes."""
+    from evoscen_bringup.graph_runner import graph_status
+    from evoscen_contract.contract import NODE_EVAL, NODE_SIM, NODE_SUT
+
+    bv, killed = BV_NODES[1], "ended early (killed by SIGKILL (signal 9))"
+    ok = {NODE_SIM: 0, NODE_EVAL: 0, **{n: 0 for n in BV_NODES}, NODE_SUT: 0}
+    assert graph_status(ok, {}, False) == 0
+    # a BV node killed in the lockstep, the simulation's abort (3) following: 4
+    assert graph_status({**ok, NODE_SIM: 3, bv: -9}, {bv: killed}, False, [bv]) == 4
+    # a controller that exits 1 on its own (a crash) during the run: 4 as well
+    assert graph_status({**ok, NODE_SIM: 3, NODE_SUT: 1}, {NODE_SUT: "ended early (exit status 1)"}, False,
+                        [NODE_SUT]) == 4
+    # a live controller that missed its deadlines (stalled; stopped by the launcher after the run): 3
+    assert graph_status({**ok, NODE_SIM: 3}, {}, False) == 3
+    assert graph_status({**ok, NODE_SIM: 3, bv: -9}, {}, False, []) == 3
+    # a controller that refused its driver's answer (2) before the abort it causes
+    assert graph_status({**ok, NODE_SIM: 3, bv: 2}, {bv: "refused its driver's answer"}, False) == 2
+    # the recorder could not write (5); the simulation, stopped, had to be SIGKILLed: still 5
+    assert graph_status({**ok, NODE_SIM: -9, NODE_EVAL: 5},
+                        {NODE_EVAL: "could not write its output", NODE_SIM: "did not end"}, False, [NODE_SIM]) == 5
+    # the evaluator killed: the simulation, stopped, ends interrupted (130): 4
+    assert graph_status({**ok, NODE_SIM: 130, NODE_EVAL: -9}, {NODE_EVAL: killed}, False, [NODE_EVAL]) == 4
+    assert graph_status({**ok, NODE_SIM: 130}, {}, True) == 130
 
 
 # --------------------------------------------------------------------------- Ctrl-C, a dead recorder

@@ -17,6 +17,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -388,3 +389,89 @@ def test_bytes_held_between_flushes_are_bounded_and_change_nothing(tmp_path: Pat
     run_inprocess(_cfg(), bag_dir=tmp_path / "held" / "bag", bag_writer="inline")
     assert len(writes) > len(_chunks(reference)) + 1  # more write-outs than flushes
     assert (tmp_path / "held" / "bag" / "bag_0.mcap").read_bytes() == reference.read_bytes()
+
+
+# ---------------------------------------------------------------------------- end to end, a real read-only file system
+
+RO_STEPS = 3000
+
+
+@pytest.fixture(scope="module")
+def reference_ro(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The undisturbed run's bag file, as long as the runs made read-only mid-run."""
+    from evoscen_bringup.inprocess import run_inprocess
+
+    bag = tmp_path_factory.mktemp("ref_ro") / "bag"
+    run_inprocess(_cfg(RO_STEPS), bag_dir=bag, bag_writer="inline")
+    return bag / "bag_0.mcap"
+
+
+@pytest.fixture
+def ext4_fs(tmp_path: Path):  # noqa: ANN201
+    """A 64 MiB ext4 file system on a loop device (errors=remount-ro), unmounted afterwards; the
+    fault campaign's own helpers make it and, later, make it read-only."""
+    if not _can_mount() or shutil.which("mkfs.ext4") is None:
+        pytest.skip("needs root and mkfs.ext4 to mount an ext4 image")
+    sys.path.insert(0, str(REPO / "scripts"))
+    from fault_campaign import mount_ext4
+
+    mnt = tmp_path / "ext4"
+    why = mount_ext4(mnt, tmp_path / "ext4.img")
+    if why is not None:
+        pytest.skip(why)
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+@pytest.mark.e2e
+@pytest.mark.parametrize("mode", ["inline", "process", "graph"])
+def test_cli_output_made_read_only_mid_run(tmp_path: Path, ext4_fs: Path, reference_ro: Path, mode: str) -> None:
+    """The output's file system turns read-only while the bag is written (ext4's emergency read-only,
+    as on an I/O error; root cannot write either): status 5, one line naming the bag file and EROFS,
+    the bag, which cannot be finished there, rebuilt from a copy by reindex.py holds exactly the
+    world states the line names, the undisturbed run's first N byte for byte."""
+    from fault_campaign import make_read_only
+
+    out = ext4_fs / "run"
+    bag = out / "bag"
+    mcap = bag / "bag_0.mcap"
+    proc = subprocess.Popen([*_cli(out, mode, RO_STEPS), "--no-plots"], text=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+    try:
+        end = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < end and not (mcap.exists() and mcap.stat().st_size > 150_000):
+            time.sleep(0.01)
+        assert proc.poll() is None, "the run ended before its output was made read-only"
+        assert make_read_only(ext4_fs) is None
+        t_fault = time.monotonic()
+        _out, stderr = proc.communicate(timeout=60)
+        after = time.monotonic() - t_fault
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 5, stderr
+    assert after < 10.0, f"the run ended {after:.1f} s after the fault"
+    line = _error_line(stderr)
+    if mode != "graph":
+        assert len([ln for ln in stderr.splitlines() if ln.strip()]) == 1, stderr
+    who = "evoscen_eval: " if mode == "graph" else ""
+    m = re.fullmatch(
+        rf"error: {who}cannot write {re.escape(str(mcap))}: Read-only file system \(EROFS\); the bag "
+        rf"{re.escape(str(bag))} holds the (\d+) world states recorded before it, but could not be finished; "
+        rf"free space on the disk \(or make the output directory writable\), then run: "
+        rf"python scripts/reindex.py {re.escape(str(bag))}", line)
+    assert m, line
+    n = int(m.group(1))
+    assert not (bag / "metadata.yaml").exists()
+    copy = tmp_path / "recovered"
+    shutil.copytree(bag, copy)
+    r = subprocess.run([sys.executable, str(REPO / "scripts" / "reindex.py"), str(copy), "--no-keep-original"],
+                       capture_output=True, text=True, timeout=120, check=False)
+    assert r.returncode == 0, r.stderr
+    assert f"{n} world states" in r.stdout, r.stdout
+    worlds = _worlds(copy / "bag_0.mcap")  # the mcap library's reader
+    assert n > 0 and [t for t, _ in worlds] == [k * 100_000_000 for k in range(n)]
+    assert worlds == _worlds(reference_ro)[:n]

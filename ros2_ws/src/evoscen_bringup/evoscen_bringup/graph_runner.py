@@ -14,9 +14,11 @@ processes (``python -m <pkg>.<node> --ros-args --params-file ...``), and supervi
   (killed by SIGKILL (signal 9))``), and the graph ends within seconds: the evaluator's death or
   any death during start-up (before the simulation node's ``ready_file`` exists) stops the
   simulation node at once (SIGINT); a controller's death in the lockstep is left to the
-  simulation's deadline abort (status 3), with a SIGINT after ``deadline_s`` · ``max_misses`` + 5 s
-  as a backstop; the simulation node's death sends SIGTERM to the evaluator (which finishes the
-  bag) and SIGINT to the controllers, SIGKILL after 5 s;
+  simulation's deadline abort (its fault events go into the bag), with a SIGINT after ``deadline_s`` ·
+  ``max_misses`` + 5 s as a backstop; the launcher writes the dead controller's name into the
+  simulation's ``deaths_file``, so that the simulation's abort line says it is a consequence (no
+  second ``error:`` line); the simulation node's death sends SIGTERM to the evaluator (which
+  finishes the bag) and SIGINT to the controllers, SIGKILL after 5 s;
 * the exit status is one of :data:`EXIT_OK` 0, :data:`EXIT_BAD_INPUT` 2, :data:`EXIT_FAULT` 3,
   :data:`EXIT_NODE_DIED` 4, :data:`EXIT_HOST_FAULT` 5, :data:`EXIT_INTERRUPTED` 130 (:func:`graph_status`), never a raw
   signal number.
@@ -36,6 +38,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -108,6 +111,8 @@ class GraphResult:
     wall_time_s: float
     died: dict[str, str] = field(default_factory=dict)
     """Nodes that died or ended before the run did, with how (``killed by SIGKILL (signal 9)``)."""
+    deaths: list[str] = field(default_factory=list)
+    """The nodes of ``died`` that died (killed by a signal, or ended non-zero on their own), in order."""
 
 
 def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOptions) -> dict[str, Path]:
@@ -186,10 +191,13 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
             return run_graph(cfg, out_dir, bag_dir, dataclasses.replace(opts, domain_id=domain))
     domain_id = opts.domain_id
     ready_file = out_dir / "params" / ".evoscen_sim.ready"
+    deaths_file = out_dir / "params" / ".evoscen_sim.deaths"
     opts = dataclasses.replace(opts, node_args={
-        **opts.node_args, NODE_SIM: {"ready_file": str(ready_file), **opts.node_args.get(NODE_SIM, {})}})
+        **opts.node_args, NODE_SIM: {"ready_file": str(ready_file), "deaths_file": str(deaths_file),
+                                     **opts.node_args.get(NODE_SIM, {})}})
     params = write_parameter_files(cfg, out_dir, bag_dir, opts)
     ready_file.unlink(missing_ok=True)
+    deaths_file.unlink(missing_ok=True)
     env = node_environment(domain_id, opts.discovery_range)
     wanted = []  # (node name, module): one BV node per share of bvs.nodes, each under its own name
     for name, module in NODES:
@@ -201,6 +209,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     t0 = time.monotonic()
     interrupted = False
     died: dict[str, str] = {}  # node -> how it ended, for nodes that ended before the run did
+    deaths: list[str] = []  # the nodes of died that died (killed, or non-zero on their own): exit status 4
     signalled: set[str] = set()  # nodes the launcher stopped itself
 
     def forward(signum, frame):  # noqa: ANN001, ANN202
@@ -212,7 +221,18 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
 
     def note(name: str, why: str) -> None:
         died[name] = why
+        deaths.append(name)
         print(f"graph: {name} {why} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
+
+    def tell_simulation() -> None:
+        """A controller died in the lockstep: name it in the simulation's ``deaths_file`` (written
+        whole, then renamed), so that its deadline abort, which follows, says it is a consequence."""
+        part = deaths_file.with_name(deaths_file.name + ".part")
+        try:
+            part.write_text("".join(f"{n}\n" for n in deaths if n not in (NODE_SIM, NODE_EVAL)), encoding="utf-8")
+            os.replace(part, deaths_file)
+        except OSError:  # the output directory is gone or full: the abort line keeps its 'error:'
+            pass
 
     old = {sig: signal.signal(sig, forward) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
@@ -250,10 +270,13 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                     # no recorder: nothing would be recorded; during start-up: the simulation would
                     # wait out its start-up timeout for the dead node. Stop the run now.
                     stop_sim_at = time.monotonic()
-                elif stop_sim_at is None:
+                else:
                     # a controller in the lockstep: the simulation's deadline misses abort the run
-                    # (status 3, fault events in the bag); stop it if that does not happen in time
-                    stop_sim_at = time.monotonic() + fault_wait_s
+                    # (fault events in the bag; exit status 4, the abort is its consequence); stop
+                    # it if that does not happen in time
+                    tell_simulation()
+                    if stop_sim_at is None:
+                        stop_sim_at = time.monotonic() + fault_wait_s
             if stop_sim_at is not None and time.monotonic() >= stop_sim_at:
                 # SIGTERM before step 0: a node still importing its modules would print a
                 # KeyboardInterrupt traceback on SIGINT (the simulation handles both alike)
@@ -298,29 +321,37 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 p.wait()
         for sig, handler in old.items():
             signal.signal(sig, handler)
-        ready_file.unlink(missing_ok=True)
+        for marker in (ready_file, deaths_file):
+            try:
+                marker.unlink(missing_ok=True)
+            except OSError:  # the output became read-only or was removed: the recorder's line says so
+                pass
     node_status = {name: p.returncode for name, p in procs.items()}
-    status = graph_status(node_status, died, interrupted)
+    status = graph_status(node_status, died, interrupted, deaths)
     if status == EXIT_NODE_DIED:
-        if died:
-            first = next(iter(died))
+        if deaths or died:
+            first = deaths[0] if deaths else next(iter(died))
             what = f"node {first} {died[first]}; the run ended early"
         else:  # every node outlived the run, but one ended badly (e.g. stopped by the launcher)
             what = "; ".join(f"node {n} ended with {describe_status(s)}" for n, s in node_status.items()
                              if s not in (0, None))
         print(f"error: graph: {what} (exit status {EXIT_NODE_DIED})", file=sys.stderr)
     return GraphResult(status=status, node_status=node_status, domain_id=domain_id,
-                       wall_time_s=time.monotonic() - t0, died=died)
+                       wall_time_s=time.monotonic() - t0, died=died, deaths=deaths)
 
 
-def graph_status(node_status: dict[str, int | None], died: dict[str, str], interrupted: bool) -> int:
+def graph_status(node_status: dict[str, int | None], died: dict[str, str], interrupted: bool,
+                 deaths: Collection[str] = ()) -> int:
     """The launcher's exit status (table in docs/recording.md).
 
     The simulation node's bad input (2) first, then 2 from any node (a bad parameter, or a controller
-    that refused its driver's answer: a controller fault that follows is its consequence), then the
-    simulation node's 3 (a controller fault: it ended the run cleanly and said why), then 5 from the recorder (a fault of the
-    host: it could not write the bag), then a node that died (4), then an interruption (130), then any
-    other node's failure (2 as it is, anything else 4); 0 only if every node ended with 0.
+    that refused its driver's answer: a controller fault that follows is its consequence), then 5
+    from the recorder (a fault of the host: it could not write the bag and stopped the run), then a
+    node that died (4: ``deaths``, killed by a signal or ended non-zero on its own before the run
+    did; the simulation's deadline abort that follows a controller's death is its consequence), then
+    the simulation node's 3 (a controller fault: a live controller missed its deadlines, or start-up
+    timed out), then any other node of ``died`` (4), then an interruption (130), then any other
+    node's failure (3 if all are 3, else 4); 0 only if every node ended with 0.
     """
     sim = node_status.get(NODE_SIM)
     if sim == EXIT_BAD_INPUT:
@@ -328,10 +359,12 @@ def graph_status(node_status: dict[str, int | None], died: dict[str, str], inter
     others = [s for n, s in node_status.items() if n != NODE_SIM and s not in (0, None)]
     if EXIT_BAD_INPUT in others:  # before the simulation's fault: a controller that refused its driver's
         return EXIT_BAD_INPUT     # answer left the lockstep, and any fault that followed is its consequence
-    if sim == EXIT_FAULT:
-        return sim
     if EXIT_HOST_FAULT in others:  # the recorder could not write: it stopped the run (its one line)
         return EXIT_HOST_FAULT
+    if deaths:  # a death; a deadline abort of the simulation that followed it is its consequence
+        return EXIT_NODE_DIED
+    if sim == EXIT_FAULT:
+        return sim
     if died:
         return EXIT_NODE_DIED
     if interrupted or sim == EXIT_INTERRUPTED:

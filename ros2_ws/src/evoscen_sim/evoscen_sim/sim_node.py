@@ -38,6 +38,10 @@ unacknowledged samples, far below the middleware's resource limits (``fastdds_pr
 before, a recorder stalled ~10 s filled a controller's history and its publish failed.
 ``ready_file`` [""]: a file created once start-up is over, just before step 0 (the launcher
 reads it to tell a death during start-up from one during the lockstep).
+``deaths_file`` [""]: a file in which the launcher names (one a line) the controllers whose
+process ended during the lockstep; a deadline abort for a controller named there is the
+consequence of its death, which the launcher reports (exit status 4): the node's abort line then
+goes without the ``error:`` prefix and says so.
 """
 
 from __future__ import annotations
@@ -90,6 +94,7 @@ class SimParams:
     discovery_settle_s: float = number(0.5, 0.0)
     recorder_lag_steps: int = integer(50, 0)
     ready_file: str = text("", allow_empty=True)
+    deaths_file: str = text("", allow_empty=True)
 
 
 class SimulationNode(Port):
@@ -119,6 +124,8 @@ class SimulationNode(Port):
         self.recorder_lag_steps = own.recorder_lag_steps
         self.flow_waits, self.flow_wait_s = 0, 0.0  # flow control's waits for acknowledgements (stats_file)
         self.ready_file = own.ready_file
+        self.deaths_file = own.deaths_file
+        self.aborted_by: str | None = None  # the controller whose misses aborted the run
 
         # the controllers and their command topics: one per BV node of bvs.nodes and the SUT
         # (docs/architecture.md §5, "BV nodes")
@@ -340,7 +347,13 @@ class SimulationNode(Port):
                 break
             self._check_interrupt()
             self.pump.wait(min(remaining, 0.1))
-        for c in self.controllers:
+        order = self.controllers
+        if any(self.misses[c] + 1 >= self.max_misses for c in pending | malformed):
+            # an abort at this step: a controller whose process ended (deaths_file) is its cause, also
+            # when a live one reaches its last miss at the same step (a loaded machine): named first
+            dead = [c for c in order if c in pending and self._died(c)]
+            order = dead + [c for c in order if c not in dead]
+        for c in order:
             if c not in pending and c not in malformed:
                 self.misses[c] = 0
                 continue
@@ -358,6 +371,7 @@ class SimulationNode(Port):
             events.append([fault_event(self.world, kind, c, self.misses[c], text)])
             self.node.get_logger().warning(text)
             if kind == T.KIND_ABORT:
+                self.aborted_by = c
                 return Commands(self.throttle, self.lane_change, events, abort=text)
         self._flush_wire_faults(events)
         return Commands(self.throttle, self.lane_change, events)
@@ -465,7 +479,9 @@ class SimulationNode(Port):
     def run(self) -> int:
         """The whole run (:class:`~evoscen_sim.step_loop.StepLoop` with this port); returns the exit status."""
         outcome = self.loop.run(self.cfg.steps)
-        if outcome.kind == T.KIND_ABORTED:
+        if outcome.kind == T.KIND_ABORTED and self._died(self.aborted_by):
+            print(f"{NODE_NAME}: {outcome.text} (its process had ended: the launcher names it)", file=sys.stderr)
+        elif outcome.kind == T.KIND_ABORTED:
             print(f"error: {NODE_NAME}: {outcome.text}", file=sys.stderr)
         if outcome.wall_s is not None:  # start-up was over
             self._report(outcome.steps, outcome.wall_s)
@@ -474,6 +490,16 @@ class SimulationNode(Port):
             pub.wait_for_all_acked(graph.duration(max(end - time.monotonic(), 0.0)))
         self._leave()
         return EXIT_STATUS[outcome.kind]
+
+    def _died(self, controller: str | None) -> bool:
+        """Whether the launcher named ``controller`` in ``deaths_file`` (its process ended)."""
+        if controller is None or not self.deaths_file:
+            return False
+        try:
+            with open(self.deaths_file, encoding="utf-8") as f:
+                return controller in f.read().split()
+        except OSError:  # none written (no controller died), or unreadable
+            return False
 
     def _leave(self) -> None:
         """Withdraw our publishers, so that peers see us gone at once.
