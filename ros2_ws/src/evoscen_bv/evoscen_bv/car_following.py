@@ -261,7 +261,8 @@ def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, prese
     """:func:`leaders` from the occupancy ``occ`` (:func:`_occupancy`), over the perceived vehicles
     only (``seen[k, j, q] >= full``) when ``full > 0`` (the ``driver`` profile), over all when 0.
     Hosted vehicles with ``late[k]`` read ``occ_late`` instead (:func:`_late_occupancy`: the SUT's
-    lane-change intent not counted)."""
+    lane-change intent not counted) while they keep their lane: one changing lanes itself watches
+    its target lane as every BV does."""
     m = idx.shape[0]
     n, num_lanes = present.shape
     gap = np.full((m, 2), np.inf)
@@ -283,7 +284,7 @@ def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, prese
                 break
             best = -1
             best_ds = np.inf
-            o = occ_late if late[k] else occ
+            o = occ_late if late[k] and lane_change[i] == 0 else occ
             for j in range(n):  # the nearest (perceived) vehicle ahead occupying lane q
                 if j == i or not o[j, q] or (full > 0 and seen[k, j, q] < full):
                     continue
@@ -483,7 +484,7 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
     if update:
         for k in range(m):
             i = idx[k]
-            o = occ_late if late[k] else occ
+            o = occ_late if late[k] and lane_change[i] == 0 else occ
             for j in range(n):
                 ahead = j != i and (s[j] > s[i] or (s[j] == s[i] and j > i))
                 for q in range(num_lanes):

@@ -93,8 +93,9 @@ class LearnedParams:
     competitive_cut_in: str = text("compete", ("compete", "yield"))
     """How a competitive BV answers the SUT cutting in ahead of it (docs/learned-bvs.md,
     "Competitive BVs and a SUT cutting in"). [choice] ``compete`` (default): it does not make
-    room on the SUT's intent — it keeps following its own leader until the SUT's body reaches into
-    its lane, as the method's competitive drivers, who "do not let others in", do; mutual and
+    room on the SUT's intent — while it keeps its lane it follows its own leader until the SUT's
+    body reaches into that lane, as the method's competitive drivers, who put their own progress
+    first, do (one changing lanes itself watches its target lane as every BV does); mutual and
     cooperative BVs yield on the intent as before. ``yield``: every BV treats the SUT as in its
     lane from the SUT's request on (before). Towards other BVs every BV yields on the intent either
     way (BV–BV realism, the guard of docs/bv-profiles.md)."""

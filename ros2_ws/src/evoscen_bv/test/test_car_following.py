@@ -266,3 +266,24 @@ def test_a_competitive_bv_does_not_yield_to_the_sut_cutting_in_until_its_body_is
         w.v[0], w.s[0] = 30.0, w.s[1] - 25.0
         later.append(throttle(w, True, bv_c)[0])
     assert min(later) < free - 0.1  # now it brakes for the SUT
+
+
+def test_a_competitive_bv_changing_lanes_itself_sees_the_sut_changing_into_the_same_lane():
+    """The competitive rule holds for a BV keeping its lane only: a competitive BV in lane 3 that starts a
+    change into lane 2 at the step the SUT (lane 1, 25 m ahead) starts one into lane 2 brakes for the SUT
+    from its request on, as with ``yield``."""
+    from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
+    from evoscen_contract.contract import POLICY_CODES, ROLE_BV, ROLE_SUT
+
+    controller, _, training = load_policies(shipped_policy_dir())
+    w = hand_built_world(load_road(), s=[1200.0, 1225.0], lane=[3, 1], speed=[30.0, 25.0], roles=[ROLE_BV, ROLE_SUT])
+    w.policy[0] = POLICY_CODES["competitive"]
+    w.step(np.zeros(2), np.array([-1, 1]))
+    assert w.lane_change.tolist() == [-1, 1] and w.target_lane.tolist() == [2, 2]
+    u = {compete: float(LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), w.vehicle,
+                                      profile="safety_net", compete_with_sut=compete).throttle(w)[0])
+         for compete in (True, False)}
+    alone = hand_built_world(load_road(), s=[1200.0], lane=[2], speed=[30.0])
+    free = float(LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), alone.vehicle,
+                               profile="safety_net").throttle(alone)[0])
+    assert u[True] == u[False] < free - 0.1
