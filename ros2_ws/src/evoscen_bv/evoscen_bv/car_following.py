@@ -223,11 +223,32 @@ def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right
 
 
 @kernel
+def _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present):  # noqa: ANN001, ANN202
+    """``occ`` with the SUT's lane-change *intent* not counted: while the SUT changes lanes it
+    occupies its target lane only once its body reaches into it (the geometric rule of
+    :func:`_occupancy`), not from its request on. What a BV that does not yield early sees
+    (``models.learned.cut_in_yield``, docs/learned-bvs.md "Competitive BVs and a SUT cutting in")."""
+    out = occ.copy()
+    if sut < 0 or lane_change[sut] == 0:
+        return out
+    num_lanes = present.shape[1]
+    for q in range(num_lanes):
+        out[sut, q] = False
+    out[sut, lane[sut]] = True
+    e = 0.5 * (width[sut] * np.cos(psi[sut]) + length[sut] * abs(np.sin(psi[sut])))
+    for q in (lane[sut] - 1, lane[sut] + 1):
+        if 0 <= q < num_lanes and present[sut, q] and d[sut] + e > d_right[sut, q] + OCCUPY_TOLERANCE_M \
+                and d[sut] - e < d_left[sut, q] - OCCUPY_TOLERANCE_M:
+            out[sut, q] = True
+    return out
+
+
+@kernel
 def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
                     d_right, d_left, present, merge_stop_s):
     occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
     return _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present, merge_stop_s, occ,
-                            _ALL_SEEN, 0)
+                            _ALL_SEEN, 0, occ, np.zeros(idx.shape[0], dtype=np.bool_))
 
 
 _ALL_SEEN = np.zeros((0, 0, 0), dtype=np.int64)
@@ -236,9 +257,12 @@ _ALL_SEEN = np.zeros((0, 0, 0), dtype=np.int64)
 
 @kernel
 def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,  # noqa: ANN001, ANN202
-                     merge_stop_s, occ, seen, full):
+                     merge_stop_s, occ, seen, full, occ_late, late):
     """:func:`leaders` from the occupancy ``occ`` (:func:`_occupancy`), over the perceived vehicles
-    only (``seen[k, j, q] >= full``) when ``full > 0`` (the ``driver`` profile), over all when 0."""
+    only (``seen[k, j, q] >= full``) when ``full > 0`` (the ``driver`` profile), over all when 0.
+    Hosted vehicles with ``late[k]`` read ``occ_late`` instead (:func:`_late_occupancy`: the SUT's
+    lane-change intent not counted) while they keep their lane: one changing lanes itself watches
+    its target lane as every BV does."""
     m = idx.shape[0]
     n, num_lanes = present.shape
     gap = np.full((m, 2), np.inf)
@@ -260,8 +284,9 @@ def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, prese
                 break
             best = -1
             best_ds = np.inf
+            o = occ_late if late[k] and lane_change[i] == 0 else occ
             for j in range(n):  # the nearest (perceived) vehicle ahead occupying lane q
-                if j == i or not occ[j, q] or (full > 0 and seen[k, j, q] < full):
+                if j == i or not o[j, q] or (full > 0 and seen[k, j, q] < full):
                     continue
                 ds = s[j] - s[i]
                 if ds < 0.0 or (ds == 0.0 and j < i) or ds >= best_ds:
@@ -390,7 +415,8 @@ class ReactionState:
 
 def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, params: CarFollowingParams,  # noqa: ANN001
                      max_accel: float, max_brake: float, constants: tuple | None = None,
-                     reaction: ReactionState | None = None) -> np.ndarray:
+                     reaction: ReactionState | None = None, late: np.ndarray | None = None,
+                     sut: int = -1) -> np.ndarray:
     """The run-time throttle of vehicles ``idx``, fused into one compiled pass.
 
     The same quantities as :func:`controller_observations`, the controller's forward pass
@@ -400,7 +426,11 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
     the step. ``constants``: :func:`throttle_constants` of these arguments, if the caller keeps them.
     ``reaction``: the ``driver`` profile's state (:class:`ReactionState`; docs/bv-profiles.md);
     ``None``: the ``safety_net`` profile (instant reaction, braking up to the full brake).
+    ``late``: per vehicle of ``idx``, True where it does not yield to the SUT's lane-change intent
+    (:func:`_late_occupancy`; ``sut``: the SUT's row, -1 none); ``None``: every vehicle yields on it.
     """
+    idx = np.asarray(idx, dtype=np.int64)
+    late = np.zeros(idx.shape[0], dtype=np.bool_) if late is None else np.asarray(late, dtype=np.bool_)
     if constants is None:
         constants = throttle_constants(bank, params, view.road, max_accel, max_brake)
     lk = view.lane_lookup()
@@ -408,19 +438,22 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
             view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present, lk.max_speed_mps,
             np.asarray(desired_speed, dtype=float), *constants)
     if reaction is None:  # the safety_net profile
-        return _learned_throttle_kernel(*args)
+        return _learned_throttle_kernel(*args, late, np.int64(sut))
     update = reaction.advance(view)
     return _driver_throttle_kernel(*args, np.int64(reaction.n_react), reaction.seen, reaction.em_count, update,
-                                   reaction.cap_frac, reaction.standing_at_once)
+                                   reaction.cap_frac, reaction.standing_at_once, late, np.int64(sut))
 
 
 @kernel
 def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
                              d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max, own_w,
-                             speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action):
+                             speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
+                             late, sut):
     """The ``safety_net`` profile: every leader at once, the emergency brake at once and uncapped."""
-    gap_all, vl_all, al_all = _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
-                                              d_right, d_left, present, merge_stop_s)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    occ_late = _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present)
+    gap_all, vl_all, al_all = _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,
+                                               merge_stop_s, occ, _ALL_SEEN, 0, occ_late, late)
     em_on = np.ones(idx.shape[0], dtype=np.bool_)
     return _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired, view,
                                   v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
@@ -431,7 +464,7 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
 def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
                             d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max, own_w,
                             speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
-                            n_react, seen, em_count, update, cap_frac, standing_at_once):
+                            n_react, seen, em_count, update, cap_frac, standing_at_once, late, sut):
     """The ``driver`` profile (docs/bv-profiles.md): reaction time and bounded braking.
 
     ``seen[k, j, q]``: consecutive steps (capped at N + 1) vehicle ``j`` has occupied lane
@@ -447,18 +480,20 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
     n, num_lanes = present.shape
     full = n_react + 1
     occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    occ_late = _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present)
     if update:
         for k in range(m):
             i = idx[k]
+            o = occ_late if late[k] and lane_change[i] == 0 else occ
             for j in range(n):
                 ahead = j != i and (s[j] > s[i] or (s[j] == s[i] and j > i))
                 for q in range(num_lanes):
-                    if ahead and occ[j, q]:
+                    if ahead and o[j, q]:
                         seen[k, j, q] = min(seen[k, j, q] + 1, full)
                     else:
                         seen[k, j, q] = 0
         gap_a, vl_a, al_a = _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,
-                                             merge_stop_s, occ, _ALL_SEEN, 0)
+                                             merge_stop_s, occ, _ALL_SEEN, 0, occ_late, late)
         for k in range(m):
             need = 0.0
             for slot in range(2):
@@ -472,7 +507,7 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
             else:
                 em_count[k] = 0
     gap_all, vl_all, al_all = _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,
-                                               merge_stop_s, occ, seen, full)
+                                               merge_stop_s, occ, seen, full, occ_late, late)
     em_on = np.empty(m, dtype=np.bool_)
     for k in range(m):
         em_on[k] = em_count[k] >= full

@@ -262,6 +262,10 @@ class LearnedDriver:
         hold_on_entry: with ``lane_hold_s``, a vehicle that enters anew (the traffic window's entries,
             re-entries) starts with a lane hold, as a vehicle that has settled in its lane; False:
             without one (it may change lanes at its first decision).
+        compete_with_sut: competitive BVs do not yield to the SUT's lane-change intent: the SUT
+            occupies their lane once its body reaches into it
+            (:func:`evoscen_bv.car_following._late_occupancy`; ``models.learned.competitive_cut_in``);
+            False: every BV yields on the intent.
         hard_brake: the run-time hard braking of the SUT's leader (:class:`HardBrakeParams`,
             docs/learned-bvs.md, "Hard braking"); its draws come from a generator seeded by one
             draw from ``rng`` after the desired speeds. ``None``: no hard braking (no draw).
@@ -272,7 +276,7 @@ class LearnedDriver:
                  forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
                  cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None,
                  into_ending_lane: bool = True, forced_merge_m: float = FORCED_MERGE_M,
-                 merge_seek: bool = False, hold_on_entry: bool = False,
+                 merge_seek: bool = False, hold_on_entry: bool = False, compete_with_sut: bool = False,
                  hard_brake: HardBrakeParams | None = None) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         if not lane_hold_s >= 0.0:
@@ -298,6 +302,7 @@ class LearnedDriver:
         self.forced_merge_m = float(forced_merge_m)
         self.merge_seek = bool(merge_seek)
         self.hold_on_entry = bool(hold_on_entry)
+        self.compete_with_sut = bool(compete_with_sut)
         self.controller = controller
         self.controller_bank = PolicyBank([controller])
         self.config = config
@@ -348,8 +353,15 @@ class LearnedDriver:
             self._throttle_road = view.road
             self._throttle_constants = throttle_constants(self.controller_bank, self.config.car_following, view.road,
                                                           vp.max_accel_mps2, vp.max_brake_mps2)
+        late, sut = None, -1
+        if self.compete_with_sut:
+            sut_rows = np.flatnonzero(np.asarray(view.role) == ROLE_SUT)
+            if sut_rows.size:
+                sut = int(sut_rows[0])
+                late = np.asarray(view.policy)[self.vehicles] == POLICY_CODE["competitive"]
         return learned_throttle(view, self.vehicles, self.desired_speed_mps, self.controller_bank,
-                                self.config.car_following, 0.0, 0.0, self._throttle_constants, self.reaction)
+                                self.config.car_following, 0.0, 0.0, self._throttle_constants, self.reaction,
+                                late, sut)
 
     def _merge_seek_bound(self, view, throttle: np.ndarray) -> np.ndarray:  # noqa: ANN001
         """``throttle`` bounded by the merge's speed adaptation (:func:`merge_seek_accel`) for the

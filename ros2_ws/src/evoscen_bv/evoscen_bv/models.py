@@ -90,6 +90,15 @@ class LearnedParams:
     has settled there; without it 37 % of the entries were followed by a lane change within 5 s
     (14 % of all BV lane changes of the window; traced in the runs). false: no hold on entry, as
     before. The forced merge is exempt either way."""
+    competitive_cut_in: str = text("compete", ("compete", "yield"))
+    """How a competitive BV answers the SUT cutting in ahead of it (docs/learned-bvs.md,
+    "Competitive BVs and a SUT cutting in"). [choice] ``compete`` (default): it does not make
+    room on the SUT's intent — while it keeps its lane it follows its own leader until the SUT's
+    body reaches into that lane, as the method's competitive drivers, who put their own progress
+    first, do (one changing lanes itself watches its target lane as every BV does); mutual and
+    cooperative BVs yield on the intent as before. ``yield``: every BV treats the SUT as in its
+    lane from the SUT's request on (before). Towards other BVs every BV yields on the intent either
+    way (BV–BV realism, the guard of docs/bv-profiles.md)."""
     standing_leader_at_once: bool = flag(True)
     """Under the ``driver`` profile, the emergency brake acts at once, without the reaction
     time, for a perceived leader at rest (docs/bv-profiles.md, R2) [choice: a vehicle standing
@@ -144,6 +153,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
                          standing_leader_at_once=params.standing_leader_at_once,
                          into_ending_lane=params.into_ending_lane, forced_merge_m=params.forced_merge_m,
                          merge_seek=params.merge_seek, hold_on_entry=params.hold_on_entry,
+                         compete_with_sut=params.competitive_cut_in == "compete",
                          hard_brake=hard_brake_params(params))
 
 

@@ -205,3 +205,85 @@ def overlapping(w) -> bool:  # noqa: ANN001
     from evoscen_sim.collision import overlapping_pairs
 
     return len(overlapping_pairs(w.s, w.d, w.psi, w.length, w.width)) > 0
+
+
+def _cut_in_world(policy: str):  # noqa: ANN202
+    """A BV (index 0, ``policy``) at 1,200 m in lane 2 at 30 m/s; the SUT (index 1) 25 m ahead in lane 1 at
+    25 m/s, requesting a change into lane 2 — ahead of the BV."""
+    from evoscen_contract.contract import POLICY_CODES, ROLE_BV, ROLE_SUT
+
+    w = hand_built_world(load_road(), s=[1200.0, 1225.0], lane=[2, 1], speed=[30.0, 25.0], roles=[ROLE_BV, ROLE_SUT])
+    w.policy[0] = POLICY_CODES[policy]
+    w.step(np.zeros(2), np.array([0, 1]))
+    assert w.lane[1] == 1 and w.lane_change[1] == 1
+    return w
+
+
+def _body_in_lane_2(w) -> bool:  # noqa: ANN001
+    lk = w.lane_lookup()
+    e = 0.5 * (w.width[1] * np.cos(w.psi[1]) + w.length[1] * abs(np.sin(w.psi[1])))
+    return bool(w.d[1] + e > lk.d_right[1, 2] + 0.1)
+
+
+@pytest.mark.parametrize("profile", ["safety_net", "driver"])
+def test_a_competitive_bv_does_not_yield_to_the_sut_cutting_in_until_its_body_is_in_the_lane(profile):
+    """models.learned.competitive_cut_in (docs/learned-bvs.md): with ``compete`` a competitive BV ignores the
+    SUT's request — its throttle is the one it has with no SUT at all (bit for bit) — until the SUT's body
+    reaches into its lane; then (after its reaction time under ``driver``) it brakes for it like any BV.
+    A mutual BV, and every BV with ``yield``, brakes for the SUT from its request on."""
+    from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
+
+    controller, _, training = load_policies(shipped_policy_dir())
+
+    def throttle(w, compete: bool, bv: LearnedDriver | None = None) -> tuple[float, LearnedDriver]:  # noqa: ANN001
+        bv = bv or LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), w.vehicle,
+                                 profile=profile, compete_with_sut=compete)
+        return float(bv.throttle(w)[0]), bv
+
+    alone = hand_built_world(load_road(), s=[1200.0], lane=[2], speed=[30.0])
+    free, _ = throttle(alone, True)
+    w = _cut_in_world("competitive")
+    assert not _body_in_lane_2(w)
+    competing, bv_c = throttle(w, True)
+    yielding, bv_y = throttle(w, False)
+    assert competing == free  # the SUT's request is not seen
+    assert yielding < free - 0.1  # 25 m behind a vehicle 5 m/s slower: it brakes (-1 full brake, +1 full throttle)
+    m = _cut_in_world("mutual")
+    assert throttle(m, True)[0] == throttle(m, False)[0] < free - 0.1  # a mutual BV yields either way
+    # the SUT moves over at constant speed; the BV holds its speed (throttle 0 keeps it at 30 m/s here)
+    steps = 0
+    while not _body_in_lane_2(w):
+        assert throttle(w, True, bv_c)[0] == free
+        throttle(w, False, bv_y)
+        w.step(np.zeros(2), np.zeros(2, dtype=np.int64))
+        w.v[0], w.s[0] = 30.0, w.s[1] - 25.0
+        steps += 1
+    assert 5 <= steps <= 30  # the body crosses the line 0.5-3 s into the change
+    assert _body_in_lane_2(w) and w.lane_change[1] == 1
+    later = [throttle(w, True, bv_c)[0] for _ in range(1)]
+    for _ in range(20):  # the reaction time of the driver profile (under 2 s) passes
+        w.step(np.zeros(2), np.zeros(2, dtype=np.int64))
+        w.v[0], w.s[0] = 30.0, w.s[1] - 25.0
+        later.append(throttle(w, True, bv_c)[0])
+    assert min(later) < free - 0.1  # now it brakes for the SUT
+
+
+def test_a_competitive_bv_changing_lanes_itself_sees_the_sut_changing_into_the_same_lane():
+    """The competitive rule holds for a BV keeping its lane only: a competitive BV in lane 3 that starts a
+    change into lane 2 at the step the SUT (lane 1, 25 m ahead) starts one into lane 2 brakes for the SUT
+    from its request on, as with ``yield``."""
+    from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
+    from evoscen_contract.contract import POLICY_CODES, ROLE_BV, ROLE_SUT
+
+    controller, _, training = load_policies(shipped_policy_dir())
+    w = hand_built_world(load_road(), s=[1200.0, 1225.0], lane=[3, 1], speed=[30.0, 25.0], roles=[ROLE_BV, ROLE_SUT])
+    w.policy[0] = POLICY_CODES["competitive"]
+    w.step(np.zeros(2), np.array([-1, 1]))
+    assert w.lane_change.tolist() == [-1, 1] and w.target_lane.tolist() == [2, 2]
+    u = {compete: float(LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), w.vehicle,
+                                      profile="safety_net", compete_with_sut=compete).throttle(w)[0])
+         for compete in (True, False)}
+    alone = hand_built_world(load_road(), s=[1200.0], lane=[2], speed=[30.0])
+    free = float(LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), alone.vehicle,
+                               profile="safety_net").throttle(alone)[0])
+    assert u[True] == u[False] < free - 0.1
