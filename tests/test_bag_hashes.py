@@ -52,6 +52,10 @@ tailgating rule's grace (``evaluation.headway_grace_s``: the metadata record, th
 
 The hashes hold on the machines this project tests on (x86-64, the pinned numpy/numba); the
 kernels' floating-point results could differ on another CPU family.
+Then, meant to change behaviour: competitive learned BVs do not yield to the SUT's lane-change intent
+(``models.learned.competitive_cut_in: compete``, docs/learned-bvs.md): the worlds of every SUT that changes
+lanes change; the default's bag (a level-0 SUT, which never changes lanes) stays byte-identical, and
+with ``yield`` every command of 1,000 steps equals the code before (test_competitive_cut_in.py).
 """
 
 from __future__ import annotations
@@ -65,10 +69,10 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 HASHES = {
     None: "15dd1faa6d268ba0a7582fa2c2a3856b5acffd7d5b2e65ccfcc3e1ecbd0a0d2d",  # the shipped default (level0 SUT)
-    "nilsson": "ebec3714d96ca35c061953a6c992c5e55806f0adbb4e75a56c2386d84c160f36",
-    "mobil": "fe1a00529871d3ddd0cfcded8f4098887332171fb0a7ba9c7750ac9c3f3b1277",
-    "stackelberg": "d6d152fac0f49f33b0a75e91a5d6c7d4f15433c9e9440549a13fbc009c20f6de",
-    "mutant": "2fc9dda0822bed48f965ea3b08f3117fc59b2790d6c21953b20cc2ac9966262a",  # the default mutant
+    "nilsson": "87733d380065fff56a64841982664fcb0f3393cb43c9dc6670ea698cca26fbd1",
+    "mobil": "390fcf8e339c4a1a8b7ea90ea246a4042fbf6d0b1558c3e279b6cf6258347822",
+    "stackelberg": "3acc408f76f68ab14a0c4c6a2e33868d52c004daa1607ba996195d93231852c8",
+    "mutant": "93b5fedcac7343512a4b270a815fb38e03b7656584505ec7042ec5dbeee85910",  # the default mutant
 }
 
 
