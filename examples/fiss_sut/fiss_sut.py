@@ -43,7 +43,6 @@ from evoscen_sim.config import flag, integer, number, number_range, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.neighbors import OWN
-from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import accel_to_throttle
 
 PLANNERS = ("fop", "fop_plus", "fiss", "fiss_plus")
@@ -262,7 +261,7 @@ class FissSut:
 def make(vehicles: np.ndarray, params: FissSutParams, config, rng: np.random.Generator) -> FissSut:  # noqa: ANN001
     """The factory: the SUT's world index, ``models.fiss``, the scenario, a seeded generator (unused:
     the planner draws nothing)."""
-    return FissSut(vehicles, params, vehicle_params_from_config(config), config.dt_s)
+    return FissSut(vehicles, params, config.vehicle, config.dt_s)
 
 
 SPEC = ModelSpec(name="fiss", roles=("sut",), factory=make, params_type=FissSutParams,

@@ -49,7 +49,6 @@ from evoscen_sim.config_load import resolve_map_path
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.road import load_road
-from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import accel_to_throttle
 
 NAME = "sumo_sut"
@@ -248,7 +247,7 @@ class SumoSut:
     def __init__(self, vehicles: np.ndarray, params: SumoSutParams, config, seed: int, net: Path, road) -> None:  # noqa: ANN001
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         self.p = params
-        self.vehicle = vehicle_params_from_config(config)
+        self.vehicle = config.vehicle
         self.dt_s = float(config.dt_s)
         self.seed = int(seed)
         self.net_path = net

@@ -49,7 +49,10 @@ class Scenario:
         return bv_thr, bv_lc, sut_thr, sut_lc
 
     def step(self) -> tuple:
-        """One lockstep cycle in-process: ask the drivers, then advance the world."""
+        """One lockstep cycle in-process: ask the drivers, then advance the world; returns the world's
+        StepResult. No events, no recording: a test's or a benchmark's step (a run, with its events,
+        exposures and recording, is :class:`evoscen_sim.step_loop.StepLoop`'s, whose in-process port
+        asks :meth:`commands` and :meth:`assemble` likewise)."""
         bv_thr, bv_lc, sut_thr, sut_lc = self.commands()
         return self.apply(bv_thr, bv_lc, sut_thr, sut_lc)
 

@@ -168,7 +168,6 @@ class DecisionEnv:
     def reset(self, seed: int) -> np.ndarray:
         from evoscen_bv.level0 import Level0Driver, level0_params_from_config
         from evoscen_sim.scenario import build_world
-        from evoscen_sim.scenario_params import vehicle_params_from_config
 
         rng = np.random.default_rng(seed)
         n_bv = self.config.env.bv_count
@@ -186,7 +185,7 @@ class DecisionEnv:
         n = world.n
         self.ego = int(rng.integers(0, n))
         others = np.array([i for i in range(n) if i != self.ego], dtype=np.int64)
-        vp = vehicle_params_from_config(cfg)
+        vp = cfg.vehicle
         world.policy[:] = MUTUAL_CODE if self.frozen_policy is not None else 0
         if self.frozen_policy is None:
             self.traffic = Level0Driver(others, level0_params_from_config(cfg), rng, vp)

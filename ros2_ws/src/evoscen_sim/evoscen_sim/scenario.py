@@ -16,8 +16,7 @@ from evoscen_contract.contract import POLICY_CODES
 from .config import ScenarioConfig, mix_counts
 from .models import checked_answer, create_driver, rehosted
 from .road import RoadModel, load_road
-from .scenario_params import (control_params_from_config, reentry_params_from_config, traffic_params_from_config,
-                              vehicle_params_from_config)
+from .scenario_params import reentry_params_from_config, traffic_params_from_config
 from .spawn import spawn_layout, window_layout
 from .world import World
 
@@ -50,14 +49,14 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
     """Road, spawn layout and world for ``cfg`` (what the simulation node owns)."""
     road = load_road(cfg.map) if road is None else road
     rngs = scenario_rngs(cfg.seed)
-    vehicle = vehicle_params_from_config(cfg)
+    vehicle = cfg.vehicle
     traffic = traffic_params_from_config(cfg, road)
     if traffic is not None:
         initial = window_layout(
             road, traffic, bv_policies=bv_policy_codes(cfg, rngs["spawn"]), sut_policy=POLICY_CODES["sut"],
             sut_lane=cfg.sut.lane, sut_s_m=cfg.sut.s_m, sut_speed_mps=cfg.sut.speed_mps,
             vehicle_length_m=vehicle.length_m, rng=rngs["spawn"])
-        world = World(road, initial, vehicle=vehicle, control=control_params_from_config(cfg),
+        world = World(road, initial, vehicle=vehicle, control=cfg.control,
                       reentry=reentry_params_from_config(cfg), dt_s=cfg.dt_s, rng=rngs["world"], traffic=traffic)
         warm_up(world, cfg, int(round(traffic.warmup_s / cfg.dt_s)))
         return world
@@ -79,7 +78,7 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
         road,
         initial,
         vehicle=vehicle,
-        control=control_params_from_config(cfg),
+        control=cfg.control,
         reentry=reentry_params_from_config(cfg),
         dt_s=cfg.dt_s,
         rng=rngs["world"],

@@ -7,7 +7,7 @@
   parameters: the scenario's ``models.krauss``, :func:`evoscen_sut.krauss.krauss_for`).
 * :func:`settled`: a new change is requested only once the previous one has settled [choice].
 * :func:`kernel_params`: a model's frozen parameter dataclass as the named tuple its compiled
-  kernels read.
+  kernels read (the tuple type derived from the dataclass by :func:`kernel_params_type`).
 
 The conflict resolution of one driver's vehicles is :mod:`evoscen_sut.conflicts`; the road
 queries of the kernels are :mod:`evoscen_sim.road_kernels`.
@@ -15,14 +15,15 @@ queries of the kernels are :mod:`evoscen_sim.road_kernels`.
 
 from __future__ import annotations
 
+from collections import namedtuple
 from collections.abc import Callable
+from dataclasses import fields
 from functools import lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
 from evoscen_sim.jit import kernel
 from evoscen_sim.road_kernels import lane_center_d, lane_end_distance
-from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import VehicleParams, accel_to_throttle
 
 from .kernel_math import maximum, minimum
@@ -30,6 +31,15 @@ from .krauss import follow_speed_scalar, krauss_for, next_speed_scalar
 
 
 @lru_cache(maxsize=128)
+def kernel_params_type(params_class: type) -> type:
+    """The named tuple the compiled kernels read a parameter dataclass as (:func:`kernel_params`):
+    ``params_class``'s fields in their order, so each parameter is declared once, in the dataclass.
+    Named as the dataclass with ``Kernel`` before ``Params`` (``MobilParams`` ->
+    ``MobilKernelParams``), in the dataclass's module."""
+    name = params_class.__name__.removesuffix("Params") + "KernelParams"
+    return namedtuple(name, [f.name for f in fields(params_class)], module=params_class.__module__)
+
+
 def kernel_params(tuple_type: type, params: Any) -> tuple:
     """``params`` (a frozen parameter dataclass) as ``tuple_type``, a named tuple with (some of)
     its field names, for compiled kernels: numbers as float, flags as bool (cached: one tuple per
@@ -255,7 +265,7 @@ def lane_change_factory(decision: Any, params_type: type) -> Any:
                     rng: np.random.Generator) -> KraussLaneChangeDriver:
         params = params_type() if params is None else params
         return KraussLaneChangeDriver(vehicles, decision, params, krauss_for(config, rng, vehicles),
-                                      vehicle_params_from_config(config), params.merge_stop_margin_m)
+                                      config.vehicle, params.merge_stop_margin_m)
 
     make_driver.__module__ = decision.__module__  # the factory belongs to its model's module
     make_driver.__qualname__ = "make_driver"

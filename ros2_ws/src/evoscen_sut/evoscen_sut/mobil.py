@@ -65,9 +65,9 @@ module's and :mod:`evoscen_sut.nilsson`'s drivers share.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from evoscen_sim.car_following import idm_scalar
@@ -79,7 +79,7 @@ from evoscen_sim.road_kernels import lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum, nan_to_num
-from .lane_change import kernel_params, lane_change_factory, settled
+from .lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
 
 IDM_MAX_DECEL_MPS2 = 9.0
 """Lower clip of the IDM accelerations MOBIL compares (m/s²; the IDM helper's default)."""
@@ -155,28 +155,8 @@ class MobilEvaluation:
     """(k,) the vehicle must leave an ending lane (incentive waived)."""
 
 
-class MobilKernelParams(NamedTuple):
-    """:class:`MobilParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
-
-    politeness: float
-    threshold_mps2: float
-    bias_mps2: float
-    safe_decel_mps2: float
-    asymmetric: bool
-    critical_speed_mps: float
-    desired_speed_mps: float
-    accel_mps2: float
-    comfort_decel_mps2: float
-    time_headway_s: float
-    min_gap_m: float
-    delta: float
-    merge_stop_margin_m: float
-    merge_mandatory_distance_m: float
-    enter_ending_lane: bool
-    settle_tolerance_m: float
-
-
-assert MobilKernelParams._fields == tuple(f.name for f in fields(MobilParams))
+MobilKernelParams = kernel_params_type(MobilParams)
+""":class:`MobilParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
 
 
 @lru_cache(maxsize=64)

@@ -356,13 +356,11 @@ class StackelbergDriver:
 
 
 def _factory(vehicles, params, config, rng):  # noqa: ANN001, ANN202
-    from evoscen_sim.scenario_params import vehicle_params_from_config
-
     from .krauss import krauss_for
 
     # Krauss with the scenario's models.krauss: the same car following for every SUT (docs/method.md §4)
     return StackelbergDriver(vehicles, params if params is not None else StackelbergParams(),
-                             krauss_for(config, rng), vehicle_params_from_config(config))
+                             krauss_for(config, rng), config.vehicle)
 
 
 SPEC = ModelSpec(
