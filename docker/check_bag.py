@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import _bootstrap  # noqa: E402,F401
+import _bootstrap  # noqa: F401
 
 
 def _messages(bag: Path) -> list[tuple[str, int, bytes]]:

@@ -502,7 +502,7 @@ class _Alarm(Exception):
     pass
 
 
-def _on_alarm(signum, frame):  # noqa: ANN001, ANN202
+def _on_alarm(signum, frame):
     raise _Alarm
 
 

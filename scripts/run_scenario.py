@@ -122,7 +122,7 @@ def print_scores(report_dir: Path) -> None:
     print(f"report: {report_dir / 'report.md'}")
 
 
-def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, report_dir: Path,  # noqa: ANN001
+def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, report_dir: Path,
                    domain: int) -> int:
     """Run the node graph on ``domain`` (reserved by the caller); print the outcome; return its status."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph

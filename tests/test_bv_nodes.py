@@ -21,7 +21,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _cfg(**bvs):  # noqa: ANN003, ANN202
+def _cfg(**bvs):
     from evoscen_sim.config import config_from_dict
 
     return config_from_dict({"steps": 300, "seed": 3, "bvs": bvs})

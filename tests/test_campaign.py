@@ -203,7 +203,7 @@ def _results(out: Path) -> list[Path]:
     return sorted((out / "runs").glob("*/result.json")) if (out / "runs").is_dir() else []
 
 
-def _wait_for(pred, timeout: float = 120.0) -> None:  # noqa: ANN001
+def _wait_for(pred, timeout: float = 120.0) -> None:
     end = time.monotonic() + timeout
     while not pred():
         assert time.monotonic() < end, "timed out"
@@ -469,7 +469,7 @@ def test_a_fault_of_the_host_in_a_worker_is_found_behind_rays_error():
 
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False, configure_logging=False)
     try:
-        with pytest.raises(Exception) as info:  # noqa: PT011 - Ray's wrapper, whatever its class
+        with pytest.raises(Exception) as info:  # Ray's wrapper, whatever its class
             ray.get(ray.remote(num_cpus=1, max_retries=0)(full).remote())
     finally:
         ray.shutdown()

@@ -65,12 +65,12 @@ def road():
     return load_road()
 
 
-def sut_driver(fs, cfg, **params):  # noqa: ANN001, ANN201
+def sut_driver(fs, cfg, **params):
     """The first SUT driving vehicle 0, with ``params`` overriding its defaults."""
     return fs.make(np.array([0]), fs.FirstSutParams(**params), cfg, np.random.default_rng(0))
 
 
-def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:  # noqa: ANN001
+def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:
     """(throttle, request) of the SUT (vehicle 0) in a hand-built world; the others are BVs."""
     from evoscen_sim.testing import hand_built_world
 
@@ -217,7 +217,7 @@ def test_registered_model_is_the_sut_of_an_in_process_run(registered, tmp_path, 
     calls = []
     act = registered.FirstSut.act
 
-    def counted(self, view):  # noqa: ANN001, ANN202
+    def counted(self, view):
         calls.append(view.step_index)
         return act(self, view)
 

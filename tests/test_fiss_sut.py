@@ -53,17 +53,17 @@ def road():
     return load_road()
 
 
-def driver(fs, cfg, **params):  # noqa: ANN001, ANN201
+def driver(fs, cfg, **params):
     return fs.make(np.array([0]), fs.FissSutParams(**params), cfg, np.random.default_rng(0))
 
 
-def world_of(road, s, lane, speed):  # noqa: ANN001, ANN201
+def world_of(road, s, lane, speed):
     from evoscen_sim.testing import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
 
 
-def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:  # noqa: ANN001
+def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:
     """(throttle, request) of the SUT (vehicle 0) in a hand-built world; the others are BVs."""
     throttle, request = driver(fs, cfg, **params).act(world_of(road, s, lane, speed))
     assert throttle.shape == (1,) and request.shape == (1,) and -1.0 <= throttle[0] <= 1.0
@@ -232,10 +232,10 @@ def test_installed_fiss_runs_in_a_campaign_on_ray(tmp_path):
 class BadDriver:
     """Answers well for 3 steps, then as ``kind`` says."""
 
-    def __init__(self, vehicles, kind: str) -> None:  # noqa: ANN001
+    def __init__(self, vehicles, kind: str) -> None:
         self.n, self.kind = len(vehicles), kind
 
-    def act(self, view):  # noqa: ANN001, ANN201
+    def act(self, view):
         throttle, lane_change = np.zeros(self.n), np.zeros(self.n, dtype=np.int64)
         if view.step_index < 3:
             return throttle, lane_change
@@ -337,10 +337,10 @@ def test_a_bad_bv_answer_is_one_line_before_anything_is_written(tmp_path, capsys
     from evoscen_sim.models import ModelSpec, register_model, unregister_model
 
     class ShortBv:
-        def __init__(self, vehicles) -> None:  # noqa: ANN001
+        def __init__(self, vehicles) -> None:
             self.n = len(vehicles)
 
-        def act(self, view):  # noqa: ANN001, ANN202
+        def act(self, view):
             return np.zeros(self.n - 1), np.zeros(self.n - 1, dtype=np.int64)
 
     config = tmp_path / "scenario.yaml"

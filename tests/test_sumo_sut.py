@@ -62,11 +62,11 @@ def road():
     return load_road()
 
 
-def sut_driver(ss, cfg, seed: int = 0, **params):  # noqa: ANN001, ANN201
+def sut_driver(ss, cfg, seed: int = 0, **params):
     return ss.make(np.array([0]), ss.SumoSutParams(**params), cfg, np.random.default_rng(seed))
 
 
-def world_of(road, s, lane, speed):  # noqa: ANN001, ANN201
+def world_of(road, s, lane, speed):
     from evoscen_sim.testing import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))

@@ -285,7 +285,7 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     return {"row": row, "report": report, "plot": plot, "files": files}
 
 
-def _simulate(run: CampaignRun, out_dir: str, record: str, clip_s: float):  # noqa: ANN202
+def _simulate(run: CampaignRun, out_dir: str, record: str, clip_s: float):
     """The run's summary, files and clips (:func:`execute`), recorded in a temporary directory."""
     import tempfile
 
@@ -337,7 +337,7 @@ def _write_atomic(path: Path, text: str) -> None:
         raise
 
 
-def _host_fault_of(exc: BaseException):  # noqa: ANN202 - HostFault | None
+def _host_fault_of(exc: BaseException):  # HostFault | None
     """The :class:`~evoscen_sim.errors.HostFault` behind a task's error (Ray wraps it), or None."""
     from evoscen_sim.errors import HostFault
 
@@ -424,7 +424,7 @@ def _ctrl_c_interrupts():
             signal.signal(sig, handler)
 
 
-def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult, total: int, t0: float, *,  # noqa: PLR0913
+def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult, total: int, t0: float, *,
               record: str, clip_s: float, address: str | None, cpus: int | None, retries: int,
               progress: Callable[[int, int, float], None] | None, arm: Callable[[], None]) -> None:
     """Submit ``todo`` to Ray and write each result as it comes (see :func:`run_campaign`)."""

@@ -203,7 +203,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     died: dict[str, str] = {}  # node -> how it ended, for nodes that ended before the run did
     signalled: set[str] = set()  # nodes the launcher stopped itself
 
-    def forward(signum, frame):  # noqa: ANN001, ANN202
+    def forward(signum, frame):
         nonlocal interrupted
         interrupted = True
         sim = procs.get(NODE_SIM)

@@ -66,7 +66,7 @@ class CarFollowingEnv:
     STANDING_SHARE = 0.2
     """Share of episodes with a standing leader (approach and stop behind it)."""
 
-    def __init__(self, road, config: TrainingConfig) -> None:  # noqa: ANN001
+    def __init__(self, road, config: TrainingConfig) -> None:
         self.road = road
         self.config = config
         self.params: CarFollowingParams = config.car_following
@@ -151,7 +151,7 @@ class DecisionEnv:
 
     state_dim = OBS_DIM
 
-    def __init__(self, road, config: TrainingConfig, kind: str, controller: NumpyActor,  # noqa: ANN001
+    def __init__(self, road, config: TrainingConfig, kind: str, controller: NumpyActor,
                  frozen_policy: NumpyActor | None) -> None:
         from evoscen_sim.config import config_from_dict
 

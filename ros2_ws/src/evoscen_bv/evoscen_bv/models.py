@@ -120,11 +120,11 @@ class LearnedParams:
     standstill on the main line. [choice] 10 m/s."""
 
 
-def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
+def _level0(vehicles, params, config, rng):
     return Level0Driver(vehicles, level0_params_from_config(config), rng, config.vehicle)
 
 
-def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN202
+def _learned(vehicles, params: LearnedParams, config, rng):
     from .learned import LearnedDriver, load_policies, shipped_policy_dir
 
     if params.policy_dir in SHIPPED_SETS:
@@ -146,7 +146,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
                          hard_brake=hard_brake_params(params))
 
 
-def hard_brake_params(params: LearnedParams):  # noqa: ANN201
+def hard_brake_params(params: LearnedParams):
     """The :class:`evoscen_bv.learned.HardBrakeParams` of ``params``; ``None`` with ``hard_brake: false``."""
     from .learned import HardBrakeParams
 

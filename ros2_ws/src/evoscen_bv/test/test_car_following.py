@@ -201,7 +201,7 @@ def test_a_bv_changing_lanes_creeps_past_a_standing_leader_in_the_old_lane():
     assert not overlapping(w)
 
 
-def overlapping(w) -> bool:  # noqa: ANN001
+def overlapping(w) -> bool:
     from evoscen_sim.collision import overlapping_pairs
 
     return len(overlapping_pairs(w.s, w.d, w.psi, w.length, w.width)) > 0

@@ -21,7 +21,7 @@ from evoscen_sim.vehicle import VehicleParams
 MAX_BRAKE = VehicleParams().max_brake_mps2
 
 
-def _view(s_leader: float, v_leader: float, step: int, dt_s: float, lane_change: int = 0):  # noqa: ANN202
+def _view(s_leader: float, v_leader: float, step: int, dt_s: float, lane_change: int = 0):
     """Two vehicles in one lane: the SUT (index 0) at s = 0 and a BV (index 1) ahead of it."""
     return SimpleNamespace(role=np.array([ROLE_SUT, ROLE_BV]), s=np.array([0.0, s_leader]), d=np.zeros(2),
                            v=np.array([v_leader, v_leader]), length=np.array([4.5, 4.5]), width=np.array([1.8, 1.8]),

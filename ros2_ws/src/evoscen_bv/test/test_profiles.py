@@ -29,7 +29,7 @@ def policies():
     return load_policies(shipped_policy_dir())
 
 
-def _driver(policies, world, vehicles, profile):  # noqa: ANN001, ANN202
+def _driver(policies, world, vehicles, profile):
     controller, _, training = policies
     return LearnedDriver(np.asarray(vehicles), controller, {}, training, np.random.default_rng(0), world.vehicle,
                          profile=profile)
@@ -45,7 +45,7 @@ def test_profile_parameters():
         get_profile("nice")
 
 
-def _cut_in(road, policies, profile: str, cut_in: bool, steps: int) -> tuple[list[float], list[int]]:  # noqa: ANN001
+def _cut_in(road, policies, profile: str, cut_in: bool, steps: int) -> tuple[list[float], list[int]]:
     """BV 0 at 25 m/s in lane 2; vehicle 1 at 20 m/s in lane 3, its rear bumper 8 m ahead of the BV's
     front (closing 5 m/s), changes into lane 2 after the first step when ``cut_in``. Returns the BV's
     throttles from the first step on which vehicle 1 occupies lane 2, and vehicle 1's lane-change flags."""
@@ -222,7 +222,7 @@ def test_scenario_default_profile_is_driver():
     assert drv.profile.name == "safety_net"
 
 
-def _constant_actor(side: int):  # noqa: ANN202
+def _constant_actor(side: int):
     """A decision actor whose output is tanh(±2) = ±0.96 whatever it sees: it asks for ``side`` always."""
     from evoscen_bv.lane_change import OBS_DIM
     from evoscen_bv.td3 import NumpyActor
@@ -232,7 +232,7 @@ def _constant_actor(side: int):  # noqa: ANN202
                        "W3": np.zeros((h, 1)), "b3": np.array([2.0 * side]), "max_action": np.array(1.0)})
 
 
-def _lane_change_starts(road, policies, hold_s: float, steps: int) -> tuple[list[int], list[int]]:  # noqa: ANN001
+def _lane_change_starts(road, policies, hold_s: float, steps: int) -> tuple[list[int], list[int]]:
     """A lone BV in lane 1 at 25 m/s whose policy always asks to go left: (steps at which a change starts,
     steps at which one ends — the lane_change column back to 0)."""
     controller, _, training = policies
@@ -262,7 +262,7 @@ def test_lane_hold_keeps_the_new_lane_for_the_hold_then_decides_again(road, poli
     end = held_ends[0]
     assert 10 < end < 100  # one lane change takes a few seconds
 
-    def next_decision(k):  # noqa: ANN001, ANN202
+    def next_decision(k):
         return -(-k // 10) * 10
 
     assert free_starts[1] == next_decision(end)
@@ -334,7 +334,7 @@ def test_cut_in_decel_is_a_scenario_key_with_the_old_rule_selectable():
     assert "\n" not in str(e.value)
 
 
-def _constant_controller(throttle_z: float):  # noqa: ANN202
+def _constant_controller(throttle_z: float):
     """A car-following actor whose output is tanh(z) whatever it sees."""
     from evoscen_bv.td3 import NumpyActor
 

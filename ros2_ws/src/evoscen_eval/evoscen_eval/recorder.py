@@ -152,7 +152,7 @@ class _FastMessageIndex(MessageIndex):
     the 2n numbers with its own ``pack`` and buffer write): opcode 0x07, record length, channel
     id, records length = 16 n, then n (log time, offset) pairs — the same bytes."""
 
-    def write(self, stream) -> None:  # noqa: ANN001 - mcap's RecordBuilder
+    def write(self, stream) -> None:  # mcap's RecordBuilder
         n = len(self.records)
         flat = [x for pair in self.records for x in pair]
         stream.write(struct.pack(f"<BQHI{2 * n}Q", 0x07, 6 + 16 * n, self.channel_id, 16 * n, *flat))
@@ -165,7 +165,7 @@ class _FastChunkIndex(ChunkIndex):
     message index offsets (channel id, offset) with their byte length, index length,
     compression, sizes — the same bytes."""
 
-    def write(self, stream) -> None:  # noqa: ANN001 - mcap's RecordBuilder
+    def write(self, stream) -> None:  # mcap's RecordBuilder
         offsets = self.message_index_offsets
         n = len(offsets)
         name = self.compression.encode()
@@ -200,10 +200,10 @@ class _FastMessages:
             and hasattr(writer, "_Writer__chunk_size") and hasattr(cb, "record_writer")
 
     def __init__(self, writer: Writer) -> None:
-        self._st = writer._Writer__statistics  # noqa: SLF001 - see the class docstring
-        self._cb: ChunkBuilder = writer._Writer__chunk_builder  # noqa: SLF001
-        self._chunk_size: int = writer._Writer__chunk_size  # noqa: SLF001
-        self._finalize = writer._Writer__maybe_finalize_chunk  # noqa: SLF001
+        self._st = writer._Writer__statistics  # see the class docstring
+        self._cb: ChunkBuilder = writer._Writer__chunk_builder
+        self._chunk_size: int = writer._Writer__chunk_size
+        self._finalize = writer._Writer__maybe_finalize_chunk
 
     def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
         st, cb = self._st, self._cb
@@ -220,7 +220,7 @@ class _FastMessages:
         index = cb.message_indices.get(channel_id)
         if index is None:
             index = cb.message_indices[channel_id] = _FastMessageIndex(channel_id=channel_id, records=[])
-        buf = cb.record_writer._buffer  # noqa: SLF001 - a new BytesIO after every chunk
+        buf = cb.record_writer._buffer  # a new BytesIO after every chunk
         index.records.append((log_time, buf.tell()))
         cb.num_messages += 1
         buf.write(self._HEAD.pack(self._MESSAGE, self._FIELDS + len(data), channel_id, sequence, log_time,
@@ -248,7 +248,7 @@ class _ChunkMessages:
     against (:meth:`usable`).
     """
 
-    _HEAD = _FastMessages._HEAD  # noqa: SLF001
+    _HEAD = _FastMessages._HEAD
     _INDEX_HEAD = struct.Struct("<BQHI")  # opcode 0x07, record length, channel id, records length
     _CHUNK_HEAD = struct.Struct("<BQQQQI")  # opcode 0x06, record length, start, end, size, crc
     _NAMES = {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4", CompressionType.NONE: ""}
@@ -263,16 +263,16 @@ class _ChunkMessages:
             and getattr(writer, "_Writer__compression", None) in _ChunkMessages._NAMES \
             and isinstance(getattr(writer, "_Writer__chunk_indices", None), list) \
             and bool(getattr(writer, "_Writer__index_types", 0) & IndexType.MESSAGE) \
-            and writer._Writer__chunk_builder.num_messages == 0  # noqa: SLF001
+            and writer._Writer__chunk_builder.num_messages == 0
 
     def __init__(self, writer: Writer) -> None:
         import zlib
 
-        self._st = writer._Writer__statistics  # noqa: SLF001 - see the class docstring
-        self._chunk_size: int = writer._Writer__chunk_size  # noqa: SLF001
-        self._chunk_indices: list = writer._Writer__chunk_indices  # noqa: SLF001
-        self._stream = writer._Writer__stream  # noqa: SLF001
-        compression = writer._Writer__compression  # noqa: SLF001
+        self._st = writer._Writer__statistics  # see the class docstring
+        self._chunk_size: int = writer._Writer__chunk_size
+        self._chunk_indices: list = writer._Writer__chunk_indices
+        self._stream = writer._Writer__stream
+        compression = writer._Writer__compression
         self._compression_name = self._NAMES[compression]
         if compression == CompressionType.ZSTD:
             import zstandard
@@ -288,7 +288,7 @@ class _ChunkMessages:
         self._reset()
         # the schema and channel records the library put into its (message-less) open chunk
         # come first in this chunk, as they would in the library's
-        opened = writer._Writer__chunk_builder.record_writer.end()  # noqa: SLF001
+        opened = writer._Writer__chunk_builder.record_writer.end()
         if opened:
             self._pieces.append(bytes(opened))
             self._size = len(opened)
@@ -356,9 +356,9 @@ class _ChunkMessages:
         self._reset()
 
 
-def _open_file(path: Path):  # noqa: ANN202 - a raw binary file
+def _open_file(path: Path):  # a raw binary file
     """The bag file, opened for writing unbuffered (tests replace this to simulate a full disk)."""
-    return open(path, "wb", buffering=0)  # noqa: SIM115
+    return open(path, "wb", buffering=0)
 
 
 class _BagFile:
@@ -382,10 +382,10 @@ class _BagFile:
     HOLD_BYTES = 16 * 1024 * 1024
     """Bytes held at most between two flushes (bags written without the 1-s bound)."""
 
-    def write(self, data) -> int:  # noqa: ANN001
+    def write(self, data) -> int:
         owner = self._owner
-        if owner._fault is not None:  # noqa: SLF001 - nothing more after a fault
-            raise owner._fault  # noqa: SLF001
+        if owner._fault is not None:  # nothing more after a fault
+            raise owner._fault
         n = len(data) if not isinstance(data, memoryview) else data.nbytes
         self._held.append(bytes(data))
         self._pos += n
@@ -405,7 +405,7 @@ class _BagFile:
                         raise OSError(errno.EIO, "the file took no bytes")
                     view = view[n:]
         except OSError as exc:
-            raise self._owner._fault_of(exc, self.path) from None  # noqa: SLF001
+            raise self._owner._fault_of(exc, self.path) from None
 
     def tell(self) -> int:
         return self._pos
@@ -413,11 +413,11 @@ class _BagFile:
     def flush(self) -> None:
         """Hand everything written so far to the operating system: a point to cut back to."""
         owner = self._owner
-        if owner._fault is not None:  # noqa: SLF001
-            raise owner._fault  # noqa: SLF001
+        if owner._fault is not None:
+            raise owner._fault
         self._write_out()
         self.good = self._pos
-        owner._on_safe_point()  # noqa: SLF001
+        owner._on_safe_point()
 
     def cut_back(self) -> None:
         """Truncate the file to its last complete chunk (frees what a fault left half written)."""
@@ -754,14 +754,14 @@ class BagRecorder:
         if self._closed:
             raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
         chunk = self._chunk
-        st = chunk._st  # noqa: SLF001 - the writer's statistics, see _ChunkMessages
-        counts, indices = st.channel_message_counts, chunk._indices  # noqa: SLF001
-        topics, duration, limit = self._topics, self._chunk_duration_ns, chunk._chunk_size  # noqa: SLF001
-        head = _ChunkMessages._HEAD.pack  # noqa: SLF001
+        st = chunk._st  # the writer's statistics, see _ChunkMessages
+        counts, indices = st.channel_message_counts, chunk._indices
+        topics, duration, limit = self._topics, self._chunk_duration_ns, chunk._chunk_size
+        head = _ChunkMessages._HEAD.pack
         raw_ok = self._canonical is None
         # the open chunk's and the bag's running figures as locals, put back (``sync``) before anything
         # that reads them: closing a chunk, write(), the end; times as min / max, which order leaves alone
-        pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
+        pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end
         chunk_start = self._chunk_start_ns
         n = 0  # messages since the last sync
         lo = hi = 0
@@ -774,7 +774,7 @@ class BagRecorder:
                 or not (canonical or raw_ok)
             new_chunk = not slow and duration and chunk_start is not None and log_time - chunk_start >= duration
             if slow or new_chunk:
-                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end
                 self._chunk_start_ns = chunk_start
                 self._sync(st, n, lo, hi)
                 n = 0
@@ -783,8 +783,8 @@ class BagRecorder:
                 else:
                     self._flush_chunk()  # close the chunk, write it out and hand it to the OS
                     self._chunk_start_ns = log_time
-                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
-                indices, chunk_start = chunk._indices, self._chunk_start_ns  # noqa: SLF001
+                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end
+                indices, chunk_start = chunk._indices, self._chunk_start_ns
                 if slow:
                     continue
             elif duration and chunk_start is None:
@@ -811,13 +811,13 @@ class BagRecorder:
             pieces += (head(0x05, 22 + len(data), channel_id, seq, log_time, log_time), data)
             size += 31 + len(data)
             if size > limit:
-                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end
                 self._sync(st, n, lo, hi)
                 n = 0
                 chunk.finalize()
-                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
-                indices = chunk._indices  # noqa: SLF001
-        chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end
+                indices = chunk._indices
+        chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end
         self._chunk_start_ns = chunk_start
         self._sync(st, n, lo, hi)
 
@@ -844,15 +844,15 @@ class BagRecorder:
             elif t - self._chunk_start_ns >= duration:
                 self._flush_chunk()  # close the chunk, write it out and hand it to the OS
                 self._chunk_start_ns = t
-        st = chunk._st  # noqa: SLF001 - the writer's statistics, see _ChunkMessages
-        counts, head, limit = st.channel_message_counts, _ChunkMessages._HEAD.pack, chunk._chunk_size  # noqa: SLF001
-        pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count  # noqa: SLF001
+        st = chunk._st  # the writer's statistics, see _ChunkMessages
+        counts, head, limit = st.channel_message_counts, _ChunkMessages._HEAD.pack, chunk._chunk_size
+        pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
         n = 0
         for topic, parts in messages:
-            if count == 0 or t < chunk._start:  # noqa: SLF001
-                chunk._start = t  # noqa: SLF001
-            if t > chunk._end:  # noqa: SLF001
-                chunk._end = t  # noqa: SLF001
+            if count == 0 or t < chunk._start:
+                chunk._start = t
+            if t > chunk._end:
+                chunk._end = t
             state = topics[topic]
             state.message_count = seq = state.message_count + 1
             channel_id = state.channel_id
@@ -868,15 +868,15 @@ class BagRecorder:
             pieces += parts
             size += 31 + length
             if size > limit:
-                chunk._size, chunk._count = size, count  # noqa: SLF001
+                chunk._size, chunk._count = size, count
                 self._sync(st, n, t, t)
                 n = 0
                 chunk.finalize()
-                pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count  # noqa: SLF001
-        chunk._size, chunk._count = size, count  # noqa: SLF001
+                pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
+        chunk._size, chunk._count = size, count
         self._sync(st, n, t, t)
 
-    def _sync(self, st, n: int, lo: int, hi: int) -> None:  # noqa: ANN001 - mcap's Statistics
+    def _sync(self, st, n: int, lo: int, hi: int) -> None:  # mcap's Statistics
         """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
         the bag's own (what :meth:`_ChunkMessages.add` and :meth:`write` count one at a time)."""
         if n:
@@ -1239,8 +1239,8 @@ class OrderedBag:
             ready, self._pending = pending[:k], pending[k:]
         if ready:
             if self.on_write is None:
-                if self.bag._chunk is not None:  # noqa: SLF001 - the recorder's own queue format
-                    self.bag._write_queued(ready)  # noqa: SLF001
+                if self.bag._chunk is not None:  # the recorder's own queue format
+                    self.bag._write_queued(ready)
                 else:
                     self.bag.write_many([(t, topic, data, canonical) for t, _, _, topic, data, canonical in ready])
             else:

@@ -157,7 +157,7 @@ class ScoreStream:
         dt_s: the step; None: taken from the first two stamps (0.1 s for a single state).
     """
 
-    def __init__(self, ev, dt_s: float | None = None) -> None:  # noqa: ANN001 - EvaluationConfig
+    def __init__(self, ev, dt_s: float | None = None) -> None:  # EvaluationConfig
         self.ev = ev
         self.dt_s = dt_s
         self._block: list[np.ndarray] = []
@@ -257,7 +257,7 @@ class ScoreStream:
         if len(self._block) == BLOCK_STATES:
             self._reduce_block()
 
-    def add_events(self, events) -> None:  # noqa: ANN001 - iterable of event dicts
+    def add_events(self, events) -> None:  # iterable of event dicts
         """Event dicts (``/evoscen/events``); the scores read collisions and the SUT's lane changes."""
         for event in events:
             name = event.get("name")
@@ -277,7 +277,7 @@ class ScoreStream:
 
     # ------------------------------------------------------------------ one block
 
-    def _reduce_block(self) -> None:  # noqa: PLR0915 - one linear reduction
+    def _reduce_block(self) -> None:
         if not self._block:
             return
         ev, sut = self.ev, self.sut
@@ -550,7 +550,7 @@ class ScoreStream:
             else:
                 lst.append(int(value))
 
-    def _track_changes(self, lc_sut, ks, c, tables, in_view, starts, v, a) -> None:  # noqa: ANN001, PLR0913
+    def _track_changes(self, lc_sut, ks, c, tables, in_view, starts, v, a) -> None:
         """Open and close the SUT's lane changes (:func:`evoscen_eval.metrics.change_intervals`) and
         add this block's rows to each change's interaction sums and PET window."""
         k0 = int(ks[0])
@@ -618,7 +618,7 @@ class ScoreStream:
         if pet[m] < ch.pet:
             ch.pet, ch.pet_state, ch.pet_follower = float(pet[m]), k0 + lo + m, int(self.ids[j[m]])
 
-    def _timeline(self, ks, times, speed, lane, ttc, bvs) -> None:  # noqa: ANN001
+    def _timeline(self, ks, times, speed, lane, ttc, bvs) -> None:
         """Per bucket: the first state's time, speed and lane, the lowest TTC, and the sum of the
         BV counts near the SUT with the bucket's number of states (integers: their mean is exact)."""
         tl = self._tl

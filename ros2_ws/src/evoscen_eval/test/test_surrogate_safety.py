@@ -85,7 +85,7 @@ def rear_run(states: int = 40) -> RunData:
                    events=events, dt_s=0.1, complete=True)
 
 
-def check_two_sided(ss):  # noqa: ANN001
+def check_two_sided(ss):
     assert ss["sut_km"] == pytest.approx(KM, rel=1e-12)
     assert (ss["ttc_threshold_s"], ss["drac_threshold_mps2"], ss["pet_threshold_s"]) == (3.0, 3.0, 2.0)
     f, r = ss["front"], ss["rear"]

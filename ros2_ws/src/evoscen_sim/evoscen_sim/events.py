@@ -21,7 +21,7 @@ from .safety import (RearAttribution, attribution_steps, beside_gap_state, cut_i
                      follower_headway, sut_follower_ttc_state, sut_leader_ttc_state)
 
 
-def step_events(world, result) -> list[dict]:  # noqa: ANN001
+def step_events(world, result) -> list[dict]:
     """The events of one :meth:`evoscen_sim.world.World.step` result."""
     ids = world.ids
     common = {"step": result.step, "time_s": result.time_s}
@@ -51,19 +51,19 @@ def step_events(world, result) -> list[dict]:  # noqa: ANN001
     return events
 
 
-def has_events(result) -> bool:  # noqa: ANN001
+def has_events(result) -> bool:
     """Whether a step result produces any event."""
     return bool(result.collisions or result.lane_changes_completed or result.lane_changes_aborted
                 or result.reentries or result.off_road or result.shift_m)
 
 
-def run_end_event(world, kind: str, message: str) -> dict:  # noqa: ANN001
+def run_end_event(world, kind: str, message: str) -> dict:
     """The last event of every run: ``kind`` is completed, aborted or interrupted."""
     return {"name": EVENT_RUN_END, "level": 0 if kind == KIND_COMPLETED else 2, "message": message,
             "step": world.step_index, "time_s": world.time_s, "steps": world.step_index, "kind": kind}
 
 
-def fault_event(world, kind: str, controller: str, misses: int, message: str) -> dict:  # noqa: ANN001
+def fault_event(world, kind: str, controller: str, misses: int, message: str) -> dict:
     """A controller fault: ``kind`` deadline (command held) or abort."""
     return {"name": EVENT_FAULT, "level": 1 if kind == KIND_DEADLINE else 2, "message": message,
             "step": world.step_index, "time_s": world.time_s, "controller": controller, "misses": misses,
@@ -86,14 +86,14 @@ class ExposureMonitor:
     every state as the evaluator reads it from the recorded world table.
     """
 
-    def __init__(self, evaluation, role: np.ndarray) -> None:  # noqa: ANN001 - an EvaluationConfig
+    def __init__(self, evaluation, role: np.ndarray) -> None:  # an EvaluationConfig
         self.evaluation = evaluation
         self._headway_run = 0
         self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
         self._rear: RearAttribution | None = None
 
-    def observe(self, world) -> list[dict]:  # noqa: ANN001
+    def observe(self, world) -> list[dict]:
         """The exposure events of the world's current state."""
         w, sut = world, self.sut
         if self._rear is None:

@@ -126,7 +126,7 @@ def bv_indices(cfg: ScenarioConfig) -> np.ndarray:
     return np.arange(1, cfg.bvs.count + 1)
 
 
-def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):  # noqa: ANN201
+def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):
     """The driver of the BVs at world indices ``rows`` (default: all BVs; what one BV node hosts).
 
     It is built for all BVs from the ``bv`` stream, then keeps only ``rows``
@@ -152,11 +152,11 @@ def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):  # noq
 class RowsOf:
     """A driver of all BVs whose answer is cut to the BVs at ``positions`` (see :func:`build_bv_driver`)."""
 
-    def __init__(self, driver, positions: np.ndarray) -> None:  # noqa: ANN001
+    def __init__(self, driver, positions: np.ndarray) -> None:
         self.driver, self.positions = driver, positions
         self.vehicles = np.asarray(driver.vehicles)[positions] if hasattr(driver, "vehicles") else None
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         throttle, lane_change = self.driver.act(view)
         return np.asarray(throttle)[self.positions], np.asarray(lane_change)[self.positions]
 
@@ -166,11 +166,11 @@ class NoVehicles:
 
     vehicles = np.zeros(0, dtype=np.int64)
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(0), np.zeros(0, dtype=np.int64)
 
 
-def build_sut_driver(cfg: ScenarioConfig, model: str | None = None):  # noqa: ANN201
+def build_sut_driver(cfg: ScenarioConfig, model: str | None = None):
     """The SUT's driver, model ``cfg.sut.model`` unless ``model`` is given (what the SUT node hosts)."""
     return create_driver(model or cfg.sut.model, "sut", [SUT_INDEX], cfg, scenario_rngs(cfg.seed)["sut"])
 

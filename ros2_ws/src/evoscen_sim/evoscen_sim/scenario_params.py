@@ -18,7 +18,7 @@ def reentry_params_from_config(cfg) -> ReentryParams:
     return ReentryParams(ramp_share=cfg.reentry.ramp_share, min_gap_m=cfg.reentry.min_gap_m)
 
 
-def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # noqa: ANN001 - a RoadModel
+def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # a RoadModel
     """:class:`TrafficParams` from ``cfg.traffic`` (None for ``mode: loop``), checked against ``road``.
 
     Raises:

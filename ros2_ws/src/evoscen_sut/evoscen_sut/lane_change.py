@@ -49,7 +49,7 @@ def kernel_params(tuple_type: type, params: Any) -> tuple:
 
 
 @kernel
-def settled(road, s, d, lane, tolerance_m):  # noqa: ANN001, ANN201
+def settled(road, s, d, lane, tolerance_m):
     """True where the vehicle's centre ``d`` is within ``tolerance_m`` of its lane's centre line at
     ``max(s, 0)`` (False for an invalid lane; ``road``: :class:`evoscen_sim.road_kernels.RoadTables`).
 
@@ -207,7 +207,7 @@ def _krauss_params(kp: Any, vp: VehicleParams, stop_margin_m: float, dt_s: float
 
 
 @kernel
-def _count_changing(idx, lane, target_lane):  # noqa: ANN001, ANN202
+def _count_changing(idx, lane, target_lane):
     """How many of the vehicles ``idx`` are changing lanes (``target_lane != lane``)."""
     cnt = 0
     for q in range(idx.shape[0]):
@@ -218,7 +218,7 @@ def _count_changing(idx, lane, target_lane):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _krauss_kernel(idx, factor, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
+def _krauss_kernel(idx, factor, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,
                    leader_speed, road, prm):
     """:class:`KraussLaneChangeDriver`'s acceleration and throttle (class docstring)."""
     min_gap, accel, decel, emergency, sigma, tau = (prm.min_gap_m, prm.accel_mps2, prm.decel_mps2,

@@ -181,7 +181,7 @@ assert (RIGHT, OWN, LEFT) == (1, 2, 3)  # the kernels use neighbourhood column 2
 
 
 @kernel
-def _idm(v, v0, gap, v_lead, prm):  # noqa: ANN001, ANN202
+def _idm(v, v0, gap, v_lead, prm):
     """MOBIL's IDM acceleration of one vehicle (:func:`evoscen_sim.car_following.idm_scalar`, clipped
     at −``IDM_MAX_DECEL_MPS2``)."""
     return idm_scalar(v, v0, gap, v_lead, prm.time_headway_s, prm.min_gap_m, prm.accel_mps2,
@@ -189,7 +189,7 @@ def _idm(v, v0, gap, v_lead, prm):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear,  # noqa: ANN001, ANN202, PLR0913, PLR0915
+def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear,
                   follower, follower_speed, road, prm):
     """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`MobilEvaluation`."""
     k = idx.shape[0]
@@ -315,7 +315,7 @@ def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, 
 
 
 @kernel
-def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
+def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, speed_limit, gap_front,
                            leader_speed, gap_rear, follower, follower_speed, road, prm, rule):
     """:func:`lane_change_decision` (evaluation, choice, settling and conflicts) in one pass."""
     exists, _acc_ego, _gain_n, _gain_o, _at_n, inc, safe, mandatory = _mobil_kernel(

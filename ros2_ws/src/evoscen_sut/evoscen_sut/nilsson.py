@@ -173,7 +173,7 @@ def conflict_rule(p: NilssonParams) -> ConflictRule:
 
 
 @kernel
-def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):  # noqa: ANN001, ANN202, PLR0913, PLR0915
+def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
     """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`NilssonEvaluation`.
 
     The nearest vehicle ahead / behind in every lane (within ``view_range_m``): ahead means a
@@ -298,7 +298,7 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):  # noqa: A
 
 
 @kernel
-def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, road, prm, rule):  # noqa: ANN001, ANN202, PLR0913
+def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, road, prm, rule):
     """:func:`lane_change_decision` (evaluation, safety, settling and conflicts) in one pass."""
     _utility, _speed, _time_gap, _score, target, step_safe, own_candidate = _nilsson_kernel(
         idx, s, v, length, lane, target_lane, road, prm)
