@@ -33,19 +33,9 @@ EXAMPLE = REPO / "examples" / "sumo_sut"
 sys.path.insert(0, str(REPO / "scripts"))
 
 
-def load_example():
-    """``sumo_sut.py`` as the module ``sumo_sut`` (the installed one if it is installed)."""
-    if "sumo_sut" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("sumo_sut", EXAMPLE / "sumo_sut.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["sumo_sut"] = module
-        spec.loader.exec_module(module)
-    return sys.modules["sumo_sut"]
-
-
 @pytest.fixture(scope="module")
-def ss():
-    return load_example()
+def ss(load_example):
+    return load_example("sumo_sut")
 
 
 @pytest.fixture(scope="module")

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import hashlib
 
 import numpy as np
 import pytest
 
+from evoscen_bringup.testing import commands_digest
 from evoscen_bv.lane_change import apply_rule_constraints
 from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
 from evoscen_bv.profile import PROFILES, get_profile
@@ -125,18 +125,8 @@ def test_driver_emergency_brake_waits_for_the_reaction_time(road, policies):
 
 
 def _commands_digest(cfg_overrides: dict, steps: int) -> str:
-    from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
-
-    cfg = load_scenario_config(None, {"bvs.driver": "learned", "seed": 3, "sut.model": "mobil", **cfg_overrides})
-    sc = build_scenario(cfg)
-    h = hashlib.sha256()
-    for _ in range(steps):
-        bt, bl, st, sl = sc.commands()
-        for x in (bt, bl, st, sl):
-            h.update(np.ascontiguousarray(np.asarray(x, dtype=np.float64)).tobytes())
-        sc.apply(bt, bl, st, sl)
-    return h.hexdigest()
+    """:func:`evoscen_bringup.testing.commands_digest` with learned BVs."""
+    return commands_digest({"bvs.driver": "learned", **cfg_overrides}, steps)
 
 
 OLD_COMMANDS_SHA256 = "c156b9b4e8f8b032f478a0f2ef18fa95e8884facaf2f9a9c8df1081f4edb08fb"

@@ -29,6 +29,7 @@ from evoscen_contract.contract import POLICY_CODES, bv_node_name, command_topic
 
 from .config import ScenarioConfig, mix_counts
 from .errors import InputError
+from .models import checked_answer
 from .scenario import build_bv_driver, bv_indices, bv_policy_codes, scenario_rngs
 
 
@@ -105,10 +106,8 @@ class PartitionedDriver:
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         throttle = np.zeros(self.vehicles.size)
         lane_change = np.zeros(self.vehicles.size, dtype=np.int64)
-        from evoscen_sim.models import checked_answer  # each node's answer checked as the node's controller does
-
         for (_, driver), pos in zip(self.parts, self.positions):
-            thr, lc = checked_answer(driver, driver.act(view))
+            thr, lc = checked_answer(driver, driver.act(view))  # each node's answer checked as its controller does
             throttle[pos], lane_change[pos] = thr, lc
         return throttle, lane_change
 
