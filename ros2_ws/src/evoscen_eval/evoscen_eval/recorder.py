@@ -55,19 +55,17 @@ import errno
 import contextlib
 import os
 import re
-import struct
 
 import yaml
-from mcap._chunk_builder import ChunkBuilder
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import ChunkIndex, MessageIndex
 from mcap.writer import CompressionType, Writer
 
 from evoscen_contract.cdr import pad4
 from evoscen_contract.contract import TOPIC_WORLD as _WORLD_TOPIC
 from evoscen_contract.qos import rosbag2_qos_yaml
 from evoscen_contract.topics import TopicSpec
+from evoscen_eval.mcap_internals import ChunkMessages, FastMessages
 from evoscen_eval.schemas import message_definition, type_description_hash
 from evoscen_sim.errors import HostFault, InputError
 
@@ -145,215 +143,6 @@ class _TopicState:
     spec: TopicSpec
     channel_id: int
     message_count: int = 0
-
-
-class _FastMessageIndex(MessageIndex):
-    """``MessageIndex`` whose :meth:`write` packs the record in one call (mcap 1.6 writes each of
-    the 2n numbers with its own ``pack`` and buffer write): opcode 0x07, record length, channel
-    id, records length = 16 n, then n (log time, offset) pairs — the same bytes."""
-
-    def write(self, stream) -> None:  # mcap's RecordBuilder
-        n = len(self.records)
-        flat = [x for pair in self.records for x in pair]
-        stream.write(struct.pack(f"<BQHI{2 * n}Q", 0x07, 6 + 16 * n, self.channel_id, 16 * n, *flat))
-
-
-class _FastChunkIndex(ChunkIndex):
-    """``ChunkIndex`` whose :meth:`write` packs the record in two calls (mcap 1.6 writes its ~12 + 2n
-    fields one ``pack`` and buffer write at a time; a run's summary holds one per chunk, ~300 for
-    3,000 steps): opcode 0x08, record length, start and end time, chunk offset and length, the
-    message index offsets (channel id, offset) with their byte length, index length,
-    compression, sizes — the same bytes."""
-
-    def write(self, stream) -> None:  # mcap's RecordBuilder
-        offsets = self.message_index_offsets
-        n = len(offsets)
-        name = self.compression.encode()
-        flat = [x for item in offsets.items() for x in item]
-        body = struct.pack(f"<QQQQI{'HQ' * n}QI", self.message_start_time, self.message_end_time,
-                           self.chunk_start_offset, self.chunk_length, 10 * n, *flat, self.message_index_length,
-                           len(name))
-        tail = struct.pack("<QQ", self.compressed_size, self.uncompressed_size)
-        stream.write(b"".join((struct.pack("<BQ", 0x08, len(body) + len(name) + 16), body, name, tail)))
-
-
-class _FastMessages:
-    """``mcap.writer.Writer.add_message`` (mcap 1.6, pinned) in a few Python operations.
-
-    The library builds a ``Message`` record object and writes its six fields one ``struct.pack``
-    and one buffer write at a time, ~15 µs per message — half the cost of recording a step.
-    :meth:`add` does the same bookkeeping on the writer's own statistics and chunk builder and
-    writes the record with one ``pack``: the same bytes in the same places (the file is then
-    finished by the library as before; tests/test_bag_hashes.py and the recorder's tests compare
-    whole bags). Used only when the writer is the one this was written against
-    (:meth:`usable`); otherwise the library's method.
-    """
-
-    _HEAD = struct.Struct("<BQHIQQ")  # opcode, record length, channel id, sequence, log time, publish time
-    _MESSAGE = 0x05
-    _FIELDS = 22  # bytes of the fixed fields after the record header
-
-    @staticmethod
-    def usable(writer: Writer) -> bool:
-        cb = getattr(writer, "_Writer__chunk_builder", None)
-        return type(cb) is ChunkBuilder and hasattr(writer, "_Writer__statistics") \
-            and hasattr(writer, "_Writer__chunk_size") and hasattr(cb, "record_writer")
-
-    def __init__(self, writer: Writer) -> None:
-        self._st = writer._Writer__statistics  # see the class docstring
-        self._cb: ChunkBuilder = writer._Writer__chunk_builder
-        self._chunk_size: int = writer._Writer__chunk_size
-        self._finalize = writer._Writer__maybe_finalize_chunk
-
-    def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
-        st, cb = self._st, self._cb
-        if st.message_count == 0 or log_time < st.message_start_time:
-            st.message_start_time = log_time
-        if log_time > st.message_end_time:
-            st.message_end_time = log_time
-        st.channel_message_counts[channel_id] += 1
-        st.message_count += 1
-        if cb.num_messages == 0 or log_time < cb.message_start_time:
-            cb.message_start_time = log_time
-        if log_time > cb.message_end_time:
-            cb.message_end_time = log_time
-        index = cb.message_indices.get(channel_id)
-        if index is None:
-            index = cb.message_indices[channel_id] = _FastMessageIndex(channel_id=channel_id, records=[])
-        buf = cb.record_writer._buffer  # a new BytesIO after every chunk
-        index.records.append((log_time, buf.tell()))
-        cb.num_messages += 1
-        buf.write(self._HEAD.pack(self._MESSAGE, self._FIELDS + len(data), channel_id, sequence, log_time,
-                                  publish_time))
-        buf.write(data)
-        if buf.tell() > self._chunk_size:
-            self._finalize()
-
-
-class _ChunkMessages:
-    """The open chunk kept by the recorder itself, written with a few Python operations per chunk.
-
-    :class:`_FastMessages` writes each message record into mcap's chunk builder; this class
-    keeps the chunk's records as a list of byte strings (one ``pack`` per message header), their
-    offsets and per-channel index entries, and at :meth:`finalize` writes what the library's
-    ``Writer.__finalize_chunk`` (mcap 1.6, pinned) writes — the chunk record (records joined,
-    compressed with a zstd compressor kept for the run, CRC-32 of the uncompressed records),
-    then one message index record per channel in first-appearance order — and registers the
-    chunk's index and statistics in the writer, which finishes the file (summary) as before.
-    The same bytes in the same places (tests/test_bag_hashes.py, and a test comparing all three
-    write paths). The schema and channel records the library writes into its open chunk at
-    registration are taken over at construction (so construct it after registering channels).
-    A message making the open chunk larger than ``chunk_size`` closes it after that message, as
-    the library does. Used only when the writer is the one this was written
-    against (:meth:`usable`).
-    """
-
-    _HEAD = _FastMessages._HEAD
-    _INDEX_HEAD = struct.Struct("<BQHI")  # opcode 0x07, record length, channel id, records length
-    _CHUNK_HEAD = struct.Struct("<BQQQQI")  # opcode 0x06, record length, start, end, size, crc
-    _NAMES = {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4", CompressionType.NONE: ""}
-
-    @staticmethod
-    def usable(writer: Writer) -> bool:
-        from mcap.writer import IndexType
-
-        return _FastMessages.usable(writer) \
-            and getattr(writer, "_Writer__enable_crcs", None) is True \
-            and getattr(writer, "_Writer__enable_data_crcs", None) is False \
-            and getattr(writer, "_Writer__compression", None) in _ChunkMessages._NAMES \
-            and isinstance(getattr(writer, "_Writer__chunk_indices", None), list) \
-            and bool(getattr(writer, "_Writer__index_types", 0) & IndexType.MESSAGE) \
-            and writer._Writer__chunk_builder.num_messages == 0
-
-    def __init__(self, writer: Writer) -> None:
-        import zlib
-
-        self._st = writer._Writer__statistics  # see the class docstring
-        self._chunk_size: int = writer._Writer__chunk_size
-        self._chunk_indices: list = writer._Writer__chunk_indices
-        self._stream = writer._Writer__stream
-        compression = writer._Writer__compression
-        self._compression_name = self._NAMES[compression]
-        if compression == CompressionType.ZSTD:
-            import zstandard
-
-            self._compress = zstandard.ZstdCompressor(level=3).compress  # = zstandard.compress(data)
-        elif compression == CompressionType.LZ4:
-            import lz4.frame
-
-            self._compress = lz4.frame.compress
-        else:
-            self._compress = bytes
-        self._crc32 = zlib.crc32
-        self._reset()
-        # the schema and channel records the library put into its (message-less) open chunk
-        # come first in this chunk, as they would in the library's
-        opened = writer._Writer__chunk_builder.record_writer.end()
-        if opened:
-            self._pieces.append(bytes(opened))
-            self._size = len(opened)
-
-    def _reset(self) -> None:
-        self._pieces: list[bytes] = []
-        self._size = 0  # bytes of the records so far
-        self._indices: dict[int, list[int]] = {}  # channel -> [log time, offset, log time, offset, ...]
-        self._start = 0
-        self._end = 0
-        self._count = 0
-
-    def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
-        st = self._st
-        if st.message_count == 0 or log_time < st.message_start_time:
-            st.message_start_time = log_time
-        if log_time > st.message_end_time:
-            st.message_end_time = log_time
-        st.channel_message_counts[channel_id] += 1
-        st.message_count += 1
-        if self._count == 0 or log_time < self._start:
-            self._start = log_time
-        if log_time > self._end:
-            self._end = log_time
-        index = self._indices.get(channel_id)
-        if index is None:
-            index = self._indices[channel_id] = []
-        index += (log_time, self._size)
-        self._count += 1
-        self._pieces += (self._HEAD.pack(0x05, 22 + len(data), channel_id, sequence, log_time, publish_time), data)
-        self._size += 31 + len(data)
-        if self._size > self._chunk_size:
-            self.finalize()
-
-    def finalize(self) -> None:
-        """Write the open chunk (if it holds a message) and its message indexes to the stream."""
-        if self._count == 0:
-            return
-        self._st.chunk_count += 1
-        records = b"".join(self._pieces)
-        compressed = self._compress(records)
-        name = self._compression_name.encode()
-        stream = self._stream
-        chunk_start = stream.tell()
-        head = self._CHUNK_HEAD.pack(0x06, 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(compressed), self._start,
-                                     self._end, len(records), self._crc32(records))
-        stream.write(b"".join((head, struct.pack("<I", len(name)), name, struct.pack("<Q", len(compressed)),
-                               compressed)))
-        chunk_length = stream.tell() - chunk_start
-        index_start = stream.tell()
-        offsets = {}
-        parts = []
-        at = 0
-        for channel_id, flat in self._indices.items():
-            offsets[channel_id] = index_start + at
-            n = 8 * len(flat)
-            parts.append(self._INDEX_HEAD.pack(0x07, 6 + n, channel_id, n))
-            parts.append(struct.pack(f"<{len(flat)}Q", *flat))
-            at += 15 + n
-        stream.write(b"".join(parts))
-        self._chunk_indices.append(_FastChunkIndex(
-            message_start_time=self._start, message_end_time=self._end, chunk_start_offset=chunk_start,
-            chunk_length=chunk_length, message_index_offsets=offsets, message_index_length=at,
-            compression=self._compression_name, compressed_size=len(compressed), uncompressed_size=len(records)))
-        self._reset()
 
 
 def _open_file(path: Path):  # a raw binary file
@@ -461,11 +250,11 @@ class BagRecorder:
             channels, before any message (evoscen records the resolved scenario
             configuration, see :mod:`evoscen_eval.rundata`).
         fast_writes: write messages and message indexes with one ``pack`` each
-            (:class:`_FastMessages`; default) instead of the mcap library's own method: the
+            (:class:`FastMessages`; default) instead of the mcap library's own method: the
             same bytes; False for the library's path (``scripts/bench_recording.py`` compares).
         chunk_writes: with ``fast_writes``, keep the open chunk in the recorder and write it with
-            a few operations per chunk (:class:`_ChunkMessages`; default): the same bytes; False
-            for :class:`_FastMessages` alone (the tests compare the three paths).
+            a few operations per chunk (:class:`ChunkMessages`; default): the same bytes; False
+            for :class:`FastMessages` alone (the tests compare the three paths).
 
     Raises:
         InputError: ``bag_dir`` exists and is not an empty directory, or cannot be
@@ -553,13 +342,13 @@ class BagRecorder:
                 },
             )
             self._topics[spec.name] = _TopicState(spec=spec, channel_id=channel_id)
-        self._chunk: _ChunkMessages | None = None
-        if fast_writes and chunk_writes and _ChunkMessages.usable(self._writer):
+        self._chunk: ChunkMessages | None = None
+        if fast_writes and chunk_writes and ChunkMessages.usable(self._writer):
             # after the channels: the library writes schemas and channels into its open chunk too
-            self._chunk = _ChunkMessages(self._writer)
+            self._chunk = ChunkMessages(self._writer)
             self._add_message = self._chunk.add
-        elif fast_writes and _FastMessages.usable(self._writer):
-            self._add_message = _FastMessages(self._writer).add
+        elif fast_writes and FastMessages.usable(self._writer):
+            self._add_message = FastMessages(self._writer).add
         else:
             self._add_message = self._writer.add_message
         for name, record in (metadata or {}).items():
@@ -746,18 +535,18 @@ class BagRecorder:
 
     def _write_queued(self, messages: Sequence[tuple[int, int, int, str, Any, bool]]) -> None:
         """:meth:`write_many` of ``(log_time_ns, _, _, topic, data, canonical)`` (:class:`OrderedBag`'s
-        queue entries) on the :class:`_ChunkMessages` path, in one loop: the bookkeeping of
-        :meth:`write` and of :meth:`_ChunkMessages.add` for each message, written out here (a
+        queue entries) on the :class:`ChunkMessages` path, in one loop: the bookkeeping of
+        :meth:`write` and of :meth:`ChunkMessages.add` for each message, written out here (a
         message that is not canonical ``bytes`` of a declared topic at an ``int`` time >= 0 goes
         through :meth:`write`, its checks and errors). The same file as :meth:`write` per message
         (tests compare)."""
         if self._closed:
             raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
         chunk = self._chunk
-        st = chunk._st  # the writer's statistics, see _ChunkMessages
+        st = chunk._st  # the writer's statistics, see ChunkMessages
         counts, indices = st.channel_message_counts, chunk._indices
         topics, duration, limit = self._topics, self._chunk_duration_ns, chunk._chunk_size
-        head = _ChunkMessages._HEAD.pack
+        head = ChunkMessages._HEAD.pack
         raw_ok = self._canonical is None
         # the open chunk's and the bag's running figures as locals, put back (``sync``) before anything
         # that reads them: closing a chunk, write(), the end; times as min / max, which order leaves alone
@@ -844,8 +633,8 @@ class BagRecorder:
             elif t - self._chunk_start_ns >= duration:
                 self._flush_chunk()  # close the chunk, write it out and hand it to the OS
                 self._chunk_start_ns = t
-        st = chunk._st  # the writer's statistics, see _ChunkMessages
-        counts, head, limit = st.channel_message_counts, _ChunkMessages._HEAD.pack, chunk._chunk_size
+        st = chunk._st  # the writer's statistics, see ChunkMessages
+        counts, head, limit = st.channel_message_counts, ChunkMessages._HEAD.pack, chunk._chunk_size
         pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
         n = 0
         for topic, parts in messages:
@@ -878,7 +667,7 @@ class BagRecorder:
 
     def _sync(self, st, n: int, lo: int, hi: int) -> None:  # mcap's Statistics
         """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
-        the bag's own (what :meth:`_ChunkMessages.add` and :meth:`write` count one at a time)."""
+        the bag's own (what :meth:`ChunkMessages.add` and :meth:`write` count one at a time)."""
         if n:
             if st.message_count == 0 or lo < st.message_start_time:
                 st.message_start_time = lo
