@@ -303,7 +303,7 @@ def _children(launcher: subprocess.Popen, module: str, node: str = "") -> list[i
 
 
 def _world_steps(bag: Path) -> list[int] | None:
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     try:
         return sorted({t // DT_NS for topic, _type, t, _d in open_bag_reader(bag) if topic == TOPIC_WORLD})
@@ -312,7 +312,7 @@ def _world_steps(bag: Path) -> list[int] | None:
 
 
 def _world_bytes(bag: Path) -> list[bytes]:
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     return [d for topic, _type, _t, d in open_bag_reader(bag) if topic == TOPIC_WORLD]
 

@@ -181,7 +181,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
     """SIGINT to the process group (what a terminal's Ctrl-C sends: the writer gets it too)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from evoscen_contract.topics import parse_events
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from mcap.reader import make_reader
     from rclpy.serialization import deserialize_message
 
@@ -222,7 +222,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
 def test_killed_run_leaves_the_writer_to_finish_the_bag(tmp_path: Path) -> None:
     """SIGKILL to the run alone: its writer sees the pipe close and finishes the bag with what
     it received (a readable MCAP with its summary, every per-step topic contiguous from t_0)."""
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from mcap.reader import make_reader
 
     out = tmp_path / "run"

@@ -448,7 +448,7 @@ def _read_bag(bag_dir: Path | str, acc: RunAccumulator, before_first_state: Any 
     from mcap.records import Channel, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
 
-    from .recorder import bag_file
+    from .bag_reader import bag_file
 
     path = bag_file(Path(bag_dir))
     channels: dict[int, str] = {}

@@ -28,7 +28,8 @@ from evoscen_contract.topics import (
     odometry_message,
     parse_events,
 )
-from evoscen_eval.recorder import BagRecorder, open_bag_reader
+from evoscen_eval.bag_reader import open_bag_reader
+from evoscen_eval.recorder import BagRecorder
 from evoscen_eval.schemas import message_definition
 from evoscen_sim.errors import InputError
 

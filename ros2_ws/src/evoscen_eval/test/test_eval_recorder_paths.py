@@ -20,7 +20,8 @@ import pytest
 from evoscen_contract.topics import CONTRACT
 from evoscen_eval import mcap_internals as MI
 from evoscen_eval import recorder as R
-from evoscen_eval.recorder import BagRecorder, open_bag_reader
+from evoscen_eval.bag_reader import open_bag_reader
+from evoscen_eval.recorder import BagRecorder
 
 PATHS = {"library": {"fast_writes": False}, "fast": {"chunk_writes": False}, "chunk": {}}
 
