@@ -448,8 +448,9 @@ def danger_terms(evaluation, dt_s: float, *, ttc: np.ndarray | float, sut_accel:
 
     ``evaluation``: an :class:`~evoscen_sim.config.EvaluationConfig`; ``dt_s``: the step (the
     tailgating grace in states, :func:`grace_steps`). The per-state quantities, floats for one
-    state (the terms are then bools) or ``[n]`` arrays for consecutive states: ``ttc`` (:func:`sut_ttc`), ``sut_accel``,
-    ``drac_sut`` (:func:`drac` to the leader; read by the ``conflict`` rule only), the follower's
+    state (the terms are then bools) or ``[n]`` arrays for consecutive states: ``ttc``
+    (:func:`sut_ttc`), ``sut_accel``, ``drac_sut`` (:func:`drac` to the leader; read by the
+    ``conflict`` rule only), the follower's
     ``follower_ttc_s`` (:func:`follower_ttc`), ``follower_accel`` (0 without one) and
     ``follower_thw_s`` (:func:`follower_headway`), ``attributed`` (:func:`rear_attributed`), the
     leader's ``leader_gap_m`` (``inf`` without one) and ``leader_speed`` (``nan`` without one),
