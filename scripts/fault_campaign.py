@@ -228,7 +228,7 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
     must end the killed driver's Ray processes, and every run must be done exactly once."""
     import pyarrow.parquet as pq
 
-    from evoscen_bringup.campaign import DRIVER_FILE, _session_processes, _zombie
+    from evoscen_bringup.ray_leftovers import DRIVER_FILE, session_processes, zombie
 
     problems: list[str] = []
     camp = work / f"campaign-{seed}"
@@ -263,7 +263,7 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
             _stdout, stderr = again.communicate()
             hang = True
         if session is not None:
-            alive = [p for p, _ in _session_processes(session) if not _zombie(p)]
+            alive = [p for p, _ in session_processes(session) if not zombie(p)]
             orphans = len(alive)
             for p in alive:
                 with contextlib.suppress(OSError):

@@ -428,7 +428,7 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     command names and ends them, then completes the campaign with every run exactly once."""
     import pyarrow.parquet as pq
 
-    from evoscen_bringup.campaign import DRIVER_FILE, _session_processes
+    from evoscen_bringup.ray_leftovers import DRIVER_FILE, session_processes
 
     spec, out = write_spec(tmp_path, LONG), tmp_path / "out"
     proc = _cli(spec, out)
@@ -440,7 +440,7 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     finally:
         _finish(proc, 30)
     time.sleep(2)
-    left = [pid for pid, _ in _session_processes(session)]
+    left = [pid for pid, _ in session_processes(session)]
     assert left  # Ray's agents outlive a driver killed with SIGKILL (measured: ray::DashboardAgent, ray::RuntimeEnvAgent)
     again = _cli(spec, out)
     stdout, err = _finish(again, 400)
@@ -448,9 +448,9 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     lines = [ln for ln in err.splitlines() if ln.startswith("campaign: ended")]
     # (some of Ray's processes may still be ending by themselves when it starts: the agents are not)
     assert len(lines) == 1 and any(f"(pid {pid})" in lines[0] for pid in left), err
-    assert _session_processes(session) == [] or all(
+    assert session_processes(session) == [] or all(
         Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
-        for pid, _ in _session_processes(session))
+        for pid, _ in session_processes(session))
     assert not (out / DRIVER_FILE).exists()
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
     assert len(keys) == 16 == len(set(keys))
