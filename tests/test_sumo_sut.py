@@ -1,4 +1,4 @@
-"""SUMO's own driver as a SUT (``examples/sumo_sut``, docs/plugins.md "Example: SUMO's driver as the SUT").
+"""SUMO's own driver as a SUT (``examples/sumo_sut``, docs/plugins.md "Example: SUMO's own driver as the SUT").
 
 * In situations built by hand (:func:`evoscen_sim.testing.hand_built_world`, stepped with the driver):
   a slow leader and a free lane to the left: it changes left; on the merge lane: it merges, and when

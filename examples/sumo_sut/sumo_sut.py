@@ -1,5 +1,5 @@
 """SUMO's own driver as an evoscen SUT: Krauss car following and LC2013 (or SL2015) lane changing,
-run by SUMO itself through libsumo (docs/plugins.md, "Example: SUMO's driver as the SUT").
+run by SUMO itself through libsumo (docs/plugins.md, "Example: SUMO's own driver as the SUT").
 
 The SUT is a vehicle in a SUMO network of the same road: the scenario's OpenDRIVE map converted by
 ``netconvert`` (cached by the map's content and the conversion options). Every step:

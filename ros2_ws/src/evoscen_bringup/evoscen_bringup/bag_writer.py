@@ -2,7 +2,7 @@
 
 The in-process runner can write its bag on its own thread (:class:`~evoscen_bringup.step_recorder.StepRecorder`,
 ``bag_writer="inline"``) or hand it to a second process (:class:`ProcessRecorder`,
-``bag_writer="process"``; docs/recording.md, "[choice] bag writer"). With the process writer the
+``bag_writer="process"``; docs/recording.md, "In-process runs: the bag written inline or by a writer process"). With the process writer the
 run's step only copies what the bag needs — the world's state arrays (:meth:`World.state_arrays
 <evoscen_sim.world.World.state_arrays>`), the command tables, the events — into shared memory and
 notes each call in a journal; the writer process, forked at the start of the run, replays the

@@ -20,7 +20,7 @@ intruder or probe) reserves the domain first and then hands it to the launcher w
 ``--domain-id N`` and ``EVOSCEN_DOMAIN_RESERVED=N`` in the launcher's environment
 (:func:`reserved_by_caller_env`): the launcher then trusts that reservation instead of failing
 on the lock its caller holds. Drawing such a domain at random without a reservation is what
-put two of a test module's graphs on one domain (CI of session 8: 101..232, two graphs at once).
+put two of a test module's graphs on one domain (seen in CI: 101..232, two graphs at once).
 
 Lock directory: ``$EVOSCEN_DOMAIN_LOCK_DIR`` or ``<tmp>/evoscen-domains`` (mode 1777, lock files
 0666, so graphs of different users on one host see each other's reservations).

@@ -247,7 +247,7 @@ class LearnedDriver:
         lane_hold_s: the run-time lane hold (docs/learned-bvs.md, "Lane hold"): for this long
             after a vehicle's lane change ends (the world's ``lane_change`` column back to 0),
             its policy's requests are rewritten to keep, except the forced merge's; 0 = no
-            hold (the training environments, and the scenario's BVs before round 2's hold).
+            hold (the training environments, and the scenario's BVs before the hold existed).
         cut_in_decel_mps2: b of the cut-in gap term c²/(2b) under the ``driver`` profile (0: no
             such term); ``None``: the profile's (none). Ignored under ``safety_net``.
         standing_leader_at_once: under the ``driver`` profile, the emergency brake acts at once

@@ -27,7 +27,7 @@ from .level0 import Level0Driver, level0_params_from_config
 SHIPPED = "shipped"
 SHIPPED_SETS = {SHIPPED: "", "round1": "round1"}
 """``policy_dir`` keywords of the shipped policy sets: ``shipped`` = the current set (trained at
-the method's scale under the ``driver`` profile), ``round1`` = round 1's set (40k controller /
+the method's scale under the ``driver`` profile), ``round1`` = the first shipped set (0.1.0; 40k controller /
 20k decision steps, trained under the ``safety_net`` rules), kept selectable."""
 
 
@@ -39,7 +39,7 @@ class LearnedParams:
     """Directory of trained policies (``controller.npz``, ``mutual.npz``, ``competitive.npz``,
     ``cooperative.npz``, ``training.yaml``), as written by ``scripts/train_bv.py --out``;
     ``shipped`` (default) = the policies shipped in ``share/evoscen_bv/policies``, ``round1`` =
-    round 1's set in ``policies/round1`` (:data:`SHIPPED_SETS`). A relative path is relative to
+    the first shipped set in ``policies/round1`` (:data:`SHIPPED_SETS`). A relative path is relative to
     the working directory."""
     on_missing: str = text("error", ("error", "level0"))
     """What to do when the policy directory lacks policies: ``error`` (one-line error, the
@@ -53,7 +53,7 @@ class LearnedParams:
     """The lane hold (docs/learned-bvs.md, "Lane hold"): for this long after a BV's lane change
     ends, its decision policy's requests are rewritten to keep (the forced merge excepted).
     [choice] 20 s, SUMO's ``lcSpeedGainRemainTime`` (the minimum time on the new lane after a
-    speed-gain change); 0 = no hold, round 2's first form (the BVs then reversed 70 % of
+    speed-gain change); 0 = no hold, the rule before the hold existed (the BVs then reversed 70 % of
     their changes, a median 5.7 s apart)."""
     cut_in_decel_mps2: float = number(0.0, 0.0, 50.0)
     """Under the ``driver`` profile, b of a further cut-in gap term c²/(2b) (docs/bv-profiles.md,
@@ -93,7 +93,7 @@ class LearnedParams:
     """Under the ``driver`` profile, the emergency brake acts at once, without the reaction
     time, for a perceived leader at rest (docs/bv-profiles.md, R2) [choice: a vehicle standing
     in front that the BV has perceived is no surprise]; false: the reaction time applies to it
-    too (the rule before session 12). ``safety_net`` ignores it."""
+    too (the earlier rule, 0.1.0). ``safety_net`` ignores it."""
     hard_brake: bool = flag(True)
     """Whether the BV that is the SUT's leader (within 100 m) brakes hard now and then, as leaders
     do in naturalistic traffic (docs/learned-bvs.md, "Hard braking";

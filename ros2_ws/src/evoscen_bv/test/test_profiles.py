@@ -189,8 +189,8 @@ def test_training_config_records_the_profile(tmp_path, policies):
     from evoscen_bv.training_config import load_training_config
 
     assert load_training_config().env.profile == "driver"  # new trainings: the driver profile
-    assert policies[2].env.profile == "driver"  # the shipped (round-2) policies were trained under driver
-    assert load_policies(shipped_policy_dir() / "round1")[2].env.profile == "safety_net"  # round 1's: the old rules
+    assert policies[2].env.profile == "driver"  # the shipped policies were trained under driver
+    assert load_policies(shipped_policy_dir() / "round1")[2].env.profile == "safety_net"  # the first set: the old rules
     (tmp_path / "t.yaml").write_text("env: {profile: safety_net}\n")
     cfg = load_training_config(tmp_path / "t.yaml")
     assert cfg.to_dict()["env"]["profile"] == "safety_net"

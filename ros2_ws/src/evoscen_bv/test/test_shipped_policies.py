@@ -48,7 +48,7 @@ def test_controller_holds_the_target_gap_without_rear_end_collisions(policies):
     gaps = np.array(gaps)
     assert collisions == 0
     lo, hi = TARGET_BAND_M
-    assert lo <= gaps.mean() <= hi, gaps.mean(axis=0)  # measured 29.8 m (session 12 set; the session-10 set 25.4 m)
+    assert lo <= gaps.mean() <= hi, gaps.mean(axis=0)  # measured 29.8 m (the shipped set; the set before it 25.4 m)
     assert np.all(gaps > 5.0)
 
 
@@ -96,7 +96,7 @@ def test_competitive_changes_lanes_most_and_collisions_are_rare():
 
 
 def test_round1_set_is_selectable_and_records_its_training_profile():
-    """``policy_dir: round1`` loads round 1's set (kept selectable); it was trained under safety_net."""
+    """``policy_dir: round1`` loads the first shipped set (kept selectable); it was trained under safety_net."""
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
@@ -114,7 +114,7 @@ def test_round1_set_is_selectable_and_records_its_training_profile():
 def test_source_tree_fallback_finds_the_policies():
     """Without an installed workspace (no AMENT_PREFIX_PATH) the shipped policies are found in
     the source tree, ros2_ws/src/evoscen_bv/policies (the fallback pointed into the Python
-    package, where no policies are, until round 2)."""
+    package, where no policies are, in 0.1.0's first form)."""
     import subprocess
     import sys
 

@@ -144,7 +144,7 @@ def test_lane_change_beside_a_vehicle_by_hand():
 
 
 def test_a_bag_recorded_before_a_key_is_scored_as_it_was_then():
-    """A bag records its run's whole resolved evaluation section; a round-2 key missing there means
+    """A bag records its run's whole resolved evaluation section; a key missing there means
     the bag is older than the key, and it takes the value that reproduces the scores from before
     (docs/evaluation.md §6): the beside hand run of above scores 1 exposure recorded now, 0 recorded
     before beside_lane_change existed."""
@@ -160,7 +160,7 @@ def test_a_bag_recorded_before_a_key_is_scored_as_it_was_then():
     assert report_of(run)["safety"]["exposures"] == 1
     run.scenario = older
     assert report_of(run)["safety"]["exposures"] == 0
-    # a round-1 section (none of the round-2 keys): every one of them as it was then
+    # the earliest section (none of the keys added since): every one of them as it was then
     round1 = {"evaluation": {k: v for k, v in now["evaluation"].items() if k not in RECORDED_BEFORE_KEYS}}
     ev = evaluation_settings_of(round1)
     assert (ev.rear_conflicts, ev.rear_braking, ev.hard_braking, ev.cut_in_gap_m, ev.beside_lane_change,
@@ -408,7 +408,7 @@ def test_live_monitor_equals_the_evaluator_on_a_simulated_run(mode):
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
-    # seed 2: three exposures, rear conflicts among them, with the session-12 BVs (seed 0 has none: they keep
+    # seed 2: three exposures, rear conflicts among them, with the shipped BVs (seed 0 has none: they keep
     # ~30 m and no longer brake for far leaders)
     # (traffic.mode: loop: the traffic this seed was chosen in; the equality does not depend on the design)
     cfg = load_scenario_config(None, {"steps": 800, "seed": 2, "sut.model": "nilsson", "traffic.mode": "loop",

@@ -373,8 +373,8 @@ class EvaluationConfig:
     rear_braking: str = field(default="within_headway", metadata=_check(_Str(lambda: REAR_BRAKING_RULES)))
     """Which braking of the follower is a rear conflict: within_headway = braking harder than
     hard_brake_mps2 while its time headway to the SUT (gap / its speed) is below
-    rear_braking_headway_s (the SUT can have caused it); any = every such braking (round 2's
-    first rule: counted followers braking 30-160 m behind for reasons of their own). See
+    rear_braking_headway_s (the SUT can have caused it); any = every such braking (the
+    earlier rule: counted followers braking 30-160 m behind for reasons of their own). See
     docs/evaluation.md."""
     rear_braking_headway_s: float = field(default=2.0, metadata=_POSITIVE)
     """Time headway below which a follower's hard braking is the SUT's to answer for (s; the
