@@ -15,11 +15,11 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import _bootstrap  # noqa: E402,F401
+import _bootstrap  # noqa: F401
 
 
 def _messages(bag: Path) -> list[tuple[str, int, bytes]]:
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     return [(topic, t, data) for topic, _type, t, data in open_bag_reader(bag)]
 

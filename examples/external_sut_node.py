@@ -120,7 +120,7 @@ def table_columns(msg: PointCloud2) -> dict[str, np.ndarray]:
     return {name: rows[name].astype(np.float64) for name in dtype.names}
 
 
-def command_message(stamp, vehicle_id: float, throttle: float, lane_change: float) -> PointCloud2:  # noqa: ANN001
+def command_message(stamp, vehicle_id: float, throttle: float, lane_change: float) -> PointCloud2:
     """One-row command table answering the world message stamped ``stamp``."""
     msg = PointCloud2()
     msg.header.stamp = stamp

@@ -206,7 +206,7 @@ def learned_bv_costs(steps: int, repeats: int) -> dict:
     return out
 
 
-def _forward_costs(drv, world, grid) -> dict:  # noqa: ANN001
+def _forward_costs(drv, world, grid) -> dict:
     """One batched decision forward pass for all BVs (each through its own policy): the compiled
     kernel used at run time, plain numpy matmuls, and torch (same weights); max differences."""
     import numpy as np

@@ -31,7 +31,7 @@ RATE_HZ = 25.0
 LANE_WIDTH_M = 3.75
 
 
-def synthetic_recording(rng, vehicles: int, frames: int, rows: int):  # noqa: ANN001, ANN201
+def synthetic_recording(rng, vehicles: int, frames: int, rows: int):
     """A HighD-sized recording from simple kinematics (see the module docstring)."""
     import numpy as np
 

@@ -14,8 +14,8 @@ shared and noisy: compare ratios, not absolute rates):
    repeats). Target: >= 0.5. The two bags of a repeat are compared byte for byte.
 2. **The write path**: the messages of one recorded run, read back from its bag, written again
    by :class:`evoscen_eval.recorder.BagRecorder` three ways: the default (the recorder keeps the
-   open chunk, ``_ChunkMessages``), ``chunk_writes=False`` (one ``pack`` per message record into
-   the library's chunk builder, ``_FastMessages``) and ``fast_writes=False`` (the mcap library's
+   open chunk, ``mcap_internals.ChunkMessages``), ``chunk_writes=False`` (one ``pack`` per message record into
+   the library's chunk builder, ``mcap_internals.FastMessages``) and ``fast_writes=False`` (the mcap library's
    own ``Writer.add_message``); microseconds per message of each (best of two, bag opening and
    closing included), their ratio to the library's, and whether the files are byte-identical.
 

@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    from evoscen_bringup.campaign import end_leftovers
+    from evoscen_bringup.ray_leftovers import end_leftovers
     from tqdm import tqdm
 
     left = end_leftovers(out)

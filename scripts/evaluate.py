@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _finished(bag_path: Path) -> bool:
     """The bag has its metadata.yaml (for a directory) and its MCAP summary: readers open it."""
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from evoscen_sim.errors import InputError
 
     if bag_path.is_dir() and not (bag_path / "metadata.yaml").is_file():

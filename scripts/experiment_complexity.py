@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     return EXIT_OK
 
 
-def plot(path: Path, bars, window: int) -> None:  # noqa: ANN001
+def plot(path: Path, bars, window: int) -> None:
     """LC, AD, E per window and C per scenario, with 95 % intervals."""
     import math
 

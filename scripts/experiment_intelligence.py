@@ -142,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     return EXIT_OK
 
 
-def paired_comparisons(suts: list[str], rounds, results, section: str = "intelligence"  # noqa: ANN001
+def paired_comparisons(suts: list[str], rounds, results, section: str = "intelligence"
                        ) -> tuple[list[list[str]], list[list]]:
     """Every pair of SUTs: the per-seed difference of ``section``'s score (intelligence, or a term:
     efficiency, safety, interaction), mean ± 95 % interval (shared seeds)."""
@@ -162,7 +162,7 @@ def paired_comparisons(suts: list[str], rounds, results, section: str = "intelli
     return rows, csv_rows
 
 
-def plot_distributions(out: Path, suts: list[str], rounds, results) -> None:  # noqa: ANN001
+def plot_distributions(out: Path, suts: list[str], rounds, results) -> None:
     """TTC and speed distributions of the SUTs, overlaid (density, pooled over seeds)."""
     import matplotlib
 

@@ -158,12 +158,12 @@ def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants:
     return rounds, meta
 
 
-def warmup_steps(cfg) -> int:  # noqa: ANN001 - a ScenarioConfig
+def warmup_steps(cfg) -> int:  # a ScenarioConfig
     """Steps of the warm-up before every run (``traffic.warmup_s / dt_s``; none without the traffic window)."""
     return int(round(cfg.traffic.warmup_s / cfg.dt_s)) if cfg.traffic.mode == "window" else 0
 
 
-def compute_text(design, cfg, variants: int) -> str:  # noqa: ANN001
+def compute_text(design, cfg, variants: int) -> str:
     """One paragraph: the design's SUT steps (what equal compute equalises) and its warm-up (extra compute)."""
     from evoscen_bringup.sensitivity import design_compute
 
@@ -178,7 +178,7 @@ def compute_text(design, cfg, variants: int) -> str:  # noqa: ANN001
             f"({variants} variant-scenario pairs, {design.runs * variants:,} runs).")
 
 
-def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases: list[str],  # noqa: ANN001, PLR0915
+def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases: list[str],
               scenarios: list[str], mutants: list[str]) -> tuple[dict, str]:
     """One design's tables and files in ``out`` (sensitivity.md/.csv, mutation_scores.csv, rounds.csv,
     sensitivity.png). Returns (scenario, base) -> :class:`DesignSummary` and the score table (Markdown)."""
@@ -345,7 +345,7 @@ def comparison_rows(designs: list, summaries: dict, computes: dict, walls: dict)
     return md, rows, md_m, rows_m
 
 
-def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear report
+def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.experiments import distinct_names, markdown_table, positive_int, run_rounds_with_bar, set_up
     from evoscen_bringup.experiments import write_csv
@@ -353,7 +353,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY
 
-    def build():  # noqa: ANN202
+    def build():
         designs = resolve_designs(args)
         jobs = positive_int("--jobs", args.jobs)
         bases = distinct_names("--base", args.base)
@@ -433,7 +433,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     return EXIT_OK
 
 
-def plot(path: Path, panels) -> None:  # noqa: ANN001
+def plot(path: Path, panels) -> None:
     """Paired intelligence difference (intact − mutant) of every mutant with its 95 % interval, one panel per scenario."""
     import matplotlib
 

@@ -61,7 +61,7 @@ def sut_jumps(s: np.ndarray, lane: np.ndarray, target: np.ndarray, sut: int, dt_
     return jumps
 
 
-def one_run(cfg) -> dict:  # noqa: ANN001 - a ScenarioConfig
+def one_run(cfg) -> dict:  # a ScenarioConfig
     from evoscen_bringup.inprocess import run_inprocess
 
     summary = run_inprocess(cfg, bag_dir=None, evaluate=True, keep_run=True)
@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise InputError(f"--set {item!r}: expected KEY=VALUE")
             overrides[key.strip()] = value.strip()
 
-        def cfg_for(seed: int, n: int):  # noqa: ANN202
+        def cfg_for(seed: int, n: int):
             return load_scenario_config(args.config, {**overrides, "sut.model": args.sut, "seed": str(seed),
                                                       "steps": str(n), "recording.enabled": "false"})
 

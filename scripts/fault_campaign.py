@@ -298,7 +298,7 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
     must end the killed driver's Ray processes, and every run must be done exactly once."""
     import pyarrow.parquet as pq
 
-    from evoscen_bringup.campaign import DRIVER_FILE, _session_processes, _zombie
+    from evoscen_bringup.ray_leftovers import DRIVER_FILE, session_processes, zombie
 
     problems: list[str] = []
     camp = work / f"campaign-{seed}"
@@ -333,7 +333,7 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
             _stdout, stderr = again.communicate()
             hang = True
         if session is not None:
-            alive = [p for p, _ in _session_processes(session) if not _zombie(p)]
+            alive = [p for p, _ in session_processes(session) if not zombie(p)]
             orphans = len(alive)
             for p in alive:
                 with contextlib.suppress(OSError):
@@ -373,7 +373,7 @@ def _children(launcher: subprocess.Popen, module: str, node: str = "") -> list[i
 
 
 def _world_steps(bag: Path) -> list[int] | None:
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     try:
         return sorted({t // DT_NS for topic, _type, t, _d in open_bag_reader(bag) if topic == TOPIC_WORLD})
@@ -406,7 +406,7 @@ def expected_kill_statuses(fault: tuple) -> tuple[int, ...]:
 
 
 def _world_bytes(bag: Path) -> list[bytes]:
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     return [d for topic, _type, _t, d in open_bag_reader(bag) if topic == TOPIC_WORLD]
 
@@ -614,7 +614,7 @@ class _Alarm(Exception):
     pass
 
 
-def _on_alarm(signum, frame):  # noqa: ANN001, ANN202
+def _on_alarm(signum, frame):
     raise _Alarm
 
 

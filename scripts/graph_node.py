@@ -124,7 +124,7 @@ def _run_all(argvs: dict[str, list[str]], env: dict[str, str]) -> int:
 
     procs = {n: subprocess.Popen(argv, env=env) for n, argv in argvs.items()}
 
-    def forward(signum, frame):  # noqa: ANN001, ANN202
+    def forward(signum, frame):
         for p in procs.values():
             if p.poll() is None:
                 p.send_signal(signum)

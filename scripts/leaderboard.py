@@ -88,14 +88,14 @@ def ranked(means: dict[str, float]) -> list[str]:
     return sorted(means, key=lambda s: (math.isnan(means[s]), -means[s] if not math.isnan(means[s]) else 0.0, s))
 
 
-def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear report
+def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.experiments import (Round, fmt_ci, markdown_table, mean_ci, positive_int,
                                              run_rounds_with_bar, set_up, write_csv)
     from evoscen_bringup.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
     from evoscen_sim.config import load_scenario_config
 
-    def build():  # noqa: ANN202
+    def build():
         episodes = positive_int("--episodes", args.episodes)
         steps = positive_int("--episode-steps", args.episode_steps)
         first = positive_int("--first-seed", args.first_seed, 0)
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
         value = rep["intelligence"]["weighted"].get(term)
         return math.nan if value is None else float(value)
 
-    def ci(values) -> tuple[float, float]:  # noqa: ANN001
+    def ci(values) -> tuple[float, float]:
         return mean_ci([v for v in values if not math.isnan(v)])
 
     rows, csv_rows, ssm_rows, plot_rows = [], [], [], []
@@ -223,7 +223,7 @@ def main(argv: list[str] | None = None) -> int:  # noqa: PLR0915 - one linear re
     return EXIT_OK
 
 
-def plot(path: Path, rows, reference: str | None) -> None:  # noqa: ANN001
+def plot(path: Path, rows, reference: str | None) -> None:
     """Per SUT (ranked, top first): intelligence with its 95 % interval; beside it the paired
     difference against the reference with its interval (green/red: significantly higher/lower)."""
     import matplotlib

@@ -79,7 +79,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def validate(args: argparse.Namespace):  # noqa: ANN201
+def validate(args: argparse.Namespace):
     """Check every argument and the bag before the middleware starts; InputError otherwise."""
     from evoscen_eval.replay import (
         CDR,
@@ -117,7 +117,7 @@ def validate(args: argparse.Namespace):  # noqa: ANN201
     return rate, start_delay, wait_timeout, topics
 
 
-def message_classes(topics, bag: Path) -> dict[str, type]:  # noqa: ANN001
+def message_classes(topics, bag: Path) -> dict[str, type]:
     """Import the message class of every topic; InputError naming topic and type if one is missing."""
     import importlib
 
@@ -138,7 +138,7 @@ def message_classes(topics, bag: Path) -> dict[str, type]:  # noqa: ANN001
     return out
 
 
-def check_first_messages(bag: Path, topics, classes: dict[str, type]) -> None:  # noqa: ANN001
+def check_first_messages(bag: Path, topics, classes: dict[str, type]) -> None:
     """Deserialize the first message of every topic with its class: InputError if one does not
     decode (a bag whose schema does not match its data), before anything is published."""
     from rclpy.serialization import deserialize_message
@@ -197,7 +197,7 @@ def wait_for_subscribers(pubs: dict, n: int, timeout_s: float) -> list[str]:
         time.sleep(0.01)
 
 
-def publish(pub, data: bytes, deadline_s: float) -> None:  # noqa: ANN001
+def publish(pub, data: bytes, deadline_s: float) -> None:
     """``pub.publish(data)``; retried while the middleware refuses it (a full keep-all history)."""
     from rclpy._rclpy_pybind11 import RCLError
 
@@ -212,7 +212,7 @@ def publish(pub, data: bytes, deadline_s: float) -> None:  # noqa: ANN001
             time.sleep(PUBLISH_RETRY_S)
 
 
-def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeout: float, topics) -> int:  # noqa: ANN001
+def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeout: float, topics) -> int:
     """Publish the bag (see the module docstring); returns the exit status."""
     from rclpy.duration import Duration
 
@@ -283,7 +283,7 @@ def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeo
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
 
-    def on_signal(signum, frame):  # noqa: ANN001, ANN202
+    def on_signal(signum, frame):
         raise Interrupted(signum)
 
     signal.signal(signal.SIGINT, on_signal)

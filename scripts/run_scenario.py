@@ -122,11 +122,11 @@ def print_scores(report_dir: Path) -> None:
     print(f"report: {report_dir / 'report.md'}")
 
 
-def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, report_dir: Path,  # noqa: ANN001
+def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, report_dir: Path,
                    domain: int) -> int:
     """Run the node graph on ``domain`` (reserved by the caller); print the outcome; return its status."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from evoscen_sim.errors import InputError
 
     opts = GraphOptions(domain_id=domain, discovery_range=args.discovery_range,

@@ -122,7 +122,7 @@ def _find_netconvert() -> str | None:
 def sumo_available() -> tuple[bool, str]:
     """(True, description) when libsumo imports and netconvert is found, else (False, reason)."""
     try:
-        import libsumo  # noqa: F401
+        import libsumo
     except Exception as exc:  # noqa: BLE001 -- ImportError, or a broken shared library
         return False, f"libsumo not importable ({type(exc).__name__}: {exc}); pip install eclipse-sumo libsumo"
     netconvert = _find_netconvert()

@@ -6,11 +6,18 @@ from the colcon install tree (``. ros2_ws/install/setup.sh``).
 
 One recorded run (``--steps 200 --seed 3``, the shipped default config) is shared by the tests
 that only read its output (:func:`recorded_run`), to keep the whole suite fast.
+
+The plug-in examples' tests (``examples/<name>``) share :func:`load_example` (the example's module
+as an installed package imports it), :func:`pip_install_into` (a package pip-installed into a
+directory of its own) and :func:`env_with_path` (a subprocess environment that finds it).
 """
 
 from __future__ import annotations
 
+import importlib.util
+import os
 import re
+import shutil
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -149,3 +156,56 @@ def cli_concurrently():
 def summary_of():
     """The :func:`parse_summary` helper."""
     return parse_summary
+
+
+# ---------------------------------------------------------------------- plug-in packages
+
+EXAMPLES = REPO / "examples"
+
+
+def load_example_module(name: str):
+    """``examples/<name>/<name>.py`` as the module ``name``, as the installed package imports it (the
+    module already imported under that name, if any: the installed one, or an earlier load)."""
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, EXAMPLES / name / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses look their module up while it runs
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def pip_install_to_directory(source: Path, root: Path) -> Path:
+    """The package at ``source`` pip-installed (no dependencies, no index, the .venv's setuptools)
+    into ``root/site``, from a copy in ``root/src`` (the source tree stays clean); returns the site."""
+    copy = root / "src"
+    shutil.copytree(source, copy, ignore=shutil.ignore_patterns("__pycache__", "build", "*.egg-info"))
+    site = root / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
+                    "--no-build-isolation", "--no-index", "--target", str(site), str(copy)],
+                   check=True, capture_output=True, text=True, timeout=300)
+    return site
+
+
+def environment_with_path(site: Path) -> dict[str, str]:
+    """This process's environment with ``site`` first on ``PYTHONPATH``, then this process's path."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(site), *(p for p in sys.path if p)])
+    return env
+
+
+@pytest.fixture(scope="session")
+def load_example():
+    """The :func:`load_example_module` helper: ``load_example("first_sut")``."""
+    return load_example_module
+
+
+@pytest.fixture(scope="session")
+def pip_install_into(tmp_path_factory: pytest.TempPathFactory):
+    """``pip_install_into(source) -> site``: :func:`pip_install_to_directory` into a fresh temporary directory."""
+    return lambda source: pip_install_to_directory(Path(source), tmp_path_factory.mktemp(Path(source).name))
+
+
+@pytest.fixture(scope="session")
+def env_with_path():
+    """The :func:`environment_with_path` helper."""
+    return environment_with_path

@@ -55,7 +55,7 @@ def mcap_messages(recorded_run):
     return out
 
 
-def _ns(stamp) -> int:  # noqa: ANN001
+def _ns(stamp) -> int:
     return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 

@@ -29,13 +29,13 @@ REPO = Path(__file__).resolve().parents[1]
 DT_NS = 100_000_000  # dt_s of the shipped config
 
 
-def _cfg(steps: int, **over):  # noqa: ANN003, ANN202
+def _cfg(steps: int, **over):
     from evoscen_sim.config import load_scenario_config
 
     return load_scenario_config(None, {"steps": steps, **over})
 
 
-def _record(tmp_path: Path, name: str, cfg, writer: str) -> bytes:  # noqa: ANN001
+def _record(tmp_path: Path, name: str, cfg, writer: str) -> bytes:
     from evoscen_bringup.inprocess import run_inprocess
 
     summary = run_inprocess(cfg, bag_dir=tmp_path / name / "bag", bag_writer=writer)
@@ -108,7 +108,7 @@ def test_writer_error_is_raised_in_the_run(tmp_path: Path, monkeypatch) -> None:
     from evoscen_bringup import bag_writer
     from evoscen_bringup.inprocess import run_inprocess
 
-    def full_disk(*args, **kwargs) -> None:  # noqa: ANN002, ANN003
+    def full_disk(*args, **kwargs) -> None:
         raise OSError(errno.ENOSPC, "No space left on device")
 
     monkeypatch.setattr(bag_writer, "_replay", full_disk)  # the forked writer has the patch too
@@ -124,12 +124,12 @@ def test_writer_error_wins_over_its_end(tmp_path: Path, monkeypatch) -> None:
     from evoscen_bringup import bag_writer
     from evoscen_bringup.inprocess import run_inprocess
 
-    def full_disk(*args, **kwargs) -> None:  # noqa: ANN002, ANN003
+    def full_disk(*args, **kwargs) -> None:
         raise OSError(errno.ENOSPC, "No space left on device")
 
     send = bag_writer.ProcessRecorder._send
 
-    def send_then_wait(self, message: tuple) -> None:  # noqa: ANN001
+    def send_then_wait(self, message: tuple) -> None:
         send(self, message)
         if message[0] == "batch":
             self._proc.join(timeout=30)  # the writer has failed and ended before "close" goes out
@@ -142,7 +142,7 @@ def test_writer_error_wins_over_its_end(tmp_path: Path, monkeypatch) -> None:
     assert exc.value.errno == errno.ENOSPC
 
 
-def _dying_writer(monkeypatch) -> None:  # noqa: ANN001
+def _dying_writer(monkeypatch) -> None:
     from evoscen_bringup import bag_writer
 
     monkeypatch.setattr(bag_writer, "_replay", lambda *args: os._exit(9))
@@ -181,7 +181,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
     """SIGINT to the process group (what a terminal's Ctrl-C sends: the writer gets it too)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from evoscen_contract.topics import parse_events
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from mcap.reader import make_reader
     from rclpy.serialization import deserialize_message
 
@@ -222,7 +222,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
 def test_killed_run_leaves_the_writer_to_finish_the_bag(tmp_path: Path) -> None:
     """SIGKILL to the run alone: its writer sees the pipe close and finishes the bag with what
     it received (a readable MCAP with its summary, every per-step topic contiguous from t_0)."""
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from mcap.reader import make_reader
 
     out = tmp_path / "run"
@@ -274,7 +274,7 @@ def test_ctrl_c_is_noted_then_raised_at_the_second() -> None:
     earlier handler comes back; a caller's own handler is left alone."""
     from evoscen_bringup.inprocess import _CtrlC
 
-    def own(signum, frame) -> None:  # noqa: ANN001
+    def own(signum, frame) -> None:
         pass
 
     # Python's handler, as in a terminal (a suite started in the background has SIGINT ignored)

@@ -203,7 +203,7 @@ def _results(out: Path) -> list[Path]:
     return sorted((out / "runs").glob("*/result.json")) if (out / "runs").is_dir() else []
 
 
-def _wait_for(pred, timeout: float = 120.0) -> None:  # noqa: ANN001
+def _wait_for(pred, timeout: float = 120.0) -> None:
     end = time.monotonic() + timeout
     while not pred():
         assert time.monotonic() < end, "timed out"
@@ -326,7 +326,7 @@ def test_critical_events_become_clips_pictures_and_reproducible_commands(tmp_pat
     by falling severity."""
     import shlex
 
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     spec = load_spec(write_spec(tmp_path, CLIPS))
     runs = expand(spec)
@@ -428,7 +428,7 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     command names and ends them, then completes the campaign with every run exactly once."""
     import pyarrow.parquet as pq
 
-    from evoscen_bringup.campaign import DRIVER_FILE, _session_processes
+    from evoscen_bringup.ray_leftovers import DRIVER_FILE, session_processes
 
     spec, out = write_spec(tmp_path, LONG), tmp_path / "out"
     proc = _cli(spec, out)
@@ -440,7 +440,7 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     finally:
         _finish(proc, 30)
     time.sleep(2)
-    left = [pid for pid, _ in _session_processes(session)]
+    left = [pid for pid, _ in session_processes(session)]
     assert left  # Ray's agents outlive a driver killed with SIGKILL (measured: ray::DashboardAgent, ray::RuntimeEnvAgent)
     again = _cli(spec, out)
     stdout, err = _finish(again, 400)
@@ -448,9 +448,9 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     lines = [ln for ln in err.splitlines() if ln.startswith("campaign: ended")]
     # (some of Ray's processes may still be ending by themselves when it starts: the agents are not)
     assert len(lines) == 1 and any(f"(pid {pid})" in lines[0] for pid in left), err
-    assert _session_processes(session) == [] or all(
+    assert session_processes(session) == [] or all(
         Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
-        for pid, _ in _session_processes(session))
+        for pid, _ in session_processes(session))
     assert not (out / DRIVER_FILE).exists()
     keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
     assert len(keys) == 16 == len(set(keys))
@@ -469,7 +469,7 @@ def test_a_fault_of_the_host_in_a_worker_is_found_behind_rays_error():
 
     ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False, configure_logging=False)
     try:
-        with pytest.raises(Exception) as info:  # noqa: PT011 - Ray's wrapper, whatever its class
+        with pytest.raises(Exception) as info:  # Ray's wrapper, whatever its class
             ray.get(ray.remote(num_cpus=1, max_retries=0)(full).remote())
     finally:
         ray.shutdown()

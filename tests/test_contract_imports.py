@@ -48,6 +48,8 @@ CORE_MODULES = (
     "evoscen_sut.stackelberg",
     "evoscen_sut.mutant",
     "evoscen_sut.models",
+    "evoscen_eval.bag_reader",
+    "evoscen_eval.mcap_internals",
     "evoscen_eval.rundata",
     "evoscen_eval.metrics",
     "evoscen_eval.report",

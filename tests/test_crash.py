@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # noqa: E402 (the graph tests' helpers)
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the graph tests' helpers
 from test_graph import BV_TOPICS, PER_STEP_STATE, REPO, _children, _error_lines, _events, _launch, \
     _mcap_summary_count, _read_bag, _running, _stamps, _steps, _terminate
 

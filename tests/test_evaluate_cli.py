@@ -87,7 +87,7 @@ def test_config_override_changes_the_settings(recorded_run, tmp_path):
     assert rep["intelligence"]["score"] == rep["safety"]["score"]
 
 
-def _copy_bag_with_scenario(src: Path, dst: Path, edit) -> None:  # noqa: ANN001 - edit: dict -> None
+def _copy_bag_with_scenario(src: Path, dst: Path, edit) -> None:  # edit: dict -> None
     """Copy the bag ``src`` (a directory) to ``dst`` with its scenario metadata record edited by
     ``edit(scenario_dict)``; schemas, channels and messages are copied as they are, in file order."""
     import yaml

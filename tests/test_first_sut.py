@@ -14,10 +14,8 @@
 
 from __future__ import annotations
 
-import importlib.util
 import inspect
 import re
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -36,19 +34,9 @@ INCLUDE = re.compile(r"<!-- include: (?P<path>[^#\s,]+)(?:#(?P<region>[a-z_]+))?
                      r"```[a-z]*\n(?P<body>.*?)```", re.S)
 
 
-def load_example():
-    """``first_sut.py`` as the module ``first_sut`` (as an installed package imports it)."""
-    if "first_sut" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("first_sut", EXAMPLE / "first_sut.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["first_sut"] = module  # dataclasses look their module up while it runs
-        spec.loader.exec_module(module)
-    return sys.modules["first_sut"]
-
-
 @pytest.fixture(scope="module")
-def fs():
-    return load_example()
+def fs(load_example):
+    return load_example("first_sut")
 
 
 @pytest.fixture(scope="module")
@@ -65,12 +53,12 @@ def road():
     return load_road()
 
 
-def sut_driver(fs, cfg, **params):  # noqa: ANN001, ANN201
+def sut_driver(fs, cfg, **params):
     """The first SUT driving vehicle 0, with ``params`` overriding its defaults."""
     return fs.make(np.array([0]), fs.FirstSutParams(**params), cfg, np.random.default_rng(0))
 
 
-def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:  # noqa: ANN001
+def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:
     """(throttle, request) of the SUT (vehicle 0) in a hand-built world; the others are BVs."""
     from evoscen_sim.testing import hand_built_world
 
@@ -217,7 +205,7 @@ def test_registered_model_is_the_sut_of_an_in_process_run(registered, tmp_path, 
     calls = []
     act = registered.FirstSut.act
 
-    def counted(self, view):  # noqa: ANN001, ANN202
+    def counted(self, view):
         calls.append(view.step_index)
         return act(self, view)
 
@@ -271,46 +259,41 @@ def test_unknown_parameter_names_the_plugin_and_suggests(registered):
 
 
 @pytest.fixture(scope="module")
-def installed(tmp_path_factory) -> Path:
+def installed(pip_install_into) -> Path:
     """The example pip-installed into a directory of its own (a copy is built: the source tree stays clean)."""
-    root = tmp_path_factory.mktemp("first_sut")
-    source = root / "src"
-    shutil.copytree(EXAMPLE, source, ignore=shutil.ignore_patterns("__pycache__", "build", "*.egg-info"))
-    site = root / "site"
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
-                    "--no-build-isolation", "--no-index", "--target", str(site), str(source)],
-                   check=True, capture_output=True, text=True, timeout=300)
-    return site
+    return pip_install_into(EXAMPLE)
 
 
-def run_cli(site: Path, *args: object) -> subprocess.CompletedProcess:
-    import os
+@pytest.fixture(scope="module")
+def run_cli(installed, env_with_path):
+    """``run_cli(*args)``: ``run_scenario.py`` as a subprocess that finds the installed example."""
+    env = env_with_path(installed)
 
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(site), *(p for p in sys.path if p)])
-    return subprocess.run([sys.executable, "scripts/run_scenario.py", *map(str, args)], cwd=REPO, env=env,
-                          capture_output=True, text=True, timeout=300, check=False)
+    def run(*args: object) -> subprocess.CompletedProcess:
+        return subprocess.run([sys.executable, "scripts/run_scenario.py", *map(str, args)], cwd=REPO, env=env,
+                              capture_output=True, text=True, timeout=300, check=False)
+    return run
 
 
 @pytest.mark.e2e  # pip-installs the example, runs the CLI and a node graph as subprocesses
-def test_installed_example_runs_in_both_runners_with_the_same_bag(installed, tmp_path):
+def test_installed_example_runs_in_both_runners_with_the_same_bag(installed, run_cli, tmp_path):
     info = next(installed.glob("evoscen_first_sut-*.dist-info"))
     assert "[evoscen.sut]\nfirst_sut = first_sut:SPEC" in (info / "entry_points.txt").read_text(encoding="utf-8")
     runs = {}
     for mode in ("graph", "inprocess"):
-        res = run_cli(installed, "--mode", mode, "--sut", "first_sut", "--steps", 60, "--seed", 2, "--no-plots",
-                      "--quiet", "--out", tmp_path / mode)
+        res = run_cli("--mode", mode, "--sut", "first_sut", "--steps", 60, "--seed", 2, "--no-plots", "--quiet",
+                      "--out", tmp_path / mode)
         assert res.returncode == 0, (mode, res.stdout, res.stderr)
         runs[mode] = (tmp_path / mode / "bag" / "bag_0.mcap").read_bytes()
     assert runs["graph"] == runs["inprocess"]
 
 
 @pytest.mark.e2e  # runs the CLI as a subprocess
-def test_installed_example_bad_parameter_is_one_line(installed, tmp_path):
+def test_installed_example_bad_parameter_is_one_line(run_cli, tmp_path):
     config = tmp_path / "scenario.yaml"
     config.write_text("models:\n  first_sut:\n    settle_tolerance_m: 2.5\n", encoding="utf-8")
-    res = run_cli(installed, "--mode", "inprocess", "--config", config, "--sut", "first_sut", "--no-record",
-                  "--quiet", "--out", tmp_path / "out")
+    res = run_cli("--mode", "inprocess", "--config", config, "--sut", "first_sut", "--no-record", "--quiet",
+                  "--out", tmp_path / "out")
     line = one_error_line(res.stderr)
     assert res.returncode == 2
     assert line == (f"error: {config}: key 'models.first_sut.settle_tolerance_m' = 2.5: "

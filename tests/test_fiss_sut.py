@@ -13,7 +13,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -29,14 +28,9 @@ sys.path.insert(0, str(REPO / "scripts"))
 
 
 @pytest.fixture(scope="module")
-def fs():
+def fs(load_example):
     """``fiss_sut.py`` as the module ``fiss_sut`` (as the installed package imports it)."""
-    if "fiss_sut" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("fiss_sut", EXAMPLE / "fiss_sut.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["fiss_sut"] = module
-        spec.loader.exec_module(module)
-    return sys.modules["fiss_sut"]
+    return load_example("fiss_sut")
 
 
 @pytest.fixture(scope="module")
@@ -53,17 +47,17 @@ def road():
     return load_road()
 
 
-def driver(fs, cfg, **params):  # noqa: ANN001, ANN201
+def driver(fs, cfg, **params):
     return fs.make(np.array([0]), fs.FissSutParams(**params), cfg, np.random.default_rng(0))
 
 
-def world_of(road, s, lane, speed):  # noqa: ANN001, ANN201
+def world_of(road, s, lane, speed):
     from evoscen_sim.testing import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
 
 
-def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:  # noqa: ANN001
+def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:
     """(throttle, request) of the SUT (vehicle 0) in a hand-built world; the others are BVs."""
     throttle, request = driver(fs, cfg, **params).act(world_of(road, s, lane, speed))
     assert throttle.shape == (1,) and request.shape == (1,) and -1.0 <= throttle[0] <= 1.0
@@ -232,10 +226,10 @@ def test_installed_fiss_runs_in_a_campaign_on_ray(tmp_path):
 class BadDriver:
     """Answers well for 3 steps, then as ``kind`` says."""
 
-    def __init__(self, vehicles, kind: str) -> None:  # noqa: ANN001
+    def __init__(self, vehicles, kind: str) -> None:
         self.n, self.kind = len(vehicles), kind
 
-    def act(self, view):  # noqa: ANN001, ANN201
+    def act(self, view):
         throttle, lane_change = np.zeros(self.n), np.zeros(self.n, dtype=np.int64)
         if view.step_index < 3:
             return throttle, lane_change
@@ -294,11 +288,9 @@ def test_checked_answer_passes_a_good_answer_through_and_names_a_bv_model():
 
 
 @pytest.fixture(scope="module")
-def bad_package(tmp_path_factory) -> Path:
+def bad_package(tmp_path_factory, pip_install_into) -> Path:
     """A package with a BadDriver SUT ('nan' from step 3) behind an entry point, pip-installed into a directory."""
-    root = tmp_path_factory.mktemp("bad_sut")
-    src = root / "src"
-    src.mkdir()
+    src = tmp_path_factory.mktemp("bad_sut")
     (src / "pyproject.toml").write_text(
         '[build-system]\nrequires = ["setuptools>=64"]\nbuild-backend = "setuptools.build_meta"\n'
         '[project]\nname = "evoscen-bad-sut"\nversion = "0"\n'
@@ -310,21 +302,13 @@ def bad_package(tmp_path_factory) -> Path:
         "import numpy as np\nfrom evoscen_sim.models import ModelSpec\n\n" + inspect.getsource(BadDriver)
         + "\n\nSPEC = ModelSpec(name='bad_sut', roles=('sut',), factory=lambda v, p, c, r: BadDriver(v, 'nan'))\n",
         encoding="utf-8")
-    site = root / "site"
-    subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--disable-pip-version-check", "--no-deps",
-                    "--no-build-isolation", "--no-index", "--target", str(site), str(src)],
-                   check=True, capture_output=True, text=True, timeout=300)
-    return site
+    return pip_install_into(src)
 
 
 @pytest.mark.e2e  # a node graph in a subprocess
-def test_a_bad_answer_in_the_node_graph_is_one_error_line_naming_the_model(bad_package, tmp_path):
-    import os
-
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(bad_package), *(p for p in sys.path if p)])
+def test_a_bad_answer_in_the_node_graph_is_one_error_line_naming_the_model(bad_package, env_with_path, tmp_path):
     res = run_cli("--mode", "graph", "--sut", "bad_sut", "--steps", 20, "--no-plots", "--quiet",
-                  "--out", tmp_path / "out", env=env)
+                  "--out", tmp_path / "out", env=env_with_path(bad_package))
     errors = [line for line in res.stderr.splitlines() if line.startswith("error: ")]
     assert res.returncode == 2 and "Traceback" not in res.stderr, (res.returncode, res.stderr)
     assert errors == [f"error: evoscen_sut: sut model 'bad_sut': {BAD['nan']}"], res.stderr
@@ -337,10 +321,10 @@ def test_a_bad_bv_answer_is_one_line_before_anything_is_written(tmp_path, capsys
     from evoscen_sim.models import ModelSpec, register_model, unregister_model
 
     class ShortBv:
-        def __init__(self, vehicles) -> None:  # noqa: ANN001
+        def __init__(self, vehicles) -> None:
             self.n = len(vehicles)
 
-        def act(self, view):  # noqa: ANN001, ANN202
+        def act(self, view):
             return np.zeros(self.n - 1), np.zeros(self.n - 1, dtype=np.int64)
 
     config = tmp_path / "scenario.yaml"

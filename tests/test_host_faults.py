@@ -29,7 +29,7 @@ WORLD = "/evoscen/world"
 STEPS = 400
 
 
-def _cfg(steps: int = STEPS):  # noqa: ANN202
+def _cfg(steps: int = STEPS):
     from evoscen_sim.config import load_scenario_config
 
     return load_scenario_config(None, {"steps": steps, "seed": 5, "sut.model": "mobil"})
@@ -84,7 +84,7 @@ class _FullDisk:
         self._f = open(path, "wb", buffering=0)  # noqa: SIM115
         self._budget = budget
 
-    def write(self, data) -> int:  # noqa: ANN001
+    def write(self, data) -> int:
         if self._budget[0] <= 0:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         n = self._f.write(memoryview(data)[: self._budget[0]])
@@ -104,10 +104,10 @@ def _fill_disk(monkeypatch: pytest.MonkeyPatch, bag: Path, capacity: int, *, sta
     from evoscen_eval import recorder
 
     budget = [capacity]
-    real = recorder._open_file  # noqa: SLF001
+    real = recorder._open_file
     opened = []
 
-    def fake(path: Path):  # noqa: ANN202
+    def fake(path: Path):
         if not str(path).startswith(str(bag)):
             return real(path)
         opened.append(path)
@@ -174,7 +174,7 @@ def test_unwritable_metadata_yaml(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
 
     real = Path.write_text
 
-    def refuse(self: Path, *a, **kw):  # noqa: ANN002, ANN003, ANN202
+    def refuse(self: Path, *a, **kw):
         if self.name == "metadata.yaml":
             raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(self))
         return real(self, *a, **kw)
@@ -191,7 +191,7 @@ def test_report_that_cannot_be_written_keeps_the_finished_bag(tmp_path: Path, mo
     from evoscen_bringup import inprocess
     from evoscen_sim.errors import HostFault
 
-    def full(*a, **kw):  # noqa: ANN002, ANN003, ANN202
+    def full(*a, **kw):
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(tmp_path / "report" / "report.json"))
 
     monkeypatch.setattr(inprocess, "_report", full)
@@ -210,7 +210,7 @@ def _can_mount() -> bool:
 
 
 @pytest.fixture
-def small_fs(tmp_path: Path):  # noqa: ANN201
+def small_fs(tmp_path: Path):
     """A 512 KiB tmpfs, unmounted afterwards."""
     if not _can_mount():
         pytest.skip("needs root to mount a tmpfs")
@@ -271,7 +271,7 @@ class _ReadOnly(_FullDisk):
     """A raw file whose file system turns read-only once ``budget[0]`` bytes are written: the write
     that would cross it fails whole with EROFS, and the file can no longer be truncated either."""
 
-    def write(self, data) -> int:  # noqa: ANN001
+    def write(self, data) -> int:
         if len(data) > self._budget[0]:
             self._budget[0] = 0
             raise OSError(errno.EROFS, os.strerror(errno.EROFS))
@@ -300,9 +300,9 @@ def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypa
     n, kept = _expected(reference, capacity)
     bag = tmp_path / "bag"
     budget = [capacity]
-    real = recorder._open_file  # noqa: SLF001
+    real = recorder._open_file
 
-    def fake(path: Path):  # noqa: ANN202
+    def fake(path: Path):
         if not str(path).startswith(str(bag)):
             return real(path)
         if budget[0] <= 0:
@@ -378,14 +378,14 @@ def test_bytes_held_between_flushes_are_bounded_and_change_nothing(tmp_path: Pat
     from evoscen_eval import recorder
 
     writes = []
-    real = recorder._BagFile._write_out  # noqa: SLF001
+    real = recorder._BagFile._write_out
 
-    def counted(self) -> None:  # noqa: ANN001
+    def counted(self) -> None:
         writes.append(1)
         real(self)
 
-    monkeypatch.setattr(recorder._BagFile, "HOLD_BYTES", 1000)  # noqa: SLF001
-    monkeypatch.setattr(recorder._BagFile, "_write_out", counted)  # noqa: SLF001
+    monkeypatch.setattr(recorder._BagFile, "HOLD_BYTES", 1000)
+    monkeypatch.setattr(recorder._BagFile, "_write_out", counted)
     run_inprocess(_cfg(), bag_dir=tmp_path / "held" / "bag", bag_writer="inline")
     assert len(writes) > len(_chunks(reference)) + 1  # more write-outs than flushes
     assert (tmp_path / "held" / "bag" / "bag_0.mcap").read_bytes() == reference.read_bytes()
@@ -407,7 +407,7 @@ def reference_ro(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture
-def ext4_fs(tmp_path: Path):  # noqa: ANN201
+def ext4_fs(tmp_path: Path):
     """A 64 MiB ext4 file system on a loop device (errors=remount-ro), unmounted afterwards; the
     fault campaign's own helpers make it and, later, make it read-only."""
     if not _can_mount() or shutil.which("mkfs.ext4") is None:

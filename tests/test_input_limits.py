@@ -234,16 +234,17 @@ def _metadata_records(bag: Path) -> dict[str, dict[str, str]]:
 def contract_of(bag: Path) -> tuple:
     """The contract rows of ``bag``'s run: its BV nodes' command topics in the bag's order."""
     from evoscen_contract import topics as T
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     names = dict.fromkeys(T.NODE_BV + topic[len(T.TOPIC_COMMANDS_BV):] for topic, _type, _t, _d in open_bag_reader(bag)
                           if T.is_bv_command_topic(topic))
     return T.contract_for(list(names))
 
 
-def rewrite_bag(src: Path, dst: Path, transform, topics=None) -> Path:  # noqa: ANN001
+def rewrite_bag(src: Path, dst: Path, transform, topics=None) -> Path:
     """Copy ``src`` to ``dst`` message by message through ``transform(topic, t_ns, data) -> [(topic, t, data)]``."""
-    from evoscen_eval.recorder import BagRecorder, open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_eval.recorder import BagRecorder
 
     with BagRecorder(dst, topics or contract_of(src), canonicalize=False, metadata=_metadata_records(src)) as bag:
         for topic, _type, t, data in open_bag_reader(src):
@@ -252,11 +253,11 @@ def rewrite_bag(src: Path, dst: Path, transform, topics=None) -> Path:  # noqa: 
     return dst
 
 
-def _world_edit(step: int, vehicle: int, field: str, value: float):  # noqa: ANN202
+def _world_edit(step: int, vehicle: int, field: str, value: float):
     from evoscen_contract import topics as T
     from evoscen_contract.cdr import TableEncoder, decode_table
 
-    def transform(topic, t, data):  # noqa: ANN001, ANN202
+    def transform(topic, t, data):
         if topic == T.WORLD.name and t == step * 100_000_000:
             table = decode_table(data)
             arr = np.array(table.data)
@@ -269,7 +270,7 @@ def _world_edit(step: int, vehicle: int, field: str, value: float):  # noqa: ANN
 def test_nan_in_the_world_table_is_one_line(short_bag, tmp_path):
     bag = rewrite_bag(short_bag, tmp_path / "nan" / "bag", _world_edit(7, 2, "speed", float("nan")))
     from evoscen_contract.cdr import decode_table
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
 
     vid = next(int(decode_table(d).data[2, decode_table(d).fields.index("id")])
                for topic, _, t, d in open_bag_reader(bag) if topic == "/evoscen/world" and t == 700_000_000)
@@ -315,7 +316,7 @@ def test_world_topic_of_another_type_is_refused_at_once(short_bag, tmp_path):
 def test_a_message_that_does_not_decode_as_its_type_stops_replay_at_once(short_bag, tmp_path):
     from evoscen_contract import topics as T
 
-    def transform(topic, t, data):  # noqa: ANN001, ANN202
+    def transform(topic, t, data):
         if topic == T.SUT_ODOM.name:  # a nav_msgs/Odometry channel holding 6 bytes
             data = b"\x00\x01\x00\x00\xff\xff"
         return [(topic, data, t)]
@@ -325,7 +326,7 @@ def test_a_message_that_does_not_decode_as_its_type_stops_replay_at_once(short_b
 
 
 def test_duplicated_world_state_is_an_error(short_bag, tmp_path):
-    def transform(topic, t, data):  # noqa: ANN001, ANN202
+    def transform(topic, t, data):
         out = [(topic, data, t)]
         return out * 2 if topic == "/evoscen/world" and t == 1_000_000_000 else out
     bag = rewrite_bag(short_bag, tmp_path / "dup" / "bag", transform)
@@ -335,7 +336,7 @@ def test_duplicated_world_state_is_an_error(short_bag, tmp_path):
 
 def test_gap_in_world_states_is_a_report_warning(short_bag, tmp_path):
     # states 5..14 dropped (10 missing steps): scored as 21 states, and the report says so
-    def transform(topic, t, data):  # noqa: ANN001, ANN202
+    def transform(topic, t, data):
         return [] if topic == "/evoscen/world" and 500_000_000 <= t < 1_500_000_000 else [(topic, data, t)]
     bag = rewrite_bag(short_bag, tmp_path / "gap" / "bag", transform)
     res = script("evaluate.py", bag, "--no-plots", "--out", tmp_path / "rep")
@@ -424,7 +425,7 @@ def test_same_run_from_another_map_location_is_byte_identical(tmp_path):
 
 def test_no_bvs_means_no_bv_command_messages(tmp_path):
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from evoscen_sim.config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": 20, "bvs.count": 0, "spawn.ramp_vehicles": 0})

@@ -6,7 +6,6 @@ from __future__ import annotations
 import csv
 import importlib.util
 import math
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -87,11 +86,10 @@ def bad_plugin(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def small(tmp_path_factory, bad_plugin):
+def small(tmp_path_factory, bad_plugin, env_with_path):
     """Two built-in SUTs and the failing plug-in, 3 episodes of 50 steps."""
     out = tmp_path_factory.mktemp("board") / "lb"
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(bad_plugin), *(p for p in sys.path if p)])
+    env = env_with_path(bad_plugin)
     res = subprocess.run([sys.executable, "scripts/leaderboard.py", "--suts", "nilsson,mobil,bad_sut", "--episodes", "3",
                           "--episode-steps", "50", "--first-seed", "7", "--jobs", "2", "--out", str(out)],
                          cwd=REPO, capture_output=True, text=True, timeout=300, check=False, env=env)

@@ -3,8 +3,8 @@
 The run (300 steps of the default scenario: world, commands, clock, odometry, events with and
 without statuses, vehicle markers every 5th step, roster and map markers once) is recorded
 three times: as shipped (each step's messages handed to ``BagRecorder.write_parts`` in canonical
-order, ``_ChunkMessages``, the compiled marker kernel, events encoded directly); with the earlier
-write path (every message through ``OrderedBag``, ``_FastMessages``, markers marker by marker in Python,
+order, ``mcap_internals.ChunkMessages``, the compiled marker kernel, events encoded directly); with the earlier
+write path (every message through ``OrderedBag``, ``mcap_internals.FastMessages``, markers marker by marker in Python,
 events and map markers serialized by rclpy and canonicalized by the recorder); and through the
 mcap library's own ``add_message``; and as shipped with the bag written by a forked writer
 process (``bag_writer="process"``, evoscen_bringup.bag_writer; the others inline). The four
@@ -29,6 +29,7 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
     from evoscen_contract import topics as T
     from evoscen_contract.cdr import VehicleMarkersEncoder
     from evoscen_contract.markers import road_markers
+    from evoscen_eval import mcap_internals as MI
     from evoscen_eval import recorder as R
     from evoscen_sim.config import load_scenario_config
 
@@ -42,7 +43,7 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
     process = record("process", "process")
     with monkeypatch.context() as m:
         m.setattr(StepRecorder, "direct", False)  # every message through OrderedBag
-        m.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))
+        m.setattr(MI.ChunkMessages, "usable", staticmethod(lambda writer: False))
         m.setattr(VehicleMarkersEncoder, "encode", VehicleMarkersEncoder.encode_python)
         # events and map markers as rclpy's bytes: the recorder canonicalizes them
         m.setattr(M.WorldMessages, "events", lambda self, events, t_ns: self._no_events.encode(t_ns) if not events
@@ -53,7 +54,7 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
                   lambda self, msgs: [self.write(topic, data, t, canonical=canonical and topic not in rclpy_topics)
                                       for t, topic, data, canonical in msgs] and None)
         old = record("old")
-        m.setattr(R._FastMessages, "usable", staticmethod(lambda writer: False))
+        m.setattr(MI.FastMessages, "usable", staticmethod(lambda writer: False))
         library = record("library")
     assert old == library
     assert new == old

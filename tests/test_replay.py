@@ -29,7 +29,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from evoscen_eval.recorder import open_bag_reader
+from evoscen_eval.bag_reader import open_bag_reader
 
 REPO = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.e2e
@@ -336,7 +336,7 @@ def error_runs(bag: Path, tmp_path_factory: pytest.TempPathFactory, domain: int)
     ("unknown_topic", ["--topics /not/there", "/clock, /evoscen/world", "/evoscen/roster"]),
     ("type_not_installed", ["'/foo'", "nonexistent_pkg/msg/Foo", "not installed"]),
 ])
-def test_bad_input_is_one_error_line_and_status_2(error_runs, case, needles) -> None:  # noqa: ANN001
+def test_bad_input_is_one_error_line_and_status_2(error_runs, case, needles) -> None:
     args, code, stdout, stderr = error_runs[case]
     lines = [line for line in stderr.splitlines() if line.strip()]
     assert code == 2, (args, stderr)
@@ -346,7 +346,7 @@ def test_bad_input_is_one_error_line_and_status_2(error_runs, case, needles) -> 
     assert stdout == ""
 
 
-def test_no_subscribers_within_the_timeout_is_status_1(error_runs) -> None:  # noqa: ANN001
+def test_no_subscribers_within_the_timeout_is_status_1(error_runs) -> None:
     _args, code, stdout, stderr = error_runs["no_subscribers_process"]
     assert code == 1, stderr
     assert re.search(r"^error: --wait-subscribers 1: after 0.5 s .*fewer subscribers on /clock$", stderr, re.M), stderr

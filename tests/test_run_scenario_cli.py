@@ -20,7 +20,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWa
 # --------------------------------------------------------------------------- helpers
 
 
-def assert_one_line_error(res, *needles: str) -> str:  # noqa: ANN001
+def assert_one_line_error(res, *needles: str) -> str:
     """Exit 2, no traceback, stderr = one line ``error: ...`` containing every needle."""
     assert "Traceback" not in res.stderr, res.stderr
     assert res.returncode == 2, (res.returncode, res.stderr)

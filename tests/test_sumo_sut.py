@@ -33,19 +33,9 @@ EXAMPLE = REPO / "examples" / "sumo_sut"
 sys.path.insert(0, str(REPO / "scripts"))
 
 
-def load_example():
-    """``sumo_sut.py`` as the module ``sumo_sut`` (the installed one if it is installed)."""
-    if "sumo_sut" not in sys.modules:
-        spec = importlib.util.spec_from_file_location("sumo_sut", EXAMPLE / "sumo_sut.py")
-        module = importlib.util.module_from_spec(spec)
-        sys.modules["sumo_sut"] = module
-        spec.loader.exec_module(module)
-    return sys.modules["sumo_sut"]
-
-
 @pytest.fixture(scope="module")
-def ss():
-    return load_example()
+def ss(load_example):
+    return load_example("sumo_sut")
 
 
 @pytest.fixture(scope="module")
@@ -62,11 +52,11 @@ def road():
     return load_road()
 
 
-def sut_driver(ss, cfg, seed: int = 0, **params):  # noqa: ANN001, ANN201
+def sut_driver(ss, cfg, seed: int = 0, **params):
     return ss.make(np.array([0]), ss.SumoSutParams(**params), cfg, np.random.default_rng(seed))
 
 
-def world_of(road, s, lane, speed):  # noqa: ANN001, ANN201
+def world_of(road, s, lane, speed):
     from evoscen_sim.testing import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))

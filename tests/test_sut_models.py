@@ -28,7 +28,7 @@ SEED = 0
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
 
-def scenario_config(model: str, steps: int, bv_driver: str = "level0"):  # noqa: ANN201
+def scenario_config(model: str, steps: int, bv_driver: str = "level0"):
     """The default scenario with SUT ``model``; by default among level-0 traffic (predictable BVs: a SUT
     collision is then the SUT's doing); ``bv_driver="learned"`` is the shipped default."""
     from evoscen_sim.config import load_scenario_config
@@ -56,7 +56,7 @@ def test_inprocess_3000_steps_without_sut_collision(model: str) -> None:
 
 
 @pytest.fixture(scope="module", autouse=True)
-def graph_processes(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
+def graph_processes(tmp_path_factory: pytest.TempPathFactory):
     """One graph run of GRAPH_STEPS steps per model, all three started before this module's
     first test (they run while the in-process tests do)."""
     root = tmp_path_factory.mktemp("graph_sut")

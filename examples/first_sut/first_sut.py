@@ -23,7 +23,6 @@ import numpy as np
 from evoscen_sim.config import number
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.neighbors import LEFT, OWN
-from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import accel_to_throttle
 # --8<-- [end:header]
 
@@ -152,7 +151,7 @@ class FirstSut:
 def make(vehicles: np.ndarray, params: FirstSutParams, config, rng: np.random.Generator) -> FirstSut:
     """The factory evoscen calls: the SUT's world index, ``models.first_sut``, the scenario, a seeded
     generator (this planner draws nothing; a model that does draws only from ``rng``)."""
-    return FirstSut(vehicles, params, vehicle_params_from_config(config))
+    return FirstSut(vehicles, params, config.vehicle)
 
 
 SPEC = ModelSpec(name="first_sut", roles=("sut",), factory=make, params_type=FirstSutParams,

@@ -43,7 +43,6 @@ from evoscen_sim.config import flag, integer, number, number_range, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.neighbors import OWN
-from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import accel_to_throttle
 
 PLANNERS = ("fop", "fop_plus", "fiss", "fiss_plus")
@@ -128,7 +127,7 @@ def planner_config(p: FissSutParams, dt_s: float) -> fp.PlannerConfig:
     return cfg
 
 
-def planner_vehicle(vehicle) -> fp.VehicleParams:  # noqa: ANN001
+def planner_vehicle(vehicle) -> fp.VehicleParams:
     """fiss-planner's vehicle from the scenario's ``vehicle`` section (evoscen's VehicleParams)."""
     out = fp.VehicleParams()
     out.length = vehicle.length_m
@@ -145,7 +144,7 @@ def planner_vehicle(vehicle) -> fp.VehicleParams:  # noqa: ANN001
 class FissSut:
     """The driver: one fiss-planner ``Planner`` per driven vehicle, asked once per step."""
 
-    def __init__(self, vehicles: np.ndarray, params: FissSutParams, vehicle, dt_s: float) -> None:  # noqa: ANN001
+    def __init__(self, vehicles: np.ndarray, params: FissSutParams, vehicle, dt_s: float) -> None:
         self.vehicles = vehicles
         self.p = params
         self.vehicle = vehicle  # the scenario's vehicle limits: throttle scaling
@@ -154,14 +153,14 @@ class FissSut:
         self.planners = [fp.make_planner(cfg, planner_vehicle(vehicle)) for _ in vehicles]
         self.last = [None] * len(vehicles)  # the last PlanResult per vehicle (for inspection)
 
-    def act(self, view):  # noqa: ANN001, ANN201
+    def act(self, view):
         accel = np.zeros(len(self.vehicles))
         request = np.zeros(len(self.vehicles), dtype=np.int64)
         for row, i in enumerate(self.vehicles):
             accel[row], request[row] = self.plan(row, view, int(i))
         return accel_to_throttle(accel, self.vehicle), request
 
-    def may_change(self, view, i: int, lane: int) -> bool:  # noqa: ANN001
+    def may_change(self, view, i: int, lane: int) -> bool:
         """Would evoscen execute a lane-change request of vehicle ``i`` now (and is it settled)?"""
         if view.lane_change[i] != 0:
             return False
@@ -170,7 +169,7 @@ class FissSut:
             return True
         return abs(float(view.d[i]) - float(view.road.lane_center_d(lane, s))) <= self.p.settle_tolerance_m
 
-    def corridor(self, view, i: int, ref_lane: int, road_s: np.ndarray, centre: np.ndarray) -> fp.Corridor:  # noqa: ANN001
+    def corridor(self, view, i: int, ref_lane: int, road_s: np.ndarray, centre: np.ndarray) -> fp.Corridor:
         """The lanes ``ref_lane`` - 1 … + 1 along ``road_s`` as bands relative to ``centre``."""
         road = view.road
         s, lane = float(view.s[i]), int(view.lane[i])
@@ -194,7 +193,7 @@ class FissSut:
             corridor.add_lane(band)
         return corridor
 
-    def obstacles(self, view, i: int, horizon_s: float) -> list:  # noqa: ANN001
+    def obstacles(self, view, i: int, horizon_s: float) -> list:
         """The other vehicles near ``i``, each predicted at constant velocity in the (s, d) frame."""
         s = view.s
         near = (s >= s[i] - self.p.look_behind_m) & (s <= s[i] + self.p.look_ahead_m)
@@ -204,7 +203,7 @@ class FissSut:
                                              horizon_s, self.dt_s)
                 for j in np.flatnonzero(near)]
 
-    def plan(self, row: int, view, i: int) -> tuple[float, int]:  # noqa: ANN001
+    def plan(self, row: int, view, i: int) -> tuple[float, int]:
         """Vehicle ``i``'s acceleration (m/s²) and lane-change request from one planning cycle."""
         road, p = view.road, self.p
         s, d, v, lane = float(view.s[i]), float(view.d[i]), float(view.v[i]), int(view.lane[i])
@@ -243,7 +242,7 @@ class FissSut:
         wanted = p.min_gap_m + max(0.0, v * p.time_headway_s + braking)
         return p.fallback_accel_mps2 * (free - (wanted / gap_m) ** 2)
 
-    def fallback(self, view, i: int) -> float:  # noqa: ANN001
+    def fallback(self, view, i: int) -> float:
         """No valid trajectory: keep the lane (no request) and follow with IDM behind the leader in the own
         lane, during a change also the target lane's, and before the end of a lane that ends."""
         nb = view.neighborhood()
@@ -259,10 +258,10 @@ class FissSut:
         return accel
 
 
-def make(vehicles: np.ndarray, params: FissSutParams, config, rng: np.random.Generator) -> FissSut:  # noqa: ANN001
+def make(vehicles: np.ndarray, params: FissSutParams, config, rng: np.random.Generator) -> FissSut:
     """The factory: the SUT's world index, ``models.fiss``, the scenario, a seeded generator (unused:
     the planner draws nothing)."""
-    return FissSut(vehicles, params, vehicle_params_from_config(config), config.dt_s)
+    return FissSut(vehicles, params, config.vehicle, config.dt_s)
 
 
 SPEC = ModelSpec(name="fiss", roles=("sut",), factory=make, params_type=FissSutParams,

@@ -49,7 +49,6 @@ from evoscen_sim.config_load import resolve_map_path
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec
 from evoscen_sim.road import load_road
-from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import accel_to_throttle
 
 NAME = "sumo_sut"
@@ -104,7 +103,7 @@ class SumoSutParams:
 # ------------------------------------------------------------------ SUMO: finding, importing, converting
 
 
-def _import_libsumo():  # noqa: ANN202
+def _import_libsumo():
     """libsumo, imported quietly (its import prints a pyarrow version warning to stdout)."""
     with contextlib.redirect_stdout(io.StringIO()):
         import libsumo
@@ -191,7 +190,7 @@ def _midpoint(xy: np.ndarray) -> np.ndarray:
 class SumoNetwork:
     """The converted network, seen from evoscen: which SUMO lane and position is (lane, s)."""
 
-    def __init__(self, net: Path, road) -> None:  # noqa: ANN001 (a RoadModel)
+    def __init__(self, net: Path, road) -> None:  # a RoadModel
         root = ET.parse(net).getroot()
         loc = root.find("location")
         offset = np.array([float(c) for c in loc.get("netOffset", "0,0").split(",")]) if loc is not None else np.zeros(2)
@@ -245,10 +244,10 @@ _OWNER: list = [None]  # the driver whose simulation libsumo holds in this proce
 class SumoSut:
     """The driver: SUMO decides for vehicle ``vehicles[0]`` (the SUT) among the view's vehicles."""
 
-    def __init__(self, vehicles: np.ndarray, params: SumoSutParams, config, seed: int, net: Path, road) -> None:  # noqa: ANN001
+    def __init__(self, vehicles: np.ndarray, params: SumoSutParams, config, seed: int, net: Path, road) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         self.p = params
-        self.vehicle = vehicle_params_from_config(config)
+        self.vehicle = config.vehicle
         self.dt_s = float(config.dt_s)
         self.seed = int(seed)
         self.net_path = net

@@ -64,7 +64,7 @@ def resolve_writer(bag_writer: str) -> str:
     return "process" if cpus > 1 else "inline"
 
 
-def _shared(shape: tuple[int, ...], dtype) -> np.ndarray:  # noqa: ANN001
+def _shared(shape: tuple[int, ...], dtype) -> np.ndarray:
     """A zeroed array in anonymous shared memory (a fork's child sees the parent's writes)."""
     size = int(np.prod(shape)) * np.dtype(dtype).itemsize
     buf = mmap.mmap(-1, max(size, 1))  # MAP_SHARED | MAP_ANONYMOUS
@@ -85,7 +85,7 @@ class ProcessRecorder:
     steps_per_slot = 128
     """Steps per batch: a pipe message and a hand-back per this many steps."""
 
-    def __init__(self, bag_dir: Path, cfg, world, *, n_bv: int) -> None:  # noqa: ANN001
+    def __init__(self, bag_dir: Path, cfg, world, *, n_bv: int) -> None:
         from evoscen_contract import topics as T
 
         slots, steps_per_slot = self.slots, self.steps_per_slot
@@ -126,7 +126,7 @@ class ProcessRecorder:
 
     # ------------------------------------------------------------------ the run's side
 
-    def world(self, world, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
+    def world(self, world, cols, t_ns: int, *, roster: bool) -> None:
         """Copy the world's state into the open batch and journal ``/evoscen/world`` (+ roster);
         a writer that failed (a fault of the host) stops the run here, at the step boundary."""
         if self._flag[0]:
@@ -140,15 +140,15 @@ class ProcessRecorder:
         self._rows = row + 1
         self._journal.append(("W", row, t_ns, roster))
 
-    def state(self, world, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001
+    def state(self, world, cols, sut_index: int, step_index: int, t_ns: int) -> None:
         """Journal the rest of the state (from the row :meth:`world` copied)."""
         self._journal.append(("S", self._rows - 1, sut_index, step_index, t_ns))
 
-    def bv_commands(self, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+    def bv_commands(self, ids, throttle, lane_change, t_ns: int) -> None:
         """The commands of all BVs; the writer splits them by BV node (``StepRecorder.bv_commands``)."""
         self.commands(self.T.COMMANDS_BV.name, ids, throttle, lane_change, t_ns)
 
-    def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+    def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:
         which = self._topics.index(topic)
         row = self._crows[which]
         if row > self._k:
@@ -227,7 +227,7 @@ class ProcessRecorder:
         except EOFError:
             self._died()
 
-    def _writer_failed(self):  # noqa: ANN202 - raises
+    def _writer_failed(self):  # raises
         """The writer's error (it finished what it could of the bag first), the same each time."""
         if self._fault is None:
             self._expect("error")
@@ -255,7 +255,7 @@ class ProcessRecorder:
             if message[0] == kind:
                 return
 
-    def _died(self):  # noqa: ANN202 - raises
+    def _died(self):  # raises
         if self._fault is not None:
             raise self._fault
         self._closed = True
@@ -280,7 +280,7 @@ class ProcessRecorder:
 _warmed = False
 
 
-def _warm_up(cfg, world, n_bv: int) -> None:  # noqa: ANN001
+def _warm_up(cfg, world, n_bv: int) -> None:
     """Once per process: record one state inline into a scratch bag, so that what the recorder
     loads or compiles on first use (numba kernels from their cache, the typestore, YAML dumps)
     is in this process before it forks, instead of being loaded again by every writer process."""
@@ -302,7 +302,7 @@ def _warm_up(cfg, world, n_bv: int) -> None:  # noqa: ANN001
     _warmed = True
 
 
-def _hold_sigint():  # noqa: ANN202 - the mask before, or None
+def _hold_sigint():  # the mask before, or None
     """Block SIGINT in this thread (the main thread: where Python handles it); the mask before."""
     try:
         return signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
@@ -310,7 +310,7 @@ def _hold_sigint():  # noqa: ANN202 - the mask before, or None
         return None
 
 
-def _release_sigint(before) -> None:  # noqa: ANN001
+def _release_sigint(before) -> None:
     """Restore the mask :func:`_hold_sigint` found (a Ctrl-C that came meanwhile is raised now)."""
     if before is not None:
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
@@ -327,8 +327,8 @@ def _error_of(payload: tuple, bag_dir: Path) -> BaseException:
     return BagWriterError(f"bag {str(bag_dir)!r}: the writer process failed: {text}")
 
 
-def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f, i, c, topics,  # noqa: ANN001, PLR0913
-                 flag) -> None:  # noqa: ANN001
+def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f, i, c, topics,
+                 flag) -> None:
     """The writer process: open the bag, replay batches until ``close`` (or the run's end), close."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle (module docstring)
     for end in run_ends:  # the fork copied the run's ends of the pipes: without closing them here,
@@ -374,7 +374,7 @@ def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f
         tell(("error", (pickled, f"{type(exc).__name__}: {exc}")))
 
 
-def _replay(rec, road, journal: list, f: np.ndarray, i: np.ndarray, c: tuple, topics: tuple,  # noqa: ANN001
+def _replay(rec, road, journal: list, f: np.ndarray, i: np.ndarray, c: tuple, topics: tuple,
             ids: list) -> None:
     """Make the calls of a journal on the inline recorder (same order, same data)."""
     cols = None

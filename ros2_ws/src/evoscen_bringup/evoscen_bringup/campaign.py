@@ -45,6 +45,8 @@ from evoscen_eval.streaming import COLLISION_KINDS
 from evoscen_sim.config import ScenarioConfig, config_to_dict, load_scenario_config
 from evoscen_sim.errors import InputError
 
+from .ray_leftovers import DRIVER_FILE, end_leftovers, start_time
+
 SPEC_KEYS = ("name", "config", "steps", "seeds", "set", "grid", "record", "clip_s", "compare")
 RECORD_MODES = ("none", "events", "all")
 MUTANT_AXIS = "mutant"
@@ -347,7 +349,7 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     return {"row": row, "report": report, "plot": plot, "files": files}
 
 
-def _simulate(run: CampaignRun, out_dir: str, record: str, clip_s: float):  # noqa: ANN202
+def _simulate(run: CampaignRun, out_dir: str, record: str, clip_s: float):
     """The run's summary, files and clips (:func:`execute`), recorded in a temporary directory."""
     import tempfile
 
@@ -399,7 +401,7 @@ def _write_atomic(path: Path, text: str) -> None:
         raise
 
 
-def _host_fault_of(exc: BaseException):  # noqa: ANN202 - HostFault | None
+def _host_fault_of(exc: BaseException):  # HostFault | None
     """The :class:`~evoscen_sim.errors.HostFault` behind a task's error (Ray wraps it), or None."""
     from evoscen_sim.errors import HostFault
 
@@ -486,7 +488,7 @@ def _ctrl_c_interrupts():
             signal.signal(sig, handler)
 
 
-def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult, total: int, t0: float, *,  # noqa: PLR0913
+def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult, total: int, t0: float, *,
               record: str, clip_s: float, address: str | None, cpus: int | None, retries: int,
               progress: Callable[[int, int, float], None] | None, arm: Callable[[], None]) -> None:
     """Submit ``todo`` to Ray and write each result as it comes (see :func:`run_campaign`)."""
@@ -553,82 +555,10 @@ def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult
                 (out_dir / DRIVER_FILE).unlink()
 
 
-DRIVER_FILE = ".campaign-driver.json"
-"""In ``OUT``, while a driver with its own local Ray runs: its pid, start time and Ray session directory."""
-
-
-def _start_time(pid: int) -> str | None:
-    """The process's start time (clock ticks since boot; None if there is no such process)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return None
-    return stat.rsplit(")", 1)[1].split()[19]
-
-
 def _note_driver(out_dir: Path, session_dir: str) -> None:
     with contextlib.suppress(OSError):  # only a help for the next start: never a reason to stop
-        _write_atomic(out_dir / DRIVER_FILE, json.dumps({"pid": os.getpid(), "start": _start_time(os.getpid()),
+        _write_atomic(out_dir / DRIVER_FILE, json.dumps({"pid": os.getpid(), "start": start_time(os.getpid()),
                                                           "session_dir": session_dir}) + "\n")
-
-
-def _session_processes(session_dir: str) -> list[tuple[int, str]]:
-    """(pid, name) of the processes of a Ray session: its directory in their command line or open
-    among their files (Ray's agents rename themselves, ``ray::DashboardAgent``, but keep their logs open)."""
-    found = []
-    for proc in Path("/proc").iterdir():
-        if not proc.name.isdigit() or int(proc.name) == os.getpid():
-            continue
-        try:
-            cmdline = (proc / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
-            hit = session_dir in cmdline
-            if not hit:
-                for fd in (proc / "fd").iterdir():
-                    with contextlib.suppress(OSError):
-                        if os.readlink(fd).startswith(session_dir):
-                            hit = True
-                            break
-        except OSError:
-            continue  # gone meanwhile, or not ours to read
-        if hit:
-            found.append((int(proc.name), cmdline.split(" ")[0] or proc.name))
-    return found
-
-
-def end_leftovers(out_dir: Path, grace_s: float = 3.0) -> list[tuple[int, str]]:
-    """End the Ray processes that a campaign driver killed before its end (SIGKILL: no clean-up)
-    left running for ``out_dir``; returns them, (pid, name). Nothing if that driver still runs."""
-    import signal
-
-    path = out_dir / DRIVER_FILE
-    try:
-        info = json.loads(path.read_text(encoding="utf-8"))
-        pid, start, session = int(info["pid"]), info.get("start"), str(info["session_dir"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return []
-    if _start_time(pid) is not None and _start_time(pid) == start:
-        return []  # that driver is still running
-    found = _session_processes(session) if session.startswith("/") and "session_" in session else []
-    for p, _name in found:
-        with contextlib.suppress(OSError):
-            os.kill(p, signal.SIGTERM)
-    end = time.monotonic() + grace_s
-    while time.monotonic() < end and any(_start_time(p) is not None and not _zombie(p) for p, _ in found):
-        time.sleep(0.1)
-    for p, _name in found:
-        if _start_time(p) is not None and not _zombie(p):
-            with contextlib.suppress(OSError):
-                os.kill(p, signal.SIGKILL)
-    with contextlib.suppress(OSError):
-        path.unlink()
-    return found
-
-
-def _zombie(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
-    except OSError:
-        return True
 
 
 class _HostFaultStop(Exception):

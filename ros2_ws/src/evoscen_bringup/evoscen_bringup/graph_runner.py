@@ -212,7 +212,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     deaths: list[str] = []  # the nodes of died that died (killed, or non-zero on their own): exit status 4
     signalled: set[str] = set()  # nodes the launcher stopped itself
 
-    def forward(signum, frame):  # noqa: ANN001, ANN202
+    def forward(signum, frame):
         nonlocal interrupted
         interrupted = True
         sim = procs.get(NODE_SIM)

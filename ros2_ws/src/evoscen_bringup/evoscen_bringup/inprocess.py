@@ -79,12 +79,12 @@ class _CtrlC:
             self._previous = signal.signal(signal.SIGINT, self._on_sigint)
         return self
 
-    def _on_sigint(self, signum, frame) -> None:  # noqa: ANN001
+    def _on_sigint(self, signum, frame) -> None:
         if self.pending:
             raise KeyboardInterrupt
         self.pending = True
 
-    def __exit__(self, *exc) -> None:  # noqa: ANN002
+    def __exit__(self, *exc) -> None:
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
             self._previous = None
@@ -98,7 +98,7 @@ class _InProcessPort(Port):
     calls within a step does not show in it.
     """
 
-    def __init__(self, sc: Scenario, rec: StepRecorder | None, acc, summary: RunSummary,  # noqa: ANN001
+    def __init__(self, sc: Scenario, rec: StepRecorder | None, acc, summary: RunSummary,
                  progress: Callable[[int], None] | None) -> None:
         self.sc, self.rec, self.acc, self.summary, self.progress = sc, rec, acc, summary, progress
         self.bv_ids = sc.world.ids[sc.bv_indices]
@@ -111,7 +111,7 @@ class _InProcessPort(Port):
         if self.ctrl_c is not None and self.ctrl_c.pending:
             raise KeyboardInterrupt
 
-    def send_world(self, world, *, roster: bool) -> None:  # noqa: ANN001
+    def send_world(self, world, *, roster: bool) -> None:
         rec, acc = self.rec, self.acc
         # the columns when someone here reads them (the process writer copies the state instead)
         need = acc is not None or (rec is not None and not rec.snapshots)
@@ -127,7 +127,7 @@ class _InProcessPort(Port):
         if self.acc is not None:
             self.acc.add_events(events)
 
-    def send_state(self, world) -> None:  # noqa: ANN001
+    def send_state(self, world) -> None:
         if self.rec is not None:
             self.rec.state(world, self._cols, self.sc.sut_index, world.step_index, world.time_ns)
         self._cols = None
@@ -143,7 +143,7 @@ class _InProcessPort(Port):
         throttle, lane_change = sc.assemble(bv_thr, bv_lc, sut_thr, sut_lc)
         return Commands(throttle, lane_change)
 
-    def stepped(self, step: int, result) -> None:  # noqa: ANN001
+    def stepped(self, step: int, result) -> None:
         s = self.summary
         s.collisions += len(result.collisions)
         s.lane_changes += len(result.lane_changes_completed)
@@ -250,7 +250,7 @@ def run_inprocess(
     return summary
 
 
-def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool, keep_run: bool):  # noqa: ANN001, ANN202
+def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool, keep_run: bool):
     """Score the run as it was streamed, exactly as the bag would be scored (same scenario dict)."""
     import yaml
 

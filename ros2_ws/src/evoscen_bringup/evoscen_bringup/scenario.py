@@ -49,15 +49,18 @@ class Scenario:
         return bv_thr, bv_lc, sut_thr, sut_lc
 
     def step(self) -> tuple:
-        """One lockstep cycle in-process: ask the drivers, then advance the world."""
+        """One lockstep cycle in-process: ask the drivers, then advance the world; returns the world's
+        StepResult. No events, no recording: a test's or a benchmark's step (a run, with its events,
+        exposures and recording, is :class:`evoscen_sim.step_loop.StepLoop`'s, whose in-process port
+        asks :meth:`commands` and :meth:`assemble` likewise)."""
         bv_thr, bv_lc, sut_thr, sut_lc = self.commands()
         return self.apply(bv_thr, bv_lc, sut_thr, sut_lc)
 
-    def apply(self, bv_thr, bv_lc, sut_thr, sut_lc):  # noqa: ANN001, ANN201
+    def apply(self, bv_thr, bv_lc, sut_thr, sut_lc):
         """Advance the world with the drivers' commands; returns the world's StepResult."""
         return self.world.step(*self.assemble(bv_thr, bv_lc, sut_thr, sut_lc))
 
-    def assemble(self, bv_thr, bv_lc, sut_thr, sut_lc) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def assemble(self, bv_thr, bv_lc, sut_thr, sut_lc) -> tuple[np.ndarray, np.ndarray]:
         """The drivers' commands as one ``(throttle, lane_change)`` pair in world order."""
         n = self.world.n
         throttle = np.empty(n)

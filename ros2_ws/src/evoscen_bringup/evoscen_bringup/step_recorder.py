@@ -26,7 +26,7 @@ class StepRecorder:
 
     direct: bool = True
 
-    def __init__(self, bag_dir: Path, cfg: ScenarioConfig, road) -> None:  # noqa: ANN001
+    def __init__(self, bag_dir: Path, cfg: ScenarioConfig, road) -> None:
         from evoscen_contract import topics as T
         from evoscen_contract.messages import WorldMessages
         from evoscen_eval.recorder import BagRecorder, OrderedBag
@@ -92,7 +92,7 @@ class StepRecorder:
         """Messages written so far."""
         return self.bag.message_count
 
-    def world(self, world, cols, t_ns: int, *, roster: bool) -> None:  # noqa: ANN001
+    def world(self, world, cols, t_ns: int, *, roster: bool) -> None:
         """``/evoscen/world`` (and the roster and map markers) at ``t_ns``; earlier steps are written.
 
         ``cols``: the world's columns (``world.columns()``; ``world`` is not used)."""
@@ -109,7 +109,7 @@ class StepRecorder:
             self.bag.add(T.MAP_MARKERS.name, m.map_markers(self.road, t_ns), t_ns, canonical=True)
         self.bag.add(T.WORLD.name, m.world(cols, t_ns), t_ns, canonical=True)
 
-    def state(self, world, cols, sut_index: int, step_index: int, t_ns: int) -> None:  # noqa: ANN001
+    def state(self, world, cols, sut_index: int, step_index: int, t_ns: int) -> None:
         """The rest of the state: ``/clock``, odometry, vehicle markers when due."""
         T, m = self.T, self.msgs
         markers = self.markers_every and step_index % self.markers_every == 0
@@ -124,13 +124,13 @@ class StepRecorder:
         if markers:
             self.bag.add(T.MARKERS.name, m.vehicle_markers(cols, t_ns), t_ns, canonical=True)
 
-    def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+    def commands(self, topic: str, ids, throttle, lane_change, t_ns: int) -> None:
         if self._direct:
             self._add(topic, self.msgs.commands_parts(ids, throttle, lane_change, t_ns), t_ns)
         else:
             self.bag.add(topic, self.msgs.commands(ids, throttle, lane_change, t_ns), t_ns, canonical=True)
 
-    def bv_commands(self, ids, throttle, lane_change, t_ns: int) -> None:  # noqa: ANN001
+    def bv_commands(self, ids, throttle, lane_change, t_ns: int) -> None:
         """The commands of all BVs (in world-index order), one message per BV node on its topic, as the
         BV nodes of the graph answer (an empty table from a node without BVs)."""
         for topic, pos in self.bv_parts:

@@ -2,11 +2,14 @@
 
 ``model_scenario(spec, params, role)`` builds the default scenario with a model as the SUT or
 as every BV's driver; ``run_checked(sc, steps, driven)`` runs it, checking every lane-change
-request of the ``driven`` vehicles, and returns the collisions and their completed changes.
+request of the ``driven`` vehicles, and returns the collisions and their completed changes;
+``commands_digest(overrides, steps)`` fingerprints every command of a run (a change that must not
+alter how the vehicles drive keeps it).
 """
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any
 
 import numpy as np
@@ -55,3 +58,16 @@ def run_checked(sc: Scenario, steps: int, driven: np.ndarray) -> tuple[list, int
         collisions += r.collisions
         changes += sum(1 for c in r.lane_changes_completed if c[0] in set(driven.tolist()))
     return collisions, changes
+
+
+def commands_digest(overrides: dict, steps: int) -> str:
+    """SHA-256 of every BV and SUT command (throttle and lane change, as float64 bytes, BVs then SUT)
+    of ``steps`` steps of the default scenario, seed 3, SUT ``mobil``, with ``overrides`` on top."""
+    sc = build_scenario(load_scenario_config(None, {"seed": 3, "sut.model": "mobil", **overrides}))
+    h = hashlib.sha256()
+    for _ in range(steps):
+        bt, bl, st, sl = sc.commands()
+        for x in (bt, bl, st, sl):
+            h.update(np.ascontiguousarray(np.asarray(x, dtype=np.float64)).tobytes())
+        sc.apply(bt, bl, st, sl)
+    return h.hexdigest()

@@ -27,11 +27,11 @@ from evoscen_sim.controller_node import run_controller
 from evoscen_sim.scenario import build_bv_driver
 
 
-def _spec(cfg, name):  # noqa: ANN001, ANN202
+def _spec(cfg, name):
     return T.bv_command_spec(bv_node_of(cfg, name).name)
 
 
-def _build(params, cfg, name):  # noqa: ANN001, ANN202
+def _build(params, cfg, name):
     rows = bv_node_of(cfg, name).rows
     return build_bv_driver(cfg, rows), rows
 

@@ -140,7 +140,7 @@ def leader_state(gap_m: np.ndarray, leader_speed: np.ndarray, leader_accel: np.n
 
 
 @kernel
-def _obs_kernel(gap, v_lead, a_lead, v, a, view, v_max, a_max, own_w):  # noqa: ANN001, ANN202
+def _obs_kernel(gap, v_lead, a_lead, v, a, view, v_max, a_max, own_w):
     m = gap.shape[0]
     obs = np.zeros((m, 4))
     for k in range(m):
@@ -178,7 +178,7 @@ def speed_cap_throttle(speed: np.ndarray, desired_speed: np.ndarray, params: Car
     return np.clip(np.where(acc >= 0.0, acc / max_accel, acc / max_brake), -1.0, 1.0)
 
 
-def leaders(view, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+def leaders(view, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The leaders a learned BV follows: ``(gap, speed, accel)``, each ``(m, 2)``.
 
     A vehicle *occupies* a lane when its centre is in it, when it is changing lanes into it
@@ -205,7 +205,7 @@ OCCUPY_TOLERANCE_M = 0.1
 
 
 @kernel
-def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present):  # noqa: ANN001, ANN202
+def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present):
     """occ[j, q]: vehicle ``j`` occupies lane ``q`` (see :func:`leaders`; one pass, no sub-calls:
     numba reference-counts every array handed to a sub-function, which cost more than the test)."""
     n, num_lanes = present.shape
@@ -223,11 +223,11 @@ def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right
 
 
 @kernel
-def _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present):  # noqa: ANN001, ANN202
+def _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present):
     """``occ`` with the SUT's lane-change *intent* not counted: while the SUT changes lanes it
     occupies its target lane only once its body reaches into it (the geometric rule of
     :func:`_occupancy`), not from its request on. What a BV that does not yield early sees
-    (``models.learned.cut_in_yield``, docs/learned-bvs.md "Competitive BVs and a SUT cutting in")."""
+    (``models.learned.competitive_cut_in``, docs/learned-bvs.md "Competitive BVs and a SUT cutting in")."""
     out = occ.copy()
     if sut < 0 or lane_change[sut] == 0:
         return out
@@ -244,7 +244,7 @@ def _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right,
 
 
 @kernel
-def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                     d_right, d_left, present, merge_stop_s):
     occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
     return _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present, merge_stop_s, occ,
@@ -256,7 +256,7 @@ _ALL_SEEN = np.zeros((0, 0, 0), dtype=np.int64)
 
 
 @kernel
-def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,  # noqa: ANN001, ANN202
+def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,
                      merge_stop_s, occ, seen, full, occ_late, late):
     """:func:`leaders` from the occupancy ``occ`` (:func:`_occupancy`), over the perceived vehicles
     only (``seen[k, j, q] >= full``) when ``full > 0`` (the ``driver`` profile), over all when 0.
@@ -304,7 +304,7 @@ def _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, prese
     return gap, vl, al
 
 
-def controller_observations(world, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+def controller_observations(world, idx: np.ndarray, params: CarFollowingParams) -> tuple[np.ndarray, np.ndarray]:
     """Controller observations of vehicles ``idx``: own lane (with the merge end) and target lane.
 
     Returns ``(own, target)``, each ``(m, 4)``, of the leaders of :func:`leaders`; ``target``
@@ -333,7 +333,7 @@ def emergency_brake_throttle(gap_m: np.ndarray, leader_speed: np.ndarray, speed:
 
 
 @kernel
-def _emergency_need(gap, vl, al, v, margin):  # noqa: ANN001, ANN202
+def _emergency_need(gap, vl, al, v, margin):
     """The constant deceleration the emergency brake asks for (0: none), scalars only."""
     room = max(gap - margin, 0.05)
     need = 0.0
@@ -345,7 +345,7 @@ def _emergency_need(gap, vl, al, v, margin):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _emergency_one(gap, vl, al, v, trigger, margin, max_brake):  # noqa: ANN001, ANN202
+def _emergency_one(gap, vl, al, v, trigger, margin, max_brake):
     """Throttle bound of the emergency brake for one leader (1.0: not acting)."""
     if np.isnan(vl):
         return 1.0
@@ -369,7 +369,7 @@ def compose_throttle(policy_own: np.ndarray, policy_target: np.ndarray, own_obs:
     return np.clip(np.minimum(np.minimum(u_own, u_tgt), cap), -1.0, 1.0)
 
 
-def throttle_constants(bank, params: CarFollowingParams, road, max_accel: float, max_brake: float) -> tuple:  # noqa: ANN001
+def throttle_constants(bank, params: CarFollowingParams, road, max_accel: float, max_brake: float) -> tuple:
     """The run-time throttle's per-driver constants (computed once per driver, see :func:`learned_throttle`)."""
     return (float(road.lane_end_s[0]) - params.merge_stop_margin_m,
             params.view_m, params.v_max_mps, params.a_max_mps2, params.own_accel_weight, params.speed_gain,
@@ -401,7 +401,7 @@ class ReactionState:
         persisted (nothing is new at the start of a run)."""
         self.last_step: int | None = None
 
-    def advance(self, view) -> bool:  # noqa: ANN001
+    def advance(self, view) -> bool:
         """True once per simulation step (the first call at a new ``step_index``)."""
         n, lanes = view.lane_lookup().present.shape
         if self.seen is None or self.seen.shape[1] != n:
@@ -413,7 +413,7 @@ class ReactionState:
         return True
 
 
-def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, params: CarFollowingParams,  # noqa: ANN001
+def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, params: CarFollowingParams,
                      max_accel: float, max_brake: float, constants: tuple | None = None,
                      reaction: ReactionState | None = None, late: np.ndarray | None = None,
                      sut: int = -1) -> np.ndarray:
@@ -445,7 +445,7 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
 
 
 @kernel
-def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
+def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                              d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max, own_w,
                              speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
                              late, sut):
@@ -461,7 +461,7 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
 
 
 @kernel
-def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202, PLR0913
+def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                             d_right, d_left, present, max_speed, desired, merge_stop_s, view, v_max, a_max, own_w,
                             speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
                             n_react, seen, em_count, update, cap_frac, standing_at_once, late, sut):
@@ -517,7 +517,7 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
 
 
 @kernel
-def _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired,  # noqa: ANN001, ANN202, PLR0913
+def _throttle_from_leaders(idx, gap_all, vl_all, al_all, v, a, lane, lane_change, max_speed, desired,
                            view, v_max, a_max, own_w, speed_gain, em_trigger, em_margin, max_accel, max_brake,
                            W1, b1, W2, b2, W3, b3, max_action, em_on, em_standing, cap_frac):
     m = idx.shape[0]

@@ -66,7 +66,7 @@ class CarFollowingEnv:
     STANDING_SHARE = 0.2
     """Share of episodes with a standing leader (approach and stop behind it)."""
 
-    def __init__(self, road, config: TrainingConfig) -> None:  # noqa: ANN001
+    def __init__(self, road, config: TrainingConfig) -> None:
         self.road = road
         self.config = config
         self.params: CarFollowingParams = config.car_following
@@ -151,7 +151,7 @@ class DecisionEnv:
 
     state_dim = OBS_DIM
 
-    def __init__(self, road, config: TrainingConfig, kind: str, controller: NumpyActor,  # noqa: ANN001
+    def __init__(self, road, config: TrainingConfig, kind: str, controller: NumpyActor,
                  frozen_policy: NumpyActor | None) -> None:
         from evoscen_sim.config import config_from_dict
 
@@ -168,7 +168,6 @@ class DecisionEnv:
     def reset(self, seed: int) -> np.ndarray:
         from evoscen_bv.level0 import Level0Driver, level0_params_from_config
         from evoscen_sim.scenario import build_world
-        from evoscen_sim.scenario_params import vehicle_params_from_config
 
         rng = np.random.default_rng(seed)
         n_bv = self.config.env.bv_count
@@ -186,7 +185,7 @@ class DecisionEnv:
         n = world.n
         self.ego = int(rng.integers(0, n))
         others = np.array([i for i in range(n) if i != self.ego], dtype=np.int64)
-        vp = vehicle_params_from_config(cfg)
+        vp = cfg.vehicle
         world.policy[:] = MUTUAL_CODE if self.frozen_policy is not None else 0
         if self.frozen_policy is None:
             self.traffic = Level0Driver(others, level0_params_from_config(cfg), rng, vp)

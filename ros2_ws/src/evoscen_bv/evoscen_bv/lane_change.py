@@ -150,7 +150,7 @@ def cell_centres_m() -> np.ndarray:
     return -BEHIND_M + CELL_M * (np.arange(CELLS) + 0.5)
 
 
-def observation_grid(view, idx: np.ndarray, params: GridParams = GridParams()) -> np.ndarray:  # noqa: ANN001
+def observation_grid(view, idx: np.ndarray, params: GridParams = GridParams()) -> np.ndarray:
     """Ω_d of vehicles ``idx`` in ``view`` (a world or world view): shape ``(m, 5, 25, 4)``."""
     idx = np.asarray(idx, dtype=np.int64)
     breaks, present, length_m = view.road.existence_table()
@@ -159,7 +159,7 @@ def observation_grid(view, idx: np.ndarray, params: GridParams = GridParams()) -
 
 
 @kernel
-def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_scale, yaw_scale):  # noqa: ANN001, ANN202
+def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_scale, yaw_scale):
     m = idx.shape[0]
     n = s.shape[0]
     num_lanes = present.shape[1]
@@ -195,7 +195,7 @@ def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_sca
     return grid
 
 
-def forced_merge_targets(view, idx: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:  # noqa: ANN001
+def forced_merge_targets(view, idx: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:
     """The road's mandatory change of each vehicle ``idx``: +1/-1 for a vehicle in a lane that ends
     less than ``within_m`` ahead beside a lane that ends later (left if both neighbours do), else 0."""
     idx = np.asarray(idx, dtype=np.int64)
@@ -212,7 +212,7 @@ def forced_merge_targets(view, idx: np.ndarray, within_m: float = FORCED_MERGE_M
     return out
 
 
-def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:  # noqa: ANN001
+def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:
     """``requested`` with the road's mandatory changes: a vehicle in a lane that ends less than
     ``within_m`` ahead requests the change to the neighbouring lane that ends later (left if
     both do), like level-0's merge rule "except where the road forces a change" (docs/method.md §3.3).
@@ -228,7 +228,7 @@ def forced_merge_requests(view, idx: np.ndarray, requested: np.ndarray, within_m
     return np.where(target != 0, target, np.asarray(requested, dtype=np.int64))
 
 
-def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa: ANN001
+def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,
                            closing_headway_s: float = CUT_IN_CLOSING_HEADWAY_S,
                            closing_decel_mps2: float | None = None,
                            end_margin_m: float = LANE_END_MARGIN_M) -> np.ndarray:
@@ -255,7 +255,7 @@ def apply_rule_constraints(view, idx: np.ndarray, requested: np.ndarray,  # noqa
 
 
 @kernel
-def _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, end_margin, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+def _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, end_margin, s, d, psi, v, lane, lane_change, target_lane, length, width,
                        d_right, d_left, present, min_gap, closing_headway, closing_square):
     m = idx.shape[0]
     n = s.shape[0]
@@ -288,7 +288,7 @@ def _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, end_m
     return out
 
 
-def drivable_area(view, idx: np.ndarray, lane_offset: np.ndarray, front_view_m: float) -> np.ndarray:  # noqa: ANN001
+def drivable_area(view, idx: np.ndarray, lane_offset: np.ndarray, front_view_m: float) -> np.ndarray:
     """O: gap to the nearest vehicle ahead in lane ``lane[i] + offset``, bounded by that lane's end and O_max."""
     idx = np.asarray(idx, dtype=np.int64)
     off = np.asarray(lane_offset, dtype=np.int64)
@@ -322,7 +322,7 @@ def individual_reward(o_current: np.ndarray, o_target: np.ndarray, theta: np.nda
             + np.asarray(o_current_next) ** 2 / p.front_view_m**2)
 
 
-def back_vehicles(view, i: int) -> np.ndarray:  # noqa: ANN001
+def back_vehicles(view, i: int) -> np.ndarray:
     """Ω_b of vehicle ``i``: indices of the vehicles in the back part of its grid."""
     ds = view.s - view.s[i]
     dl = view.lane - view.lane[i]
@@ -331,7 +331,7 @@ def back_vehicles(view, i: int) -> np.ndarray:  # noqa: ANN001
     return np.flatnonzero(mask)
 
 
-def social_terms(view, i: int, p: RewardParams) -> tuple[float, float, float]:  # noqa: ANN001
+def social_terms(view, i: int, p: RewardParams) -> tuple[float, float, float]:
     """Σ_b (ϑO_c^b)²/O_max², Σ_b min(s̈_b|s̈_b|/s̈_max², z), Σ_b min(ṡ_b|ṡ_b|/ṡ_max², y) over Ω_b of ``i``."""
     b = back_vehicles(view, i)
     if b.size == 0:
@@ -374,7 +374,7 @@ class MergeSeekParams:
     max_decel_mps2: float = 3.0
 
 
-def merge_seek_accel(view, idx: np.ndarray, targets: np.ndarray, desired_speed: np.ndarray,  # noqa: ANN001
+def merge_seek_accel(view, idx: np.ndarray, targets: np.ndarray, desired_speed: np.ndarray,
                      closing_headway_s: float = CUT_IN_CLOSING_HEADWAY_S,
                      closing_decel_mps2: float | None = None,
                      params: MergeSeekParams = MergeSeekParams()) -> np.ndarray:
@@ -410,7 +410,7 @@ def merge_seek_accel(view, idx: np.ndarray, targets: np.ndarray, desired_speed: 
 
 
 @kernel
-def _merge_seek_kernel(idx, targets, desired, s, d, psi, v, lane, lane_change, target_lane, length, width,  # noqa: ANN001, ANN202
+def _merge_seek_kernel(idx, targets, desired, s, d, psi, v, lane, lane_change, target_lane, length, width,
                        d_right, d_left, present, min_gap, closing_headway, closing_square, a_max, b_comf, headway,
                        delta, b_max):
     m = idx.shape[0]

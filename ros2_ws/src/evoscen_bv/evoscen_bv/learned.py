@@ -121,7 +121,7 @@ class HardBrakeState:
         self.until_step[k] = step + max(1, int(round(duration / dt_s)))
         self.episodes.append((k, step, decel, duration))
 
-    def bound(self, view, vehicles: np.ndarray, throttle: np.ndarray, vehicle_params) -> np.ndarray:  # noqa: ANN001
+    def bound(self, view, vehicles: np.ndarray, throttle: np.ndarray, vehicle_params) -> np.ndarray:
         """``throttle`` with the episodes' braking; advances the odometers and starts episodes."""
         p = self.params
         step, dt = int(view.step_index), float(view.dt_s)
@@ -189,7 +189,7 @@ class PolicyBank:
 
 
 @kernel
-def _bank_forward(x, col, W1, b1, W2, b2, W3, b3, max_action):  # noqa: ANN001, ANN202
+def _bank_forward(x, col, W1, b1, W2, b2, W3, b3, max_action):
     m, n_in = x.shape
     h = W1.shape[2]
     out = np.empty(m)
@@ -271,7 +271,7 @@ class LearnedDriver:
             draw from ``rng`` after the desired speeds. ``None``: no hard braking (no draw).
     """
 
-    def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],  # noqa: ANN001
+    def __init__(self, vehicles, controller: NumpyActor, decision_actors: dict[int, NumpyActor],
                  config: TrainingConfig, rng: np.random.Generator, vehicle_params, default_code: int = 1,
                  forced_merge: bool = False, profile: str | None = None, lane_hold_s: float = 0.0,
                  cut_in_decel_mps2: float | None = None, standing_leader_at_once: bool | None = None,
@@ -339,7 +339,7 @@ class LearnedDriver:
         if self.hard_brake is not None:
             self.hard_brake.restrict(positions)
 
-    def throttle(self, view) -> np.ndarray:  # noqa: ANN001
+    def throttle(self, view) -> np.ndarray:
         """The controller's throttle for every hosted vehicle (one compiled pass, see
         :func:`evoscen_bv.car_following.learned_throttle`)."""
         if self.reaction is None and self.profile.name != "safety_net":
@@ -363,7 +363,7 @@ class LearnedDriver:
                                 self.config.car_following, 0.0, 0.0, self._throttle_constants, self.reaction,
                                 late, sut)
 
-    def _merge_seek_bound(self, view, throttle: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    def _merge_seek_bound(self, view, throttle: np.ndarray) -> np.ndarray:
         """``throttle`` bounded by the merge's speed adaptation (:func:`merge_seek_accel`) for the
         hosted vehicles that must merge (few: those on a lane that ends)."""
         targets = forced_merge_targets(view, self.vehicles, self.forced_merge_m)
@@ -378,12 +378,12 @@ class LearnedDriver:
         out[limited] = np.minimum(out[limited], accel_to_throttle(bound[limited], self.vehicle_params))
         return out
 
-    def policy_columns(self, view, idx: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    def policy_columns(self, view, idx: np.ndarray) -> np.ndarray:
         """Column of :attr:`stack` (decision policy) of every vehicle in ``idx``, from its policy code."""
         col = self.column_of_code[np.clip(view.policy[idx], 0, self.column_of_code.size - 1)]
         return np.where(col < 0, self.default_column, col)
 
-    def decide(self, view, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # noqa: ANN001
+    def decide(self, view, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Decisions of the hosted vehicles at ``positions``: (grid obs, requested, executed)."""
         idx = self.vehicles[positions]
         obs = observation_grid(view, idx, self.config.grid).reshape(idx.size, OBS_DIM)
@@ -400,7 +400,7 @@ class LearnedDriver:
                                           self.profile.cut_in_closing_decel_mps2, self.end_margin_m)
         return obs, requested, executed
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
         throttle = self.throttle(view)
         if self.forced_merge and self.merge_seek:

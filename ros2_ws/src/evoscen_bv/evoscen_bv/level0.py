@@ -92,12 +92,12 @@ class Level0Driver:
 
 
 @kernel
-def _level0_kernel(  # noqa: ANN202, PLR0913
+def _level0_kernel(
     idx, v, s, lane, lane_change, length, speed_limit, desired,
     gap_front, v_front, gap_rear, v_rear, merge_lane_end_s,
     time_headway, min_gap, accel_max, comfort_decel, delta,
     min_front, min_rear, closing_headway, stop_margin, max_accel, max_brake,
-):  # noqa: ANN001
+):
     """Level-0 decisions of the vehicles ``idx`` (see the module docstring)."""
     m = idx.shape[0]
     throttle = np.empty(m)

@@ -21,7 +21,6 @@ from pathlib import Path
 from evoscen_sim.config import flag, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.models import ModelSpec, register_model
-from evoscen_sim.scenario_params import vehicle_params_from_config
 
 from .level0 import Level0Driver, level0_params_from_config
 
@@ -130,11 +129,11 @@ class LearnedParams:
     standstill on the main line. [choice] 10 m/s."""
 
 
-def _level0(vehicles, params, config, rng):  # noqa: ANN001, ANN202
-    return Level0Driver(vehicles, level0_params_from_config(config), rng, vehicle_params_from_config(config))
+def _level0(vehicles, params, config, rng):
+    return Level0Driver(vehicles, level0_params_from_config(config), rng, config.vehicle)
 
 
-def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN202
+def _learned(vehicles, params: LearnedParams, config, rng):
     from .learned import LearnedDriver, load_policies, shipped_policy_dir
 
     if params.policy_dir in SHIPPED_SETS:
@@ -147,7 +146,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
         if params.on_missing == "level0":
             return _level0(vehicles, None, config, rng)
         raise InputError(f"models.learned.policy_dir = {params.policy_dir}: {exc}") from None
-    return LearnedDriver(vehicles, controller, decisions, training, rng, vehicle_params_from_config(config),
+    return LearnedDriver(vehicles, controller, decisions, training, rng, config.vehicle,
                          forced_merge=True, profile=params.profile, lane_hold_s=params.lane_hold_s,
                          cut_in_decel_mps2=params.cut_in_decel_mps2,
                          standing_leader_at_once=params.standing_leader_at_once,
@@ -157,7 +156,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):  # noqa: ANN001, ANN
                          hard_brake=hard_brake_params(params))
 
 
-def hard_brake_params(params: LearnedParams):  # noqa: ANN201
+def hard_brake_params(params: LearnedParams):
     """The :class:`evoscen_bv.learned.HardBrakeParams` of ``params``; ``None`` with ``hard_brake: false``."""
     from .learned import HardBrakeParams
 

@@ -81,7 +81,7 @@ SETTLING_BAND_M = 5.0
 """The mean settled gap must lie within g ± this (m) [choice: the band test_shipped_policies holds]."""
 
 
-def settling_check(controller, config: TrainingConfig, road) -> dict:  # noqa: ANN001
+def settling_check(controller, config: TrainingConfig, road) -> dict:
     """Four learned followers (``controller``, the config's run-time profile) behind a leader at
     a constant 22 m/s in lane 3, starting 55, 10, 40 and 25 m apart at 26, 20, 25 and 23 m/s;
     700 steps. Returns the mean gap (m) and the share of acceleration flips over the last 400
@@ -208,7 +208,7 @@ class Pipeline:
         self._road = None
 
     @property
-    def road(self):  # noqa: ANN201
+    def road(self):
         if self._road is None:
             from evoscen_sim.road import load_road
 
@@ -225,7 +225,7 @@ class Pipeline:
         return results
 
     # ------------------------------------------------------------------ one stage
-    def _make_env(self, stage: str):  # noqa: ANN202
+    def _make_env(self, stage: str):
         from .environments import CarFollowingEnv, DecisionEnv
         from .learned import load_actor
         from .lane_change import OBS_DIM
@@ -340,7 +340,7 @@ class Pipeline:
             f.unlink(missing_ok=True)
         return result
 
-    def _periodic_eval(self, stage: str, env, ep_base: int, agent, t: int, evals: list, sdir: Path) -> dict:  # noqa: ANN001
+    def _periodic_eval(self, stage: str, env, ep_base: int, agent, t: int, evals: list, sdir: Path) -> dict:
         """Evaluate the current actor; keep it as ``best.npz`` when it ranks above every earlier
         one (:func:`selection_key`: with the settling check, settled first, then the return)."""
         from .td3 import NumpyActor, export_actor
@@ -354,7 +354,7 @@ class Pipeline:
             (sdir / "candidate.npz").replace(sdir / "best.npz")
         return e
 
-    def _checkpoint(self, ckpt: Path, agent, rng, t, episode, wall, rows, evals, replay, sdir: Path) -> None:  # noqa: ANN001
+    def _checkpoint(self, ckpt: Path, agent, rng, t, episode, wall, rows, evals, replay, sdir: Path) -> None:
         import torch
 
         replay.save(sdir / "replay.tmp.npz")
@@ -364,7 +364,7 @@ class Pipeline:
         (sdir / "checkpoint.tmp.pt").replace(ckpt)
 
     # ------------------------------------------------------------------ evaluation
-    def evaluate(self, stage: str, env, ep_base: int) -> dict:  # noqa: ANN001
+    def evaluate(self, stage: str, env, ep_base: int) -> dict:
         """Final metrics of the exported policy (and, for the controller, the gap KDE plot)."""
         from .td3 import NumpyActor
 
@@ -376,7 +376,7 @@ class Pipeline:
             self._write_gap_kde(gaps)
         return metrics
 
-    def _eval_actor(self, stage: str, env, ep_base: int, actor) -> dict:  # noqa: ANN001
+    def _eval_actor(self, stage: str, env, ep_base: int, actor) -> dict:
         """Deterministic-policy metrics of ``actor`` on the evaluation seeds (disjoint from training's)."""
         n_eps = EVAL_EPISODES["control" if stage == "control" else "decision"]
         gaps, returns, collisions, lane_changes, steps, decisions = [], [], 0, 0, 0, 0

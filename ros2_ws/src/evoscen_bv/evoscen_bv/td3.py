@@ -62,7 +62,7 @@ def _torch():
     return torch
 
 
-def build_actor(state_dim: int, action_dim: int, max_action: float, hidden: int):  # noqa: ANN201
+def build_actor(state_dim: int, action_dim: int, max_action: float, hidden: int):
     """The actor network π(s) = max_action · tanh(W3 relu(W2 relu(W1 s)))."""
     torch = _torch()
     nn = torch.nn
@@ -75,7 +75,7 @@ def build_actor(state_dim: int, action_dim: int, max_action: float, hidden: int)
             self.l3 = nn.Linear(hidden, action_dim)
             self.max_action = max_action
 
-        def forward(self, state):  # noqa: ANN001, ANN202
+        def forward(self, state):
             a = torch.relu(self.l1(state))
             a = torch.relu(self.l2(a))
             return self.max_action * torch.tanh(self.l3(a))
@@ -83,7 +83,7 @@ def build_actor(state_dim: int, action_dim: int, max_action: float, hidden: int)
     return Actor()
 
 
-def build_critic(state_dim: int, action_dim: int, hidden: int):  # noqa: ANN201
+def build_critic(state_dim: int, action_dim: int, hidden: int):
     """Twin critics Q1, Q2 over the concatenated (state, action)."""
     torch = _torch()
     nn = torch.nn
@@ -98,13 +98,13 @@ def build_critic(state_dim: int, action_dim: int, hidden: int):  # noqa: ANN201
             self.l5 = nn.Linear(hidden, hidden)
             self.l6 = nn.Linear(hidden, 1)
 
-        def forward(self, state, action):  # noqa: ANN001, ANN202
+        def forward(self, state, action):
             sa = torch.cat([state, action], 1)
             q1 = self.l3(torch.relu(self.l2(torch.relu(self.l1(sa)))))
             q2 = self.l6(torch.relu(self.l5(torch.relu(self.l4(sa)))))
             return q1, q2
 
-        def Q1(self, state, action):  # noqa: ANN001, ANN202, N802 - the reference's name
+        def Q1(self, state, action):  # the reference's name
             sa = torch.cat([state, action], 1)
             return self.l3(torch.relu(self.l2(torch.relu(self.l1(sa)))))
 
@@ -124,7 +124,7 @@ class ReplayBuffer:
         self.reward = np.zeros((self.max_size, 1), dtype=np.float32)
         self.not_done = np.zeros((self.max_size, 1), dtype=np.float32)
 
-    def add(self, state, action, next_state, reward: float, done: bool) -> None:  # noqa: ANN001
+    def add(self, state, action, next_state, reward: float, done: bool) -> None:
         self.state[self.ptr] = state
         self.action[self.ptr] = action
         self.next_state[self.ptr] = next_state
@@ -154,7 +154,7 @@ class ReplayBuffer:
             self.ptr = int(z["ptr"])
 
 
-def td3_target(reward, not_done, discount: float, target_q1, target_q2):  # noqa: ANN001, ANN201
+def td3_target(reward, not_done, discount: float, target_q1, target_q2):
     """Clipped double-Q target y = r + γ·(1 - done)·min(Q1', Q2') (docs/method.md §3.4)."""
     torch = _torch()
     return reward + not_done * discount * torch.min(target_q1, target_q2)
@@ -190,7 +190,7 @@ class TD3:
         noise = rng.normal(0.0, self.max_action * self.params.expl_noise, size=self.action_dim)
         return np.clip(self.select_action(state) + noise, -self.max_action, self.max_action)
 
-    def target_q(self, next_state, reward, not_done, smoothing):  # noqa: ANN001, ANN201
+    def target_q(self, next_state, reward, not_done, smoothing):
         """The critics' regression target for a batch; ``smoothing`` is standard normal noise."""
         torch = _torch()
         p = self.params
@@ -255,7 +255,7 @@ class TD3:
 
 
 # ---------------------------------------------------------------------- numpy inference
-def export_actor(actor, path: Path) -> None:  # noqa: ANN001
+def export_actor(actor, path: Path) -> None:
     """Write a torch actor's weights to ``path`` (.npz): W1, b1, W2, b2, W3, b3, max_action."""
     sd = {k: v.detach().cpu().numpy() for k, v in actor.state_dict().items()}
     np.savez(path, W1=sd["l1.weight"].T, b1=sd["l1.bias"], W2=sd["l2.weight"].T, b2=sd["l2.bias"],

@@ -201,13 +201,13 @@ def test_a_bv_changing_lanes_creeps_past_a_standing_leader_in_the_old_lane():
     assert not overlapping(w)
 
 
-def overlapping(w) -> bool:  # noqa: ANN001
+def overlapping(w) -> bool:
     from evoscen_sim.collision import overlapping_pairs
 
     return len(overlapping_pairs(w.s, w.d, w.psi, w.length, w.width)) > 0
 
 
-def _cut_in_world(policy: str):  # noqa: ANN202
+def _cut_in_world(policy: str):
     """A BV (index 0, ``policy``) at 1,200 m in lane 2 at 30 m/s; the SUT (index 1) 25 m ahead in lane 1 at
     25 m/s, requesting a change into lane 2 — ahead of the BV."""
     from evoscen_contract.contract import POLICY_CODES, ROLE_BV, ROLE_SUT
@@ -219,7 +219,7 @@ def _cut_in_world(policy: str):  # noqa: ANN202
     return w
 
 
-def _body_in_lane_2(w) -> bool:  # noqa: ANN001
+def _body_in_lane_2(w) -> bool:
     lk = w.lane_lookup()
     e = 0.5 * (w.width[1] * np.cos(w.psi[1]) + w.length[1] * abs(np.sin(w.psi[1])))
     return bool(w.d[1] + e > lk.d_right[1, 2] + 0.1)
@@ -235,7 +235,7 @@ def test_a_competitive_bv_does_not_yield_to_the_sut_cutting_in_until_its_body_is
 
     controller, _, training = load_policies(shipped_policy_dir())
 
-    def throttle(w, compete: bool, bv: LearnedDriver | None = None) -> tuple[float, LearnedDriver]:  # noqa: ANN001
+    def throttle(w, compete: bool, bv: LearnedDriver | None = None) -> tuple[float, LearnedDriver]:
         bv = bv or LearnedDriver(np.array([0]), controller, {}, training, np.random.default_rng(0), w.vehicle,
                                  profile=profile, compete_with_sut=compete)
         return float(bv.throttle(w)[0]), bv

@@ -4,30 +4,14 @@ test_car_following.py::test_a_competitive_bv_does_not_yield_to_the_sut_cutting_i
 
 from __future__ import annotations
 
-import hashlib
-
-import numpy as np
 import pytest
 
-from evoscen_sim.config import load_scenario_config
+from evoscen_bringup.testing import commands_digest
 from evoscen_sim.errors import InputError
 
 BEFORE_COMMANDS_SHA256 = "32c3b0ffe38757126b4fba35ad04a0bfe3337e84ca1f40da26067bd612179748"
 """Every BV and SUT command of 1,000 steps of the default scenario with learned BVs, seed 3, SUT mobil,
 computed with the code before the key existed (main at a70f887: every BV yielded on the SUT's intent)."""
-
-
-def _commands_digest(overrides: dict, steps: int) -> str:
-    from evoscen_bringup.scenario import build_scenario
-
-    sc = build_scenario(load_scenario_config(None, {"seed": 3, "sut.model": "mobil", **overrides}))
-    h = hashlib.sha256()
-    for _ in range(steps):
-        bt, bl, st, sl = sc.commands()
-        for x in (bt, bl, st, sl):
-            h.update(np.ascontiguousarray(np.asarray(x, dtype=np.float64)).tobytes())
-        sc.apply(bt, bl, st, sl)
-    return h.hexdigest()
 
 
 def test_yield_drives_exactly_as_before_and_compete_is_the_default():
@@ -37,16 +21,16 @@ def test_yield_drives_exactly_as_before_and_compete_is_the_default():
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}})).compete_with_sut is True
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": {
         "learned": {"competitive_cut_in": "yield"}}})).compete_with_sut is False
-    assert _commands_digest({"bvs.driver": "learned", "models.learned.competitive_cut_in": "yield"}, 1000) \
+    assert commands_digest({"bvs.driver": "learned", "models.learned.competitive_cut_in": "yield"}, 1000) \
         == BEFORE_COMMANDS_SHA256
     # seed 3: MOBIL cuts in ahead of a competitive BV within the first 1,000 steps, so the default differs
-    assert _commands_digest({"bvs.driver": "learned"}, 1000) != BEFORE_COMMANDS_SHA256
+    assert commands_digest({"bvs.driver": "learned"}, 1000) != BEFORE_COMMANDS_SHA256
 
 
 def test_rule_based_bvs_ignore_the_key():
     for driver in ("level0", "mobil"):
-        assert _commands_digest({"bvs.driver": driver, "models.learned.competitive_cut_in": "yield"}, 200) \
-            == _commands_digest({"bvs.driver": driver, "models.learned.competitive_cut_in": "compete"}, 200), driver
+        assert commands_digest({"bvs.driver": driver, "models.learned.competitive_cut_in": "yield"}, 200) \
+            == commands_digest({"bvs.driver": driver, "models.learned.competitive_cut_in": "compete"}, 200), driver
 
 
 def test_a_bad_value_is_one_line_naming_the_key():

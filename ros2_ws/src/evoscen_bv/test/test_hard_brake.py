@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import hashlib
 import math
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from evoscen_bringup.testing import commands_digest
 from evoscen_bv.learned import HARD_BRAKE_VIEW_M, HardBrakeParams, HardBrakeState, LearnedDriver, load_policies, \
     shipped_policy_dir
 from evoscen_bv.models import LearnedParams, hard_brake_params
@@ -21,7 +21,7 @@ from evoscen_sim.vehicle import VehicleParams
 MAX_BRAKE = VehicleParams().max_brake_mps2
 
 
-def _view(s_leader: float, v_leader: float, step: int, dt_s: float, lane_change: int = 0):  # noqa: ANN202
+def _view(s_leader: float, v_leader: float, step: int, dt_s: float, lane_change: int = 0):
     """Two vehicles in one lane: the SUT (index 0) at s = 0 and a BV (index 1) ahead of it."""
     return SimpleNamespace(role=np.array([ROLE_SUT, ROLE_BV]), s=np.array([0.0, s_leader]), d=np.zeros(2),
                            v=np.array([v_leader, v_leader]), length=np.array([4.5, 4.5]), width=np.array([1.8, 1.8]),
@@ -130,33 +130,21 @@ def test_keys_and_the_off_form():
         hard_brake_params(LearnedParams(hard_brake_decel_min_mps2=6.0, hard_brake_decel_max_mps2=5.0))
 
 
-def _commands_digest(overrides: dict, steps: int) -> str:
-    from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
-
-    sc = build_scenario(load_scenario_config(None, {"seed": 3, "sut.model": "mobil", **overrides}))
-    h = hashlib.sha256()
-    for _ in range(steps):
-        bt, bl, st, sl = sc.commands()
-        for x in (bt, bl, st, sl):
-            h.update(np.ascontiguousarray(np.asarray(x, dtype=np.float64)).tobytes())
-        sc.apply(bt, bl, st, sl)
-    return h.hexdigest()
-
-
 BEFORE_COMMANDS_SHA256 = "32c3b0ffe38757126b4fba35ad04a0bfe3337e84ca1f40da26067bd612179748"
 """Every BV and SUT command of 1,000 steps of the default scenario with learned BVs, seed 3, SUT mobil,
-computed with the code before the hard-braking rule existed (branch merge at 0abdd97)."""
+computed with the code before the hard-braking rule existed (branch merge at 0abdd97); with the later
+competitive BVs' rule at its earlier form (``competitive_cut_in: yield``)."""
 
 
 def test_off_drives_exactly_as_before():
-    assert _commands_digest({"bvs.driver": "learned", "models.learned.hard_brake": False}, 1000) \
+    assert commands_digest({"bvs.driver": "learned", "models.learned.hard_brake": False,
+                            "models.learned.competitive_cut_in": "yield"}, 1000) \
         == BEFORE_COMMANDS_SHA256
 
 
 def test_rule_based_bvs_ignore_the_keys():
     for driver in ("level0", "mobil"):
-        on = _commands_digest({"bvs.driver": driver, "models.learned.hard_brake": True,
+        on = commands_digest({"bvs.driver": driver, "models.learned.hard_brake": True,
                                "models.learned.hard_brake_per_1000km": 1.0e6}, 200)
-        off = _commands_digest({"bvs.driver": driver, "models.learned.hard_brake": False}, 200)
+        off = commands_digest({"bvs.driver": driver, "models.learned.hard_brake": False}, 200)
         assert on == off, driver

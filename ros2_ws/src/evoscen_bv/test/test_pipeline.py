@@ -12,9 +12,9 @@ import pytest
 
 pytest.importorskip("torch")
 
-from evoscen_bv.learned import LearnedDriver, load_policies  # noqa: E402
-from evoscen_bv.pipeline import Pipeline  # noqa: E402
-from evoscen_bv.td3 import NumpyActor  # noqa: E402
+from evoscen_bv.learned import LearnedDriver, load_policies
+from evoscen_bv.pipeline import Pipeline
+from evoscen_bv.td3 import NumpyActor
 
 REPO = Path(__file__).resolve().parents[4] if (Path(__file__).resolve().parents[4] / "scripts").is_dir() else None
 SMOKE = """
@@ -98,7 +98,7 @@ def test_resume_continues_exactly(tmp_path, monkeypatch):
     real_train = td3.TD3.train
     calls = {"n": 0}
 
-    def interrupted(self, replay, rng):  # noqa: ANN001, ANN202
+    def interrupted(self, replay, rng):
         calls["n"] += 1
         if calls["n"] == 150:  # training step 250 (learning starts after 100)
             raise KeyboardInterrupt

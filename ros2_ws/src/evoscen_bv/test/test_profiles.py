@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import hashlib
 
 import numpy as np
 import pytest
 
+from evoscen_bringup.testing import commands_digest
 from evoscen_bv.lane_change import apply_rule_constraints
 from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
 from evoscen_bv.profile import PROFILES, get_profile
@@ -29,7 +29,7 @@ def policies():
     return load_policies(shipped_policy_dir())
 
 
-def _driver(policies, world, vehicles, profile):  # noqa: ANN001, ANN202
+def _driver(policies, world, vehicles, profile):
     controller, _, training = policies
     return LearnedDriver(np.asarray(vehicles), controller, {}, training, np.random.default_rng(0), world.vehicle,
                          profile=profile)
@@ -45,7 +45,7 @@ def test_profile_parameters():
         get_profile("nice")
 
 
-def _cut_in(road, policies, profile: str, cut_in: bool, steps: int) -> tuple[list[float], list[int]]:  # noqa: ANN001
+def _cut_in(road, policies, profile: str, cut_in: bool, steps: int) -> tuple[list[float], list[int]]:
     """BV 0 at 25 m/s in lane 2; vehicle 1 at 20 m/s in lane 3, its rear bumper 8 m ahead of the BV's
     front (closing 5 m/s), changes into lane 2 after the first step when ``cut_in``. Returns the BV's
     throttles from the first step on which vehicle 1 occupies lane 2, and vehicle 1's lane-change flags."""
@@ -125,18 +125,8 @@ def test_driver_emergency_brake_waits_for_the_reaction_time(road, policies):
 
 
 def _commands_digest(cfg_overrides: dict, steps: int) -> str:
-    from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
-
-    cfg = load_scenario_config(None, {"bvs.driver": "learned", "seed": 3, "sut.model": "mobil", **cfg_overrides})
-    sc = build_scenario(cfg)
-    h = hashlib.sha256()
-    for _ in range(steps):
-        bt, bl, st, sl = sc.commands()
-        for x in (bt, bl, st, sl):
-            h.update(np.ascontiguousarray(np.asarray(x, dtype=np.float64)).tobytes())
-        sc.apply(bt, bl, st, sl)
-    return h.hexdigest()
+    """:func:`evoscen_bringup.testing.commands_digest` with learned BVs."""
+    return commands_digest({"bvs.driver": "learned", **cfg_overrides}, steps)
 
 
 OLD_COMMANDS_SHA256 = "c156b9b4e8f8b032f478a0f2ef18fa95e8884facaf2f9a9c8df1081f4edb08fb"
@@ -147,9 +137,11 @@ computed with the code before profiles existed (commit 33305ed) on the developme
 def test_safety_net_reproduces_the_old_commands_exactly():
     # the old commands came from the first shipped policies (kept as policy_dir: round1) and a
     # lateral loop without the heading-reference cap (evoscen_sim.control; 1.5 rad never binds: asin(0.6) < 0.65)
-    # and no lane hold (lane_hold_s: 0; docs/learned-bvs.md), no speed adaptation of merging BVs (merge_seek)
+    # and no lane hold (lane_hold_s: 0; docs/learned-bvs.md), no speed adaptation of merging BVs (merge_seek),
+    # every BV yielding on the SUT's lane-change intent (competitive_cut_in: yield)
     old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "round1", "lane_hold_s": 0,
-                                  "into_ending_lane": True, "forced_merge_m": 120.0, "merge_seek": False}},
+                                  "into_ending_lane": True, "forced_merge_m": 120.0, "merge_seek": False,
+                                  "competitive_cut_in": "yield"}},
            "control.max_heading_ref_rad": 1.5, "traffic.mode": "loop"}  # and re-entry at the road's start
     assert _commands_digest(old, 400) == OLD_COMMANDS_SHA256
     # the driver profile drives differently
@@ -222,7 +214,7 @@ def test_scenario_default_profile_is_driver():
     assert drv.profile.name == "safety_net"
 
 
-def _constant_actor(side: int):  # noqa: ANN202
+def _constant_actor(side: int):
     """A decision actor whose output is tanh(±2) = ±0.96 whatever it sees: it asks for ``side`` always."""
     from evoscen_bv.lane_change import OBS_DIM
     from evoscen_bv.td3 import NumpyActor
@@ -232,7 +224,7 @@ def _constant_actor(side: int):  # noqa: ANN202
                        "W3": np.zeros((h, 1)), "b3": np.array([2.0 * side]), "max_action": np.array(1.0)})
 
 
-def _lane_change_starts(road, policies, hold_s: float, steps: int) -> tuple[list[int], list[int]]:  # noqa: ANN001
+def _lane_change_starts(road, policies, hold_s: float, steps: int) -> tuple[list[int], list[int]]:
     """A lone BV in lane 1 at 25 m/s whose policy always asks to go left: (steps at which a change starts,
     steps at which one ends — the lane_change column back to 0)."""
     controller, _, training = policies
@@ -262,7 +254,7 @@ def test_lane_hold_keeps_the_new_lane_for_the_hold_then_decides_again(road, poli
     end = held_ends[0]
     assert 10 < end < 100  # one lane change takes a few seconds
 
-    def next_decision(k):  # noqa: ANN001, ANN202
+    def next_decision(k):
         return -(-k // 10) * 10
 
     assert free_starts[1] == next_decision(end)
@@ -334,7 +326,7 @@ def test_cut_in_decel_is_a_scenario_key_with_the_old_rule_selectable():
     assert "\n" not in str(e.value)
 
 
-def _constant_controller(throttle_z: float):  # noqa: ANN202
+def _constant_controller(throttle_z: float):
     """A car-following actor whose output is tanh(z) whatever it sees."""
     from evoscen_bv.td3 import NumpyActor
 

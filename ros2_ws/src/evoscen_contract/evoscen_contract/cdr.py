@@ -300,7 +300,7 @@ class EmptyEventsEncoder:
         return pad4(_ENCAPSULATION_CDR_LE + _stamp_bytes(stamp_ns) + self._template[8:])
 
 
-def encode_diagnostic_array(msg) -> bytes:  # noqa: ANN001 - a DiagnosticArray (rclpy, or any with its fields)
+def encode_diagnostic_array(msg) -> bytes:  # a DiagnosticArray (rclpy, or any with its fields)
     """Canonical CDR of a ``diagnostic_msgs/DiagnosticArray`` (``/evoscen/events``), any number of statuses.
 
     The same bytes as serializing the message with rclpy and canonicalizing it
@@ -399,7 +399,7 @@ def _marker_tail(base: int) -> bytes:
     return bytes(w.buf)
 
 
-def _write_no_colors_texture_uv(w) -> None:  # noqa: ANN001 - a _Writer or _PayloadWriter
+def _write_no_colors_texture_uv(w) -> None:  # a _Writer or _PayloadWriter
     """A Marker's empty ``colors``, ``texture_resource``, ``texture`` and ``uv_coordinates``."""
     w.pack("I", 0)  # colors[]
     w.string("")  # texture_resource
@@ -410,7 +410,7 @@ def _write_no_colors_texture_uv(w) -> None:  # noqa: ANN001 - a _Writer or _Payl
     w.pack("I", 0)  # uv_coordinates[]
 
 
-def _write_no_mesh(w) -> None:  # noqa: ANN001 - a _Writer or _PayloadWriter
+def _write_no_mesh(w) -> None:  # a _Writer or _PayloadWriter
     """A Marker's fields after ``text``: no mesh."""
     w.string("")  # mesh_resource
     w.string("")  # mesh_file.filename
@@ -462,7 +462,7 @@ class VehicleMarkersEncoder:
         out += struct.pack("<I", len(raw)) + raw
         out += self._tails[(len(out) - 4) % 4]
 
-    def encode(self, columns, stamp_ns: int) -> bytes:  # noqa: ANN001
+    def encode(self, columns, stamp_ns: int) -> bytes:
         """CDR bytes of ``/evoscen/markers`` for the world columns at ``stamp_ns``.
 
         The markers are laid out by a compiled kernel (:func:`_markers_kernel`) from arrays
@@ -490,7 +490,7 @@ class VehicleMarkersEncoder:
             return self.encode_python(columns, stamp_ns)
         return pad4(out[:end].tobytes())
 
-    def _color_rows(self, policy, n: int) -> np.ndarray:  # noqa: ANN001
+    def _color_rows(self, policy, n: int) -> np.ndarray:
         """The box colours (n × 16 bytes, four float32) of the policy codes ``policy``, remembered per
         column (the policies of a run's vehicles seldom change)."""
         from .markers import policy_color
@@ -506,7 +506,7 @@ class VehicleMarkersEncoder:
             self._rows_cache[key] = rows
         return rows
 
-    def _color_bytes(self, code: float, policy_color) -> bytes:  # noqa: ANN001
+    def _color_bytes(self, code: float, policy_color) -> bytes:
         cached = self._colors.get(code)
         if cached is None:
             cached = self._colors[code] = struct.pack("<4f", *policy_color(code), 1.0)
@@ -537,7 +537,7 @@ class VehicleMarkersEncoder:
         per_vehicle = 2 * (pre.shape[1] + 16 + int(tail_len.max()) + 48)  # bytes a vehicle's markers take at most
         return pre, np.array(offsets, dtype=np.int64), tails, tail_len, per_vehicle
 
-    def encode_python(self, columns, stamp_ns: int) -> bytes:  # noqa: ANN001
+    def encode_python(self, columns, stamp_ns: int) -> bytes:
         """:meth:`encode` marker by marker in Python (the earlier path; the same bytes)."""
         from .markers import VEHICLE_HEIGHT_M, policy_color
 
@@ -559,7 +559,7 @@ class VehicleMarkersEncoder:
         return pad4(bytes(out))
 
 
-def encode_road_markers(road, stamp_ns: int = 0) -> bytes:  # noqa: ANN001 - an evoscen_sim Road
+def encode_road_markers(road, stamp_ns: int = 0) -> bytes:  # an evoscen_sim Road
     """Canonical CDR of ``/evoscen/map_markers`` (:func:`evoscen_contract.markers.road_markers`).
 
     The same bytes as building the rclpy message, serializing it and canonicalizing it
@@ -625,7 +625,7 @@ def is_run_end(data: bytes) -> bool:
 _MARKERS_KERNEL: list = []
 
 
-def _markers_kernel_or_none():  # noqa: ANN202
+def _markers_kernel_or_none():
     """The compiled marker kernel (numba, compiled on first use and cached on disk); None without numba."""
     if not _MARKERS_KERNEL:
         try:
@@ -639,7 +639,7 @@ def _markers_kernel_or_none():  # noqa: ANN202
     return _MARKERS_KERNEL[0]
 
 
-def _markers_kernel(out, stamp, ids, x, y, yaw, length, width, kmh, colors, height,  # noqa: ANN001, ANN201
+def _markers_kernel(out, stamp, ids, x, y, yaw, length, width, kmh, colors, height,
                     pre, at, tails, tail_len):
     """Write the ``MarkerArray`` of :meth:`VehicleMarkersEncoder.encode` into the zeroed ``out``; its
     length, or -1 (nothing written) if a label's numbers are not all finite and small enough for the
@@ -717,7 +717,7 @@ def _markers_kernel(out, stamp, ids, x, y, yaw, length, width, kmh, colors, heig
     return pos
 
 
-def _put_int(out, t, value, minus, digits):  # noqa: ANN001, ANN202
+def _put_int(out, t, value, minus, digits):
     """Write the decimal digits of ``value`` (with a leading ``-`` if negative or ``minus``) at ``t``; the end."""
     if value < 0:
         minus = True

@@ -118,12 +118,12 @@ def parameter_sources(node_name: str, args: list[str] | None = None) -> tuple[li
     return [f for f in files if f], cli
 
 
-def publisher(node: Node, spec: TopicSpec):  # noqa: ANN201
+def publisher(node: Node, spec: TopicSpec):
     """A publisher for a contract topic with the contract's QoS."""
     return node.create_publisher(spec.msg_class, spec.name, spec.qos_profile())
 
 
-def subscription(node: Node, spec: TopicSpec, *, raw: bool = True):  # noqa: ANN201
+def subscription(node: Node, spec: TopicSpec, *, raw: bool = True):
     """A subscription for a contract topic with the contract's QoS (no callback: use a pump)."""
     return node.create_subscription(spec.msg_class, spec.name, lambda _msg: None, spec.qos_profile(), raw=raw)
 
@@ -136,7 +136,7 @@ class MessagePump:
         self._wait_set = _rclpy.WaitSet(len(self.subscriptions), 0, 0, 0, 0, 0, node.context.handle)
 
     @staticmethod
-    def take(sub) -> Any:  # noqa: ANN001
+    def take(sub) -> Any:
         """The next message of ``sub`` (bytes for a raw subscription), or None."""
         got = sub.handle.take_message(sub.msg_type, sub.raw)
         return None if got is None else got[0]
@@ -194,7 +194,7 @@ def peers_missing(node: Node, topic: str, kind: str, matched: int, required: Ite
     return None
 
 
-def duration(seconds: float):  # noqa: ANN201
+def duration(seconds: float):
     """An ``rclpy.duration.Duration`` of ``seconds``."""
     from rclpy.duration import Duration
 
@@ -273,7 +273,7 @@ class SourceTaker:
     it falls back to rclpy's take with ``gid`` None; the callers then check publisher counts.
     """
 
-    def __init__(self, sub) -> None:  # noqa: ANN001
+    def __init__(self, sub) -> None:
         self.sub = sub
         rcl = _Rcl.get()
         self.per_message = not rcl.error

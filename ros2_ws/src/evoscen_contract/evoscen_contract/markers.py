@@ -43,13 +43,13 @@ def policy_color(code: float) -> tuple[float, float, float]:
     return _CODE_COLORS.get(int(code), (1.0, 1.0, 1.0))
 
 
-def _color(rgb: tuple[float, float, float], alpha: float = 1.0):  # noqa: ANN202
+def _color(rgb: tuple[float, float, float], alpha: float = 1.0):
     from std_msgs.msg import ColorRGBA
 
     return ColorRGBA(r=float(rgb[0]), g=float(rgb[1]), b=float(rgb[2]), a=float(alpha))
 
 
-def vehicle_markers(columns: Mapping[str, np.ndarray], stamp_ns: int):  # noqa: ANN201
+def vehicle_markers(columns: Mapping[str, np.ndarray], stamp_ns: int):
     """The ``/evoscen/markers`` message for one world state (columns of the world table)."""
     from visualization_msgs.msg import Marker, MarkerArray
 
@@ -93,7 +93,7 @@ def vehicle_markers(columns: Mapping[str, np.ndarray], stamp_ns: int):  # noqa: 
     return out
 
 
-def road_markers(road, stamp_ns: int = 0):  # noqa: ANN001, ANN201
+def road_markers(road, stamp_ns: int = 0):
     """The ``/evoscen/map_markers`` message: lane lines and road edges of ``road``."""
     from geometry_msgs.msg import Point
     from visualization_msgs.msg import Marker, MarkerArray

@@ -83,7 +83,7 @@ class WorldMessages:
         return self._markers.encode(columns, t_ns)
 
     @staticmethod
-    def map_markers(road, t_ns: int) -> bytes:  # noqa: ANN001
+    def map_markers(road, t_ns: int) -> bytes:
         """``/evoscen/map_markers`` of ``road`` (canonical CDR, :func:`~evoscen_contract.cdr.encode_road_markers`)."""
         return encode_road_markers(road, t_ns)
 

@@ -31,7 +31,7 @@ from builtin_interfaces.msg import Time
 from sensor_msgs.msg import PointCloud2, PointField
 from std_msgs.msg import Header
 
-from .contract import CELL_BYTES, FLOAT64, stamp_parts  # noqa: F401  (FLOAT64, CELL_BYTES re-exported)
+from .contract import CELL_BYTES, FLOAT64, stamp_parts  # FLOAT64, CELL_BYTES re-exported
 
 _NS_PER_S: int = 1_000_000_000
 

@@ -52,7 +52,7 @@ class Check(NamedTuple):
     table: DecodedTable | None = None
 
 
-def _listed(values) -> str:  # noqa: ANN001
+def _listed(values) -> str:
     vals = [int(v) if float(v).is_integer() else float(v) for v in list(values)[:MAX_LISTED]]
     more = len(values) - len(vals)
     return str(vals) + (f" (+{more} more)" if more > 0 else "")
@@ -66,7 +66,7 @@ def _cells(values: np.ndarray, ids: np.ndarray, mask: np.ndarray) -> str:
 
 
 def check_commands(data: bytes | memoryview | DecodedTable, step_ns: int, expected_ids,
-                   frame_id: str = "map") -> Check:  # noqa: ANN001
+                   frame_id: str = "map") -> Check:
     """Whether a serialized command table is a well-formed answer to the step at ``step_ns``.
 
     Args:

@@ -135,7 +135,7 @@ def driving_figures(s: np.ndarray, lane: np.ndarray, target_lane: np.ndarray, sp
     }
 
 
-def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -> dict[str, Any]:  # noqa: ANN001
+def bv_realism(run, min_speed_mps: float = 5.0, leader_range_m: float = 100.0) -> dict[str, Any]:
     """The BV realism figures of ``run`` (a RunData; see the module docstring)."""
     c = run.columns
     role = c["role"]

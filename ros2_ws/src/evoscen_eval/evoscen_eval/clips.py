@@ -50,7 +50,7 @@ def rank_key(event: dict[str, Any]) -> tuple:
 
 def read_messages(bag_dir: Path) -> list[tuple[str, int, bytes]]:
     """The bag's messages ``(topic, log time, data)`` in log-time order (ties in file order)."""
-    from .recorder import open_bag_reader
+    from .bag_reader import open_bag_reader
 
     return [(topic, t_ns, data) for topic, _type, t_ns, data in open_bag_reader(bag_dir, log_time_order=True)]
 
@@ -93,7 +93,7 @@ def bag_metadata(bag_dir: Path, name: str) -> dict[str, dict[str, str]]:
     """The MCAP metadata record ``name`` of a bag as ``{name: {key: value}}`` (empty if none)."""
     from mcap.reader import make_reader
 
-    from .recorder import bag_file
+    from .bag_reader import bag_file
 
     with open(bag_file(Path(bag_dir)), "rb") as f:
         for record in make_reader(f).iter_metadata():

@@ -154,7 +154,7 @@ class EvaluatorNode:
         self.latest_markers = -self.markers_every * self.dt_ns  # the first markers are due at t = 0
         self.run_end_ns: int | None = None
 
-    def _on_signal(self, signum, frame) -> None:  # noqa: ANN001
+    def _on_signal(self, signum, frame) -> None:
         self._stop_signal = signum
 
     def _take_all(self) -> int:

@@ -63,7 +63,7 @@ class FidelityRow:
         return None if self.comparison is None else self.comparison.similarity_pct
 
 
-def road_for_run(run) -> tuple[VirtualRoad, list[str]]:  # noqa: ANN001 - a RunData
+def road_for_run(run) -> tuple[VirtualRoad, list[str]]:  # a RunData
     """The virtual road of a run's export: lanes, lane width and length of the map it ran on.
 
     The map is the recorded scenario's ``map``; if that path does not exist here (a bag from
@@ -95,7 +95,7 @@ def road_for_run(run) -> tuple[VirtualRoad, list[str]]:  # noqa: ANN001 - a RunD
                            "shipped on-ramp's virtual road (5 lanes of 3.5 m, 2393.76 m)"]
 
 
-def run_recording(bag_dir: Path | str, options: ExportOptions = ExportOptions(frame_rate_hz=None)):  # noqa: ANN201
+def run_recording(bag_dir: Path | str, options: ExportOptions = ExportOptions(frame_rate_hz=None)):
     """A bag's run as a HighD recording (``options.road`` replaced by the run's own road)."""
     from dataclasses import replace
 

@@ -185,7 +185,7 @@ def recording_paths(directory: Path | str, recording: str | int) -> dict[str, Pa
     }
 
 
-def _open_text(path: Path, limit: int = MAX_HIGHD_META_BYTES):  # noqa: ANN202
+def _open_text(path: Path, limit: int = MAX_HIGHD_META_BYTES):
     """The CSV file opened as UTF-8 text, after checking it is a regular file of at most ``limit``
     bytes (docs/input-limits.md); read it inside :func:`_utf8_errors`."""
     if not Path(path).exists():
@@ -199,7 +199,7 @@ def _open_text(path: Path, limit: int = MAX_HIGHD_META_BYTES):  # noqa: ANN202
 
 
 @contextlib.contextmanager
-def _utf8_errors(path: Path):  # noqa: ANN202
+def _utf8_errors(path: Path):
     """A UnicodeDecodeError while reading ``path`` (a binary file) becomes one InputError line."""
     try:
         yield

@@ -140,7 +140,7 @@ def complexity_score(exposures: float, lane_changes: float, accel_decel: float,
                                                             - math.exp(-accel_decel / k3))
 
 
-def max_in_view(ev) -> int:  # noqa: ANN001 - EvaluationConfig
+def max_in_view(ev) -> int:  # EvaluationConfig
     """H: the most vehicles that fit in the view at minimum spacing."""
     return ev.view_lanes * max(1, math.floor((ev.view_behind_m + ev.view_ahead_m) / ev.min_spacing_m))
 
@@ -156,13 +156,13 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def evaluate(run: RunData, ev) -> dict[str, Any]:  # noqa: ANN001 - EvaluationConfig
+def evaluate(run: RunData, ev) -> dict[str, Any]:  # EvaluationConfig
     """The scores of ``run`` as the ``report.json`` dict (see the module docstring): its states
     streamed through :class:`~evoscen_eval.streaming.ScoreStream`, as every runner scores."""
     return report_of_stream(stream_run(run, ev), run_info(run), list(run.warnings))
 
 
-def stream_run(run: RunData, ev) -> ScoreStream:  # noqa: ANN001 - EvaluationConfig
+def stream_run(run: RunData, ev) -> ScoreStream:  # EvaluationConfig
     """A finished :class:`~evoscen_eval.streaming.ScoreStream` fed the states and events of ``run``."""
     stream = ScoreStream(ev, run.dt_s)
     stream.add_events(run.events)
@@ -174,7 +174,7 @@ def stream_run(run: RunData, ev) -> ScoreStream:  # noqa: ANN001 - EvaluationCon
     return stream
 
 
-def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str]) -> dict[str, Any]:  # noqa: PLR0915
+def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str]) -> dict[str, Any]:
     """The ``report.json`` dict from a finished stream, ``run_info`` and the run's warnings."""
     st.finish()
     ev = st.ev

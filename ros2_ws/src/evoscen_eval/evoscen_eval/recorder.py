@@ -38,36 +38,32 @@ this machine): ~60 us for a 21-vehicle world table, ~20 us for Odometry or a sma
 DiagnosticArray, ~3 us for Clock. Pass ``canonicalize=False`` to store the bytes as
 given (faster, not reproducible).
 
-:func:`open_bag_reader` iterates over the raw messages of a bag (for offline
-evaluation and replay).
+:func:`evoscen_eval.bag_reader.open_bag_reader` iterates over the raw messages of a bag (for
+offline evaluation and replay).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Any, BinaryIO
+from typing import Any
 
 import bisect
 import errno
 import contextlib
 import os
 import re
-import struct
 
 import yaml
-from mcap._chunk_builder import ChunkBuilder
-from mcap.exceptions import McapError
-from mcap.reader import make_reader
-from mcap.records import ChunkIndex, MessageIndex
 from mcap.writer import CompressionType, Writer
 
 from evoscen_contract.cdr import pad4
 from evoscen_contract.contract import TOPIC_WORLD as _WORLD_TOPIC
 from evoscen_contract.qos import rosbag2_qos_yaml
 from evoscen_contract.topics import TopicSpec
+from evoscen_eval.mcap_internals import ChunkMessages, FastMessages
 from evoscen_eval.schemas import message_definition, type_description_hash
 from evoscen_sim.errors import HostFault, InputError
 
@@ -147,218 +143,9 @@ class _TopicState:
     message_count: int = 0
 
 
-class _FastMessageIndex(MessageIndex):
-    """``MessageIndex`` whose :meth:`write` packs the record in one call (mcap 1.6 writes each of
-    the 2n numbers with its own ``pack`` and buffer write): opcode 0x07, record length, channel
-    id, records length = 16 n, then n (log time, offset) pairs — the same bytes."""
-
-    def write(self, stream) -> None:  # noqa: ANN001 - mcap's RecordBuilder
-        n = len(self.records)
-        flat = [x for pair in self.records for x in pair]
-        stream.write(struct.pack(f"<BQHI{2 * n}Q", 0x07, 6 + 16 * n, self.channel_id, 16 * n, *flat))
-
-
-class _FastChunkIndex(ChunkIndex):
-    """``ChunkIndex`` whose :meth:`write` packs the record in two calls (mcap 1.6 writes its ~12 + 2n
-    fields one ``pack`` and buffer write at a time; a run's summary holds one per chunk, ~300 for
-    3,000 steps): opcode 0x08, record length, start and end time, chunk offset and length, the
-    message index offsets (channel id, offset) with their byte length, index length,
-    compression, sizes — the same bytes."""
-
-    def write(self, stream) -> None:  # noqa: ANN001 - mcap's RecordBuilder
-        offsets = self.message_index_offsets
-        n = len(offsets)
-        name = self.compression.encode()
-        flat = [x for item in offsets.items() for x in item]
-        body = struct.pack(f"<QQQQI{'HQ' * n}QI", self.message_start_time, self.message_end_time,
-                           self.chunk_start_offset, self.chunk_length, 10 * n, *flat, self.message_index_length,
-                           len(name))
-        tail = struct.pack("<QQ", self.compressed_size, self.uncompressed_size)
-        stream.write(b"".join((struct.pack("<BQ", 0x08, len(body) + len(name) + 16), body, name, tail)))
-
-
-class _FastMessages:
-    """``mcap.writer.Writer.add_message`` (mcap 1.6, pinned) in a few Python operations.
-
-    The library builds a ``Message`` record object and writes its six fields one ``struct.pack``
-    and one buffer write at a time, ~15 µs per message — half the cost of recording a step.
-    :meth:`add` does the same bookkeeping on the writer's own statistics and chunk builder and
-    writes the record with one ``pack``: the same bytes in the same places (the file is then
-    finished by the library as before; tests/test_bag_hashes.py and the recorder's tests compare
-    whole bags). Used only when the writer is the one this was written against
-    (:meth:`usable`); otherwise the library's method.
-    """
-
-    _HEAD = struct.Struct("<BQHIQQ")  # opcode, record length, channel id, sequence, log time, publish time
-    _MESSAGE = 0x05
-    _FIELDS = 22  # bytes of the fixed fields after the record header
-
-    @staticmethod
-    def usable(writer: Writer) -> bool:
-        cb = getattr(writer, "_Writer__chunk_builder", None)
-        return type(cb) is ChunkBuilder and hasattr(writer, "_Writer__statistics") \
-            and hasattr(writer, "_Writer__chunk_size") and hasattr(cb, "record_writer")
-
-    def __init__(self, writer: Writer) -> None:
-        self._st = writer._Writer__statistics  # noqa: SLF001 - see the class docstring
-        self._cb: ChunkBuilder = writer._Writer__chunk_builder  # noqa: SLF001
-        self._chunk_size: int = writer._Writer__chunk_size  # noqa: SLF001
-        self._finalize = writer._Writer__maybe_finalize_chunk  # noqa: SLF001
-
-    def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
-        st, cb = self._st, self._cb
-        if st.message_count == 0 or log_time < st.message_start_time:
-            st.message_start_time = log_time
-        if log_time > st.message_end_time:
-            st.message_end_time = log_time
-        st.channel_message_counts[channel_id] += 1
-        st.message_count += 1
-        if cb.num_messages == 0 or log_time < cb.message_start_time:
-            cb.message_start_time = log_time
-        if log_time > cb.message_end_time:
-            cb.message_end_time = log_time
-        index = cb.message_indices.get(channel_id)
-        if index is None:
-            index = cb.message_indices[channel_id] = _FastMessageIndex(channel_id=channel_id, records=[])
-        buf = cb.record_writer._buffer  # noqa: SLF001 - a new BytesIO after every chunk
-        index.records.append((log_time, buf.tell()))
-        cb.num_messages += 1
-        buf.write(self._HEAD.pack(self._MESSAGE, self._FIELDS + len(data), channel_id, sequence, log_time,
-                                  publish_time))
-        buf.write(data)
-        if buf.tell() > self._chunk_size:
-            self._finalize()
-
-
-class _ChunkMessages:
-    """The open chunk kept by the recorder itself, written with a few Python operations per chunk.
-
-    :class:`_FastMessages` writes each message record into mcap's chunk builder; this class
-    keeps the chunk's records as a list of byte strings (one ``pack`` per message header), their
-    offsets and per-channel index entries, and at :meth:`finalize` writes what the library's
-    ``Writer.__finalize_chunk`` (mcap 1.6, pinned) writes — the chunk record (records joined,
-    compressed with a zstd compressor kept for the run, CRC-32 of the uncompressed records),
-    then one message index record per channel in first-appearance order — and registers the
-    chunk's index and statistics in the writer, which finishes the file (summary) as before.
-    The same bytes in the same places (tests/test_bag_hashes.py, and a test comparing all three
-    write paths). The schema and channel records the library writes into its open chunk at
-    registration are taken over at construction (so construct it after registering channels).
-    A message making the open chunk larger than ``chunk_size`` closes it after that message, as
-    the library does. Used only when the writer is the one this was written
-    against (:meth:`usable`).
-    """
-
-    _HEAD = _FastMessages._HEAD  # noqa: SLF001
-    _INDEX_HEAD = struct.Struct("<BQHI")  # opcode 0x07, record length, channel id, records length
-    _CHUNK_HEAD = struct.Struct("<BQQQQI")  # opcode 0x06, record length, start, end, size, crc
-    _NAMES = {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4", CompressionType.NONE: ""}
-
-    @staticmethod
-    def usable(writer: Writer) -> bool:
-        from mcap.writer import IndexType
-
-        return _FastMessages.usable(writer) \
-            and getattr(writer, "_Writer__enable_crcs", None) is True \
-            and getattr(writer, "_Writer__enable_data_crcs", None) is False \
-            and getattr(writer, "_Writer__compression", None) in _ChunkMessages._NAMES \
-            and isinstance(getattr(writer, "_Writer__chunk_indices", None), list) \
-            and bool(getattr(writer, "_Writer__index_types", 0) & IndexType.MESSAGE) \
-            and writer._Writer__chunk_builder.num_messages == 0  # noqa: SLF001
-
-    def __init__(self, writer: Writer) -> None:
-        import zlib
-
-        self._st = writer._Writer__statistics  # noqa: SLF001 - see the class docstring
-        self._chunk_size: int = writer._Writer__chunk_size  # noqa: SLF001
-        self._chunk_indices: list = writer._Writer__chunk_indices  # noqa: SLF001
-        self._stream = writer._Writer__stream  # noqa: SLF001
-        compression = writer._Writer__compression  # noqa: SLF001
-        self._compression_name = self._NAMES[compression]
-        if compression == CompressionType.ZSTD:
-            import zstandard
-
-            self._compress = zstandard.ZstdCompressor(level=3).compress  # = zstandard.compress(data)
-        elif compression == CompressionType.LZ4:
-            import lz4.frame
-
-            self._compress = lz4.frame.compress
-        else:
-            self._compress = bytes
-        self._crc32 = zlib.crc32
-        self._reset()
-        # the schema and channel records the library put into its (message-less) open chunk
-        # come first in this chunk, as they would in the library's
-        opened = writer._Writer__chunk_builder.record_writer.end()  # noqa: SLF001
-        if opened:
-            self._pieces.append(bytes(opened))
-            self._size = len(opened)
-
-    def _reset(self) -> None:
-        self._pieces: list[bytes] = []
-        self._size = 0  # bytes of the records so far
-        self._indices: dict[int, list[int]] = {}  # channel -> [log time, offset, log time, offset, ...]
-        self._start = 0
-        self._end = 0
-        self._count = 0
-
-    def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
-        st = self._st
-        if st.message_count == 0 or log_time < st.message_start_time:
-            st.message_start_time = log_time
-        if log_time > st.message_end_time:
-            st.message_end_time = log_time
-        st.channel_message_counts[channel_id] += 1
-        st.message_count += 1
-        if self._count == 0 or log_time < self._start:
-            self._start = log_time
-        if log_time > self._end:
-            self._end = log_time
-        index = self._indices.get(channel_id)
-        if index is None:
-            index = self._indices[channel_id] = []
-        index += (log_time, self._size)
-        self._count += 1
-        self._pieces += (self._HEAD.pack(0x05, 22 + len(data), channel_id, sequence, log_time, publish_time), data)
-        self._size += 31 + len(data)
-        if self._size > self._chunk_size:
-            self.finalize()
-
-    def finalize(self) -> None:
-        """Write the open chunk (if it holds a message) and its message indexes to the stream."""
-        if self._count == 0:
-            return
-        self._st.chunk_count += 1
-        records = b"".join(self._pieces)
-        compressed = self._compress(records)
-        name = self._compression_name.encode()
-        stream = self._stream
-        chunk_start = stream.tell()
-        head = self._CHUNK_HEAD.pack(0x06, 8 + 8 + 8 + 4 + 4 + len(name) + 8 + len(compressed), self._start,
-                                     self._end, len(records), self._crc32(records))
-        stream.write(b"".join((head, struct.pack("<I", len(name)), name, struct.pack("<Q", len(compressed)),
-                               compressed)))
-        chunk_length = stream.tell() - chunk_start
-        index_start = stream.tell()
-        offsets = {}
-        parts = []
-        at = 0
-        for channel_id, flat in self._indices.items():
-            offsets[channel_id] = index_start + at
-            n = 8 * len(flat)
-            parts.append(self._INDEX_HEAD.pack(0x07, 6 + n, channel_id, n))
-            parts.append(struct.pack(f"<{len(flat)}Q", *flat))
-            at += 15 + n
-        stream.write(b"".join(parts))
-        self._chunk_indices.append(_FastChunkIndex(
-            message_start_time=self._start, message_end_time=self._end, chunk_start_offset=chunk_start,
-            chunk_length=chunk_length, message_index_offsets=offsets, message_index_length=at,
-            compression=self._compression_name, compressed_size=len(compressed), uncompressed_size=len(records)))
-        self._reset()
-
-
-def _open_file(path: Path):  # noqa: ANN202 - a raw binary file
+def _open_file(path: Path):  # a raw binary file
     """The bag file, opened for writing unbuffered (tests replace this to simulate a full disk)."""
-    return open(path, "wb", buffering=0)  # noqa: SIM115
+    return open(path, "wb", buffering=0)
 
 
 class _BagFile:
@@ -382,10 +169,10 @@ class _BagFile:
     HOLD_BYTES = 16 * 1024 * 1024
     """Bytes held at most between two flushes (bags written without the 1-s bound)."""
 
-    def write(self, data) -> int:  # noqa: ANN001
+    def write(self, data) -> int:
         owner = self._owner
-        if owner._fault is not None:  # noqa: SLF001 - nothing more after a fault
-            raise owner._fault  # noqa: SLF001
+        if owner._fault is not None:  # nothing more after a fault
+            raise owner._fault
         n = len(data) if not isinstance(data, memoryview) else data.nbytes
         self._held.append(bytes(data))
         self._pos += n
@@ -405,7 +192,7 @@ class _BagFile:
                         raise OSError(errno.EIO, "the file took no bytes")
                     view = view[n:]
         except OSError as exc:
-            raise self._owner._fault_of(exc, self.path) from None  # noqa: SLF001
+            raise self._owner._fault_of(exc, self.path) from None
 
     def tell(self) -> int:
         return self._pos
@@ -413,11 +200,11 @@ class _BagFile:
     def flush(self) -> None:
         """Hand everything written so far to the operating system: a point to cut back to."""
         owner = self._owner
-        if owner._fault is not None:  # noqa: SLF001
-            raise owner._fault  # noqa: SLF001
+        if owner._fault is not None:
+            raise owner._fault
         self._write_out()
         self.good = self._pos
-        owner._on_safe_point()  # noqa: SLF001
+        owner._on_safe_point()
 
     def cut_back(self) -> None:
         """Truncate the file to its last complete chunk (frees what a fault left half written)."""
@@ -461,11 +248,11 @@ class BagRecorder:
             channels, before any message (evoscen records the resolved scenario
             configuration, see :mod:`evoscen_eval.rundata`).
         fast_writes: write messages and message indexes with one ``pack`` each
-            (:class:`_FastMessages`; default) instead of the mcap library's own method: the
+            (:class:`FastMessages`; default) instead of the mcap library's own method: the
             same bytes; False for the library's path (``scripts/bench_recording.py`` compares).
         chunk_writes: with ``fast_writes``, keep the open chunk in the recorder and write it with
-            a few operations per chunk (:class:`_ChunkMessages`; default): the same bytes; False
-            for :class:`_FastMessages` alone (the tests compare the three paths).
+            a few operations per chunk (:class:`ChunkMessages`; default): the same bytes; False
+            for :class:`FastMessages` alone (the tests compare the three paths).
 
     Raises:
         InputError: ``bag_dir`` exists and is not an empty directory, or cannot be
@@ -553,13 +340,13 @@ class BagRecorder:
                 },
             )
             self._topics[spec.name] = _TopicState(spec=spec, channel_id=channel_id)
-        self._chunk: _ChunkMessages | None = None
-        if fast_writes and chunk_writes and _ChunkMessages.usable(self._writer):
+        self._chunk: ChunkMessages | None = None
+        if fast_writes and chunk_writes and ChunkMessages.usable(self._writer):
             # after the channels: the library writes schemas and channels into its open chunk too
-            self._chunk = _ChunkMessages(self._writer)
+            self._chunk = ChunkMessages(self._writer)
             self._add_message = self._chunk.add
-        elif fast_writes and _FastMessages.usable(self._writer):
-            self._add_message = _FastMessages(self._writer).add
+        elif fast_writes and FastMessages.usable(self._writer):
+            self._add_message = FastMessages(self._writer).add
         else:
             self._add_message = self._writer.add_message
         for name, record in (metadata or {}).items():
@@ -746,22 +533,22 @@ class BagRecorder:
 
     def _write_queued(self, messages: Sequence[tuple[int, int, int, str, Any, bool]]) -> None:
         """:meth:`write_many` of ``(log_time_ns, _, _, topic, data, canonical)`` (:class:`OrderedBag`'s
-        queue entries) on the :class:`_ChunkMessages` path, in one loop: the bookkeeping of
-        :meth:`write` and of :meth:`_ChunkMessages.add` for each message, written out here (a
+        queue entries) on the :class:`ChunkMessages` path, in one loop: the bookkeeping of
+        :meth:`write` and of :meth:`ChunkMessages.add` for each message, written out here (a
         message that is not canonical ``bytes`` of a declared topic at an ``int`` time >= 0 goes
         through :meth:`write`, its checks and errors). The same file as :meth:`write` per message
         (tests compare)."""
         if self._closed:
             raise ValueError(f"BagRecorder {str(self.bag_dir)!r}: write after close")
         chunk = self._chunk
-        st = chunk._st  # noqa: SLF001 - the writer's statistics, see _ChunkMessages
-        counts, indices = st.channel_message_counts, chunk._indices  # noqa: SLF001
-        topics, duration, limit = self._topics, self._chunk_duration_ns, chunk._chunk_size  # noqa: SLF001
-        head = _ChunkMessages._HEAD.pack  # noqa: SLF001
+        st = chunk._st  # the writer's statistics, see ChunkMessages
+        counts, indices = st.channel_message_counts, chunk._indices
+        topics, duration, limit = self._topics, self._chunk_duration_ns, chunk._chunk_size
+        head = ChunkMessages._HEAD.pack
         raw_ok = self._canonical is None
         # the open chunk's and the bag's running figures as locals, put back (``sync``) before anything
         # that reads them: closing a chunk, write(), the end; times as min / max, which order leaves alone
-        pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
+        pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end
         chunk_start = self._chunk_start_ns
         n = 0  # messages since the last sync
         lo = hi = 0
@@ -774,7 +561,7 @@ class BagRecorder:
                 or not (canonical or raw_ok)
             new_chunk = not slow and duration and chunk_start is not None and log_time - chunk_start >= duration
             if slow or new_chunk:
-                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end
                 self._chunk_start_ns = chunk_start
                 self._sync(st, n, lo, hi)
                 n = 0
@@ -783,8 +570,8 @@ class BagRecorder:
                 else:
                     self._flush_chunk()  # close the chunk, write it out and hand it to the OS
                     self._chunk_start_ns = log_time
-                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
-                indices, chunk_start = chunk._indices, self._chunk_start_ns  # noqa: SLF001
+                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end
+                indices, chunk_start = chunk._indices, self._chunk_start_ns
                 if slow:
                     continue
             elif duration and chunk_start is None:
@@ -811,13 +598,13 @@ class BagRecorder:
             pieces += (head(0x05, 22 + len(data), channel_id, seq, log_time, log_time), data)
             size += 31 + len(data)
             if size > limit:
-                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end
                 self._sync(st, n, lo, hi)
                 n = 0
                 chunk.finalize()
-                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end  # noqa: SLF001
-                indices = chunk._indices  # noqa: SLF001
-        chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end  # noqa: SLF001
+                pieces, size, count, c_start, c_end = chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end
+                indices = chunk._indices
+        chunk._pieces, chunk._size, chunk._count, chunk._start, chunk._end = pieces, size, count, c_start, c_end
         self._chunk_start_ns = chunk_start
         self._sync(st, n, lo, hi)
 
@@ -844,15 +631,15 @@ class BagRecorder:
             elif t - self._chunk_start_ns >= duration:
                 self._flush_chunk()  # close the chunk, write it out and hand it to the OS
                 self._chunk_start_ns = t
-        st = chunk._st  # noqa: SLF001 - the writer's statistics, see _ChunkMessages
-        counts, head, limit = st.channel_message_counts, _ChunkMessages._HEAD.pack, chunk._chunk_size  # noqa: SLF001
-        pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count  # noqa: SLF001
+        st = chunk._st  # the writer's statistics, see ChunkMessages
+        counts, head, limit = st.channel_message_counts, ChunkMessages._HEAD.pack, chunk._chunk_size
+        pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
         n = 0
         for topic, parts in messages:
-            if count == 0 or t < chunk._start:  # noqa: SLF001
-                chunk._start = t  # noqa: SLF001
-            if t > chunk._end:  # noqa: SLF001
-                chunk._end = t  # noqa: SLF001
+            if count == 0 or t < chunk._start:
+                chunk._start = t
+            if t > chunk._end:
+                chunk._end = t
             state = topics[topic]
             state.message_count = seq = state.message_count + 1
             channel_id = state.channel_id
@@ -868,17 +655,17 @@ class BagRecorder:
             pieces += parts
             size += 31 + length
             if size > limit:
-                chunk._size, chunk._count = size, count  # noqa: SLF001
+                chunk._size, chunk._count = size, count
                 self._sync(st, n, t, t)
                 n = 0
                 chunk.finalize()
-                pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count  # noqa: SLF001
-        chunk._size, chunk._count = size, count  # noqa: SLF001
+                pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
+        chunk._size, chunk._count = size, count
         self._sync(st, n, t, t)
 
-    def _sync(self, st, n: int, lo: int, hi: int) -> None:  # noqa: ANN001 - mcap's Statistics
+    def _sync(self, st, n: int, lo: int, hi: int) -> None:  # mcap's Statistics
         """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
-        the bag's own (what :meth:`_ChunkMessages.add` and :meth:`write` count one at a time)."""
+        the bag's own (what :meth:`ChunkMessages.add` and :meth:`write` count one at a time)."""
         if n:
             if st.message_count == 0 or lo < st.message_start_time:
                 st.message_start_time = lo
@@ -1057,138 +844,6 @@ def _dump_metadata_yaml(info: dict[str, Any]) -> tuple[str, str]:
     return text, f"{_METADATA_KEY}:\n" + "".join("  " + line for line in text.splitlines(True))
 
 
-# ---------------------------------------------------------------------- reading
-
-
-def read_bag_metadata(bag_dir: Path) -> dict[str, Any] | None:
-    """The ``rosbag2_bagfile_information`` mapping of ``bag_dir/metadata.yaml`` (None if absent).
-
-    Read with the limits of docs/input-limits.md (at most
-    :data:`~evoscen_sim.limits.MAX_METADATA_YAML_BYTES`, UTF-8 without NUL bytes, nesting at
-    most :data:`~evoscen_sim.limits.MAX_YAML_DEPTH`); anything else is one InputError line.
-    """
-    from evoscen_sim.limits import MAX_METADATA_YAML_BYTES, check_yaml_depth, read_text_limited
-
-    meta_path = bag_dir / "metadata.yaml"
-    if not (meta_path.exists() or meta_path.is_symlink()):
-        return None
-    label = f"bag {str(bag_dir)!r}: metadata.yaml"
-    text = read_text_limited(meta_path, label, "the file", MAX_METADATA_YAML_BYTES)
-    check_yaml_depth(text, label, "the file")
-    try:
-        meta = yaml.safe_load(text)
-        info = meta["rosbag2_bagfile_information"]
-    except (yaml.YAMLError, KeyError, TypeError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
-        raise InputError(
-            f"bag {str(bag_dir)!r}: metadata.yaml is unreadable or not rosbag2 metadata: {reason}"
-        ) from None
-    if not isinstance(info, dict):
-        raise InputError(f"bag {str(bag_dir)!r}: metadata.yaml rosbag2_bagfile_information is not a mapping")
-    return info
-
-
-def _contained_file(bag_dir: Path, name: Any) -> Path:
-    """``bag_dir / name`` if ``name`` is a relative path that stays inside ``bag_dir``."""
-    where = f"bag {str(bag_dir)!r}: metadata.yaml relative_file_paths entry {name!r}"
-    if not isinstance(name, str) or not name or "\0" in name:
-        raise InputError(f"{where}: expected a file name inside the bag directory")
-    rel = Path(name)
-    if rel.is_absolute() or ".." in rel.parts:
-        raise InputError(f"{where}: points outside the bag directory; expected a file name inside it")
-    path = bag_dir / rel
-    try:
-        inside = path.resolve().is_relative_to(bag_dir.resolve())
-    except (OSError, RuntimeError):
-        inside = False
-    if not inside:
-        raise InputError(f"{where}: resolves outside the bag directory (a link?); expected a file inside it")
-    return path
-
-
-def bag_file(bag_dir: Path) -> Path:
-    """Return the .mcap file of a bag directory (or the file itself if given one).
-
-    The file named by ``metadata.yaml``'s ``relative_file_paths`` must lie inside the bag
-    directory (an absolute path, ``..`` or a link leading out is refused)."""
-    if bag_dir.is_file():
-        return bag_dir
-    if not bag_dir.is_dir():
-        raise InputError(f"bag {str(bag_dir)!r}: no such bag directory or .mcap file")
-    info = read_bag_metadata(bag_dir)
-    if info is not None:
-        files = info.get("relative_file_paths")
-        if not isinstance(files, list) or len(files) != 1:
-            raise InputError(
-                f"bag {str(bag_dir)!r}: metadata.yaml relative_file_paths {files!r}; "
-                "exactly one .mcap file is supported"
-            )
-        path = _contained_file(bag_dir, files[0])
-        if not path.is_file():
-            raise InputError(f"bag {str(bag_dir)!r}: file {files[0]!r} named in metadata.yaml is missing")
-        return path
-    mcaps = sorted(bag_dir.glob("*.mcap"))
-    if len(mcaps) != 1:
-        raise InputError(
-            f"bag {str(bag_dir)!r}: no metadata.yaml and {len(mcaps)} .mcap files "
-            "(expected exactly one)"
-        )
-    return mcaps[0]
-
-
-def open_bag_reader(
-    bag_dir: Path | str, *, log_time_order: bool = False
-) -> Iterator[tuple[str, str, int, bytes]]:
-    """Iterate over the raw messages of a bag.
-
-    Args:
-        bag_dir: a bag directory (or directly its ``.mcap`` file).
-        log_time_order: False (default): file order, i.e. the order written (for a bag
-            of :class:`BagRecorder` the recording order); True: sorted by log time
-            (ties in file order).
-
-    Returns:
-        An iterator of ``(topic, type_name, log_time_ns, cdr_bytes)``.
-
-    Raises:
-        InputError: the bag is missing, not an MCAP file, truncated or corrupt (the
-            message names the path). Raised by this call for what the file's start and
-            summary show, and during iteration for corrupt data further on.
-    """
-    path = bag_file(Path(bag_dir))
-    try:
-        stream = open(path, "rb")  # noqa: SIM115
-    except OSError as exc:
-        raise InputError(f"bag {str(path)!r}: cannot open: {exc.strerror or exc}") from None
-    try:
-        reader = make_reader(stream)
-        reader.get_header()
-        reader.get_summary()
-    except (McapError, ValueError, KeyError, EOFError, OSError, IndexError) as exc:
-        stream.close()
-        raise InputError(f"bag {str(path)!r}: not a readable MCAP file: {exc}") from None
-    except Exception as exc:  # noqa: BLE001 - any decoder failure is a bad file
-        stream.close()
-        raise InputError(f"bag {str(path)!r}: not a readable MCAP file: {exc!r}") from None
-    return _iter_messages(stream, reader, path, log_time_order)
-
-
-def _iter_messages(
-    stream: BinaryIO, reader: Any, path: Path, log_time_order: bool
-) -> Iterator[tuple[str, str, int, bytes]]:
-    """Yield ``(topic, type, log_time_ns, data)``; close ``stream`` at the end."""
-    try:
-        for schema, channel, message in reader.iter_messages(log_time_order=log_time_order):
-            type_name = schema.name if schema is not None else ""
-            yield channel.topic, type_name, int(message.log_time), bytes(message.data)
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - corrupt data anywhere in the file
-        raise InputError(f"bag {str(path)!r}: corrupt MCAP data: {exc!r}") from None
-    finally:
-        stream.close()
-
-
 class OrderedBag:
     """A :class:`BagRecorder` front that writes messages in one canonical order.
 
@@ -1239,8 +894,8 @@ class OrderedBag:
             ready, self._pending = pending[:k], pending[k:]
         if ready:
             if self.on_write is None:
-                if self.bag._chunk is not None:  # noqa: SLF001 - the recorder's own queue format
-                    self.bag._write_queued(ready)  # noqa: SLF001
+                if self.bag._chunk is not None:  # the recorder's own queue format
+                    self.bag._write_queued(ready)
                 else:
                     self.bag.write_many([(t, topic, data, canonical) for t, _, _, topic, data, canonical in ready])
             else:

@@ -32,7 +32,7 @@ from typing import Any
 import yaml
 
 from evoscen_contract.qos import QosSpec
-from evoscen_eval.recorder import bag_file, open_bag_reader, read_bag_metadata
+from evoscen_eval.bag_reader import bag_file, open_bag_reader, read_bag_metadata
 from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_SECONDS_ARG
 

@@ -347,7 +347,7 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
     return names
 
 
-def _traffic_plot(plt, plot: PlotData, tr: dict[str, Any], dt: float, out: Path) -> str:  # noqa: ANN001
+def _traffic_plot(plt, plot: PlotData, tr: dict[str, Any], dt: float, out: Path) -> str:
     """``traffic.png``: BVs within the range of the SUT over time with each window's mean."""
     from matplotlib.ticker import MaxNLocator
 
@@ -372,7 +372,7 @@ def _traffic_plot(plt, plot: PlotData, tr: dict[str, Any], dt: float, out: Path)
     return _save(fig, out, "traffic.png")
 
 
-def _save(fig, out: Path, name: str) -> str:  # noqa: ANN001
+def _save(fig, out: Path, name: str) -> str:
     fig.tight_layout()
     fig.savefig(out / name, dpi=100)
     import matplotlib.pyplot as plt
@@ -381,7 +381,7 @@ def _save(fig, out: Path, name: str) -> str:  # noqa: ANN001
     return name
 
 
-def _snapshot(plt, scene: Scene, lane_segments: np.ndarray | None, highlight: set[int], title: str,  # noqa: ANN001
+def _snapshot(plt, scene: Scene, lane_segments: np.ndarray | None, highlight: set[int], title: str,
               out: Path, name: str) -> str:
     """Bird's-eye view around the SUT in ``scene``: lane lines, every vehicle as its box."""
     from matplotlib.collections import LineCollection

@@ -165,7 +165,7 @@ class RunAccumulator:
 
             self.lane_segments = lane_segments(deserialize_message(data, T.MAP_MARKERS.msg_class))
 
-    def add_map(self, road) -> None:  # noqa: ANN001 - a RoadModel
+    def add_map(self, road) -> None:  # a RoadModel
         """The lane lines of ``road`` (what ``/evoscen/map_markers`` carries)."""
         from evoscen_contract.markers import road_markers
 
@@ -263,7 +263,7 @@ def lane_segments(markers: Any) -> np.ndarray:
     return np.concatenate(segs) if segs else np.zeros((0, 2, 2))
 
 
-def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # noqa: ANN001 - a ScenarioConfig
+def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # a ScenarioConfig
     """The metadata record content for ``cfg`` (the same YAML text in every runner).
 
     With ``external_sut`` the record also says that the SUT was a user's node, whatever the
@@ -448,7 +448,7 @@ def _read_bag(bag_dir: Path | str, acc: RunAccumulator, before_first_state: Any 
     from mcap.records import Channel, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
 
-    from .recorder import bag_file
+    from .bag_reader import bag_file
 
     path = bag_file(Path(bag_dir))
     channels: dict[int, str] = {}

@@ -44,11 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from evoscen_contract import contract as C
-from evoscen_sim.safety import (attribution_steps, beside_dangerous, beside_gap, beside_severity, cut_in_dangerous,
-                                cut_in_gap, dangerous, drac, exposure_runs, follower_headway, follower_ttc,
-                                grace_steps, headway_dangerous, held_longer_than,
-                                rear_dangerous,
-                                sut_follower, sut_leader, sut_ttc)
+from evoscen_sim.safety import (attribution_steps, beside_gap, beside_severity, cut_in_gap, danger_terms, drac,
+                                exposure_runs, follower_headway, follower_ttc, sut_follower, sut_leader, sut_ttc)
 
 BLOCK_STATES = 256
 """States reduced together (the block size bounds the memory of the stream)."""
@@ -160,7 +157,7 @@ class ScoreStream:
         dt_s: the step; None: taken from the first two stamps (0.1 s for a single state).
     """
 
-    def __init__(self, ev, dt_s: float | None = None) -> None:  # noqa: ANN001 - EvaluationConfig
+    def __init__(self, ev, dt_s: float | None = None) -> None:  # EvaluationConfig
         self.ev = ev
         self.dt_s = dt_s
         self._block: list[np.ndarray] = []
@@ -260,7 +257,7 @@ class ScoreStream:
         if len(self._block) == BLOCK_STATES:
             self._reduce_block()
 
-    def add_events(self, events) -> None:  # noqa: ANN001 - iterable of event dicts
+    def add_events(self, events) -> None:  # iterable of event dicts
         """Event dicts (``/evoscen/events``); the scores read collisions and the SUT's lane changes."""
         for event in events:
             name = event.get("name")
@@ -280,7 +277,7 @@ class ScoreStream:
 
     # ------------------------------------------------------------------ one block
 
-    def _reduce_block(self) -> None:  # noqa: PLR0915 - one linear reduction
+    def _reduce_block(self) -> None:
         if not self._block:
             return
         ev, sut = self.ev, self.sut
@@ -309,18 +306,14 @@ class ScoreStream:
         leader, gap = sut_leader(s, d, length, width, sut)
         l_speed = np.where(leader >= 0, v[rows, np.maximum(leader, 0)], np.nan)
         drac_sut = drac(gap, speed, l_speed)
-        front = dangerous(ttc, accel, ev.ttc_threshold_s, ev.hard_brake_mps2, ev.hard_braking, drac_sut, thw,
-                          ev.rear_braking_headway_s)
-        tailgate, self._headway_run = held_longer_than(headway_dangerous(gap, speed, l_speed, ev.headway_threshold_s),
-                                                       grace_steps(ev.headway_grace_s, dt), self._headway_run)
-        rear_conflict = rear_dangerous(f_ttc, f_accel, thw, ev.ttc_threshold_s, ev.hard_brake_mps2,
-                                       ev.rear_braking, ev.rear_braking_headway_s)
-        rear_danger = rear_conflict & attributed
         _, cut_gap = cut_in_gap(s, d, length, width, c["lane"], c["target_lane"], c["lane_change"], sut)
-        cut_in = cut_in_dangerous(cut_gap, ev.cut_in_gap_m)
         beside_j, beside_g = beside_gap(s, length, c["lane"], c["target_lane"], c["lane_change"], sut)
-        beside = beside_dangerous(beside_g, ev.beside_lane_change)
-        danger = front | rear_danger | cut_in | beside | tailgate
+        terms, self._headway_run = danger_terms(
+            ev, dt, ttc=ttc, sut_accel=accel, drac_sut=drac_sut, follower_ttc_s=f_ttc, follower_accel=f_accel,
+            follower_thw_s=thw, attributed=attributed, leader_gap_m=gap, sut_speed=speed, leader_speed=l_speed,
+            cut_in_gap_m=cut_gap, beside_gap_m=beside_g, headway_run=self._headway_run)
+        front, rear_conflict, rear_danger = terms.front, terms.rear_conflict, terms.rear
+        cut_in, beside, tailgate, danger = terms.cut_in, terms.beside, terms.tailgating, terms.danger
         drac_f = drac(f_gap, f_speed, speed)
         ds = s - s[:, sut:sut + 1]
         in_view = (ds >= -ev.view_behind_m) & (ds <= ev.view_ahead_m)
@@ -557,7 +550,7 @@ class ScoreStream:
             else:
                 lst.append(int(value))
 
-    def _track_changes(self, lc_sut, ks, c, tables, in_view, starts, v, a) -> None:  # noqa: ANN001, PLR0913
+    def _track_changes(self, lc_sut, ks, c, tables, in_view, starts, v, a) -> None:
         """Open and close the SUT's lane changes (:func:`evoscen_eval.metrics.change_intervals`) and
         add this block's rows to each change's interaction sums and PET window."""
         k0 = int(ks[0])
@@ -625,7 +618,7 @@ class ScoreStream:
         if pet[m] < ch.pet:
             ch.pet, ch.pet_state, ch.pet_follower = float(pet[m]), k0 + lo + m, int(self.ids[j[m]])
 
-    def _timeline(self, ks, times, speed, lane, ttc, bvs) -> None:  # noqa: ANN001
+    def _timeline(self, ks, times, speed, lane, ttc, bvs) -> None:
         """Per bucket: the first state's time, speed and lane, the lowest TTC, and the sum of the
         BV counts near the SUT with the bucket's number of states (integers: their mean is exact)."""
         tl = self._tl

@@ -17,40 +17,13 @@ from evoscen_contract import topics as T
 from evoscen_eval.metrics import evaluate
 from evoscen_eval.report import markdown, report_of
 from evoscen_eval.rundata import RECORDED_BEFORE_KEYS, RunAccumulator, RunData, evaluation_settings_of
-from evoscen_eval.testing import drive
+from evoscen_eval.testing import drive, rear_run
 from evoscen_sim.config import EvaluationConfig, ScenarioConfig, config_to_dict
 from evoscen_sim.events import ExposureMonitor
 from evoscen_sim.road import load_road
 from evoscen_sim.testing import hand_built_world
 
 EV = EvaluationConfig()
-
-
-def rear_run(states: int = 40) -> RunData:
-    """SUT (vehicle 0) at s = 100 m, 25 m/s, lane 2 (d = 0) changing left into lane 3 (d = 3.5)
-    over states 5..9 (d = 0.7, 1.4, ..., 3.5); vehicle 1 in lane 3 at s = 90 m, 30 m/s, d = 3.5
-    all along. Bodies 4.8 x 1.9 m: vehicle 1 is in the SUT's path (|Δd| < 1.9) from state 7
-    (d_sut = 2.1); gap 10 − 4.8 = 5.2 m, TTC = 5.2 / 5 = 1.04 s, DRAC = 5² / (2·5.2) = 2.4038 m/s²,
-    PET = 5.2 / 30 = 0.17333 s. dt = 0.1 s."""
-    c = {f: np.zeros((states, 2)) for f in T.WORLD_FIELDS}
-    c["id"][:] = np.arange(2)
-    c["role"][:, 0] = 1
-    c["length"][:] = 4.8
-    c["width"][:] = 1.9
-    c["s"][:, 0], c["s"][:, 1] = 100.0, 90.0
-    c["speed"][:, 0], c["speed"][:, 1] = 25.0, 30.0
-    c["lane"][:, 0], c["lane"][:, 1] = 2, 3
-    c["target_lane"][:] = c["lane"]
-    c["d"][:, 1] = 3.5
-    c["d"][5:10, 0] = 0.7 * np.arange(1, 6)
-    c["d"][10:, 0] = 3.5
-    c["lane_change"][5:10, 0] = 1
-    c["target_lane"][5:, 0] = 3
-    c["lane"][8:, 0] = 3  # centre over the line at state 8
-    events = [{"name": T.EVENT_LANE_CHANGE, "step": 10, "time_s": 1.0, "ids": [0], "duration_s": 0.5,
-               "kind": "completed"}]
-    return RunData(time_s=np.arange(states) * 0.1, columns=c, ids=np.arange(2), sut_index=0,
-                   events=events, dt_s=0.1, complete=True)
 
 
 # ---------------------------------------------------------------------- hand-built runs

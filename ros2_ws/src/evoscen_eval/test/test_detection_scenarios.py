@@ -96,7 +96,7 @@ def test_a_needed_hard_brake_counts_whatever_the_sut_does(road):
     # from step 3. DRAC = 30^2 / (2 gap): state 1, gap 77 m: 5.84 m/s^2; state 2, gap 74 m: 6.08 > 6.
     # TTC = gap / 30 < 2 s only from gap < 60 m. conflict (default): dangerous from state 2, while the
     # needed deceleration exceeds 6 m/s^2, before the SUT brakes at all; own: from its braking (state 4).
-    def run(mode):  # noqa: ANN001, ANN202
+    def run(mode):
         world = hand_built_world(road, [300.0, 384.8], [2, 2], [30.0, 0.0], roles=[1, 0])
         return drive_run(world, lambda k: ([-1.0 if k >= 3 else 0.0, 0.0], [0, 0]), 60,
                          replace(EV, hard_braking=mode))

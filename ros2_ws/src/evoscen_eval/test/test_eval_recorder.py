@@ -28,7 +28,8 @@ from evoscen_contract.topics import (
     odometry_message,
     parse_events,
 )
-from evoscen_eval.recorder import BagRecorder, open_bag_reader
+from evoscen_eval.bag_reader import open_bag_reader
+from evoscen_eval.recorder import BagRecorder
 from evoscen_eval.schemas import message_definition
 from evoscen_sim.errors import InputError
 
@@ -377,11 +378,11 @@ def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_pa
 
 @pytest.mark.parametrize("compression", ["none", "zstd"])
 def test_fast_message_path_writes_the_librarys_bytes(tmp_path: Path, monkeypatch, compression: str) -> None:
-    """The recorder's one-pack message and message-index writing (``_FastMessages``) gives the
+    """The recorder's one-pack message and message-index writing (:class:`evoscen_eval.mcap_internals.FastMessages`) gives the
     bytes of mcap's own ``Writer.add_message``: the same messages — several topics, sizes from
     0 to 3,000 bytes, equal and decreasing log times, chunks closed by size (4 kB) and by the
     1-s duration rule — recorded both ways, byte for byte."""
-    from evoscen_eval import recorder as R
+    from evoscen_eval import mcap_internals as MI
 
     rng = np.random.default_rng(5)
     topics = [spec.name for spec in CONTRACT]
@@ -397,8 +398,8 @@ def test_fast_message_path_writes_the_librarys_bytes(tmp_path: Path, monkeypatch
         bag.close()
         return (tmp_path / name / "bag" / "bag_0.mcap").read_bytes()
 
-    assert R._FastMessages.usable(BagRecorder(tmp_path / "probe", CONTRACT)._writer)
+    assert MI.FastMessages.usable(BagRecorder(tmp_path / "probe", CONTRACT)._writer)
     fast = record("fast", True)
     assert record("library", False) == fast
-    monkeypatch.setattr(R._FastMessages, "usable", staticmethod(lambda writer: False))  # another mcap: its path
+    monkeypatch.setattr(MI.FastMessages, "usable", staticmethod(lambda writer: False))  # another mcap: its path
     assert record("other", True) == fast

@@ -1,9 +1,9 @@
 """The recorder's three write paths give the same bytes (issue 14).
 
 :class:`~evoscen_eval.recorder.BagRecorder` writes messages through the mcap library's
-``Writer.add_message`` (``fast_writes=False``), through :class:`~evoscen_eval.recorder._FastMessages`
+``Writer.add_message`` (``fast_writes=False``), through :class:`~evoscen_eval.mcap_internals.FastMessages`
 (one ``pack`` per record into the library's chunk builder; ``chunk_writes=False``) or through
-:class:`~evoscen_eval.recorder._ChunkMessages` (the recorder keeps the open chunk and writes chunk
+:class:`~evoscen_eval.mcap_internals.ChunkMessages` (the recorder keeps the open chunk and writes chunk
 record and message indexes itself; the default). The same messages — random topics, sizes 0 to
 3,000 bytes, equal and decreasing log times — written every way, with chunks closed by size, by
 the 1-s rule and by explicit flushes, must give byte-identical files for every compression; so
@@ -18,8 +18,10 @@ import numpy as np
 import pytest
 
 from evoscen_contract.topics import CONTRACT
+from evoscen_eval import mcap_internals as MI
 from evoscen_eval import recorder as R
-from evoscen_eval.recorder import BagRecorder, open_bag_reader
+from evoscen_eval.bag_reader import open_bag_reader
+from evoscen_eval.recorder import BagRecorder
 
 PATHS = {"library": {"fast_writes": False}, "fast": {"chunk_writes": False}, "chunk": {}}
 
@@ -71,7 +73,7 @@ def test_empty_bag_is_the_same_every_way(tmp_path: Path) -> None:
 def test_chunk_path_is_used_and_falls_back(tmp_path: Path, monkeypatch) -> None:
     assert BagRecorder(tmp_path / "a" / "bag", CONTRACT)._chunk is not None
     assert BagRecorder(tmp_path / "b" / "bag", CONTRACT, chunk_writes=False)._chunk is None
-    monkeypatch.setattr(R._ChunkMessages, "usable", staticmethod(lambda writer: False))  # another mcap
+    monkeypatch.setattr(MI.ChunkMessages, "usable", staticmethod(lambda writer: False))  # another mcap
     assert BagRecorder(tmp_path / "c" / "bag", CONTRACT)._chunk is None
 
 

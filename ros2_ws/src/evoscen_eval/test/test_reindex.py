@@ -16,7 +16,8 @@ import pytest
 
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
-from evoscen_eval.recorder import BagRecorder, open_bag_reader
+from evoscen_eval.bag_reader import open_bag_reader
+from evoscen_eval.recorder import BagRecorder
 from evoscen_eval.reindex import reindex_bag
 from evoscen_sim.errors import InputError
 

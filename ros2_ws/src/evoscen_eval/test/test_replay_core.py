@@ -89,7 +89,7 @@ def test_offered_qos_several_offers_are_adapted() -> None:
     ("42", "expected a list"),
     (["x"], "expected a mapping"),
 ])
-def test_offered_qos_errors_name_the_key(value, needle) -> None:  # noqa: ANN001
+def test_offered_qos_errors_name_the_key(value, needle) -> None:
     with pytest.raises(InputError, match="bag 'b': topic '/t'") as info:
         parse_offered_qos(value, "bag 'b': topic '/t'")
     assert needle in str(info.value)
@@ -99,7 +99,7 @@ def test_offered_qos_errors_name_the_key(value, needle) -> None:  # noqa: ANN001
 # ------------------------------------------------------------------ bags
 
 
-def _record(bag_dir: Path, order=((0, CLOCK.name), (1, CLOCK.name))) -> Path:  # noqa: ANN001
+def _record(bag_dir: Path, order=((0, CLOCK.name), (1, CLOCK.name))) -> Path:
     """A contract bag: the roster at t=0, then /clock messages at the given (step, topic) in file order."""
     import numpy as np
 
@@ -230,7 +230,7 @@ class FakeClock:
 
 @pytest.mark.parametrize("rate, expected", [(1.0, [0.0, 0.1, 0.3, 0.3]), (2.0, [0.0, 0.05, 0.15, 0.15]),
                                             (0.5, [0.0, 0.2, 0.6, 0.6]), (0.0, [0.0, 0.0, 0.0, 0.0])])
-def test_pacer_spaces_messages_by_simulation_time(rate, expected) -> None:  # noqa: ANN001
+def test_pacer_spaces_messages_by_simulation_time(rate, expected) -> None:
     fc = FakeClock()
     pacer = Pacer(rate, clock=fc.clock, sleep=fc.sleep)
     times = []

@@ -61,7 +61,7 @@ def busy_run():
     return run
 
 
-def _same(a, b, path="report"):  # noqa: ANN001
+def _same(a, b, path="report"):
     if isinstance(a, dict):
         assert set(a) == set(b), path
         for k in a:

@@ -28,15 +28,12 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
 import pytest
 
-from evoscen_contract import topics as T
 from evoscen_eval import streaming
 from evoscen_eval.metrics import evaluate
 from evoscen_eval.report import markdown
-from evoscen_eval.rundata import RunData
-from evoscen_eval.testing import make_run
+from evoscen_eval.testing import make_run, rear_run
 from evoscen_sim.config import EvaluationConfig
 
 EV = EvaluationConfig()
@@ -59,33 +56,7 @@ def two_sided_run():
     return run
 
 
-def rear_run(states: int = 40) -> RunData:
-    """As test_conflicts.rear_run: the SUT (vehicle 0) at s = 100 m, 25 m/s, lane 2 (d = 0) changes
-    left into lane 3 (d = 3.5) over states 5..9 (d = 0.7, 1.4, ..., 3.5); vehicle 1 in lane 3 at
-    s = 90 m, 30 m/s, d = 3.5 all along, in the SUT's path from state 7 (d_sut = 2.1): gap 10 − 4.8
-    = 5.2 m, TTC 5.2/5 = 1.04 s, DRAC 5²/(2·5.2) = 2.404 m/s², PET 5.2/30 = 0.1733 s."""
-    c = {f: np.zeros((states, 2)) for f in T.WORLD_FIELDS}
-    c["id"][:] = np.arange(2)
-    c["role"][:, 0] = 1
-    c["length"][:] = 4.8
-    c["width"][:] = 1.9
-    c["s"][:, 0], c["s"][:, 1] = 100.0, 90.0
-    c["speed"][:, 0], c["speed"][:, 1] = 25.0, 30.0
-    c["lane"][:, 0], c["lane"][:, 1] = 2, 3
-    c["target_lane"][:] = c["lane"]
-    c["d"][:, 1] = 3.5
-    c["d"][5:10, 0] = 0.7 * np.arange(1, 6)
-    c["d"][10:, 0] = 3.5
-    c["lane_change"][5:10, 0] = 1
-    c["target_lane"][5:, 0] = 3
-    c["lane"][8:, 0] = 3
-    events = [{"name": T.EVENT_LANE_CHANGE, "step": 10, "time_s": 1.0, "ids": [0], "duration_s": 0.5,
-               "kind": "completed"}]
-    return RunData(time_s=np.arange(states) * 0.1, columns=c, ids=np.arange(2), sut_index=0,
-                   events=events, dt_s=0.1, complete=True)
-
-
-def check_two_sided(ss):  # noqa: ANN001
+def check_two_sided(ss):
     assert ss["sut_km"] == pytest.approx(KM, rel=1e-12)
     assert (ss["ttc_threshold_s"], ss["drac_threshold_mps2"], ss["pet_threshold_s"]) == (3.0, 3.0, 2.0)
     f, r = ss["front"], ss["rear"]
@@ -139,7 +110,7 @@ def test_thresholds_are_the_evaluation_keys():
 
 
 def test_lane_change_pet_event_on_the_rear():
-    """test_conflicts.rear_run: the SUT (25 m/s) changes into lane 3 ahead of vehicle 1 (30 m/s):
+    """evoscen_eval.testing.rear_run: the SUT (25 m/s) changes into lane 3 ahead of vehicle 1 (30 m/s):
     PET 5.2/30 = 0.1733 s < 2 s, one PET event; vehicle 1 is in the SUT's path from state 7 to the
     end (33 states) at TTC 5.2/5 = 1.04 s: one rear TTC episode, TET 3.3 s, TIT 0.1·33·1.96 =
     6.468 s²; DRAC 2.404 m/s²: none. SUT distance 40 · 0.1 · 25 m = 0.1 km."""

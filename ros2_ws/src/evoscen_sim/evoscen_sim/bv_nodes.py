@@ -29,6 +29,7 @@ from evoscen_contract.contract import POLICY_CODES, bv_node_name, command_topic
 
 from .config import ScenarioConfig, mix_counts
 from .errors import InputError
+from .models import checked_answer
 from .scenario import build_bv_driver, bv_indices, bv_policy_codes, scenario_rngs
 
 
@@ -102,20 +103,18 @@ class PartitionedDriver:
         pos = {int(v): k for k, v in enumerate(self.vehicles)}
         self.positions = [np.array([pos[int(r)] for r in node.rows], dtype=np.int64) for node, _ in parts]
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         throttle = np.zeros(self.vehicles.size)
         lane_change = np.zeros(self.vehicles.size, dtype=np.int64)
-        from evoscen_sim.models import checked_answer  # each node's answer checked as the node's controller does
-
         for (_, driver), pos in zip(self.parts, self.positions):
-            thr, lc = checked_answer(driver, driver.act(view))
+            thr, lc = checked_answer(driver, driver.act(view))  # each node's answer checked as its controller does
             throttle[pos], lane_change[pos] = thr, lc
         return throttle, lane_change
 
 
 
 
-def build_bv_drivers(cfg: ScenarioConfig):  # noqa: ANN201
+def build_bv_drivers(cfg: ScenarioConfig):
     """The BVs' driver as the BV nodes of ``bvs.nodes`` drive them (the in-process runner's): for one
     node its driver, else a :class:`PartitionedDriver` of one driver per BV node
     (:func:`evoscen_sim.scenario.build_bv_driver` for each node's share)."""

@@ -47,7 +47,7 @@ def idm_acceleration(
 
 
 @kernel
-def idm_scalar(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel):  # noqa: ANN001, ANN201
+def idm_scalar(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel):
     """IDM for one vehicle (compiled; callable from other kernels). See the module docstring."""
     free = 1.0 - (v / v0) ** delta
     if gap == np.inf or np.isnan(v_leader):
@@ -59,5 +59,5 @@ def idm_scalar(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel
 
 
 @elementwise
-def _idm_ufunc(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel):  # noqa: ANN001, ANN202
+def _idm_ufunc(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel):
     return idm_scalar(v, v0, gap, v_leader, time_headway, min_gap, accel, comfort_decel, delta, max_decel)

@@ -22,13 +22,13 @@ def overlapping_pairs(
     return _overlapping_pairs_kernel(s, d, psi, length, width)
 
 
-def boxes_overlap(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2) -> np.ndarray:  # noqa: ANN001
+def boxes_overlap(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2) -> np.ndarray:
     """Separating-axis test for (arrays of) box pairs; touching edges do not count."""
     return _boxes_overlap_ufunc(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2)
 
 
 @kernel
-def _sat(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2):  # noqa: ANN001, ANN202
+def _sat(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2):
     """Separating-axis test of two oriented boxes (centre, heading, length, width)."""
     c1, sn1 = np.cos(psi1), np.sin(psi1)
     c2, sn2 = np.cos(psi2), np.sin(psi2)
@@ -52,12 +52,12 @@ def _sat(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2):  # noqa: ANN001, ANN202
 
 
 @elementwise
-def _boxes_overlap_ufunc(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2):  # noqa: ANN001, ANN202
+def _boxes_overlap_ufunc(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2):
     return _sat(s1, d1, psi1, l1, w1, s2, d2, psi2, l2, w2)
 
 
 @kernel
-def _overlapping_pairs_kernel(s, d, psi, length, width):  # noqa: ANN001, ANN202
+def _overlapping_pairs_kernel(s, d, psi, length, width):
     n = s.shape[0]
     half_s = np.empty(n)
     half_d = np.empty(n)

@@ -126,7 +126,7 @@ def _parse_cli_scalar(text: str) -> Any:
     if len(text) > 10_000:
         return text
     try:
-        value = yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+        value = yaml.load(text, Loader=_Loader)  # _Loader is a SafeLoader
     except (yaml.YAMLError, RecursionError):
         return text
     stripped = text.strip()

@@ -69,7 +69,7 @@ class DualPidController:
 
 
 @kernel
-def _dual_pid_kernel(d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,  # noqa: ANN001, ANN202
+def _dual_pid_kernel(d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,
                      lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading, wheelbase, dt):
     n = d.shape[0]
     steer = np.empty(n)
@@ -81,7 +81,7 @@ def _dual_pid_kernel(d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_
 
 
 @kernel
-def dual_pid_one(i, d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,  # noqa: ANN001, ANN201
+def dual_pid_one(i, d, psi, v, d_target, kappa, int_d, int_psi, prev_e_d, prev_e_psi, fresh,
                  lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading, wheelbase, dt):
     """Steering request of vehicle ``i`` (compiled; updates the loop memory arrays at ``i``)."""
     v_eff = max(v, _MIN_SPEED_MPS)

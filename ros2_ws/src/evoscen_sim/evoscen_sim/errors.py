@@ -27,8 +27,8 @@ class HostFault(RuntimeError):
     (not known yet); ``steps``: world states in the bag.
     """
 
-    def __init__(self, message: str, *, path=None, cause: str = "", errno: int | None = None,  # noqa: ANN001
-                 bag_dir=None, bag_state: str | None = None, steps: int | None = None) -> None:  # noqa: ANN001
+    def __init__(self, message: str, *, path=None, cause: str = "", errno: int | None = None,
+                 bag_dir=None, bag_state: str | None = None, steps: int | None = None) -> None:
         super().__init__(message)
         self.path = path
         self.cause = cause
@@ -42,7 +42,7 @@ class HostFault(RuntimeError):
     ERRNOS = frozenset({28, 122, 30, 5, 27})  # ENOSPC, EDQUOT, EROFS, EIO, EFBIG
 
     @classmethod
-    def of(cls, exc: OSError, path, **kw) -> HostFault:  # noqa: ANN001
+    def of(cls, exc: OSError, path, **kw) -> HostFault:
         """The fault of an operating-system error ``exc`` writing ``path``."""
         import errno as errnos
 

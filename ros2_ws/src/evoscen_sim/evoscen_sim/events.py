@@ -9,18 +9,19 @@ SUT's exposures (:class:`ExposureMonitor`).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FAULT, EVENT_LANE_CHANGE, EVENT_OFF_ROAD,
                                        EVENT_REENTRY, EVENT_RUN_END, EVENT_SHIFT, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
                                        KIND_END, KIND_START, ROLE_SUT)
 
-from .safety import (RearAttribution, attribution_steps, beside_gap_state, cut_in_dangerous, cut_in_gap_state, drac_one, follower_headway,
-                     grace_steps, hard_braking_dangerous, headway_dangerous, rear_dangerous, sut_follower_ttc_state,
-                     sut_leader_ttc_state)
+from .safety import (RearAttribution, attribution_steps, beside_gap_state, cut_in_gap_state, danger_terms, drac_one,
+                     follower_headway, sut_follower_ttc_state, sut_leader_ttc_state)
 
 
-def step_events(world, result) -> list[dict]:  # noqa: ANN001
+def step_events(world, result) -> list[dict]:
     """The events of one :meth:`evoscen_sim.world.World.step` result."""
     ids = world.ids
     common = {"step": result.step, "time_s": result.time_s}
@@ -50,19 +51,19 @@ def step_events(world, result) -> list[dict]:  # noqa: ANN001
     return events
 
 
-def has_events(result) -> bool:  # noqa: ANN001
+def has_events(result) -> bool:
     """Whether a step result produces any event."""
     return bool(result.collisions or result.lane_changes_completed or result.lane_changes_aborted
                 or result.reentries or result.off_road or result.shift_m)
 
 
-def run_end_event(world, kind: str, message: str) -> dict:  # noqa: ANN001
+def run_end_event(world, kind: str, message: str) -> dict:
     """The last event of every run: ``kind`` is completed, aborted or interrupted."""
     return {"name": EVENT_RUN_END, "level": 0 if kind == KIND_COMPLETED else 2, "message": message,
             "step": world.step_index, "time_s": world.time_s, "steps": world.step_index, "kind": kind}
 
 
-def fault_event(world, kind: str, controller: str, misses: int, message: str) -> dict:  # noqa: ANN001
+def fault_event(world, kind: str, controller: str, misses: int, message: str) -> dict:
     """A controller fault: ``kind`` deadline (command held) or abort."""
     return {"name": EVENT_FAULT, "level": 1 if kind == KIND_DEADLINE else 2, "message": message,
             "step": world.step_index, "time_s": world.time_s, "controller": controller, "misses": misses,
@@ -78,90 +79,72 @@ class ExposureMonitor:
     the follower in its path when a rear conflict attributed to the SUT makes the state
     dangerous, the new follower when a cut-in does, and the vehicle beside when a lane change
     beside one does) and a ``kind: end`` event when it is over (``steps`` = its length in states).
-    The definitions are :mod:`evoscen_sim.safety`'s, the evaluator's; the rear-conflict
+    A state is dangerous as :func:`evoscen_sim.safety.danger_terms` says, the evaluator's
+    definition (this monitor gathers its inputs for one state); the rear-conflict
     attribution window (``evaluation.rear_conflicts``, docs/evaluation.md) is the one state
     this monitor keeps besides the open exposure, fed the SUT's ``lane_change`` column of
     every state as the evaluator reads it from the recorded world table.
     """
 
-    def __init__(self, evaluation, role: np.ndarray) -> None:  # noqa: ANN001 - an EvaluationConfig
-        self.ttc_threshold_s = evaluation.ttc_threshold_s
-        self.hard_brake_mps2 = evaluation.hard_brake_mps2
-        self.rear_conflicts = evaluation.rear_conflicts
-        self.rear_attribution_s = evaluation.rear_attribution_s
-        self.rear_braking = evaluation.rear_braking
-        self.rear_braking_headway_s = evaluation.rear_braking_headway_s
-        self.cut_in_gap_m = evaluation.cut_in_gap_m
-        self.beside_lane_change = evaluation.beside_lane_change
-        self.hard_braking = evaluation.hard_braking
-        self.headway_threshold_s = evaluation.headway_threshold_s
-        self.headway_grace_s = evaluation.headway_grace_s
+    def __init__(self, evaluation, role: np.ndarray) -> None:  # an EvaluationConfig
+        self.evaluation = evaluation
         self._headway_run = 0
         self.sut = int(np.flatnonzero(np.asarray(role) == ROLE_SUT)[0])
         self.start_step: int | None = None
         self._rear: RearAttribution | None = None
 
-    def observe(self, world) -> list[dict]:  # noqa: ANN001
+    def observe(self, world) -> list[dict]:
         """The exposure events of the world's current state."""
         w, sut = world, self.sut
         if self._rear is None:
-            self._rear = RearAttribution(self.rear_conflicts, attribution_steps(self.rear_attribution_s, w.dt_s))
+            self._rear = RearAttribution(self.evaluation.rear_conflicts,
+                                          attribution_steps(self.evaluation.rear_attribution_s, w.dt_s))
         leader, ttc = sut_leader_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = sut_leader, sut_ttc
         ttc = float(ttc)
         accel = float(w.accel[sut])
         k, common = w.step_index, {"step": w.step_index, "time_s": w.time_s}
         attributed = self._rear.observe(k, int(w.lane_change[sut]))
-        follower, f_ttc, f_thw = -1, np.inf, np.inf
-        conflict_rule = self.hard_braking == "conflict"
-        if attributed or (conflict_rule and accel < -self.hard_brake_mps2):
+        follower, f_ttc, f_thw, f_accel = -1, math.inf, math.inf, 0.0
+        conflict_rule = self.evaluation.hard_braking == "conflict"
+        if attributed or (conflict_rule and accel < -self.evaluation.hard_brake_mps2):
             follower, f_ttc = sut_follower_ttc_state(w.s, w.d, w.v, w.length, w.width, sut)  # = follower_ttc
             f_ttc, follower = float(f_ttc), int(follower)
             if follower >= 0:  # the arithmetic of safety.sut_follower and follower_headway, bit for bit
                 f_gap = (w.s[sut] - w.s[follower]) - 0.5 * (w.length[follower] + w.length[sut])
                 f_thw = float(follower_headway(np.float64(f_gap), np.float64(w.v[follower])))
-        drac_sut = 0.0
-        tailgating = False
-        if leader >= 0:  # the arithmetic of safety.sut_leader, drac and headway_dangerous, bit for bit
-            gap = (w.s[leader] - w.s[sut]) - 0.5 * (w.length[leader] + w.length[sut])
+                f_accel = float(w.accel[follower])
+        speed, drac_sut, gap, l_speed = float(w.v[sut]), 0.0, math.inf, math.nan
+        if leader >= 0:  # the arithmetic of safety.sut_leader and drac, bit for bit
+            gap = float((w.s[leader] - w.s[sut]) - 0.5 * (w.length[leader] + w.length[sut]))
+            l_speed = float(w.v[leader])
             if conflict_rule:
-                drac_sut = drac_one(float(gap), float(w.v[sut]), float(w.v[leader]))
-            tailgating = bool(headway_dangerous(np.float64(gap), np.float64(w.v[sut]), np.float64(w.v[leader]),
-                                                self.headway_threshold_s))
-        self._headway_run = self._headway_run + 1 if tailgating else 0  # = safety.held_longer_than
-        tailgating = self._headway_run > grace_steps(self.headway_grace_s, w.dt_s)
-        braking = bool(hard_braking_dangerous(accel, drac_sut, f_thw, self.hard_brake_mps2, self.hard_braking,
-                                              self.rear_braking_headway_s))
-        danger = bool(ttc < self.ttc_threshold_s) or braking or tailgating  # = safety.dangerous | headway_dangerous
-        rear = False
-        if attributed:
-            f_accel = float(w.accel[follower]) if follower >= 0 else 0.0
-            rear = bool(rear_dangerous(np.float64(f_ttc), np.float64(f_accel), np.float64(f_thw),
-                                       self.ttc_threshold_s, self.hard_brake_mps2, self.rear_braking,
-                                       self.rear_braking_headway_s))
-            danger = danger or rear
-        cut_in, new_follower, cut_gap = False, -1, np.inf
-        if w.lane_change[sut] != 0.0 and self.cut_in_gap_m > 0.0:
-            new_follower, cut_gap = cut_in_gap_state(w.s, w.d, w.length, w.width, w.lane, w.target_lane,
-                                                     w.lane_change, sut)  # = safety.cut_in_gap
-            cut_in = bool(cut_in_dangerous(np.float64(cut_gap), self.cut_in_gap_m))
-            danger = danger or cut_in
-        beside, beside_j, beside_g = False, -1, np.inf
-        if w.lane_change[sut] != 0.0 and self.beside_lane_change:
-            beside_j, beside_g = beside_gap_state(w.s, w.length, w.lane, w.target_lane, w.lane_change,
-                                                  sut)  # = safety.beside_gap
-            beside = bool(beside_g < 0.0)  # = safety.beside_dangerous
-            danger = danger or beside
+                drac_sut = drac_one(gap, speed, l_speed)
+        new_follower, cut_gap, beside_j, beside_g = -1, math.inf, -1, math.inf
+        if w.lane_change[sut] != 0.0:  # both gaps are inf while the SUT keeps its lane
+            if self.evaluation.cut_in_gap_m > 0.0:
+                new_follower, cut_gap = cut_in_gap_state(w.s, w.d, w.length, w.width, w.lane, w.target_lane,
+                                                         w.lane_change, sut)  # = safety.cut_in_gap
+            if self.evaluation.beside_lane_change:
+                beside_j, beside_g = beside_gap_state(w.s, w.length, w.lane, w.target_lane, w.lane_change,
+                                                      sut)  # = safety.beside_gap
+        terms, self._headway_run = danger_terms(
+            self.evaluation, w.dt_s, ttc=ttc, sut_accel=accel, drac_sut=drac_sut, follower_ttc_s=f_ttc,
+            follower_accel=f_accel, follower_thw_s=f_thw, attributed=attributed, leader_gap_m=gap, sut_speed=speed,
+            leader_speed=l_speed, cut_in_gap_m=float(cut_gap), beside_gap_m=float(beside_g),
+            headway_run=self._headway_run)
+        danger, braking, tailgating = bool(terms.danger), bool(terms.braking), bool(terms.tailgating)
+        rear, cut_in, beside = bool(terms.rear), bool(terms.cut_in), bool(terms.beside)
         if danger and self.start_step is None:
             self.start_step = k
             leader = int(leader)
             ids = [int(w.ids[sut])] + ([int(w.ids[leader])] if leader >= 0 else [])
-            if ttc < self.ttc_threshold_s:
+            if terms.low_ttc:
                 cause = f"TTC {ttc:.2f} s"
             elif braking:
-                cause = (f"acceleration {accel:.2f} m/s^2" if drac_sut <= self.hard_brake_mps2
+                cause = (f"acceleration {accel:.2f} m/s^2" if drac_sut <= self.evaluation.hard_brake_mps2
                          else f"needed deceleration (DRAC) {drac_sut:.2f} m/s^2")
             elif tailgating:
-                cause = f"time headway {float(gap) / float(w.v[sut]):.2f} s to vehicle {int(w.ids[leader])}"
+                cause = f"time headway {gap / speed:.2f} s to vehicle {int(w.ids[leader])}"
             elif cut_in and not rear:
                 cause = f"cut-in: new follower {int(w.ids[new_follower])} {float(cut_gap):.2f} m behind"
             elif beside and not rear:

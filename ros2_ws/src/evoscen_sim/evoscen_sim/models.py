@@ -178,7 +178,7 @@ def get_model(name: str, role: str) -> ModelSpec:
     return spec
 
 
-def create_driver(name: str, role: str, vehicles, config, rng) -> Any:  # noqa: ANN001
+def create_driver(name: str, role: str, vehicles, config, rng) -> Any:
     """Build model ``name`` for ``role`` driving world indices ``vehicles``."""
     import numpy as np
 

@@ -60,7 +60,7 @@ def compute_neighborhood(
 
 
 @kernel
-def _neighborhood_kernel(s, lane, v, a, length):  # noqa: ANN001, ANN202
+def _neighborhood_kernel(s, lane, v, a, length):
     n = s.shape[0]
     lead = np.full((n, 5), -1, dtype=np.int64)
     foll = np.full((n, 5), -1, dtype=np.int64)

@@ -579,7 +579,7 @@ __all__ = ["RoadModel", "LaneMarking", "load_road", "DEFAULT_MAP_PATH", "DRIVABL
 
 
 @kernel
-def _lane_lookup_kernel(s, d, length, breaks, seg_const, dr_table, dl_table, present, vmax,  # noqa: ANN001, ANN202
+def _lane_lookup_kernel(s, d, length, breaks, seg_const, dr_table, dl_table, present, vmax,
                         w_coef, w_origin, off_coef, off_origin, g_s0, g_k):
     n = s.shape[0]
     nl = present.shape[1]
@@ -624,7 +624,7 @@ def _lane_lookup_kernel(s, d, length, breaks, seg_const, dr_table, dl_table, pre
 
 
 @kernel
-def _frenet_to_cartesian_kernel(s, d, g_s0, g_x0, g_y0, g_h0, g_k):  # noqa: ANN001, ANN202
+def _frenet_to_cartesian_kernel(s, d, g_s0, g_x0, g_y0, g_h0, g_k):
     n = s.shape[0]
     x = np.empty(n)
     y = np.empty(n)

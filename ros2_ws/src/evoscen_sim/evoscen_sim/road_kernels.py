@@ -52,14 +52,14 @@ class RoadTables(NamedTuple):
 
 
 @kernel
-def segment_index(road, s):  # noqa: ANN001, ANN201
+def segment_index(road, s):
     """The lane-table row at ``s`` (clamped to ``[0, length_m]``): the last breakpoint ``<= s``."""
     sc = min(max(s, 0.0), road.length_m)
     return np.searchsorted(road.breaks, sc, side="right") - 1
 
 
 @kernel
-def lane_end_distance(road, lane, s):  # noqa: ANN001, ANN201
+def lane_end_distance(road, lane, s):
     """``RoadModel.distance_to_lane_end(lane, s)`` (raw ``s``), with ``inf`` also for an invalid lane."""
     if lane < 0 or lane >= road.lane_end_s.shape[0]:
         return np.inf
@@ -69,7 +69,7 @@ def lane_end_distance(road, lane, s):  # noqa: ANN001, ANN201
 
 
 @kernel
-def lane_center_d(road, lane, s):  # noqa: ANN001, ANN201
+def lane_center_d(road, lane, s):
     """``RoadModel.lane_center_d(lane, s)``: ``d`` of the lane's centre line (NaN for an invalid lane)."""
     nl = road.width_coef.shape[1]
     if lane < 0 or lane >= nl:

@@ -44,6 +44,10 @@ membership makes a cut-in count from the moment the other body enters the SUT's 
 when its centre crosses the lane line, and follows the SUT through its own lane changes.
 DRAC (:func:`drac`) is reported, not part of the definition.
 
+:func:`danger_terms` combines the terms: the one place the definition is written, called by
+the live monitor (:class:`evoscen_sim.events.ExposureMonitor`) and by the scorer
+(:class:`evoscen_eval.streaming.ScoreStream`).
+
 An **exposure** is a maximal run of consecutive dangerous states (events are counted, not
 steps). The simulation node publishes an ``evoscen/exposure`` event when one starts; the
 evaluator recomputes the same states from the recorded world table with the same functions,
@@ -57,6 +61,7 @@ compiled one-state kernels are bit-identical to them.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -128,15 +133,6 @@ def sut_leader_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length
     return leader, np.inf
 
 
-def dangerous(ttc: np.ndarray, sut_accel: np.ndarray, ttc_threshold_s: float, hard_brake_mps2: float,
-              hard_braking: str = "own", drac_sut: np.ndarray | float = 0.0,
-              follower_thw_s: np.ndarray | float = np.inf, headway_s: float = 2.0) -> np.ndarray:
-    """Whether each state is dangerous at the SUT's front (see the module docstring): TTC below
-    the threshold, or hard braking as ``hard_braking`` reads it (:func:`hard_braking_dangerous`)."""
-    return (ttc < ttc_threshold_s) | hard_braking_dangerous(sut_accel, drac_sut, follower_thw_s, hard_brake_mps2,
-                                                              hard_braking, headway_s)
-
-
 def headway_dangerous(gap_m: np.ndarray | float, sut_speed: np.ndarray | float, leader_speed: np.ndarray | float,
                       threshold_s: float) -> np.ndarray:
     """Whether the SUT follows its leader too closely (docs/evaluation.md §2, "tailgating"):
@@ -145,8 +141,12 @@ def headway_dangerous(gap_m: np.ndarray | float, sut_speed: np.ndarray | float, 
     ``gap_m``: bumper-to-bumper gap to the leader in the SUT's path (``inf`` without one; negative
     when the bodies overlap); ``leader_speed``: ``nan`` without a leader. ``threshold_s`` 0: never.
     A SUT that has dropped below the threshold and is falling back (slower than its leader, as
-    after a vehicle cut in ahead of it) is not tailgating.
+    after a vehicle cut in ahead of it) is not tailgating. Scalars give a numpy bool.
     """
+    if np.ndim(gap_m) == 0 and np.ndim(sut_speed) == 0 and np.ndim(leader_speed) == 0:
+        # one state in plain floats: the same IEEE operations, at a fraction of numpy's per-call cost
+        g, v, vl = float(gap_m), float(sut_speed), float(leader_speed)
+        return np.bool_(threshold_s > 0.0 and math.isfinite(g) and v > 0.0 and g / v < threshold_s and v >= vl)
     gap = np.asarray(gap_m, dtype=float)
     v = np.asarray(sut_speed, dtype=float)
     vl = np.asarray(leader_speed, dtype=float)
@@ -165,7 +165,11 @@ def grace_steps(grace_s: float, dt_s: float) -> int:
 def held_longer_than(condition: np.ndarray, steps: int, carry: int = 0) -> tuple[np.ndarray, int]:
     """Whether each state's ``condition`` has held for more than ``steps`` consecutive states up to
     and including it, counting ``carry`` states of an unbroken run before the first (a block of a
-    longer run); returns (that, the run length at the last state: the next block's carry)."""
+    longer run); returns (that, the run length at the last state: the next block's carry).
+    A scalar ``condition`` is one state: a bool and the run length at it."""
+    if np.ndim(condition) == 0:  # one state (the live monitor)
+        r = int(carry) + 1 if condition else 0
+        return r > steps, r
     cond = np.asarray(condition, dtype=bool)
     run = np.empty(cond.shape[0], dtype=np.int64)
     r = int(carry)
@@ -405,6 +409,71 @@ def rear_dangerous(follower_ttc_s: np.ndarray, follower_accel: np.ndarray, follo
     return (follower_ttc_s < ttc_threshold_s) | braking
 
 
+
+
+class DangerTerms(NamedTuple):
+    """The terms of the definition (module docstring) for each state, and their union: ``[n]``
+    boolean arrays for ``[n]`` states given to :func:`danger_terms`, bools for one state."""
+
+    low_ttc: np.ndarray
+    """TTC to the leader in the SUT's path below ``ttc_threshold_s``."""
+    braking: np.ndarray
+    """Hard braking as ``evaluation.hard_braking`` reads it (:func:`hard_braking_dangerous`)."""
+    front: np.ndarray
+    """``low_ttc | braking``: dangerous at the SUT's front."""
+    rear_conflict: np.ndarray
+    """A conflict at the SUT's rear (:func:`rear_dangerous`), attributed to the SUT or not."""
+    rear: np.ndarray
+    """``rear_conflict`` in a state attributed to the SUT (``evaluation.rear_conflicts``)."""
+    cut_in: np.ndarray
+    """A cut-in closer than ``cut_in_gap_m`` (:func:`cut_in_dangerous`)."""
+    beside: np.ndarray
+    """A lane change beside a vehicle (:func:`beside_dangerous`)."""
+    tailgating: np.ndarray
+    """The headway condition (:func:`headway_dangerous`) held longer than the grace (:func:`held_longer_than`)."""
+    danger: np.ndarray
+    """The state is dangerous: ``front | rear | cut_in | beside | tailgating``."""
+
+
+def danger_terms(evaluation, dt_s: float, *, ttc: np.ndarray | float, sut_accel: np.ndarray | float,
+                 drac_sut: np.ndarray | float = 0.0, follower_ttc_s: np.ndarray | float = np.inf,
+                 follower_accel: np.ndarray | float = 0.0, follower_thw_s: np.ndarray | float = np.inf,
+                 attributed: np.ndarray | bool = False, leader_gap_m: np.ndarray | float = np.inf,
+                 sut_speed: np.ndarray | float = 0.0, leader_speed: np.ndarray | float = np.nan,
+                 cut_in_gap_m: np.ndarray | float = np.inf, beside_gap_m: np.ndarray | float = np.inf,
+                 headway_run: int = 0) -> tuple[DangerTerms, int]:
+    """Whether each state is dangerous for the SUT, term by term: the one definition the live
+    monitor (:class:`evoscen_sim.events.ExposureMonitor`, one state at a time) and the scores
+    (:class:`evoscen_eval.streaming.ScoreStream`, a block of states at a time) both apply.
+
+    ``evaluation``: an :class:`~evoscen_sim.config.EvaluationConfig`; ``dt_s``: the step (the
+    tailgating grace in states, :func:`grace_steps`). The per-state quantities, floats for one
+    state (the terms are then bools) or ``[n]`` arrays for consecutive states: ``ttc``
+    (:func:`sut_ttc`), ``sut_accel``, ``drac_sut`` (:func:`drac` to the leader; read by the
+    ``conflict`` rule only), the follower's
+    ``follower_ttc_s`` (:func:`follower_ttc`), ``follower_accel`` (0 without one) and
+    ``follower_thw_s`` (:func:`follower_headway`), ``attributed`` (:func:`rear_attributed`), the
+    leader's ``leader_gap_m`` (``inf`` without one) and ``leader_speed`` (``nan`` without one),
+    ``sut_speed``, ``cut_in_gap_m`` (:func:`cut_in_gap`) and ``beside_gap_m`` (:func:`beside_gap`).
+    The defaults are the values without the vehicle in question. ``headway_run``: the states of
+    the tailgating condition held unbroken before the first state given.
+
+    Returns the terms and the headway run at the last state (the next call's ``headway_run``).
+    """
+    ev = evaluation
+    low_ttc = ttc < ev.ttc_threshold_s
+    braking = hard_braking_dangerous(sut_accel, drac_sut, follower_thw_s, ev.hard_brake_mps2, ev.hard_braking,
+                                     ev.rear_braking_headway_s)
+    front = low_ttc | braking
+    rear_conflict = rear_dangerous(follower_ttc_s, follower_accel, follower_thw_s, ev.ttc_threshold_s,
+                                   ev.hard_brake_mps2, ev.rear_braking, ev.rear_braking_headway_s)
+    rear = rear_conflict & attributed
+    cut_in = cut_in_dangerous(cut_in_gap_m, ev.cut_in_gap_m)
+    beside = beside_dangerous(beside_gap_m, ev.beside_lane_change)
+    headway = headway_dangerous(leader_gap_m, sut_speed, leader_speed, ev.headway_threshold_s)
+    tailgating, headway_run = held_longer_than(headway, grace_steps(ev.headway_grace_s, dt_s), headway_run)
+    danger = front | rear | cut_in | beside | tailgating
+    return DangerTerms(low_ttc, braking, front, rear_conflict, rear, cut_in, beside, tailgating, danger), headway_run
 
 
 def attribution_steps(rear_attribution_s: float, dt_s: float) -> int:

@@ -16,8 +16,7 @@ from evoscen_contract.contract import POLICY_CODES
 from .config import ScenarioConfig, mix_counts
 from .models import checked_answer, create_driver, rehosted
 from .road import RoadModel, load_road
-from .scenario_params import (control_params_from_config, reentry_params_from_config, traffic_params_from_config,
-                              vehicle_params_from_config)
+from .scenario_params import reentry_params_from_config, traffic_params_from_config
 from .spawn import spawn_layout, window_layout
 from .world import World
 
@@ -50,14 +49,14 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
     """Road, spawn layout and world for ``cfg`` (what the simulation node owns)."""
     road = load_road(cfg.map) if road is None else road
     rngs = scenario_rngs(cfg.seed)
-    vehicle = vehicle_params_from_config(cfg)
+    vehicle = cfg.vehicle
     traffic = traffic_params_from_config(cfg, road)
     if traffic is not None:
         initial = window_layout(
             road, traffic, bv_policies=bv_policy_codes(cfg, rngs["spawn"]), sut_policy=POLICY_CODES["sut"],
             sut_lane=cfg.sut.lane, sut_s_m=cfg.sut.s_m, sut_speed_mps=cfg.sut.speed_mps,
             vehicle_length_m=vehicle.length_m, rng=rngs["spawn"])
-        world = World(road, initial, vehicle=vehicle, control=control_params_from_config(cfg),
+        world = World(road, initial, vehicle=vehicle, control=cfg.control,
                       reentry=reentry_params_from_config(cfg), dt_s=cfg.dt_s, rng=rngs["world"], traffic=traffic)
         warm_up(world, cfg, int(round(traffic.warmup_s / cfg.dt_s)))
         return world
@@ -79,7 +78,7 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
         road,
         initial,
         vehicle=vehicle,
-        control=control_params_from_config(cfg),
+        control=cfg.control,
         reentry=reentry_params_from_config(cfg),
         dt_s=cfg.dt_s,
         rng=rngs["world"],
@@ -127,7 +126,7 @@ def bv_indices(cfg: ScenarioConfig) -> np.ndarray:
     return np.arange(1, cfg.bvs.count + 1)
 
 
-def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):  # noqa: ANN201
+def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):
     """The driver of the BVs at world indices ``rows`` (default: all BVs; what one BV node hosts).
 
     It is built for all BVs from the ``bv`` stream, then keeps only ``rows``
@@ -153,11 +152,11 @@ def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):  # noq
 class RowsOf:
     """A driver of all BVs whose answer is cut to the BVs at ``positions`` (see :func:`build_bv_driver`)."""
 
-    def __init__(self, driver, positions: np.ndarray) -> None:  # noqa: ANN001
+    def __init__(self, driver, positions: np.ndarray) -> None:
         self.driver, self.positions = driver, positions
         self.vehicles = np.asarray(driver.vehicles)[positions] if hasattr(driver, "vehicles") else None
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         throttle, lane_change = self.driver.act(view)
         return np.asarray(throttle)[self.positions], np.asarray(lane_change)[self.positions]
 
@@ -167,11 +166,11 @@ class NoVehicles:
 
     vehicles = np.zeros(0, dtype=np.int64)
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(0), np.zeros(0, dtype=np.int64)
 
 
-def build_sut_driver(cfg: ScenarioConfig, model: str | None = None):  # noqa: ANN201
+def build_sut_driver(cfg: ScenarioConfig, model: str | None = None):
     """The SUT's driver, model ``cfg.sut.model`` unless ``model`` is given (what the SUT node hosts)."""
     return create_driver(model or cfg.sut.model, "sut", [SUT_INDEX], cfg, scenario_rngs(cfg.seed)["sut"])
 

@@ -1,27 +1,16 @@
-"""The simulation core's parameter objects of a scenario configuration.
+"""The simulation core's parameter objects of a scenario configuration that are built from it.
 
-The ``vehicle`` and ``control`` sections *are* the core's :class:`VehicleParams` and
-:class:`ControlParams` (one dataclass each, :mod:`evoscen_sim.config_schema`), so they are
-passed as they are; the re-entry parameters add a core-only field to the ``reentry`` section.
+The ``vehicle`` and ``control`` sections *are* the core's :class:`~evoscen_sim.vehicle.VehicleParams`
+and :class:`~evoscen_sim.control.ControlParams` (one dataclass each, :mod:`evoscen_sim.config_schema`):
+``cfg.vehicle`` and ``cfg.control`` are passed as they are. The re-entry and traffic-window
+parameters are built here from their sections.
 """
 
 from __future__ import annotations
 
-from .control import ControlParams
 from .errors import InputError
 from .traffic import TrafficParams, check_shift_points
-from .vehicle import VehicleParams
 from .world import ReentryParams
-
-
-def vehicle_params_from_config(cfg) -> VehicleParams:
-    """:class:`VehicleParams` of the scenario: ``cfg.vehicle`` itself."""
-    return cfg.vehicle
-
-
-def control_params_from_config(cfg) -> ControlParams:
-    """:class:`ControlParams` of the scenario: ``cfg.control`` itself."""
-    return cfg.control
 
 
 def reentry_params_from_config(cfg) -> ReentryParams:
@@ -29,7 +18,7 @@ def reentry_params_from_config(cfg) -> ReentryParams:
     return ReentryParams(ramp_share=cfg.reentry.ramp_share, min_gap_m=cfg.reentry.min_gap_m)
 
 
-def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # noqa: ANN001 - a RoadModel
+def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # a RoadModel
     """:class:`TrafficParams` from ``cfg.traffic`` (None for ``mode: loop``), checked against ``road``.
 
     Raises:

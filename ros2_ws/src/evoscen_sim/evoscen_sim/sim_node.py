@@ -185,7 +185,7 @@ class SimulationNode(Port):
         copy.deepcopy(self.loop.exposures).observe(world)
         type(self.msgs)(self.cfg.dt_s).vehicle_markers(world.columns(), world.time_ns)  # a spare encoder
 
-    def _on_signal(self, signum, frame) -> None:  # noqa: ANN001
+    def _on_signal(self, signum, frame) -> None:
         self._interrupted = True
 
     def _check_interrupt(self) -> None:
@@ -196,7 +196,7 @@ class SimulationNode(Port):
     def _publish(self, spec: T.TopicSpec, data: bytes) -> None:
         self.pub[spec.name].publish(data)
 
-    def send_world(self, world, *, roster: bool) -> None:  # noqa: ANN001
+    def send_world(self, world, *, roster: bool) -> None:
         """The world at t_k first: what the controllers wait for.
 
         The rest — the events of the step that led to t_k (worked out by the loop only now,
@@ -214,7 +214,7 @@ class SimulationNode(Port):
     def send_events(self, events: list[dict], t_ns: int) -> None:
         self._publish(T.EVENTS, self.msgs.events(events, t_ns))
 
-    def send_state(self, world) -> None:  # noqa: ANN001
+    def send_state(self, world) -> None:
         m, t_ns, cols = self.msgs, world.time_ns, self._cols
         self._cols = None
         self._publish(T.CLOCK, m.clock(t_ns))

@@ -95,7 +95,7 @@ class Port(ABC):
         """Before the state of ``step`` goes out (the node: Ctrl-C check, flow control)."""
 
     @abstractmethod
-    def send_world(self, world, *, roster: bool) -> None:  # noqa: ANN001 - a World
+    def send_world(self, world, *, roster: bool) -> None:  # a World
         """The world at ``t_k`` (and, with ``roster``, the roster and the map markers)."""
 
     @abstractmethod
@@ -103,14 +103,14 @@ class Port(ABC):
         """One ``/evoscen/events`` message stamped ``t_ns``."""
 
     @abstractmethod
-    def send_state(self, world) -> None:  # noqa: ANN001 - a World
+    def send_state(self, world) -> None:  # a World
         """The rest of the state at ``t_k``: ``/clock``, odometry, markers when due."""
 
     @abstractmethod
     def commands(self, step: int) -> Commands:
         """The commands for ``step`` (answering the world at ``t_k``)."""
 
-    def stepped(self, step: int, result) -> None:  # noqa: ANN001, B027 - a hook; a StepResult
+    def stepped(self, step: int, result) -> None:  # noqa: B027 - a hook; a StepResult
         """After the world integrated ``step`` (``result``: :meth:`evoscen_sim.world.World.step`'s)."""
 
 
@@ -122,7 +122,7 @@ class StepLoop:
     raised again.
     """
 
-    def __init__(self, world, evaluation, port: Port, *, interrupted_text: str = "run interrupted",  # noqa: ANN001
+    def __init__(self, world, evaluation, port: Port, *, interrupted_text: str = "run interrupted",
                  finish_on_error: bool = False) -> None:
         self.world = world
         self.port = port

@@ -94,7 +94,7 @@ def insertion_speed(v_wish: float, gap_m: float, v_leader: float, p: TrafficPara
     return min(v_wish, v)
 
 
-def check_shift_points(road, p: TrafficParams, hold_s: float | None = None) -> str | None:  # noqa: ANN001 - a RoadModel
+def check_shift_points(road, p: TrafficParams, hold_s: float | None = None) -> str | None:  # a RoadModel
     """Why the shift cannot keep every relative position (None when it can).
 
     The window around the SUT at ``shift_from_m`` and at ``shift_to_m`` (each with the exit
@@ -131,7 +131,7 @@ def check_shift_points(road, p: TrafficParams, hold_s: float | None = None) -> s
 class TrafficWindow:
     """Keeps the traffic of a :class:`~evoscen_sim.world.World` around its SUT (module docstring)."""
 
-    def __init__(self, world, params: TrafficParams, sut_index: int) -> None:  # noqa: ANN001
+    def __init__(self, world, params: TrafficParams, sut_index: int) -> None:
         road = world.road
         self.p = params
         self.sut = int(sut_index)
@@ -145,11 +145,11 @@ class TrafficWindow:
         self.shift_m = params.shift_from_m - params.shift_to_m
 
     # ------------------------------------------------------------------ one step
-    def hold(self, world, s_hold: float) -> None:  # noqa: ANN001
+    def hold(self, world, s_hold: float) -> None:
         """Move every vehicle back by the SUT's advance beyond ``s_hold`` (the warm-up's treadmill)."""
         world.s -= float(world.s[self.sut]) - s_hold
 
-    def after_step(self, world, result) -> None:  # noqa: ANN001
+    def after_step(self, world, result) -> None:
         """Shift, exits and entries after the world integrated a step (results into ``result``)."""
         p = self.p
         s = world.s
@@ -170,7 +170,7 @@ class TrafficWindow:
                 result.reentries.append(world._reenter(int(i)))
 
     # ------------------------------------------------------------------ entries
-    def _targets(self, world, s_sut: float) -> list[tuple[float, int, float, float]]:  # noqa: ANN001
+    def _targets(self, world, s_sut: float) -> list[tuple[float, int, float, float]]:
         """(relative deficit, lane, mean speed, sd) of every lane that may take a vehicle, most wanted first."""
         p = self.p
         road = world.road
@@ -196,7 +196,7 @@ class TrafficWindow:
         rows.sort(key=lambda r: (r[0], r[1]))
         return [r for r in rows if r[0] < 0.0] or rows
 
-    def _enter(self, world, i: int) -> tuple[int, int, float] | None:  # noqa: ANN001
+    def _enter(self, world, i: int) -> tuple[int, int, float] | None:
         p = self.p
         road = world.road
         s_sut, v_sut = float(world.s[self.sut]), float(world.v[self.sut])
@@ -219,7 +219,7 @@ class TrafficWindow:
                     return (i, int(lane), float(s_try))
         return None
 
-    def _positions(self, world, i: int, lane: int, s_edge: float, s_sut: float) -> list[float]:  # noqa: ANN001
+    def _positions(self, world, i: int, lane: int, s_edge: float, s_sut: float) -> list[float]:
         """Where a vehicle may enter ``lane``: the edge itself, then the middle of the largest gap
         of the lane within ``insertion_band_m`` inside the window from that edge (the merge lane:
         its start only)."""
@@ -236,7 +236,7 @@ class TrafficWindow:
         mid = 0.5 * (s[k] + s[k + 1])
         return [s_edge] if abs(mid - s_edge) < 1e-9 else [s_edge, float(mid)]
 
-    def _safe_speed(self, world, i: int, lane: int, s_new: float, v: float, half: float) -> float:  # noqa: ANN001
+    def _safe_speed(self, world, i: int, lane: int, s_new: float, v: float, half: float) -> float:
         """``v`` lowered to what the leader allows; -inf when the follower could not follow (or the
         vehicle would overlap one)."""
         p = self.p
@@ -251,7 +251,7 @@ class TrafficWindow:
         return v
 
 
-def _neighbours(world, i: int, lane: int, s_new: float) -> tuple[int, int]:  # noqa: ANN001
+def _neighbours(world, i: int, lane: int, s_new: float) -> tuple[int, int]:
     """Nearest vehicle ahead of and behind ``s_new`` in ``lane``, -1 if none.
 
     In the lane means: its lane or its target lane is ``lane``, or its body reaches across the

@@ -75,14 +75,14 @@ def bicycle_step(
 
 
 @kernel
-def bicycle_step_inplace(s, d, psi, v, accel_out, accel_cmd, steer, kappa, wheelbase, max_speed, dt):  # noqa: ANN001, ANN201
+def bicycle_step_inplace(s, d, psi, v, accel_out, accel_cmd, steer, kappa, wheelbase, max_speed, dt):
     """Compiled :func:`bicycle_step` updating ``s, d, psi, v`` and writing ``accel_out`` in place."""
     for i in range(s.shape[0]):
         bicycle_one(i, s, d, psi, v, accel_out, accel_cmd[i], steer[i], kappa[i], wheelbase, max_speed, dt)
 
 
 @kernel
-def bicycle_one(i, s, d, psi, v, accel_out, accel_cmd, steer, kappa, wheelbase, max_speed, dt):  # noqa: ANN001, ANN201
+def bicycle_one(i, s, d, psi, v, accel_out, accel_cmd, steer, kappa, wheelbase, max_speed, dt):
     """Advance vehicle ``i`` of the state arrays one step in place (see the module docstring)."""
     v_new = min(max(v[i] + accel_cmd * dt, 0.0), max_speed)
     accel_out[i] = (v_new - v[i]) / dt

@@ -53,7 +53,7 @@ class TrafficView(Protocol):
 
     def neighborhood(self) -> Neighborhood: ...  # pragma: no cover - protocol
 
-    def lane_lookup(self): ...  # noqa: ANN201  # pragma: no cover - protocol
+    def lane_lookup(self): ...  # pragma: no cover - protocol
 
 
 _INT_COLUMNS = ("id", "role", "policy", "lane", "target_lane", "lane_change")
@@ -69,7 +69,7 @@ class WorldView:
         dt_s: the scenario's step.
     """
 
-    def __init__(self, road, columns: Mapping[str, np.ndarray], step_index: int, dt_s: float) -> None:  # noqa: ANN001
+    def __init__(self, road, columns: Mapping[str, np.ndarray], step_index: int, dt_s: float) -> None:
         missing = [c for c in ("id", "role", "policy", "s", "d", "heading_rel", "speed", "accel", "steer", "lane",
                                "target_lane", "lane_change", "length", "width") if c not in columns]
         if missing:
@@ -98,7 +98,7 @@ class WorldView:
         self._speed_limit: np.ndarray | None = None
         self._lanes = None
 
-    def lane_lookup(self):  # noqa: ANN201 - evoscen_sim.road.LaneLookup
+    def lane_lookup(self):  # evoscen_sim.road.LaneLookup
         """Lane data (borders, existence, limits) at every vehicle's position (cached)."""
         if self._lanes is None:
             self._lanes = self.road.lane_lookup(np.maximum(self.s, 0.0), self.d)

@@ -97,7 +97,7 @@ STATE_INTS = ("id", "role", "policy", "lane", "target_lane", "lane_change")
 """The int64 state arrays of :meth:`World.state_arrays`, in order (their column names)."""
 
 
-def state_columns(road, state: tuple) -> dict[str, np.ndarray]:  # noqa: ANN001 - a Road
+def state_columns(road, state: tuple) -> dict[str, np.ndarray]:  # a Road
     """The world table's named columns from :meth:`World.state_arrays` (what :meth:`World.columns`
     returns; the one definition, so a copy of the state gives the same columns bit for bit)."""
     (s, d, psi, v, accel, steer, length, width), (ids, role, policy, lane, target_lane, lane_change) = state
@@ -211,7 +211,7 @@ class World:
         self.step_index = 0
         self.lane_change_start_s -= elapsed
 
-    def lane_lookup(self):  # noqa: ANN201 - evoscen_sim.road.LaneLookup
+    def lane_lookup(self):  # evoscen_sim.road.LaneLookup
         """Lane data (borders, existence, limits) at every vehicle's position (cached per step)."""
         return self._lanes
 
@@ -373,7 +373,7 @@ class World:
 
 
 @kernel
-def _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, lane_change_start_s,  # noqa: ANN001, ANN202, PLR0913
+def _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, lane_change_start_s,
                     d_right, d_left, present, kappa, s, d, psi, v, accel, steer,
                     int_d, int_psi, prev_e_d, prev_e_psi, fresh,
                     lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading,
@@ -413,7 +413,7 @@ def _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, l
 
 
 @kernel
-def _lane_bookkeeping_kernel(lane_now, present, time_s, lane, off_road, lane_change, target_lane,  # noqa: ANN001, ANN202
+def _lane_bookkeeping_kernel(lane_now, present, time_s, lane, off_road, lane_change, target_lane,
                              lane_change_start_s, lane_change_count, last_duration):
     """Step 3 of :meth:`World.step`: lanes, completed and aborted lane changes, off-road flags."""
     n = lane.shape[0]

@@ -21,10 +21,10 @@ class _ToyParams:
 
 
 class _ToyDriver:
-    def __init__(self, vehicles, params):  # noqa: ANN001
+    def __init__(self, vehicles, params):
         self.vehicles, self.params = vehicles, params
 
-    def act(self, view):  # noqa: ANN001, ANN201
+    def act(self, view):
         n = self.vehicles.size
         return np.full(n, self.params.gain), np.zeros(n, dtype=np.int64)
 

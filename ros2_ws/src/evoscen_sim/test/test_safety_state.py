@@ -37,12 +37,12 @@ from evoscen_sim.safety import (
 )
 
 
-def _numpy(s, d, v, length, width, sut):  # noqa: ANN001, ANN202
+def _numpy(s, d, v, length, width, sut):
     leader = int(sut_leader(s, d, length, width, sut)[0])
     return leader, float(sut_ttc(s, d, v, length, width, sut))
 
 
-def _same(s, d, v, length, width, sut) -> tuple[int, float]:  # noqa: ANN001
+def _same(s, d, v, length, width, sut) -> tuple[int, float]:
     arrays = [np.ascontiguousarray(x, dtype=float) for x in (s, d, v, length, width)]
     want = _numpy(*arrays, sut)
     got = sut_leader_ttc_state(*arrays, sut)
@@ -111,7 +111,7 @@ def test_every_state_of_a_run() -> None:
 # ---------------------------------------------------------------------- the follower (rear conflicts)
 
 
-def _same_follower(s, d, v, length, width, sut) -> tuple[int, float]:  # noqa: ANN001
+def _same_follower(s, d, v, length, width, sut) -> tuple[int, float]:
     arrays = [np.ascontiguousarray(x, dtype=float) for x in (s, d, v, length, width)]
     f, ttc = follower_ttc(*arrays, sut)
     want = int(f), float(ttc)
@@ -196,7 +196,7 @@ def test_rear_attribution_window_edges() -> None:
 # ---------------------------------------------------------------------- the SUT's cut-ins
 
 
-def _same_vehicle_and_gap(numpy_fn, state_fn, columns, sut: int, what: str) -> tuple[int, float]:  # noqa: ANN001
+def _same_vehicle_and_gap(numpy_fn, state_fn, columns, sut: int, what: str) -> tuple[int, float]:
     """``numpy_fn`` (whole-run numpy definition) and ``state_fn`` (its compiled one-state twin) give the
     same vehicle and the same gap, bit for bit, on one state; returns them."""
     arrays = [np.ascontiguousarray(x, dtype=float) for x in columns]
@@ -208,7 +208,7 @@ def _same_vehicle_and_gap(numpy_fn, state_fn, columns, sut: int, what: str) -> t
     return want
 
 
-def _same_cut_in(s, d, length, width, lane, target, lc, sut) -> tuple[int, float]:  # noqa: ANN001, PLR0913
+def _same_cut_in(s, d, length, width, lane, target, lc, sut) -> tuple[int, float]:
     return _same_vehicle_and_gap(cut_in_gap, cut_in_gap_state, (s, d, length, width, lane, target, lc), sut,
                                  "new follower")
 
@@ -263,7 +263,7 @@ def test_cut_in_random_dense_states() -> None:
                      int(rng.integers(0, n)))
 
 
-def _same_beside(s, length, lane, target, lc, sut) -> tuple[int, float]:  # noqa: ANN001
+def _same_beside(s, length, lane, target, lc, sut) -> tuple[int, float]:
     return _same_vehicle_and_gap(beside_gap, beside_gap_state, (s, length, lane, target, lc), sut, "vehicle beside")
 
 

@@ -51,7 +51,7 @@ def _world(road, s, lane, v, params: TrafficParams, seed: int = 0) -> World:
                  rng=np.random.default_rng(seed), traffic=params)
 
 
-def _coast(w: World):  # noqa: ANN202
+def _coast(w: World):
     return w.step(np.zeros(w.n), np.zeros(w.n, dtype=np.int64))
 
 

@@ -51,7 +51,7 @@ class ConflictRule(NamedTuple):
 
 
 @kernel
-def unsafe_pair(s, v, length, a, b, rule):  # noqa: ANN001, ANN201
+def unsafe_pair(s, v, length, a, b, rule):
     """The pair test of the row vehicle ``a`` and the column vehicle ``b`` (world indices; module docstring)."""
     ds = s[b] - s[a]
     if rule.safety_distance:
@@ -69,7 +69,7 @@ def unsafe_pair(s, v, length, a, b, rule):  # noqa: ANN001, ANN201
 
 
 @kernel
-def resolve_conflicts(idx, request, lane, s, v, length, rule):  # noqa: ANN001, ANN201, PLR0913
+def resolve_conflicts(idx, request, lane, s, v, length, rule):
     """The requests (+1 left, −1 right, 0 keep) of the vehicles ``idx``, conflicts resolved (module
     docstring): a vehicle yields (request 0) to the first vehicle ahead of it (or level with a
     lower index) that requests the same target lane and fails :func:`unsafe_pair` with it."""

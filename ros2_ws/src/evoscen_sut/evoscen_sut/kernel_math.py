@@ -16,7 +16,7 @@ FLOAT_MAX = float(np.finfo(np.float64).max)
 
 
 @kernel
-def minimum(a, b):  # noqa: ANN001, ANN201
+def minimum(a, b):
     """``np.minimum`` of two floats (NaN propagates, the first NaN wins)."""
     if np.isnan(a):
         return a
@@ -26,7 +26,7 @@ def minimum(a, b):  # noqa: ANN001, ANN201
 
 
 @kernel
-def maximum(a, b):  # noqa: ANN001, ANN201
+def maximum(a, b):
     """``np.maximum`` of two floats (NaN propagates, the first NaN wins)."""
     if np.isnan(a):
         return a
@@ -36,7 +36,7 @@ def maximum(a, b):  # noqa: ANN001, ANN201
 
 
 @kernel
-def nan_to_num(x):  # noqa: ANN001, ANN201
+def nan_to_num(x):
     """``np.nan_to_num(x, nan=0.0)`` of one float."""
     if np.isnan(x):
         return 0.0
@@ -48,7 +48,7 @@ def nan_to_num(x):  # noqa: ANN001, ANN201
 
 
 @kernel
-def argmax(x):  # noqa: ANN001, ANN201
+def argmax(x):
     """``np.argmax`` of a 1-d float array (the first maximum; the first NaN if any)."""
     best = 0
     bv = x[0]

@@ -345,7 +345,7 @@ class KraussCarFollowing:
         return (v_next - v) / self.dt_s
 
 
-def krauss_params_from_config(config) -> KraussParams:  # noqa: ANN001
+def krauss_params_from_config(config) -> KraussParams:
     """The scenario's ``models.krauss`` (:class:`KraussParams`; its defaults when the section is
     absent or ``config`` has no ``models``)."""
     params = (getattr(config, "models", None) or {}).get(NAME)
@@ -356,7 +356,7 @@ SUT_INDEX = 0
 """The SUT's world index: it never gets a speed factor other than 1."""
 
 
-def draw_speed_factors(params: KraussParams, vehicles, rng: np.random.Generator) -> dict[int, float]:  # noqa: ANN001
+def draw_speed_factors(params: KraussParams, vehicles, rng: np.random.Generator) -> dict[int, float]:
     """One speed factor per vehicle but the SUT, in the order of ``vehicles``: normal(1,
     ``speed_factor_sd``), drawn again until it lies in [0.2, 2] (SUMO's ``normc``); none (no
     draw) when ``speed_factor_sd`` is 0."""
@@ -373,7 +373,7 @@ def draw_speed_factors(params: KraussParams, vehicles, rng: np.random.Generator)
     return out
 
 
-def krauss_for(config, rng: np.random.Generator, vehicles=None) -> KraussCarFollowing:  # noqa: ANN001
+def krauss_for(config, rng: np.random.Generator, vehicles=None) -> KraussCarFollowing:
     """The Krauss car follower of a scenario: ``models.krauss``, dawdling from ``rng``, the step
     ``config.dt_s``; the speed factors of ``vehicles`` (all but the SUT) drawn first from ``rng``."""
     params = krauss_params_from_config(config)

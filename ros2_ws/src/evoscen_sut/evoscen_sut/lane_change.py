@@ -7,7 +7,7 @@
   parameters: the scenario's ``models.krauss``, :func:`evoscen_sut.krauss.krauss_for`).
 * :func:`settled`: a new change is requested only once the previous one has settled [choice].
 * :func:`kernel_params`: a model's frozen parameter dataclass as the named tuple its compiled
-  kernels read.
+  kernels read (the tuple type derived from the dataclass by :func:`kernel_params_type`).
 
 The conflict resolution of one driver's vehicles is :mod:`evoscen_sut.conflicts`; the road
 queries of the kernels are :mod:`evoscen_sim.road_kernels`.
@@ -15,14 +15,15 @@ queries of the kernels are :mod:`evoscen_sim.road_kernels`.
 
 from __future__ import annotations
 
+from collections import namedtuple
 from collections.abc import Callable
+from dataclasses import fields
 from functools import lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
 from evoscen_sim.jit import kernel
 from evoscen_sim.road_kernels import lane_center_d, lane_end_distance
-from evoscen_sim.scenario_params import vehicle_params_from_config
 from evoscen_sim.vehicle import VehicleParams, accel_to_throttle
 
 from .kernel_math import maximum, minimum
@@ -30,6 +31,15 @@ from .krauss import follow_speed_scalar, krauss_for, next_speed_scalar
 
 
 @lru_cache(maxsize=128)
+def kernel_params_type(params_class: type) -> type:
+    """The named tuple the compiled kernels read a parameter dataclass as (:func:`kernel_params`):
+    ``params_class``'s fields in their order, so each parameter is declared once, in the dataclass.
+    Named as the dataclass with ``Kernel`` before ``Params`` (``MobilParams`` ->
+    ``MobilKernelParams``), in the dataclass's module."""
+    name = params_class.__name__.removesuffix("Params") + "KernelParams"
+    return namedtuple(name, [f.name for f in fields(params_class)], module=params_class.__module__)
+
+
 def kernel_params(tuple_type: type, params: Any) -> tuple:
     """``params`` (a frozen parameter dataclass) as ``tuple_type``, a named tuple with (some of)
     its field names, for compiled kernels: numbers as float, flags as bool (cached: one tuple per
@@ -39,7 +49,7 @@ def kernel_params(tuple_type: type, params: Any) -> tuple:
 
 
 @kernel
-def settled(road, s, d, lane, tolerance_m):  # noqa: ANN001, ANN201
+def settled(road, s, d, lane, tolerance_m):
     """True where the vehicle's centre ``d`` is within ``tolerance_m`` of its lane's centre line at
     ``max(s, 0)`` (False for an invalid lane; ``road``: :class:`evoscen_sim.road_kernels.RoadTables`).
 
@@ -197,7 +207,7 @@ def _krauss_params(kp: Any, vp: VehicleParams, stop_margin_m: float, dt_s: float
 
 
 @kernel
-def _count_changing(idx, lane, target_lane):  # noqa: ANN001, ANN202
+def _count_changing(idx, lane, target_lane):
     """How many of the vehicles ``idx`` are changing lanes (``target_lane != lane``)."""
     cnt = 0
     for q in range(idx.shape[0]):
@@ -208,7 +218,7 @@ def _count_changing(idx, lane, target_lane):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _krauss_kernel(idx, factor, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
+def _krauss_kernel(idx, factor, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,
                    leader_speed, road, prm):
     """:class:`KraussLaneChangeDriver`'s acceleration and throttle (class docstring)."""
     min_gap, accel, decel, emergency, sigma, tau = (prm.min_gap_m, prm.accel_mps2, prm.decel_mps2,
@@ -255,7 +265,7 @@ def lane_change_factory(decision: Any, params_type: type) -> Any:
                     rng: np.random.Generator) -> KraussLaneChangeDriver:
         params = params_type() if params is None else params
         return KraussLaneChangeDriver(vehicles, decision, params, krauss_for(config, rng, vehicles),
-                                      vehicle_params_from_config(config), params.merge_stop_margin_m)
+                                      config.vehicle, params.merge_stop_margin_m)
 
     make_driver.__module__ = decision.__module__  # the factory belongs to its model's module
     make_driver.__qualname__ = "make_driver"

@@ -65,9 +65,9 @@ module's and :mod:`evoscen_sut.nilsson`'s drivers share.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from evoscen_sim.car_following import idm_scalar
@@ -79,7 +79,7 @@ from evoscen_sim.road_kernels import lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum, nan_to_num
-from .lane_change import kernel_params, lane_change_factory, settled
+from .lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
 
 IDM_MAX_DECEL_MPS2 = 9.0
 """Lower clip of the IDM accelerations MOBIL compares (m/s²; the IDM helper's default)."""
@@ -155,28 +155,8 @@ class MobilEvaluation:
     """(k,) the vehicle must leave an ending lane (incentive waived)."""
 
 
-class MobilKernelParams(NamedTuple):
-    """:class:`MobilParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
-
-    politeness: float
-    threshold_mps2: float
-    bias_mps2: float
-    safe_decel_mps2: float
-    asymmetric: bool
-    critical_speed_mps: float
-    desired_speed_mps: float
-    accel_mps2: float
-    comfort_decel_mps2: float
-    time_headway_s: float
-    min_gap_m: float
-    delta: float
-    merge_stop_margin_m: float
-    merge_mandatory_distance_m: float
-    enter_ending_lane: bool
-    settle_tolerance_m: float
-
-
-assert MobilKernelParams._fields == tuple(f.name for f in fields(MobilParams))
+MobilKernelParams = kernel_params_type(MobilParams)
+""":class:`MobilParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
 
 
 @lru_cache(maxsize=64)
@@ -201,7 +181,7 @@ assert (RIGHT, OWN, LEFT) == (1, 2, 3)  # the kernels use neighbourhood column 2
 
 
 @kernel
-def _idm(v, v0, gap, v_lead, prm):  # noqa: ANN001, ANN202
+def _idm(v, v0, gap, v_lead, prm):
     """MOBIL's IDM acceleration of one vehicle (:func:`evoscen_sim.car_following.idm_scalar`, clipped
     at −``IDM_MAX_DECEL_MPS2``)."""
     return idm_scalar(v, v0, gap, v_lead, prm.time_headway_s, prm.min_gap_m, prm.accel_mps2,
@@ -209,7 +189,7 @@ def _idm(v, v0, gap, v_lead, prm):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear,  # noqa: ANN001, ANN202, PLR0913, PLR0915
+def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear,
                   follower, follower_speed, road, prm):
     """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`MobilEvaluation`."""
     k = idx.shape[0]
@@ -335,7 +315,7 @@ def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, 
 
 
 @kernel
-def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, speed_limit, gap_front,  # noqa: ANN001, ANN202, PLR0913
+def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, speed_limit, gap_front,
                            leader_speed, gap_rear, follower, follower_speed, road, prm, rule):
     """:func:`lane_change_decision` (evaluation, choice, settling and conflicts) in one pass."""
     exists, _acc_ego, _gain_n, _gain_o, _at_n, inc, safe, mandatory = _mobil_kernel(

@@ -76,9 +76,9 @@ change, and a stop before the end of the merge lane).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from functools import lru_cache
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from evoscen_sim.config import number
@@ -88,7 +88,7 @@ from evoscen_sim.road_kernels import lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum
-from .lane_change import kernel_params, lane_change_factory, settled
+from .lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
 
 
 @dataclass(frozen=True)
@@ -158,29 +158,8 @@ class NilssonEvaluation:
     """(k,) the own lane may be kept (False: an ending lane within the mandatory distance)."""
 
 
-class NilssonKernelParams(NamedTuple):
-    """:class:`NilssonParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
-
-    desired_speed_mps: float
-    look_ahead_time_s: float
-    min_speed_mps: float
-    speed_weight_slow: float
-    speed_weight_fast: float
-    time_gap_weight: float
-    desired_time_gap_s: float
-    time_gap_factor: float
-    lane_end_weight: float
-    keep_right_bias: float
-    hysteresis: float
-    safety_length_factor: float
-    safety_closing_headway_s: float
-    view_range_m: float
-    merge_stop_margin_m: float
-    merge_mandatory_distance_m: float
-    settle_tolerance_m: float
-
-
-assert NilssonKernelParams._fields == tuple(f.name for f in fields(NilssonParams))
+NilssonKernelParams = kernel_params_type(NilssonParams)
+""":class:`NilssonParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
 
 
 @lru_cache(maxsize=64)
@@ -194,7 +173,7 @@ def conflict_rule(p: NilssonParams) -> ConflictRule:
 
 
 @kernel
-def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):  # noqa: ANN001, ANN202, PLR0913, PLR0915
+def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
     """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`NilssonEvaluation`.
 
     The nearest vehicle ahead / behind in every lane (within ``view_range_m``): ahead means a
@@ -319,7 +298,7 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):  # noqa: A
 
 
 @kernel
-def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, road, prm, rule):  # noqa: ANN001, ANN202, PLR0913
+def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, road, prm, rule):
     """:func:`lane_change_decision` (evaluation, safety, settling and conflicts) in one pass."""
     _utility, _speed, _time_gap, _score, target, step_safe, own_candidate = _nilsson_kernel(
         idx, s, v, length, lane, target_lane, road, prm)

@@ -128,7 +128,7 @@ class StackelbergParams:
 # ------------------------------------------------------------------------------------------
 
 
-def _game_inputs(view, i: int, params: StackelbergParams) -> tuple:  # noqa: ANN001
+def _game_inputs(view, i: int, params: StackelbergParams) -> tuple:
     """Arguments of :func:`_game_kernel` for vehicle ``i``."""
     nb = view.neighborhood()
     road = view.road
@@ -142,7 +142,7 @@ def _game_inputs(view, i: int, params: StackelbergParams) -> tuple:  # noqa: ANN
             float(params.lane_change_threshold_m))
 
 
-def game_values(view, i: int, params: StackelbergParams = StackelbergParams()) -> np.ndarray:  # noqa: ANN001, B008
+def game_values(view, i: int, params: StackelbergParams = StackelbergParams()) -> np.ndarray:
     """The 9 × 9 payoff matrix of vehicle ``i``'s game: rows :data:`LEADER_ACTIONS`, columns
     :data:`FOLLOWER_RESPONSES` of the players :func:`relevant_followers` names; ``-inf`` rows
     are unavailable lane actions. Entry = ``U_pos + U_neg`` (m) at the end of the game, with
@@ -150,7 +150,7 @@ def game_values(view, i: int, params: StackelbergParams = StackelbergParams()) -
     return _game_kernel(*_game_inputs(view, i, params))[0]
 
 
-def relevant_followers(view, i: int, params: StackelbergParams = StackelbergParams()) -> np.ndarray:  # noqa: ANN001, B008
+def relevant_followers(view, i: int, params: StackelbergParams = StackelbergParams()) -> np.ndarray:
     """World indices of vehicle ``i``'s two players (first, second; -1 where none)."""
     slots = _game_kernel(*_game_inputs(view, i, params))[1]
     nb = view.neighborhood()
@@ -173,7 +173,7 @@ def decide(payoff: np.ndarray, threshold_m: float) -> int:
     return lane
 
 
-def lane_change_decision(view, vehicles: np.ndarray, params: StackelbergParams = StackelbergParams()) -> np.ndarray:  # noqa: ANN001, B008
+def lane_change_decision(view, vehicles: np.ndarray, params: StackelbergParams = StackelbergParams()) -> np.ndarray:
     """Lane-change requests in {-1, 0, +1} of ``vehicles`` (world indices): 0 while a change is
     in progress, else the lane of the best worst-case leader action (module docstring)."""
     vehicles = np.asarray(vehicles, dtype=np.int64)
@@ -186,7 +186,7 @@ def lane_change_decision(view, vehicles: np.ndarray, params: StackelbergParams =
 
 
 @kernel
-def _advance(x, v, a, t):  # noqa: ANN001, ANN202
+def _advance(x, v, a, t):
     """Position and speed after ``t`` at constant ``a`` from ``(x, v)``; a braking vehicle stops at 0."""
     if a < 0.0 and v + a * t < 0.0:
         t_stop = v / -a
@@ -195,7 +195,7 @@ def _advance(x, v, a, t):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _travel(v, a_phase, n, tau):  # noqa: ANN001, ANN202
+def _travel(v, a_phase, n, tau):
     """Distance travelled and final speed over ``n`` phases of ``tau`` with accelerations ``a_phase``."""
     x = 0.0
     for k in range(n):
@@ -204,7 +204,7 @@ def _travel(v, a_phase, n, tau):  # noqa: ANN001, ANN202
 
 
 @kernel
-def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, follower_speed,  # noqa: ANN001, ANN202, PLR0913
+def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, follower_speed,
                  lane_start, lane_end, road_length, tau, n, leader_up, leader_down, follower_up, follower_down,
                  d_v, headway, d_min, threshold):
     """Payoff matrix (9 × 9), the players' candidate slots and the decided lane offset.
@@ -336,13 +336,13 @@ class StackelbergDriver:
         vehicle_params: the scenario's :class:`evoscen_sim.vehicle.VehicleParams` (throttle map).
     """
 
-    def __init__(self, vehicles: np.ndarray, params: StackelbergParams, car_following, vehicle_params) -> None:  # noqa: ANN001
+    def __init__(self, vehicles: np.ndarray, params: StackelbergParams, car_following, vehicle_params) -> None:
         self.vehicles = np.asarray(vehicles, dtype=np.int64)
         self.params = params
         self.car_following = car_following
         self.vehicle_params = vehicle_params
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} per driven vehicle."""
         from evoscen_sim.vehicle import accel_to_throttle
 
@@ -355,14 +355,12 @@ class StackelbergDriver:
         return accel_to_throttle(accel, self.vehicle_params), request
 
 
-def _factory(vehicles, params, config, rng):  # noqa: ANN001, ANN202
-    from evoscen_sim.scenario_params import vehicle_params_from_config
-
+def _factory(vehicles, params, config, rng):
     from .krauss import krauss_for
 
     # Krauss with the scenario's models.krauss: the same car following for every SUT (docs/method.md §4)
     return StackelbergDriver(vehicles, params if params is not None else StackelbergParams(),
-                             krauss_for(config, rng), vehicle_params_from_config(config))
+                             krauss_for(config, rng), config.vehicle)
 
 
 SPEC = ModelSpec(

@@ -30,7 +30,7 @@ class SutParams:
     model: str = text("", lambda: model_names("sut"))  # default: the scenario's sut.model
 
 
-def _build(params, cfg, name):  # noqa: ANN001, ANN202
+def _build(params, cfg, name):
     model = own_parameters(SutParams, params, T.NODE_SUT, model=cfg.sut.model).model
     return build_sut_driver(cfg, model), np.array([SUT_INDEX])
 

@@ -29,7 +29,6 @@ PLUGIN = textwrap.dedent('''
 
     from evoscen_sim.config import number
     from evoscen_sim.models import ModelSpec
-    from evoscen_sim.scenario_params import vehicle_params_from_config
     from evoscen_sim.vehicle import accel_to_throttle
 
 
@@ -44,7 +43,7 @@ PLUGIN = textwrap.dedent('''
     class MySut:
         def __init__(self, vehicles, params, config, rng):
             self.vehicles, self.params = vehicles, params
-            self.vehicle = vehicle_params_from_config(config)
+            self.vehicle = config.vehicle
             self.calls = 0
 
         def act(self, view):

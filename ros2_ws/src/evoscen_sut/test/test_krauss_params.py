@@ -111,7 +111,7 @@ def test_krauss_is_a_parameter_set_not_a_model() -> None:
 
 
 # ------------------------------------------------------------------------------ every model reads it
-def _car_followers(driver) -> list:  # noqa: ANN001
+def _car_followers(driver) -> list:
     """The Krauss car followers inside a driver (a mutant's base and decider included)."""
     found = []
     for name in ("krauss", "car_following", "base", "decider"):

@@ -50,7 +50,7 @@ PARAMS = KraussParams(sigma=0.0, desired_speed_mps=SPEED_LIMIT)
 FREE_PARAMS = KraussParams(desired_speed_mps=SPEED_LIMIT)  # SUMO defaults, sigma 0.5
 
 
-def _sumo_baseline():  # noqa: ANN202
+def _sumo_baseline():
     """The repository's SUMO discovery (scripts/sumo_baseline.py), shared with the benchmark."""
     scripts = os.path.join(os.path.dirname(__file__), *([os.pardir] * 4), "scripts")
     if scripts not in sys.path:

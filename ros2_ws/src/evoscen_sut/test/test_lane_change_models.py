@@ -102,3 +102,26 @@ def test_default_scenario_as_bv_driver(model, params, lane) -> None:
     _collisions, changes = run_checked(sc, 1000, sc.bv_indices)
     assert changes >= 1
     assert np.all(np.isfinite(sc.world.v))
+
+
+def test_kernel_params_are_the_dataclass_fields_declared_once() -> None:
+    """The kernels' tuple type is derived from the parameter dataclass: same fields, same order,
+    the values of a parameter set as floats (flags as bools)."""
+    from dataclasses import dataclass
+
+    from evoscen_sut.lane_change import kernel_params, kernel_params_type
+
+    @dataclass(frozen=True)
+    class ToyParams:
+        gain: float = 2
+        on: bool = True
+        gap_m: float = 1.5
+
+    toy = kernel_params_type(ToyParams)
+    assert toy.__name__ == "ToyKernelParams" and toy._fields == ("gain", "on", "gap_m")
+    got = kernel_params(toy, ToyParams())
+    assert tuple(got) == (2.0, True, 1.5) and type(got[0]) is float and type(got[1]) is bool
+    assert mobil.MobilKernelParams.__name__ == "MobilKernelParams"
+    assert mobil.MobilKernelParams._fields[:3] == ("politeness", "threshold_mps2", "bias_mps2")
+    assert nilsson.NilssonKernelParams._fields[:2] == ("desired_speed_mps", "look_ahead_time_s")
+    assert kernel_params(mobil.MobilKernelParams, mobil.MobilParams()).politeness == 0.25

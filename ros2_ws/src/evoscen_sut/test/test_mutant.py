@@ -59,10 +59,10 @@ def blocked_left(road):
 class Scripted:
     """A user's plug-in SUT that replays a command script (one entry per call of ``act``)."""
 
-    def __init__(self, vehicles, script) -> None:  # noqa: ANN001
+    def __init__(self, vehicles, script) -> None:
         self.vehicles, self.script, self.k = vehicles, script, 0
 
-    def act(self, view):  # noqa: ANN001, ANN201
+    def act(self, view):
         thr, lc = self.script[min(self.k, len(self.script) - 1)]
         self.k += 1
         return np.array([thr]), np.array([lc])
@@ -165,7 +165,7 @@ def test_ignores_new_follower_changes_into_the_gap_with_intact_throttle(road) ->
     (ti, ci), (tm, cm) = intact.act(w), mutant.act(w)
     assert ci[0] == 0 and cm[0] == 1 and np.array_equal(ti, tm)
     # a vehicle behind in the own lane stays visible to the decision (only adjacent lanes are dropped)
-    nf = mutant._without_new_followers(  # noqa: SLF001
+    nf = mutant._without_new_followers(
         hand_built_world(road, s=[300.0, 330.0, 285.0, 280.0], lane=[1, 1, 2, 1], speed=[25.0, 20.0, 35.0, 25.0]))
     assert list(nf.ids) == [0, 1, 3]
 

@@ -44,7 +44,7 @@ def road():
     return load_road()
 
 
-def _decision(world, params=StackelbergParams()) -> int:  # noqa: B008
+def _decision(world, params=StackelbergParams()) -> int:
     return int(lane_change_decision(world, np.array([0]), params)[0])
 
 

@@ -1,0 +1,57 @@
+"""The mcap library's private internals the recorder relies on (:mod:`evoscen_eval.mcap_internals`).
+
+The recorder's fast write paths read and update private attributes of ``mcap.writer.Writer``; with
+another mcap release they may be gone or mean something else. These tests fail, naming what
+changed, when the installed mcap is not the release the module was written against, when that
+release is not the one ``requirements-runtime.txt`` pins, or when a fresh writer lacks one of the
+attributes — instead of the recorder silently falling back to the library's slower path.
+"""
+
+from __future__ import annotations
+
+import io
+import re
+from importlib import metadata
+from pathlib import Path
+
+from mcap.writer import CompressionType, Writer
+
+from evoscen_contract.topics import CONTRACT
+from evoscen_eval import mcap_internals as MI
+from evoscen_eval.recorder import BagRecorder
+
+REQUIREMENTS = Path(__file__).resolve().parents[4] / "requirements-runtime.txt"
+
+
+def test_the_installed_mcap_is_the_pinned_release_the_internals_were_written_against():
+    pin = re.search(r"^mcap==(\S+)$", REQUIREMENTS.read_text(encoding="utf-8"), re.M)
+    assert pin is not None, f"{REQUIREMENTS} pins no mcap release"
+    assert pin.group(1) == MI.MCAP_VERSION, (
+        f"requirements-runtime.txt pins mcap {pin.group(1)}, evoscen_eval.mcap_internals was written against "
+        f"{MI.MCAP_VERSION}: check its private attributes against the new release, then update MCAP_VERSION")
+    assert metadata.version("mcap") == MI.MCAP_VERSION, (
+        f"mcap {metadata.version('mcap')} is installed, evoscen_eval.mcap_internals needs {MI.MCAP_VERSION}")
+
+
+def test_a_fresh_writer_has_every_private_attribute_the_fast_paths_use():
+    writer = Writer(io.BytesIO(), chunk_size=1024, compression=CompressionType.ZSTD)
+    writer.start(profile="ros2", library="probe")
+    assert MI.missing_internals(writer) == [], (
+        f"mcap {metadata.version('mcap')}: the recorder's fast write paths need {MI.missing_internals(writer)}")
+    assert len(MI.WRITER_ATTRIBUTES) == 10
+
+
+def test_the_detector_names_what_is_missing():
+    class Bare:
+        pass
+
+    assert MI.missing_internals(Bare()) == list(MI.WRITER_ATTRIBUTES)
+
+
+def test_the_recorder_takes_the_fast_paths_with_the_pinned_release(tmp_path):
+    bag = BagRecorder(tmp_path / "bag", CONTRACT)
+    assert isinstance(bag._chunk, MI.ChunkMessages) and bag._add_message == bag._chunk.add
+    bag.close()
+    fast_only = BagRecorder(tmp_path / "fast", CONTRACT, chunk_writes=False)
+    assert MI.FastMessages.usable(fast_only._writer)
+    fast_only.close()
