@@ -384,7 +384,7 @@ def _world_steps(bag: Path) -> list[int] | None:
 def _fault_events(bag: Path) -> list[tuple[str, str]] | None:
     """``(kind, controller)`` of every ``fault`` event of the bag, in order; None if unreadable."""
     from diagnostic_msgs.msg import DiagnosticArray
-    from evoscen_contract.contract import TOPIC_EVENTS
+    from evoscen_contract.contract import EVENT_FAULT, TOPIC_EVENTS
     from evoscen_contract.topics import parse_events
     from evoscen_eval.recorder import open_bag_reader
     from rclpy.serialization import deserialize_message
@@ -392,7 +392,7 @@ def _fault_events(bag: Path) -> list[tuple[str, str]] | None:
     try:
         return [(ev.get("kind", ""), ev.get("controller", "")) for topic, _type, _t, d in open_bag_reader(bag)
                 if topic == TOPIC_EVENTS for ev in parse_events(deserialize_message(d, DiagnosticArray))
-                if ev["name"] == "evoscen/fault"]
+                if ev["name"] == EVENT_FAULT]
     except Exception:  # noqa: BLE001 - unreadable, whatever the reason
         return None
 
