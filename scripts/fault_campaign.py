@@ -386,7 +386,7 @@ def _fault_events(bag: Path) -> list[tuple[str, str]] | None:
     from diagnostic_msgs.msg import DiagnosticArray
     from evoscen_contract.contract import EVENT_FAULT, TOPIC_EVENTS
     from evoscen_contract.topics import parse_events
-    from evoscen_eval.recorder import open_bag_reader
+    from evoscen_eval.bag_reader import open_bag_reader
     from rclpy.serialization import deserialize_message
 
     try:
