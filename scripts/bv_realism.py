@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sut", default=None, help="SUT model (default: the config's)")
     ap.add_argument("--config", type=Path, default=None, help="scenario YAML (default: the shipped default)")
     ap.add_argument("--policy-dir", default=None,
-                    help="models.learned.policy_dir: shipped (default), round1, or a train_bv.py --out directory")
+                    help="models.learned.policy_dir: shipped (default), v0.1.0, or a train_bv.py --out directory")
     ap.add_argument("--cut-in-headway", type=float, default=None, metavar="H",
                     help="measure with the profiles' cut-in closing headway h replaced by H s (0: the method's plain 10 m)")
     ap.add_argument("--lane-hold", type=float, default=None, metavar="S",

@@ -16,8 +16,8 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", ["evoscen_bv/config/training.yaml"]),
         ("share/" + package_name + "/policies", sorted(f for f in glob("policies/*") if os.path.isfile(f))),
-        # the first shipped set (trained at 40k/20k steps under the safety_net rules), selectable as policy_dir: round1
-        ("share/" + package_name + "/policies/round1", sorted(glob("policies/round1/*"))),
+        # the first shipped set (trained at 40k/20k steps under the safety_net rules), selectable as policy_dir: v0.1.0
+        ("share/" + package_name + "/policies/v0.1.0", sorted(glob("policies/v0.1.0/*"))),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

@@ -25,9 +25,9 @@ from evoscen_sim.models import ModelSpec, register_model
 from .level0 import Level0Driver, level0_params_from_config
 
 SHIPPED = "shipped"
-SHIPPED_SETS = {SHIPPED: "", "round1": "round1"}
+SHIPPED_SETS = {SHIPPED: "", "v0.1.0": "v0.1.0"}
 """``policy_dir`` keywords of the shipped policy sets: ``shipped`` = the current set (trained at
-the method's scale under the ``driver`` profile), ``round1`` = the first shipped set (0.1.0; 40k controller /
+the method's scale under the ``driver`` profile), ``v0.1.0`` = the first shipped set (0.1.0; 40k controller /
 20k decision steps, trained under the ``safety_net`` rules), kept selectable."""
 
 
@@ -38,8 +38,8 @@ class LearnedParams:
     policy_dir: str = text(SHIPPED)
     """Directory of trained policies (``controller.npz``, ``mutual.npz``, ``competitive.npz``,
     ``cooperative.npz``, ``training.yaml``), as written by ``scripts/train_bv.py --out``;
-    ``shipped`` (default) = the policies shipped in ``share/evoscen_bv/policies``, ``round1`` =
-    the first shipped set in ``policies/round1`` (:data:`SHIPPED_SETS`). A relative path is relative to
+    ``shipped`` (default) = the policies shipped in ``share/evoscen_bv/policies``, ``v0.1.0`` =
+    the first shipped set in ``policies/v0.1.0`` (:data:`SHIPPED_SETS`). A relative path is relative to
     the working directory."""
     on_missing: str = text("error", ("error", "level0"))
     """What to do when the policy directory lacks policies: ``error`` (one-line error, the

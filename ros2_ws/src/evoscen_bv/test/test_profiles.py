@@ -135,17 +135,17 @@ computed with the code before profiles existed (commit 33305ed) on the developme
 
 
 def test_safety_net_reproduces_the_old_commands_exactly():
-    # the old commands came from the first shipped policies (kept as policy_dir: round1) and a
+    # the old commands came from the first shipped policies (kept as policy_dir: v0.1.0) and a
     # lateral loop without the heading-reference cap (evoscen_sim.control; 1.5 rad never binds: asin(0.6) < 0.65)
     # and no lane hold (lane_hold_s: 0; docs/learned-bvs.md), no speed adaptation of merging BVs (merge_seek),
     # every BV yielding on the SUT's lane-change intent (competitive_cut_in: yield)
-    old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "round1", "lane_hold_s": 0,
+    old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "v0.1.0", "lane_hold_s": 0,
                                   "into_ending_lane": True, "forced_merge_m": 120.0, "merge_seek": False,
                                   "competitive_cut_in": "yield"}},
            "control.max_heading_ref_rad": 1.5, "traffic.mode": "loop"}  # and re-entry at the road's start
     assert _commands_digest(old, 400) == OLD_COMMANDS_SHA256
     # the driver profile drives differently
-    assert _commands_digest({"models": {"learned": {"policy_dir": "round1"}}}, 400) != OLD_COMMANDS_SHA256
+    assert _commands_digest({"models": {"learned": {"policy_dir": "v0.1.0"}}}, 400) != OLD_COMMANDS_SHA256
 
 
 def test_cut_in_gap_headway_is_a_parameter(road):
@@ -192,7 +192,7 @@ def test_training_config_records_the_profile(tmp_path, policies):
 
     assert load_training_config().env.profile == "driver"  # new trainings: the driver profile
     assert policies[2].env.profile == "driver"  # the shipped policies were trained under driver
-    assert load_policies(shipped_policy_dir() / "round1")[2].env.profile == "safety_net"  # the first set: the old rules
+    assert load_policies(shipped_policy_dir() / "v0.1.0")[2].env.profile == "safety_net"  # the first set: the old rules
     (tmp_path / "t.yaml").write_text("env: {profile: safety_net}\n")
     cfg = load_training_config(tmp_path / "t.yaml")
     assert cfg.to_dict()["env"]["profile"] == "safety_net"

@@ -95,15 +95,15 @@ def test_competitive_changes_lanes_most_and_collisions_are_rare():
     assert collisions <= 2, (collisions, vehicle_hours)
 
 
-def test_round1_set_is_selectable_and_records_its_training_profile():
-    """``policy_dir: round1`` loads the first shipped set (kept selectable); it was trained under safety_net."""
+def test_first_set_is_selectable_and_records_its_training_profile():
+    """``policy_dir: v0.1.0`` loads the first shipped set (kept selectable); it was trained under safety_net."""
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import load_scenario_config
 
-    round1 = shipped_policy_dir() / "round1"
-    assert load_policies(round1)[2].env.profile == "safety_net"
+    first = shipped_policy_dir() / "v0.1.0"
+    assert load_policies(first)[2].env.profile == "safety_net"
     assert load_policies(shipped_policy_dir())[2].env.profile == "driver"
-    cfg = load_scenario_config(None, {"steps": 20, "bvs.driver": "learned", "models.learned.policy_dir": "round1",
+    cfg = load_scenario_config(None, {"steps": 20, "bvs.driver": "learned", "models.learned.policy_dir": "v0.1.0",
                                       "models.learned.profile": "safety_net"})
     sc = build_scenario(cfg)
     for _ in range(20):

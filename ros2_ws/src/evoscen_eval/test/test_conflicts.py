@@ -161,8 +161,8 @@ def test_a_bag_recorded_before_a_key_is_scored_as_it_was_then():
     run.scenario = older
     assert report_of(run)["safety"]["exposures"] == 0
     # the earliest section (none of the keys added since): every one of them as it was then
-    round1 = {"evaluation": {k: v for k, v in now["evaluation"].items() if k not in RECORDED_BEFORE_KEYS}}
-    ev = evaluation_settings_of(round1)
+    before = {"evaluation": {k: v for k, v in now["evaluation"].items() if k not in RECORDED_BEFORE_KEYS}}
+    ev = evaluation_settings_of(before)
     assert (ev.rear_conflicts, ev.rear_braking, ev.hard_braking, ev.cut_in_gap_m, ev.beside_lane_change,
             ev.undefined_terms, ev.accel_activity_form, ev.count_normalisation, ev.headway_threshold_s) == \
         ("none", "any", "own", 0.0, False, "literal", "literal", "literal", 0.0)
