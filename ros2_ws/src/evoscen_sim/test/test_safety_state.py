@@ -126,7 +126,7 @@ def _same_follower(s, d, v, length, width, sut) -> tuple[int, float]:
     # the SUT is vehicle 0
     ("no one behind", ([0.0, 10.0], [0.0, 0.0], [20.0, 30.0]), -1, math.inf),
     # SUT at s=100 v=25, follower at s=90 v=30 (length 4.8): gap 10 - 4.8 = 5.2 m, TTC 5.2 / 5 = 1.04 s
-    ("brief's example", ([100.0, 90.0], [0.0, 0.0], [25.0, 30.0]), 1, 1.04),
+    ("closing at 5 m/s (docs/evaluation.md §3)", ([100.0, 90.0], [0.0, 0.0], [25.0, 30.0]), 1, 1.04),
     ("behind, falling back", ([100.0, 90.0], [0.0, 0.0], [25.0, 20.0]), 1, math.inf),
     ("bodies overlap: gap < 0 -> 0", ([100.0, 98.0], [0.0, 0.0], [25.0, 30.0]), 1, 0.0),
     ("beside, no lateral overlap", ([100.0, 90.0], [0.0, 1.9], [25.0, 30.0]), -1, math.inf),
@@ -317,7 +317,7 @@ def test_beside_random_dense_states() -> None:
 
 
 def test_drac_one_is_drac_bit_for_bit() -> None:
-    # the brief's example: 5 m/s closing at 5.2 m: 25 / 10.4 = 2.4038 m/s²; opening: 0; touching while closing: inf
+    # docs/evaluation.md §3's example: 5 m/s closing at 5.2 m: 25 / 10.4 = 2.4038 m/s²; opening: 0; touching while closing: inf
     assert drac_one(5.2, 30.0, 25.0) == pytest.approx(25.0 / 10.4)
     assert drac_one(5.2, 25.0, 30.0) == 0.0 and drac_one(0.0, 30.0, 25.0) == math.inf
     rng = np.random.default_rng(17)

@@ -112,7 +112,7 @@ class StackelbergParams:
     """A follower's "decelerate" magnitude (m/s²), [0, 10]. Our choice (as the leader's)."""
     view_distance_m: float = number(100.0, 0.0, lo_open=True)
     """d_v: the payoff's view distance (m), > 0; U_pos when nobody is ahead, and the cap of
-    both payoff terms. 100 m (the brief's example; docs/method.md §3.2's grid also sees ~100 m ahead)."""
+    both payoff terms. 100 m (our choice; docs/method.md §3.2's grid also sees ~100 m ahead)."""
     time_headway_s: float = number(1.5, 0.0)
     """T: time headway applied to the closing speed of the vehicle behind in U_neg (s), >= 0.
     Our choice: 1.5 s, the IDM highway value of docs/method.md §4.2."""

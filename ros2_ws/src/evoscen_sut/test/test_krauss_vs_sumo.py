@@ -18,7 +18,7 @@ and is integrated with SUMO's Euler update (``v ← krauss_next_speed(...)``,
 Tolerance: max |Δv| < 1e-6 m/s over the 80 s (and |Δs| < 1e-5 m). Both sides compute the same
 formulas in IEEE double precision, so the only expected differences are rounding-order effects
 (~1e-12); a tolerance of 1e-6 still catches any change of a branch (one wrong step of an
-emergency or dawdling branch moves the speed by ≥ 0.01 m/s), and is far below the brief's
+emergency or dawdling branch moves the speed by ≥ 0.01 m/s), and is far below
 0.05 m/s.
 
 SUMO is optional: the test is skipped when libsumo cannot be imported or netconvert is not
