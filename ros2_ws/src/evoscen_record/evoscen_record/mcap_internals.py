@@ -1,11 +1,11 @@
 """The one place evoscen reaches into the ``mcap`` library's private internals (mcap 1.6.0, pinned).
 
-:class:`~evoscen_eval.recorder.BagRecorder` writes its messages, and with :class:`ChunkMessages` its
+:class:`~evoscen_record.recorder.BagRecorder` writes its messages, and with :class:`ChunkMessages` its
 chunks, itself instead of through ``mcap.writer.Writer.add_message``: the library packs each field
 with its own call (~15 µs per message, half the cost of recording a step). To do that it reads and
 updates the writer's name-mangled attributes (:data:`WRITER_ATTRIBUTES`) and its chunk builder
 (``mcap._chunk_builder.ChunkBuilder``), and writes the same records the library writes, byte for
-byte (tests/test_bag_hashes.py; ``test_eval_recorder_paths.py`` compares the three write paths).
+byte (tests/test_bag_hashes.py; ``test_recorder_paths.py`` compares the three write paths).
 
 Each fast path is used only where :meth:`FastMessages.usable` / :meth:`ChunkMessages.usable` find
 the writer they were written against; any other writer gets the library's own method (the same

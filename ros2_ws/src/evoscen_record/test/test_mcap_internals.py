@@ -1,4 +1,4 @@
-"""The mcap library's private internals the recorder relies on (:mod:`evoscen_eval.mcap_internals`).
+"""The mcap library's private internals the recorder relies on (:mod:`evoscen_record.mcap_internals`).
 
 The recorder's fast write paths read and update private attributes of ``mcap.writer.Writer``; with
 another mcap release they may be gone or mean something else. These tests fail, naming what
@@ -17,8 +17,8 @@ from pathlib import Path
 from mcap.writer import CompressionType, Writer
 
 from evoscen_contract.topics import CONTRACT
-from evoscen_eval import mcap_internals as MI
-from evoscen_eval.recorder import BagRecorder
+from evoscen_record import mcap_internals as MI
+from evoscen_record.recorder import BagRecorder
 
 REQUIREMENTS = Path(__file__).resolve().parents[4] / "requirements-runtime.txt"
 
@@ -27,10 +27,10 @@ def test_the_installed_mcap_is_the_pinned_release_the_internals_were_written_aga
     pin = re.search(r"^mcap==(\S+)$", REQUIREMENTS.read_text(encoding="utf-8"), re.M)
     assert pin is not None, f"{REQUIREMENTS} pins no mcap release"
     assert pin.group(1) == MI.MCAP_VERSION, (
-        f"requirements-runtime.txt pins mcap {pin.group(1)}, evoscen_eval.mcap_internals was written against "
+        f"requirements-runtime.txt pins mcap {pin.group(1)}, evoscen_record.mcap_internals was written against "
         f"{MI.MCAP_VERSION}: check its private attributes against the new release, then update MCAP_VERSION")
     assert metadata.version("mcap") == MI.MCAP_VERSION, (
-        f"mcap {metadata.version('mcap')} is installed, evoscen_eval.mcap_internals needs {MI.MCAP_VERSION}")
+        f"mcap {metadata.version('mcap')} is installed, evoscen_record.mcap_internals needs {MI.MCAP_VERSION}")
 
 
 def test_a_fresh_writer_has_every_private_attribute_the_fast_paths_use():
