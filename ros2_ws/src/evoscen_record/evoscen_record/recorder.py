@@ -48,7 +48,7 @@ from evoscen_contract.qos import rosbag2_qos_yaml
 from evoscen_contract.topics import TopicSpec
 from evoscen_record.bag_file import BagFile, prepare_bag_dir
 from evoscen_record.canonical_cdr import CanonicalCdr
-from evoscen_record.mcap_internals import ChunkMessages, FastMessages
+from evoscen_record.mcap_internals import ChunkMessages, FastMessages, count_messages
 from evoscen_record.metadata_yaml import bagfile_information, dump_metadata_yaml
 from evoscen_record.schemas import message_definition, type_description_hash
 from evoscen_sim.errors import HostFault, InputError
@@ -507,11 +507,7 @@ class BagRecorder:
         """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
         the bag's own (what :meth:`ChunkMessages.add` and :meth:`write` count one at a time)."""
         if n:
-            if st.message_count == 0 or lo < st.message_start_time:
-                st.message_start_time = lo
-            if hi > st.message_end_time:
-                st.message_end_time = hi
-            st.message_count += n
+            count_messages(st, n, lo, hi)
             self._message_count += n
             if self._start_ns is None or lo < self._start_ns:
                 self._start_ns = lo
