@@ -324,11 +324,7 @@ class BagRecorder:
         else:
             payload = bytes(data)
         if self._chunk_duration_ns:
-            if self._chunk_start_ns is None:
-                self._chunk_start_ns = log_time
-            elif log_time - self._chunk_start_ns >= self._chunk_duration_ns:
-                self._flush_chunk()  # close the chunk, write it out and hand it to the OS
-                self._chunk_start_ns = log_time
+            self._time_bound(log_time)
         state.message_count += 1
         self._add_message(state.channel_id, log_time, payload, publish_time,
                           state.message_count)  # sequence: a per-channel counter, 1-based
@@ -357,11 +353,7 @@ class BagRecorder:
                 continue
             payload = bytes(data)
             if duration:
-                if self._chunk_start_ns is None:
-                    self._chunk_start_ns = log_time
-                elif log_time - self._chunk_start_ns >= duration:
-                    self._flush_chunk()  # close the chunk, write it out and hand it to the OS
-                    self._chunk_start_ns = log_time
+                self._time_bound(log_time)
             state.message_count += 1
             add(state.channel_id, log_time, payload, log_time, state.message_count)
             self._message_count += 1
@@ -464,13 +456,8 @@ class BagRecorder:
             self.write_many([(log_time_ns, topic, b"".join(parts), True) for topic, parts in messages])
             return
         t = log_time_ns
-        duration = self._chunk_duration_ns
-        if duration:
-            if self._chunk_start_ns is None:
-                self._chunk_start_ns = t
-            elif t - self._chunk_start_ns >= duration:
-                self._flush_chunk()  # close the chunk, write it out and hand it to the OS
-                self._chunk_start_ns = t
+        if self._chunk_duration_ns:
+            self._time_bound(t)
         st = chunk._st  # the writer's statistics, see ChunkMessages
         counts, head, limit = st.channel_message_counts, ChunkMessages._HEAD.pack, chunk._chunk_size
         pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
@@ -502,6 +489,15 @@ class BagRecorder:
                 pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
         chunk._size, chunk._count = size, count
         self._sync(st, n, t, t)
+
+    def _time_bound(self, log_time: int) -> None:
+        """The time bound of a chunk (``chunk_duration_ns``, not 0): a message ``log_time`` that
+        comes that long or more after the open chunk's first message closes that chunk first."""
+        if self._chunk_start_ns is None:
+            self._chunk_start_ns = log_time
+        elif log_time - self._chunk_start_ns >= self._chunk_duration_ns:
+            self._flush_chunk()  # close the chunk, write it out and hand it to the OS
+            self._chunk_start_ns = log_time
 
     def _sync(self, st, n: int, lo: int, hi: int) -> None:  # mcap's Statistics
         """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
