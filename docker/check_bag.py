@@ -19,7 +19,7 @@ import _bootstrap  # noqa: F401
 
 
 def _messages(bag: Path) -> list[tuple[str, int, bytes]]:
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     return [(topic, t, data) for topic, _type, t, data in open_bag_reader(bag)]
 

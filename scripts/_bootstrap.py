@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_eval", "evoscen_bringup")
+PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_record", "evoscen_eval",
+            "evoscen_bringup")
 
 
 def ensure_packages() -> None:

@@ -13,7 +13,7 @@ shared and noisy: compare ratios, not absolute rates):
    each (wall time from the call until the bag is closed) and the ratios (median over the
    repeats). Target: >= 0.5. The two bags of a repeat are compared byte for byte.
 2. **The write path**: the messages of one recorded run, read back from its bag, written again
-   by :class:`evoscen_eval.recorder.BagRecorder` three ways: the default (the recorder keeps the
+   by :class:`evoscen_record.recorder.BagRecorder` three ways: the default (the recorder keeps the
    open chunk, ``mcap_internals.ChunkMessages``), ``chunk_writes=False`` (one ``pack`` per message record into
    the library's chunk builder, ``mcap_internals.FastMessages``) and ``fast_writes=False`` (the mcap library's
    own ``Writer.add_message``); microseconds per message of each (best of two, bag opening and
@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract.topics import CONTRACT
     from evoscen_eval.clips import read_messages
-    from evoscen_eval.recorder import BagRecorder
+    from evoscen_record.recorder import BagRecorder
     from evoscen_sim.config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": args.steps, "bvs.driver": args.bv_driver})

@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         if not bag_path.exists():
             raise InputError(f"bag {str(bag_path)!r}: no such bag directory or .mcap file")
         if args.reindex:
-            from evoscen_eval.reindex import reindex_bag
+            from evoscen_record.reindex import reindex_bag
 
             r = reindex_bag(bag_path)
             print(f"reindexed: {r.messages} messages, {r.steps} world states recovered", file=sys.stderr)
@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _finished(bag_path: Path) -> bool:
     """The bag has its metadata.yaml (for a directory) and its MCAP summary: readers open it."""
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
     from evoscen_sim.errors import InputError
 
     if bag_path.is_dir() and not (bag_path / "metadata.yaml").is_file():

@@ -249,7 +249,7 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
             shutil.copytree(bag, copy)
             world = _world_steps(copy)
             if world is None:
-                from evoscen_eval.reindex import reindex_bag
+                from evoscen_record.reindex import reindex_bag
 
                 with contextlib.suppress(Exception):
                     reindex_bag(copy, keep_original=False)
@@ -373,7 +373,7 @@ def _children(launcher: subprocess.Popen, module: str, node: str = "") -> list[i
 
 
 def _world_steps(bag: Path) -> list[int] | None:
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     try:
         return sorted({t // DT_NS for topic, _type, t, _d in open_bag_reader(bag) if topic == TOPIC_WORLD})
@@ -386,7 +386,7 @@ def _fault_events(bag: Path) -> list[tuple[str, str]] | None:
     from diagnostic_msgs.msg import DiagnosticArray
     from evoscen_contract.contract import EVENT_FAULT, TOPIC_EVENTS
     from evoscen_contract.topics import parse_events
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
     from rclpy.serialization import deserialize_message
 
     try:
@@ -406,7 +406,7 @@ def expected_kill_statuses(fault: tuple) -> tuple[int, ...]:
 
 
 def _world_bytes(bag: Path) -> list[bytes]:
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     return [d for topic, _type, _t, d in open_bag_reader(bag) if topic == TOPIC_WORLD]
 
@@ -533,7 +533,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
     if (out / "bag").exists():
         world = _world_steps(out / "bag")
         if world is None:
-            from evoscen_eval.reindex import reindex_bag
+            from evoscen_record.reindex import reindex_bag
 
             with contextlib.suppress(Exception):
                 reindex_bag(out / "bag", keep_original=False)

@@ -26,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("bag", type=Path, help="bag directory or .mcap file")
     ap.add_argument("--no-keep-original", action="store_true", help="do not keep the damaged file as <file>.orig")
     args = ap.parse_args(argv)
-    from evoscen_eval.reindex import reindex_bag
+    from evoscen_record.reindex import reindex_bag
     from evoscen_sim.errors import InputError
 
     try:

@@ -126,7 +126,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
                    domain: int) -> int:
     """Run the node graph on ``domain`` (reserved by the caller); print the outcome; return its status."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
     from evoscen_sim.errors import InputError
 
     opts = GraphOptions(domain_id=domain, discovery_range=args.discovery_range,
@@ -163,7 +163,7 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.domains import reserve_domain
-    from evoscen_bringup.bag_writer import BagWriterError
+    from evoscen_record.bag_writer import BagWriterError
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config import dump_config, load_scenario_config

@@ -69,7 +69,7 @@ def test_state_copy_gives_the_columns_bit_for_bit() -> None:
 
 @pytest.mark.parametrize(("slots", "steps_per_slot"), [(2, 3), (1, 1), (4, 128)])
 def test_process_writer_gives_the_inline_bytes(tmp_path: Path, monkeypatch, slots: int, steps_per_slot: int) -> None:
-    from evoscen_bringup.bag_writer import ProcessRecorder
+    from evoscen_record.bag_writer import ProcessRecorder
 
     cfg = _cfg(60)
     inline = _record(tmp_path, "inline", cfg, "inline")
@@ -80,7 +80,7 @@ def test_process_writer_gives_the_inline_bytes(tmp_path: Path, monkeypatch, slot
 
 def test_process_writer_learned_bvs_and_no_bvs(tmp_path: Path, monkeypatch) -> None:
     """Other command tables: learned BVs (their own arrays), and a run without BVs (no BV commands)."""
-    from evoscen_bringup.bag_writer import ProcessRecorder
+    from evoscen_record.bag_writer import ProcessRecorder
 
     monkeypatch.setattr(ProcessRecorder, "steps_per_slot", 7)
     for name, cfg in (("learned", _cfg(40, **{"bvs.driver": "learned"})), ("alone", _cfg(40, **{"bvs.count": 0, "spawn.ramp_vehicles": 0}))):
@@ -105,7 +105,7 @@ def test_bag_dir_not_empty_is_the_inline_error(tmp_path: Path) -> None:
 
 def test_writer_error_is_raised_in_the_run(tmp_path: Path, monkeypatch) -> None:
     """An error of the writer (here a full disk on the first batch) is raised in the run as itself."""
-    from evoscen_bringup import bag_writer
+    from evoscen_record import bag_writer
     from evoscen_bringup.inprocess import run_inprocess
 
     def full_disk(*args, **kwargs) -> None:
@@ -121,7 +121,7 @@ def test_writer_error_is_raised_in_the_run(tmp_path: Path, monkeypatch) -> None:
 def test_writer_error_wins_over_its_end(tmp_path: Path, monkeypatch) -> None:
     """The writer failed and ended before the run wrote to it again: the run's next send finds
     the pipe broken, and the writer's error (not "ended unexpectedly") is what it raises."""
-    from evoscen_bringup import bag_writer
+    from evoscen_record import bag_writer
     from evoscen_bringup.inprocess import run_inprocess
 
     def full_disk(*args, **kwargs) -> None:
@@ -143,14 +143,14 @@ def test_writer_error_wins_over_its_end(tmp_path: Path, monkeypatch) -> None:
 
 
 def _dying_writer(monkeypatch) -> None:
-    from evoscen_bringup import bag_writer
+    from evoscen_record import bag_writer
 
     monkeypatch.setattr(bag_writer, "_replay", lambda *args: os._exit(9))
     monkeypatch.setattr(bag_writer.ProcessRecorder, "steps_per_slot", 5)
 
 
 def test_dead_writer_is_one_line_naming_the_bag(tmp_path: Path, monkeypatch) -> None:
-    from evoscen_bringup.bag_writer import BagWriterError
+    from evoscen_record.bag_writer import BagWriterError
     from evoscen_bringup.inprocess import run_inprocess
 
     _dying_writer(monkeypatch)
@@ -181,7 +181,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
     """SIGINT to the process group (what a terminal's Ctrl-C sends: the writer gets it too)."""
     from diagnostic_msgs.msg import DiagnosticArray
     from evoscen_contract.topics import parse_events
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
     from mcap.reader import make_reader
     from rclpy.serialization import deserialize_message
 
@@ -222,7 +222,7 @@ def test_ctrl_c_leaves_a_finished_bag(tmp_path: Path, writer: str) -> None:
 def test_killed_run_leaves_the_writer_to_finish_the_bag(tmp_path: Path) -> None:
     """SIGKILL to the run alone: its writer sees the pipe close and finishes the bag with what
     it received (a readable MCAP with its summary, every per-step topic contiguous from t_0)."""
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
     from mcap.reader import make_reader
 
     out = tmp_path / "run"
@@ -258,7 +258,7 @@ def test_killed_run_leaves_the_writer_to_finish_the_bag(tmp_path: Path) -> None:
 
 
 def test_auto_and_unknown_writers(monkeypatch) -> None:
-    from evoscen_bringup import bag_writer
+    from evoscen_record import bag_writer
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0})
     assert bag_writer.resolve_writer("auto") == "inline"

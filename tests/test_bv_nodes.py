@@ -107,7 +107,7 @@ def test_entries_keep_their_node():
 @pytest.fixture(scope="module")
 def partitioned_bags(tmp_path_factory):
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     root = tmp_path_factory.mktemp("partitions")
     out = {}
@@ -223,7 +223,7 @@ def test_bv_node_started_by_hand_joins_the_run(tmp_path):
 def test_graph_with_an_empty_bv_node_equals_inprocess(tmp_path):
     """3 BVs over 4 BV nodes (``--bv-nodes 4``): evoscen_bv_3 hosts nobody and still answers every
     step with an empty table; the graph's bag is the in-process run's, byte for byte."""
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     common = ["--steps", "120", "--seed", "2", "--bvs", "3", "--bv-nodes", "4", "--no-plots"]
     graph = subprocess.run([sys.executable, "scripts/run_scenario.py", "--mode", "graph", *common,

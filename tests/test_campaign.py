@@ -326,7 +326,7 @@ def test_critical_events_become_clips_pictures_and_reproducible_commands(tmp_pat
     by falling severity."""
     import shlex
 
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     spec = load_spec(write_spec(tmp_path, CLIPS))
     runs = expand(spec)

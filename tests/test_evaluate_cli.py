@@ -91,7 +91,7 @@ def _copy_bag_with_scenario(src: Path, dst: Path, edit) -> None:  # edit: dict -
     """Copy the bag ``src`` (a directory) to ``dst`` with its scenario metadata record edited by
     ``edit(scenario_dict)``; schemas, channels and messages are copied as they are, in file order."""
     import yaml
-    from evoscen_eval.rundata import SCENARIO_KEY, SCENARIO_METADATA
+    from evoscen_record.scenario_record import SCENARIO_KEY, SCENARIO_METADATA
     from mcap.records import Channel, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
     from mcap.writer import Writer

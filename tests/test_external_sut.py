@@ -75,7 +75,7 @@ def wait_for(procs: dict, out: Path) -> dict:
 
 
 def read_bag(bag_dir: Path) -> dict[str, list[tuple[int, bytes]]]:
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     topics: dict[str, list[tuple[int, bytes]]] = {}
     for topic, _type, t_ns, data in open_bag_reader(bag_dir):

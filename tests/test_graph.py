@@ -132,7 +132,7 @@ def _running(bag_dir: Path, *args: object, settle_s: float = 0.0) -> Iterator[su
 
 def _read_bag(bag_dir: Path) -> dict[str, list[tuple[int, bytes]]]:
     """``{topic: [(log_time_ns, cdr bytes), ...]}`` in file order (evoscen's reader)."""
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     out: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
     for topic, _type, t_ns, data in open_bag_reader(bag_dir):

@@ -101,10 +101,10 @@ class _FullDisk:
 def _fill_disk(monkeypatch: pytest.MonkeyPatch, bag: Path, capacity: int, *, stays_full: bool) -> None:
     """The run's bag file fills at ``capacity`` bytes; with ``stays_full`` every later file in the
     bag directory too (no room to finish the bag), else the disk has room once the file is cut back."""
-    from evoscen_eval import recorder
+    from evoscen_record import bag_file
 
     budget = [capacity]
-    real = recorder._open_file
+    real = bag_file._open_file
     opened = []
 
     def fake(path: Path):
@@ -115,7 +115,7 @@ def _fill_disk(monkeypatch: pytest.MonkeyPatch, bag: Path, capacity: int, *, sta
             return _FullDisk(path, budget)
         return real(path)
 
-    monkeypatch.setattr(recorder, "_open_file", fake)
+    monkeypatch.setattr(bag_file, "_open_file", fake)
 
 
 @pytest.mark.parametrize("writer", ["inline", "process"])
@@ -123,7 +123,7 @@ def _fill_disk(monkeypatch: pytest.MonkeyPatch, bag: Path, capacity: int, *, sta
 def test_full_disk_mid_run(tmp_path: Path, reference: Path, monkeypatch: pytest.MonkeyPatch,
                            writer: str, stays_full: bool) -> None:
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval.reindex import reindex_bag
+    from evoscen_record.reindex import reindex_bag
     from evoscen_sim.errors import HostFault
 
     chunks = _chunks(reference)
@@ -290,8 +290,8 @@ def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypa
     """Every write fails from some point on (the file system remounted read-only): one line naming
     the cause and the reindexer; the reindexer reads exactly the states written before it."""
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval import recorder
-    from evoscen_eval.reindex import reindex_bag
+    from evoscen_record import bag_file
+    from evoscen_record.reindex import reindex_bag
     from evoscen_sim.errors import HostFault
 
     chunks = _chunks(reference)
@@ -300,7 +300,7 @@ def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypa
     n, kept = _expected(reference, capacity)
     bag = tmp_path / "bag"
     budget = [capacity]
-    real = recorder._open_file
+    real = bag_file._open_file
 
     def fake(path: Path):
         if not str(path).startswith(str(bag)):
@@ -309,7 +309,7 @@ def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypa
             raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
         return _ReadOnly(path, budget)
 
-    monkeypatch.setattr(recorder, "_open_file", fake)
+    monkeypatch.setattr(bag_file, "_open_file", fake)
     with pytest.raises(HostFault) as info:
         run_inprocess(_cfg(), bag_dir=bag, bag_writer=writer)
     fault = info.value
@@ -375,17 +375,17 @@ def test_bytes_held_between_flushes_are_bounded_and_change_nothing(tmp_path: Pat
                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
     """Past HOLD_BYTES the bag file writes out without waiting for a flush: the same file, byte for byte."""
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval import recorder
+    from evoscen_record import bag_file
 
     writes = []
-    real = recorder._BagFile._write_out
+    real = bag_file.BagFile._write_out
 
     def counted(self) -> None:
         writes.append(1)
         real(self)
 
-    monkeypatch.setattr(recorder._BagFile, "HOLD_BYTES", 1000)
-    monkeypatch.setattr(recorder._BagFile, "_write_out", counted)
+    monkeypatch.setattr(bag_file.BagFile, "HOLD_BYTES", 1000)
+    monkeypatch.setattr(bag_file.BagFile, "_write_out", counted)
     run_inprocess(_cfg(), bag_dir=tmp_path / "held" / "bag", bag_writer="inline")
     assert len(writes) > len(_chunks(reference)) + 1  # more write-outs than flushes
     assert (tmp_path / "held" / "bag" / "bag_0.mcap").read_bytes() == reference.read_bytes()

@@ -160,3 +160,15 @@ def test_the_project_has_no_import_cycles() -> None:
     assert "evoscen_sim.config" in modules and "evoscen_sim.models" in modules
     cycles = find_cycles(import_graph(modules))
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
+
+
+def test_evoscen_record_depends_only_on_the_contract_and_the_simulation() -> None:
+    """The recording package sits below the evaluation and the runners: its modules import only
+    evoscen_contract and evoscen_sim among the other packages (evoscen_eval and evoscen_bringup
+    import it, never the reverse)."""
+    graph = import_graph(project_modules())
+    allowed = {"evoscen_record", "evoscen_contract", "evoscen_sim"}
+    upward = sorted(f"{name} -> {target}" for name, targets in graph.items() if name.split(".")[0] == "evoscen_record"
+                    for target in targets if target.split(".")[0] not in allowed)
+    assert "evoscen_record.recorder" in graph
+    assert upward == [], "evoscen_record imports from above it: " + "; ".join(upward)

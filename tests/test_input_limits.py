@@ -234,7 +234,7 @@ def _metadata_records(bag: Path) -> dict[str, dict[str, str]]:
 def contract_of(bag: Path) -> tuple:
     """The contract rows of ``bag``'s run: its BV nodes' command topics in the bag's order."""
     from evoscen_contract import topics as T
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     names = dict.fromkeys(T.NODE_BV + topic[len(T.TOPIC_COMMANDS_BV):] for topic, _type, _t, _d in open_bag_reader(bag)
                           if T.is_bv_command_topic(topic))
@@ -243,8 +243,8 @@ def contract_of(bag: Path) -> tuple:
 
 def rewrite_bag(src: Path, dst: Path, transform, topics=None) -> Path:
     """Copy ``src`` to ``dst`` message by message through ``transform(topic, t_ns, data) -> [(topic, t, data)]``."""
-    from evoscen_eval.bag_reader import open_bag_reader
-    from evoscen_eval.recorder import BagRecorder
+    from evoscen_record.bag_reader import open_bag_reader
+    from evoscen_record.recorder import BagRecorder
 
     with BagRecorder(dst, topics or contract_of(src), canonicalize=False, metadata=_metadata_records(src)) as bag:
         for topic, _type, t, data in open_bag_reader(src):
@@ -270,7 +270,7 @@ def _world_edit(step: int, vehicle: int, field: str, value: float):
 def test_nan_in_the_world_table_is_one_line(short_bag, tmp_path):
     bag = rewrite_bag(short_bag, tmp_path / "nan" / "bag", _world_edit(7, 2, "speed", float("nan")))
     from evoscen_contract.cdr import decode_table
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     vid = next(int(decode_table(d).data[2, decode_table(d).fields.index("id")])
                for topic, _, t, d in open_bag_reader(bag) if topic == "/evoscen/world" and t == 700_000_000)
@@ -425,7 +425,7 @@ def test_same_run_from_another_map_location_is_byte_identical(tmp_path):
 
 def test_no_bvs_means_no_bv_command_messages(tmp_path):
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
     from evoscen_sim.config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": 20, "bvs.count": 0, "spawn.ramp_vehicles": 0})

@@ -7,7 +7,7 @@ order, ``mcap_internals.ChunkMessages``, the compiled marker kernel, events enco
 write path (every message through ``OrderedBag``, ``mcap_internals.FastMessages``, markers marker by marker in Python,
 events and map markers serialized by rclpy and canonicalized by the recorder); and through the
 mcap library's own ``add_message``; and as shipped with the bag written by a forked writer
-process (``bag_writer="process"``, evoscen_bringup.bag_writer; the others inline). The four
+process (``bag_writer="process"``, evoscen_record.bag_writer; the others inline). The four
 ``.mcap`` files must be equal byte for byte.
 """
 
@@ -23,14 +23,14 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch) -> None:
     from rclpy.serialization import serialize_message
 
-    from evoscen_bringup.step_recorder import StepRecorder
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract import messages as M
     from evoscen_contract import topics as T
     from evoscen_contract.cdr import VehicleMarkersEncoder
     from evoscen_contract.markers import road_markers
-    from evoscen_eval import mcap_internals as MI
-    from evoscen_eval import recorder as R
+    from evoscen_record import mcap_internals as MI
+    from evoscen_record import recorder as R
+    from evoscen_record.step_recorder import StepRecorder
     from evoscen_sim.config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": 300})

@@ -29,7 +29,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from evoscen_eval.bag_reader import open_bag_reader
+from evoscen_record.bag_reader import open_bag_reader
 
 REPO = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.e2e

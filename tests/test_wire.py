@@ -41,7 +41,7 @@ def _node_env(domain_id: int) -> dict[str, str]:
 
 
 def _read_bag(bag_dir: Path) -> dict[str, list[tuple[int, bytes]]]:
-    from evoscen_eval.bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     out: dict[str, list[tuple[int, bytes]]] = defaultdict(list)
     for topic, _type, t_ns, data in open_bag_reader(bag_dir):

@@ -16,7 +16,7 @@ setup(
     zip_safe=True,
     maintainer="evoscen developers",
     maintainer_email="dev@evoscen.org",
-    description="evoscen evaluation: rosbag2 MCAP recorder, metrics and reports.",
+    description="evoscen evaluation: metrics and reports.",
     license="Apache-2.0",
     entry_points={"console_scripts": ["eval_node = evoscen_eval.eval_node:main"]},
 )

@@ -51,7 +51,8 @@ SPEC_KEYS = ("name", "config", "steps", "seeds", "set", "grid", "record", "clip_
 RECORD_MODES = ("none", "events", "all")
 MUTANT_AXIS = "mutant"
 INTACT = "intact"
-PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_eval", "evoscen_bringup")
+PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_record", "evoscen_eval",
+            "evoscen_bringup")
 SCORE_COLUMNS = ("intelligence", "safety", "efficiency", "interaction", "complexity")
 COUNT_COLUMNS = ("collisions", "exposures")
 KIND_COLUMNS = tuple(f"collisions_{k}" for k in (*COLLISION_KINDS, "unknown"))

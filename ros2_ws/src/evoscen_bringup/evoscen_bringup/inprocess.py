@@ -7,9 +7,9 @@ the last step the final state and a ``run_end`` event); this runner's port asks 
 drivers and the SUT for the commands directly (think ROS 2 composition) and records every
 message.
 
-With recording on, every message goes to :class:`~evoscen_eval.recorder.BagRecorder` — what the
-evaluator node uses — in the canonical order :class:`evoscen_eval.recorder.OrderedBag` gives
-(a step at a time, :class:`~evoscen_bringup.step_recorder.StepRecorder`), with the bytes of
+With recording on, every message goes to :class:`~evoscen_record.recorder.BagRecorder` — what the
+evaluator node uses — in the canonical order :class:`evoscen_record.ordered_bag.OrderedBag` gives
+(a step at a time, :class:`~evoscen_record.step_recorder.StepRecorder`), with the bytes of
 :class:`evoscen_contract.messages.WorldMessages` — what the simulation node publishes — and log
 time = simulation time, so the bag is byte-identical for the same config and seed, and equal
 to the node graph's.
@@ -27,11 +27,11 @@ from typing import Callable
 
 
 from evoscen_contract.contract import KIND_INTERRUPTED
+from evoscen_record.step_recorder import StepRecorder
 from evoscen_sim.config import ScenarioConfig
 from evoscen_sim.step_loop import Commands, Port, StepLoop
 
 from .scenario import Scenario, build_scenario
-from .step_recorder import StepRecorder
 
 
 @dataclass
@@ -176,7 +176,7 @@ def run_inprocess(
 
     ``bag_writer`` ([choice] bag writer, docs/recording.md): ``"inline"`` writes the bag in this
     process, between the steps; ``"process"`` hands it to a forked writer process
-    (:mod:`evoscen_bringup.bag_writer`), the same bytes; ``"auto"`` (default) is the process writer
+    (:mod:`evoscen_record.bag_writer`), the same bytes; ``"auto"`` (default) is the process writer
     when this process may use more than one CPU. ``wall_time_s`` runs from step 0 until the bag is
     closed.
 
@@ -194,11 +194,10 @@ def run_inprocess(
     world = sc.world
     acc = None
     if report_dir is not None or evaluate:
-        from evoscen_eval.rundata import RunAccumulator
-
         import yaml
 
-        from evoscen_eval.rundata import SCENARIO_KEY, evaluation_settings_of, scenario_metadata
+        from evoscen_eval.rundata import RunAccumulator, evaluation_settings_of
+        from evoscen_record.scenario_record import SCENARIO_KEY, scenario_metadata
 
         acc = RunAccumulator(expected_states=n_steps + 1, keep_world=keep_run)
         recorded = yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY])  # scored as the bag would be
@@ -208,7 +207,7 @@ def run_inprocess(
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
     rec = None
     if bag_dir is not None:
-        from .bag_writer import ProcessRecorder, resolve_writer
+        from evoscen_record.bag_writer import ProcessRecorder, resolve_writer
 
         if resolve_writer(bag_writer) == "process":
             rec = ProcessRecorder(bag_dir, cfg, world, n_bv=len(sc.bv_indices))
@@ -256,7 +255,7 @@ def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool, keep
 
     from evoscen_eval.metrics import report_of_stream
     from evoscen_eval.report import write_stream_report
-    from evoscen_eval.rundata import SCENARIO_KEY, scenario_metadata
+    from evoscen_record.scenario_record import SCENARIO_KEY, scenario_metadata
 
     scenario = yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY])
     info = acc.stream_info(scenario=scenario)

@@ -14,7 +14,7 @@ from evoscen_contract.topics import (
     COMMAND_FIELDS, MAP_FRAME, ROSTER_FIELDS, SUT_BASE_FRAME, WORLD_FIELDS, clock_message, odometry_message,
 )
 from nav_msgs.msg import Odometry
-from evoscen_eval.recorder import CanonicalCdr
+from evoscen_record.canonical_cdr import CanonicalCdr
 
 CANON = CanonicalCdr(["sensor_msgs/msg/PointCloud2", "rosgraph_msgs/msg/Clock", "nav_msgs/msg/Odometry"])
 

@@ -55,7 +55,7 @@ def test_vehicle_markers_encoder_equals_canonical_serialization(n):
     from visualization_msgs.msg import MarkerArray
 
     from evoscen_contract.cdr import VehicleMarkersEncoder
-    from evoscen_eval.recorder import CanonicalCdr
+    from evoscen_record.canonical_cdr import CanonicalCdr
 
     rng = np.random.default_rng(n)
     cols = {"id": np.arange(n, dtype=float) * 7, "policy": rng.integers(0, 8, n).astype(float),
@@ -101,7 +101,7 @@ def test_road_markers_encoder_equals_canonical_serialization():
     from types import SimpleNamespace
 
     from evoscen_contract.cdr import encode_road_markers
-    from evoscen_eval.recorder import CanonicalCdr
+    from evoscen_record.canonical_cdr import CanonicalCdr
     from evoscen_sim.road import load_road
 
     canon = CanonicalCdr(["visualization_msgs/msg/MarkerArray"])

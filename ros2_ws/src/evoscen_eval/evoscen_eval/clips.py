@@ -50,7 +50,7 @@ def rank_key(event: dict[str, Any]) -> tuple:
 
 def read_messages(bag_dir: Path) -> list[tuple[str, int, bytes]]:
     """The bag's messages ``(topic, log time, data)`` in log-time order (ties in file order)."""
-    from .bag_reader import open_bag_reader
+    from evoscen_record.bag_reader import open_bag_reader
 
     return [(topic, t_ns, data) for topic, _type, t_ns, data in open_bag_reader(bag_dir, log_time_order=True)]
 
@@ -62,7 +62,7 @@ def cut_clip(messages: list[tuple[str, int, bytes]], metadata: dict, out_dir: Pa
     number of messages written."""
     from evoscen_contract import topics as T
 
-    from .recorder import BagRecorder
+    from evoscen_record.recorder import BagRecorder
 
     latched = {spec.name for spec in T.CONTRACT if spec.qos.durability == "transient_local"}
     before: dict[str, tuple[int, bytes]] = {}
@@ -93,7 +93,7 @@ def bag_metadata(bag_dir: Path, name: str) -> dict[str, dict[str, str]]:
     """The MCAP metadata record ``name`` of a bag as ``{name: {key: value}}`` (empty if none)."""
     from mcap.reader import make_reader
 
-    from .bag_reader import bag_file
+    from evoscen_record.bag_reader import bag_file
 
     with open(bag_file(Path(bag_dir)), "rb") as f:
         for record in make_reader(f).iter_metadata():
@@ -110,8 +110,10 @@ def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: fl
     returns one entry per event (what :func:`events_of` gives, plus ``clip``, ``png``,
     ``command``, ``messages``, ``from_state``, ``to_state``; paths relative to ``run_dir``).
     """
+    from evoscen_record.scenario_record import SCENARIO_METADATA
+
     from .report import _snapshot
-    from .rundata import SCENARIO_METADATA, read_run
+    from .rundata import read_run
     from .streaming import Scene
 
     dt = float(report["run"]["dt_s"])

@@ -3,8 +3,8 @@
     python -m evoscen_eval.eval_node --ros-args --params-file eval.yaml -p bag_dir:=runs/x/bag
 
 Raw (serialized) subscriptions on every topic of the contract, with the contract's QoS;
-the bytes go through the same :class:`~evoscen_eval.recorder.OrderedBag` and
-:class:`~evoscen_eval.recorder.BagRecorder` as the in-process runner, so a graph run's bag
+the bytes go through the same :class:`~evoscen_record.ordered_bag.OrderedBag` and
+:class:`~evoscen_record.recorder.BagRecorder` as the in-process runner, so a graph run's bag
 equals the in-process bag of the same scenario. Messages of one step arrive from several
 publishers in no fixed order; every per-step topic carries exactly one message per step, in
 order, so a step is complete once every such topic has delivered a later one — it is then
@@ -56,9 +56,11 @@ from evoscen_contract.contract import EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUP
 from evoscen_sim.errors import HostFault
 from evoscen_sim.config_checks import flag, integer, number, text
 from evoscen_sim.node_params import own_parameters, run_node, scenario_from_node
+from evoscen_record.ordered_bag import OrderedBag
+from evoscen_record.recorder import BagRecorder
+from evoscen_record.scenario_record import SCENARIO_KEY, SCENARIO_METADATA, scenario_metadata
 
-from .recorder import BagRecorder, OrderedBag
-from .rundata import SCENARIO_KEY, SCENARIO_METADATA, RunAccumulator, scenario_metadata
+from .rundata import RunAccumulator
 
 NODE_NAME = T.NODE_EVAL
 # topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
@@ -121,7 +123,7 @@ class EvaluatorNode:
             self.acc.start_scoring(evaluation_settings_of(recorded), float(recorded["dt_s"]))
         self.dt_ns = round(self.cfg.dt_s * 1e9)
         rec = self.cfg.recording
-        from .reindex import finish_bag
+        from evoscen_record.reindex import finish_bag
 
         # one command topic per BV node of bvs.nodes, in the partition's order (docs/architecture.md
         # §5, "BV nodes"): the bag's channels and per-step order are the in-process runner's

@@ -32,7 +32,7 @@ from typing import Any
 import yaml
 
 from evoscen_contract.qos import QosSpec
-from evoscen_eval.bag_reader import bag_file, open_bag_reader, read_bag_metadata
+from evoscen_record.bag_reader import bag_file, open_bag_reader, read_bag_metadata
 from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_SECONDS_ARG
 
@@ -200,7 +200,7 @@ def read_bag_topics(bag_dir: Path | str) -> list[BagTopic]:
     """The topics of a rosbag2 MCAP bag, in channel order (topics of several channels once).
 
     The QoS comes from the channel metadata ``offered_qos_profiles`` (what rosbag2 and
-    :class:`~evoscen_eval.recorder.BagRecorder` write), else from ``metadata.yaml``, else
+    :class:`~evoscen_record.recorder.BagRecorder` write), else from ``metadata.yaml``, else
     :data:`DEFAULT_QOS`. The type is the channel's schema name (else ``metadata.yaml``'s).
 
     Raises:

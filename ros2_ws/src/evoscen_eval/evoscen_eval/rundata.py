@@ -13,7 +13,7 @@ the in-process runner see *the same numbers* (and, scoring, compute them in one 
   exactly: ints, ``repr`` floats).
 
 The resolved scenario configuration travels in the bag as an MCAP metadata record
-(:data:`SCENARIO_METADATA`, written first, before any message), so a bag alone is
+(:mod:`evoscen_record.scenario_record`, written first, before any message), so a bag alone is
 enough to evaluate a run with the settings it ran with.
 """
 
@@ -29,19 +29,11 @@ import yaml
 
 from evoscen_contract import contract as C
 from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
+from evoscen_record.scenario_record import EXTERNAL_SUT, SCENARIO_KEY, SCENARIO_METADATA, SUT_SOURCE_KEY
 from evoscen_sim.config import EvaluationConfig, evaluation_from_dict
 from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_STEPS
 
-SCENARIO_METADATA = "evoscen"
-"""Name of the MCAP metadata record holding the scenario."""
-SCENARIO_KEY = "scenario_yaml"
-"""Key of the resolved scenario configuration (YAML text) in that record."""
-MAP_HASH_KEY = "map_sha256"
-"""Key of the SHA-256 (hex) of the map file's bytes in that record."""
-SUT_SOURCE_KEY = "sut_source"
-"""Key present (value ``external``) when the SUT was a user's node, not the configured model."""
-EXTERNAL_SUT = "external"
 
 
 @dataclass
@@ -263,42 +255,6 @@ def lane_segments(markers: Any) -> np.ndarray:
     return np.concatenate(segs) if segs else np.zeros((0, 2, 2))
 
 
-def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # a ScenarioConfig
-    """The metadata record content for ``cfg`` (the same YAML text in every runner).
-
-    With ``external_sut`` the record also says that the SUT was a user's node, whatever the
-    configuration's ``sut.model`` (which then drove nothing); without it the record is only the
-    configuration, so a graph run's bag stays equal to the in-process one.
-    """
-    from evoscen_sim.config import config_to_dict
-
-    scenario = config_to_dict(cfg)
-    scenario["map"], digest = portable_map_ref(cfg.map)
-    meta = {SCENARIO_KEY: yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None),
-            MAP_HASH_KEY: digest}
-    if external_sut:
-        meta[SUT_SOURCE_KEY] = EXTERNAL_SUT
-    return meta
-
-
-def portable_map_ref(map_path: str | Path) -> tuple[str, str]:
-    """``(reference, sha256 hex)`` of a resolved map file, with nothing machine-specific in it.
-
-    The reference is the file name (``onramp.xodr``): a config's ``map: onramp.xodr`` finds
-    it in evoscen_sim's share ``maps/`` wherever evoscen is installed, and for a map of the
-    user's the directory is left out (it names a machine: the same run from another checkout
-    gave another bag). The SHA-256 of the file's bytes identifies the map exactly (a shipped
-    map edited in place, a user's map of the same name)."""
-    import hashlib
-
-    path = Path(map_path)
-    try:
-        digest = hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError:
-        digest = ""
-    return path.name, digest
-
-
 # ---------------------------------------------------------------------- reading a bag
 
 
@@ -448,7 +404,7 @@ def _read_bag(bag_dir: Path | str, acc: RunAccumulator, before_first_state: Any 
     from mcap.records import Channel, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
 
-    from .bag_reader import bag_file
+    from evoscen_record.bag_reader import bag_file
 
     path = bag_file(Path(bag_dir))
     channels: dict[int, str] = {}

@@ -23,7 +23,7 @@ from evoscen_contract.topics import (
     TOPICS,
     clock_message,
 )
-from evoscen_eval.recorder import BagRecorder
+from evoscen_record.recorder import BagRecorder
 from evoscen_eval.replay import (
     DEFAULT_QOS,
     Pacer,

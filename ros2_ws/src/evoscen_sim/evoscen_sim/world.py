@@ -239,7 +239,7 @@ class World:
     def state_arrays(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """The state :func:`state_columns` needs, as ``(floats, integers)`` (live views, in
         :data:`STATE_FLOATS` and :data:`STATE_INTS` order): what a recorder copies to rebuild
-        :meth:`columns` elsewhere (evoscen_bringup.bag_writer)."""
+        :meth:`columns` elsewhere (evoscen_record.bag_writer)."""
         return ((self.s, self.d, self.psi, self.v, self.accel, self.steer, self.length, self.width),
                 (self.ids, self.role, self.policy, self.lane, self.target_lane, self.lane_change))
 

@@ -16,9 +16,9 @@ import pytest
 
 from evoscen_contract import topics as T
 from evoscen_contract.messages import WorldMessages
-from evoscen_eval.bag_reader import open_bag_reader
-from evoscen_eval.recorder import BagRecorder
-from evoscen_eval.reindex import reindex_bag
+from evoscen_record.bag_reader import open_bag_reader
+from evoscen_record.recorder import BagRecorder
+from evoscen_record.reindex import reindex_bag
 from evoscen_sim.errors import InputError
 
 REPO = Path(__file__).resolve().parents[4]

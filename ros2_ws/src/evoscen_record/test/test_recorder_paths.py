@@ -1,9 +1,9 @@
 """The recorder's three write paths give the same bytes (issue 14).
 
-:class:`~evoscen_eval.recorder.BagRecorder` writes messages through the mcap library's
-``Writer.add_message`` (``fast_writes=False``), through :class:`~evoscen_eval.mcap_internals.FastMessages`
+:class:`~evoscen_record.recorder.BagRecorder` writes messages through the mcap library's
+``Writer.add_message`` (``fast_writes=False``), through :class:`~evoscen_record.mcap_internals.FastMessages`
 (one ``pack`` per record into the library's chunk builder; ``chunk_writes=False``) or through
-:class:`~evoscen_eval.mcap_internals.ChunkMessages` (the recorder keeps the open chunk and writes chunk
+:class:`~evoscen_record.mcap_internals.ChunkMessages` (the recorder keeps the open chunk and writes chunk
 record and message indexes itself; the default). The same messages — random topics, sizes 0 to
 3,000 bytes, equal and decreasing log times — written every way, with chunks closed by size, by
 the 1-s rule and by explicit flushes, must give byte-identical files for every compression; so
@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 from evoscen_contract.topics import CONTRACT
-from evoscen_eval import mcap_internals as MI
-from evoscen_eval import recorder as R
-from evoscen_eval.bag_reader import open_bag_reader
-from evoscen_eval.recorder import BagRecorder
+from evoscen_record import mcap_internals as MI
+from evoscen_record import metadata_yaml
+from evoscen_record.bag_reader import open_bag_reader
+from evoscen_record.recorder import BagRecorder
 
 PATHS = {"library": {"fast_writes": False}, "fast": {"chunk_writes": False}, "chunk": {}}
 
@@ -78,7 +78,7 @@ def test_chunk_path_is_used_and_falls_back(tmp_path: Path, monkeypatch) -> None:
 
 
 def test_metadata_yaml_from_one_dump_equals_the_two_dumps(tmp_path: Path) -> None:
-    """``_dump_metadata_yaml`` (one libyaml dump, the nested document indented) gives the texts of
+    """``dump_metadata_yaml`` (one libyaml dump, the nested document indented) gives the texts of
     the two Python-emitter dumps: for a recorded bag's metadata, an empty bag's, and made-up ones
     whose strings look like other YAML types or are empty, long or odd (those fall back)."""
     import copy
@@ -100,21 +100,21 @@ def test_metadata_yaml_from_one_dump_equals_the_two_dumps(tmp_path: Path) -> Non
         info["topics_with_message_count"][1]["topic_metadata"]["name"] = value
         info["custom_data"] = {value: value} if value else {}
         infos.append(info)
-    assert any(R._plain_strings(i) for i in infos[2:]) and not all(R._plain_strings(i) for i in infos[2:])
+    assert any(metadata_yaml._plain_strings(i) for i in infos[2:]) and not all(metadata_yaml._plain_strings(i) for i in infos[2:])
     for info in infos:
         expected = (yaml.safe_dump(info, sort_keys=False, default_flow_style=False),
                     yaml.safe_dump({"rosbag2_bagfile_information": info}, sort_keys=False, default_flow_style=False))
-        assert R._dump_metadata_yaml(info) == expected, info
+        assert metadata_yaml.dump_metadata_yaml(info) == expected, info
 
 
 @pytest.mark.parametrize("kwargs", [{}, {"chunk_size": 4096}, {"chunk_duration_ns": 0, "chunk_size": 2000},
                                     {"compression": "none"}, {"chunk_writes": False}, {"fast_writes": False}])
 def test_batched_writes_equal_one_write_per_message(tmp_path: Path, kwargs) -> None:
-    """``write_many`` and :class:`~evoscen_eval.recorder.OrderedBag` (on the chunk path: one loop,
+    """``write_many`` and :class:`~evoscen_record.ordered_bag.OrderedBag` (on the chunk path: one loop,
     ``BagRecorder._write_queued``) give the file of one :meth:`write` per message in the same order:
     batches of 1 to 40 messages, chunks closed by size and by the 1-s rule inside a batch, data
     given as ``bytes``, ``bytearray`` or ``memoryview``, times as ``int`` or numpy integers."""
-    from evoscen_eval.recorder import OrderedBag
+    from evoscen_record.ordered_bag import OrderedBag
 
     plan = _plan(9, 600)
     rng = np.random.default_rng(4)

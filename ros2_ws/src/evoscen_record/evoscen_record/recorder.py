@@ -1,4 +1,4 @@
-"""rosbag2 (MCAP storage) recorder and reader, without rosbag2.
+"""The rosbag2 (MCAP storage) bag writer :class:`BagRecorder`, without rosbag2.
 
 The PyPI ROS 2 wheels lack rosbag2, so :class:`BagRecorder` writes the bag itself with
 the low-level ``mcap`` writer. It stores *already serialized* CDR bytes (as an rclpy
@@ -6,10 +6,11 @@ the low-level ``mcap`` writer. It stores *already serialized* CDR bytes (as an r
 ``rclpy.serialization.serialize_message`` gives them in-process), so recording never
 deserializes. The result is what ``ros2 bag record -s mcap`` (Jazzy) produces:
 
-* a directory ``<bag_dir>/`` with ``metadata.yaml`` (rosbag2 format, version 9) and
-  one file ``<bag_dir>/<bag_dir.name>_0.mcap``;
+* a directory ``<bag_dir>/`` with ``metadata.yaml`` (rosbag2 format, version 9,
+  :mod:`evoscen_record.metadata_yaml`) and one file ``<bag_dir>/<bag_dir.name>_0.mcap``
+  (:mod:`evoscen_record.bag_file`);
 * MCAP profile ``ros2``; one schema per message type, encoding ``ros2msg``, data = the
-  concatenated message definition (:mod:`evoscen_eval.schemas`); one channel per
+  concatenated message definition (:mod:`evoscen_record.schemas`); one channel per
   topic, message encoding ``cdr``, channel metadata ``offered_qos_profiles`` (YAML
   string) and ``topic_type_hash`` (``RIHS01_...``);
 * chunked (default 1 MiB, and at most 1 s of log time per chunk, each closed chunk handed to
@@ -24,21 +25,11 @@ deserializes. The result is what ``ros2 bag record -s mcap`` (Jazzy) produces:
 
 Determinism: nothing depends on the wall clock, the host or the library's version
 string; times are the simulation times passed in. Identical calls give
-byte-identical ``.mcap`` and ``metadata.yaml``.
+byte-identical ``.mcap`` and ``metadata.yaml``. Every message is canonicalized by default
+(:class:`~evoscen_record.canonical_cdr.CanonicalCdr`: CDR padding zeroed); pass
+``canonicalize=False`` to store the bytes as given (faster, not reproducible).
 
-CDR padding: rclpy / Fast CDR do **not** zero the alignment padding of serialized
-messages (measured: ``serialize_message`` of the same DiagnosticArray or PointCloud2
-twice gives different padding bytes - leftover heap memory), and neither does the
-wire. So raw bytes from ``serialize_message`` or a ``raw=True`` subscription are not
-reproducible. The recorder therefore *canonicalizes* every message by default
-(:class:`CanonicalCdr`: deserialize and re-serialize with ``rosbags``, whose CDR writer
-zeroes padding; the typestore is built from the same definitions as the schemas).
-Only padding bytes change; any CDR reader decodes the same values. Cost (measured,
-this machine): ~60 us for a 21-vehicle world table, ~20 us for Odometry or a small
-DiagnosticArray, ~3 us for Clock. Pass ``canonicalize=False`` to store the bytes as
-given (faster, not reproducible).
-
-:func:`evoscen_eval.bag_reader.open_bag_reader` iterates over the raw messages of a bag (for
+:func:`evoscen_record.bag_reader.open_bag_reader` iterates over the raw messages of a bag (for
 offline evaluation and replay).
 """
 
@@ -50,32 +41,23 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-import bisect
-import errno
-import contextlib
-import os
-import re
-
-import yaml
 from mcap.writer import CompressionType, Writer
 
-from evoscen_contract.cdr import pad4
 from evoscen_contract.contract import TOPIC_WORLD as _WORLD_TOPIC
 from evoscen_contract.qos import rosbag2_qos_yaml
 from evoscen_contract.topics import TopicSpec
-from evoscen_eval.mcap_internals import ChunkMessages, FastMessages
-from evoscen_eval.schemas import message_definition, type_description_hash
+from evoscen_record.bag_file import BagFile, prepare_bag_dir
+from evoscen_record.canonical_cdr import CanonicalCdr
+from evoscen_record.mcap_internals import ChunkMessages, FastMessages, count_messages
+from evoscen_record.metadata_yaml import bagfile_information, dump_metadata_yaml
+from evoscen_record.schemas import message_definition, type_description_hash
 from evoscen_sim.errors import HostFault, InputError
 
-#: MCAP header ``library`` string. Deliberately version-free so that bags stay
-#: byte-identical across library upgrades that do not change the encoding.
+#: MCAP header ``library`` string, in every bag: version-free, so that bags stay byte-identical across
+#: library upgrades that do not change the encoding; it keeps the recorder's former module path for the same reason.
 LIBRARY: str = "evoscen_eval.recorder (mcap-python)"
 #: MCAP header profile of rosbag2 bags.
 PROFILE: str = "ros2"
-#: rosbag2 metadata version written (Jazzy).
-METADATA_VERSION: int = 9
-#: ``ros_distro`` written to the metadata.
-ROS_DISTRO: str = "jazzy"
 #: Default chunk size (bytes, uncompressed).
 DEFAULT_CHUNK_SIZE: int = 1024 * 1024
 #: Default longest span of a chunk in log time (= simulation time), ns: a chunk is closed and
@@ -92,48 +74,6 @@ _COMPRESSIONS: dict[str, CompressionType] = {
 }
 
 
-class CanonicalCdr:
-    """Re-serialize CDR messages with zeroed padding (deterministic bytes).
-
-    Args:
-        type_names: ``pkg/msg/Type`` names to support; their definitions come from
-            :func:`evoscen_eval.schemas.message_definition` (the installed ``.msg``).
-    """
-
-    _STORES: dict[tuple[str, ...], Any] = {}
-    """Typestores built so far, by type names: parsing the definitions takes ~35 ms, once per process."""
-
-    def __init__(self, type_names: Sequence[str]) -> None:
-        from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-
-        key = tuple(dict.fromkeys(type_names))
-        store = self._STORES.get(key)
-        if store is None:
-            store = get_typestore(Stores.EMPTY)
-            for type_name in key:
-                store.register(get_types_from_msg(message_definition(type_name), type_name))
-            if len(self._STORES) < 16:
-                self._STORES[key] = store
-        self._store = store
-
-    def __call__(self, type_name: str, data: bytes | bytearray | memoryview) -> bytes:
-        """Return ``data`` (a CDR message of ``type_name``) with all padding zeroed.
-
-        The result is padded with zeros to a multiple of 4 bytes, the length DDS transports
-        (:func:`evoscen_contract.cdr.pad4`), so wire bytes and re-encoded bytes agree.
-
-        Raises:
-            ValueError: ``data`` does not decode as ``type_name``.
-        """
-        try:
-            msg = self._store.deserialize_cdr(bytes(data), type_name)
-            return pad4(bytes(self._store.serialize_cdr(msg, type_name)))
-        except Exception as exc:  # noqa: BLE001 - any decoder failure: bad bytes
-            raise ValueError(
-                f"CDR data ({len(data)} bytes) does not decode as {type_name}: {exc!r}"
-            ) from None
-
-
 @dataclass
 class _TopicState:
     """Per-topic bookkeeping of a recorder."""
@@ -142,82 +82,6 @@ class _TopicState:
     channel_id: int
     message_count: int = 0
 
-
-def _open_file(path: Path):  # a raw binary file
-    """The bag file, opened for writing unbuffered (tests replace this to simulate a full disk)."""
-    return open(path, "wb", buffering=0)
-
-
-class _BagFile:
-    """The MCAP file as the writer sees it: what is written is held until :meth:`flush` (the 1-s
-    chunks, :meth:`BagRecorder.flush`, the end), which hands it to the operating system whole or
-    raises :class:`~evoscen_sim.errors.HostFault` (a full disk, a read-only or vanished output).
-    A flush that succeeded is a point where every message counted so far is on disk, the point the
-    file is cut back to after a fault, so that it ends with a complete chunk. Nothing reaches the
-    file between those points (the file stays empty until the first chunk, as with a buffered
-    file), so a fault can only leave the bytes of one flush half written."""
-
-    def __init__(self, path: Path, owner: BagRecorder) -> None:
-        self.path = path
-        self._owner = owner
-        self._f = _open_file(path)
-        self._held: list = []
-        self._held_bytes = 0
-        self._pos = 0
-        self.good = 0  # the end of the last complete chunk on disk
-
-    HOLD_BYTES = 16 * 1024 * 1024
-    """Bytes held at most between two flushes (bags written without the 1-s bound)."""
-
-    def write(self, data) -> int:
-        owner = self._owner
-        if owner._fault is not None:  # nothing more after a fault
-            raise owner._fault
-        n = len(data) if not isinstance(data, memoryview) else data.nbytes
-        self._held.append(bytes(data))
-        self._pos += n
-        self._held_bytes += n
-        if self._held_bytes > self.HOLD_BYTES:  # no flush for long (no time bound): out, not a safe point
-            self._write_out()
-        return n
-
-    def _write_out(self) -> None:
-        held, self._held, self._held_bytes = self._held, [], 0
-        try:
-            for data in held:
-                view = memoryview(data)
-                while view:
-                    n = self._f.write(view)
-                    if not n:
-                        raise OSError(errno.EIO, "the file took no bytes")
-                    view = view[n:]
-        except OSError as exc:
-            raise self._owner._fault_of(exc, self.path) from None
-
-    def tell(self) -> int:
-        return self._pos
-
-    def flush(self) -> None:
-        """Hand everything written so far to the operating system: a point to cut back to."""
-        owner = self._owner
-        if owner._fault is not None:
-            raise owner._fault
-        self._write_out()
-        self.good = self._pos
-        owner._on_safe_point()
-
-    def cut_back(self) -> None:
-        """Truncate the file to its last complete chunk (frees what a fault left half written)."""
-        # Where the file cannot be truncated (a file system made read-only, a closed file) it is
-        # left as it is: readers and the reindexer stop at the last complete record anyway.
-        with contextlib.suppress(OSError, ValueError):
-            os.ftruncate(self._f.fileno(), self.good)
-
-    def close(self) -> None:
-        try:
-            self._f.close()
-        except OSError:
-            pass
 
 
 class BagRecorder:
@@ -246,7 +110,7 @@ class BagRecorder:
             byte-identical bags, see the module docstring).
         metadata: MCAP metadata records ``{name: {key: value}}`` written right after the
             channels, before any message (evoscen records the resolved scenario
-            configuration, see :mod:`evoscen_eval.rundata`).
+            configuration, see :mod:`evoscen_record.scenario_record`).
         fast_writes: write messages and message indexes with one ``pack`` each
             (:class:`FastMessages`; default) instead of the mcap library's own method: the
             same bytes; False for the library's path (``scripts/bench_recording.py`` compares).
@@ -297,18 +161,18 @@ class BagRecorder:
             CanonicalCdr(list(definitions)) if canonicalize else None
         )
 
-        self._prepare_dir(self.bag_dir)
+        prepare_bag_dir(self.bag_dir)
         self.file_name: str = file_name or f"{self.bag_dir.name}_0.mcap"
         self.mcap_path: Path = self.bag_dir / self.file_name
         self.metadata_path: Path = self.bag_dir / "metadata.yaml"
         self._fault: HostFault | None = None
         self._fault_finisher = finish_after_fault
         """Finishes the bag directory from its complete chunks after a fault and returns the world
-        states in it (``evoscen_eval.reindex.finish_bag``; None: leave it for ``scripts/reindex.py``).
+        states in it (``evoscen_record.reindex.finish_bag``; None: leave it for ``scripts/reindex.py``).
         Passed in, so that the recorder does not import the reindexer that imports it."""
         self._safe_counts: dict[str, int] = {}
         try:
-            self._stream: _BagFile = _BagFile(self.mcap_path, self)
+            self._stream: BagFile = BagFile(self.mcap_path, self)
         except OSError as exc:
             raise InputError(
                 f"bag directory {str(self.bag_dir)!r}: cannot create {self.file_name}: "
@@ -397,31 +261,6 @@ class BagRecorder:
             return
         fault.bag_state, fault.steps = "finished", steps
 
-    # ------------------------------------------------------------------ setup
-
-    @staticmethod
-    def _prepare_dir(bag_dir: Path) -> None:
-        """Create ``bag_dir`` (and parents); InputError if non-empty or not creatable."""
-        try:
-            if bag_dir.exists() or bag_dir.is_symlink():
-                if not bag_dir.is_dir():
-                    raise InputError(
-                        f"bag directory {str(bag_dir)!r}: exists and is not a directory; "
-                        "give a new or empty directory"
-                    )
-                if any(bag_dir.iterdir()):
-                    raise InputError(
-                        f"bag directory {str(bag_dir)!r}: exists and is not empty; "
-                        "give a new or empty directory"
-                    )
-            else:
-                bag_dir.mkdir(parents=True)
-        except OSError as exc:
-            raise InputError(
-                f"bag directory {str(bag_dir)!r}: cannot be created or read: "
-                f"{exc.strerror or exc}"
-            ) from None
-
     # ------------------------------------------------------------------ writing
 
     @property
@@ -485,11 +324,7 @@ class BagRecorder:
         else:
             payload = bytes(data)
         if self._chunk_duration_ns:
-            if self._chunk_start_ns is None:
-                self._chunk_start_ns = log_time
-            elif log_time - self._chunk_start_ns >= self._chunk_duration_ns:
-                self._flush_chunk()  # close the chunk, write it out and hand it to the OS
-                self._chunk_start_ns = log_time
+            self._time_bound(log_time)
         state.message_count += 1
         self._add_message(state.channel_id, log_time, payload, publish_time,
                           state.message_count)  # sequence: a per-channel counter, 1-based
@@ -518,11 +353,7 @@ class BagRecorder:
                 continue
             payload = bytes(data)
             if duration:
-                if self._chunk_start_ns is None:
-                    self._chunk_start_ns = log_time
-                elif log_time - self._chunk_start_ns >= duration:
-                    self._flush_chunk()  # close the chunk, write it out and hand it to the OS
-                    self._chunk_start_ns = log_time
+                self._time_bound(log_time)
             state.message_count += 1
             add(state.channel_id, log_time, payload, log_time, state.message_count)
             self._message_count += 1
@@ -532,8 +363,9 @@ class BagRecorder:
                 self._end_ns = log_time
 
     def _write_queued(self, messages: Sequence[tuple[int, int, int, str, Any, bool]]) -> None:
-        """:meth:`write_many` of ``(log_time_ns, _, _, topic, data, canonical)`` (:class:`OrderedBag`'s
-        queue entries) on the :class:`ChunkMessages` path, in one loop: the bookkeeping of
+        """:meth:`write_many` of ``(log_time_ns, _, _, topic, data, canonical)``
+        (:class:`~evoscen_record.ordered_bag.OrderedBag`'s queue entries) on the
+        :class:`ChunkMessages` path, in one loop: the bookkeeping of
         :meth:`write` and of :meth:`ChunkMessages.add` for each message, written out here (a
         message that is not canonical ``bytes`` of a declared topic at an ``int`` time >= 0 goes
         through :meth:`write`, its checks and errors). The same file as :meth:`write` per message
@@ -624,13 +456,8 @@ class BagRecorder:
             self.write_many([(log_time_ns, topic, b"".join(parts), True) for topic, parts in messages])
             return
         t = log_time_ns
-        duration = self._chunk_duration_ns
-        if duration:
-            if self._chunk_start_ns is None:
-                self._chunk_start_ns = t
-            elif t - self._chunk_start_ns >= duration:
-                self._flush_chunk()  # close the chunk, write it out and hand it to the OS
-                self._chunk_start_ns = t
+        if self._chunk_duration_ns:
+            self._time_bound(t)
         st = chunk._st  # the writer's statistics, see ChunkMessages
         counts, head, limit = st.channel_message_counts, ChunkMessages._HEAD.pack, chunk._chunk_size
         pieces, indices, size, count = chunk._pieces, chunk._indices, chunk._size, chunk._count
@@ -663,15 +490,20 @@ class BagRecorder:
         chunk._size, chunk._count = size, count
         self._sync(st, n, t, t)
 
+    def _time_bound(self, log_time: int) -> None:
+        """The time bound of a chunk (``chunk_duration_ns``, not 0): a message ``log_time`` that
+        comes that long or more after the open chunk's first message closes that chunk first."""
+        if self._chunk_start_ns is None:
+            self._chunk_start_ns = log_time
+        elif log_time - self._chunk_start_ns >= self._chunk_duration_ns:
+            self._flush_chunk()  # close the chunk, write it out and hand it to the OS
+            self._chunk_start_ns = log_time
+
     def _sync(self, st, n: int, lo: int, hi: int) -> None:  # mcap's Statistics
         """Count ``n`` messages written with log times ``lo``..``hi`` in the writer's statistics and
         the bag's own (what :meth:`ChunkMessages.add` and :meth:`write` count one at a time)."""
         if n:
-            if st.message_count == 0 or lo < st.message_start_time:
-                st.message_start_time = lo
-            if hi > st.message_end_time:
-                st.message_end_time = hi
-            st.message_count += n
+            count_messages(st, n, lo, hi)
             self._message_count += n
             if self._start_ns is None or lo < self._start_ns:
                 self._start_ns = lo
@@ -709,48 +541,10 @@ class BagRecorder:
     # ------------------------------------------------------------------ closing
 
     def metadata(self) -> dict[str, Any]:
-        """Return the rosbag2 ``metadata.yaml`` content (as written by :meth:`close`).
-
-        Times: ``starting_time`` = earliest log time, ``duration`` = latest - earliest
-        (both 0 for an empty bag), in ns of simulation time.
-        """
-        start = self._start_ns if self._start_ns is not None else 0
-        duration = (self._end_ns - start) if self._end_ns is not None else 0
-        return {
-            "rosbag2_bagfile_information": {
-                "version": METADATA_VERSION,
-                "storage_identifier": "mcap",
-                "duration": {"nanoseconds": duration},
-                "starting_time": {"nanoseconds_since_epoch": start},
-                "message_count": self._message_count,
-                "topics_with_message_count": [
-                    {
-                        "topic_metadata": {
-                            "name": name,
-                            "type": st.spec.type_name,
-                            "serialization_format": "cdr",
-                            "offered_qos_profiles": st.spec.offered_qos_profiles(),
-                            "type_description_hash": type_description_hash(st.spec.type_name),
-                        },
-                        "message_count": st.message_count,
-                    }
-                    for name, st in self._topics.items()
-                ],
-                "compression_format": "",
-                "compression_mode": "",
-                "relative_file_paths": [self.file_name],
-                "files": [
-                    {
-                        "path": self.file_name,
-                        "starting_time": {"nanoseconds_since_epoch": start},
-                        "duration": {"nanoseconds": duration},
-                        "message_count": self._message_count,
-                    }
-                ],
-                "custom_data": {},
-                "ros_distro": ROS_DISTRO,
-            }
-        }
+        """Return the rosbag2 ``metadata.yaml`` content (as written by :meth:`close`;
+        :func:`~evoscen_record.metadata_yaml.bagfile_information`)."""
+        return bagfile_information(((st.spec, st.message_count) for st in self._topics.values()),
+                                   self.file_name, self._start_ns, self._end_ns, self._message_count)
 
     def close(self) -> None:
         """Finish the bag: summary section, then ``metadata.yaml``. Idempotent.
@@ -768,7 +562,7 @@ class BagRecorder:
         if self._fault is not None:  # raised already where the write failed
             self._finish_after_fault()
             return
-        info_text, meta_text = _dump_metadata_yaml(self.metadata()["rosbag2_bagfile_information"])
+        info_text, meta_text = dump_metadata_yaml(self.metadata()["rosbag2_bagfile_information"])
         try:
             self._writer.add_metadata("rosbag2", {"serialized_metadata": info_text})
             if self._chunk is not None:
@@ -804,115 +598,3 @@ class BagRecorder:
         """Close the bag, also on error, so a finished bag is left in every case."""
         self.close()
 
-
-def _dump_yaml(data: Any) -> str:
-    """Dump YAML deterministically (insertion key order, block style)."""
-    return yaml.safe_dump(data, sort_keys=False, default_flow_style=False)
-
-
-_PLAIN = re.compile(r"[A-Za-z0-9_./-]{0,100}")
-_METADATA_KEY = "rosbag2_bagfile_information"
-
-
-def _plain_strings(data: Any) -> bool:
-    """Whether every string in ``data`` (keys and values) is at most 100 characters of
-    ``[A-Za-z0-9_./-]``: no space, quote, colon, newline or non-ASCII character, nothing the
-    YAML emitters could quote, escape or wrap differently."""
-    if isinstance(data, str):
-        return _PLAIN.fullmatch(data) is not None
-    if isinstance(data, dict):
-        return all(_plain_strings(k) and _plain_strings(v) for k, v in data.items())
-    if isinstance(data, list):
-        return all(_plain_strings(v) for v in data)
-    return isinstance(data, (int, float, bool)) or data is None
-
-
-def _dump_metadata_yaml(info: dict[str, Any]) -> tuple[str, str]:
-    """``(_dump_yaml(info), _dump_yaml({"rosbag2_bagfile_information": info}))``: the rosbag2 metadata
-    record's text and ``metadata.yaml``'s.
-
-    With only plain strings in ``info`` (:func:`_plain_strings`; always so for evoscen's topics and
-    a bag directory named with letters, digits, ``_ . -``) one dump by libyaml's emitter (~1 ms
-    instead of two of ~5 ms by the Python emitter) gives both: the nested document is the same
-    lines indented by two spaces (block style; a sequence in a mapping is not indented, and no
-    plain string can wrap). Otherwise the two dumps as before. A test compares the texts.
-    """
-    dumper = getattr(yaml, "CSafeDumper", None)
-    if dumper is None or not _plain_strings(info):
-        return _dump_yaml(info), _dump_yaml({_METADATA_KEY: info})
-    text = yaml.dump(info, Dumper=dumper, sort_keys=False, default_flow_style=False)
-    return text, f"{_METADATA_KEY}:\n" + "".join("  " + line for line in text.splitlines(True))
-
-
-class OrderedBag:
-    """A :class:`BagRecorder` front that writes messages in one canonical order.
-
-    Messages are written sorted by (log time, the topic's rank in ``topics``, arrival order
-    within the topic). The in-process runner produces messages in some order, the node graph
-    receives them from several publishers in whatever order the middleware delivers; both
-    write through this class, so the bag's bytes depend only on the messages.
-
-    A message is held until :meth:`flush_before` passes its time (the graph's evaluator
-    calls it with the oldest of the per-step topics' latest stamps, the in-process runner
-    with the current step) and at :meth:`close`. A message arriving for a time already
-    flushed is written at once and counted in ``late_messages`` (the order is then no longer
-    canonical; with one message per step on every per-step topic it cannot happen).
-    """
-
-    def __init__(self, bag: BagRecorder, topics: Sequence[TopicSpec]) -> None:
-        self.bag = bag
-        self._rank = {spec.name: k for k, spec in enumerate(topics)}
-        self._pending: list[tuple[int, int, int, str, bytes, bool]] = []
-        self._seq = 0
-        self._flushed_before = -1
-        self.late_messages = 0
-        self.on_write: Callable[[str, bytes], None] | None = None
-        """Called with ``(topic, data)`` for every message, in the order written (the live scores)."""
-
-    def add(self, topic: str, data: bytes, log_time_ns: int, *, canonical: bool = False) -> None:
-        """Queue one serialized message (see :meth:`BagRecorder.write`)."""
-        if log_time_ns < self._flushed_before:
-            self.late_messages += 1
-            self.bag.write(topic, data, log_time_ns, canonical=canonical)
-            if self.on_write is not None:
-                self.on_write(topic, data)
-            return
-        self._seq += 1
-        self._pending.append((log_time_ns, self._rank[topic], self._seq, topic, data, canonical))
-
-    def flush_before(self, time_ns: int) -> None:
-        """Write every queued message with a log time before ``time_ns``, in canonical order."""
-        if not self._pending:
-            self._flushed_before = max(self._flushed_before, time_ns)
-            return
-        pending = self._pending
-        pending.sort()  # (time, rank, arrival): unique keys
-        if pending[-1][0] < time_ns:  # the usual case: all of them
-            ready, self._pending = pending, []
-        else:
-            k = bisect.bisect_left(pending, (time_ns,))  # the first at time_ns or later
-            ready, self._pending = pending[:k], pending[k:]
-        if ready:
-            if self.on_write is None:
-                if self.bag._chunk is not None:  # the recorder's own queue format
-                    self.bag._write_queued(ready)
-                else:
-                    self.bag.write_many([(t, topic, data, canonical) for t, _, _, topic, data, canonical in ready])
-            else:
-                for t, _, _, topic, data, canonical in ready:
-                    self.bag.write(topic, data, t, canonical=canonical)
-                    self.on_write(topic, data)
-        self._flushed_before = max(self._flushed_before, time_ns)
-
-    def close(self) -> None:
-        """Write everything still queued and close the bag (idempotent)."""
-        if not self.bag.closed:
-            try:
-                self.flush_before(2**63 - 1)
-            finally:  # after a fault of the host too: the bag is finished from what reached the disk
-                self.bag.close()
-
-    @property
-    def message_count(self) -> int:
-        """Messages written so far."""
-        return self.bag.message_count

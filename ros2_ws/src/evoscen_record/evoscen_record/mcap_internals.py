@@ -1,17 +1,18 @@
 """The one place evoscen reaches into the ``mcap`` library's private internals (mcap 1.6.0, pinned).
 
-:class:`~evoscen_eval.recorder.BagRecorder` writes its messages, and with :class:`ChunkMessages` its
+:class:`~evoscen_record.recorder.BagRecorder` writes its messages, and with :class:`ChunkMessages` its
 chunks, itself instead of through ``mcap.writer.Writer.add_message``: the library packs each field
 with its own call (~15 µs per message, half the cost of recording a step). To do that it reads and
-updates the writer's name-mangled attributes (:data:`WRITER_ATTRIBUTES`) and its chunk builder
-(``mcap._chunk_builder.ChunkBuilder``), and writes the same records the library writes, byte for
-byte (tests/test_bag_hashes.py; ``test_eval_recorder_paths.py`` compares the three write paths).
+updates the writer's name-mangled attributes (:data:`WRITER_ATTRIBUTES`), its chunk builder
+(``mcap._chunk_builder.ChunkBuilder``, :data:`CHUNK_BUILDER_ATTRIBUTES`) and statistics
+(:data:`STATISTICS_FIELDS`), and writes the same records the library writes, byte for
+byte (tests/test_bag_hashes.py; ``test_recorder_paths.py`` compares the three write paths).
 
 Each fast path is used only where :meth:`FastMessages.usable` / :meth:`ChunkMessages.usable` find
 the writer they were written against; any other writer gets the library's own method (the same
 bytes, slower). ``test_mcap_internals.py`` fails when the installed mcap is not the pinned
-version or lacks one of :data:`WRITER_ATTRIBUTES`, so an upgrade that changes them is seen at once
-instead of silently slowing recording down.
+version or lacks one of the private members used (:func:`missing_internals`), so an upgrade that
+changes them is seen at once instead of silently slowing recording down.
 """
 
 from __future__ import annotations
@@ -30,17 +31,60 @@ WRITER_ATTRIBUTES = ("_Writer__statistics", "_Writer__chunk_builder", "_Writer__
                      "_Writer__compression", "_Writer__chunk_indices", "_Writer__index_types", "_Writer__stream")
 """The private attributes of ``mcap.writer.Writer`` read or updated here."""
 
+CHUNK_BUILDER_ATTRIBUTES = ("record_writer", "num_messages", "message_start_time", "message_end_time",
+                            "message_indices")
+"""The attributes of the writer's ``mcap._chunk_builder.ChunkBuilder`` read or updated here."""
+
+RECORD_WRITER_ATTRIBUTES = ("_buffer", "end")
+"""The attributes of the chunk builder's ``record_writer`` (``mcap.data_stream.RecordBuilder``) used here."""
+
+STATISTICS_FIELDS = ("message_count", "message_start_time", "message_end_time", "channel_message_counts",
+                     "chunk_count")
+"""The fields of the writer's ``mcap.records.Statistics`` updated here."""
+
+RECORD_METHODS = (MessageIndex, ChunkIndex)
+"""The record classes whose ``write(stream)`` the library calls and :class:`FastMessageIndex` /
+:class:`FastChunkIndex` replace."""
+
 
 def missing_internals(writer: Writer) -> list[str]:
     """The private parts this module uses that ``writer`` lacks (empty: all there): the attributes of
-    :data:`WRITER_ATTRIBUTES`, then the chunk builder's type and its ``record_writer``."""
+    :data:`WRITER_ATTRIBUTES`, then the chunk builder's type and :data:`CHUNK_BUILDER_ATTRIBUTES`,
+    its record writer's :data:`RECORD_WRITER_ATTRIBUTES`, the statistics' :data:`STATISTICS_FIELDS`
+    and the ``write`` method of :data:`RECORD_METHODS`, each named as ``Owner.member``."""
     missing = [name for name in WRITER_ATTRIBUTES if not hasattr(writer, name)]
     cb = getattr(writer, "_Writer__chunk_builder", None)
-    if cb is not None and type(cb) is not ChunkBuilder:
-        missing.append("_Writer__chunk_builder: a mcap._chunk_builder.ChunkBuilder")
-    if cb is not None and not hasattr(cb, "record_writer"):
-        missing.append("ChunkBuilder.record_writer")
+    if cb is not None:
+        if type(cb) is not ChunkBuilder:
+            missing.append("_Writer__chunk_builder: a mcap._chunk_builder.ChunkBuilder")
+        missing += [f"ChunkBuilder.{name}" for name in CHUNK_BUILDER_ATTRIBUTES if not hasattr(cb, name)]
+        rw = getattr(cb, "record_writer", None)
+        if rw is not None:
+            missing += [f"ChunkBuilder.record_writer.{name}" for name in RECORD_WRITER_ATTRIBUTES
+                        if not hasattr(rw, name)]
+    st = getattr(writer, "_Writer__statistics", None)
+    if st is not None:
+        missing += [f"Statistics.{name}" for name in STATISTICS_FIELDS if not hasattr(st, name)]
+    missing += [f"{cls.__name__}.write" for cls in RECORD_METHODS if not callable(vars(cls).get("write"))]
     return missing
+
+
+def count_messages(st, n: int, lo: int, hi: int) -> None:  # the writer's mcap.records.Statistics
+    """Count ``n`` messages with log times ``lo``..``hi`` in the writer's statistics ``st`` (the
+    summary's): the message count and the first and last log time; the per-channel counts are the
+    caller's (:func:`count_message` for one message)."""
+    if st.message_count == 0 or lo < st.message_start_time:
+        st.message_start_time = lo
+    if hi > st.message_end_time:
+        st.message_end_time = hi
+    st.message_count += n
+
+
+def count_message(st, channel_id: int, log_time: int) -> None:  # the writer's mcap.records.Statistics
+    """Count one message of ``channel_id`` at ``log_time`` in the writer's statistics ``st``, as the
+    library's ``add_message`` does (both fast paths' ``add``)."""
+    count_messages(st, 1, log_time, log_time)
+    st.channel_message_counts[channel_id] += 1
 
 
 class FastMessageIndex(MessageIndex):
@@ -102,13 +146,8 @@ class FastMessages:
         self._finalize = writer._Writer__maybe_finalize_chunk
 
     def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
-        st, cb = self._st, self._cb
-        if st.message_count == 0 or log_time < st.message_start_time:
-            st.message_start_time = log_time
-        if log_time > st.message_end_time:
-            st.message_end_time = log_time
-        st.channel_message_counts[channel_id] += 1
-        st.message_count += 1
+        cb = self._cb
+        count_message(self._st, channel_id, log_time)
         if cb.num_messages == 0 or log_time < cb.message_start_time:
             cb.message_start_time = log_time
         if log_time > cb.message_end_time:
@@ -198,21 +237,12 @@ class ChunkMessages:
         self._count = 0
 
     def add(self, channel_id: int, log_time: int, data: bytes, publish_time: int, sequence: int) -> None:
-        st = self._st
-        if st.message_count == 0 or log_time < st.message_start_time:
-            st.message_start_time = log_time
-        if log_time > st.message_end_time:
-            st.message_end_time = log_time
-        st.channel_message_counts[channel_id] += 1
-        st.message_count += 1
+        count_message(self._st, channel_id, log_time)
         if self._count == 0 or log_time < self._start:
             self._start = log_time
         if log_time > self._end:
             self._end = log_time
-        index = self._indices.get(channel_id)
-        if index is None:
-            index = self._indices[channel_id] = []
-        index += (log_time, self._size)
+        self._indices.setdefault(channel_id, []).extend((log_time, self._size))
         self._count += 1
         self._pieces += (self._HEAD.pack(0x05, 22 + len(data), channel_id, sequence, log_time, publish_time), data)
         self._size += 31 + len(data)

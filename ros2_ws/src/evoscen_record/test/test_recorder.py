@@ -1,4 +1,4 @@
-"""Tests of evoscen_eval.recorder: a rosbag2 MCAP bag readable by rosbags and mcap_ros2.
+"""Tests of evoscen_record.recorder: a rosbag2 MCAP bag readable by rosbags and mcap_ros2.
 
 A fake 100-step run (dt = 0.1 s, 3 vehicles) is recorded: /evoscen/roster once, then
 per step /clock, /evoscen/world, both command tables and the SUT odometry, and
@@ -28,9 +28,9 @@ from evoscen_contract.topics import (
     odometry_message,
     parse_events,
 )
-from evoscen_eval.bag_reader import open_bag_reader
-from evoscen_eval.recorder import BagRecorder
-from evoscen_eval.schemas import message_definition
+from evoscen_record.bag_reader import open_bag_reader
+from evoscen_record.recorder import BagRecorder
+from evoscen_record.schemas import message_definition
 from evoscen_sim.errors import InputError
 
 STEPS = 100
@@ -265,7 +265,7 @@ def test_serialize_message_padding_is_not_reproducible_but_recorded_bytes_are(
     from rclpy.serialization import deserialize_message
 
     from diagnostic_msgs.msg import DiagnosticArray
-    from evoscen_eval.recorder import CanonicalCdr
+    from evoscen_record.canonical_cdr import CanonicalCdr
 
     msg = events_message(step_events(0) + [{"name": "evoscen/fault", "controller": "x"}], 0)
     canon = CanonicalCdr(["diagnostic_msgs/msg/DiagnosticArray"])
@@ -355,7 +355,8 @@ def test_truncated_bag_is_input_error(bag: Path, tmp_path: Path) -> None:
 
 def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_path: Path) -> None:
     from evoscen_eval.metrics import run_info
-    from evoscen_eval.rundata import SCENARIO_METADATA, read_run, scenario_metadata
+    from evoscen_eval.rundata import read_run
+    from evoscen_record.scenario_record import SCENARIO_METADATA, scenario_metadata
     from evoscen_sim.config import load_scenario_config
 
     cfg = load_scenario_config(None)
@@ -378,11 +379,11 @@ def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_pa
 
 @pytest.mark.parametrize("compression", ["none", "zstd"])
 def test_fast_message_path_writes_the_librarys_bytes(tmp_path: Path, monkeypatch, compression: str) -> None:
-    """The recorder's one-pack message and message-index writing (:class:`evoscen_eval.mcap_internals.FastMessages`) gives the
+    """The recorder's one-pack message and message-index writing (:class:`evoscen_record.mcap_internals.FastMessages`) gives the
     bytes of mcap's own ``Writer.add_message``: the same messages — several topics, sizes from
     0 to 3,000 bytes, equal and decreasing log times, chunks closed by size (4 kB) and by the
     1-s duration rule — recorded both ways, byte for byte."""
-    from evoscen_eval import mcap_internals as MI
+    from evoscen_record import mcap_internals as MI
 
     rng = np.random.default_rng(5)
     topics = [spec.name for spec in CONTRACT]

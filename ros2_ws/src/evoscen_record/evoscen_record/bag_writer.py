@@ -1,12 +1,12 @@
 """Recording off the simulation's core: an in-process run's bag written by a forked writer process.
 
-The in-process runner can write its bag on its own thread (:class:`~evoscen_bringup.step_recorder.StepRecorder`,
+The in-process runner can write its bag on its own thread (:class:`~evoscen_record.step_recorder.StepRecorder`,
 ``bag_writer="inline"``) or hand it to a second process (:class:`ProcessRecorder`,
 ``bag_writer="process"``; docs/recording.md, "In-process runs: the bag written inline or by a writer process"). With the process writer the
 run's step only copies what the bag needs — the world's state arrays (:meth:`World.state_arrays
 <evoscen_sim.world.World.state_arrays>`), the command tables, the events — into shared memory and
 notes each call in a journal; the writer process, forked at the start of the run, replays the
-journal through the same :class:`~evoscen_bringup.step_recorder.StepRecorder` the inline path uses. The
+journal through the same :class:`~evoscen_record.step_recorder.StepRecorder` the inline path uses. The
 world table's columns are rebuilt by :func:`evoscen_sim.world.state_columns`, the one definition
 :meth:`World.columns <evoscen_sim.world.World.columns>` uses, so the bag is byte-identical to the
 inline path's (tests/test_recording_paths.py compares the files).
@@ -74,7 +74,7 @@ def _shared(shape: tuple[int, ...], dtype) -> np.ndarray:
 class ProcessRecorder:
     """The in-process runner's recorder with the bag written by a forked process (module docstring).
 
-    Same calls as :class:`~evoscen_bringup.step_recorder.StepRecorder` (``world``, ``state``,
+    Same calls as :class:`~evoscen_record.step_recorder.StepRecorder` (``world``, ``state``,
     ``commands``, ``events``, ``close``, ``message_count``); ``world`` and ``state`` take the
     :class:`~evoscen_sim.world.World` itself.
     """

@@ -1,4 +1,4 @@
-"""Reading a rosbag2 MCAP bag (as :class:`~evoscen_eval.recorder.BagRecorder` writes it, or any
+"""Reading a rosbag2 MCAP bag (as :class:`~evoscen_record.recorder.BagRecorder` writes it, or any
 other): its ``metadata.yaml`` (:func:`read_bag_metadata`), its ``.mcap`` file (:func:`bag_file`)
 and its raw messages (:func:`open_bag_reader`, for offline evaluation and replay), each with the
 limits of docs/input-limits.md: anything unreadable is one :class:`~evoscen_sim.errors.InputError` line.
@@ -101,7 +101,7 @@ def open_bag_reader(
     Args:
         bag_dir: a bag directory (or directly its ``.mcap`` file).
         log_time_order: False (default): file order, i.e. the order written (for a bag
-            of :class:`~evoscen_eval.recorder.BagRecorder` the recording order); True: sorted by log time
+            of :class:`~evoscen_record.recorder.BagRecorder` the recording order); True: sorted by log time
             (ties in file order).
 
     Returns:

@@ -1,7 +1,7 @@
 """The in-process runner's recorder: a run's messages written a step at a time in canonical order.
 
 Used inline by :func:`evoscen_bringup.inprocess.run_inprocess` and, in the writer process, by
-:mod:`evoscen_bringup.bag_writer` (docs/recording.md, "[choice] the bag written inline or by a
+:mod:`evoscen_record.bag_writer` (docs/recording.md, "[choice] the bag written inline or by a
 writer process").
 """
 
@@ -18,8 +18,8 @@ class StepRecorder:
     Every message of a step carries the world's time and the world's message comes first (the
     step loop's order), so a step is complete when the next world arrives or the run closes; it is
     then written in the contract's topic order, arrival order within a topic — the order
-    :class:`~evoscen_eval.recorder.OrderedBag` gives — by one
-    :meth:`~evoscen_eval.recorder.BagRecorder.write_parts` call, the tables, clock and odometry as
+    :class:`~evoscen_record.ordered_bag.OrderedBag` gives — by one
+    :meth:`~evoscen_record.recorder.BagRecorder.write_parts` call, the tables, clock and odometry as
     the pieces of their bytes. ``direct = False`` is the earlier path (every message through the
     ordered bag); tests/test_recording_paths.py records a run both ways and compares the files.
     """
@@ -29,13 +29,14 @@ class StepRecorder:
     def __init__(self, bag_dir: Path, cfg: ScenarioConfig, road) -> None:
         from evoscen_contract import topics as T
         from evoscen_contract.messages import WorldMessages
-        from evoscen_eval.recorder import BagRecorder, OrderedBag
+        from evoscen_record.ordered_bag import OrderedBag
+        from evoscen_record.recorder import BagRecorder
 
         self.T = T
         self.msgs = WorldMessages(cfg.dt_s)
-        from evoscen_eval.rundata import SCENARIO_METADATA, scenario_metadata
+        from evoscen_record.scenario_record import SCENARIO_METADATA, scenario_metadata
 
-        from evoscen_eval.reindex import finish_bag
+        from evoscen_record.reindex import finish_bag
 
         import numpy as np
 

@@ -7,7 +7,7 @@ record from its start (``mcap.stream_reader.StreamReader``: no summary needed), 
 *complete* chunk and stops at the first record that is cut short or corrupt (a chunk with a
 bad CRC is dropped, with everything after it), and writes a new MCAP with the same schemas,
 channels, metadata records and messages (same bytes, same times, file order) through
-:class:`~evoscen_eval.recorder.BagRecorder` — so the result is what the recorder would have
+:class:`~evoscen_record.recorder.BagRecorder` — so the result is what the recorder would have
 written had it been closed after the last complete chunk — plus ``metadata.yaml``.
 
 The damaged file is kept beside the new one as ``<file>.orig`` (no reader looks at it;
@@ -179,6 +179,6 @@ def _compression_of(path: Path) -> str:
 
 def finish_bag(bag_dir: Path) -> int:
     """Finish a bag cut back to its complete chunks after a fault of the host, in place (what
-    :class:`~evoscen_eval.recorder.BagRecorder` calls as its ``finish_after_fault``); returns the
+    :class:`~evoscen_record.recorder.BagRecorder` calls as its ``finish_after_fault``); returns the
     world states it holds. Raises as :func:`reindex_bag`."""
     return reindex_bag(bag_dir, keep_original=False).steps

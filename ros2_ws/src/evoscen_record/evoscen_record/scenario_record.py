@@ -1,0 +1,59 @@
+"""The scenario's MCAP metadata record of a bag: its name, its keys and its content.
+
+The resolved scenario configuration travels in the bag as the metadata record
+:data:`SCENARIO_METADATA`, written first, before any message (the recorder's ``metadata``), so a
+bag alone is enough to evaluate a run with the settings it ran with
+(:mod:`evoscen_eval.rundata` reads it).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+SCENARIO_METADATA = "evoscen"
+"""Name of the MCAP metadata record holding the scenario."""
+SCENARIO_KEY = "scenario_yaml"
+"""Key of the resolved scenario configuration (YAML text) in that record."""
+MAP_HASH_KEY = "map_sha256"
+"""Key of the SHA-256 (hex) of the map file's bytes in that record."""
+SUT_SOURCE_KEY = "sut_source"
+"""Key present (value ``external``) when the SUT was a user's node, not the configured model."""
+EXTERNAL_SUT = "external"
+
+
+def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # a ScenarioConfig
+    """The metadata record content for ``cfg`` (the same YAML text in every runner).
+
+    With ``external_sut`` the record also says that the SUT was a user's node, whatever the
+    configuration's ``sut.model`` (which then drove nothing); without it the record is only the
+    configuration, so a graph run's bag stays equal to the in-process one.
+    """
+    from evoscen_sim.config import config_to_dict
+
+    scenario = config_to_dict(cfg)
+    scenario["map"], digest = portable_map_ref(cfg.map)
+    meta = {SCENARIO_KEY: yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None),
+            MAP_HASH_KEY: digest}
+    if external_sut:
+        meta[SUT_SOURCE_KEY] = EXTERNAL_SUT
+    return meta
+
+
+def portable_map_ref(map_path: str | Path) -> tuple[str, str]:
+    """``(reference, sha256 hex)`` of a resolved map file, with nothing machine-specific in it.
+
+    The reference is the file name (``onramp.xodr``): a config's ``map: onramp.xodr`` finds
+    it in evoscen_sim's share ``maps/`` wherever evoscen is installed, and for a map of the
+    user's the directory is left out (it names a machine: the same run from another checkout
+    gave another bag). The SHA-256 of the file's bytes identifies the map exactly (a shipped
+    map edited in place, a user's map of the same name)."""
+    import hashlib
+
+    path = Path(map_path)
+    try:
+        digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError:
+        digest = ""
+    return path.name, digest
