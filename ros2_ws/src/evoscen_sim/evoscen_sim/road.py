@@ -66,10 +66,10 @@ from typing import NamedTuple, Optional, Union
 
 import numpy as np
 
+import evoscen_sim
 from evoscen_sim.errors import InputError
-from evoscen_sim.jit import kernel
 from evoscen_sim.opendrive import Lane, LaneSection, OpenDriveMap, Poly3, parse_opendrive
-from evoscen_sim.road_kernels import RoadTables
+from evoscen_sim.road_kernels import RoadTables, frenet_to_cartesian_kernel, lane_lookup_kernel
 
 ArrayLike = Union[float, int, np.ndarray, list, tuple]
 
@@ -79,11 +79,11 @@ def _find_default_map() -> Path:
     """The shipped map: ``<pkg source>/maps/onramp.xodr`` in a source checkout, else the installed
     ``<prefix>/share/evoscen_sim/maps/onramp.xodr`` (colcon/ament layout, installed by setup.py's
     data_files); the source path if neither exists (load_road then reports it as unreadable)."""
-    here = Path(__file__).resolve()
-    source = here.parent.parent / "maps" / "onramp.xodr"
+    package_dir = Path(evoscen_sim.__file__).resolve().parent  # the evoscen_sim import package
+    source = package_dir.parent / "maps" / "onramp.xodr"
     candidates = [source]
-    for parent in here.parents:
-        if parent.name == "lib":  # <prefix>/lib/pythonX.Y/site-packages/evoscen_sim/road.py
+    for parent in package_dir.parents:
+        if parent.name == "lib":  # <prefix>/lib/pythonX.Y/site-packages/evoscen_sim
             candidates.append(parent.parent / "share" / "evoscen_sim" / "maps" / "onramp.xodr")
             break
     for candidate in candidates:
@@ -415,7 +415,7 @@ class RoadModel:
         borders, existence and speed limits, the lane containing ``d`` (as :meth:`lane_of`)
         and the reference line's curvature (as :meth:`curvature`). See :class:`LaneLookup`.
         """
-        return LaneLookup(*_lane_lookup_kernel(
+        return LaneLookup(*lane_lookup_kernel(
             np.asarray(s, dtype=float), np.asarray(d, dtype=float), self.length_m, self._breaks,
             self._seg_const, self._dr_table, self._dl_table, self._present, self._vmax,
             self._w_coef, self._w_origin, self._off_coef, self._off_origin, self._g_s0, self._g_k,
@@ -476,9 +476,9 @@ class RoadModel:
         if type(s) is np.ndarray and type(d) is np.ndarray and s.ndim == 1 and s.shape == d.shape \
                 and s.dtype == np.float64 and d.dtype == np.float64 and s.flags.c_contiguous and d.flags.c_contiguous:
             # the world's columns (every step of a recorded run): the kernel as it is, half the calls
-            return _frenet_to_cartesian_kernel(s, d, self._g_s0, self._g_x0, self._g_y0, self._g_h0, self._g_k)
+            return frenet_to_cartesian_kernel(s, d, self._g_s0, self._g_x0, self._g_y0, self._g_h0, self._g_k)
         s_a, d_a = np.broadcast_arrays(np.asarray(s, dtype=float), np.asarray(d, dtype=float))
-        x, y, h = _frenet_to_cartesian_kernel(
+        x, y, h = frenet_to_cartesian_kernel(
             np.ascontiguousarray(s_a).ravel(), np.ascontiguousarray(d_a).ravel(),
             self._g_s0, self._g_x0, self._g_y0, self._g_h0, self._g_k,
         )
@@ -576,67 +576,3 @@ def load_road(path: "str | os.PathLike[str]" = DEFAULT_MAP_PATH) -> RoadModel:
 
 
 __all__ = ["RoadModel", "LaneMarking", "load_road", "DEFAULT_MAP_PATH", "DRIVABLE_LANE_TYPES"]
-
-
-@kernel
-def _lane_lookup_kernel(s, d, length, breaks, seg_const, dr_table, dl_table, present, vmax,
-                        w_coef, w_origin, off_coef, off_origin, g_s0, g_k):
-    n = s.shape[0]
-    nl = present.shape[1]
-    d_right = np.empty((n, nl))
-    d_left = np.empty((n, nl))
-    here = np.empty((n, nl), dtype=np.bool_)
-    vmax_here = np.empty((n, nl))
-    lane = np.full(n, -1, dtype=np.int64)
-    kappa = np.empty(n)
-    widths = np.empty(nl)
-    for i in range(n):
-        sc = min(max(s[i], 0.0), length)
-        j = np.searchsorted(breaks, sc, side="right") - 1
-        if seg_const[j]:
-            for k in range(nl):
-                d_right[i, k] = dr_table[j, k]
-                d_left[i, k] = dl_table[j, k]
-        else:  # a lane whose width (or the lane offset) varies: evaluate the cubics
-            for k in range(nl):
-                x = sc - w_origin[j, k]
-                c = w_coef[j, k]
-                widths[k] = max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0)
-            x = sc - off_origin[j]
-            c = off_coef[j]
-            edge = c[0] + x * (c[1] + x * (c[2] + x * c[3]))
-            for k in range(nl - 1, -1, -1):  # from the reference line (left) to the right
-                d_left[i, k] = edge
-                edge -= widths[k]
-                d_right[i, k] = edge
-        for k in range(nl):
-            here[i, k] = present[j, k]
-            vmax_here[i, k] = vmax[j, k]
-        # lane of d: the lowest lane whose (dr, dl] holds d; the right road edge counts
-        for k in range(nl):
-            dr, dl = d_right[i, k], d_left[i, k]
-            if here[i, k] and dl > dr and d[i] <= dl and (d[i] > dr or (d[i] >= dr and dr == d_right[i, 0])):
-                lane[i] = k
-                break
-        g = np.searchsorted(g_s0, s[i], side="right") - 1
-        kappa[i] = g_k[min(max(g, 0), g_s0.shape[0] - 1)]
-    return d_right, d_left, here, vmax_here, lane, kappa
-
-
-@kernel
-def _frenet_to_cartesian_kernel(s, d, g_s0, g_x0, g_y0, g_h0, g_k):
-    n = s.shape[0]
-    x = np.empty(n)
-    y = np.empty(n)
-    h = np.empty(n)
-    last = g_s0.shape[0] - 1
-    for i in range(n):
-        j = min(max(np.searchsorted(g_s0, s[i], side="right") - 1, 0), last)
-        ds = s[i] - g_s0[j]
-        k, h0 = g_k[j], g_h0[j]
-        half = 0.5 * k * ds
-        chord = ds if half == 0.0 else ds * np.sin(half) / half  # = 2 sin(k ds / 2) / k; ds on a line
-        h[i] = h0 + k * ds
-        x[i] = g_x0[j] + chord * np.cos(h0 + half) - d[i] * np.sin(h[i])
-        y[i] = g_y0[j] + chord * np.sin(h0 + half) + d[i] * np.cos(h[i])
-    return x, y, h

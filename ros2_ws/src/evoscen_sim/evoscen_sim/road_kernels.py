@@ -1,5 +1,6 @@
 """Compiled road queries: :class:`evoscen_sim.road.RoadModel`'s look-ups for one ``(lane, s)``
-inside other numba kernels (:mod:`evoscen_sim.jit`).
+inside other numba kernels (:mod:`evoscen_sim.jit`), and the kernels behind its whole-array
+:meth:`~evoscen_sim.road.RoadModel.lane_lookup` and :meth:`~evoscen_sim.road.RoadModel.frenet_to_cartesian`.
 
 :meth:`RoadModel.kernel_tables() <evoscen_sim.road.RoadModel.kernel_tables>` gives the road's
 per-``s`` lane tables as one :class:`RoadTables` (a named tuple, passed to a kernel as one
@@ -90,3 +91,73 @@ def lane_center_d(road, lane, s):
     d_right = off - cs
     d_left = d_right + w_lane
     return 0.5 * (d_right + d_left)
+
+
+@kernel
+def lane_lookup_kernel(s, d, length, breaks, seg_const, dr_table, dl_table, present, vmax,
+                       w_coef, w_origin, off_coef, off_origin, g_s0, g_k):
+    """:meth:`RoadModel.lane_lookup <evoscen_sim.road.RoadModel.lane_lookup>` for ``N`` vehicles
+    at ``(s, d)``: every lane's borders, existence and maximum speed, the lane of ``d`` and the
+    reference line's curvature (the fields of :class:`evoscen_sim.road.LaneLookup`)."""
+    n = s.shape[0]
+    nl = present.shape[1]
+    d_right = np.empty((n, nl))
+    d_left = np.empty((n, nl))
+    here = np.empty((n, nl), dtype=np.bool_)
+    vmax_here = np.empty((n, nl))
+    lane = np.full(n, -1, dtype=np.int64)
+    kappa = np.empty(n)
+    widths = np.empty(nl)
+    for i in range(n):
+        sc = min(max(s[i], 0.0), length)
+        j = np.searchsorted(breaks, sc, side="right") - 1
+        if seg_const[j]:
+            for k in range(nl):
+                d_right[i, k] = dr_table[j, k]
+                d_left[i, k] = dl_table[j, k]
+        else:  # a lane whose width (or the lane offset) varies: evaluate the cubics
+            for k in range(nl):
+                x = sc - w_origin[j, k]
+                c = w_coef[j, k]
+                widths[k] = max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0)
+            x = sc - off_origin[j]
+            c = off_coef[j]
+            edge = c[0] + x * (c[1] + x * (c[2] + x * c[3]))
+            for k in range(nl - 1, -1, -1):  # from the reference line (left) to the right
+                d_left[i, k] = edge
+                edge -= widths[k]
+                d_right[i, k] = edge
+        for k in range(nl):
+            here[i, k] = present[j, k]
+            vmax_here[i, k] = vmax[j, k]
+        # lane of d: the lowest lane whose (dr, dl] holds d; the right road edge counts
+        for k in range(nl):
+            dr, dl = d_right[i, k], d_left[i, k]
+            if here[i, k] and dl > dr and d[i] <= dl and (d[i] > dr or (d[i] >= dr and dr == d_right[i, 0])):
+                lane[i] = k
+                break
+        g = np.searchsorted(g_s0, s[i], side="right") - 1
+        kappa[i] = g_k[min(max(g, 0), g_s0.shape[0] - 1)]
+    return d_right, d_left, here, vmax_here, lane, kappa
+
+
+@kernel
+def frenet_to_cartesian_kernel(s, d, g_s0, g_x0, g_y0, g_h0, g_k):
+    """:meth:`RoadModel.frenet_to_cartesian <evoscen_sim.road.RoadModel.frenet_to_cartesian>`:
+    ``(x, y, heading)`` of ``N`` points ``(s, d)`` on the planView pieces (start ``s``, ``x``,
+    ``y``, heading and curvature per piece; the first/last piece continued beyond the road)."""
+    n = s.shape[0]
+    x = np.empty(n)
+    y = np.empty(n)
+    h = np.empty(n)
+    last = g_s0.shape[0] - 1
+    for i in range(n):
+        j = min(max(np.searchsorted(g_s0, s[i], side="right") - 1, 0), last)
+        ds = s[i] - g_s0[j]
+        k, h0 = g_k[j], g_h0[j]
+        half = 0.5 * k * ds
+        chord = ds if half == 0.0 else ds * np.sin(half) / half  # = 2 sin(k ds / 2) / k; ds on a line
+        h[i] = h0 + k * ds
+        x[i] = g_x0[j] + chord * np.cos(h0 + half) - d[i] * np.sin(h[i])
+        y[i] = g_y0[j] + chord * np.sin(h0 + half) + d[i] * np.cos(h[i])
+    return x, y, h

@@ -70,6 +70,24 @@ from .jit import kernel
 from .neighbors import time_to_collision
 
 
+def _nearest_in_path(ahead: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarray, sut: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The nearest vehicle in the SUT's path on the side where ``ahead`` (centre distance from
+    the SUT, ``[..., V]``) is positive, and its bumper-to-bumper gap: ``(-1, inf)`` if none.
+
+    In the path: lateral body overlap (|d_j - d_sut| < (w_j + w_sut)/2); :func:`sut_leader`
+    passes ``s - s_sut``, :func:`sut_follower` ``s_sut - s``.
+    """
+    half_widths = 0.5 * (width + width[..., sut:sut + 1])
+    in_path = (ahead > 0.0) & (np.abs(d - d[..., sut:sut + 1]) < half_widths)
+    in_path[..., sut] = False
+    gaps = np.where(in_path, ahead - 0.5 * (length + length[..., sut:sut + 1]), np.inf)
+    nearest = np.argmin(np.where(in_path, ahead, np.inf), axis=-1)
+    gap = np.take_along_axis(gaps, nearest[..., None], axis=-1)[..., 0]
+    nearest = np.where(np.isfinite(gap), nearest, -1)
+    return nearest, gap
+
+
 def sut_leader(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarray, sut: int
                ) -> tuple[np.ndarray, np.ndarray]:
     """Index and bumper-to-bumper gap of the vehicle ahead in the SUT's path.
@@ -82,15 +100,7 @@ def sut_leader(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarr
         ``(leader, gap)``, shape ``[...]``: the leader's index (-1 if none) and the gap (m;
         ``inf`` if none, negative if the bodies overlap longitudinally).
     """
-    ds = s - s[..., sut:sut + 1]
-    half_widths = 0.5 * (width + width[..., sut:sut + 1])
-    in_path = (ds > 0.0) & (np.abs(d - d[..., sut:sut + 1]) < half_widths)
-    in_path[..., sut] = False
-    gaps = np.where(in_path, ds - 0.5 * (length + length[..., sut:sut + 1]), np.inf)
-    leader = np.argmin(np.where(in_path, ds, np.inf), axis=-1)
-    gap = np.take_along_axis(gaps, leader[..., None], axis=-1)[..., 0]
-    leader = np.where(np.isfinite(gap), leader, -1)
-    return leader, gap
+    return _nearest_in_path(s - s[..., sut:sut + 1], d, length, width, sut)
 
 
 def sut_ttc(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length: np.ndarray, width: np.ndarray,
@@ -209,15 +219,7 @@ def sut_follower(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.nda
     gap)``, shape ``[...]``: -1 / ``inf`` if none; the gap is negative if the bodies overlap
     longitudinally.
     """
-    back = s[..., sut:sut + 1] - s
-    half_widths = 0.5 * (width + width[..., sut:sut + 1])
-    in_path = (back > 0.0) & (np.abs(d - d[..., sut:sut + 1]) < half_widths)
-    in_path[..., sut] = False
-    gaps = np.where(in_path, back - 0.5 * (length + length[..., sut:sut + 1]), np.inf)
-    follower = np.argmin(np.where(in_path, back, np.inf), axis=-1)
-    gap = np.take_along_axis(gaps, follower[..., None], axis=-1)[..., 0]
-    follower = np.where(np.isfinite(gap), follower, -1)
-    return follower, gap
+    return _nearest_in_path(s[..., sut:sut + 1] - s, d, length, width, sut)
 
 
 def follower_ttc(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length: np.ndarray, width: np.ndarray,
