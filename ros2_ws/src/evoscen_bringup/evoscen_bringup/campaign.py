@@ -322,7 +322,7 @@ class _HostFaultStop(Exception):
 
 def load_result(out_dir: Path, key: str) -> dict[str, Any]:
     """A finished run's files: ``{"row", "report", "plot"}`` (``plot``: the SUT's TTC and speed
-    histograms over :data:`evoscen_eval.streaming.TTC_BINS` and ``SPEED_BINS``)."""
+    histograms over :data:`evoscen_eval.plot_inputs.TTC_BINS` and ``SPEED_BINS``)."""
     d = out_dir / "runs" / key
     return {name: json.loads((d / f"{name if name != 'row' else 'result'}.json").read_text(encoding="utf-8"))
             for name in ("row", "report", "plot")}

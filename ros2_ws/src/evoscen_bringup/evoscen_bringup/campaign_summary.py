@@ -62,7 +62,7 @@ def summary_plots(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Mappin
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from evoscen_eval.streaming import SPEED_BINS, TTC_BINS
+    from evoscen_eval.plot_inputs import SPEED_BINS, TTC_BINS
 
     from .stats import mean_ci
 
