@@ -30,7 +30,7 @@ from typing import Any
 
 import yaml
 
-from evoscen_eval.streaming import COLLISION_KINDS
+from evoscen_eval.sut_collisions import COLLISION_KINDS
 from evoscen_sim.config import config_to_dict
 
 from .campaign_spec import CampaignRun

@@ -10,6 +10,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from evoscen_contract import contract as C
+
 TIMELINE_POINTS = 20_000
 """Most points of the report's timeline; a longer run is drawn from buckets of 2^n states."""
 TTC_BINS = np.linspace(0.0, 20.0, 41)
@@ -29,6 +31,17 @@ class Scene:
     sut_index: int
     sut_ttc: float = math.inf
     sut_accel: float = 0.0
+
+
+_SCENE_FIELDS = ("x", "y", "yaw", "length", "width", "speed")
+_F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
+
+
+def scene_of(tables: np.ndarray, times: np.ndarray, r: int, k: int, ids: np.ndarray, sut: int) -> Scene:
+    """The :class:`Scene` of state ``k``, row ``r`` of a block's ``tables`` ``[n, V, F]``."""
+    return Scene(state=k, time_s=float(times[r]),
+                 columns={f: tables[r, :, _F[f]].copy() for f in _SCENE_FIELDS},
+                 ids=ids.copy(), sut_index=sut)
 
 
 @dataclass

@@ -29,7 +29,8 @@ from evoscen_sim.errors import HostFault, InputError
 from .metrics import evaluate, report_of_stream, run_info, stream_run
 from .rundata import RunData, evaluation_settings_of
 from .plot_inputs import SPEED_BINS, TTC_BINS, PlotData, Scene
-from .streaming import MAX_SNAPSHOTS, ScoreStream
+from .streaming import ScoreStream
+from .sut_collisions import MAX_SNAPSHOTS
 
 TTC_PLOT_MAX_S = float(TTC_BINS[-1])
 """TTC values above this (and infinite TTC: nothing closing ahead) are left out of the TTC plots."""

@@ -25,7 +25,8 @@ as a whole run would) to
 * fixed-bin histograms of the SUT's TTC and speed, a timeline of at most
   :data:`~evoscen_eval.plot_inputs.TIMELINE_POINTS` points (a longer run is drawn from buckets of
   2^n states: the first speed and lane and the lowest TTC of each; :mod:`evoscen_eval.plot_inputs`),
-  and the scenes of the report's snapshots (the states of the first collisions and of the worst exposure).
+  and the scenes of the report's snapshots (the states of the first collisions and of the worst exposure);
+* what each SUT collision was (:mod:`evoscen_eval.sut_collisions`).
 
 What stays proportional to the run is its output: the exposure, collision and lane-change
 lists and the per-window counts (one entry per 100 states, one per traffic window). Blocks start at multiples of
@@ -48,17 +49,12 @@ from evoscen_contract import contract as C
 from evoscen_sim.safety import (attribution_steps, beside_gap, beside_severity, cut_in_gap, danger_terms, drac,
                                 exposure_runs, follower_headway, follower_ttc, sut_follower, sut_leader, sut_ttc)
 
-from .plot_inputs import PlotData, PlotSeries, Scene
+from .plot_inputs import PlotData, PlotSeries, Scene, scene_of
+from .sut_collisions import SutCollisions
 from .sut_lane_changes import SutLaneChanges
 
 BLOCK_STATES = 256
 """States reduced together (the block size bounds the memory of the stream)."""
-MAX_SNAPSHOTS = 10
-"""Collision scenes kept at most (the report lists every collision)."""
-COLLISION_LOOKBACK_S = 2.0
-"""How far back a vehicle's lane change makes it "changing lanes" at a collision (s)."""
-COLLISION_KINDS = ("sut_cut_in", "other_cut_in", "both_changing", "sut_rear_end", "rear_ended_by_other")
-"""What a SUT collision was (docs/evaluation.md §3.4); "unknown" if its state was not seen."""
 
 TRAFFIC_RANGE_M = 100.0
 """A BV is around the SUT when |s_BV − s_SUT| is at most this (m; same road, any lane)."""
@@ -70,7 +66,6 @@ SSM_SIDES = ("front", "rear")
 path (its TTC and DRAC), rear = the vehicle behind in its path following the SUT (the follower's)."""
 
 _F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
-_SCENE_FIELDS = ("x", "y", "yaw", "length", "width", "speed")
 
 
 @dataclass
@@ -117,10 +112,7 @@ class ScoreStream:
         self._rear_last = -1
         self._open: _Exposure | None = None
         self.changes = SutLaneChanges()
-        self._prev_scene_block: tuple[int, np.ndarray, np.ndarray] | None = None
-        self._last_lc = None  # [V]: the latest state with each vehicle's lane_change non-zero (-1: none)
-        self._prev_lc_block: tuple[int, np.ndarray, np.ndarray] | None = None  # (k0, tables, last-lc rows)
-        self.collision_kinds: dict[int, str] = {}  # index in sut_collisions -> kind
+        self.collisions = SutCollisions(self.sut_collisions)  # their kinds and scenes
         # reductions
         self.exposures: list[dict] = []
         self._headway_run = 0  # states of the tailgating condition held unbroken up to the last state seen
@@ -155,7 +147,6 @@ class ScoreStream:
         self.traffic_empty = 0
         # plots
         self.plots = PlotSeries()
-        self.collision_scenes: dict[int, Scene] = {}
         self._worst_sev = -math.inf
         self.worst_scene: Scene | None = None
         self._finished = False
@@ -344,7 +335,7 @@ class ScoreStream:
             x.headway_states += int(tailgate[seg].sum())
             if severity[r0 + m] > self._worst_sev:
                 self._worst_sev = float(severity[r0 + m])
-                self.worst_scene = self._scene(tables, times, r0 + m, k0 + r0 + m)
+                self.worst_scene = scene_of(tables, times, r0 + m, k0 + r0 + m, self.ids, sut)
                 self.worst_scene.sut_ttc, self.worst_scene.sut_accel = float(ttc[r0 + m]), float(accel[r0 + m])
             if r1 < n:
                 self._close_exposure(k0 + r1)
@@ -383,14 +374,7 @@ class ScoreStream:
 
         # --- plots
         self.plots.add_block(ks, times, speed, lane, ttc, bvs_near)
-        self._collision_scenes(k0, tables, times)
-        self._prev_scene_block = (k0, tables, times)
-        last = np.maximum.accumulate(np.where(lc != 0, ks[:, None], -1), axis=0)
-        if self._last_lc is not None:
-            last = np.maximum(last, self._last_lc)
-        self._last_lc = last[-1].copy()
-        self._classify_collisions(k0, tables, last)
-        self._prev_lc_block = (k0, tables, last)
+        self.collisions.add_block(k0, ks, tables, times, lc, self.ids, sut, dt)
 
     def _ssm_block(self, side: str, ttc: np.ndarray, drac_v: np.ndarray, other: np.ndarray) -> None:
         """Add a block's states to one side's surrogate-safety sums (``other``: the counterpart's
@@ -409,45 +393,6 @@ class ScoreStream:
         prev = np.concatenate(([self._ssm_last[key]], cp[:-1]))
         self._ssm_last[key] = int(cp[-1])
         return int((on & (cp != prev)).sum())
-
-    def _classify_collisions(self, k0: int, tables: np.ndarray, last: np.ndarray, clamp: int | None = None) -> None:
-        """What each SUT collision whose state is in this block or the previous one was: who was
-        changing lanes (``lane_change`` non-zero within :data:`COLLISION_LOOKBACK_S` up to the
-        state) and, if neither, who struck whom (the vehicle behind, by centre)."""
-        n_back = int(np.floor(COLLISION_LOOKBACK_S / (self.dt_s if self.dt_s is not None else 0.1) + 1e-9))
-        blocks = [(k0, tables, last)]
-        if self._prev_lc_block is not None:
-            blocks.append(self._prev_lc_block)
-        sut_id = int(self.ids[self.sut])
-        for i, event in enumerate(self.sut_collisions):
-            if i in self.collision_kinds:
-                continue
-            k = int(event["step"]) if clamp is None else min(int(event["step"]), clamp)
-            others = [j for j in event.get("ids", []) if j != sut_id]
-            found = np.flatnonzero(self.ids == others[0]) if others else []
-            for b0, b_tables, b_last in blocks:
-                if b0 <= k < b0 + b_tables.shape[0] and len(found):
-                    r, o = k - b0, int(found[0])
-                    sut_lc = b_last[r, self.sut] >= k - n_back
-                    oth_lc = b_last[r, o] >= k - n_back
-                    if sut_lc or oth_lc:
-                        kind = "both_changing" if sut_lc and oth_lc else ("sut_cut_in" if sut_lc else "other_cut_in")
-                    else:
-                        behind = b_tables[r, self.sut, _F["s"]] < b_tables[r, o, _F["s"]]
-                        kind = "sut_rear_end" if behind else "rear_ended_by_other"
-                    self.collision_kinds[i] = kind
-
-    def _collision_scenes(self, k0: int, tables: np.ndarray, times: np.ndarray) -> None:
-        """The scenes of the first collisions whose states are in this block or the previous one
-        (a collision event may arrive after its state)."""
-        blocks = [(k0, tables, times)]
-        if self._prev_scene_block is not None:
-            blocks.append(self._prev_scene_block)
-        for event in self.sut_collisions[:MAX_SNAPSHOTS]:
-            k = int(event["step"])
-            for b0, b_tables, b_times in blocks:
-                if b0 <= k < b0 + b_tables.shape[0] and k not in self.collision_scenes:
-                    self.collision_scenes[k] = self._scene(b_tables, b_times, k - b0, k)
 
     def _attributed(self, lc_sut: np.ndarray, ks: np.ndarray, after: int) -> np.ndarray:
         """:func:`evoscen_sim.safety.rear_attributed`, continued from the previous block."""
@@ -482,11 +427,6 @@ class ScoreStream:
             else:
                 lst.append(int(value))
 
-    def _scene(self, tables: np.ndarray, times: np.ndarray, r: int, k: int) -> Scene:
-        return Scene(state=k, time_s=float(times[r]),
-                     columns={f: tables[r, :, _F[f]].copy() for f in _SCENE_FIELDS},
-                     ids=self.ids.copy(), sut_index=self.sut)
-
     # ------------------------------------------------------------------ the end
 
     def finish(self) -> None:
@@ -501,24 +441,20 @@ class ScoreStream:
             self._close_exposure(K)
             self.exposures[-1]["open_at_end"] = True
         self.changes.close(K)
-        if self._prev_scene_block is not None:  # collisions stamped past the last state: the last state's scene
-            k0, tables, times = self._prev_scene_block
-            for event in self.sut_collisions[:MAX_SNAPSHOTS]:
-                k = min(int(event["step"]), K - 1)
-                if k not in self.collision_scenes and k0 <= k:
-                    self.collision_scenes[k] = self._scene(tables, times, k - k0, k)
-        self._prev_scene_block = None
-        if self._prev_lc_block is not None:  # collisions stamped past the last state: as at the last state
-            self._classify_collisions(*self._prev_lc_block, clamp=K - 1)
-        self._prev_lc_block = None
+        self.collisions.finish(K, self.ids, self.sut, self.dt_s if self.dt_s is not None else 0.1)
         self._finished = True
 
     def plot_data(self, lane_segments: np.ndarray | None = None) -> PlotData:
         """The plots' inputs (after :meth:`finish`)."""
         self.finish()
         return PlotData(states=self.states, **self.plots.timeline_fields(),
-                        collision_scenes=dict(self.collision_scenes),
+                        collision_scenes=dict(self.collisions.scenes),
                         worst_scene=self.worst_scene, lane_segments=lane_segments)
+
+    @property
+    def collision_kinds(self) -> dict[int, str]:
+        """What each SUT collision was, by its index in ``sut_collisions`` (:mod:`evoscen_eval.sut_collisions`)."""
+        return self.collisions.kinds
 
     @property
     def finished_changes(self) -> list:  # [SutLaneChange]
