@@ -42,16 +42,6 @@ def world_steps(bag: Path) -> list[int] | None:
         return None
 
 
-def note_hang_and_traceback(problems: list[str], hang: bool, stderr: str) -> bool:
-    """Add ``hang`` and ``traceback`` to ``problems`` where they apply; whether ``stderr`` holds a traceback."""
-    traceback = "Traceback" in stderr
-    if hang:
-        problems.append("hang")
-    if traceback:
-        problems.append("traceback")
-    return traceback
-
-
 def stderr_tail(stderr: str, problems: list[str]) -> str:
     """The last 12 lines of a run's stderr, kept for a run with a problem (else empty)."""
     return "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""

@@ -16,8 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from fault_runs import (END_LIMIT_S, HANG_S, REPO, SCRIPTS, GraphResult, note_hang_and_traceback, stderr_tail,
-                        world_steps)
+from fault_runs import END_LIMIT_S, HANG_S, REPO, SCRIPTS, GraphResult, stderr_tail, world_steps
 
 HOST_FAULT_STATUS = 5  # evoscen_contract.contract.EXIT_HOST_FAULT
 
@@ -174,15 +173,9 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
             subprocess.run(["umount", "-l", str(out_root)], check=False)  # a loop device is freed with it
         shutil.rmtree(out_root, ignore_errors=True)
         (work / f"host-{seed}.img").unlink(missing_ok=True)
-    traceback = note_hang_and_traceback(problems, hang, stderr)
-    if readable is False:
-        problems.append("bag unreadable after reindex")
-    if lost:
-        problems.append(f"{lost} steps lost (allowed 0 beyond the states the line names)")
-    if orphans:
-        problems.append(f"{orphans} processes of the run left running")
-    return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost,
-                       orphans=orphans, problems=problems, stderr_tail=stderr_tail(stderr, problems))
+    return _result(fault, seed, status, end_s, hang, stderr, problems, readable, reindexed, lost, orphans,
+                   "{} steps lost (allowed 0 beyond the states the line names)",
+                   "{} processes of the run left running")
 
 
 def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path) -> GraphResult:
@@ -242,10 +235,25 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
         shutil.rmtree(camp, ignore_errors=True)
     if status != 0 and not hang:
         problems.append(f"the resumed campaign ended {status}, not 0")
-    traceback = note_hang_and_traceback(problems, hang, stderr)
+    return _result(fault, seed, status, None, hang, stderr, problems, None, False, lost, orphans,
+                   "{} runs missing after the resume", "{} Ray processes of the killed driver left running")
+
+
+def _result(fault: tuple, seed: int, status: int | None, end_s: float | None, hang: bool, stderr: str,
+            problems: list[str], readable: bool | None, reindexed: bool, lost: int | None, orphans: int,
+            lost_problem: str, orphans_problem: str) -> GraphResult:
+    """A host-fault run's result, its last problems noted: a hang, a traceback, a bag unreadable after
+    reindex, ``lost`` and ``orphans`` (each counted into its ``*_problem`` text)."""
+    traceback = "Traceback" in stderr
+    if hang:
+        problems.append("hang")
+    if traceback:
+        problems.append("traceback")
+    if readable is False:
+        problems.append("bag unreadable after reindex")
     if lost:
-        problems.append(f"{lost} runs missing after the resume")
+        problems.append(lost_problem.format(lost))
     if orphans:
-        problems.append(f"{orphans} Ray processes of the killed driver left running")
-    return GraphResult(" ".join(fault), seed, status, None, hang, traceback, None, False, lost,
+        problems.append(orphans_problem.format(orphans))
+    return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost,
                        orphans=orphans, problems=problems, stderr_tail=stderr_tail(stderr, problems))
