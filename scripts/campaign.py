@@ -38,7 +38,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.campaign import expand, load_spec, run_campaign, write_results
+    from evoscen_bringup.campaign import run_campaign
+    from evoscen_bringup.campaign_spec import expand, load_spec
+    from evoscen_bringup.campaign_summary import write_results
     from evoscen_bringup.experiments import positive_int
     from evoscen_sim.errors import HostFault, InputError
 

@@ -63,13 +63,15 @@ success or a one-line error (``InputError`` / exit 2), never a traceback or a ha
 
 Prints one line per run and the summary table; exit 0 when every acceptance figure holds, 1 if
 not, 2 on bad arguments. Full size (issue 16): ``--graph-runs 100 --fuzz 300``.
+
+Beside this script: ``fault_runs.py`` (the result of a run, the limits, a bag's world steps),
+``host_faults.py`` (the faults of the host) and ``input_fuzz.py`` (the fuzzed inputs).
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
-import io
 import json
 import os
 import random
@@ -80,39 +82,20 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 import numpy as np
 from evoscen_contract.contract import EXIT_BAD_INPUT, GRAPH_EXIT_STATUSES, TOPIC_WORLD
+from fault_runs import END_LIMIT_S, HANG_S, REPO, SCRIPTS, GraphResult, stderr_tail, world_steps
+from host_faults import host_run
+from input_fuzz import fuzz
 
-REPO = Path(__file__).resolve().parents[1]
-SCRIPTS = REPO / "scripts"
 NODES = {"sim": "evoscen_sim.sim_node", "bv_competitive": "evoscen_bv.bv_node", "bv_mutual": "evoscen_bv.bv_node",
          "bv_cooperative": "evoscen_bv.bv_node", "sut": "evoscen_sut.sut_node", "eval": "evoscen_eval.eval_node"}
 """The nodes of the default graph by class name: the BV nodes are those of ``bvs.nodes: by_policy``
 (docs/architecture.md §5, "BV nodes"), one program each under its own node name."""
-END_LIMIT_S = 10.0
-HANG_S = 120.0
-DT_NS = 100_000_000
-
-
-@dataclass
-class GraphResult:
-    fault: str
-    seed: int
-    status: int | None
-    end_s: float | None
-    hang: bool
-    traceback: bool
-    bag_readable: bool | None  # None: no bag was started (a death during start-up)
-    reindexed: bool
-    steps_lost: int | None
-    world_identical: bool | None = None
-    problems: list[str] = field(default_factory=list)
-    stderr_tail: str = ""  # the launcher's last lines, kept for runs with a problem
-    orphans: int = 0  # processes of the run left running after it ended (driver-kill: after the resume)
 
 
 def _fault_classes() -> list[tuple]:
@@ -122,247 +105,6 @@ def _fault_classes() -> list[tuple]:
     return kills + [("stall",), ("inject",)] + host + [("vanish", "process"), ("driver-kill",)]
 
 
-HOST_FAULT_STATUS = 5  # evoscen_contract.contract.EXIT_HOST_FAULT
-
-
-def _mount_tmpfs(path: Path, size_kib: int) -> str | None:
-    """Mount a tmpfs of ``size_kib`` KiB at ``path``; None, or why it could not."""
-    path.mkdir(parents=True, exist_ok=True)
-    r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_kib}k", "tmpfs", str(path)],
-                       capture_output=True, text=True, check=False)
-    return None if r.returncode == 0 else f"cannot mount a tmpfs (root needed): {r.stderr.strip()}"
-
-
-READ_ONLY_IMAGE_MIB = 64
-
-
-def mount_ext4(path: Path, image: Path, size_mib: int = READ_ONLY_IMAGE_MIB) -> str | None:
-    """An ext4 file system of ``size_mib`` MiB in the file ``image`` (sparse), mounted at ``path`` on
-    a loop device with ``errors=remount-ro``; None, or why it could not."""
-    path.mkdir(parents=True, exist_ok=True)
-    with open(image, "wb") as f:
-        f.truncate(size_mib << 20)
-    r = subprocess.run(["mkfs.ext4", "-q", "-F", str(image)], capture_output=True, text=True, check=False)
-    if r.returncode != 0:
-        return f"cannot make an ext4 file system in {image}: {r.stderr.strip()}"
-    r = subprocess.run(["mount", "-o", "loop,errors=remount-ro", str(image), str(path)],
-                       capture_output=True, text=True, check=False)
-    return None if r.returncode == 0 else f"cannot mount {image} (root and a loop device needed): {r.stderr.strip()}"
-
-
-def make_read_only(path: Path) -> str | None:
-    """Make the ext4 file system mounted at ``path`` read-only now, files open for writing and all,
-    as the kernel does on an I/O error under ``errors=remount-ro`` (``/sys/fs/ext4/DEV/trigger_fs_error``);
-    None, or why it could not."""
-    where = os.path.realpath(path)
-    devs = [ln.split()[0] for ln in Path("/proc/mounts").read_text().splitlines() if ln.split()[1] == where]
-    if not devs:
-        return f"{where} is not a mount point"
-    try:
-        Path(f"/sys/fs/ext4/{Path(devs[-1]).name}/trigger_fs_error").write_text("fault campaign: read-only\n")
-    except OSError as exc:
-        return f"cannot make {where} read-only: {exc}"
-    return None
-
-
-def _check_host_fault_end(stderr: str, status: int | None, problems: list[str]) -> str | None:
-    """The one ``error:`` line of a run ended by a fault of the host (problems noted); None if none."""
-    errors = [ln for ln in stderr.splitlines() if ln.startswith("error:")]
-    if status not in (0, HOST_FAULT_STATUS):
-        problems.append(f"exit status {status}, expected {HOST_FAULT_STATUS} (or 0 if everything fit)")
-    if status == HOST_FAULT_STATUS and len(errors) != 1:
-        problems.append(f"{len(errors)} error lines, expected one")
-    return errors[0] if errors else None
-
-
-def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path) -> GraphResult:
-    """One run with a fault of the host (module docstring): a full disk, the output removed, the
-    campaign driver killed."""
-    kind = fault[0]
-    problems: list[str] = []
-    status, hang, stderr, end_s = None, False, "", None
-    readable, reindexed, lost, orphans = None, False, None, 0
-    if kind == "driver-kill":
-        return _driver_kill(fault, seed, steps, rng, work)
-    out_root = work / f"host-{seed}"
-    mounted = False
-    if kind == "enospc":
-        size = rng.randint(150, 1500)  # KiB: the disk fills at a random step
-        why = _mount_tmpfs(out_root, size)
-        if why is not None:
-            problems.append(why)
-            return GraphResult(" ".join(fault), seed, None, None, False, False, None, False, None, problems=problems)
-        mounted = True
-    elif kind == "readonly":
-        why = mount_ext4(out_root, work / f"host-{seed}.img")
-        if why is not None:
-            problems.append(why)
-            (work / f"host-{seed}.img").unlink(missing_ok=True)
-            return GraphResult(" ".join(fault), seed, None, None, False, False, None, False, None, problems=problems)
-        mounted = True
-    out = out_root / "run"
-    runner = fault[1]
-    args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--steps", str(steps), "--seed", str(seed),
-            "--out", str(out), "--no-plots"]
-    args += ["--mode", "graph"] if runner == "graph" else ["--mode", "inprocess", "--quiet", "--bag-writer", runner]
-    try:
-        proc = subprocess.Popen(args, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        if kind == "vanish":
-            mcap, at = out / "bag" / "bag_0.mcap", rng.randint(20_000, 400_000)
-            end = time.monotonic() + 60
-            while proc.poll() is None and time.monotonic() < end and not (mcap.exists() and mcap.stat().st_size > at):
-                time.sleep(0.01)
-            shutil.rmtree(out, ignore_errors=True)
-            t_fault = time.monotonic()
-        elif kind == "readonly":
-            mcap, at = out / "bag" / "bag_0.mcap", rng.randint(20_000, 400_000)
-            end = time.monotonic() + 90
-            while proc.poll() is None and time.monotonic() < end and not (mcap.exists() and mcap.stat().st_size > at):
-                time.sleep(0.01)
-            if proc.poll() is not None:
-                problems.append("the run ended before its output was made read-only")
-            why = make_read_only(out_root)
-            if why is not None:
-                problems.append(why)
-            t_fault = time.monotonic()
-        try:
-            _stdout, stderr = proc.communicate(timeout=HANG_S)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            _stdout, stderr = proc.communicate()
-            hang = True
-        if kind in ("vanish", "readonly"):
-            end_s = time.monotonic() - t_fault
-        status = None if hang else proc.returncode
-        line = _check_host_fault_end(stderr, status, problems)
-        bag = out / "bag"
-        if kind == "readonly" and status == HOST_FAULT_STATUS and line is not None and not (
-                line.startswith(f"error: {'evoscen_eval: ' if runner == 'graph' else ''}cannot write "
-                                f"{bag / 'bag_0.mcap'}: Read-only file system (EROFS)")):
-            problems.append("the line does not name the bag file and EROFS")
-        if kind == "readonly" and status != HOST_FAULT_STATUS:
-            problems.append(f"exit status {status}, expected {HOST_FAULT_STATUS}")
-        if kind == "readonly" and end_s is not None and end_s > END_LIMIT_S:
-            problems.append(f"ended {end_s:.1f} s after the fault")
-        if kind in ("enospc", "readonly") and bag.is_dir():
-            copy = work / f"host-{seed}-bag"
-            shutil.copytree(bag, copy)
-            world = _world_steps(copy)
-            if world is None:
-                from evoscen_record.reindex import reindex_bag
-
-                with contextlib.suppress(Exception):
-                    reindex_bag(copy, keep_original=False)
-                    reindexed = True
-                world = _world_steps(copy)
-            shutil.rmtree(copy, ignore_errors=True)
-            readable = world is not None
-            if world is not None:
-                gaps = (world[-1] + 1 - len(world)) if world else 0
-                m = re.search(r"the (\d+) world states", line or "")
-                stated = int(m.group(1)) if m else None
-                if status == HOST_FAULT_STATUS and stated is None:
-                    problems.append("the error line does not say how many world states the bag holds")
-                lost = gaps + (abs(stated - len(world)) if stated is not None else 0)
-                if line and "reindex.py" in line and not reindexed:
-                    problems.append("the line asks for reindex.py, but the bag was finished")
-        elif kind == "vanish" and status == HOST_FAULT_STATUS and line and "is gone" not in line:
-            problems.append("the line does not say the bag is gone")
-    finally:
-        for pid in subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split():
-            orphans += 1
-            with contextlib.suppress(OSError):
-                os.kill(int(pid), signal.SIGKILL)
-        if mounted:
-            subprocess.run(["umount", "-l", str(out_root)], check=False)  # a loop device is freed with it
-        shutil.rmtree(out_root, ignore_errors=True)
-        (work / f"host-{seed}.img").unlink(missing_ok=True)
-    traceback = "Traceback" in stderr
-    if hang:
-        problems.append("hang")
-    if traceback:
-        problems.append("traceback")
-    if readable is False:
-        problems.append("bag unreadable after reindex")
-    if lost:
-        problems.append(f"{lost} steps lost (allowed 0 beyond the states the line names)")
-    if orphans:
-        problems.append(f"{orphans} processes of the run left running")
-    tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
-    return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost,
-                       orphans=orphans, problems=problems, stderr_tail=tail)
-
-
-def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path) -> GraphResult:
-    """A campaign whose driver is SIGKILLed mid-run (its process alone), then the same command: it
-    must end the killed driver's Ray processes, and every run must be done exactly once."""
-    import pyarrow.parquet as pq
-
-    from evoscen_bringup.ray_leftovers import DRIVER_FILE, session_processes, zombie
-
-    problems: list[str] = []
-    camp = work / f"campaign-{seed}"
-    camp.mkdir(parents=True, exist_ok=True)
-    spec = camp / "spec.yaml"
-    n_seeds = 4
-    spec.write_text(f"name: faults\nsteps: {min(steps, 600)}\nseeds: {{first: {seed}, count: {n_seeds}}}\n"
-                    "grid:\n  sut.model: [mobil, level0]\n", encoding="utf-8")
-    out = camp / "out"
-    cmd = [sys.executable, str(SCRIPTS / "campaign.py"), str(spec), "--out", str(out), "--cpus", "2"]
-    first = subprocess.Popen(cmd, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             start_new_session=True)
-    session, hang, status, stderr, orphans, lost = None, False, None, "", 0, None
-    try:
-        end = time.monotonic() + HANG_S
-        while time.monotonic() < end and first.poll() is None and not (
-                (out / DRIVER_FILE).exists() and list((out / "runs").glob("*/result.json"))):
-            time.sleep(0.05)
-        if (out / DRIVER_FILE).exists():
-            session = json.loads((out / DRIVER_FILE).read_text())["session_dir"]
-        time.sleep(rng.uniform(0.0, 1.0))
-        if first.poll() is None:
-            os.kill(first.pid, signal.SIGKILL)  # the driver only
-        first.communicate(timeout=30)
-        again = subprocess.Popen(cmd, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                 start_new_session=True)
-        try:
-            _stdout, stderr = again.communicate(timeout=HANG_S * 2)
-            status = again.returncode
-        except subprocess.TimeoutExpired:
-            os.killpg(again.pid, signal.SIGKILL)
-            _stdout, stderr = again.communicate()
-            hang = True
-        if session is not None:
-            alive = [p for p, _ in session_processes(session) if not zombie(p)]
-            orphans = len(alive)
-            for p in alive:
-                with contextlib.suppress(OSError):
-                    os.kill(p, signal.SIGKILL)
-        if status == 0:
-            keys = [row["key"] for row in pq.read_table(out / "results.parquet").to_pylist()]
-            if len(keys) != len(set(keys)):
-                problems.append("a run counted twice")
-            lost = 2 * n_seeds - len(set(keys))
-    finally:
-        for p in (first,):
-            if p.poll() is None:
-                p.kill()
-        shutil.rmtree(camp, ignore_errors=True)
-    if status != 0 and not hang:
-        problems.append(f"the resumed campaign ended {status}, not 0")
-    if hang:
-        problems.append("hang")
-    if "Traceback" in stderr:
-        problems.append("traceback")
-    if lost:
-        problems.append(f"{lost} runs missing after the resume")
-    if orphans:
-        problems.append(f"{orphans} Ray processes of the killed driver left running")
-    tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
-    return GraphResult(" ".join(fault), seed, status, None, hang, "Traceback" in stderr, None, False, lost,
-                       orphans=orphans, problems=problems, stderr_tail=tail)
-
-
 def _children(launcher: subprocess.Popen, module: str, node: str = "") -> list[int]:
     """The launcher's children running ``module`` (a BV node: the one named ``evoscen_<node>``)."""
     pattern = (rf"\s__node:=evoscen_{re.escape(node)}(\s|$)" if node.startswith("bv_")
@@ -370,15 +112,6 @@ def _children(launcher: subprocess.Popen, module: str, node: str = "") -> list[i
     out = subprocess.run(["pgrep", "-P", str(launcher.pid), "-f", pattern],
                          capture_output=True, text=True, check=False).stdout
     return [int(p) for p in out.split()]
-
-
-def _world_steps(bag: Path) -> list[int] | None:
-    from evoscen_record.bag_reader import open_bag_reader
-
-    try:
-        return sorted({t // DT_NS for topic, _type, t, _d in open_bag_reader(bag) if topic == TOPIC_WORLD})
-    except Exception:  # noqa: BLE001 - unreadable, whatever the reason
-        return None
 
 
 def _fault_events(bag: Path) -> list[tuple[str, str]] | None:
@@ -531,14 +264,14 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
     traceback = "Traceback" in stderr
     readable, reindexed, lost, identical, fault_events = None, False, None, None, None
     if (out / "bag").exists():
-        world = _world_steps(out / "bag")
+        world = world_steps(out / "bag")
         if world is None:
             from evoscen_record.reindex import reindex_bag
 
             with contextlib.suppress(Exception):
                 reindex_bag(out / "bag", keep_original=False)
                 reindexed = True
-            world = _world_steps(out / "bag")
+            world = world_steps(out / "bag")
         readable = world is not None
         if readable:
             fault_events = _fault_events(out / "bag")
@@ -603,184 +336,8 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
     if orphans:
         problems.append(f"{orphans} processes of the run left running")
     shutil.rmtree(out, ignore_errors=True)
-    tail = "\n".join(stderr.strip().splitlines()[-12:]) if problems else ""
     return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost, identical,
-                       problems, tail, orphans)
-
-
-# --------------------------------------------------------------------------- fuzzing
-
-class _Alarm(Exception):
-    pass
-
-
-def _on_alarm(signum, frame):
-    raise _Alarm
-
-
-def _mutate_text(text: str, rng: np.random.Generator) -> str:
-    """One hostile edit of a text file."""
-    lines = text.split("\n")
-    op = int(rng.integers(0, 9))
-    if op == 0:  # flip bytes
-        b = bytearray(text.encode("utf-8"))
-        for _ in range(int(rng.integers(1, 8))):
-            b[int(rng.integers(0, len(b)))] = int(rng.integers(0, 256))
-        return b.decode("utf-8", errors="surrogateescape")
-    if op == 1:  # cut short
-        return text[: int(rng.integers(0, len(text)))]
-    if op == 2:  # drop a line
-        del lines[int(rng.integers(0, len(lines)))]
-        return "\n".join(lines)
-    if op == 3:  # a value replaced by a hostile token
-        tokens = ["1e308", "-1", "0", "nan", "inf", "''", "[]", "{}", "0x10", "9" * 40, "!!python/object:os.system x",
-                  "&a [*a, *a]", "~", "true", "\u0000", "-0.0", "1e-12"]
-        i = int(rng.integers(0, len(lines)))
-        if ":" in lines[i]:
-            key, _, _ = lines[i].partition(":")
-            lines[i] = f"{key}: {tokens[int(rng.integers(0, len(tokens)))]}"
-        return "\n".join(lines)
-    if op == 4:  # deep nesting
-        depth = int(rng.integers(50, 5000))
-        return "[" * depth + "]" * depth
-    if op == 5:  # NUL bytes
-        i = int(rng.integers(0, len(text)))
-        return text[:i] + "\x00" + text[i:]
-    if op == 6:  # duplicate a line
-        i = int(rng.integers(0, len(lines)))
-        lines.insert(i, lines[i])
-        return "\n".join(lines)
-    if op == 7:  # numbers scaled wildly
-        return re.sub(r"(?<![\w.])(\d+(\.\d+)?)", lambda m: str(float(m.group(1)) * float(rng.choice([-1, 1e9, 1e-9, 0]))),
-                      text, count=int(rng.integers(1, 5)))
-    return text.replace(" ", "\t", int(rng.integers(1, 20)))  # tabs
-
-
-def _finite_at_least(text: str, low: float) -> bool:
-    """Whether ``text`` reads as a finite number >= ``low`` (Python's own float parsing)."""
-    try:
-        value = float(text)
-    except ValueError:
-        return False
-    return np.isfinite(value) and value >= low
-
-
-def _one_line_error(exc: BaseException) -> bool:
-    return "\n" not in str(exc).strip() and bool(str(exc).strip())
-
-
-def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
-    """``n`` fuzzed inputs over the five input kinds; one dict per input."""
-    from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_bringup.scenario import build_scenario
-    from evoscen_eval.highd import load_recording
-    from evoscen_sim.config import load_scenario_config, share_path
-    from evoscen_sim.errors import InputError
-    from evoscen_sim.road import DEFAULT_MAP_PATH, load_road
-
-    default_yaml = share_path("config/default_scenario.yaml")
-    yaml_text = default_yaml.read_text(encoding="utf-8")
-    map_text = Path(DEFAULT_MAP_PATH).read_text(encoding="utf-8")
-    base_bag = work / "fuzz-base" / "bag"
-    run_inprocess(load_scenario_config(None, {"steps": 60, "seed": 1}), bag_dir=base_bag, evaluate=False)
-    highd_dir = work / "fuzz-base" / "highd"
-    sys.path.insert(0, str(SCRIPTS))
-    import evaluate as evaluate_cli
-    import export_highd as export_cli
-    import replay as replay_cli
-    import run_scenario as run_cli
-
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        export_cli.main([str(base_bag), str(highd_dir), "--recording-id", "1"])
-    highd_files = sorted(highd_dir.glob("*.csv"))
-    hostile = ["0x10", "1e300", "-1", "nan", "", " ", "１２", "1_000", "9" * 30, "--", "-0", "inf", "\x00", "3.5"]
-    kinds = ("config", "map", "bag", "highd", "cli")
-    results = []
-    old = signal.signal(signal.SIGALRM, _on_alarm)
-    cwd = os.getcwd()
-    os.chdir(work)  # a CLI value that names the current directory writes here, not into the checkout
-    try:
-        for i in range(n):
-            kind = kinds[i % len(kinds)]
-            case = work / f"fuzz-{i}"
-            case.mkdir(parents=True, exist_ok=True)
-            outcome, detail = "ok", ""
-            signal.alarm(20)
-            sink_out, sink_err = io.StringIO(), io.StringIO()
-            try:
-                with contextlib.redirect_stdout(sink_out), contextlib.redirect_stderr(sink_err):
-                    if kind == "config":
-                        p = case / "scenario.yaml"
-                        p.write_text(_mutate_text(yaml_text, rng), encoding="utf-8", errors="surrogateescape")
-                        build_scenario(load_scenario_config(p, {"steps": 5}))
-                    elif kind == "map":
-                        p = case / "map.xodr"
-                        p.write_text(_mutate_text(map_text, rng), encoding="utf-8", errors="surrogateescape")
-                        load_road(p)
-                    elif kind == "bag":
-                        bag = case / "bag"
-                        shutil.copytree(base_bag, bag)
-                        target = rng.choice(sorted(bag.iterdir()))
-                        data = bytearray(target.read_bytes())
-                        if rng.random() < 0.5:
-                            data = data[: int(rng.integers(0, len(data)))]
-                        else:
-                            for _ in range(int(rng.integers(1, 16))):
-                                data[int(rng.integers(0, len(data)))] = int(rng.integers(0, 256))
-                        target.write_bytes(bytes(data))
-                        code = evaluate_cli.main([str(bag), "--out", str(case / "report"), "--no-plots"])
-                        if code not in (0, 2):
-                            outcome, detail = "bad-exit", f"evaluate.py exit {code}"
-                    elif kind == "highd":
-                        rec = case / "highd"
-                        shutil.copytree(highd_dir, rec)
-                        target = highd_files[int(rng.integers(0, len(highd_files)))].name
-                        text = (rec / target).read_text(encoding="utf-8")
-                        (rec / target).write_text(_mutate_text(text, rng), encoding="utf-8", errors="surrogateescape")
-                        load_recording(rec, 1)
-                    else:
-                        tool = int(rng.integers(0, 4))
-                        tok = hostile[int(rng.integers(0, len(hostile)))]
-                        detail = f"tool {('run_scenario', 'evaluate', 'replay', 'export_highd')[tool]} value {tok!r}"
-                        if tool == 0:
-                            flag = str(rng.choice(["--steps", "--seed", "--bvs", "--mix", "--sut", "--out"]))
-                            argv = ["--mode", "inprocess", "--no-record", "--quiet", "--steps", "3",
-                                    "--out", str(case / "o"), flag, tok]
-                            code = run_cli.main(argv)
-                        elif tool == 1:
-                            code = evaluate_cli.main([str(base_bag), "--out", tok or str(case / "r"), "--no-plots"])
-                        elif tool == 2:
-                            flag = str(rng.choice(["--rate", "--start-delay", "--wait-timeout", "--wait-subscribers"]))
-                            if flag in ("--start-delay", "--wait-timeout") and _finite_at_least(tok, 10.0):
-                                flag = "--rate"  # a long delay or wait that is asked for is no hang
-                            code = replay_cli.main([str(base_bag), flag, tok, "--rate", "0", "--wait-timeout", "0.1"])
-                        else:
-                            flag = str(rng.choice(["--frame-rate", "--recording-id"]))
-                            code = export_cli.main([str(base_bag), str(case / "h"), flag, tok])
-                        if code not in (0, 1, 2):
-                            outcome, detail = "bad-exit", f"exit {code}"
-            except InputError as exc:
-                outcome = "error" if _one_line_error(exc) else "multi-line-error"
-                detail = str(exc)[:160]
-            except SystemExit as exc:  # argparse: usage + one error line, exit 2
-                outcome = "error" if exc.code == 2 else "bad-exit"
-                detail = f"SystemExit {exc.code}"
-            except _Alarm:
-                outcome, detail = "hang", f"no end within 20 s {detail}"
-            except BaseException as exc:  # noqa: BLE001 - a traceback: what the campaign looks for
-                outcome, detail = "traceback", f"{type(exc).__name__}: {str(exc)[:160]}"
-            finally:
-                signal.alarm(0)
-            if "Traceback" in sink_err.getvalue():
-                outcome, detail = "traceback", sink_err.getvalue().strip().splitlines()[-1][:160]
-            if outcome in ("ok", "error") and kind == "cli":
-                detail = ""
-            results.append({"case": i, "kind": kind, "outcome": outcome, "detail": detail})
-            shutil.rmtree(case, ignore_errors=True)
-    finally:
-        signal.signal(signal.SIGALRM, old)
-        os.chdir(cwd)
-    return results
+                       problems, stderr_tail(stderr, problems), orphans)
 
 
 def main(argv: list[str] | None = None) -> int:

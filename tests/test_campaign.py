@@ -1,4 +1,4 @@
-"""Campaigns on Ray (evoscen_bringup.campaign, scripts/campaign.py; docs/campaigns.md).
+"""Campaigns on Ray (evoscen_bringup.campaign, campaign_spec, campaign_summary, scripts/campaign.py; docs/campaigns.md).
 
 * A bad spec is one line naming the file, the key and what was expected.
 * Expansion: 2 SUT models x 3 seeds = 6 runs with distinct keys; the same spec and code give
@@ -28,7 +28,9 @@ from pathlib import Path
 
 import pytest
 
-from evoscen_bringup.campaign import collect_rows, expand, load_spec, run_campaign, write_results
+from evoscen_bringup.campaign import collect_rows, run_campaign
+from evoscen_bringup.campaign_spec import expand, load_spec
+from evoscen_bringup.campaign_summary import write_results
 from evoscen_sim.errors import InputError
 
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
@@ -87,7 +89,7 @@ def test_shipped_specs_load_and_expand(name, cells, seeds):
 
 
 def test_summary_gives_complexity_per_cell_by_hand(tmp_path):
-    from evoscen_bringup.campaign import summary_markdown
+    from evoscen_bringup.campaign_summary import summary_markdown
 
     spec = load_spec(write_spec(tmp_path, SMALL))
     runs = expand(spec, version="v1")

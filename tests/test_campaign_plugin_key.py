@@ -1,4 +1,4 @@
-"""Campaign run keys cover the plug-in a run uses (evoscen_bringup.campaign.run_key, docs/campaigns.md
+"""Campaign run keys cover the plug-in a run uses (evoscen_bringup.campaign_spec.run_key, docs/campaigns.md
 "Each run once"): a changed plug-in file or version gives new keys, a run without a plug-in keeps
 the key of the configuration and code version alone.
 
@@ -23,7 +23,7 @@ import hashlib, json, sys
 from pathlib import Path
 sys.path.insert(0, sys.argv[1])
 import _bootstrap  # noqa: F401
-from evoscen_bringup import campaign as C
+from evoscen_bringup import campaign_spec as C
 from evoscen_sim.config import load_scenario_config
 from evoscen_sim.config_load import config_to_dict
 
@@ -69,7 +69,7 @@ def test_plugin_edit_and_version_change_the_key(tmp_path: Path) -> None:
     assert p.returncode == 0, p.stderr
     s = json.loads(p.stdout.strip().splitlines()[-1])
 
-    def fingerprint(content: bytes, version: str) -> str:  # the rule of campaign.plugin_fingerprint
+    def fingerprint(content: bytes, version: str) -> str:  # the rule of campaign_spec.plugin_fingerprint
         h = hashlib.sha256(b"first_sut.py" + hashlib.sha256(content).digest()).hexdigest()[:16]
         return f"first_sut=evoscen-first-sut-copy=={version}:{h}"
 

@@ -28,6 +28,7 @@ CORE_MODULES = (
     "evoscen_contract.contract",
     "evoscen_contract.qos",
     "evoscen_contract.cdr",
+    "evoscen_contract.cdr_markers",
     "evoscen_contract.wire",
     "evoscen_sim.config",
     "evoscen_sim.world",

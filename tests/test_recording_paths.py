@@ -26,7 +26,7 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract import messages as M
     from evoscen_contract import topics as T
-    from evoscen_contract.cdr import VehicleMarkersEncoder
+    from evoscen_contract.cdr_markers import VehicleMarkersEncoder
     from evoscen_contract.markers import road_markers
     from evoscen_record import mcap_internals as MI
     from evoscen_record import recorder as R

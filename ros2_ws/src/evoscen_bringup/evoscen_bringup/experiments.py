@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 
-from evoscen_eval.streaming import SPEED_BINS, TTC_BINS  # noqa: F401 - the histograms' bins (the plots read them here)
+from evoscen_eval.plot_inputs import SPEED_BINS, TTC_BINS  # noqa: F401 - the histograms' bins (the plots read them here)
 from evoscen_sim.config import ScenarioConfig
 
 from .stats import fmt_ci, markdown_table, mean_ci  # noqa: F401 - the experiments' scripts import them from here
@@ -42,8 +42,8 @@ class Round:
 
     @property
     def key(self) -> str:
-        """The round's campaign key (:func:`evoscen_bringup.campaign.run_key`: configuration, code version, plug-ins)."""
-        from .campaign import code_version, run_key
+        """The round's campaign key (:func:`evoscen_bringup.campaign_spec.run_key`: configuration, code version, plug-ins)."""
+        from .campaign_spec import code_version, run_key
 
         return run_key(self.cfg, code_version())
 
@@ -59,7 +59,8 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     error (one line: the exception's type and first line) goes into it by key, and the
     returned dict has the rounds that finished.
     """
-    from .campaign import CampaignRun, load_result, result_path, run_campaign
+    from .campaign import load_result, result_path, run_campaign
+    from .campaign_spec import CampaignRun
 
     runs = [CampaignRun(rnd.key, (("label", rnd.label),), rnd.cfg.seed, rnd.cfg) for rnd in rounds]
     total = len(runs)

@@ -53,7 +53,7 @@ class RunSummary:
     run: object | None = None
     """The evaluated run as arrays (:class:`evoscen_eval.rundata.RunData`), with ``keep_run``."""
     plot: object | None = None
-    """The evaluated run's :class:`evoscen_eval.streaming.PlotData` (distributions of TTC and speed)."""
+    """The evaluated run's :class:`evoscen_eval.plot_inputs.PlotData` (distributions of TTC and speed)."""
 
     @property
     def steps_per_s(self) -> float:

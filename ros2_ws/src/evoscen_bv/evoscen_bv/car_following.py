@@ -205,14 +205,20 @@ OCCUPY_TOLERANCE_M = 0.1
 
 
 @kernel
-def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present):
+def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, no_intent):
     """occ[j, q]: vehicle ``j`` occupies lane ``q`` (see :func:`leaders`; one pass, no sub-calls:
-    numba reference-counts every array handed to a sub-function, which cost more than the test)."""
+    numba reference-counts every array handed to a sub-function, which cost more than the test).
+
+    ``no_intent``: the vehicle whose lane-change *intent* does not count (-1: none): while it
+    changes lanes it occupies its target lane only once its body reaches into it (the geometric
+    rule), not from its request on. With the SUT: what a BV that does not yield early sees
+    (``models.learned.competitive_cut_in``, docs/learned-bvs.md "Competitive BVs and a SUT cutting
+    in"; :func:`_late_occupancy`)."""
     n, num_lanes = present.shape
     occ = np.zeros((n, num_lanes), dtype=np.bool_)
     for j in range(n):
         occ[j, lane[j]] = True
-        if lane_change[j] != 0:
+        if lane_change[j] != 0 and j != no_intent:
             occ[j, target_lane[j]] = True
         e = 0.5 * (width[j] * np.cos(psi[j]) + length[j] * abs(np.sin(psi[j])))
         for q in (lane[j] - 1, lane[j] + 1):
@@ -223,30 +229,20 @@ def _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right
 
 
 @kernel
-def _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present):
-    """``occ`` with the SUT's lane-change *intent* not counted: while the SUT changes lanes it
-    occupies its target lane only once its body reaches into it (the geometric rule of
-    :func:`_occupancy`), not from its request on. What a BV that does not yield early sees
-    (``models.learned.competitive_cut_in``, docs/learned-bvs.md "Competitive BVs and a SUT cutting in")."""
-    out = occ.copy()
-    if sut < 0 or lane_change[sut] == 0:
-        return out
-    num_lanes = present.shape[1]
-    for q in range(num_lanes):
-        out[sut, q] = False
-    out[sut, lane[sut]] = True
-    e = 0.5 * (width[sut] * np.cos(psi[sut]) + length[sut] * abs(np.sin(psi[sut])))
-    for q in (lane[sut] - 1, lane[sut] + 1):
-        if 0 <= q < num_lanes and present[sut, q] and d[sut] + e > d_right[sut, q] + OCCUPY_TOLERANCE_M \
-                and d[sut] - e < d_left[sut, q] - OCCUPY_TOLERANCE_M:
-            out[sut, q] = True
-    return out
+def _late_occupancy(occ, sut, late, s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left,
+                    present):
+    """The occupancy the vehicles with ``late[k]`` read: ``occ`` with the SUT's lane-change intent
+    not counted (:func:`_occupancy` with ``no_intent = sut``), computed only when it differs from
+    ``occ`` and is read (the SUT changes lanes and a vehicle does not yield on it); else ``occ``."""
+    if sut < 0 or lane_change[sut] == 0 or not late.any():
+        return occ
+    return _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, sut)
 
 
 @kernel
 def _leaders_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane, length, width,
                     d_right, d_left, present, merge_stop_s):
-    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, -1)
     return _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present, merge_stop_s, occ,
                             _ALL_SEEN, 0, occ, np.zeros(idx.shape[0], dtype=np.bool_))
 
@@ -450,8 +446,9 @@ def _learned_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lan
                              speed_gain, em_trigger, em_margin, max_accel, max_brake, W1, b1, W2, b2, W3, b3, max_action,
                              late, sut):
     """The ``safety_net`` profile: every leader at once, the emergency brake at once and uncapped."""
-    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
-    occ_late = _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, -1)
+    occ_late = _late_occupancy(occ, sut, late, s, d, psi, lane, lane_change, target_lane, length, width, d_right,
+                               d_left, present)
     gap_all, vl_all, al_all = _nearest_leaders(idx, s, v, a, lane, lane_change, target_lane, length, present,
                                                merge_stop_s, occ, _ALL_SEEN, 0, occ_late, late)
     em_on = np.ones(idx.shape[0], dtype=np.bool_)
@@ -479,8 +476,9 @@ def _driver_throttle_kernel(idx, s, d, psi, v, a, lane, lane_change, target_lane
     m = idx.shape[0]
     n, num_lanes = present.shape
     full = n_react + 1
-    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
-    occ_late = _late_occupancy(occ, sut, d, psi, lane, lane_change, width, length, d_right, d_left, present)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, -1)
+    occ_late = _late_occupancy(occ, sut, late, s, d, psi, lane, lane_change, target_lane, length, width, d_right,
+                               d_left, present)
     if update:
         for k in range(m):
             i = idx[k]

@@ -260,7 +260,7 @@ def _constraint_kernel(idx, req, breaks, present_at, length_m, lane_end_s, end_m
     m = idx.shape[0]
     n = s.shape[0]
     out = np.zeros(m, dtype=np.int64)
-    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, -1)
     for k in range(m):
         r = req[k]
         if r == 0:
@@ -416,7 +416,7 @@ def _merge_seek_kernel(idx, targets, desired, s, d, psi, v, lane, lane_change, t
     m = idx.shape[0]
     n = s.shape[0]
     out = np.full(m, np.inf)
-    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present)
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, -1)
     for k in range(m):
         i = idx[k]
         if targets[k] == 0 or lane_change[i] != 0:

@@ -13,8 +13,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from . import topics as T
-from .cdr import (EmptyEventsEncoder, OdometryEncoder, TableEncoder, VehicleMarkersEncoder, clock_parts,
-                  encode_clock, encode_event_statuses, encode_road_markers)
+from .cdr import EmptyEventsEncoder, OdometryEncoder, TableEncoder, clock_parts, encode_clock, encode_event_statuses
+from .cdr_markers import VehicleMarkersEncoder, encode_road_markers
 
 
 class WorldMessages:
@@ -84,7 +84,7 @@ class WorldMessages:
 
     @staticmethod
     def map_markers(road, t_ns: int) -> bytes:
-        """``/evoscen/map_markers`` of ``road`` (canonical CDR, :func:`~evoscen_contract.cdr.encode_road_markers`)."""
+        """``/evoscen/map_markers`` of ``road`` (canonical CDR, :func:`~evoscen_contract.cdr_markers.encode_road_markers`)."""
         return encode_road_markers(road, t_ns)
 
     def events(self, events: Sequence[Mapping], t_ns: int) -> bytes:

@@ -162,123 +162,48 @@ LATCHED_QOS = QosSpec(
     reliability="reliable", durability="transient_local", history="keep_last", depth=1
 )
 
-CLOCK = TopicSpec(
-    name=TOPIC_CLOCK,
-    type_name=TOPIC_TYPES[TOPIC_CLOCK],
-    msg_class=Clock,
-    qos=STEP_QOS,
-    publisher=NODE_SIM,
-    rate="every step",
-    description="simulation time t_k, for use_sim_time",
-    subscribers=(NODE_EVAL,),
-)
-WORLD = TopicSpec(
-    name=TOPIC_WORLD,
-    type_name=TOPIC_TYPES[TOPIC_WORLD],
-    msg_class=PointCloud2,
-    qos=STEP_QOS,
-    publisher=NODE_SIM,
-    rate="every step",
-    description=(
-        "world state at t_k: flat table, one row per vehicle, columns WORLD_FIELDS, "
-        "frame 'map'"
-    ),
-    fields=WORLD_FIELDS,
-    subscribers=(NODE_BV, NODE_SUT, NODE_EVAL),
-)
-COMMANDS_BV = TopicSpec(
-    name=TOPIC_COMMANDS_BV,
-    type_name=TOPIC_TYPES[TOPIC_COMMANDS_BV],
-    msg_class=PointCloud2,
-    qos=STEP_QOS,
-    publisher=NODE_BV,
-    rate="every step (answer to the world at t_k)",
-    description=(
-        "BV commands: flat table, one row per hosted BV, columns COMMAND_FIELDS; "
-        "stamp = t_k of the world step answered, frame 'map'. One topic per BV node, "
-        "`/evoscen/commands/bv_<part>` from node `evoscen_bv_<part>` (`bvs.nodes`: by_policy, the default, "
-        "as listed here; `bv_level0`, ... for a rule-based driver; `bv_0` ... `bv_<N-1>` for N nodes; "
-        "`/evoscen/commands/bv` from `evoscen_bv` for `single`)"
-    ),
-    fields=COMMAND_FIELDS,
-    subscribers=(NODE_SIM, NODE_EVAL),
-)
-COMMANDS_SUT = TopicSpec(
-    name=TOPIC_COMMANDS_SUT,
-    type_name=TOPIC_TYPES[TOPIC_COMMANDS_SUT],
-    msg_class=PointCloud2,
-    qos=STEP_QOS,
-    publisher=NODE_SUT,
-    rate="every step (answer to the world at t_k)",
-    description=(
-        "SUT command: flat table, one row, columns COMMAND_FIELDS; "
-        "stamp = t_k of the world step answered, frame 'map'"
-    ),
-    fields=COMMAND_FIELDS,
-    subscribers=(NODE_SIM, NODE_EVAL),
-)
-SUT_ODOM = TopicSpec(
-    name=TOPIC_SUT_ODOM,
-    type_name=TOPIC_TYPES[TOPIC_SUT_ODOM],
-    msg_class=Odometry,
-    qos=STEP_QOS,
-    publisher=NODE_SIM,
-    rate="every step",
-    description=(
-        f"SUT pose in '{MAP_FRAME}' and twist in '{SUT_BASE_FRAME}' "
-        "(linear.x = speed m/s, angular.z = yaw rate rad/s)"
-    ),
-    subscribers=(NODE_EVAL,),
-)
-EVENTS = TopicSpec(
-    name=TOPIC_EVENTS,
-    type_name=TOPIC_TYPES[TOPIC_EVENTS],
-    msg_class=DiagnosticArray,
-    qos=STEP_QOS,
-    publisher=NODE_SIM,
-    rate="every step (after the integration; empty when nothing happened)",
-    description=(
-        "one DiagnosticStatus per event: " + ", ".join(EVENT_NAMES)
-        + "; key/values " + ", ".join(EVENT_KEY_TYPES)
-    ),
-    subscribers=(NODE_EVAL,),
-)
-ROSTER = TopicSpec(
-    name=TOPIC_ROSTER,
-    type_name=TOPIC_TYPES[TOPIC_ROSTER],
-    msg_class=PointCloud2,
-    qos=LATCHED_QOS,
-    publisher=NODE_SIM,
-    rate="once, at start (latched)",
-    description="vehicles of the scenario: flat table, one row per vehicle, columns ROSTER_FIELDS",
-    fields=ROSTER_FIELDS,
-    subscribers=(NODE_EVAL,),
-)
+
+def _row(name: str, msg_class: type, publisher: str, subscribers: tuple[str, ...], rate: str, description: str,
+         qos: QosSpec = STEP_QOS, fields: tuple[str, ...] = ()) -> TopicSpec:
+    """A row of the contract, its type the one :data:`TOPIC_TYPES` names for the topic."""
+    return TopicSpec(name=name, type_name=TOPIC_TYPES[name], msg_class=msg_class, qos=qos, publisher=publisher,
+                     rate=rate, description=description, fields=fields, subscribers=subscribers)
+
+
+# the rows: topic, message class, publisher, evoscen's subscribers, rate, meaning (QoS: STEP_QOS unless named)
+CLOCK = _row(TOPIC_CLOCK, Clock, NODE_SIM, (NODE_EVAL,), "every step", "simulation time t_k, for use_sim_time")
+WORLD = _row(TOPIC_WORLD, PointCloud2, NODE_SIM, (NODE_BV, NODE_SUT, NODE_EVAL), "every step",
+             "world state at t_k: flat table, one row per vehicle, columns WORLD_FIELDS, frame 'map'",
+             fields=WORLD_FIELDS)
+COMMANDS_BV = _row(
+    TOPIC_COMMANDS_BV, PointCloud2, NODE_BV, (NODE_SIM, NODE_EVAL), "every step (answer to the world at t_k)",
+    "BV commands: flat table, one row per hosted BV, columns COMMAND_FIELDS; "
+    "stamp = t_k of the world step answered, frame 'map'. One topic per BV node, "
+    "`/evoscen/commands/bv_<part>` from node `evoscen_bv_<part>` (`bvs.nodes`: by_policy, the default, "
+    "as listed here; `bv_level0`, ... for a rule-based driver; `bv_0` ... `bv_<N-1>` for N nodes; "
+    "`/evoscen/commands/bv` from `evoscen_bv` for `single`)",
+    fields=COMMAND_FIELDS)
+COMMANDS_SUT = _row(TOPIC_COMMANDS_SUT, PointCloud2, NODE_SUT, (NODE_SIM, NODE_EVAL),
+                    "every step (answer to the world at t_k)",
+                    "SUT command: flat table, one row, columns COMMAND_FIELDS; "
+                    "stamp = t_k of the world step answered, frame 'map'",
+                    fields=COMMAND_FIELDS)
+SUT_ODOM = _row(TOPIC_SUT_ODOM, Odometry, NODE_SIM, (NODE_EVAL,), "every step",
+                f"SUT pose in '{MAP_FRAME}' and twist in '{SUT_BASE_FRAME}' "
+                "(linear.x = speed m/s, angular.z = yaw rate rad/s)")
+EVENTS = _row(TOPIC_EVENTS, DiagnosticArray, NODE_SIM, (NODE_EVAL,),
+              "every step (after the integration; empty when nothing happened)",
+              "one DiagnosticStatus per event: " + ", ".join(EVENT_NAMES) + "; key/values " + ", ".join(EVENT_KEY_TYPES))
+ROSTER = _row(TOPIC_ROSTER, PointCloud2, NODE_SIM, (NODE_EVAL,), "once, at start (latched)",
+              "vehicles of the scenario: flat table, one row per vehicle, columns ROSTER_FIELDS",
+              qos=LATCHED_QOS, fields=ROSTER_FIELDS)
+MARKERS = _row(TOPIC_MARKERS, MarkerArray, NODE_SIM, (NODE_EVAL,), "every recording.markers_every steps (default 5)",
+               "vehicles as oriented boxes sized to each vehicle, coloured by policy (competitive red, "
+               "mutual blue, cooperative green, level-0 grey, SUT amber), with id and speed as text; frame 'map'")
+MAP_MARKERS = _row(TOPIC_MAP_MARKERS, MarkerArray, NODE_SIM, (NODE_EVAL,), "once, at start (latched)",
+                   "lane lines (broken) and road edges (solid) as LINE_LIST markers; frame 'map'", qos=LATCHED_QOS)
 
 #: The whole contract, in README order.
-MARKERS = TopicSpec(
-    name=TOPIC_MARKERS,
-    type_name=TOPIC_TYPES[TOPIC_MARKERS],
-    msg_class=MarkerArray,
-    qos=STEP_QOS,
-    publisher=NODE_SIM,
-    rate="every recording.markers_every steps (default 5)",
-    description=("vehicles as oriented boxes sized to each vehicle, coloured by policy (competitive red, "
-                 "mutual blue, cooperative green, level-0 grey, SUT amber), with id and speed as text; frame 'map'"),
-    subscribers=(NODE_EVAL,),
-)
-
-MAP_MARKERS = TopicSpec(
-    name=TOPIC_MAP_MARKERS,
-    type_name=TOPIC_TYPES[TOPIC_MAP_MARKERS],
-    msg_class=MarkerArray,
-    qos=LATCHED_QOS,
-    publisher=NODE_SIM,
-    rate="once, at start (latched)",
-    description="lane lines (broken) and road edges (solid) as LINE_LIST markers; frame 'map'",
-    subscribers=(NODE_EVAL,),
-)
-
 CONTRACT: tuple[TopicSpec, ...] = (CLOCK, WORLD, COMMANDS_BV, COMMANDS_SUT, SUT_ODOM, EVENTS, ROSTER, MARKERS, MAP_MARKERS)
 #: Contract by topic name.
 TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in CONTRACT}

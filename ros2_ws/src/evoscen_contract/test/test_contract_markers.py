@@ -54,7 +54,7 @@ def test_vehicle_markers_encoder_equals_canonical_serialization(n):
     from rclpy.serialization import deserialize_message, serialize_message
     from visualization_msgs.msg import MarkerArray
 
-    from evoscen_contract.cdr import VehicleMarkersEncoder
+    from evoscen_contract.cdr_markers import VehicleMarkersEncoder
     from evoscen_record.canonical_cdr import CanonicalCdr
 
     rng = np.random.default_rng(n)
@@ -73,7 +73,7 @@ def test_vehicle_markers_kernel_equals_the_python_path():
     above): 0, 1 and 21 vehicles; ids up to 6 digits; every alignment the label texts leave; speeds
     whose km/h round half to even (0.5, 1.5, 2.5 km/h exactly), are negative, negative rounding to
     zero (-0.1 km/h gives "-0"), -0.0, or not finite (the Python path's text: nan, inf)."""
-    from evoscen_contract.cdr import VehicleMarkersEncoder
+    from evoscen_contract.cdr_markers import VehicleMarkersEncoder
 
     enc = VehicleMarkersEncoder("map")
     rng = np.random.default_rng(3)
@@ -100,7 +100,7 @@ def test_road_markers_encoder_equals_canonical_serialization():
     from rclpy.serialization import serialize_message
     from types import SimpleNamespace
 
-    from evoscen_contract.cdr import encode_road_markers
+    from evoscen_contract.cdr_markers import encode_road_markers
     from evoscen_record.canonical_cdr import CanonicalCdr
     from evoscen_sim.road import load_road
 

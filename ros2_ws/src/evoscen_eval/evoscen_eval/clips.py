@@ -114,7 +114,7 @@ def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: fl
 
     from .report import _snapshot
     from .rundata import read_run
-    from .streaming import Scene
+    from .plot_inputs import Scene
 
     dt = float(report["run"]["dt_s"])
     states = int(report["run"]["states"])

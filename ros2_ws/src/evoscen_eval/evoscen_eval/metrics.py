@@ -82,8 +82,9 @@ from evoscen_contract import contract as C
 from evoscen_sim.safety import attribution_steps
 
 from .rundata import RunData, run_info_of
-from .streaming import COLLISION_KINDS, ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
+from .streaming import ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
 from .streaming import SSM_SIDES, TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, traffic_window_states
+from .sut_collisions import COLLISION_KINDS
 
 
 # ---------------------------------------------------------------------- formulas (scalars)

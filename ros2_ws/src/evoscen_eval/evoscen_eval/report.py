@@ -4,7 +4,7 @@ Written the same way by the live evaluator node, by ``scripts/evaluate.py`` from
 by the in-process runner: :func:`write_stream_report` on the run's
 :class:`~evoscen_eval.streaming.ScoreStream` (:func:`write_report` streams a
 :class:`~evoscen_eval.rundata.RunData` through one). The plots read the stream's
-:class:`~evoscen_eval.streaming.PlotData`, bounded whatever the run's length.
+:class:`~evoscen_eval.plot_inputs.PlotData`, bounded whatever the run's length.
 
 Plots (matplotlib, Agg): the SUT's TTC distribution (``ttc.png``) and speed distribution
 (``speed.png``); a timeline of speed, lane and TTC with exposures shaded and collisions
@@ -28,7 +28,9 @@ from evoscen_sim.errors import HostFault, InputError
 
 from .metrics import evaluate, report_of_stream, run_info, stream_run
 from .rundata import RunData, evaluation_settings_of
-from .streaming import MAX_SNAPSHOTS, SPEED_BINS, TTC_BINS, PlotData, Scene, ScoreStream
+from .plot_inputs import SPEED_BINS, TTC_BINS, PlotData, Scene
+from .streaming import ScoreStream
+from .sut_collisions import MAX_SNAPSHOTS
 
 TTC_PLOT_MAX_S = float(TTC_BINS[-1])
 """TTC values above this (and infinite TTC: nothing closing ahead) are left out of the TTC plots."""

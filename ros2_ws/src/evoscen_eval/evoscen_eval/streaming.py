@@ -2,8 +2,8 @@
 
 :class:`ScoreStream` takes the world states one at a time (the evaluator node as they arrive,
 a bag as it is read, the in-process runner after each step) and the events, and gives the
-``report.json`` dict and what the report's plots need (:class:`PlotData`) at the end. It
-holds no ``[K, V]`` array: states wait in a block of :data:`BLOCK_STATES` and each block is
+``report.json`` dict and what the report's plots need (:class:`~evoscen_eval.plot_inputs.PlotData`)
+at the end. It holds no ``[K, V]`` array: states wait in a block of :data:`BLOCK_STATES` and each block is
 reduced with the same broadcasting definitions the scores are written in
 (:mod:`evoscen_sim.safety`; they act row by row, so a block gives the same per-state values
 as a whole run would) to
@@ -12,7 +12,8 @@ as a whole run would) to
 * the exposure in progress (an exposure is a run of dangerous states; one block's run can
   continue into the next) and the finished exposure list;
 * the SUT lane change in progress with its interaction sums and its PET window (which runs
-  ``rear_attribution_s`` past the change's end, so it can outlive the change by blocks);
+  ``rear_attribution_s`` past the change's end, so it can outlive the change by blocks;
+  :mod:`evoscen_eval.sut_lane_changes`);
 * per-window counts of the complexity windows;
 * the surrogate-safety profile of the SUT (:data:`SSM_SIDES`: front = the SUT behind its leader,
   rear = its follower behind it): states and episodes below the SSM TTC threshold, their
@@ -22,9 +23,10 @@ as a whole run would) to
 * the traffic around the SUT: per state the BVs within :data:`TRAFFIC_RANGE_M` of it along
   the road, summed per :data:`TRAFFIC_WINDOW_S` window, and the states with none (integers);
 * fixed-bin histograms of the SUT's TTC and speed, a timeline of at most
-  :data:`TIMELINE_POINTS` points (a longer run is drawn from buckets of 2^n states: the
-  first speed and lane and the lowest TTC of each), and the scenes of the report's
-  snapshots (the states of the first collisions and of the worst exposure).
+  :data:`~evoscen_eval.plot_inputs.TIMELINE_POINTS` points (a longer run is drawn from buckets of
+  2^n states: the first speed and lane and the lowest TTC of each; :mod:`evoscen_eval.plot_inputs`),
+  and the scenes of the report's snapshots (the states of the first collisions and of the worst exposure);
+* what each SUT collision was (:mod:`evoscen_eval.sut_collisions`).
 
 What stays proportional to the run is its output: the exposure, collision and lane-change
 lists and the per-window counts (one entry per 100 states, one per traffic window). Blocks start at multiples of
@@ -39,7 +41,7 @@ interaction means and the trailing-window acceleration of AD are summed block by
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -47,20 +49,12 @@ from evoscen_contract import contract as C
 from evoscen_sim.safety import (attribution_steps, beside_gap, beside_severity, cut_in_gap, danger_terms, drac,
                                 exposure_runs, follower_headway, follower_ttc, sut_follower, sut_leader, sut_ttc)
 
+from .plot_inputs import PlotData, PlotSeries, Scene, scene_of
+from .sut_collisions import SutCollisions
+from .sut_lane_changes import SutLaneChanges
+
 BLOCK_STATES = 256
 """States reduced together (the block size bounds the memory of the stream)."""
-TIMELINE_POINTS = 20_000
-"""Most points of the report's timeline; a longer run is drawn from buckets of 2^n states."""
-TTC_BINS = np.linspace(0.0, 20.0, 41)
-"""Bins of the SUT's TTC distribution (s); TTC above 20 s (and infinite TTC) is left out."""
-SPEED_BINS = np.linspace(0.0, 40.0, 81)
-"""Bins of the SUT's speed distribution (m/s)."""
-MAX_SNAPSHOTS = 10
-"""Collision scenes kept at most (the report lists every collision)."""
-COLLISION_LOOKBACK_S = 2.0
-"""How far back a vehicle's lane change makes it "changing lanes" at a collision (s)."""
-COLLISION_KINDS = ("sut_cut_in", "other_cut_in", "both_changing", "sut_rear_end", "rear_ended_by_other")
-"""What a SUT collision was (docs/evaluation.md §3.4); "unknown" if its state was not seen."""
 
 TRAFFIC_RANGE_M = 100.0
 """A BV is around the SUT when |s_BV − s_SUT| is at most this (m; same road, any lane)."""
@@ -72,44 +66,6 @@ SSM_SIDES = ("front", "rear")
 path (its TTC and DRAC), rear = the vehicle behind in its path following the SUT (the follower's)."""
 
 _F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
-_SCENE_FIELDS = ("x", "y", "yaw", "length", "width", "speed")
-
-
-@dataclass
-class Scene:
-    """One world state, for a bird's-eye snapshot: ``columns[f]`` is a ``[V]`` array."""
-
-    state: int
-    time_s: float
-    columns: dict[str, np.ndarray]
-    ids: np.ndarray
-    sut_index: int
-    sut_ttc: float = math.inf
-    sut_accel: float = 0.0
-
-
-@dataclass
-class PlotData:
-    """What the report's plots and the experiments' distributions read (bounded in size)."""
-
-    states: int
-    ttc_hist: np.ndarray
-    """Counts of the SUT's TTC over :data:`TTC_BINS` (finite TTC up to 20 s)."""
-    speed_hist: np.ndarray
-    """Counts of the SUT's speed over :data:`SPEED_BINS`."""
-    timeline_time_s: np.ndarray
-    timeline_speed: np.ndarray
-    timeline_lane: np.ndarray
-    timeline_ttc: np.ndarray
-    """Lowest TTC of each timeline bucket."""
-    timeline_stride: int
-    """States per timeline point (1 up to :data:`TIMELINE_POINTS` states)."""
-    timeline_bvs: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    """BVs within :data:`TRAFFIC_RANGE_M` of the SUT: the mean over each timeline bucket (the
-    count itself with one state per point)."""
-    collision_scenes: dict[int, Scene] = field(default_factory=dict)
-    worst_scene: Scene | None = None
-    lane_segments: np.ndarray | None = None
 
 
 @dataclass
@@ -124,29 +80,6 @@ class _Exposure:
     cut_in_states: int = 0
     beside_states: int = 0
     headway_states: int = 0
-
-
-@dataclass
-class _Change:
-    """A SUT lane change ``[k0, k1)`` (k1 None while it lasts) with its PET and interaction sums."""
-
-    k0: int
-    value: float
-    target: int
-    v0: np.ndarray
-    a0: np.ndarray
-    k1: int | None = None
-    # PET (docs/evaluation.md §3): running minimum, first of equal values
-    pet_any: bool = False
-    pet: float = math.inf
-    pet_state: int | None = None
-    pet_follower: int | None = None
-    # interaction: in-view samples of the change
-    dv_sum: float = 0.0
-    da_sum: float = 0.0
-    samples: int = 0
-    seen: np.ndarray | None = None
-    starts: np.ndarray | None = None
 
 
 class ScoreStream:
@@ -178,15 +111,11 @@ class ScoreStream:
         self._accel_tail: np.ndarray | None = None
         self._rear_last = -1
         self._open: _Exposure | None = None
-        self._changes: list[_Change] = []
-        self._prev_scene_block: tuple[int, np.ndarray, np.ndarray] | None = None
-        self._last_lc = None  # [V]: the latest state with each vehicle's lane_change non-zero (-1: none)
-        self._prev_lc_block: tuple[int, np.ndarray, np.ndarray] | None = None  # (k0, tables, last-lc rows)
-        self.collision_kinds: dict[int, str] = {}  # index in sut_collisions -> kind
+        self.changes = SutLaneChanges()
+        self.collisions = SutCollisions(self.sut_collisions)  # their kinds and scenes
         # reductions
         self.exposures: list[dict] = []
         self._headway_run = 0  # states of the tailgating condition held unbroken up to the last state seen
-        self.finished_changes: list[_Change] = []
         self.n = {key: 0 for key in ("danger", "front", "rear_conflict", "rear_danger", "rear_only", "attributed",
                                      "drac_sut", "drac_follower", "drac_follower_att", "in_view", "cut_in",
                                      "cut_in_only", "beside", "beside_only", "headway", "headway_only")}
@@ -217,11 +146,7 @@ class ScoreStream:
         self.traffic_sum = 0
         self.traffic_empty = 0
         # plots
-        self.ttc_hist = np.zeros(len(TTC_BINS) - 1, dtype=np.int64)
-        self.speed_hist = np.zeros(len(SPEED_BINS) - 1, dtype=np.int64)
-        self._tl: dict[str, list] = {"bucket": [], "t": [], "speed": [], "lane": [], "ttc": [], "bvs": [], "n": []}
-        self._stride = 1
-        self.collision_scenes: dict[int, Scene] = {}
+        self.plots = PlotSeries()
         self._worst_sev = -math.inf
         self.worst_scene: Scene | None = None
         self._finished = False
@@ -410,7 +335,7 @@ class ScoreStream:
             x.headway_states += int(tailgate[seg].sum())
             if severity[r0 + m] > self._worst_sev:
                 self._worst_sev = float(severity[r0 + m])
-                self.worst_scene = self._scene(tables, times, r0 + m, k0 + r0 + m)
+                self.worst_scene = scene_of(tables, times, r0 + m, k0 + r0 + m, self.ids, sut)
                 self.worst_scene.sut_ttc, self.worst_scene.sut_accel = float(ttc[r0 + m]), float(accel[r0 + m])
             if r1 < n:
                 self._close_exposure(k0 + r1)
@@ -444,21 +369,12 @@ class ScoreStream:
         self.traffic_empty += int((bvs_near == 0).sum())
 
         # --- the SUT's lane changes: interaction sums and PET windows
-        self._track_changes(lc_sut, ks, c, tables, in_view, starts, v, a)
+        self.changes.add_block(sut, self.ids, lc_sut, ks, c, in_view, starts, v, a,
+                               attribution_steps(ev.rear_attribution_s, dt))
 
         # --- plots
-        finite = ttc[np.isfinite(ttc) & (ttc <= TTC_BINS[-1])]
-        self.ttc_hist += np.histogram(finite, bins=TTC_BINS)[0]
-        self.speed_hist += np.histogram(speed, bins=SPEED_BINS)[0]
-        self._timeline(ks, times, speed, lane, ttc, bvs_near)
-        self._collision_scenes(k0, tables, times)
-        self._prev_scene_block = (k0, tables, times)
-        last = np.maximum.accumulate(np.where(lc != 0, ks[:, None], -1), axis=0)
-        if self._last_lc is not None:
-            last = np.maximum(last, self._last_lc)
-        self._last_lc = last[-1].copy()
-        self._classify_collisions(k0, tables, last)
-        self._prev_lc_block = (k0, tables, last)
+        self.plots.add_block(ks, times, speed, lane, ttc, bvs_near)
+        self.collisions.add_block(k0, ks, tables, times, lc, self.ids, sut, dt)
 
     def _ssm_block(self, side: str, ttc: np.ndarray, drac_v: np.ndarray, other: np.ndarray) -> None:
         """Add a block's states to one side's surrogate-safety sums (``other``: the counterpart's
@@ -477,45 +393,6 @@ class ScoreStream:
         prev = np.concatenate(([self._ssm_last[key]], cp[:-1]))
         self._ssm_last[key] = int(cp[-1])
         return int((on & (cp != prev)).sum())
-
-    def _classify_collisions(self, k0: int, tables: np.ndarray, last: np.ndarray, clamp: int | None = None) -> None:
-        """What each SUT collision whose state is in this block or the previous one was: who was
-        changing lanes (``lane_change`` non-zero within :data:`COLLISION_LOOKBACK_S` up to the
-        state) and, if neither, who struck whom (the vehicle behind, by centre)."""
-        n_back = int(np.floor(COLLISION_LOOKBACK_S / (self.dt_s if self.dt_s is not None else 0.1) + 1e-9))
-        blocks = [(k0, tables, last)]
-        if self._prev_lc_block is not None:
-            blocks.append(self._prev_lc_block)
-        sut_id = int(self.ids[self.sut])
-        for i, event in enumerate(self.sut_collisions):
-            if i in self.collision_kinds:
-                continue
-            k = int(event["step"]) if clamp is None else min(int(event["step"]), clamp)
-            others = [j for j in event.get("ids", []) if j != sut_id]
-            found = np.flatnonzero(self.ids == others[0]) if others else []
-            for b0, b_tables, b_last in blocks:
-                if b0 <= k < b0 + b_tables.shape[0] and len(found):
-                    r, o = k - b0, int(found[0])
-                    sut_lc = b_last[r, self.sut] >= k - n_back
-                    oth_lc = b_last[r, o] >= k - n_back
-                    if sut_lc or oth_lc:
-                        kind = "both_changing" if sut_lc and oth_lc else ("sut_cut_in" if sut_lc else "other_cut_in")
-                    else:
-                        behind = b_tables[r, self.sut, _F["s"]] < b_tables[r, o, _F["s"]]
-                        kind = "sut_rear_end" if behind else "rear_ended_by_other"
-                    self.collision_kinds[i] = kind
-
-    def _collision_scenes(self, k0: int, tables: np.ndarray, times: np.ndarray) -> None:
-        """The scenes of the first collisions whose states are in this block or the previous one
-        (a collision event may arrive after its state)."""
-        blocks = [(k0, tables, times)]
-        if self._prev_scene_block is not None:
-            blocks.append(self._prev_scene_block)
-        for event in self.sut_collisions[:MAX_SNAPSHOTS]:
-            k = int(event["step"])
-            for b0, b_tables, b_times in blocks:
-                if b0 <= k < b0 + b_tables.shape[0] and k not in self.collision_scenes:
-                    self.collision_scenes[k] = self._scene(b_tables, b_times, k - b0, k)
 
     def _attributed(self, lc_sut: np.ndarray, ks: np.ndarray, after: int) -> np.ndarray:
         """:func:`evoscen_sim.safety.rear_attributed`, continued from the previous block."""
@@ -550,113 +427,6 @@ class ScoreStream:
             else:
                 lst.append(int(value))
 
-    def _track_changes(self, lc_sut, ks, c, tables, in_view, starts, v, a) -> None:
-        """Open and close the SUT's lane changes (:func:`evoscen_eval.metrics.change_intervals`) and
-        add this block's rows to each change's interaction sums and PET window."""
-        k0 = int(ks[0])
-        n = ks.shape[0]
-        sut = self.sut
-        prev = self._changes[-1].value if self._changes and self._changes[-1].k1 is None else 0.0
-        for r in range(n):
-            value = float(lc_sut[r])
-            if value == prev:
-                continue
-            if self._changes and self._changes[-1].k1 is None:
-                self._changes[-1].k1 = k0 + r
-            if value != 0.0:
-                self._changes.append(_Change(k0=k0 + r, value=value, target=int(c["target_lane"][r, sut]),
-                                             v0=v[r].copy(), a0=a[r].copy(),
-                                             seen=np.zeros(v.shape[1], dtype=bool),
-                                             starts=np.zeros(v.shape[1], dtype=np.int64)))
-            prev = value
-        after = attribution_steps(self.ev.rear_attribution_s, self.dt_s if self.dt_s is not None else 0.1)
-        k_end_block = k0 + n
-        still = []
-        for ch in self._changes:
-            # interaction over the change's states [k0, k1)
-            lo = max(ch.k0, k0) - k0
-            hi = (min(ch.k1, k_end_block) if ch.k1 is not None else k_end_block) - k0
-            if hi > lo:
-                view = in_view[lo:hi]
-                if view.any():
-                    ch.dv_sum += float(np.abs(v[lo:hi] - ch.v0)[view].sum())
-                    ch.da_sum += float(np.abs(a[lo:hi] - ch.a0)[view].sum())
-                    ch.samples += int(view.sum())
-                    ch.seen |= view.any(axis=0)
-                ch.starts += starts[lo:hi].sum(axis=0)
-            # PET over [k0, k1 + after)
-            p_hi = (min(ch.k1 + after, k_end_block) if ch.k1 is not None else k_end_block) - k0
-            if p_hi > lo:
-                self._pet_rows(ch, c, lo, p_hi, k0)
-            if ch.k1 is not None and ch.k1 + after <= k_end_block:
-                self.finished_changes.append(ch)
-            else:
-                still.append(ch)
-        self._changes = still
-
-    def _pet_rows(self, ch: _Change, c: dict, lo: int, hi: int, k0: int) -> None:
-        """:func:`evoscen_eval.metrics.lane_change_pet` over rows ``[lo, hi)`` of the block."""
-        sut = self.sut
-        s, d, v = c["s"][lo:hi], c["d"][lo:hi], c["speed"][lo:hi]
-        length, width, lane = c["length"][lo:hi], c["width"][lo:hi], c["lane"][lo:hi]
-        back = s[:, sut:sut + 1] - s
-        cand = (back > 0.0) & (np.abs(d - d[:, sut:sut + 1]) < 0.5 * (width + width[:, sut:sut + 1])) \
-            & (lane == ch.target)
-        cand[:, sut] = False
-        j = np.argmin(np.where(cand, back, np.inf), axis=1)
-        rows = np.arange(hi - lo)
-        has = cand[rows, j]
-        gap = back[rows, j] - 0.5 * (length[rows, j] + length[:, sut])
-        vj = v[rows, j]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            pet = np.where(has & (vj > 0.0), np.maximum(gap, 0.0) / vj, np.inf)
-        if k0 + lo == ch.k0:  # the window's first row: argmin's answer when every PET is infinite
-            ch.pet_state, ch.pet_follower = ch.k0, int(self.ids[j[0]])
-        if has.any():
-            ch.pet_any = True
-        m = int(np.argmin(pet))
-        if pet[m] < ch.pet:
-            ch.pet, ch.pet_state, ch.pet_follower = float(pet[m]), k0 + lo + m, int(self.ids[j[m]])
-
-    def _timeline(self, ks, times, speed, lane, ttc, bvs) -> None:
-        """Per bucket: the first state's time, speed and lane, the lowest TTC, and the sum of the
-        BV counts near the SUT with the bucket's number of states (integers: their mean is exact)."""
-        tl = self._tl
-        buckets = ks // self._stride
-        unique, first = np.unique(buckets, return_index=True)  # buckets ascend: each a contiguous run
-        near_sums = np.add.reduceat(bvs, first).tolist()
-        sizes = np.diff(np.append(first, buckets.size)).tolist()
-        for i, b in enumerate(unique.tolist()):
-            sel = np.flatnonzero(buckets == b)
-            low = float(ttc[sel].min())
-            if tl["bucket"] and tl["bucket"][-1] == b:
-                tl["ttc"][-1] = min(tl["ttc"][-1], low)
-                tl["bvs"][-1] += near_sums[i]
-                tl["n"][-1] += sizes[i]
-                continue
-            r = int(sel[0])
-            for key, value in (("bucket", b), ("t", float(times[r])), ("speed", float(speed[r])),
-                               ("lane", float(lane[r])), ("ttc", low), ("bvs", near_sums[i]), ("n", sizes[i])):
-                tl[key].append(value)
-        while len(tl["bucket"]) > TIMELINE_POINTS:
-            self._stride *= 2
-            merged: dict[str, list] = {key: [] for key in tl}
-            for i, b in enumerate(tl["bucket"]):
-                if merged["bucket"] and merged["bucket"][-1] == b // 2:
-                    merged["ttc"][-1] = min(merged["ttc"][-1], tl["ttc"][i])
-                    merged["bvs"][-1] += tl["bvs"][i]
-                    merged["n"][-1] += tl["n"][i]
-                    continue
-                merged["bucket"].append(b // 2)
-                for key in ("t", "speed", "lane", "ttc", "bvs", "n"):
-                    merged[key].append(tl[key][i])
-            self._tl = tl = merged
-
-    def _scene(self, tables: np.ndarray, times: np.ndarray, r: int, k: int) -> Scene:
-        return Scene(state=k, time_s=float(times[r]),
-                     columns={f: tables[r, :, _F[f]].copy() for f in _SCENE_FIELDS},
-                     ids=self.ids.copy(), sut_index=self.sut)
-
     # ------------------------------------------------------------------ the end
 
     def finish(self) -> None:
@@ -670,35 +440,26 @@ class ScoreStream:
         if self._open is not None:
             self._close_exposure(K)
             self.exposures[-1]["open_at_end"] = True
-        for ch in self._changes:
-            if ch.k1 is None:
-                ch.k1 = K
-            self.finished_changes.append(ch)
-        self._changes = []
-        self.finished_changes.sort(key=lambda ch: ch.k0)
-        if self._prev_scene_block is not None:  # collisions stamped past the last state: the last state's scene
-            k0, tables, times = self._prev_scene_block
-            for event in self.sut_collisions[:MAX_SNAPSHOTS]:
-                k = min(int(event["step"]), K - 1)
-                if k not in self.collision_scenes and k0 <= k:
-                    self.collision_scenes[k] = self._scene(tables, times, k - k0, k)
-        self._prev_scene_block = None
-        if self._prev_lc_block is not None:  # collisions stamped past the last state: as at the last state
-            self._classify_collisions(*self._prev_lc_block, clamp=K - 1)
-        self._prev_lc_block = None
+        self.changes.close(K)
+        self.collisions.finish(K, self.ids, self.sut, self.dt_s if self.dt_s is not None else 0.1)
         self._finished = True
 
     def plot_data(self, lane_segments: np.ndarray | None = None) -> PlotData:
         """The plots' inputs (after :meth:`finish`)."""
         self.finish()
-        tl = self._tl
-        return PlotData(states=self.states, ttc_hist=self.ttc_hist.copy(), speed_hist=self.speed_hist.copy(),
-                        timeline_time_s=np.asarray(tl["t"]), timeline_speed=np.asarray(tl["speed"]),
-                        timeline_lane=np.asarray(tl["lane"]), timeline_ttc=np.asarray(tl["ttc"]),
-                        timeline_stride=self._stride,
-                        timeline_bvs=np.asarray(tl["bvs"], dtype=np.float64) / np.maximum(np.asarray(tl["n"]), 1),
-                        collision_scenes=dict(self.collision_scenes),
+        return PlotData(states=self.states, **self.plots.timeline_fields(),
+                        collision_scenes=dict(self.collisions.scenes),
                         worst_scene=self.worst_scene, lane_segments=lane_segments)
+
+    @property
+    def collision_kinds(self) -> dict[int, str]:
+        """What each SUT collision was, by its index in ``sut_collisions`` (:mod:`evoscen_eval.sut_collisions`)."""
+        return self.collisions.kinds
+
+    @property
+    def finished_changes(self) -> list:  # [SutLaneChange]
+        """The SUT's lane changes whose PET window has ended, in order after :meth:`finish`."""
+        return self.changes.finished
 
     @property
     def duration_s(self) -> float:

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from evoscen_contract import topics as T
-from evoscen_eval import streaming
+from evoscen_eval import plot_inputs, streaming
 from evoscen_eval.metrics import evaluate, stream_run
 from evoscen_eval.testing import make_run
 from evoscen_sim.config import EvaluationConfig
@@ -96,7 +96,7 @@ def test_block_size_changes_nothing(block, monkeypatch):
 
 
 def test_timeline_keeps_the_lowest_ttc_of_each_bucket(monkeypatch):
-    monkeypatch.setattr(streaming, "TIMELINE_POINTS", 4)
+    monkeypatch.setattr(plot_inputs, "TIMELINE_POINTS", 4)
     monkeypatch.setattr(streaming, "BLOCK_STATES", 3)
     run = make_run(10, 2)
     ttc = np.array([9.0, 8.0, 3.0, 7.0, 6.0, 5.0, 1.25, 9.0, 9.0, 9.0])
@@ -113,11 +113,11 @@ def test_timeline_keeps_the_lowest_ttc_of_each_bucket(monkeypatch):
 
 
 def test_a_long_run_leaves_only_output_sized_state(monkeypatch):
-    monkeypatch.setattr(streaming, "TIMELINE_POINTS", 100)
+    monkeypatch.setattr(plot_inputs, "TIMELINE_POINTS", 100)
     run = make_run(5000, 3)
     st = stream_run(run, EV)
     assert st.states == 5000 and not st._block and not st._block_t
-    assert len(st._tl["t"]) <= 100 and st._stride == 64  # 5000 / 64 = 78.1 -> 79 buckets
+    assert len(st.plots._tl["t"]) <= 100 and st.plots._stride == 64  # 5000 / 64 = 78.1 -> 79 buckets
     assert len(st.windows["lane_changes"]) == 50  # one count per 100-state window
     assert st.n["in_view"] == 5000 * 0  # the BVs are 500 m ahead: never in view
     assert math.isfinite(st.speed_sum) and st.speed_sum == pytest.approx(5000 * 30.0)

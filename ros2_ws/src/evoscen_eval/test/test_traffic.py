@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evoscen_eval import streaming
+from evoscen_eval import plot_inputs, streaming
 from evoscen_eval.metrics import evaluate, stream_run
 from evoscen_eval.report import write_report
 from evoscen_eval.testing import make_run
@@ -93,7 +93,7 @@ def test_the_window_follows_dt():
 @pytest.mark.parametrize("block", [1, 7, 256])
 def test_block_size_changes_nothing_and_the_timeline_holds_bucket_means(block, monkeypatch):
     monkeypatch.setattr(streaming, "BLOCK_STATES", block)
-    monkeypatch.setattr(streaming, "TIMELINE_POINTS", 5)  # 750 states -> buckets of 256: 3 points
+    monkeypatch.setattr(plot_inputs, "TIMELINE_POINTS", 5)  # 750 states -> buckets of 256: 3 points
     run = three_then_one(750)
     tr = evaluate(run, EV)["traffic"]
     assert tr["per_window_mean_bvs"] == [3.0, 1.0, 0.0] and tr["empty_states"] == 150

@@ -16,23 +16,25 @@ FLOAT_MAX = float(np.finfo(np.float64).max)
 
 
 @kernel
-def minimum(a, b):
-    """``np.minimum`` of two floats (NaN propagates, the first NaN wins)."""
+def _first_nan_or(a, b, value):
+    """``a`` if it is NaN, else ``b`` if it is NaN, else ``value``: numpy's NaN propagation."""
     if np.isnan(a):
         return a
     if np.isnan(b):
         return b
-    return min(a, b)
+    return value
+
+
+@kernel
+def minimum(a, b):
+    """``np.minimum`` of two floats (NaN propagates, the first NaN wins)."""
+    return _first_nan_or(a, b, min(a, b))
 
 
 @kernel
 def maximum(a, b):
     """``np.maximum`` of two floats (NaN propagates, the first NaN wins)."""
-    if np.isnan(a):
-        return a
-    if np.isnan(b):
-        return b
-    return max(a, b)
+    return _first_nan_or(a, b, max(a, b))
 
 
 @kernel

@@ -32,54 +32,52 @@ class Mutant:
     """Operator parameters (``models.mutant.<key>``), besides ``base`` and ``operator``."""
 
 
+_CLASS_OF = {op: klass for klass, ops in (("perception", PERCEPTION), ("decision", DECISION), ("control", CONTROL))
+             for op in ops}
+"""Each operator of the ``mutant`` model (:mod:`evoscen_sut.mutant`) -> its class."""
+
+
+def _mutant(operator: str, description: str, **params: Any) -> Mutant:
+    """The mutant named after ``operator``, of the operator's class (KeyError: not an operator)."""
+    return Mutant(operator, _CLASS_OF[operator], operator, description, params)
+
+
 _ENTRIES = (
-    Mutant("blind_behind", "perception", "blind_behind",
-           "No rear perception (rear radar/camera failed): vehicles behind the SUT in every lane are "
-           "invisible, so lane changes ignore the new follower and the own lane's follower."),
-    Mutant("short_view", "perception", "short_view",
-           "Perception range ahead cut to 50 m (dense fog / dirty front sensor): slower traffic "
-           "ahead is seen late, lane utilities ignore everything beyond 50 m.",
-           {"view_m": 50.0}),
-    Mutant("stale", "perception", "stale",
-           "Object list 0.5 s old (a slow sensor-fusion pipeline): other vehicles are seen where "
-           "they were 5 steps ago; a closing follower seems farther than it is.",
-           {"delay_steps": 5}),
-    Mutant("ignores_new_follower", "decision", "ignores_new_follower",
-           "Gap acceptance without regard to the new follower: the lane-change decision does not "
-           "see vehicles behind the SUT in the adjacent lanes (car following is intact)."),
-    Mutant("late_lane_change", "decision", "late_lane_change",
-           "Lane changes executed 1 s (10 steps) after the decision: the gap judged acceptable may "
-           "have closed.",
-           {"delay_steps": 10}),
-    Mutant("over_eager", "decision", "over_eager",
-           "Over-eager lane changes: no incentive threshold, no keep-right bias and a new-follower "
-           "safety margin only an emergency manoeuvre honours (the base model's parameters "
-           "re-tuned, evoscen_sut.mutant.EAGER_PRESETS).",
-           {"retune": "preset"}),
-    Mutant("reaction_time", "control", "reaction_time",
-           "Reaction time 1 s (10 steps) longer: throttle and lane-change commands are executed "
-           "1 s late, a human-like reaction time instead of an automated system's.",
-           {"delay_steps": 10}),
-    Mutant("weak_braking", "control", "weak_braking",
-           "Braking commands reach the wheels at 40 % (worn brakes / saturated actuator): the "
-           "follower cannot stop in the distance it planned for.",
-           {"brake_factor": 0.4}),
-    Mutant("late_braking", "control", "late_braking",
-           "No gentle braking: brake demands below 25 % (2 m/s² with the default 8 m/s² full "
-           "brake) are ignored, so braking starts later and harder.",
-           {"brake_onset": 0.25}),
-    Mutant("tailgating", "control", "tailgating",
-           "Tailgating: the car follower sees the vehicles ahead in its lane 15 m farther, so it "
-           "follows at ~0.5 s instead of ~1 s at highway speed.",
-           {"extra_gap_m": 15.0}),
+    _mutant("blind_behind",
+            "No rear perception (rear radar/camera failed): vehicles behind the SUT in every lane are "
+            "invisible, so lane changes ignore the new follower and the own lane's follower."),
+    _mutant("short_view",
+            "Perception range ahead cut to 50 m (dense fog / dirty front sensor): slower traffic "
+            "ahead is seen late, lane utilities ignore everything beyond 50 m.", view_m=50.0),
+    _mutant("stale",
+            "Object list 0.5 s old (a slow sensor-fusion pipeline): other vehicles are seen where "
+            "they were 5 steps ago; a closing follower seems farther than it is.", delay_steps=5),
+    _mutant("ignores_new_follower",
+            "Gap acceptance without regard to the new follower: the lane-change decision does not "
+            "see vehicles behind the SUT in the adjacent lanes (car following is intact)."),
+    _mutant("late_lane_change",
+            "Lane changes executed 1 s (10 steps) after the decision: the gap judged acceptable may "
+            "have closed.", delay_steps=10),
+    _mutant("over_eager",
+            "Over-eager lane changes: no incentive threshold, no keep-right bias and a new-follower "
+            "safety margin only an emergency manoeuvre honours (the base model's parameters "
+            "re-tuned, evoscen_sut.mutant.EAGER_PRESETS).", retune="preset"),
+    _mutant("reaction_time",
+            "Reaction time 1 s (10 steps) longer: throttle and lane-change commands are executed "
+            "1 s late, a human-like reaction time instead of an automated system's.", delay_steps=10),
+    _mutant("weak_braking",
+            "Braking commands reach the wheels at 40 % (worn brakes / saturated actuator): the "
+            "follower cannot stop in the distance it planned for.", brake_factor=0.4),
+    _mutant("late_braking",
+            "No gentle braking: brake demands below 25 % (2 m/s² with the default 8 m/s² full "
+            "brake) are ignored, so braking starts later and harder.", brake_onset=0.25),
+    _mutant("tailgating",
+            "Tailgating: the car follower sees the vehicles ahead in its lane 15 m farther, so it "
+            "follows at ~0.5 s instead of ~1 s at highway speed.", extra_gap_m=15.0),
 )
 
 LIBRARY: dict[str, Mutant] = {m.name: m for m in _ENTRIES}
 """The mutants by name, perception first, then decision and control."""
-
-assert {m.operator for m in _ENTRIES} <= set(PERCEPTION + DECISION + CONTROL)
-assert all((m.operator in {"perception": PERCEPTION, "decision": DECISION, "control": CONTROL}[m.klass])
-           for m in _ENTRIES)
 
 
 def mutant_overrides(base: str, name: str) -> dict[str, str]:
