@@ -56,7 +56,7 @@ from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 def time_inprocess(steps: int, repeats: int, driver: str, warmup: int = 300) -> list[float]:
     """Steps/s of ``repeats`` timed runs (fresh scenario each, recording off)."""
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"bvs.driver": driver})
     rates = []
@@ -74,7 +74,7 @@ def time_inprocess(steps: int, repeats: int, driver: str, warmup: int = 300) -> 
 def recorded_run(steps: int, driver: str) -> dict:
     """One recorded run of ``steps`` steps: steps/s and bag size."""
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": steps, "bvs.driver": driver})
     with tempfile.TemporaryDirectory() as tmp:
@@ -87,7 +87,7 @@ def graph_run(steps: int, driver: str, nodes: str = "by_policy") -> dict:
     """One graph run of ``steps`` steps with BV nodes ``nodes`` (``bvs.nodes``): the simulation
     node's lockstep rate and its flow control's waits (``flow_control_wait_s``)."""
     from evoscen_bringup.graph_runner import GraphOptions, run_graph
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": steps, "bvs.driver": driver, "bvs.nodes": nodes})
     with tempfile.TemporaryDirectory() as tmp:
@@ -142,8 +142,8 @@ def graph_figures(steps: int, repeats: int, driver: str) -> dict:
 def sut_model_costs(steps: int, driver: str) -> dict[str, dict]:
     """Per-decision cost (median µs) and in-process steps/s of every SUT model."""
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.models import model_names
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.model_registry import model_names
 
     out = {}
     for name in model_names("sut"):
@@ -167,8 +167,8 @@ def learned_bv_costs(steps: int, repeats: int) -> dict:
     of the default scenario with ``bvs.driver`` learned vs level0 (recording off)."""
 
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_bv.lane_change import OBS_DIM, observation_grid
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_bv.lane_change_decision import OBS_DIM, observation_grid
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     out: dict = {}
     for driver in ("level0", "learned"):
@@ -227,7 +227,6 @@ def _forward_costs(drv, world, grid) -> dict:
     out["max_abs_diff_numpy_kernel"] = float(np.max(np.abs(y - ref)))
     try:
         import torch
-
         from evoscen_bv.td3 import build_actor
     except ImportError:
         return out

@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_bringup.campaign import run_campaign
     from evoscen_bringup.campaign_spec import expand, load_spec
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     over = {"steps": str(args.steps), "sut.model": args.sut, "recording.enabled": "false"}
     run_inprocess(load_scenario_config(None, {**over, "seed": "100000"}), bag_dir=None, evaluate=True, plots=False)

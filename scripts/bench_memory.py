@@ -26,7 +26,7 @@ from evoscen_contract.contract import EXIT_OK
 CHILD = r"""
 import json, resource, sys, time
 from evoscen_bringup.inprocess import run_inprocess
-from evoscen_sim.config import load_scenario_config
+from evoscen_sim.config.scenario_config import load_scenario_config
 steps, bvs = int(sys.argv[1]), int(sys.argv[2])
 over = {"steps": steps, "bvs.count": bvs, "spawn.ramp_vehicles": min(3, bvs)}
 cfg = load_scenario_config(None, over)
@@ -45,7 +45,7 @@ print(json.dumps({"steps": steps, "base": base, "sim": marks.get("sim", 0), "sco
 TRACE = r"""
 import sys, tracemalloc
 from evoscen_bringup import inprocess
-from evoscen_sim.config import load_scenario_config
+from evoscen_sim.config.scenario_config import load_scenario_config
 steps, bvs = int(sys.argv[1]), int(sys.argv[2])
 cfg = load_scenario_config(None, {"steps": steps, "bvs.count": bvs, "spawn.ramp_vehicles": min(3, bvs)})
 snaps = {}

@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_contract.topics import CONTRACT
     from evoscen_eval.clips import read_messages
     from evoscen_record.recorder import BagRecorder
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": args.steps, "bvs.driver": args.bv_driver})
     run_inprocess(cfg, bag_dir=None, steps=200)  # compile the kernels first

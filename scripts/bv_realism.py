@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_eval.bv_realism import bv_realism, combine
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
     if args.cut_in_headway is not None:  # a what-if knob for the measurement only (docs/bv-profiles.md)

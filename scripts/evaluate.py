@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_eval.report import write_stream_report
     from evoscen_eval.rundata import score_bag
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
     try:

@@ -44,10 +44,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
-                                             run_rounds_with_bar, set_up, write_csv)
+    from evoscen_bringup.experiments import (
+        Round,
+        distinct_names,
+        fmt_ci,
+        markdown_table,
+        mean_ci,
+        positive_int,
+        run_rounds_with_bar,
+        set_up,
+        write_csv,
+    )
     from evoscen_eval.metrics import complexity_score
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     def build() -> tuple[list[str], list[Round], int, int]:
         n_rounds = positive_int("--rounds", args.rounds)

@@ -45,9 +45,18 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import (Round, distinct_names, fmt_ci, markdown_table, mean_ci, positive_int,
-                                             run_rounds_with_bar, set_up, write_csv)
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_bringup.experiments import (
+        Round,
+        distinct_names,
+        fmt_ci,
+        markdown_table,
+        mean_ci,
+        positive_int,
+        run_rounds_with_bar,
+        set_up,
+        write_csv,
+    )
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     def build() -> tuple[list[str], list[Round], int, int, int]:
         seeds = positive_int("--seeds", args.seeds)
@@ -169,7 +178,6 @@ def plot_distributions(out: Path, suts: list[str], rounds, results) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-
     from evoscen_bringup.experiments import SPEED_BINS, TTC_BINS
 
     for name, bins, key, xlabel, title in (

@@ -135,7 +135,7 @@ def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants:
     design, one run of the design's steps. Returns the rounds and their key -> (design, scenario,
     base, variant); every variant of a scenario runs on the same seeds (paired)."""
     from evoscen_bringup.experiments import Round
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sut.mutants import mutant_overrides
 
     variants: list[tuple[str, str, dict[str, str]]] = []  # (base, mutant or intact, overrides)
@@ -183,8 +183,16 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     """One design's tables and files in ``out`` (sensitivity.md/.csv, mutation_scores.csv, rounds.csv,
     sensitivity.png). Returns (scenario, base) -> :class:`DesignSummary` and the score table (Markdown)."""
     from evoscen_bringup.experiments import fmt_ci, markdown_table, mean_ci, write_csv
-    from evoscen_bringup.sensitivity import (SCORES, SSM_RATES, paired, score_of, seeds_needed, ssm_label, ssm_rate,
-                                             summarise_design)
+    from evoscen_bringup.sensitivity import (
+        SCORES,
+        SSM_RATES,
+        paired,
+        score_of,
+        seeds_needed,
+        ssm_label,
+        ssm_rate,
+        summarise_design,
+    )
     from evoscen_sut.mutants import LIBRARY
 
     out.mkdir(parents=True, exist_ok=True)
@@ -347,8 +355,14 @@ def comparison_rows(designs: list, summaries: dict, computes: dict, walls: dict)
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import distinct_names, markdown_table, positive_int, run_rounds_with_bar, set_up
-    from evoscen_bringup.experiments import write_csv
+    from evoscen_bringup.experiments import (
+        distinct_names,
+        markdown_table,
+        positive_int,
+        run_rounds_with_bar,
+        set_up,
+        write_csv,
+    )
     from evoscen_bringup.sensitivity import design_compute, sharper_design
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY

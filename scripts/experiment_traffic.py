@@ -30,8 +30,7 @@ from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 import numpy as np
-
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK, EVENT_COLLISION, EVENT_REENTRY, EVENT_SHIFT
+from evoscen_contract.contract import EVENT_COLLISION, EVENT_REENTRY, EVENT_SHIFT, EXIT_BAD_INPUT, EXIT_OK
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -91,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.experiments import positive_int
     from evoscen_bringup.stats import fmt_ci, mean_ci
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
     try:

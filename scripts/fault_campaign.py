@@ -92,7 +92,7 @@ from fault_runs import END_LIMIT_S, HANG_S, REPO, SCRIPTS, GraphResult, stderr_t
 from host_faults import host_run
 from input_fuzz import fuzz
 
-NODES = {"sim": "evoscen_sim.sim_node", "bv_competitive": "evoscen_bv.bv_node", "bv_mutual": "evoscen_bv.bv_node",
+NODES = {"sim": "evoscen_sim.nodes.sim_node", "bv_competitive": "evoscen_bv.bv_node", "bv_mutual": "evoscen_bv.bv_node",
          "bv_cooperative": "evoscen_bv.bv_node", "sut": "evoscen_sut.sut_node", "eval": "evoscen_eval.eval_node"}
 """The nodes of the default graph by class name: the BV nodes are those of ``bvs.nodes: by_policy``
 (docs/architecture.md §5, "BV nodes"), one program each under its own node name."""
@@ -288,7 +288,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
         if kind == "inject" and readable:
             if seed not in clean_world:
                 from evoscen_bringup.inprocess import run_inprocess
-                from evoscen_sim.config import load_scenario_config
+                from evoscen_sim.config.scenario_config import load_scenario_config
 
                 cfg = load_scenario_config(None, {"steps": steps, "seed": seed})
                 run_inprocess(cfg, bag_dir=work / f"clean-{seed}" / "bag", evaluate=False)

@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     args = parse_args(argv)
     from evoscen_bringup.graph_runner import NODES, GraphOptions, node_environment, write_parameter_files
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
     name = NODE_NAMES[args.node]
@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     module = dict(NODES)[name]
     env = node_environment(int(domain), discovery)
     if args.node == "bv":  # the BV nodes of bvs.nodes: the one named, else every one (a process each)
-        from evoscen_sim.bv_nodes import bv_node_names
+        from evoscen_sim.nodes.bv_nodes import bv_node_names
 
         names = bv_node_names(cfg)
         if args.bv_node is not None and args.bv_node not in names:

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 from fault_runs import SCRIPTS
 
+
 class _Alarm(Exception):
     pass
 
@@ -80,9 +81,9 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_eval.highd import load_recording
-    from evoscen_sim.config import load_scenario_config, share_path
+    from evoscen_sim.config.scenario_config import load_scenario_config, share_path
     from evoscen_sim.errors import InputError
-    from evoscen_sim.road import DEFAULT_MAP_PATH, load_road
+    from evoscen_sim.road.road_model import DEFAULT_MAP_PATH, load_road
 
     default_yaml = share_path("config/default_scenario.yaml")
     yaml_text = default_yaml.read_text(encoding="utf-8")

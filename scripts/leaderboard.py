@@ -60,7 +60,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def installed_suts() -> list[str]:
     """Every SUT model installed, in registration order (built-ins, then plug-ins), without the mutant wrapper."""
-    from evoscen_sim import models
+    from evoscen_sim import model_registry as models
     from evoscen_sut.mutant import NAME as MUTANT
 
     models.discover()
@@ -90,10 +90,18 @@ def ranked(means: dict[str, float]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import (Round, fmt_ci, markdown_table, mean_ci, positive_int,
-                                             run_rounds_with_bar, set_up, write_csv)
+    from evoscen_bringup.experiments import (
+        Round,
+        fmt_ci,
+        markdown_table,
+        mean_ci,
+        positive_int,
+        run_rounds_with_bar,
+        set_up,
+        write_csv,
+    )
     from evoscen_bringup.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     def build():
         episodes = positive_int("--episodes", args.episodes)

@@ -88,8 +88,8 @@ def validate(args: argparse.Namespace):
         read_bag_topics,
         select_topics,
     )
+    from evoscen_sim.config.limits import parse_cli_int
     from evoscen_sim.errors import InputError
-    from evoscen_sim.limits import parse_cli_int
 
     rate = parse_rate(args.rate)
     if args.domain_id is not None:
@@ -141,10 +141,9 @@ def message_classes(topics, bag: Path) -> dict[str, type]:
 def check_first_messages(bag: Path, topics, classes: dict[str, type]) -> None:
     """Deserialize the first message of every topic with its class: InputError if one does not
     decode (a bag whose schema does not match its data), before anything is published."""
-    from rclpy.serialization import deserialize_message
-
     from evoscen_eval.replay import iter_replay
     from evoscen_sim.errors import InputError
+    from rclpy.serialization import deserialize_message
 
     todo = {t.name for t in topics if t.message_count != 0}
     types = {t.name: t.type_name for t in topics}
@@ -214,10 +213,9 @@ def publish(pub, data: bytes, deadline_s: float) -> None:
 
 def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeout: float, topics) -> int:
     """Publish the bag (see the module docstring); returns the exit status."""
-    from rclpy.duration import Duration
-
     from evoscen_contract.graph import init, make_node, shutdown
     from evoscen_eval.replay import Pacer, iter_replay
+    from rclpy.duration import Duration
 
     classes = message_classes(topics, args.bag)
     check_first_messages(args.bag, topics, classes)

@@ -24,8 +24,15 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED,
-                                      EXIT_OK, TOPIC_WORLD)
+from evoscen_contract.contract import (
+    EXIT_BAD_INPUT,
+    EXIT_FAULT,
+    EXIT_HOST_FAULT,
+    EXIT_INTERRUPTED,
+    EXIT_NODE_DIED,
+    EXIT_OK,
+    TOPIC_WORLD,
+)
 
 MODES = ("graph", "inprocess")
 
@@ -163,12 +170,12 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.domains import reserve_domain
-    from evoscen_record.bag_writer import BagWriterError
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import dump_config, load_scenario_config
+    from evoscen_record.bag_writer import BagWriterError
+    from evoscen_sim.config.limits import parse_cli_int, parse_cli_path
+    from evoscen_sim.config.scenario_config import dump_config, load_scenario_config
     from evoscen_sim.errors import HostFault, InputError
-    from evoscen_sim.limits import parse_cli_int, parse_cli_path
 
     try:
         args.out = parse_cli_path("--out", args.out)

@@ -135,7 +135,7 @@ def recorded_run(tmp_path_factory: pytest.TempPathFactory) -> RecordedRun:
 @pytest.fixture(scope="session")
 def map_source() -> Path:
     """The shipped OpenDRIVE map (installed share file)."""
-    from evoscen_sim.config import share_path
+    from evoscen_sim.config.scenario_config import share_path
 
     return share_path("maps/onramp.xodr")
 

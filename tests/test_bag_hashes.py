@@ -79,7 +79,7 @@ HASHES = {
 @pytest.mark.parametrize("model", list(HASHES), ids=lambda m: m or "default")
 def test_bag_bytes_unchanged(model: str | None, tmp_path: Path) -> None:
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     overrides = {"steps": 3000} | ({"sut.model": model} if model else {})
     run_inprocess(load_scenario_config(None, overrides), bag_dir=tmp_path / "bag", evaluate=False)

@@ -10,9 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from evoscen_contract.cdr import pad4
 import yaml
+from evoscen_contract.cdr import pad4
 
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
 
@@ -285,7 +284,7 @@ def test_mcap_ros2_decodes_everything(recorded_run, mcap_messages, rosbags_messa
 def test_world_physics_consistency(recorded_run, mcap_messages):
     from evoscen_contract import topics as T
     from evoscen_contract.tables import table_columns
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(recorded_run.out / "scenario.yaml")
     dt = cfg.dt_s

@@ -30,7 +30,7 @@ DT_NS = 100_000_000  # dt_s of the shipped config
 
 
 def _cfg(steps: int, **over):
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     return load_scenario_config(None, {"steps": steps, **over})
 
@@ -47,7 +47,7 @@ def _record(tmp_path: Path, name: str, cfg, writer: str) -> bytes:
 def test_state_copy_gives_the_columns_bit_for_bit() -> None:
     """What the run copies (World.state_arrays, float64 and int64) rebuilds World.columns exactly."""
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.world import STATE_FLOATS, STATE_INTS, state_columns
+    from evoscen_sim.physics.world import STATE_FLOATS, STATE_INTS, state_columns
 
     sc = build_scenario(_cfg(50))
     for _ in range(30):
@@ -105,8 +105,8 @@ def test_bag_dir_not_empty_is_the_inline_error(tmp_path: Path) -> None:
 
 def test_writer_error_is_raised_in_the_run(tmp_path: Path, monkeypatch) -> None:
     """An error of the writer (here a full disk on the first batch) is raised in the run as itself."""
-    from evoscen_record import bag_writer
     from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_record import bag_writer
 
     def full_disk(*args, **kwargs) -> None:
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -121,8 +121,8 @@ def test_writer_error_is_raised_in_the_run(tmp_path: Path, monkeypatch) -> None:
 def test_writer_error_wins_over_its_end(tmp_path: Path, monkeypatch) -> None:
     """The writer failed and ended before the run wrote to it again: the run's next send finds
     the pipe broken, and the writer's error (not "ended unexpectedly") is what it raises."""
-    from evoscen_record import bag_writer
     from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_record import bag_writer
 
     def full_disk(*args, **kwargs) -> None:
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -150,8 +150,8 @@ def _dying_writer(monkeypatch) -> None:
 
 
 def test_dead_writer_is_one_line_naming_the_bag(tmp_path: Path, monkeypatch) -> None:
-    from evoscen_record.bag_writer import BagWriterError
     from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_record.bag_writer import BagWriterError
 
     _dying_writer(monkeypatch)
     bag = tmp_path / "bag"

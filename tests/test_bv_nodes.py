@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _cfg(**bvs):
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
 
     return config_from_dict({"steps": 300, "seed": 3, "bvs": bvs})
 
@@ -35,7 +35,7 @@ def _cfg(**bvs):
     (2.5, "expected by_policy, single or a number of nodes in [1, 32]"),
 ])
 def test_bad_bv_nodes_is_one_line(value, expected):
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
 
     with pytest.raises(InputError) as exc:
@@ -54,8 +54,8 @@ def test_bad_bv_nodes_on_the_command_line_is_one_line():
 
 
 def test_partition_rule():
-    from evoscen_sim.bv_nodes import bv_nodes
-    from evoscen_sim.scenario import build_world
+    from evoscen_sim.nodes.bv_nodes import bv_nodes
+    from evoscen_sim.scenario_builders import build_world
 
     # by_policy: 20 BVs at 4:3:3 are 8 competitive, 6 mutual, 6 cooperative (mix_counts), one node each,
     # in the mix's order; each node's rows are exactly the BVs of its policy in the world
@@ -87,7 +87,7 @@ def test_partition_rule():
     many = bv_nodes(_cfg(nodes=25))
     assert [n.rows.size for n in many] == [1] * 20 + [0] * 5
     # no BVs: no BV node, whatever the mode
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
 
     for mode in ("by_policy", "single", 3):
         assert bv_nodes(config_from_dict({"bvs": {"count": 0, "nodes": mode}, "spawn": {"ramp_vehicles": 0}})) == ()
@@ -154,7 +154,7 @@ def test_world_events_and_report_do_not_depend_on_the_partition(partitioned_bags
 
 def test_bv_node_with_a_name_outside_the_partition_is_one_line(tmp_path):
     from evoscen_bringup.graph_runner import GraphOptions, write_parameter_files
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     files = write_parameter_files(load_scenario_config(None, {"steps": 20}), tmp_path, tmp_path / "bag",
                                   GraphOptions())

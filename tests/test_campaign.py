@@ -132,7 +132,7 @@ def test_expansion_and_keys(tmp_path):
     from evoscen_sut.mutants import mutant_overrides
 
     assert intact.cfg.sut.model == "mobil" and intact.key != stale.key
-    reference = __import__("evoscen_sim.config", fromlist=["x"]).load_scenario_config(
+    reference = __import__("evoscen_sim.config.scenario_config", fromlist=["x"]).load_scenario_config(
         None, {"sut.model": "mobil", "recording.enabled": "false", "seed": "0", **mutant_overrides("mobil", "stale")})
     assert stale.cfg == reference
 

@@ -24,8 +24,8 @@ from pathlib import Path
 sys.path.insert(0, sys.argv[1])
 import _bootstrap  # noqa: F401
 from evoscen_bringup import campaign_spec as C
-from evoscen_sim.config import load_scenario_config
-from evoscen_sim.config_load import config_to_dict
+from evoscen_sim.config.scenario_config import load_scenario_config
+from evoscen_sim.config.config_load import config_to_dict
 
 module, metadata = Path(sys.argv[2]), Path(sys.argv[3])
 CONFIGS = {"plugin": {"sut.model": "first_sut"}, "builtin": {"sut.model": "mobil"},

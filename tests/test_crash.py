@@ -78,7 +78,7 @@ def test_sigterm_to_evaluator_finishes_the_bag(tmp_path):
 def test_sigkill_to_evaluator_then_reindex_loses_at_most_a_second(tmp_path):
     out = tmp_path / "run"
     with _running(out / "bag", "--steps", 5000, "--seed", 5, "--out", out, "--no-plots", settle_s=1.0) as launcher:
-        sim = _children(launcher, "evoscen_sim.sim_node")
+        sim = _children(launcher, "evoscen_sim.nodes.sim_node")
         ev = _children(launcher, "evoscen_eval.eval_node")
         assert len(sim) == 1 and len(ev) == 1, (sim, ev)
         os.kill(sim[0], signal.SIGSTOP)  # freeze the lockstep: the steps published are known
@@ -130,7 +130,7 @@ def _assert_quick_end(launcher: subprocess.Popen, node: str, t_kill: float, time
 def test_killed_simulation_node_ends_the_graph_quickly(tmp_path):
     out = tmp_path / "run"
     with _running(out / "bag", "--steps", 5000, "--seed", 5, "--out", out, "--no-plots", settle_s=0.5) as launcher:
-        sim = _children(launcher, "evoscen_sim.sim_node")
+        sim = _children(launcher, "evoscen_sim.nodes.sim_node")
         os.kill(sim[0], signal.SIGKILL)
         t_kill = time.monotonic()
         _assert_quick_end(launcher, "evoscen_sim", t_kill)

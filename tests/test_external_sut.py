@@ -41,7 +41,7 @@ def load_example():
 def start_graph_with_external_sut(out: Path, domain_id: int, *, steps: int, example_args: list[str]) -> dict:
     """Start evaluator, BV and simulation nodes plus the example (not waiting for them)."""
     from evoscen_bringup.graph_runner import GraphOptions, node_environment, write_parameter_files
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     out.mkdir(parents=True, exist_ok=True)
     cfg = load_scenario_config(None, {"steps": steps, "seed": SEED, "bvs.nodes": "single"})  # one BV node, started here
@@ -51,7 +51,7 @@ def start_graph_with_external_sut(out: Path, domain_id: int, *, steps: int, exam
         "evoscen_eval": ["-m", "evoscen_eval.eval_node", "--ros-args", "--params-file", str(params["evoscen_eval"])],
         "evoscen_bv": ["-m", "evoscen_bv.bv_node", "--ros-args", "--params-file", str(params["evoscen_bv"])],
         "external_sut": [str(EXAMPLE), "--ros-args", *example_args],
-        "evoscen_sim": ["-m", "evoscen_sim.sim_node", "--ros-args", "--params-file", str(params["evoscen_sim"])],
+        "evoscen_sim": ["-m", "evoscen_sim.nodes.sim_node", "--ros-args", "--params-file", str(params["evoscen_sim"])],
     }
     return {name: subprocess.Popen([sys.executable, *argv], env=env, cwd=out, stdout=subprocess.PIPE,
                                    stderr=subprocess.STDOUT, text=True)

@@ -1,8 +1,8 @@
 """The "your first SUT" walk-through (docs/plugins.md §2) is code that runs.
 
 * ``examples/first_sut/first_sut.py`` decides as the walk-through says, in situations built by hand
-  (:func:`evoscen_sim.testing.hand_built_world`);
-* registered in this process (:func:`evoscen_sim.models.register_model`) it is the SUT of an
+  (:func:`evoscen_sim.physics.hand_built.hand_built_world`);
+* registered in this process (:func:`evoscen_sim.model_registry.register_model`) it is the SUT of an
   in-process run started as ``run_scenario.py --sut first_sut``, and a bad ``models.first_sut``
   parameter is one line naming it;
 * installed from its ``pyproject.toml`` (into a temporary directory, never into the checkout's
@@ -41,14 +41,14 @@ def fs(load_example):
 
 @pytest.fixture(scope="module")
 def cfg():
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     return load_scenario_config(None, {})
 
 
 @pytest.fixture(scope="module")
 def road():
-    from evoscen_sim.road import load_road
+    from evoscen_sim.road.road_model import load_road
 
     return load_road()
 
@@ -60,7 +60,7 @@ def sut_driver(fs, cfg, **params):
 
 def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:
     """(throttle, request) of the SUT (vehicle 0) in a hand-built world; the others are BVs."""
-    from evoscen_sim.testing import hand_built_world
+    from evoscen_sim.physics.hand_built import hand_built_world
 
     world = hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
     throttle, request = sut_driver(fs, cfg, **params).act(world)
@@ -73,12 +73,11 @@ def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:
 
 def test_slow_leader_and_free_left_lane_requests_left(fs, cfg):
     # --8<-- [start:hand_built]
-    import numpy as np
-    from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.road import load_road
-    from evoscen_sim.testing import hand_built_world
-
     import first_sut
+    import numpy as np
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.road.road_model import load_road
 
     road = load_road()  # the shipped on-ramp map
     config = load_scenario_config()  # the shipped scenario: vehicle limits, dt_s
@@ -133,7 +132,7 @@ def drive(world, sut, steps: int) -> list:
 
 
 def test_blocked_on_the_merge_lane_it_stops_before_the_end_then_merges(fs, cfg, road):
-    from evoscen_sim.testing import hand_built_world
+    from evoscen_sim.physics.hand_built import hand_built_world
 
     wall = np.arange(600.0, 1000.0, 10.0)  # lane 1 full of standing vehicles: never a gap
     world = hand_built_world(road, s=[700.0, *wall], lane=[0] + [1] * wall.size, speed=[22.0] + [0.0] * wall.size,
@@ -151,7 +150,7 @@ def test_blocked_on_the_merge_lane_it_stops_before_the_end_then_merges(fs, cfg, 
 
 
 def test_a_vehicle_changing_into_the_same_lane_from_two_lanes_over_blocks(fs, cfg, road):
-    from evoscen_sim.testing import hand_built_world
+    from evoscen_sim.physics.hand_built import hand_built_world
 
     world = hand_built_world(road, s=[300, 330, 305], lane=[2, 2, 4], speed=[28, 20, 28], roles=[1, 0, 0])
     assert sut_driver(fs, cfg).act(world)[1].tolist() == [1]  # lane 4's vehicle keeps its lane
@@ -163,7 +162,7 @@ def test_decides_again_only_once_settled_after_a_change(fs, cfg, road):
     """Slow leaders in lanes 2 and 3: 2 -> 3, then 3 -> 4; no request during a change, and the
     second only once the SUT is within settle_tolerance_m of lane 3's centre line (not at the
     completion, when its centre has just crossed the line)."""
-    from evoscen_sim.testing import hand_built_world
+    from evoscen_sim.physics.hand_built import hand_built_world
 
     world = hand_built_world(road, s=[300, 340, 360], lane=[2, 2, 3], speed=[25, 20, 20], roles=[1, 0, 0])
     sut = sut_driver(fs, cfg)
@@ -192,7 +191,7 @@ def test_decides_again_only_once_settled_after_a_change(fs, cfg, road):
 
 @pytest.fixture
 def registered(fs):
-    from evoscen_sim.models import register_model, unregister_model
+    from evoscen_sim.model_registry import register_model, unregister_model
 
     register_model(fs.SPEC)
     yield fs
@@ -245,7 +244,7 @@ def test_bad_parameter_is_one_line_naming_the_plugin(registered, tmp_path, capsy
 
 
 def test_unknown_parameter_names_the_plugin_and_suggests(registered):
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
 
     with pytest.raises(InputError) as err:
@@ -355,10 +354,10 @@ def test_walk_through_shows_all_of_the_example():
 
 
 def test_doc_lists_the_declarators_with_their_signatures():
-    from evoscen_sim import config_checks
+    from evoscen_sim.config import config_checks
 
     text = DOC.read_text(encoding="utf-8")
-    block = text.split("<!-- signatures: evoscen_sim.config_checks -->\n```python\n", 1)[1].split("```", 1)[0]
+    block = text.split("<!-- signatures: evoscen_sim.config.config_checks -->\n```python\n", 1)[1].split("```", 1)[0]
     listed = [line for line in block.splitlines() if line and not line.startswith("#")]
     names = ("number", "integer", "flag", "text", "number_range", "names")
     expected = []
@@ -369,8 +368,8 @@ def test_doc_lists_the_declarators_with_their_signatures():
 
 
 def test_doc_names_every_view_attribute_and_road_query():
-    from evoscen_sim.road import RoadModel
-    from evoscen_sim.view import TrafficView
+    from evoscen_sim.physics.view import TrafficView
+    from evoscen_sim.road.road_model import RoadModel
 
     text = DOC.read_text(encoding="utf-8")
     view = [n for n in dir(TrafficView) if not n.startswith("_")] + list(TrafficView.__annotations__)

@@ -1,6 +1,6 @@
 """The FISS / FISS+ plug-in (``examples/fiss_sut``, fiss-planner 1.0.0) and the check of every driver's answer.
 
-* In situations built by hand (:func:`evoscen_sim.testing.hand_built_world`): a slow leader and a free
+* In situations built by hand (:func:`evoscen_sim.physics.hand_built.hand_built_world`): a slow leader and a free
   lane to the left, it changes left; on the merge lane it leaves it, and where it cannot it waits and
   brakes; a follower closing fast in the target lane makes it wait; no request during a change nor
   before it has settled.
@@ -35,14 +35,14 @@ def fs(load_example):
 
 @pytest.fixture(scope="module")
 def cfg():
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     return load_scenario_config(None, {})
 
 
 @pytest.fixture(scope="module")
 def road():
-    from evoscen_sim.road import load_road
+    from evoscen_sim.road.road_model import load_road
 
     return load_road()
 
@@ -52,7 +52,7 @@ def driver(fs, cfg, **params):
 
 
 def world_of(road, s, lane, speed):
-    from evoscen_sim.testing import hand_built_world
+    from evoscen_sim.physics.hand_built import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
 
@@ -142,9 +142,9 @@ def test_requests_only_with_no_change_under_way_and_once_settled(fs, cfg, road):
 
 
 def test_bad_parameters_are_one_line(fs, tmp_path, capsys):
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
-    from evoscen_sim.models import model_names, register_model, unregister_model
+    from evoscen_sim.model_registry import model_names, register_model, unregister_model
 
     installed = "fiss" in model_names("sut")
     if not installed:
@@ -171,7 +171,7 @@ def test_bad_parameters_are_one_line(fs, tmp_path, capsys):
 
 
 def installed() -> bool:
-    from evoscen_sim.models import model_names
+    from evoscen_sim.model_registry import model_names
 
     return "fiss" in model_names("sut")
 
@@ -202,7 +202,6 @@ def test_installed_fiss_writes_the_same_bag_in_both_runners(tmp_path):
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_installed_fiss_runs_in_a_campaign_on_ray(tmp_path):
     import pyarrow.parquet as pq
-
     from evoscen_bringup.campaign_spec import expand, load_spec
     from evoscen_bringup.inprocess import run_inprocess
 
@@ -264,8 +263,7 @@ def one_error_line(stderr: str) -> str:
 @pytest.mark.parametrize("kind", sorted(BAD))
 def test_a_bad_answer_in_process_is_one_line_naming_the_model(kind, tmp_path, capsys):
     import run_scenario
-
-    from evoscen_sim.models import ModelSpec, register_model, unregister_model
+    from evoscen_sim.model_registry import ModelSpec, register_model, unregister_model
 
     register_model(ModelSpec(name="bad_sut", roles=("sut",), factory=lambda v, p, c, r: BadDriver(v, kind)))
     try:
@@ -279,7 +277,7 @@ def test_a_bad_answer_in_process_is_one_line_naming_the_model(kind, tmp_path, ca
 
 def test_checked_answer_passes_a_good_answer_through_and_names_a_bv_model():
     from evoscen_sim.errors import InputError
-    from evoscen_sim.models import checked_answer
+    from evoscen_sim.model_registry import checked_answer
 
     throttle, lane_change = np.array([0.5, -1.0]), np.array([1, -1])
     assert checked_answer(object(), (throttle, lane_change), 2) == (throttle, lane_change)
@@ -299,7 +297,7 @@ def bad_package(tmp_path_factory, pip_install_into) -> Path:
     import inspect
 
     (src / "bad_sut.py").write_text(
-        "import numpy as np\nfrom evoscen_sim.models import ModelSpec\n\n" + inspect.getsource(BadDriver)
+        "import numpy as np\nfrom evoscen_sim.model_registry import ModelSpec\n\n" + inspect.getsource(BadDriver)
         + "\n\nSPEC = ModelSpec(name='bad_sut', roles=('sut',), factory=lambda v, p, c, r: BadDriver(v, 'nan'))\n",
         encoding="utf-8")
     return pip_install_into(src)
@@ -317,8 +315,7 @@ def test_a_bad_answer_in_the_node_graph_is_one_error_line_naming_the_model(bad_p
 def test_a_bad_bv_answer_is_one_line_before_anything_is_written(tmp_path, capsys):
     """A BV model's answer is checked already in the warm-up (before the output directory is touched)."""
     import run_scenario
-
-    from evoscen_sim.models import ModelSpec, register_model, unregister_model
+    from evoscen_sim.model_registry import ModelSpec, register_model, unregister_model
 
     class ShortBv:
         def __init__(self, vehicles) -> None:
@@ -343,8 +340,15 @@ def test_a_bad_bv_answer_is_one_line_before_anything_is_written(tmp_path, capsys
 
 def test_the_launcher_reports_a_refused_answer_before_the_deadline_fault_it_causes():
     from evoscen_bringup.graph_runner import graph_status
-    from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED, NODE_BV, NODE_EVAL, NODE_SIM,
-                                           NODE_SUT)
+    from evoscen_contract.contract import (
+        EXIT_BAD_INPUT,
+        EXIT_FAULT,
+        EXIT_INTERRUPTED,
+        NODE_BV,
+        NODE_EVAL,
+        NODE_SIM,
+        NODE_SUT,
+    )
 
     nodes = {NODE_SIM: EXIT_FAULT, NODE_EVAL: 0, NODE_BV: 0, NODE_SUT: EXIT_BAD_INPUT}
     assert graph_status(nodes, {NODE_SUT: "refused its driver's answer"}, False) == EXIT_BAD_INPUT

@@ -245,8 +245,8 @@ def test_live_report_equals_offline_and_inprocess(graph_200, tmp_path):
 
 
 def test_parameter_files_written_and_load_back(graph_200):
-    from evoscen_sim.config import config_from_dict, load_scenario_config
-    from evoscen_sim.node_params import scenario_parameters
+    from evoscen_sim.config.scenario_config import config_from_dict, load_scenario_config
+    from evoscen_sim.nodes.node_params import scenario_parameters
 
     out = graph_200["out"]
     cfg = load_scenario_config(out / "scenario.yaml")
@@ -366,7 +366,7 @@ def test_stalled_controller_is_a_controller_fault(tmp_path):
         assert len(bv) == 1, bv
         os.kill(bv[0], signal.SIGSTOP)
         end = time.monotonic() + 60
-        while _children(launcher, "evoscen_sim.sim_node") and time.monotonic() < end:
+        while _children(launcher, "evoscen_sim.nodes.sim_node") and time.monotonic() < end:
             time.sleep(0.1)
         os.kill(bv[0], signal.SIGCONT)  # the run is over: it sees the world's publisher gone and ends
         stdout, stderr = launcher.communicate(timeout=90)
@@ -460,7 +460,7 @@ def _node_with_params(domain: int, module: str, params_file: Path, *extra: str) 
 
 def test_bad_node_parameters_are_one_line_errors(tmp_path, own_domain):
     from evoscen_bringup.graph_runner import GraphOptions, write_parameter_files
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": 50, "bvs.nodes": "single"})  # the BV node under its plain name
     files = write_parameter_files(cfg, tmp_path, tmp_path / "bag", GraphOptions())
@@ -477,7 +477,7 @@ def test_bad_node_parameters_are_one_line_errors(tmp_path, own_domain):
     cases = {  # started together: each takes a few seconds to start
         "model": _node_with_params(own_domain, "evoscen_sut.sut_node", files["evoscen_sut"], "-p", "model:=nosuch"),
         "bvs.count": _node_with_params(own_domain, "evoscen_bv.bv_node", bad_bv),
-        "deadline_s": _node_with_params(own_domain, "evoscen_sim.sim_node", bad_sim),
+        "deadline_s": _node_with_params(own_domain, "evoscen_sim.nodes.sim_node", bad_sim),
     }
     results = {}
     try:
@@ -503,7 +503,7 @@ def test_bad_node_parameters_are_one_line_errors(tmp_path, own_domain):
 
 
 _BAD_OWN = {  # node -> (module, [(key, wrong type, expected), (key, out of range, expected)])
-    "evoscen_sim": ("evoscen_sim.sim_node", [("max_misses", "five", "expected an integer >= 1"),
+    "evoscen_sim": ("evoscen_sim.nodes.sim_node", [("max_misses", "five", "expected an integer >= 1"),
                                              ("deadline_s", -1, "expected a number > 0")]),
     "evoscen_bv": ("evoscen_bv.bv_node", [("startup_timeout_s", "soon", "expected a number > 0"),
                                           ("discovery_settle_s", -0.5, "expected a number >= 0")]),
@@ -517,9 +517,9 @@ _BAD_OWN = {  # node -> (module, [(key, wrong type, expected), (key, out of rang
 def test_bad_own_parameter_is_one_line_naming_file_key_value_expected(tmp_path, node, own_domain):
     """A node's own parameter of the wrong type, and one out of range: exit 2 and exactly one
     line ``error: <file>: key '<key>' = <value>: <expected> (node <node>, line <n>)``, the
-    format of a bad scenario key (one validator, evoscen_sim.config_load.build)."""
+    format of a bad scenario key (one validator, evoscen_sim.config.config_load.build)."""
     from evoscen_bringup.graph_runner import GraphOptions, write_parameter_files
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     files = write_parameter_files(load_scenario_config(None, {"steps": 20, "bvs.nodes": "single"}), tmp_path, tmp_path / "bag", GraphOptions())
     module, cases = _BAD_OWN[node]
@@ -549,8 +549,8 @@ def test_own_parameters_name_the_node_or_the_command_line(monkeypatch):
     """Without a parameter file the error names the node; a ``-p`` value the command line."""
     from evoscen_contract import graph
     from evoscen_sim.errors import InputError
-    from evoscen_sim.node_params import own_parameters
-    from evoscen_sim.sim_node import SimParams
+    from evoscen_sim.nodes.node_params import own_parameters
+    from evoscen_sim.nodes.sim_node import SimParams
 
     monkeypatch.setattr(graph, "_init_args", ["sim"])
     own = own_parameters(SimParams, {"scenario": {}, "use_sim_time": False, "deadline_s": 3}, "evoscen_sim")
@@ -576,7 +576,7 @@ def test_scenario_parameters_name_the_parameter_file(monkeypatch):
     parameter file (the last one given) and the node; without a file, the node."""
     from evoscen_contract import graph
     from evoscen_sim.errors import InputError
-    from evoscen_sim.node_params import scenario_from_node
+    from evoscen_sim.nodes.node_params import scenario_from_node
 
     monkeypatch.setattr(graph, "_init_args", ["sim", "--ros-args", "--params-file", "/a.yaml", "--params-file",
                                               "/b.yaml"])

@@ -30,7 +30,7 @@ STEPS = 400
 
 
 def _cfg(steps: int = STEPS):
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     return load_scenario_config(None, {"steps": steps, "seed": 5, "sut.model": "mobil"})
 

@@ -79,7 +79,7 @@ def test_dev_zero_config_fails_at_once(tmp_path):
 
 def test_yaml_alias_chain_is_not_walked_exponentially(tmp_path):
     """30 levels of anchors, each level twice the one below: 2^30 paths, read in well under a second."""
-    from evoscen_sim.config import _parse_yaml
+    from evoscen_sim.config.scenario_config import _parse_yaml
 
     text = "a0: &a0 {x: 1}\n" + "".join(f"a{i}: &a{i} {{p: *a{i - 1}, q: *a{i - 1}}}\n" for i in range(1, 31))
     import time
@@ -124,7 +124,7 @@ def test_cli_values_are_strict(tmp_path, args, needles):
     (1.5, False),
 ])
 def test_dt_s_lower_bound_and_whole_nanoseconds(tmp_path, dt, ok):
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
     path = tmp_path / "dt.yaml"
@@ -138,7 +138,7 @@ def test_dt_s_lower_bound_and_whole_nanoseconds(tmp_path, dt, ok):
 
 
 def test_steps_in_the_file_over_the_limit(tmp_path):
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
     path = tmp_path / "s.yaml"
@@ -217,7 +217,7 @@ def test_binary_or_device_highd_tracks_are_one_line(tmp_path):
 @pytest.fixture(scope="module")
 def short_bag(tmp_path_factory) -> Path:
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     bag = tmp_path_factory.mktemp("short") / "bag"
     run_inprocess(load_scenario_config(None, {"steps": STEPS, "seed": 3}), bag_dir=bag)
@@ -392,7 +392,7 @@ def test_bag_holds_no_machine_specific_path(short_bag):
     """The scenario record names the map by file name (+ SHA-256 of its bytes), not by where it lies."""
     import hashlib
 
-    from evoscen_sim.config import share_path
+    from evoscen_sim.config.scenario_config import share_path
 
     record = _metadata_records(short_bag)["evoscen"]
     scenario = yaml.safe_load(record["scenario_yaml"])
@@ -408,7 +408,7 @@ def test_same_run_from_another_map_location_is_byte_identical(tmp_path):
     import shutil
 
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import load_scenario_config, share_path
+    from evoscen_sim.config.scenario_config import load_scenario_config, share_path
 
     blobs = []
     for where in ("one/place", "another/much/deeper/place"):
@@ -426,7 +426,7 @@ def test_same_run_from_another_map_location_is_byte_identical(tmp_path):
 def test_no_bvs_means_no_bv_command_messages(tmp_path):
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_record.bag_reader import open_bag_reader
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": 20, "bvs.count": 0, "spawn.ramp_vehicles": 0})
     run_inprocess(cfg, bag_dir=tmp_path / "bag")

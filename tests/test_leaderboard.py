@@ -74,7 +74,7 @@ def bad_plugin(tmp_path_factory) -> Path:
     answers NaN throttle, which every runner refuses with one line."""
     root = tmp_path_factory.mktemp("plugin")
     (root / "bad_sut.py").write_text(
-        "import numpy as np\nfrom evoscen_sim.models import ModelSpec\n\n\nclass Bad:\n"
+        "import numpy as np\nfrom evoscen_sim.model_registry import ModelSpec\n\n\nclass Bad:\n"
         "    def __init__(self, vehicles):\n        self.n = len(vehicles)\n\n"
         "    def act(self, view):\n        return np.full(self.n, np.nan), np.zeros(self.n, dtype=np.int64)\n\n\n"
         "SPEC = ModelSpec(name='bad_sut', roles=('sut',), factory=lambda v, p, c, r: Bad(v))\n", encoding="utf-8")

@@ -19,7 +19,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWa
 @pytest.mark.parametrize("name", ["stale", "ignores_new_follower"])
 def test_graph_bag_of_a_mutant_equals_inprocess_bag(name: str, tmp_path: Path) -> None:
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import dump_config, load_scenario_config
+    from evoscen_sim.config.scenario_config import dump_config, load_scenario_config
     from evoscen_sut.mutants import mutant_overrides
 
     path = tmp_path / "mutant.yaml"

@@ -21,8 +21,6 @@ pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 
 def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch) -> None:
-    from rclpy.serialization import serialize_message
-
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract import messages as M
     from evoscen_contract import topics as T
@@ -31,7 +29,8 @@ def test_recorded_run_is_the_same_through_every_path(tmp_path: Path, monkeypatch
     from evoscen_record import mcap_internals as MI
     from evoscen_record import recorder as R
     from evoscen_record.step_recorder import StepRecorder
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from rclpy.serialization import serialize_message
 
     cfg = load_scenario_config(None, {"steps": 300})
 

@@ -220,7 +220,7 @@ def test_successful_run_outputs(recorded_run):
     assert meta["duration"]["nanoseconds"] == recorded_run.steps * 100_000_000
 
     # scenario.yaml: the resolved config, with the command-line overrides applied
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(out / "scenario.yaml")
     assert (cfg.steps, cfg.seed) == (recorded_run.steps, recorded_run.seed)
@@ -246,7 +246,7 @@ def test_explicit_config_and_scenario_yaml_reproduce_the_run(cli, cli_concurrent
     (The runs are made together, not compared with the session run, so that a concurrent
     rebuild of the workspace cannot make them differ.)
     """
-    from evoscen_sim.config import share_path
+    from evoscen_sim.config.scenario_config import share_path
 
     a, b, c = tmp_path / "a", tmp_path / "b", tmp_path / "c"
     runs = [cli("--steps", 100, "--seed", 5, "--out", a, "--quiet")]
@@ -265,7 +265,7 @@ def test_overrides_bvs_mix_sut(cli, tmp_path, summary_of):
     import numpy as np
     from evoscen_contract import topics as T
     from evoscen_contract.tables import table_columns
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from mcap_ros2.reader import read_ros2_messages
 
     out = tmp_path / "out"
@@ -303,7 +303,7 @@ def test_overrides_bvs_mix_sut(cli, tmp_path, summary_of):
     assert r["role"][r["id"] == 0].tolist() == [T.ROLE_SUT]
     assert r["policy"][r["id"] == 0].tolist() == [T.POLICY_CODES["sut"]]
     # the default learned BV driver: the mix decides each BV's policy (evoscen_bringup.scenario.bv_policy_codes)
-    from evoscen_sim.config import mix_counts
+    from evoscen_sim.config.scenario_config import mix_counts
 
     assert cfg.bvs.driver == "learned"
     assert mix_counts(cfg) == {"competitive": 2, "mutual": 2, "cooperative": 1}  # 5 at 1:1:1
@@ -333,7 +333,7 @@ def test_different_seed_differs(cli, tmp_path, recorded_run):
 
 def test_inprocess_api_is_deterministic(tmp_path):
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"steps": 100, "seed": 3})
     blobs = []

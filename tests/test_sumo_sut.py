@@ -1,6 +1,6 @@
 """SUMO's own driver as a SUT (``examples/sumo_sut``, docs/plugins.md "Example: SUMO's own driver as the SUT").
 
-* In situations built by hand (:func:`evoscen_sim.testing.hand_built_world`, stepped with the driver):
+* In situations built by hand (:func:`evoscen_sim.physics.hand_built.hand_built_world`, stepped with the driver):
   a slow leader and a free lane to the left: it changes left; on the merge lane: it merges, and when
   lane 1 is a wall it stops before the lane's end, then merges once there is room; a fast follower
   closing in the target lane: it waits until the follower has passed; the traffic window's shift
@@ -40,14 +40,14 @@ def ss(load_example):
 
 @pytest.fixture(scope="module")
 def cfg():
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     return load_scenario_config(None, {})
 
 
 @pytest.fixture(scope="module")
 def road():
-    from evoscen_sim.road import load_road
+    from evoscen_sim.road.road_model import load_road
 
     return load_road()
 
@@ -57,7 +57,7 @@ def sut_driver(ss, cfg, seed: int = 0, **params):
 
 
 def world_of(road, s, lane, speed):
-    from evoscen_sim.testing import hand_built_world
+    from evoscen_sim.physics.hand_built import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
 
@@ -201,7 +201,7 @@ def test_a_map_netconvert_cannot_convert_is_one_line(ss, tmp_path, monkeypatch):
 
 
 def test_the_converted_network_is_cached_by_content(ss, tmp_path, monkeypatch, road):
-    from evoscen_sim.road import DEFAULT_MAP_PATH
+    from evoscen_sim.road.road_model import DEFAULT_MAP_PATH
 
     monkeypatch.setenv("EVOSCEN_SUMO_CACHE", str(tmp_path / "cache"))
     net = ss.convert_map(Path(DEFAULT_MAP_PATH))
@@ -217,7 +217,7 @@ def test_the_converted_network_is_cached_by_content(ss, tmp_path, monkeypatch, r
 
 @pytest.fixture
 def registered(ss):
-    from evoscen_sim.models import register_model, unregister_model
+    from evoscen_sim.model_registry import register_model, unregister_model
 
     installed = any(ep.name == "sumo_sut" for ep in importlib.metadata.entry_points(group="evoscen.sut"))
     if not installed:
@@ -228,7 +228,7 @@ def registered(ss):
 
 
 def test_bad_parameters_are_one_line_naming_the_plugin(registered):
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
 
     with pytest.raises(InputError) as err:

@@ -31,7 +31,7 @@ pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWa
 def scenario_config(model: str, steps: int, bv_driver: str = "level0"):
     """The default scenario with SUT ``model``; by default among level-0 traffic (predictable BVs: a SUT
     collision is then the SUT's doing); ``bv_driver="learned"`` is the shipped default."""
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None, {"sut.model": model, "steps": steps, "seed": SEED, "bvs.driver": bv_driver})
     assert cfg.bvs.count == 20 and cfg.bvs.driver == bv_driver
@@ -41,7 +41,7 @@ def scenario_config(model: str, steps: int, bv_driver: str = "level0"):
 @pytest.mark.parametrize("model", MODELS)
 def test_inprocess_3000_steps_without_sut_collision(model: str) -> None:
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.models import get_model
+    from evoscen_sim.model_registry import get_model
 
     assert get_model(model, "sut").factory.__module__ == f"evoscen_sut.{model}"
     sc = build_scenario(scenario_config(model, INPROCESS_STEPS))
@@ -103,7 +103,7 @@ def test_graph_bag_equals_inprocess_bag(model: str, graph_runs: dict, tmp_path: 
 
 def test_sut_node_unknown_model_lists_the_choices(tmp_path: Path) -> None:
     from evoscen_bringup.graph_runner import GraphOptions, node_environment, write_parameter_files
-    from evoscen_sim.models import model_names
+    from evoscen_sim.model_registry import model_names
 
     params = write_parameter_files(scenario_config("mobil", 10), tmp_path, tmp_path / "bag", GraphOptions())
     res = subprocess.run([sys.executable, "-m", "evoscen_sut.sut_node", "--ros-args", "--params-file",

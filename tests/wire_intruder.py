@@ -36,8 +36,8 @@ def main() -> int:
     node = graph.make_node("intruder")
     # a second world publisher at start-up would make the simulation refuse the domain: it comes with step 0
     # every BV command topic of the default scenario (bvs.nodes: by_policy) and the single node's
-    from evoscen_sim.bv_nodes import bv_node_names
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.nodes.bv_nodes import bv_node_names
 
     bv_specs = [T.COMMANDS_BV] + [T.bv_command_spec(n) for n in bv_node_names(load_scenario_config(None))]
     pubs = {spec.name: graph.publisher(node, spec) for spec in (T.COMMANDS_SUT, *bv_specs, T.EVENTS)}

@@ -20,10 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from evoscen_sim.config import number
-from evoscen_sim.models import ModelSpec
-from evoscen_sim.neighbors import LEFT, OWN
-from evoscen_sim.vehicle import accel_to_throttle
+from evoscen_sim.config.scenario_config import number
+from evoscen_sim.model_registry import ModelSpec
+from evoscen_sim.physics.neighbors import LEFT, OWN
+from evoscen_sim.physics.vehicle import accel_to_throttle
 # --8<-- [end:header]
 
 
@@ -69,7 +69,7 @@ class FirstSut:
         self.p = params
         self.vehicle = vehicle_params  # the scenario's vehicle limits: throttle scaling
 
-    def act(self, view):  # view: a traffic view (evoscen_sim.view)
+    def act(self, view):  # view: a traffic view (evoscen_sim.physics.view)
         nb = view.neighborhood()
         accel = np.zeros(len(self.vehicles))
         request = np.zeros(len(self.vehicles), dtype=np.int64)

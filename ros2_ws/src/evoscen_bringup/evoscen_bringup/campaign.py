@@ -29,9 +29,8 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-
 from evoscen_eval.sut_collisions import COLLISION_KINDS
-from evoscen_sim.config import config_to_dict
+from evoscen_sim.config.scenario_config import config_to_dict
 
 from .campaign_spec import CampaignRun
 from .ray_leftovers import DRIVER_FILE, end_leftovers, start_time

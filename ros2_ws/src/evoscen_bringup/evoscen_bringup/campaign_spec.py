@@ -24,8 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-
-from evoscen_sim.config import ScenarioConfig, config_to_dict, load_scenario_config
+from evoscen_sim.config.scenario_config import ScenarioConfig, config_to_dict, load_scenario_config
 from evoscen_sim.errors import InputError
 
 SPEC_KEYS = ("name", "config", "steps", "seeds", "set", "grid", "record", "clip_s", "compare")
@@ -192,7 +191,7 @@ def plugin_versions(config: dict[str, Any]) -> str:
     or ``models`` keys that is a plug-in's model name: ``sut.model``, ``bvs.driver``, a mutant's
     ``models.mutant.base`` — each as ``name=distribution==version:hash`` (:func:`plugin_fingerprint`),
     sorted and joined by ``;``; empty when it names none."""
-    from evoscen_sim.models import plugin_entry_point
+    from evoscen_sim.model_registry import plugin_entry_point
 
     names: set[str] = set()
 

@@ -26,9 +26,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
-
 from evoscen_eval.plot_inputs import SPEED_BINS, TTC_BINS  # noqa: F401 - the histograms' bins (the plots read them here)
-from evoscen_sim.config import ScenarioConfig
+from evoscen_sim.config.scenario_config import ScenarioConfig
 
 from .stats import fmt_ci, markdown_table, mean_ci  # noqa: F401 - the experiments' scripts import them from here
 

@@ -43,20 +43,30 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
+from evoscen_contract.contract import (
+    EXIT_BAD_INPUT,
+    EXIT_FAULT,
+    EXIT_HOST_FAULT,
+    EXIT_INTERRUPTED,
+    EXIT_NODE_DIED,
+    EXIT_OK,
+    NODE_BV,
+    NODE_EVAL,
+    NODE_EXIT_STATUSES,
+    NODE_SIM,
+    NODE_SUT,
+)
+from evoscen_sim.config.scenario_config import ScenarioConfig
+from evoscen_sim.nodes.bv_nodes import bv_node_names
+from evoscen_sim.nodes.node_params import scenario_parameters
 
 from evoscen_bringup.domains import reserve_domain
-from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED,
-                                       EXIT_OK, NODE_BV,
-                                       NODE_EVAL, NODE_EXIT_STATUSES, NODE_SIM, NODE_SUT)
-from evoscen_sim.bv_nodes import bv_node_names
-from evoscen_sim.config import ScenarioConfig
-from evoscen_sim.node_params import scenario_parameters
 
 NODES = (
     (NODE_EVAL, "evoscen_eval.eval_node"),
     (NODE_BV, "evoscen_bv.bv_node"),  # one process per BV node of bvs.nodes (bv_node_names)
     (NODE_SUT, "evoscen_sut.sut_node"),
-    (NODE_SIM, "evoscen_sim.sim_node"),
+    (NODE_SIM, "evoscen_sim.nodes.sim_node"),
 )
 BV_MODULE = "evoscen_bv.bv_node"
 """The program of every BV node; the launcher names each one (``-r __node:=evoscen_bv_<part>``)."""

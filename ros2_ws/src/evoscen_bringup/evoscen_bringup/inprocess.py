@@ -1,7 +1,7 @@
 """The in-process runner: simulation, drivers and recorder composed in one process.
 
 No middleware: the cores are called directly. The steps are run by the step loop the
-simulation node drives too (:class:`evoscen_sim.step_loop.StepLoop`: state at ``t_k`` out,
+simulation node drives too (:class:`evoscen_sim.physics.step_loop.StepLoop`: state at ``t_k`` out,
 commands in, the world integrates to ``t_{k+1}``, its events out with the next state; after
 the last step the final state and a ``run_end`` event); this runner's port asks the BV
 drivers and the SUT for the commands directly (think ROS 2 composition) and records every
@@ -25,11 +25,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-
 from evoscen_contract.contract import KIND_INTERRUPTED
 from evoscen_record.step_recorder import StepRecorder
-from evoscen_sim.config import ScenarioConfig
-from evoscen_sim.step_loop import Commands, Port, StepLoop
+from evoscen_sim.config.scenario_config import ScenarioConfig
+from evoscen_sim.physics.step_loop import Commands, Port, StepLoop
 
 from .scenario import Scenario, build_scenario
 
@@ -195,7 +194,6 @@ def run_inprocess(
     acc = None
     if report_dir is not None or evaluate:
         import yaml
-
         from evoscen_eval.rundata import RunAccumulator, evaluation_settings_of
         from evoscen_record.scenario_record import SCENARIO_KEY, scenario_metadata
 
@@ -252,7 +250,6 @@ def run_inprocess(
 def _report(acc, cfg: ScenarioConfig, report_dir: Path | None, plots: bool, keep_run: bool):
     """Score the run as it was streamed, exactly as the bag would be scored (same scenario dict)."""
     import yaml
-
     from evoscen_eval.metrics import report_of_stream
     from evoscen_eval.report import write_stream_report
     from evoscen_record.scenario_record import SCENARIO_KEY, scenario_metadata

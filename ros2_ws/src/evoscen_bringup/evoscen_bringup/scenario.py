@@ -1,6 +1,6 @@
 """A runnable in-process scenario: the world plus the drivers that command it.
 
-The builders live in :mod:`evoscen_sim.scenario` (each node of the graph uses its part);
+The builders live in :mod:`evoscen_sim.scenario_builders` (each node of the graph uses its part);
 this module composes them for the in-process runner.
 """
 
@@ -9,12 +9,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from evoscen_sim.config import ScenarioConfig
-from evoscen_sim.bv_nodes import build_bv_drivers
-from evoscen_sim.models import checked_answer
-from evoscen_sim.road import RoadModel
-from evoscen_sim.scenario import (  # noqa: F401  (re-exported for users of this module)
+from evoscen_sim.config.scenario_config import ScenarioConfig
+from evoscen_sim.model_registry import checked_answer
+from evoscen_sim.nodes.bv_nodes import build_bv_drivers
+from evoscen_sim.physics.world import World
+from evoscen_sim.road.road_model import RoadModel
+from evoscen_sim.scenario_builders import (  # noqa: F401  (re-exported for users of this module)
     POLICY_CODES,
     SUT_INDEX,
     build_bv_driver,
@@ -24,7 +24,6 @@ from evoscen_sim.scenario import (  # noqa: F401  (re-exported for users of this
     bv_policy_codes,
     scenario_rngs,
 )
-from evoscen_sim.world import World
 
 
 @dataclass
@@ -36,7 +35,7 @@ class Scenario:
     world: World
     bv_driver: object
     """Driver of all BVs (``act(view) -> (throttle, lane_change)``), from the model registry: one
-    driver per BV node of ``bvs.nodes`` (:func:`evoscen_sim.bv_nodes.build_bv_drivers`)."""
+    driver per BV node of ``bvs.nodes`` (:func:`evoscen_sim.nodes.bv_nodes.build_bv_drivers`)."""
     sut: object
     """Driver of the SUT, from the model registry."""
     bv_indices: np.ndarray
@@ -51,7 +50,7 @@ class Scenario:
     def step(self) -> tuple:
         """One lockstep cycle in-process: ask the drivers, then advance the world; returns the world's
         StepResult. No events, no recording: a test's or a benchmark's step (a run, with its events,
-        exposures and recording, is :class:`evoscen_sim.step_loop.StepLoop`'s, whose in-process port
+        exposures and recording, is :class:`evoscen_sim.physics.step_loop.StepLoop`'s, whose in-process port
         asks :meth:`commands` and :meth:`assemble` likewise)."""
         bv_thr, bv_lc, sut_thr, sut_lc = self.commands()
         return self.apply(bv_thr, bv_lc, sut_thr, sut_lc)

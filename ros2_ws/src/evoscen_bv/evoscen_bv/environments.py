@@ -1,6 +1,6 @@
 """Training environments over the simulation core (docs/method.md §3.3): same world, same step.
 
-Both environments step :class:`evoscen_sim.world.World` — the dynamics, PID control,
+Both environments step :class:`evoscen_sim.physics.world.World` — the dynamics, PID control,
 lane-change execution, collision test and re-entry of evaluation runs — and differ only
 in who drives which vehicle.
 
@@ -31,8 +31,7 @@ exactly.
 from __future__ import annotations
 
 import numpy as np
-
-from evoscen_sim.testing import hand_built_world
+from evoscen_sim.physics.hand_built import hand_built_world
 
 from .car_following import (
     CarFollowingParams,
@@ -41,7 +40,7 @@ from .car_following import (
     controller_observations,
     speed_cap_throttle,
 )
-from .lane_change import (
+from .lane_change_decision import (
     OBS_DIM,
     action_to_lane_change,
     apply_rule_constraints,
@@ -153,7 +152,7 @@ class DecisionEnv:
 
     def __init__(self, road, config: TrainingConfig, kind: str, controller: NumpyActor,
                  frozen_policy: NumpyActor | None) -> None:
-        from evoscen_sim.config import config_from_dict
+        from evoscen_sim.config.scenario_config import config_from_dict
 
         self.road = road
         self.config = config
@@ -166,8 +165,9 @@ class DecisionEnv:
         """The run-time rule profile every learned driver here drives with (docs/bv-profiles.md)."""
 
     def reset(self, seed: int) -> np.ndarray:
+        from evoscen_sim.scenario_builders import build_world
+
         from evoscen_bv.level0 import Level0Driver, level0_params_from_config
-        from evoscen_sim.scenario import build_world
 
         rng = np.random.default_rng(seed)
         n_bv = self.config.env.bv_count

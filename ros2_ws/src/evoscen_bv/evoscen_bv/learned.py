@@ -10,7 +10,7 @@ A :class:`LearnedDriver` drives a set of vehicles. Every step it
    builds the grid Ω_d of the hosted vehicles not changing lanes and runs **one** batched
    forward pass for all of them (:class:`PolicyBank`), each row through the decision
    policy of its vehicle's code in the world (competitive, mutual, cooperative); then maps the output to keep/left/right and applies the rule
-   constraints (:mod:`evoscen_bv.lane_change`), so only executable requests reach the world.
+   constraints (:mod:`evoscen_bv.lane_change_decision`), so only executable requests reach the world.
 
 Inference needs no torch: the exported weights (:class:`evoscen_bv.td3.NumpyActor`) run in a
 compiled kernel (:class:`PolicyBank`), so the in-process runner and the BV node compute the
@@ -25,22 +25,28 @@ they were trained with, and a model card per policy. The shipped directory is
 from __future__ import annotations
 
 import dataclasses
-
 from pathlib import Path
 
 import numpy as np
-
 from evoscen_contract.contract import POLICY_CODES, ROLE_SUT, SOCIAL_POLICIES
-from evoscen_sim.config import share_candidates
+from evoscen_sim.config.scenario_config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
-from evoscen_sim.safety import sut_leader_ttc_state
-from evoscen_sim.traffic import new_trips
-from evoscen_sim.vehicle import accel_to_throttle
+from evoscen_sim.physics.safety import sut_leader_ttc_state
+from evoscen_sim.physics.traffic import new_trips
+from evoscen_sim.physics.vehicle import accel_to_throttle
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
-from .lane_change import (FORCED_MERGE_M, LANE_END_MARGIN_M, OBS_DIM, action_to_lane_change, apply_rule_constraints,
-                          forced_merge_targets, merge_seek_accel, observation_grid)
+from .lane_change_decision import (
+    FORCED_MERGE_M,
+    LANE_END_MARGIN_M,
+    OBS_DIM,
+    action_to_lane_change,
+    apply_rule_constraints,
+    forced_merge_targets,
+    merge_seek_accel,
+    observation_grid,
+)
 from .profile import get_profile
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
@@ -54,7 +60,7 @@ POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
 
 HARD_BRAKE_VIEW_M = 100.0
 """A hard-braking episode starts only for a BV that is the SUT's leader (the nearest vehicle ahead
-whose body overlaps the SUT's path, :func:`evoscen_sim.safety.sut_leader`) with a bumper-to-bumper
+whose body overlaps the SUT's path, :func:`evoscen_sim.physics.safety.sut_leader`) with a bumper-to-bumper
 gap of at most this many metres. [choice] 100 m: the vehicle a driver follows at highway speed
 (3.3 s at 30 m/s); a leader farther away braking hard is no challenge."""
 
@@ -237,10 +243,10 @@ class LearnedDriver:
             code is not a key uses ``default_code``'s actor.
         config: the training config the policies were trained with.
         rng: draws each vehicle's desired speed.
-        vehicle_params: the scenario's :class:`evoscen_sim.vehicle.VehicleParams`.
+        vehicle_params: the scenario's :class:`evoscen_sim.physics.vehicle.VehicleParams`.
         default_code: policy code used for vehicles with an unknown code.
         forced_merge: apply the run-time forced merge
-            (:func:`evoscen_bv.lane_change.forced_merge_requests`): scenario BVs yes, the
+            (:func:`evoscen_bv.lane_change_decision.forced_merge_requests`): scenario BVs yes, the
             training environments' traffic no (the policies were trained without it).
         profile: the run-time rule profile (:mod:`evoscen_bv.profile`, docs/bv-profiles.md):
             ``driver`` or ``safety_net``; ``None``: the training config's ``env.profile``.
@@ -255,10 +261,10 @@ class LearnedDriver:
         into_ending_lane: whether a change into a lane that ends 200 m or more ahead is allowed
             (the training rule, the default here); False: never into a lane that ends.
         forced_merge_m: with ``forced_merge``, how far before its lane's end a vehicle requests the
-            change to the lane that goes on (:func:`evoscen_bv.lane_change.forced_merge_targets`).
+            change to the lane that goes on (:func:`evoscen_bv.lane_change_decision.forced_merge_targets`).
         merge_seek: with ``forced_merge``, a vehicle that must merge adapts its speed to drop
             back behind the target lane's vehicles that block it
-            (:func:`evoscen_bv.lane_change.merge_seek_accel`); False: it keeps the controller's throttle.
+            (:func:`evoscen_bv.lane_change_decision.merge_seek_accel`); False: it keeps the controller's throttle.
         hold_on_entry: with ``lane_hold_s``, a vehicle that enters anew (the traffic window's entries,
             re-entries) starts with a lane hold, as a vehicle that has settled in its lane; False:
             without one (it may change lanes at its first decision).
@@ -327,7 +333,7 @@ class LearnedDriver:
     def restrict(self, positions: np.ndarray) -> None:
         """Host only the vehicles at ``positions`` of :attr:`vehicles`, each with the state it was
         built with (its desired speed: the draws do not depend on the split), so that a BV node's
-        share drives exactly as in the one driver of all BVs (:mod:`evoscen_sim.bv_nodes`). Before
+        share drives exactly as in the one driver of all BVs (:mod:`evoscen_sim.nodes.bv_nodes`). Before
         the first :meth:`act` (the per-vehicle state of the profile is made there, for the hosted ones)."""
         if self.reaction is not None or self._last_s is not None:
             raise RuntimeError("LearnedDriver.restrict: after the first act")

@@ -1,7 +1,7 @@
 """Level-0 traffic (docs/method.md §3.3): keep the lane, change only where the road forces it.
 
 The level-0 driver is non-strategic. Longitudinally it follows the IDM
-(:mod:`evoscen_sim.car_following`) behind the nearest vehicle ahead in its lane — and,
+(:mod:`evoscen_sim.physics.idm`) behind the nearest vehicle ahead in its lane — and,
 while it changes lanes, behind the nearer-braking of the leaders in its current and target
 lanes. Laterally it never changes lanes on the mainline. On the merge lane (lane I, whose
 end the road forces) it
@@ -22,11 +22,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from evoscen_sim.car_following import IdmParams, idm_scalar
-from evoscen_sim.config_schema import Level0Config
+from evoscen_sim.config.config_schema import Level0Config
 from evoscen_sim.jit import kernel
-from evoscen_sim.neighbors import LEFT, OWN
+from evoscen_sim.physics.idm import IdmParams, idm_scalar
+from evoscen_sim.physics.neighbors import LEFT, OWN
 
 MERGE_LANE = 0
 
@@ -48,7 +47,7 @@ _DEFAULTS = Level0Config()
 @dataclass(frozen=True)
 class Level0Params:
     """Level-0 driver parameters (IDM plus the merge rule): the ``level0`` section, structured
-    for the driver; the defaults are the section's (:class:`evoscen_sim.config.Level0Config`)."""
+    for the driver; the defaults are the section's (:class:`evoscen_sim.config.scenario_config.Level0Config`)."""
 
     idm: IdmParams = _idm_from_section(_DEFAULTS)
     desired_speed_range_mps: tuple[float, float] = _DEFAULTS.desired_speed_mps
@@ -70,11 +69,11 @@ class Level0Driver:
 
     def restrict(self, positions: np.ndarray) -> None:
         """Host only the vehicles at ``positions`` of :attr:`vehicles`, each with the state it was
-        built with (a BV node's share: :mod:`evoscen_sim.bv_nodes`); before the first :meth:`act`."""
+        built with (a BV node's share: :mod:`evoscen_sim.nodes.bv_nodes`); before the first :meth:`act`."""
         self.vehicles = self.vehicles[positions]
         self.desired_speed_mps = self.desired_speed_mps[positions]
 
-    def act(self, world) -> tuple[np.ndarray, np.ndarray]:  # world: evoscen_sim.world.World
+    def act(self, world) -> tuple[np.ndarray, np.ndarray]:  # world: evoscen_sim.physics.world.World
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
         p = self.params
         idm = p.idm
@@ -125,14 +124,14 @@ def _level0_kernel(
             if (gap_front[i, LEFT] >= min_front + closing_headway * closing_front
                     and gap_rear[i, LEFT] >= min_rear + closing_headway * closing_rear):
                 request[k] = 1
-        # acceleration -> throttle/brake command (inverse of evoscen_sim.vehicle.throttle_to_accel)
+        # acceleration -> throttle/brake command (inverse of evoscen_sim.physics.vehicle.throttle_to_accel)
         u = acc / max_accel if acc >= 0.0 else acc / max_brake
         throttle[k] = min(max(u, -1.0), 1.0)
     return throttle, request
 
 
 def level0_params_from_config(cfg) -> Level0Params:
-    """Level-0 parameters from a :class:`evoscen_sim.config.ScenarioConfig`."""
+    """Level-0 parameters from a :class:`evoscen_sim.config.scenario_config.ScenarioConfig`."""
     c = cfg.level0
     return Level0Params(
         idm=_idm_from_section(c),

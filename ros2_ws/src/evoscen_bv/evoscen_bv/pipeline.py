@@ -57,7 +57,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-
 from evoscen_sim.errors import InputError
 
 from .training_config import STAGES, TrainingConfig, load_training_config
@@ -86,7 +85,7 @@ def settling_check(controller, config: TrainingConfig, road) -> dict:
     a constant 22 m/s in lane 3, starting 55, 10, 40 and 25 m apart at 26, 20, 25 and 23 m/s;
     700 steps. Returns the mean gap (m) and the share of acceleration flips over the last 400
     steps, the collisions, and ``settled`` (see the module docstring)."""
-    from evoscen_sim.testing import hand_built_world
+    from evoscen_sim.physics.hand_built import hand_built_world
 
     from .learned import LearnedDriver
 
@@ -210,7 +209,7 @@ class Pipeline:
     @property
     def road(self):
         if self._road is None:
-            from evoscen_sim.road import load_road
+            from evoscen_sim.road.road_model import load_road
 
             self._road = load_road()
         return self._road
@@ -227,8 +226,8 @@ class Pipeline:
     # ------------------------------------------------------------------ one stage
     def _make_env(self, stage: str):
         from .environments import CarFollowingEnv, DecisionEnv
+        from .lane_change_decision import OBS_DIM
         from .learned import load_actor
-        from .lane_change import OBS_DIM
 
         for need in NEEDS[stage]:
             if not (self.out / f"{need}.npz").is_file():

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .lane_change import CUT_IN_CLOSING_HEADWAY_S
+from .lane_change_decision import CUT_IN_CLOSING_HEADWAY_S
 
 PROFILE_NAMES: tuple[str, ...] = ("driver", "safety_net")
 """Valid profile names; the first is the default."""

@@ -6,7 +6,7 @@ to the weights, so the decision rate and the observation scales at run time are 
 the policies were trained with). The shipped file is ``share/evoscen_bv/config/training.yaml``
 (source: ``evoscen_bv/config/training.yaml``), every key commented there.
 
-Validation: by the scenario configuration's validator (:func:`evoscen_sim.config_load.build`,
+Validation: by the scenario configuration's validator (:func:`evoscen_sim.config.config_load.build`,
 the same checkers, the same one-line errors: file, key, value, what is expected, line);
 unknown keys and values of the wrong type or out of range fail. The parameter dataclasses
 are the kernels' own, so each field's check follows from the type of its default
@@ -20,13 +20,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evoscen_sim.config_checks import _Bool, _Float, _Int, _Range, _section, _Str
-from evoscen_sim.config_load import Context, build, parse_yaml
-from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, read_text_limited
+from evoscen_sim.config.config_checks import _Bool, _Float, _Int, _Range, _section, _Str
+from evoscen_sim.config.config_load import Context, build, parse_yaml
+from evoscen_sim.config.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, read_text_limited
 from evoscen_sim.share import share_candidates
 
 from .car_following import CarFollowingParams
-from .lane_change import GridParams, RewardParams
+from .lane_change_decision import GridParams, RewardParams
 from .profile import PROFILE_NAMES
 from .td3 import TD3Params
 

@@ -6,7 +6,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 from evoscen_bv.car_following import (
     CarFollowingParams,
     car_following_reward,
@@ -14,12 +13,12 @@ from evoscen_bv.car_following import (
     controller_observations,
     emergency_brake_throttle,
     gap_value,
-    leaders,
     leader_state,
+    leaders,
     speed_cap_throttle,
 )
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.road.road_model import load_road
 
 P = CarFollowingParams()
 
@@ -202,7 +201,7 @@ def test_a_bv_changing_lanes_creeps_past_a_standing_leader_in_the_old_lane():
 
 
 def overlapping(w) -> bool:
-    from evoscen_sim.collision import overlapping_pairs
+    from evoscen_sim.physics.collision import overlapping_pairs
 
     return len(overlapping_pairs(w.s, w.d, w.psi, w.length, w.width)) > 0
 

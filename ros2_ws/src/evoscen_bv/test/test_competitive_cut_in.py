@@ -5,8 +5,7 @@ test_car_following.py::test_a_competitive_bv_does_not_yield_to_the_sut_cutting_i
 from __future__ import annotations
 
 import pytest
-
-from evoscen_bringup.testing import commands_digest
+from evoscen_bringup.model_testing import commands_digest
 from evoscen_sim.errors import InputError
 
 BEFORE_COMMANDS_SHA256 = "32c3b0ffe38757126b4fba35ad04a0bfe3337e84ca1f40da26067bd612179748"
@@ -15,8 +14,8 @@ computed with the code before the key existed (main at a70f887: every BV yielded
 
 
 def test_yield_drives_exactly_as_before_and_compete_is_the_default():
-    from evoscen_sim.config import config_from_dict
-    from evoscen_sim.scenario import build_bv_driver
+    from evoscen_sim.config.scenario_config import config_from_dict
+    from evoscen_sim.scenario_builders import build_bv_driver
 
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}})).compete_with_sut is True
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": {
@@ -34,7 +33,7 @@ def test_rule_based_bvs_ignore_the_key():
 
 
 def test_a_bad_value_is_one_line_naming_the_key():
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
 
     with pytest.raises(InputError) as err:
         config_from_dict({"models": {"learned": {"competitive_cut_in": "always"}}})

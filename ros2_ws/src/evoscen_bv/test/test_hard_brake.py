@@ -7,16 +7,21 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-
-from evoscen_bringup.testing import commands_digest
-from evoscen_bv.learned import HARD_BRAKE_VIEW_M, HardBrakeParams, HardBrakeState, LearnedDriver, load_policies, \
-    shipped_policy_dir
-from evoscen_bv.models import LearnedParams, hard_brake_params
+from evoscen_bringup.model_testing import commands_digest
+from evoscen_bv.bv_models import LearnedParams, hard_brake_params
+from evoscen_bv.learned import (
+    HARD_BRAKE_VIEW_M,
+    HardBrakeParams,
+    HardBrakeState,
+    LearnedDriver,
+    load_policies,
+    shipped_policy_dir,
+)
 from evoscen_contract.contract import ROLE_BV, ROLE_SUT
 from evoscen_sim.errors import InputError
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.vehicle import VehicleParams
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.vehicle import VehicleParams
+from evoscen_sim.road.road_model import load_road
 
 MAX_BRAKE = VehicleParams().max_brake_mps2
 

@@ -8,25 +8,24 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from evoscen_bv.lane_change import (
-    merge_seek_accel,
-    cell_centres_m,
+from evoscen_bv.lane_change_decision import (
     RewardParams,
     action_to_lane_change,
     apply_rule_constraints,
     back_vehicles,
+    cell_centres_m,
     drivable_area,
     forced_merge_requests,
     forced_merge_targets,
     individual_reward,
     lane_change_gain,
+    merge_seek_accel,
     observation_grid,
     social_reward,
     social_terms,
 )
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.road.road_model import load_road
 
 V_MAX = 33.33
 HAND = RewardParams(front_view_m=100.0, theta_left=1.1, gain_norm_m2=2500.0, lane_change_penalty=-0.3,
@@ -251,7 +250,7 @@ def test_forced_merge_from_the_merge_lanes_start_with_a_longer_reach(road):
 
 def test_the_learned_driver_takes_both_merge_keys_from_the_scenario():
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     # every BV node's driver (bvs.nodes: by_policy, three of them) takes them
     sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0}))

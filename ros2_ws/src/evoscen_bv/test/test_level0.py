@@ -1,6 +1,6 @@
 """Level-0 traffic (docs/method.md §3.3) and the IDM it follows.
 
-IDM (car_following.py): a = a_max [1 - (v/v0)^δ - (s*/s)²], s* = s0 + max(0, v T + v Δv / (2 √(a_max b))),
+IDM (evoscen_sim/physics/idm.py): a = a_max [1 - (v/v0)^δ - (s*/s)²], s* = s0 + max(0, v T + v Δv / (2 √(a_max b))),
 defaults T = 1.5 s, s0 = 2 m, a_max = 1.5 m/s², b = 2 m/s², δ = 4.
 Merge rule (level0.py): change from lane 0 to lane 1 when the front and rear bumper gaps in
 lane 1 are ≥ 8 m + 1.5 s × closing speed; the merge-lane end (960 m) minus 15 m is a standing
@@ -13,15 +13,14 @@ import math
 
 import numpy as np
 import pytest
-
 from evoscen_bringup.scenario import build_scenario
 from evoscen_bv.level0 import Level0Driver, Level0Params
-from evoscen_sim.car_following import IdmParams, idm_acceleration
-from evoscen_sim.config import load_scenario_config
-from evoscen_sim.road import RoadModel, load_road
-from evoscen_sim.vehicle import VehicleParams
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.world import World
+from evoscen_sim.config.scenario_config import load_scenario_config
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.idm import IdmParams, idm_acceleration
+from evoscen_sim.physics.vehicle import VehicleParams
+from evoscen_sim.physics.world import World
+from evoscen_sim.road.road_model import RoadModel, load_road
 
 DT = 0.1
 L = 4.8
@@ -184,8 +183,8 @@ def test_bv_driver_decides_identically_on_the_world_and_on_its_table_view(driver
     from evoscen_bringup.scenario import build_scenario
     from evoscen_contract.tables import table_columns, table_message
     from evoscen_contract.topics import MAP_FRAME, WORLD_FIELDS
-    from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.view import WorldView
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.physics.view import WorldView
 
     sc = build_scenario(load_scenario_config(None, {"bvs.driver": driver}))
     for _ in range(1500):  # through merges, lane changes and re-entries

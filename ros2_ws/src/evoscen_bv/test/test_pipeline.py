@@ -70,8 +70,8 @@ def test_smoke_pipeline_all_stages_produces_loadable_policies(tmp_path):
     other = _train(["--stage", "level1", "--out", str(out), "--seed", "8", "--quiet"])
     assert other.returncode == 2 and "was started with --seed 7, not 8" in other.stderr
     # the policies drive a scenario
-    from evoscen_sim.config import config_from_dict
-    from evoscen_sim.scenario import build_bv_driver, build_world
+    from evoscen_sim.config.scenario_config import config_from_dict
+    from evoscen_sim.scenario_builders import build_bv_driver, build_world
 
     scen = config_from_dict({"bvs": {"driver": "learned", "count": 10}, "spawn": {"ramp_vehicles": 2},
                              "models": {"learned": {"policy_dir": str(out)}}})
@@ -137,9 +137,9 @@ def test_bad_cli_input_is_one_line_and_status_2(tmp_path, args, message):
 
 
 def test_bad_policy_dir_is_one_line(tmp_path):
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
-    from evoscen_sim.scenario import build_bv_driver
+    from evoscen_sim.scenario_builders import build_bv_driver
 
     scen = config_from_dict({"bvs": {"driver": "learned"}, "models": {"learned": {"policy_dir": str(tmp_path)}}})
     with pytest.raises(InputError, match=r"models\.learned\.policy_dir = .*no training\.yaml"):

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
-
-from evoscen_bringup.testing import commands_digest
-from evoscen_bv.lane_change import apply_rule_constraints
+from evoscen_bringup.model_testing import commands_digest
+from evoscen_bv.lane_change_decision import apply_rule_constraints
 from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
 from evoscen_bv.profile import PROFILES, get_profile
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.road.road_model import load_road
 
 N = 10
 """Reaction steps of the driver profile: τ / dt = 1.0 s / 0.1 s."""
@@ -125,7 +123,7 @@ def test_driver_emergency_brake_waits_for_the_reaction_time(road, policies):
 
 
 def _commands_digest(cfg_overrides: dict, steps: int) -> str:
-    """:func:`evoscen_bringup.testing.commands_digest` with learned BVs."""
+    """:func:`evoscen_bringup.model_testing.commands_digest` with learned BVs."""
     return commands_digest({"bvs.driver": "learned", **cfg_overrides}, steps)
 
 
@@ -136,7 +134,7 @@ computed with the code before profiles existed (commit 33305ed) on the developme
 
 def test_safety_net_reproduces_the_old_commands_exactly():
     # the old commands came from the first shipped policies (kept as policy_dir: v0.1.0) and a
-    # lateral loop without the heading-reference cap (evoscen_sim.control; 1.5 rad never binds: asin(0.6) < 0.65)
+    # lateral loop without the heading-reference cap (evoscen_sim.physics.control; 1.5 rad never binds: asin(0.6) < 0.65)
     # and no lane hold (lane_hold_s: 0; docs/learned-bvs.md), no speed adaptation of merging BVs (merge_seek),
     # every BV yielding on the SUT's lane-change intent (competitive_cut_in: yield)
     old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "v0.1.0", "lane_hold_s": 0,
@@ -174,7 +172,7 @@ def test_cut_in_gap_quadratic_term_for_followers_that_react_late(road):
 
 def test_profile_config_errors_are_one_line(tmp_path):
     from evoscen_bv.training_config import load_training_config
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
 
     with pytest.raises(InputError, match=r"models\.learned\.profile.*expected one of driver, safety_net") as e:
@@ -205,8 +203,8 @@ def test_training_config_records_the_profile(tmp_path, policies):
 
 
 def test_scenario_default_profile_is_driver():
-    from evoscen_sim.config import config_from_dict
-    from evoscen_sim.scenario import build_bv_driver
+    from evoscen_sim.config.scenario_config import config_from_dict
+    from evoscen_sim.scenario_builders import build_bv_driver
 
     drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}}))
     assert drv.profile.name == "driver"
@@ -216,7 +214,7 @@ def test_scenario_default_profile_is_driver():
 
 def _constant_actor(side: int):
     """A decision actor whose output is tanh(±2) = ±0.96 whatever it sees: it asks for ``side`` always."""
-    from evoscen_bv.lane_change import OBS_DIM
+    from evoscen_bv.lane_change_decision import OBS_DIM
     from evoscen_bv.td3 import NumpyActor
 
     h = 4
@@ -296,9 +294,9 @@ def test_lane_hold_spares_the_forced_merge_and_is_reset_by_a_reentry(road, polic
 
 
 def test_lane_hold_is_a_scenario_key_with_the_old_form_selectable():
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
-    from evoscen_sim.scenario import build_bv_driver
+    from evoscen_sim.scenario_builders import build_bv_driver
 
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}})).lane_hold_s == 20.0
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"},
@@ -309,9 +307,9 @@ def test_lane_hold_is_a_scenario_key_with_the_old_form_selectable():
 
 
 def test_cut_in_decel_is_a_scenario_key_with_the_old_rule_selectable():
-    from evoscen_sim.config import config_from_dict
+    from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.errors import InputError
-    from evoscen_sim.scenario import build_bv_driver
+    from evoscen_sim.scenario_builders import build_bv_driver
 
     def b(models: dict) -> float | None:
         return build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": models})).profile \
@@ -377,8 +375,8 @@ def test_driver_brakes_at_once_for_a_standing_leader_it_has_perceived(road, poli
 
 
 def test_standing_leader_rule_is_a_scenario_key_with_the_old_rule_selectable():
-    from evoscen_sim.config import config_from_dict
-    from evoscen_sim.scenario import build_bv_driver
+    from evoscen_sim.config.scenario_config import config_from_dict
+    from evoscen_sim.scenario_builders import build_bv_driver
 
     def at_once(models: dict) -> bool:
         return build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": models})).profile \

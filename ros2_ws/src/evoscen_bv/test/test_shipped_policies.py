@@ -17,10 +17,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.road.road_model import load_road
 
 POLICY_DIR = Path(os.environ.get("EVOSCEN_POLICY_DIR") or shipped_policy_dir())
 TARGET_BAND_M = (20.0, 30.0)
@@ -54,7 +53,7 @@ def test_controller_holds_the_target_gap_without_rear_end_collisions(policies):
 
 def _lane_changes_and_collisions(seed: int, steps: int) -> tuple[dict[int, float], dict[int, float], int, float]:
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     # the run-time rule profile the policies were trained with (their training.yaml's env.profile;
     # the shipped ones: safety_net): the policies are checked under the rules they were designed for
@@ -98,7 +97,7 @@ def test_competitive_changes_lanes_most_and_collisions_are_rare():
 def test_first_set_is_selectable_and_records_its_training_profile():
     """``policy_dir: v0.1.0`` loads the first shipped set (kept selectable); it was trained under safety_net."""
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     first = shipped_policy_dir() / "v0.1.0"
     assert load_policies(first)[2].env.profile == "safety_net"

@@ -12,8 +12,8 @@ Parameters. A node gets its parameters from a ROS 2 parameter file
 (``node_name: ros__parameters: ...``) written by the launcher: the node's own settings at
 the top level and the whole scenario configuration under ``scenario.`` (nested mappings,
 i.e. dotted names ``scenario.bvs.count``). :func:`node_parameters` rebuilds the nested
-mapping; ``evoscen_sim.node_params.scenario_from_node`` validates the scenario part like a
-YAML file, and ``evoscen_sim.node_params.own_parameters`` the node's own parameters (a
+mapping; ``evoscen_sim.nodes.node_params.scenario_from_node`` validates the scenario part like a
+YAML file, and ``evoscen_sim.nodes.node_params.own_parameters`` the node's own parameters (a
 dataclass per node) with the same validator, so a bad value is the same one-line error,
 naming the parameter file (:func:`parameter_sources`), the parameter and what is allowed.
 """

@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from evoscen_contract.markers import POLICY_COLORS, road_markers, vehicle_markers
 from evoscen_contract.topics import POLICY_CODES
 
@@ -34,7 +33,7 @@ def test_vehicle_markers_are_oriented_sized_coloured_boxes_with_labels():
 
 
 def test_road_markers_draw_every_marking_solid_lines_whole_broken_lines_dashed():
-    from evoscen_sim.road import load_road
+    from evoscen_sim.road.road_model import load_road
 
     road = load_road()
     lines = road.lane_markings()
@@ -51,11 +50,10 @@ def test_road_markers_draw_every_marking_solid_lines_whole_broken_lines_dashed()
 
 @pytest.mark.parametrize("n", [1, 2, 21])
 def test_vehicle_markers_encoder_equals_canonical_serialization(n):
-    from rclpy.serialization import deserialize_message, serialize_message
-    from visualization_msgs.msg import MarkerArray
-
     from evoscen_contract.cdr_markers import VehicleMarkersEncoder
     from evoscen_record.canonical_cdr import CanonicalCdr
+    from rclpy.serialization import deserialize_message, serialize_message
+    from visualization_msgs.msg import MarkerArray
 
     rng = np.random.default_rng(n)
     cols = {"id": np.arange(n, dtype=float) * 7, "policy": rng.integers(0, 8, n).astype(float),
@@ -97,12 +95,12 @@ def test_road_markers_encoder_equals_canonical_serialization():
     every case of a marking — solid, broken (every third segment) with 2 to 8 samples, a single
     sample (no segment: an empty point list), yellow and white, edges and lane lines, -0.0 and
     huge coordinates — so every alignment of a marker's start and of its points occurs."""
-    from rclpy.serialization import serialize_message
     from types import SimpleNamespace
 
     from evoscen_contract.cdr_markers import encode_road_markers
     from evoscen_record.canonical_cdr import CanonicalCdr
-    from evoscen_sim.road import load_road
+    from evoscen_sim.road.road_model import load_road
+    from rclpy.serialization import serialize_message
 
     canon = CanonicalCdr(["visualization_msgs/msg/MarkerArray"])
 

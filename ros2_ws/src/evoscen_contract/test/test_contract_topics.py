@@ -6,9 +6,6 @@ import math
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import deserialize_message, serialize_message
-
 from evoscen_contract.qos import QosSpec, rosbag2_qos_yaml
 from evoscen_contract.topics import (
     CONTRACT,
@@ -22,6 +19,8 @@ from evoscen_contract.topics import (
     odometry_message,
     parse_events,
 )
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
 
 
 def test_contract_names_types_and_qos() -> None:
@@ -45,7 +44,7 @@ def test_contract_names_types_and_qos() -> None:
     assert POLICY_CODES == {"level0": 0, "mutual": 1, "competitive": 2, "cooperative": 3,
                             "sut": 4, "nilsson": 5, "mobil": 6}
     assert POLICY_NAMES[2] == "competitive"
-    from evoscen_sim.scenario import POLICY_CODES as SIM_POLICY_CODES
+    from evoscen_sim.scenario_builders import POLICY_CODES as SIM_POLICY_CODES
 
     assert SIM_POLICY_CODES is POLICY_CODES  # one definition (evoscen_contract.contract), no copy
 

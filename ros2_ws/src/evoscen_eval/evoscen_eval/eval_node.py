@@ -32,7 +32,7 @@ they come (:mod:`evoscen_eval.streaming`: nothing of the run is kept, so a long 
 memory); when the run ends the node writes ``report.json``, ``report.md`` and the plots into ``report_dir``
 (:mod:`evoscen_eval.report`) — the very numbers ``scripts/evaluate.py`` computes from the bag.
 The SUT's exposures go out live as ``evoscen/exposure`` events from the simulation node (same
-definitions, :mod:`evoscen_sim.safety`).
+definitions, :mod:`evoscen_sim.physics.safety`).
 
 Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory), ``report_dir``
 [""; empty = no report], ``report_plots`` [true],
@@ -53,12 +53,12 @@ from evoscen_contract import graph
 from evoscen_contract import topics as T
 from evoscen_contract.cdr import TableEncoder, decode_table, events_count, is_run_end
 from evoscen_contract.contract import EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_OK
-from evoscen_sim.errors import HostFault
-from evoscen_sim.config_checks import flag, integer, number, text
-from evoscen_sim.node_params import own_parameters, run_node, scenario_from_node
 from evoscen_record.ordered_bag import OrderedBag
 from evoscen_record.recorder import BagRecorder
 from evoscen_record.scenario_record import SCENARIO_KEY, SCENARIO_METADATA, scenario_metadata
+from evoscen_sim.config.config_checks import flag, integer, number, text
+from evoscen_sim.errors import HostFault
+from evoscen_sim.nodes.node_params import own_parameters, run_node, scenario_from_node
 
 from .rundata import RunAccumulator
 
@@ -72,7 +72,7 @@ MAX_WARNINGS = 20
 @dataclass(frozen=True)
 class EvalParams:
     """The recorder's own parameters (see the module docstring), validated by
-    :func:`~evoscen_sim.node_params.own_parameters`; ``bag_dir`` is required."""
+    :func:`~evoscen_sim.nodes.node_params.own_parameters`; ``bag_dir`` is required."""
 
     bag_dir: str = text("")
     drain_s: float = number(0.5, 0.0)
@@ -127,7 +127,7 @@ class EvaluatorNode:
 
         # one command topic per BV node of bvs.nodes, in the partition's order (docs/architecture.md
         # §5, "BV nodes"): the bag's channels and per-step order are the in-process runner's
-        from evoscen_sim.bv_nodes import bv_node_names
+        from evoscen_sim.nodes.bv_nodes import bv_node_names
 
         bv_names = bv_node_names(self.cfg)
         contract = T.contract_for(bv_names)
@@ -271,7 +271,6 @@ class EvaluatorNode:
     def _write_report(self, status: int) -> int:
         """Score the run and write the report (a failure is reported, the bag is kept)."""
         import yaml
-
         from evoscen_sim.errors import InputError
 
         from .report import write_stream_report

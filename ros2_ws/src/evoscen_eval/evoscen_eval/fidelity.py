@@ -17,12 +17,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from evoscen_sim.errors import InputError
 
 from evoscen_eval.behaviour import BehaviourConfig, BehaviourSamples, extract_behaviour
 from evoscen_eval.highd import load_recording
 from evoscen_eval.highd_export import ExportOptions, VirtualRoad, run_to_highd
 from evoscen_eval.similarity import Comparison, KdeConfig, KdeError, compare
-from evoscen_sim.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -70,8 +70,8 @@ def road_for_run(run) -> tuple[VirtualRoad, list[str]]:  # a RunData
     another machine), the map of the same file name shipped with evoscen_sim; otherwise the
     defaults of :class:`VirtualRoad` (the shipped on-ramp), with a warning.
     """
-    from evoscen_sim.config import share_path
-    from evoscen_sim.road import load_road
+    from evoscen_sim.config.scenario_config import share_path
+    from evoscen_sim.road.road_model import load_road
 
     ref = (run.scenario or {}).get("map")
     candidates = []

@@ -2,14 +2,14 @@
 
 Input: the run's states in one pass (:class:`~evoscen_eval.streaming.ScoreStream`, which holds
 no ``[K, V]`` array; :func:`evaluate` streams a :class:`~evoscen_eval.rundata.RunData` through
-it) and the scenario's :class:`~evoscen_sim.config.EvaluationConfig`. Output: the
+it) and the scenario's :class:`~evoscen_sim.config.scenario_config.EvaluationConfig`. Output: the
 ``report.json`` dict (:func:`report_of_stream`) — every score with the inputs of its formula,
 so the arithmetic can be checked by hand.
 
 The **[choice]** points the method leaves open, as implemented (all configurable under
 ``evaluation.*``; docs/evaluation.md states them with their reasons):
 
-* **Dangerous state / exposure** — :mod:`evoscen_sim.safety`: TTC to the vehicle ahead in the
+* **Dangerous state / exposure** — :mod:`evoscen_sim.physics.safety`: TTC to the vehicle ahead in the
   SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``, or a rear
   conflict attributed to the SUT (``rear_conflicts`` [after_lane_change]: the follower in its
   path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2`` within
@@ -77,15 +77,12 @@ from dataclasses import asdict
 from typing import Any
 
 import numpy as np
-
 from evoscen_contract import contract as C
-from evoscen_sim.safety import attribution_steps
+from evoscen_sim.physics.safety import attribution_steps
 
 from .rundata import RunData, run_info_of
-from .streaming import ScoreStream, activity_accel  # noqa: F401 - activity_accel: AD's definition, here with the scores
-from .streaming import SSM_SIDES, TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, traffic_window_states
+from .streaming import SSM_SIDES, TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, ScoreStream, activity_accel, traffic_window_states  # noqa: F401 - activity_accel: AD's definition, here with the scores
 from .sut_collisions import COLLISION_KINDS
-
 
 # ---------------------------------------------------------------------- formulas (scalars)
 

@@ -22,13 +22,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from evoscen_sim.config import EvaluationConfig
+from evoscen_sim.config.scenario_config import EvaluationConfig
 from evoscen_sim.errors import HostFault, InputError
 
 from .metrics import evaluate, report_of_stream, run_info, stream_run
-from .rundata import RunData, evaluation_settings_of
 from .plot_inputs import SPEED_BINS, TTC_BINS, PlotData, Scene
+from .rundata import RunData, evaluation_settings_of
 from .streaming import ScoreStream
 from .sut_collisions import MAX_SNAPSHOTS
 

@@ -26,14 +26,12 @@ from typing import Any
 
 import numpy as np
 import yaml
-
 from evoscen_contract import contract as C
 from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
 from evoscen_record.scenario_record import EXTERNAL_SUT, SCENARIO_KEY, SCENARIO_METADATA, SUT_SOURCE_KEY
-from evoscen_sim.config import EvaluationConfig, evaluation_from_dict
+from evoscen_sim.config.limits import MAX_STEPS
+from evoscen_sim.config.scenario_config import EvaluationConfig, evaluation_from_dict
 from evoscen_sim.errors import InputError
-from evoscen_sim.limits import MAX_STEPS
-
 
 
 @dataclass
@@ -143,17 +141,15 @@ class RunAccumulator:
         elif topic == C.TOPIC_EVENTS:
             if events_count(data):
                 # the message classes (the ROS binding) only when a message must be deserialized
-                from rclpy.serialization import deserialize_message
-
                 from evoscen_contract import topics as T
+                from rclpy.serialization import deserialize_message
 
                 if self._events_class is None:
                     self._events_class = T.EVENTS.msg_class
                 self.add_events(T.parse_events(deserialize_message(data, self._events_class)))
         elif topic == C.TOPIC_MAP_MARKERS and self.lane_segments is None:
-            from rclpy.serialization import deserialize_message
-
             from evoscen_contract import topics as T
+            from rclpy.serialization import deserialize_message
 
             self.lane_segments = lane_segments(deserialize_message(data, T.MAP_MARKERS.msg_class))
 
@@ -401,10 +397,9 @@ def _read_bag(bag_dir: Path | str, acc: RunAccumulator, before_first_state: Any 
               ) -> tuple[Path, RunAccumulator, dict | None, bool, list[str]]:
     """Feed ``acc`` the bag's messages in file order (see :func:`read_run`); ``before_first_state(scenario)``
     is called before the first world state is added. Returns (file, acc, scenario, external SUT, warnings)."""
+    from evoscen_record.bag_reader import bag_file
     from mcap.records import Channel, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader
-
-    from evoscen_record.bag_reader import bag_file
 
     path = bag_file(Path(bag_dir))
     channels: dict[int, str] = {}
@@ -493,7 +488,7 @@ def _parse_sut_source(value: str | None, path: Path) -> bool:
 def _parse_scenario(text: str | None, path: Path) -> dict | None:
     if not text:
         return None
-    from evoscen_sim.limits import check_yaml_depth
+    from evoscen_sim.config.limits import check_yaml_depth
 
     check_yaml_depth(text, f"bag {str(path)!r}: the scenario metadata record", "the YAML text")
     try:

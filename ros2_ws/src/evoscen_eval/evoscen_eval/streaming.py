@@ -5,7 +5,7 @@ a bag as it is read, the in-process runner after each step) and the events, and 
 ``report.json`` dict and what the report's plots need (:class:`~evoscen_eval.plot_inputs.PlotData`)
 at the end. It holds no ``[K, V]`` array: states wait in a block of :data:`BLOCK_STATES` and each block is
 reduced with the same broadcasting definitions the scores are written in
-(:mod:`evoscen_sim.safety`; they act row by row, so a block gives the same per-state values
+(:mod:`evoscen_sim.physics.safety`; they act row by row, so a block gives the same per-state values
 as a whole run would) to
 
 * running sums, counts, minima and maxima (efficiency, the conflict figures);
@@ -44,10 +44,21 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
 from evoscen_contract import contract as C
-from evoscen_sim.safety import (attribution_steps, beside_gap, beside_severity, cut_in_gap, danger_terms, drac,
-                                exposure_runs, follower_headway, follower_ttc, sut_follower, sut_leader, sut_ttc)
+from evoscen_sim.physics.safety import (
+    attribution_steps,
+    beside_gap,
+    beside_severity,
+    cut_in_gap,
+    danger_terms,
+    drac,
+    exposure_runs,
+    follower_headway,
+    follower_ttc,
+    sut_follower,
+    sut_leader,
+    sut_ttc,
+)
 
 from .plot_inputs import PlotData, PlotSeries, Scene, scene_of
 from .sut_collisions import SutCollisions
@@ -86,7 +97,7 @@ class ScoreStream:
     """The scores of one run, fed state by state (see the module docstring).
 
     Args:
-        ev: the evaluation settings (an :class:`~evoscen_sim.config.EvaluationConfig`).
+        ev: the evaluation settings (an :class:`~evoscen_sim.config.scenario_config.EvaluationConfig`).
         dt_s: the step; None: taken from the first two stamps (0.1 s for a single state).
     """
 
@@ -217,7 +228,7 @@ class ScoreStream:
         rows = np.arange(n)
         s, d, v, a, length, width = c["s"], c["d"], c["speed"], c["accel"], c["length"], c["width"]
 
-        # --- per-state quantities of the SUT (evoscen_sim.safety, row by row)
+        # --- per-state quantities of the SUT (evoscen_sim.physics.safety, row by row)
         ttc = sut_ttc(s, d, v, length, width, sut)
         speed, accel, lane, lc_sut = v[:, sut], a[:, sut], c["lane"][:, sut], c["lane_change"][:, sut]
         follower, f_ttc = follower_ttc(s, d, v, length, width, sut)
@@ -395,14 +406,14 @@ class ScoreStream:
         return int((on & (cp != prev)).sum())
 
     def _attributed(self, lc_sut: np.ndarray, ks: np.ndarray, after: int) -> np.ndarray:
-        """:func:`evoscen_sim.safety.rear_attributed`, continued from the previous block."""
+        """:func:`evoscen_sim.physics.safety.rear_attributed`, continued from the previous block."""
         mode = self.ev.rear_conflicts
         if mode == "all":
             return np.ones(ks.shape[0], dtype=bool)
         if mode == "none":
             return np.zeros(ks.shape[0], dtype=bool)
         if mode != "after_lane_change":
-            from evoscen_sim.safety import rear_attributed
+            from evoscen_sim.physics.safety import rear_attributed
 
             rear_attributed(lc_sut, mode, after)  # raises the error naming the modes
         last = np.maximum(np.maximum.accumulate(np.where(lc_sut != 0, ks, -1)), self._rear_last)

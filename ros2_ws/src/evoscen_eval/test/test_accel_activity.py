@@ -7,11 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from evoscen_eval.metrics import activity_accel, evaluate
+from evoscen_eval.run_fixtures import make_run
 from evoscen_eval.rundata import RunData
-from evoscen_eval.testing import make_run
-from evoscen_sim.config import EvaluationConfig
+from evoscen_sim.config.scenario_config import EvaluationConfig
 
 
 def test_trailing_mean_by_hand() -> None:

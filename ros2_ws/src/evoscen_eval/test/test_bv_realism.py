@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from evoscen_contract import topics as T
 from evoscen_eval.bv_realism import bv_realism, combine, time_headways
 from evoscen_eval.rundata import RunData
@@ -183,8 +182,8 @@ def test_window_run_vehicle_km_matches_the_distance_driven():
     completed events only, fewer than the lane column's changes (entries into other lanes move it too)."""
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_eval.highd_export import unshifted_s
-    from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.traffic import new_trips
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.physics.traffic import new_trips
 
     cfg = load_scenario_config(None, {"steps": 700, "seed": 7, "bvs.driver": "level0", "traffic.mode": "window"})
     run = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False, keep_run=True).run

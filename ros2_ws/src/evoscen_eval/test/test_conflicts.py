@@ -2,7 +2,7 @@
 
 Hand-built runs (every number below follows from the definitions by hand) and scripted
 situations driven by the world's dynamics, where the live ``evoscen/exposure`` events of
-:class:`~evoscen_sim.events.ExposureMonitor` must equal the evaluator's recomputation.
+:class:`~evoscen_sim.physics.events.ExposureMonitor` must equal the evaluator's recomputation.
 """
 
 from __future__ import annotations
@@ -12,16 +12,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from evoscen_contract import topics as T
 from evoscen_eval.metrics import evaluate
 from evoscen_eval.report import markdown, report_of
+from evoscen_eval.run_fixtures import drive, rear_run
 from evoscen_eval.rundata import RECORDED_BEFORE_KEYS, RunAccumulator, RunData, evaluation_settings_of
-from evoscen_eval.testing import drive, rear_run
-from evoscen_sim.config import EvaluationConfig, ScenarioConfig, config_to_dict
-from evoscen_sim.events import ExposureMonitor
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
+from evoscen_sim.config.scenario_config import EvaluationConfig, ScenarioConfig, config_to_dict
+from evoscen_sim.physics.events import ExposureMonitor
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.road.road_model import load_road
 
 EV = EvaluationConfig()
 
@@ -406,7 +405,7 @@ def test_live_monitor_equals_the_evaluator_on_a_simulated_run(mode):
     follower within 4 s TTC or braking hard somewhere in 80 s of dense traffic); with
     ``after_lane_change`` whether they do depends on the traffic, the equality must hold anyway."""
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     # seed 2: three exposures, rear conflicts among them, with the shipped BVs (seed 0 has none: they keep
     # ~30 m and no longer brake for far leaders)

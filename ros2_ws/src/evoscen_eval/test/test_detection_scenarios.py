@@ -13,12 +13,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from evoscen_contract import topics as T
-from evoscen_eval.testing import drive as drive_run
-from evoscen_sim.config import EvaluationConfig
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
+from evoscen_eval.run_fixtures import drive as drive_run
+from evoscen_sim.config.scenario_config import EvaluationConfig
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.road.road_model import load_road
 
 EV = EvaluationConfig()
 
@@ -29,7 +28,7 @@ def road():
 
 
 def drive(world, command, steps):
-    """:func:`evoscen_eval.testing.drive` under ``EV``."""
+    """:func:`evoscen_eval.run_fixtures.drive` under ``EV``."""
     return drive_run(world, command, steps, EV)
 
 

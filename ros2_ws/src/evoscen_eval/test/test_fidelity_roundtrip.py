@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from evoscen_eval.behaviour import BehaviourConfig, extract_behaviour, lane_changes
 from evoscen_eval.fidelity import run_recording
 from evoscen_eval.highd import load_recording, write_recording
@@ -30,7 +29,7 @@ STEPS = 400
 @pytest.fixture(scope="module")
 def bag(tmp_path_factory) -> Path:
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     bag_dir = tmp_path_factory.mktemp("fidelity") / "bag"
     cfg = load_scenario_config(None, {"steps": STEPS, "seed": 5, "bvs.driver": "mobil"})

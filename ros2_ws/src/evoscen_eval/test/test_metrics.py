@@ -12,7 +12,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
 from evoscen_contract import topics as T
 from evoscen_eval.metrics import (
     complexity_score,
@@ -22,8 +21,8 @@ from evoscen_eval.metrics import (
     max_in_view,
     safety_score,
 )
-from evoscen_eval.testing import make_run
-from evoscen_sim.config import EvaluationConfig
+from evoscen_eval.run_fixtures import make_run
+from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()
 OWN = EvaluationConfig(hard_braking="own")

@@ -18,12 +18,11 @@ import math
 
 import numpy as np
 import pytest
-
 from evoscen_contract import topics as T
 from evoscen_eval import plot_inputs, streaming
 from evoscen_eval.metrics import evaluate, stream_run
-from evoscen_eval.testing import make_run
-from evoscen_sim.config import EvaluationConfig
+from evoscen_eval.run_fixtures import make_run
+from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()
 

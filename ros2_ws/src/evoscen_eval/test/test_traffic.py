@@ -20,12 +20,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from evoscen_eval import plot_inputs, streaming
 from evoscen_eval.metrics import evaluate, stream_run
 from evoscen_eval.report import write_report
-from evoscen_eval.testing import make_run
-from evoscen_sim.config import EvaluationConfig
+from evoscen_eval.run_fixtures import make_run
+from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()
 

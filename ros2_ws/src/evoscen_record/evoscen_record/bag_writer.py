@@ -4,11 +4,11 @@ The in-process runner can write its bag on its own thread (:class:`~evoscen_reco
 ``bag_writer="inline"``) or hand it to a second process (:class:`ProcessRecorder`,
 ``bag_writer="process"``; docs/recording.md, "In-process runs: the bag written inline or by a writer process"). With the process writer the
 run's step only copies what the bag needs — the world's state arrays (:meth:`World.state_arrays
-<evoscen_sim.world.World.state_arrays>`), the command tables, the events — into shared memory and
+<evoscen_sim.physics.world.World.state_arrays>`), the command tables, the events — into shared memory and
 notes each call in a journal; the writer process, forked at the start of the run, replays the
 journal through the same :class:`~evoscen_record.step_recorder.StepRecorder` the inline path uses. The
-world table's columns are rebuilt by :func:`evoscen_sim.world.state_columns`, the one definition
-:meth:`World.columns <evoscen_sim.world.World.columns>` uses, so the bag is byte-identical to the
+world table's columns are rebuilt by :func:`evoscen_sim.physics.world.state_columns`, the one definition
+:meth:`World.columns <evoscen_sim.physics.world.World.columns>` uses, so the bag is byte-identical to the
 inline path's (tests/test_recording_paths.py compares the files).
 
 The shared memory is ``slots`` batches of ``steps_per_slot`` steps each. The run fills a batch,
@@ -33,9 +33,8 @@ import signal
 from pathlib import Path
 
 import numpy as np
-
 from evoscen_sim.errors import HostFault
-from evoscen_sim.world import STATE_FLOATS, STATE_INTS, state_columns
+from evoscen_sim.physics.world import STATE_FLOATS, STATE_INTS, state_columns
 
 from .step_recorder import StepRecorder
 
@@ -76,7 +75,7 @@ class ProcessRecorder:
 
     Same calls as :class:`~evoscen_record.step_recorder.StepRecorder` (``world``, ``state``,
     ``commands``, ``events``, ``close``, ``message_count``); ``world`` and ``state`` take the
-    :class:`~evoscen_sim.world.World` itself.
+    :class:`~evoscen_sim.physics.world.World` itself.
     """
 
     snapshots = True  # world/state read the World, not its columns

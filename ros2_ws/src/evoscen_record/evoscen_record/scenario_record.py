@@ -30,7 +30,7 @@ def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # 
     configuration's ``sut.model`` (which then drove nothing); without it the record is only the
     configuration, so a graph run's bag stays equal to the in-process one.
     """
-    from evoscen_sim.config import config_to_dict
+    from evoscen_sim.config.scenario_config import config_to_dict
 
     scenario = config_to_dict(cfg)
     scenario["map"], digest = portable_map_ref(cfg.map)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from evoscen_sim.config import ScenarioConfig
+from evoscen_sim.config.scenario_config import ScenarioConfig
 
 
 class StepRecorder:
@@ -29,19 +29,18 @@ class StepRecorder:
     def __init__(self, bag_dir: Path, cfg: ScenarioConfig, road) -> None:
         from evoscen_contract import topics as T
         from evoscen_contract.messages import WorldMessages
+
         from evoscen_record.ordered_bag import OrderedBag
         from evoscen_record.recorder import BagRecorder
 
         self.T = T
         self.msgs = WorldMessages(cfg.dt_s)
-        from evoscen_record.scenario_record import SCENARIO_METADATA, scenario_metadata
+        import numpy as np
+        from evoscen_sim.nodes.bv_nodes import bv_nodes
+        from evoscen_sim.scenario_builders import bv_indices
 
         from evoscen_record.reindex import finish_bag
-
-        import numpy as np
-
-        from evoscen_sim.bv_nodes import bv_nodes
-        from evoscen_sim.scenario import bv_indices
+        from evoscen_record.scenario_record import SCENARIO_METADATA, scenario_metadata
 
         # the BV nodes of bvs.nodes, each with its command topic (the graph's: docs/architecture.md
         # §5, "BV nodes"); positions: where its BVs are among all BVs

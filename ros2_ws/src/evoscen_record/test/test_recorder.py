@@ -13,9 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from mcap.reader import make_reader
-from rclpy.serialization import serialize_message
-
 from evoscen_contract.tables import table_array, table_columns, table_message
 from evoscen_contract.topics import (
     COMMAND_FIELDS,
@@ -32,6 +29,8 @@ from evoscen_record.bag_reader import open_bag_reader
 from evoscen_record.recorder import BagRecorder
 from evoscen_record.schemas import message_definition
 from evoscen_sim.errors import InputError
+from mcap.reader import make_reader
+from rclpy.serialization import serialize_message
 
 STEPS = 100
 DT_NS = 100_000_000  # 0.1 s
@@ -262,10 +261,9 @@ def test_serialize_message_padding_is_not_reproducible_but_recorded_bytes_are(
     tmp_path: Path,
 ) -> None:
     """Why the recorder canonicalizes: rclpy leaves CDR padding uninitialized."""
-    from rclpy.serialization import deserialize_message
-
     from diagnostic_msgs.msg import DiagnosticArray
     from evoscen_record.canonical_cdr import CanonicalCdr
+    from rclpy.serialization import deserialize_message
 
     msg = events_message(step_events(0) + [{"name": "evoscen/fault", "controller": "x"}], 0)
     canon = CanonicalCdr(["diagnostic_msgs/msg/DiagnosticArray"])
@@ -357,7 +355,7 @@ def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_pa
     from evoscen_eval.metrics import run_info
     from evoscen_eval.rundata import read_run
     from evoscen_record.scenario_record import SCENARIO_METADATA, scenario_metadata
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
 
     cfg = load_scenario_config(None)
     plain = scenario_metadata(cfg)

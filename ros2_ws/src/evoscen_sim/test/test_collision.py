@@ -7,11 +7,10 @@ import math
 
 import numpy as np
 import pytest
-
-from evoscen_sim.collision import boxes_overlap, overlapping_pairs
-from evoscen_sim.road import RoadModel, load_road
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.world import World
+from evoscen_sim.physics.collision import boxes_overlap, overlapping_pairs
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.world import World
+from evoscen_sim.road.road_model import RoadModel, load_road
 
 DT = 0.1
 L, W = 4.8, 1.9

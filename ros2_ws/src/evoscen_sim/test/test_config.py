@@ -7,9 +7,8 @@ from pathlib import Path
 
 import pytest
 import yaml
-
-from evoscen_sim import models as registry
-from evoscen_sim.config import (
+from evoscen_sim import model_registry as registry
+from evoscen_sim.config.scenario_config import (
     POLICIES,
     BvConfig,
     ScenarioConfig,
@@ -389,7 +388,7 @@ def test_mix_counts_of_scenario_default():
 
 
 def test_evaluation_section_defaults_and_errors(scenario_dir):
-    from evoscen_sim.config import EvaluationConfig, evaluation_from_dict
+    from evoscen_sim.config.scenario_config import EvaluationConfig, evaluation_from_dict
 
     ev = load_scenario_config(None).evaluation
     assert ev == EvaluationConfig()

@@ -6,10 +6,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
-
-from evoscen_sim.config import config_from_dict, integer, number
+from evoscen_sim.config.scenario_config import config_from_dict, integer, number
 from evoscen_sim.errors import InputError
-from evoscen_sim.models import ModelSpec, create_driver, get_model, model_names, register_model, unregister_model
+from evoscen_sim.model_registry import (
+    ModelSpec,
+    create_driver,
+    get_model,
+    model_names,
+    register_model,
+    unregister_model,
+)
 
 
 @dataclass(frozen=True)
@@ -79,7 +85,7 @@ class _SharedParams:
 
 
 def test_a_parameter_set_is_validated_under_models_but_is_no_model(monkeypatch):
-    from evoscen_sim import models as registry
+    from evoscen_sim import model_registry as registry
 
     monkeypatch.setattr(registry, "_PARAMETER_SETS", dict(registry._PARAMETER_SETS))
     registry.register_parameter_set("toy_shared", _SharedParams)

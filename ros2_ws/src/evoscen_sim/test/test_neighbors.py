@@ -11,8 +11,15 @@ import math
 
 import numpy as np
 import pytest
-
-from evoscen_sim.neighbors import LANE_OFFSETS, LEFT, OWN, RIGHT, compute_neighborhood, time_headway, time_to_collision
+from evoscen_sim.physics.neighbors import (
+    LANE_OFFSETS,
+    LEFT,
+    OWN,
+    RIGHT,
+    compute_neighborhood,
+    time_headway,
+    time_to_collision,
+)
 
 L = 4.8
 INF = math.inf

@@ -7,10 +7,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from evoscen_sim.errors import InputError
-from evoscen_sim.opendrive import parse_opendrive
-from evoscen_sim.road import DEFAULT_MAP_PATH, load_road
+from evoscen_sim.road.opendrive import parse_opendrive
+from evoscen_sim.road.road_model import DEFAULT_MAP_PATH, load_road
 
 # A small valid map: 100 m line + 50 m arc, two 3.5 m lanes, one lane section.
 MINIMAL = """<?xml version="1.0"?>

@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 import pytest
-
-from evoscen_sim.road import DEFAULT_MAP_PATH, RoadModel, load_road
+from evoscen_sim.road.road_model import DEFAULT_MAP_PATH, RoadModel, load_road
 
 W = 3.5  # lane width
 R = 2000.0  # arc radius (curvature 0.0005)
@@ -208,8 +207,8 @@ def test_model_is_read_only(road: RoadModel) -> None:
 
 
 def test_compiled_queries_match_the_model(road: RoadModel) -> None:
-    # evoscen_sim.road_kernels computes, for one (lane, s), exactly what RoadModel's methods compute
-    from evoscen_sim.road_kernels import lane_center_d, lane_end_distance, segment_index
+    # evoscen_sim.road.road_kernels computes, for one (lane, s), exactly what RoadModel's methods compute
+    from evoscen_sim.road.road_kernels import lane_center_d, lane_end_distance, segment_index
 
     tables = road.kernel_tables()
     rng = np.random.default_rng(5)

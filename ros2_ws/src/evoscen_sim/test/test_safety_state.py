@@ -1,6 +1,6 @@
 """The compiled one-state SUT leader/TTC equals the numpy definitions bit for bit.
 
-The simulation node's live exposure events use :func:`evoscen_sim.safety.sut_leader_ttc_state`;
+The simulation node's live exposure events use :func:`evoscen_sim.physics.safety.sut_leader_ttc_state`;
 the evaluator scores with :func:`sut_leader` / :func:`sut_ttc` over whole runs. The live
 events and the scores must never disagree, so the two are compared here on hand-placed
 edge cases, random dense states and every state of a simulated run.
@@ -12,8 +12,7 @@ import math
 
 import numpy as np
 import pytest
-
-from evoscen_sim.safety import (
+from evoscen_sim.physics.safety import (
     RearAttribution,
     attribution_steps,
     beside_dangerous,
@@ -96,8 +95,8 @@ def test_random_dense_states() -> None:
 
 def test_every_state_of_a_run() -> None:
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.scenario import SUT_INDEX
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.scenario_builders import SUT_INDEX
 
     sc = build_scenario(load_scenario_config(None, {"steps": 1500}))
     w = sc.world
@@ -157,8 +156,8 @@ def test_follower_random_dense_states() -> None:
 
 def test_follower_every_state_of_a_run() -> None:
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
-    from evoscen_sim.scenario import SUT_INDEX
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.scenario_builders import SUT_INDEX
 
     sc = build_scenario(load_scenario_config(None, {"steps": 800}))
     w = sc.world

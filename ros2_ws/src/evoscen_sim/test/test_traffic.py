@@ -1,4 +1,4 @@
-"""The traffic window (evoscen_sim.traffic; docs/method.md §1): safe insertion, exits and entries,
+"""The traffic window (evoscen_sim.physics.traffic; docs/method.md §1): safe insertion, exits and entries,
 the shift, the window's spawn, and what a run with it looks like."""
 
 from __future__ import annotations
@@ -8,14 +8,19 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from evoscen_sim.config import load_scenario_config
+from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
-from evoscen_sim.road import load_road
-from evoscen_sim.scenario import build_world
-from evoscen_sim.traffic import (TrafficParams, check_shift_points, common_shift, insertion_speed, new_trips,
-                                 required_gap)
-from evoscen_sim.world import ROLE_BV, ROLE_SUT, InitialState, ReentryParams, World
+from evoscen_sim.physics.traffic import (
+    TrafficParams,
+    check_shift_points,
+    common_shift,
+    insertion_speed,
+    new_trips,
+    required_gap,
+)
+from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, InitialState, ReentryParams, World
+from evoscen_sim.road.road_model import load_road
+from evoscen_sim.scenario_builders import build_world
 
 L = 4.8
 P = TrafficParams()

@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from evoscen_sim.control import ControlParams, DualPidController
-from evoscen_sim.road import RoadModel, load_road
-from evoscen_sim.vehicle import VehicleParams, accel_to_throttle, bicycle_step, throttle_to_accel
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.world import World
+from evoscen_sim.physics.control import ControlParams, DualPidController
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.vehicle import VehicleParams, accel_to_throttle, bicycle_step, throttle_to_accel
+from evoscen_sim.physics.world import World
+from evoscen_sim.road.road_model import RoadModel, load_road
 
 DT = 0.1
 P = VehicleParams()  # max_accel 3, max_brake 8, max_speed 40
@@ -310,7 +309,7 @@ def test_lane_change_into_ending_lane_is_not_left_pending(road: RoadModel) -> No
 
 
 def test_heading_reference_is_capped_at_low_speed_only() -> None:
-    """psi_ref = asin(w / v) capped at max_heading_ref_rad (evoscen_sim.control): by hand, one step, P gains only."""
+    """psi_ref = asin(w / v) capped at max_heading_ref_rad (evoscen_sim.physics.control): by hand, one step, P gains only."""
     import math
 
     p = ControlParams()  # kp_d 0.8, kp_psi 3.0, w cap 0.6 m/s, heading cap 0.2 rad

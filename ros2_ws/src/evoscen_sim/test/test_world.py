@@ -5,15 +5,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from evoscen_bringup.scenario import build_scenario
-from evoscen_sim.collision import overlapping_pairs
-from evoscen_sim.config import load_scenario_config
+from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
-from evoscen_sim.road import RoadModel, load_road
-from evoscen_sim.spawn import spawn_layout
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.world import ROLE_BV, ROLE_SUT, ReentryParams, World
+from evoscen_sim.physics.collision import overlapping_pairs
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.spawn import spawn_layout
+from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, ReentryParams, World
+from evoscen_sim.road.road_model import RoadModel, load_road
 
 DT = 0.1
 L = 4.8

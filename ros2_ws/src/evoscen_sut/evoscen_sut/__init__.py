@@ -1,1 +1,1 @@
-"""evoscen systems under test: rule-based SUT models (registered with evoscen_sim.models)."""
+"""evoscen systems under test: rule-based SUT models (registered with evoscen_sim.model_registry)."""

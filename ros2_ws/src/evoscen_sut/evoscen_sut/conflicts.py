@@ -18,8 +18,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from evoscen_sim.car_following import idm_scalar
 from evoscen_sim.jit import kernel
+from evoscen_sim.physics.idm import idm_scalar
 
 
 class ConflictRule(NamedTuple):

@@ -1,6 +1,6 @@
 """numpy's semantics for single floats inside compiled kernels (:mod:`evoscen_sim.jit`).
 
-The lane-change kernels (:mod:`evoscen_sut.lane_change`, :mod:`evoscen_sut.mobil`,
+The lane-change kernels (:mod:`evoscen_sut.krauss_lane_change`, :mod:`evoscen_sut.mobil`,
 :mod:`evoscen_sut.nilsson`) compute, one vehicle at a time, what the vectorised numpy form
 computes over arrays. Python's ``min``/``max`` treat NaN differently from ``np.minimum`` /
 ``np.maximum``; these helpers keep numpy's results, so the kernels stay bit-identical to it.

@@ -15,7 +15,7 @@ emergencyDecel, ``τ`` = tau, ``σ`` = sigma, ``Δt`` the step, ``v_max = min(de
 lane speed limit)`` (SUMO: ``lane->getVehicleMaxSpeed`` = min(vType maxSpeed, speed limit ×
 speedFactor); ``desired_speed_mps`` plays the role of speedFactor × limit, speedFactor 1).
 
-**Gaps.** Our gaps are bumper-to-bumper (:mod:`evoscen_sim.neighbors`). SUMO's follow gap is
+**Gaps.** Our gaps are bumper-to-bumper (:mod:`evoscen_sim.physics.neighbors`). SUMO's follow gap is
 ``leader's rear bumper − (follower's front bumper + minGap)``, so this module uses::
 
     g = gap_bumper_to_bumper − min_gap_m
@@ -72,7 +72,7 @@ Not ported (not used by the default setup): the ballistic update, ``sigmaStep`` 
 driver-state perception errors, junction/stop handling, ``apparentDecel`` ≠ decel.
 
 **Parameters.** :class:`KraussParams` is the scenario YAML's ``models.krauss`` section
-(registered by :mod:`evoscen_sut.models`, validated like every key): every model that drives
+(registered by :mod:`evoscen_sut.sut_models`, validated like every key): every model that drives
 with Krauss (Nilsson, MOBIL and Stackelberg, as SUT or as BV driver, and the mutants of them)
 builds its car follower with :func:`krauss_for`, which reads it; absent, SUMO's defaults.
 """
@@ -82,9 +82,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from evoscen_sim.config import number
+from evoscen_sim.config.scenario_config import number
 from evoscen_sim.jit import kernel
-from evoscen_sim.neighbors import OWN
+from evoscen_sim.physics.neighbors import OWN
 
 __all__ = [
     "EMERGENCY_DECEL_AMPLIFIER",
@@ -287,7 +287,7 @@ def krauss_next_speed(speed_mps, max_speed_mps, gap_m, leader_speed_mps, uniform
 
 
 class KraussCarFollowing:
-    """Krauss longitudinal control for vehicles of a traffic view (:mod:`evoscen_sim.view`).
+    """Krauss longitudinal control for vehicles of a traffic view (:mod:`evoscen_sim.physics.view`).
 
     Args:
         params: the model parameters.

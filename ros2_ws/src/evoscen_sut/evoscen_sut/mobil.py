@@ -2,7 +2,7 @@
 
 MOBIL — "Minimizing Overall Braking Induced by Lane changes" (Kesting, Treiber, Helbing,
 TRR 1999, 2007; docs/method.md §4.2). A vehicle ``c`` looks at the two *adjacent* lanes
-only. With ``a`` the IDM acceleration (:func:`evoscen_sim.car_following.idm_acceleration`)
+only. With ``a`` the IDM acceleration (:func:`evoscen_sim.physics.idm.idm_acceleration`)
 now and ``ã`` after the change, ``n`` the new follower (behind ``c`` in the target lane) and
 ``o`` the old follower (behind ``c`` in its lane), a change is
 
@@ -24,7 +24,7 @@ Readings and choices (all configurable through :class:`MobilParams`):
 * **Accelerations.** Every vehicle's IDM acceleration uses this model's IDM parameters and
   desired speed (capped by the lane's speed limit at the ego's position): other drivers'
   own parameters are unknown to the deciding driver. Gaps are bumper to bumper
-  (:mod:`evoscen_sim.neighbors`); a follower's gap to the vehicle ahead of the ego is its gap
+  (:mod:`evoscen_sim.physics.neighbors`); a follower's gap to the vehicle ahead of the ego is its gap
   to the ego plus the ego's length plus the ego's gap to that vehicle. A missing follower
   contributes nothing (its terms are 0 and the safety criterion holds).
 * **Own safety** [choice]: the ego also rejects a change where it would itself have to
@@ -59,7 +59,7 @@ s0 = 2 m, a = 1.0 m/s², b = 1.5 m/s², δ = 4 (Treiber & Kesting, *Traffic Flow
 2013, Table 11.2).
 
 Longitudinal control: SUMO's Krauss (:mod:`evoscen_sut.krauss`, docs/method.md §4: car following is
-the same for every SUT), see :class:`evoscen_sut.lane_change.KraussLaneChangeDriver`, which this
+the same for every SUT), see :class:`evoscen_sut.krauss_lane_change.KraussLaneChangeDriver`, which this
 module's and :mod:`evoscen_sut.nilsson`'s drivers share.
 """
 
@@ -70,16 +70,16 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from evoscen_sim.car_following import idm_scalar
-from evoscen_sim.config import flag, number
+from evoscen_sim.config.scenario_config import flag, number
 from evoscen_sim.jit import kernel
-from evoscen_sim.models import ModelSpec
-from evoscen_sim.neighbors import LEFT, OWN, RIGHT
-from evoscen_sim.road_kernels import lane_end_distance, segment_index
+from evoscen_sim.model_registry import ModelSpec
+from evoscen_sim.physics.idm import idm_scalar
+from evoscen_sim.physics.neighbors import LEFT, OWN, RIGHT
+from evoscen_sim.road.road_kernels import lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum, nan_to_num
-from .lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
+from .krauss_lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
 
 IDM_MAX_DECEL_MPS2 = 9.0
 """Lower clip of the IDM accelerations MOBIL compares (m/s²; the IDM helper's default)."""
@@ -156,7 +156,7 @@ class MobilEvaluation:
 
 
 MobilKernelParams = kernel_params_type(MobilParams)
-""":class:`MobilParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
+""":class:`MobilParams` as the compiled kernels read them (:func:`evoscen_sut.krauss_lane_change.kernel_params`)."""
 
 
 @lru_cache(maxsize=64)
@@ -175,14 +175,14 @@ def conflict_rule(p: MobilParams) -> ConflictRule:
 # one or twenty vehicles numpy's per-call overhead, not arithmetic, dominated the vectorised
 # form. The kernels compute exactly the expressions of the vectorised form (same operations in
 # the same order, fastmath off), so the results are bit-identical. ``prm`` is a
-# :class:`MobilKernelParams`, ``road`` the road's :class:`evoscen_sim.road_kernels.RoadTables`.
+# :class:`MobilKernelParams`, ``road`` the road's :class:`evoscen_sim.road.road_kernels.RoadTables`.
 
 assert (RIGHT, OWN, LEFT) == (1, 2, 3)  # the kernels use neighbourhood column 2 + offset
 
 
 @kernel
 def _idm(v, v0, gap, v_lead, prm):
-    """MOBIL's IDM acceleration of one vehicle (:func:`evoscen_sim.car_following.idm_scalar`, clipped
+    """MOBIL's IDM acceleration of one vehicle (:func:`evoscen_sim.physics.idm.idm_scalar`, clipped
     at −``IDM_MAX_DECEL_MPS2``)."""
     return idm_scalar(v, v0, gap, v_lead, prm.time_headway_s, prm.min_gap_m, prm.accel_mps2,
                       prm.comfort_decel_mps2, prm.delta, IDM_MAX_DECEL_MPS2)
@@ -363,7 +363,7 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: MobilParams) -
 
     The lane offering the larger margin of incentive over threshold among those passing the
     criteria (:func:`evaluate`), a mandatory change preferred; 0 while a change is in progress or
-    the vehicle has not settled (:func:`evoscen_sut.lane_change.settled`, except for a mandatory
+    the vehicle has not settled (:func:`evoscen_sut.krauss_lane_change.settled`, except for a mandatory
     change); two conflicting requests of the given vehicles resolved by
     :func:`evoscen_sut.conflicts.resolve_conflicts` with :func:`conflict_rule`.
     """
@@ -378,7 +378,7 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: MobilParams) -
 
 
 make_driver = lane_change_factory(lane_change_decision, MobilParams)
-"""Factory of the ``mobil`` model (:class:`evoscen_sim.models.ModelSpec`)."""
+"""Factory of the ``mobil`` model (:class:`evoscen_sim.model_registry.ModelSpec`)."""
 
 
 SPEC = ModelSpec(

@@ -12,7 +12,7 @@ or a user's ``evoscen.sut`` plug-in — named by ``models.mutant.base``, and deg
 Operators (parameters in brackets; see docs/mutants.md for the reasons of the defaults):
 
 * perception — the base driver decides on a *filtered view*: a
-  :class:`evoscen_sim.view.WorldView` holding the SUT in row 0 and the other vehicles it
+  :class:`evoscen_sim.physics.view.WorldView` holding the SUT in row 0 and the other vehicles it
   perceives after it, in their world order; the base driver is built for row 0.
 
   - ``blind_behind``: vehicles whose centre is behind the SUT's (all lanes) are invisible.
@@ -61,12 +61,12 @@ from typing import Any
 
 import numpy as np
 import yaml
-from evoscen_sim import models as _models
-from evoscen_sim.config import integer, number, text
-from evoscen_sim.traffic import common_shift
+from evoscen_sim import model_registry as _models
+from evoscen_sim.config.scenario_config import integer, number, text
 from evoscen_sim.errors import InputError
-from evoscen_sim.models import ModelSpec, get_model, model_names
-from evoscen_sim.view import WorldView
+from evoscen_sim.model_registry import ModelSpec, get_model, model_names
+from evoscen_sim.physics.traffic import common_shift
+from evoscen_sim.physics.view import WorldView
 
 NAME = "mutant"
 
@@ -292,7 +292,7 @@ def _retuned(base: str, base_params: Any, retune: str) -> Any:
 
 def make_driver(vehicles: np.ndarray, params: MutantParams | None, config: Any,
                 rng: np.random.Generator) -> MutantDriver:
-    """Factory of the ``mutant`` model (:class:`evoscen_sim.models.ModelSpec`)."""
+    """Factory of the ``mutant`` model (:class:`evoscen_sim.model_registry.ModelSpec`)."""
     params = MutantParams() if params is None else params
     if params.base == NAME or params.base not in model_names("sut"):
         raise InputError(f"models.mutant.base '{params.base}': expected one of "

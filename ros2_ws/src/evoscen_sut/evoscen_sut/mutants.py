@@ -4,7 +4,7 @@ Each :class:`Mutant` is one operator of the ``mutant`` model (:mod:`evoscen_sut.
 parameters chosen as a realistic degradation; :func:`mutant_overrides` turns (base model,
 mutant name) into the config overrides that make a scenario run that mutant::
 
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     cfg = load_scenario_config(path, mutant_overrides("mobil", "blind_behind"))
 """
 
@@ -82,7 +82,7 @@ LIBRARY: dict[str, Mutant] = {m.name: m for m in _ENTRIES}
 
 def mutant_overrides(base: str, name: str) -> dict[str, str]:
     """Config overrides (dotted keys -> strings, for
-    :func:`evoscen_sim.config.load_scenario_config`) that make the SUT mutant ``name`` of
+    :func:`evoscen_sim.config.scenario_config.load_scenario_config`) that make the SUT mutant ``name`` of
     :data:`LIBRARY` of SUT model ``base``. The base's own ``models.<base>`` section is kept."""
     mutant = LIBRARY.get(name)
     if mutant is None:

@@ -69,7 +69,7 @@ Parameter sources: docs/method.md §4.1 (β = 300 s, v_min = 2 m/s, weights 5/12
 b_r = 0.05, θ = 0.9, 2.5·L); ``t_des = 2 s`` is the desired headway of the public
 re-implementation's example [choice: docs/method.md §4.1 gives no value].
 
-Longitudinal control: SUMO's Krauss via :class:`evoscen_sut.lane_change.KraussLaneChangeDriver`
+Longitudinal control: SUMO's Krauss via :class:`evoscen_sut.krauss_lane_change.KraussLaneChangeDriver`
 (shared with MOBIL: Krauss behind the own-lane leader, also the target-lane leader during a
 change, and a stop before the end of the merge lane).
 """
@@ -81,14 +81,14 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from evoscen_sim.config import number
+from evoscen_sim.config.scenario_config import number
 from evoscen_sim.jit import kernel
-from evoscen_sim.models import ModelSpec
-from evoscen_sim.road_kernels import lane_end_distance, segment_index
+from evoscen_sim.model_registry import ModelSpec
+from evoscen_sim.road.road_kernels import lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum
-from .lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
+from .krauss_lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
 
 
 @dataclass(frozen=True)
@@ -159,7 +159,7 @@ class NilssonEvaluation:
 
 
 NilssonKernelParams = kernel_params_type(NilssonParams)
-""":class:`NilssonParams` as the compiled kernels read them (:func:`evoscen_sut.lane_change.kernel_params`)."""
+""":class:`NilssonParams` as the compiled kernels read them (:func:`evoscen_sut.krauss_lane_change.kernel_params`)."""
 
 
 @lru_cache(maxsize=64)
@@ -178,7 +178,7 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
 
     The nearest vehicle ahead / behind in every lane (within ``view_range_m``): ahead means a
     larger ``s``, or the same ``s`` in the same lane and a larger index (as
-    :mod:`evoscen_sim.neighbors`); the lowest index wins a tie ahead, the highest behind.
+    :mod:`evoscen_sim.physics.neighbors`); the lowest index wins a tie ahead, the highest behind.
     """
     k = idx.shape[0]
     n = s.shape[0]
@@ -331,7 +331,7 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: NilssonParams)
     """Nilsson's lane-change request (+1 left, −1 right, 0 keep) for each of ``vehicles``.
 
     One step towards :func:`evaluate`'s target lane if that step is safe; 0 while a change is in
-    progress or the vehicle has not settled (:func:`evoscen_sut.lane_change.settled`, except when it
+    progress or the vehicle has not settled (:func:`evoscen_sut.krauss_lane_change.settled`, except when it
     must leave an ending lane); two conflicting requests of the given vehicles resolved by
     :func:`evoscen_sut.conflicts.resolve_conflicts` with the safety distance as the pair test
     (:func:`conflict_rule`).
@@ -345,7 +345,7 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: NilssonParams)
 
 
 make_driver = lane_change_factory(lane_change_decision, NilssonParams)
-"""Factory of the ``nilsson`` model (:class:`evoscen_sim.models.ModelSpec`)."""
+"""Factory of the ``nilsson`` model (:class:`evoscen_sim.model_registry.ModelSpec`)."""
 
 
 SPEC = ModelSpec(

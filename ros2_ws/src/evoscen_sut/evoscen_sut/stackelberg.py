@@ -71,11 +71,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from evoscen_sim.config import integer, number
+from evoscen_sim.config.scenario_config import integer, number
 from evoscen_sim.jit import kernel
-from evoscen_sim.models import ModelSpec
-from evoscen_sim.neighbors import LEFT, OWN, RIGHT
+from evoscen_sim.model_registry import ModelSpec
+from evoscen_sim.physics.neighbors import LEFT, OWN, RIGHT
 
 LEADER_ACTIONS: tuple[tuple[int, str], ...] = tuple(
     (lane, accel) for lane in (0, +1, -1) for accel in ("keep", "accelerate", "decelerate")
@@ -333,7 +332,7 @@ class StackelbergDriver:
         params: the game's parameters.
         car_following: a :class:`evoscen_sut.krauss.KraussCarFollowing` (or anything with its
             ``acceleration(view, vehicles, lane_offset)``).
-        vehicle_params: the scenario's :class:`evoscen_sim.vehicle.VehicleParams` (throttle map).
+        vehicle_params: the scenario's :class:`evoscen_sim.physics.vehicle.VehicleParams` (throttle map).
     """
 
     def __init__(self, vehicles: np.ndarray, params: StackelbergParams, car_following, vehicle_params) -> None:
@@ -344,7 +343,7 @@ class StackelbergDriver:
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} per driven vehicle."""
-        from evoscen_sim.vehicle import accel_to_throttle
+        from evoscen_sim.physics.vehicle import accel_to_throttle
 
         request = lane_change_decision(view, self.vehicles, self.params)
         accel = self.car_following.acceleration(view, self.vehicles)

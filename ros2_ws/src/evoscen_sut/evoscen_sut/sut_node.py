@@ -3,7 +3,7 @@
     python -m evoscen_sut.sut_node --ros-args --params-file sut.yaml [-p model:=mobil]
 
 ``model`` (default: ``scenario.sut.model``) names a model of the registry
-(:mod:`evoscen_sim.models`: built-ins and ``evoscen.sut`` entry points); an unknown name is a
+(:mod:`evoscen_sim.model_registry`: built-ins and ``evoscen.sut`` entry points); an unknown name is a
 one-line error listing the valid choices (exit 2). Other parameters: ``scenario.*``,
 ``command_subscribers`` [[evoscen_sim, evoscen_eval]], ``startup_timeout_s`` [30], ``idle_timeout_s`` [60].
 """
@@ -14,13 +14,12 @@ import sys
 from dataclasses import dataclass
 
 import numpy as np
-
 from evoscen_contract import topics as T
-from evoscen_sim.config_checks import text
-from evoscen_sim.controller_node import run_controller
-from evoscen_sim.models import model_names
-from evoscen_sim.node_params import own_parameters
-from evoscen_sim.scenario import SUT_INDEX, build_sut_driver
+from evoscen_sim.config.config_checks import text
+from evoscen_sim.model_registry import model_names
+from evoscen_sim.nodes.controller_node import run_controller
+from evoscen_sim.nodes.node_params import own_parameters
+from evoscen_sim.scenario_builders import SUT_INDEX, build_sut_driver
 
 
 @dataclass(frozen=True)

@@ -27,9 +27,9 @@ PLUGIN = textwrap.dedent('''
 
     import numpy as np
 
-    from evoscen_sim.config import number
-    from evoscen_sim.models import ModelSpec
-    from evoscen_sim.vehicle import accel_to_throttle
+    from evoscen_sim.config.scenario_config import number
+    from evoscen_sim.model_registry import ModelSpec
+    from evoscen_sim.physics.vehicle import accel_to_throttle
 
 
     @dataclass(frozen=True)
@@ -76,7 +76,7 @@ RUN_INPROCESS = textwrap.dedent('''
     import sys
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_sim.config import load_scenario_config
+    from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
     try:
@@ -168,7 +168,7 @@ def test_bad_plugin_parameter_in_process(plugin: Path, tmp_path: Path, key: str,
 
 
 @pytest.mark.parametrize(("value", "needle", "via_cli"), [
-    pytest.param("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.models.ModelSpec (got dict)", True,
+    pytest.param("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.model_registry.ModelSpec (got dict)", True,
                  marks=pytest.mark.e2e),  # through the CLI
     ("my_sut_plugin:MISSING", "failed to load", False),
     ("no_such_module:SPEC", "failed to load", False),

@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from evoscen_sim.config import load_scenario_config
+from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
-from evoscen_sim.models import create_driver, get_model, model_names
+from evoscen_sim.model_registry import create_driver, get_model, model_names
 from evoscen_sut.krauss import KraussCarFollowing, KraussParams, krauss_params_from_config
 from evoscen_sut.mutants import LIBRARY, mutant_overrides
 

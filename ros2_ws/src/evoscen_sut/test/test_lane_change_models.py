@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from evoscen_bringup.testing import model_scenario, run_checked
-from evoscen_sim.config import load_scenario_config
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.vehicle import VehicleParams
+from evoscen_bringup.model_testing import model_scenario, run_checked
+from evoscen_sim.config.scenario_config import load_scenario_config
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.vehicle import VehicleParams
+from evoscen_sim.road.road_model import load_road
 from evoscen_sut import mobil, nilsson
 from evoscen_sut.krauss import KraussCarFollowing, KraussParams
-from evoscen_sut.lane_change import KraussLaneChangeDriver
+from evoscen_sut.krauss_lane_change import KraussLaneChangeDriver
 
 L = 4.8
 V0 = 120.0 / 3.6
@@ -109,7 +109,7 @@ def test_kernel_params_are_the_dataclass_fields_declared_once() -> None:
     the values of a parameter set as floats (flags as bools)."""
     from dataclasses import dataclass
 
-    from evoscen_sut.lane_change import kernel_params, kernel_params_type
+    from evoscen_sut.krauss_lane_change import kernel_params, kernel_params_type
 
     @dataclass(frozen=True)
     class ToyParams:

@@ -18,12 +18,12 @@ from dataclasses import fields, replace
 
 import numpy as np
 import pytest
-from evoscen_sim.road import load_road
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.vehicle import VehicleParams
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.vehicle import VehicleParams
+from evoscen_sim.road.road_model import load_road
 from evoscen_sut import mobil
 from evoscen_sut.krauss import KraussCarFollowing, KraussParams, sumo_follow_speed
-from evoscen_sut.lane_change import KraussLaneChangeDriver, settled
+from evoscen_sut.krauss_lane_change import KraussLaneChangeDriver, settled
 from evoscen_sut.mobil import MobilParams, evaluate, lane_change_decision
 
 L = 4.8
@@ -60,7 +60,7 @@ def test_defaults_and_sources() -> None:
 
 
 def test_parameters_are_declared_for_config_validation() -> None:
-    # every field carries a checker (evoscen_sim.config.number/flag), so models.mobil is validated
+    # every field carries a checker (evoscen_sim.config.scenario_config.number/flag), so models.mobil is validated
     assert all("check" in f.metadata for f in fields(MobilParams))
     assert fields(MobilParams)[0].metadata["check"](0.5) == 0.5
     with pytest.raises(Exception, match=r"expected a number in \[0, 5\]"):
@@ -284,7 +284,7 @@ def test_compiled_settled_matches_the_road_model(road) -> None:
 def test_compiled_krauss_command_matches_the_generic_path(road) -> None:
     # the driver's compiled Krauss + lane-end stop + throttle mapping == the numpy composition
     # (KraussCarFollowing.acceleration twice, sumo_follow_speed, accel_to_throttle), random draws included
-    from evoscen_sim.vehicle import accel_to_throttle
+    from evoscen_sim.physics.vehicle import accel_to_throttle
 
     w = hand_built_world(road, s=[800.0, 812.0, 790.0, 300.0, 345.0, 900.0], lane=[0, 1, 1, 3, 2, 0],
                          speed=[20.0, 25.0, 30.0, 30.0, 22.0, 5.0])

@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 from evoscen_bringup.inprocess import run_inprocess
-from evoscen_sim.config import load_scenario_config
+from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
-from evoscen_sim.models import ModelSpec, create_driver, register_model, unregister_model
-from evoscen_sim.road import load_road
-from evoscen_sim.scenario import build_sut_driver
-from evoscen_sim.testing import hand_built_world
-from evoscen_sim.view import WorldView
+from evoscen_sim.model_registry import ModelSpec, create_driver, register_model, unregister_model
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.view import WorldView
+from evoscen_sim.road.road_model import load_road
+from evoscen_sim.scenario_builders import build_sut_driver
 from evoscen_sut import mutant as M
 from evoscen_sut.mutants import LIBRARY, Mutant, mutant_overrides
 

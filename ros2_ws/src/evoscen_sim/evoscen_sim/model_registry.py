@@ -1,0 +1,297 @@
+"""Driver models as plug-ins: one registry for SUT models and BV drivers.
+
+A driver model is described by a :class:`ModelSpec`: its name, the roles it can play
+(``"sut"``, ``"bv"``), an optional frozen dataclass of parameters, and a factory building a
+driver for a set of vehicles. A *driver* is any object with::
+
+    act(view) -> (throttle: np.ndarray, lane_change: np.ndarray)
+
+one entry per vehicle it drives, where ``view`` is a traffic view
+(:mod:`evoscen_sim.physics.view`): throttle/brake in [-1, 1], lane-change request in {-1, 0, +1}.
+
+Models come from two places, found by :func:`discover`:
+
+* the built-in modules (``evoscen_bv.bv_models``, ``evoscen_sut.sut_models``), which call
+  :func:`register_model` when imported;
+* Python entry points in the groups ``evoscen.sut`` and ``evoscen.bv`` whose value is a
+  :class:`ModelSpec` — how a user's own package plugs a model in without touching ours::
+
+      # the user's setup.py / pyproject
+      entry_points={"evoscen.sut": ["my_sut = my_pkg.my_sut:SPEC"]}
+
+Parameters live in the scenario YAML under ``models.<name>`` and are validated against the
+model's parameter dataclass with the same checks and one-line errors as every other key
+(declare fields with :func:`evoscen_sim.config.scenario_config.number`, :func:`~evoscen_sim.config.scenario_config.integer`,
+:func:`~evoscen_sim.config.scenario_config.flag`). A parameter set that several models read and that is no
+model itself (``models.krauss``, the SUTs' car following) is registered with
+:func:`register_parameter_set`: valid under ``models``, not as ``sut.model`` or ``bvs.driver``.
+
+This module is the registry the configuration reads (:data:`SUT_MODELS`, :data:`BV_DRIVERS`,
+the valid ``sut.model`` and ``bvs.driver``); it imports nothing of the configuration, so the
+configuration can import it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import weakref
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib import metadata
+from typing import Any
+
+from .errors import InputError
+
+ROLES = ("sut", "bv")
+ENTRY_POINT_GROUPS = {"sut": "evoscen.sut", "bv": "evoscen.bv"}
+BUILTIN_MODULES = ("evoscen_bv.bv_models", "evoscen_sut.sut_models")
+
+#: Background-vehicle driver implementations selectable by ``bvs.driver``, in registration order.
+BV_DRIVERS: tuple[str, ...] = ("level0",)
+#: System-under-test models selectable by ``sut.model``, in registration order.
+SUT_MODELS: tuple[str, ...] = ("level0",)
+
+
+def register_bv_driver(name: str) -> None:
+    """Make ``name`` a valid ``bvs.driver`` (idempotent)."""
+    global BV_DRIVERS
+    if name not in BV_DRIVERS:
+        BV_DRIVERS = (*BV_DRIVERS, name)
+
+
+def register_sut_model(name: str) -> None:
+    """Make ``name`` a valid ``sut.model`` (idempotent)."""
+    global SUT_MODELS
+    if name not in SUT_MODELS:
+        SUT_MODELS = (*SUT_MODELS, name)
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """A driver model: how to validate its parameters and build it."""
+
+    name: str
+    """Registry name (``sut.model``, ``bvs.driver``, ``models.<name>``)."""
+    roles: tuple[str, ...]
+    """Roles the model can play: ``"sut"`` and/or ``"bv"``."""
+    factory: Callable[..., Any]
+    """``factory(vehicles, params, config, rng) -> driver``: ``vehicles`` an int array of
+    world indices, ``params`` an instance of ``params_type`` (or None), ``config`` the
+    :class:`~evoscen_sim.config.scenario_config.ScenarioConfig`, ``rng`` a seeded numpy Generator."""
+    params_type: type | None = None
+    """Frozen dataclass of the model's parameters (defaults documented per field)."""
+    description: str = ""
+    """One line for listings."""
+
+
+_REGISTRY: dict[str, ModelSpec] = {}
+_PARAMETER_SETS: dict[str, type] = {}
+_PLUGINS: dict[str, metadata.EntryPoint] = {}
+"""Model name -> the entry point that registered it (plug-ins only), for :func:`plugin_entry_point`."""
+_discovered = False
+
+
+def register_model(spec: ModelSpec) -> None:
+    """Add (or replace) a model in the registry."""
+    bad = [r for r in spec.roles if r not in ROLES]
+    if bad or not spec.roles:
+        raise ValueError(f"model {spec.name!r}: roles {spec.roles} must be a non-empty subset of {ROLES}")
+    if spec.name in _PARAMETER_SETS:
+        raise ValueError(f"model {spec.name!r}: the name is taken by the parameter set models.{spec.name}")
+    _REGISTRY[spec.name] = spec
+    if "sut" in spec.roles:
+        register_sut_model(spec.name)
+    if "bv" in spec.roles:
+        register_bv_driver(spec.name)
+
+
+def register_parameter_set(name: str, params_type: type) -> None:
+    """Make ``models.<name>`` a parameter set validated against ``params_type`` (a frozen
+    dataclass declared like a model's parameters) that is no model: models read it from
+    ``config.models.get(name)`` (absent: the defaults). Idempotent; a model's name is refused."""
+    if name in _REGISTRY:
+        raise ValueError(f"parameter set {name!r}: the name is taken by a model")
+    _PARAMETER_SETS[name] = params_type
+
+
+def unregister_model(name: str) -> None:
+    """Remove a model from the registry (tests; plug-ins are normally permanent)."""
+    global SUT_MODELS, BV_DRIVERS
+    _REGISTRY.pop(name, None)
+    _PLUGINS.pop(name, None)
+    SUT_MODELS = tuple(n for n in SUT_MODELS if n != name)
+    BV_DRIVERS = tuple(n for n in BV_DRIVERS if n != name)
+
+
+def discover() -> None:
+    """Import the built-in model modules and load the entry points (once per process)."""
+    global _discovered
+    if _discovered:
+        return
+    _discovered = True
+    for module in BUILTIN_MODULES:
+        try:
+            importlib.import_module(module)
+        except ImportError:  # a partial install (e.g. evoscen_sim alone): those models are absent
+            pass
+    builtin = set(_REGISTRY)
+    for role, group in ENTRY_POINT_GROUPS.items():
+        for ep in metadata.entry_points(group=group):
+            try:
+                spec = ep.load()
+            except Exception as exc:  # noqa: BLE001 - a broken plug-in must be named, not crash
+                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) failed to load: {exc}") from None
+            if not isinstance(spec, ModelSpec):
+                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) is not an "
+                                 f"evoscen_sim.model_registry.ModelSpec (got {type(spec).__name__})")
+            taken = ("a built-in model" if spec.name in builtin else
+                     f"the parameter set models.{spec.name}" if spec.name in _PARAMETER_SETS else None)
+            if taken is not None:
+                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) registers the model "
+                                 f"{spec.name!r}, the name of {taken}: give the plug-in's model another name")
+            if role not in spec.roles:
+                spec = ModelSpec(spec.name, (*spec.roles, role), spec.factory, spec.params_type, spec.description)
+            register_model(spec)
+            _PLUGINS[spec.name] = ep
+
+
+def plugin_entry_point(name: str) -> metadata.EntryPoint | None:
+    """The entry point that registered model ``name`` (its distribution: ``.dist``; its module:
+    ``.module``), or None for a built-in model or an unknown name."""
+    discover()
+    return _PLUGINS.get(name)
+
+
+def model_names(role: str) -> tuple[str, ...]:
+    """Names of the models that can play ``role``, sorted."""
+    discover()
+    return tuple(sorted(name for name, spec in _REGISTRY.items() if role in spec.roles))
+
+
+def get_model(name: str, role: str) -> ModelSpec:
+    """The spec of model ``name`` for ``role``; InputError listing the valid choices otherwise."""
+    discover()
+    spec = _REGISTRY.get(name)
+    if spec is None or role not in spec.roles:
+        key = "sut.model" if role == "sut" else "bvs.driver"
+        raise InputError(f"unknown {key} '{name}': expected one of {', '.join(model_names(role))}")
+    return spec
+
+
+def create_driver(name: str, role: str, vehicles, config, rng) -> Any:
+    """Build model ``name`` for ``role`` driving world indices ``vehicles``."""
+    import numpy as np
+
+    spec = get_model(name, role)
+    params = config.models.get(name) if spec.params_type is not None else None
+    if spec.params_type is not None and params is None:
+        params = spec.params_type()
+    vehicles = np.asarray(vehicles, dtype=np.int64)
+    driver = spec.factory(vehicles, params, config, rng)
+    _remember(driver, (name, role, len(vehicles)))
+    return driver
+
+
+_BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+"""driver -> (model name, role, number of vehicles), for :func:`checked_answer`'s error line."""
+_BUILT_BY_ID: dict[int, tuple[str, str, int]] = {}
+"""The same for drivers that cannot be weakly referenced or hashed (keyed by ``id``)."""
+
+
+def _remember(driver: Any, what: tuple[str, str, int]) -> None:
+    try:
+        _BUILT[driver] = what
+    except TypeError:
+        _BUILT_BY_ID[id(driver)] = what
+
+
+def rehosted(driver: Any, count: int) -> None:
+    """Record that ``driver`` (built by :func:`create_driver`) now drives ``count`` vehicles (a BV
+    node's share, :func:`evoscen_sim.scenario_builders.build_bv_driver`), for :func:`checked_answer`."""
+    what = _built(driver)
+    if what is not None:
+        _remember(driver, (what[0], what[1], int(count)))
+
+
+def _built(driver: Any) -> tuple[str, str, int] | None:
+    try:
+        what = _BUILT.get(driver)
+    except TypeError:
+        what = None
+    return what if what is not None else _BUILT_BY_ID.get(id(driver))
+
+
+def _fine(throttle: Any, lane_change: Any, count: int | None) -> bool:
+    """A quick yes for the common answer: two arrays of ``count``, finite throttle, integer lane changes in {-1, 0, 1}."""
+    import numpy as np
+
+    if type(throttle) is not np.ndarray or type(lane_change) is not np.ndarray:
+        return False
+    if throttle.ndim != 1 or throttle.shape != lane_change.shape or (count is not None and len(throttle) != count):
+        return False
+    if lane_change.dtype.kind not in "iu" or throttle.dtype.kind != "f":
+        return False
+    if not throttle.size:
+        return not lane_change.size
+    # the sum of throttle values is finite exactly when they all are (|values| far below overflow)
+    return bool(np.isfinite(throttle.sum())) and bool(lane_change.size) and int(np.abs(lane_change).max()) <= 1
+
+
+def checked_answer(driver: Any, answer: Any, count: int | None = None) -> tuple[Any, Any]:
+    """``driver``'s answer ``act(view) -> (throttle, lane_change)``, checked where every runner takes it.
+
+    Returns ``answer`` as it is when it is a pair of ``count`` finite throttle values and ``count``
+    lane-change values in {-1, 0, +1} (``count``: the vehicles the driver was built for by
+    :func:`create_driver`); otherwise an :class:`InputError` of one line naming the model and its
+    role, what it returned and what is expected (the command-line tools: ``error: ...``, exit 2).
+    A finite throttle outside [-1, 1] is not refused here (the in-process runner clips it; see
+    docs/plugins.md §3).
+    """
+    import numpy as np
+
+    built = _built(driver)
+    if count is None and built is not None:
+        count = built[2]
+    if (type(answer) is tuple and len(answer) == 2 and _fine(answer[0], answer[1], count)):
+        return answer  # every step, twice: the common case in a few µs
+    name, role, _ = built or (type(driver).__name__, "driver", None)
+    who = f"{role} model {name!r}: act() returned"
+    if not isinstance(answer, (tuple, list)) or len(answer) != 2:
+        got = f"a {type(answer).__name__}" + (f" of {len(answer)}" if isinstance(answer, (tuple, list)) else "")
+        raise InputError(f"{who} {got}; expected a pair (throttle, lane_change) of arrays, one entry per vehicle")
+    out = []
+    for what, value in zip(("throttle", "lane_change"), answer):
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(f"{who} a {what} of type {type(value).__name__}; expected an array of numbers, "
+                             "one per vehicle") from None
+        if count is not None and arr.shape != (count,):
+            raise InputError(f"{who} a {what} of shape {arr.shape}; expected shape ({count},), one per vehicle")
+        out.append(arr)
+    throttle, lane_change = out
+    if throttle.ndim != 1 or throttle.shape != lane_change.shape:
+        raise InputError(f"{who} a throttle of shape {throttle.shape} and a lane_change of shape {lane_change.shape}; "
+                         "expected two arrays of the same length, one entry per vehicle")
+    bad = ~np.isfinite(throttle)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{who} throttle {throttle[k]} (entry {k}); expected a finite number in [-1, 1]")
+    bad = ~((lane_change == 0.0) | (np.abs(lane_change) == 1.0))  # nan too
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{who} lane_change {lane_change[k]:g} (entry {k}); expected -1, 0 or 1")
+    return answer
+
+
+def params_type_of(name: str) -> type | None:
+    """The parameter dataclass of a registered model or parameter set (None if it has none or is unknown)."""
+    discover()
+    spec = _REGISTRY.get(name)
+    return _PARAMETER_SETS.get(name) if spec is None else spec.params_type
+
+
+def parameter_names() -> tuple[str, ...]:
+    """The names valid under ``models``: the models with parameters and the parameter sets, sorted."""
+    discover()
+    return tuple(sorted({n for n, spec in _REGISTRY.items() if spec.params_type is not None} | set(_PARAMETER_SETS)))

@@ -1,0 +1,1 @@
+"""The graph's nodes: the simulation node, the BV and SUT nodes' controller node, node parameters, which BVs each BV node hosts."""
