@@ -39,7 +39,10 @@ $(EXAMPLES_STAMP): $(REQ_STAMP) $(addsuffix /pyproject.toml,$(EXAMPLE_PACKAGES))
 # an entry point or a package.
 # colcon runs only when the build's inputs changed since the last successful build: the list of
 # files under ros2_ws/src (a file added or removed) or the packages' setup.py/setup.cfg/package.xml;
-# an edited module needs no rebuild (symlink install). BUILD_STAMP holds those inputs.
+# an edited module needs no rebuild (symlink install). BUILD_STAMP holds those inputs. A rebuild also
+# drops numba's compiled-kernel caches (__pycache__/*.nbi, *.nbc, evoscen_sim/jit.py): a cached kernel
+# names the modules of the kernels it calls, and numba loads it without checking that they still exist,
+# so a moved or renamed module would fail every run with ModuleNotFoundError until they are deleted.
 BUILD_STAMP := $(INSTALL)/.evoscen-build-inputs
 build: $(REQ_STAMP)
 	@new=$$(cd $(WS)/src && { find . \( -name __pycache__ -o -name '*.egg-info' \) -prune -o -type f -print | LC_ALL=C sort; \
@@ -47,6 +50,7 @@ build: $(REQ_STAMP)
 	if [ -f $(BUILD_STAMP) ] && [ "$$new" = "$$(cat $(BUILD_STAMP))" ]; then \
 	    echo "build: up to date (no file added or removed under $(WS)/src, no package metadata changed)"; \
 	else \
+	    find $(WS)/src -path '*/__pycache__/*' \( -name '*.nbi' -o -name '*.nbc' \) -delete; \
 	    ( . $(VENV)/bin/activate && cd $(WS) && colcon --log-base log build --symlink-install --base-paths src \
 	        --build-base build --install-base install --event-handlers console_cohesion- summary- ) \
 	    && printf '%s\n' "$$new" > $(BUILD_STAMP); \
@@ -77,6 +81,7 @@ bench: setup $(BENCH_STAMP)
 
 clean:
 	rm -rf $(WS)/build $(WS)/install $(WS)/log runs
+	find $(WS)/src -path '*/__pycache__/*' \( -name '*.nbi' -o -name '*.nbc' \) -delete
 
 # --- containers (docs/docker.md): docker or podman, whichever is installed --------------------------
 .PHONY: docker-build docker-test docker-demo
