@@ -53,7 +53,7 @@ class FirstSutParams:
 
 # --8<-- [start:driver]
 class FirstSut:
-    """The driver: ``act(view)`` for the vehicles it drives (the SUT: one)."""
+    """The driver: ``act(view)`` for its vehicles (the SUT: one)."""
 
     def __init__(self, vehicles: np.ndarray, params: FirstSutParams, vehicle_params) -> None:
         self.vehicles = vehicles
@@ -75,7 +75,7 @@ class FirstSut:
         """IDM acceleration (m/s²) at speed ``v`` behind a leader ``gap_m`` ahead at ``v_leader``."""
         p = self.p
         free = 1.0 - (v / v0) ** 4
-        if not np.isfinite(gap_m):  # no leader: the neighbourhood's gap is inf, its speed nan
+        if not np.isfinite(gap_m):  # no leader: gap inf, speed nan
             return p.accel_mps2 * free
         if gap_m <= 0.0:  # touching or overlapping: full brake
             return -self.vehicle.max_brake_mps2
@@ -93,7 +93,7 @@ class FirstSut:
             accel = min(accel, self.idm(v, v0, nb.gap_front_m[i, col], nb.leader_speed_mps[i, col]))
         else:
             to_end = float(view.road.distance_to_lane_end(lane, s))  # inf where the lane runs on
-            if np.isfinite(to_end):  # the merge lane: its end is a standing obstacle
+            if np.isfinite(to_end):  # the merge lane: its end is an obstacle
                 gap = to_end - 0.5 * float(view.length[i]) - self.p.lane_end_margin_m
                 accel = min(accel, self.idm(v, v0, gap, 0.0))
         return accel
