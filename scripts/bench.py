@@ -2,7 +2,7 @@
 """Benchmark: in-process simulation speed, recorded-bag size, and SUMO for reference.
 
     python scripts/bench.py [--mode inprocess|graph] [--steps 5000] [--repeats 5] [--bag-steps 10000] [--no-sumo]
-                            [--bv-driver level0|learned] [--bv-nodes single,by_policy]
+                            [--bv-driver level0|learned] [--bv-nodes single,by_policy] [--node-cpu]
 
 Prints, for the shipped default scenario (1 SUT + 20 BVs, dt 0.1 s) with the BV drivers of
 ``--bv-driver`` (default ``level0``, the rule-based drivers SUMO is compared with; ``learned``:
@@ -25,7 +25,9 @@ the in-process rate of the same scenario with recording on (the graph always rec
 Then, in graph mode, the BV-node partitions of ``--bv-nodes`` (``bvs.nodes``; default ``single`` and
 ``by_policy``) in ``--graph-repeats`` interleaved rounds: the median lockstep rate of each and its
 ratio to the first. With ``--bv-driver learned``, ``by_policy`` is three BV nodes (competitive,
-mutual, cooperative); with the rule-based ``level0`` it is one.
+mutual, cooperative); with the rule-based ``level0`` it is one. With ``--node-cpu``, also each node's
+CPU time per step in each partition (:mod:`node_cpu`: a short and a ``--graph-steps`` run, their
+difference), their sum, and the steps/s two cores could give at that CPU cost if nothing else ran.
 
 With ``--learned``: the learned BVs' cost — the in-process rate of the default scenario
 with ``bvs.driver: learned`` vs ``level0``, the driver's time per step, and one batched
@@ -116,6 +118,26 @@ def partition_figures(steps: int, repeats: int, driver: str, partitions: list[st
     med = {p: statistics.median(r) for p, r in rates.items()}
     return {"rates": rates, "median_steps_per_s": med,
             "ratio_to_first": {p: med[p] / med[partitions[0]] for p in partitions}}
+
+
+def node_cpu_figures(steps: int, driver: str, partitions: list[str]) -> dict:
+    """Each node's CPU µs per lockstep step in each partition (:func:`node_cpu.per_step_us`: a run of
+    ``steps // 5`` steps and one of ``steps``), the sum over the nodes, and ``2e6 / sum``: the steps/s
+    of a 2-core machine that did nothing else and whose cores never waited (an upper bound)."""
+    from node_cpu import NodeCpuSampler, per_step_us
+
+    short = max(steps // 5, 100)
+    out = {}
+    for p in partitions:
+        seconds = []
+        for n in (short, steps):
+            with NodeCpuSampler() as sampler:
+                graph_run(n, driver, p)
+            seconds.append(sampler.seconds)
+        us = per_step_us(seconds[0], seconds[1], short, steps)
+        total = sum(us.values())
+        out[p] = {"us_per_step": us, "total_us_per_step": total, "two_core_bound_steps_per_s": 2e6 / total}
+    return out
 
 
 def graph_figures(steps: int, repeats: int, driver: str) -> dict:
@@ -264,6 +286,8 @@ def main(argv: list[str] | None = None) -> int:
                     help="graph: also compare these BV-node partitions (bvs.nodes), comma-separated, the first "
                          "the reference (default single,by_policy; with --bv-driver learned by_policy is three BV "
                          "nodes, with level0 one; empty: skip)")
+    ap.add_argument("--node-cpu", action="store_true",
+                    help="graph: also each node's CPU time per step in each --bv-nodes partition")
     ap.add_argument("--sut-models", action="store_true", help="also the per-decision cost of every SUT model")
     ap.add_argument("--learned", action="store_true",
                     help="also the learned BVs' inference cost and the in-process rate with learned vs level-0 BVs")
@@ -320,6 +344,15 @@ def main(argv: list[str] | None = None) -> int:
                 runs_text = " ".join(f"{r:.0f}" for r in pf["rates"][p])
                 print(f"  {p:10s} median {pf['median_steps_per_s'][p]:8.0f} steps/s lockstep   "
                       f"{pf['ratio_to_first'][p] * 100:5.1f} % of {partitions[0]}   (runs: {runs_text})")
+            if args.node_cpu:
+                nc = node_cpu_figures(args.graph_steps, drv, partitions)
+                out["graph"]["node_cpu"] = nc
+                print(f"CPU per lockstep step by node (difference of a {max(args.graph_steps // 5, 100)}- and a "
+                      f"{args.graph_steps}-step run; user + system, all threads):")
+                for p in partitions:
+                    nodes = "  ".join(f"{k} {v:.0f}" for k, v in sorted(nc[p]["us_per_step"].items()))
+                    print(f"  {p:10s} {nc[p]['total_us_per_step']:6.0f} us in all ({nodes}); two cores doing nothing "
+                          f"else: <= {nc[p]['two_core_bound_steps_per_s']:.0f} steps/s")
     if args.sut_models:
         costs = sut_model_costs(args.steps, drv)
         out["sut_models"] = costs
