@@ -320,6 +320,54 @@ def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypa
     assert _worlds(bag / "bag_0.mcap") == kept
 
 
+def _chunk_record_ends(mcap: Path) -> list[tuple[int, int]]:
+    """(end offset of the chunk record alone, without its message indexes; last log time) of each chunk."""
+    from mcap.reader import make_reader
+
+    with open(mcap, "rb") as f:
+        idx = sorted(make_reader(f).get_summary().chunk_indexes, key=lambda c: c.chunk_start_offset)
+    return [(c.chunk_start_offset + c.chunk_length, c.message_end_time) for c in idx]
+
+
+@pytest.mark.parametrize("writer", ["inline", "process"])
+def test_read_only_between_a_chunk_and_its_indexes(tmp_path: Path, reference: Path,
+                                                   monkeypatch: pytest.MonkeyPatch, writer: str) -> None:
+    """The file system turns read-only after a chunk record reached the file but before its message
+    indexes did, and the file cannot be cut back: the chunk is complete, so the reindexer reads its
+    states too, and the line must count them (the states it names are the ones the bag holds)."""
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_record import bag_file
+    from evoscen_record.reindex import reindex_bag
+    from evoscen_sim.errors import HostFault
+
+    records = _chunk_record_ends(reference)
+    k = len(records) // 3
+    capacity, last = records[k]  # chunk k whole on disk, its indexes not
+    kept = [w for w in _worlds(reference) if w[0] <= last]
+    assert 0 < len(kept) < len(_worlds(reference))
+    bag = tmp_path / "bag"
+    budget = [capacity]
+    real = bag_file._open_file
+
+    def fake(path: Path):
+        if not str(path).startswith(str(bag)):
+            return real(path)
+        if budget[0] <= 0:
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
+        return _ReadOnly(path, budget)
+
+    monkeypatch.setattr(bag_file, "_open_file", fake)
+    with pytest.raises(HostFault) as info:
+        run_inprocess(_cfg(), bag_dir=bag, bag_writer=writer)
+    fault = info.value
+    assert (bag / "bag_0.mcap").stat().st_size == capacity  # not cut back: read-only
+    assert fault.errno == errno.EROFS and fault.bag_state == "reindex" and fault.steps == len(kept)
+    assert f"holds the {len(kept)} world states" in fault.line()
+    monkeypatch.undo()
+    assert reindex_bag(bag, keep_original=False).steps == len(kept)
+    assert _worlds(bag / "bag_0.mcap") == kept
+
+
 def test_bag_directory_removed_mid_run(tmp_path: Path) -> None:
     """The bag's directory is removed while the run writes: one line naming metadata.yaml, the bag gone."""
     from evoscen_bringup.inprocess import run_inprocess

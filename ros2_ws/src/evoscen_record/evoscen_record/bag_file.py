@@ -60,6 +60,7 @@ class BagFile:
         self._held_bytes = 0
         self._pos = 0
         self.good = 0  # the end of the last complete chunk on disk
+        self.on_disk = 0  # bytes the file holds (more than ``good`` where a fault left it uncut)
 
     HOLD_BYTES = 16 * 1024 * 1024
     """Bytes held at most between two flushes (bags written without the 1-s bound)."""
@@ -86,6 +87,7 @@ class BagFile:
                     if not n:
                         raise OSError(errno.EIO, "the file took no bytes")
                     view = view[n:]
+                    self.on_disk += n
         except OSError as exc:
             raise self._owner._fault_of(exc, self.path) from None
 
@@ -107,6 +109,7 @@ class BagFile:
         # left as it is: readers and the reindexer stop at the last complete record anyway.
         with contextlib.suppress(OSError, ValueError):
             os.ftruncate(self._f.fileno(), self.good)
+            self.on_disk = self.good
 
     def close(self) -> None:
         try:

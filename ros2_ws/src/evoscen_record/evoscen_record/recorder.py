@@ -138,7 +138,7 @@ class BagRecorder:
         file_name: str | None = None,
         fast_writes: bool = True,
         chunk_writes: bool = True,
-        finish_after_fault: Callable[[Path], int] | None = None,
+        finish_after_fault: Callable[[Path], tuple[int, bool]] | None = None,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
         if compression not in _COMPRESSIONS:
@@ -167,8 +167,9 @@ class BagRecorder:
         self.metadata_path: Path = self.bag_dir / "metadata.yaml"
         self._fault: HostFault | None = None
         self._fault_finisher = finish_after_fault
-        """Finishes the bag directory from its complete chunks after a fault and returns the world
-        states in it (``evoscen_record.reindex.finish_bag``; None: leave it for ``scripts/reindex.py``).
+        """Finishes the bag directory from its complete chunks after a fault and returns (the world
+        states in it, whether it was finished) (``evoscen_record.reindex.finish_bag``; None: leave
+        it for ``scripts/reindex.py``).
         Passed in, so that the recorder does not import the reindexer that imports it."""
         self._safe_counts: dict[str, int] = {}
         try:
@@ -249,17 +250,23 @@ class BagRecorder:
         if not self.mcap_path.exists():
             fault.bag_state = "lost"
             return
-        if self._stream.good == 0:  # not even the first chunk reached the disk
+        if self._stream.on_disk == 0:  # not even the first chunk reached the disk
             fault.bag_state = "empty"
             return
         fault.bag_state = "reindex"
         if self._fault_finisher is None:
             return
         try:
-            steps = self._fault_finisher(self.bag_dir)
-        except (OSError, InputError, HostFault):
+            steps, finished = self._fault_finisher(self.bag_dir)
+        except (OSError, InputError, HostFault):  # unreadable: what was flushed is in it, if anything
+            if self._stream.good == 0:  # a first chunk cut short that could not be cut off
+                fault.bag_state = "empty"
             return
-        fault.bag_state, fault.steps = "finished", steps
+        # counted in the file: where it could not be cut back, a chunk that reached it whole after
+        # the last safe point is in it too (docs/recording.md, "Faults of the host")
+        fault.steps = steps
+        if finished:
+            fault.bag_state = "finished"
 
     # ------------------------------------------------------------------ writing
 

@@ -58,32 +58,42 @@ def _mcap_of(bag: Path) -> Path:
     return mcaps[0]
 
 
-def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult:
-    """Rebuild the MCAP summary and ``metadata.yaml`` of ``bag`` (a bag directory or its .mcap).
+@dataclass
+class _Contents:
+    """What the readable part of a bag file holds (:func:`_read`)."""
+
+    schemas: dict = field(default_factory=dict)
+    channels: dict = field(default_factory=dict)
+    metadata: dict[str, dict[str, str]] = field(default_factory=dict)
+    messages: list = field(default_factory=list)
+    chunks: int = 0
+    stopped: str = ""
+
+    def world_stamps(self) -> set[int]:
+        """The log times of the world states (messages of channels without a record left out)."""
+        world = {cid for cid, ch in self.channels.items() if ch.topic == WORLD_TOPIC}
+        return {m.log_time for m in self.messages if m.channel_id in world}
+
+
+def _read(path: Path) -> _Contents:
+    """Read ``path`` record by record up to its first record cut short or corrupt (module docstring).
 
     Raises:
-        InputError: no bag there, the file is not MCAP at all (bad magic), or it holds no
-            schema/channel records (nothing to rebuild from); the message names the file.
+        InputError: the file cannot be opened, is not MCAP at all (bad magic), or holds no
+            channel record (nothing to rebuild from); the message names the file.
     """
     from mcap.exceptions import McapError
-    from mcap.records import Channel, Chunk, Footer, Header, Message, Metadata, Schema
+    from mcap.records import Channel, Chunk, Message, Metadata, Schema
     from mcap.stream_reader import StreamReader, breakup_chunk
 
-    path = _mcap_of(Path(bag))
-    bag_dir = path.parent
-    result = ReindexResult(mcap_path=path)
-    schemas: dict[int, Schema] = {}
-    channels: dict[int, Channel] = {}
-    metadata: dict[str, dict[str, str]] = {}
-    messages: list[Message] = []
+    out = _Contents()
     header_seen = False
     try:
         stream = open(path, "rb")  # noqa: SIM115
     except OSError as exc:
         raise InputError(f"bag {str(path)!r}: cannot open: {exc.strerror or exc}") from None
     with stream:
-        reader = StreamReader(stream, emit_chunks=True, validate_crcs=True)
-        records = reader.records
+        records = StreamReader(stream, emit_chunks=True, validate_crcs=True).records
         while True:
             try:
                 record = next(records)
@@ -92,12 +102,12 @@ def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult
             except (McapError, EOFError, ValueError, KeyError, IndexError, OSError) as exc:
                 if not header_seen:
                     raise InputError(f"bag {str(path)!r}: not an MCAP file ({exc})") from None
-                result.stopped = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+                out.stopped = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
                 break
             except Exception as exc:  # noqa: BLE001 - any decoder failure ends the readable part
                 if not header_seen:
                     raise InputError(f"bag {str(path)!r}: not an MCAP file ({exc!r})") from None
-                result.stopped = repr(exc)
+                out.stopped = repr(exc)
                 break
             header_seen = True
             inner = [record]
@@ -105,53 +115,57 @@ def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult
                 try:
                     inner = list(breakup_chunk(record, validate_crc=True))
                 except Exception as exc:  # noqa: BLE001 - a corrupt chunk: stop before it
-                    result.stopped = f"corrupt chunk: {exc!r}"
+                    out.stopped = f"corrupt chunk: {exc!r}"
                     break
-                result.chunks += 1
+                out.chunks += 1
             for rec in inner:
                 if isinstance(rec, Schema):
-                    schemas.setdefault(rec.id, rec)
+                    out.schemas.setdefault(rec.id, rec)
                 elif isinstance(rec, Channel):
-                    channels.setdefault(rec.id, rec)
+                    out.channels.setdefault(rec.id, rec)
                 elif isinstance(rec, Message):
-                    messages.append(rec)
+                    out.messages.append(rec)
                 elif isinstance(rec, Metadata) and rec.name != "rosbag2":
-                    metadata.setdefault(rec.name, dict(rec.metadata))
-                elif isinstance(rec, (Header, Footer)):
-                    pass
-    if not channels:
+                    out.metadata.setdefault(rec.name, dict(rec.metadata))
+    if not out.channels:
         raise InputError(f"bag {str(path)!r}: no channel records readable; nothing to recover")
+    return out
+
+
+def _topics(path: Path, contents: _Contents) -> list:
+    """The contract topic of each channel, in channel-id order; InputError for a foreign one."""
     topics = []
-    for cid in sorted(channels):
-        ch = channels[cid]
+    for cid in sorted(contents.channels):
+        ch = contents.channels[cid]
         spec = T.spec_of(ch.topic)  # the BV nodes' command topics too (docs/architecture.md §5, "BV nodes")
         if spec is None:
             raise InputError(f"bag {str(path)!r}: channel {ch.topic!r} is not an evoscen contract topic; "
                              "only evoscen bags can be reindexed")
-        schema = schemas.get(ch.schema_id)
+        schema = contents.schemas.get(ch.schema_id)
         if schema is not None and schema.name != spec.type_name:
             raise InputError(f"bag {str(path)!r}: channel {ch.topic!r} has type {schema.name!r}, "
                              f"the contract says {spec.type_name!r}")
         topics.append(spec)
-    topic_of = {cid: channels[cid].topic for cid in channels}
+    return topics
 
+
+def _rewrite(path: Path, contents: _Contents, result: ReindexResult, *, keep_original: bool) -> None:
+    """Write the new bag beside ``path`` and put it in its place (module docstring)."""
+    bag_dir = path.parent
+    topics = _topics(path, contents)
+    topic_of = {cid: ch.topic for cid, ch in contents.channels.items()}
     tmp = Path(tempfile.mkdtemp(prefix=".reindex-", dir=bag_dir))
     try:
         rec = BagRecorder(tmp / "bag", topics, compression=_compression_of(path), chunk_size=DEFAULT_CHUNK_SIZE,
-                          canonicalize=False, metadata=metadata, file_name=path.name)
-        world_stamps: set[int] = set()
-        for m in messages:
+                          canonicalize=False, metadata=contents.metadata, file_name=path.name)
+        for m in contents.messages:
             topic = topic_of.get(m.channel_id)
             if topic is None:
                 continue  # a message of a channel whose record was lost: cannot be typed
             rec.write(topic, m.data, m.log_time, m.publish_time, canonical=True)
-            if topic == WORLD_TOPIC:
-                world_stamps.add(m.log_time)
         rec.close()
         result.topic_counts = rec.topic_message_counts()
         result.messages = rec.message_count
-        result.steps = len(world_stamps)
-        result.last_step_ns = max(world_stamps) if world_stamps else None
         if keep_original:
             result.original = path.with_name(path.name + ".orig")
             os.replace(path, result.original)
@@ -159,6 +173,25 @@ def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult
         os.replace(tmp / "bag" / "metadata.yaml", bag_dir / "metadata.yaml")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _result(path: Path, contents: _Contents) -> ReindexResult:
+    stamps = contents.world_stamps()
+    return ReindexResult(mcap_path=path, steps=len(stamps), last_step_ns=max(stamps) if stamps else None,
+                         chunks=contents.chunks, stopped=contents.stopped)
+
+
+def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult:
+    """Rebuild the MCAP summary and ``metadata.yaml`` of ``bag`` (a bag directory or its .mcap).
+
+    Raises:
+        InputError: no bag there, the file is not MCAP at all (bad magic), or it holds no
+            schema/channel records (nothing to rebuild from); the message names the file.
+    """
+    path = _mcap_of(Path(bag))
+    contents = _read(path)
+    result = _result(path, contents)
+    _rewrite(path, contents, result, keep_original=keep_original)
     return result
 
 
@@ -177,8 +210,23 @@ def _compression_of(path: Path) -> str:
     return "zstd"
 
 
-def finish_bag(bag_dir: Path) -> int:
+def finish_bag(bag_dir: Path) -> tuple[int, bool]:
     """Finish a bag cut back to its complete chunks after a fault of the host, in place (what
-    :class:`~evoscen_record.recorder.BagRecorder` calls as its ``finish_after_fault``); returns the
-    world states it holds. Raises as :func:`reindex_bag`."""
-    return reindex_bag(bag_dir, keep_original=False).steps
+    :class:`~evoscen_record.recorder.BagRecorder` calls as its ``finish_after_fault``).
+
+    Returns (the world states the file holds, whether the bag was finished). The count is read
+    from the file, not taken from the writer: where the file could not be cut back (a file system
+    made read-only), a chunk that reached it whole after the last safe point is in it too, and
+    the reindexer will recover it. Not finished when the new file cannot be written (the same
+    fault): ``scripts/reindex.py`` finishes it later and finds the same states.
+    Raises InputError when the file cannot be read as an MCAP file."""
+    from evoscen_sim.errors import HostFault
+
+    path = _mcap_of(Path(bag_dir))
+    contents = _read(path)
+    result = _result(path, contents)
+    try:
+        _rewrite(path, contents, result, keep_original=False)
+    except (OSError, InputError, HostFault):
+        return result.steps, False
+    return result.steps, True
