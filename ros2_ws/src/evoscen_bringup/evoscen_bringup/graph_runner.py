@@ -43,19 +43,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
-from evoscen_contract.contract import (
-    EXIT_BAD_INPUT,
-    EXIT_FAULT,
-    EXIT_HOST_FAULT,
-    EXIT_INTERRUPTED,
-    EXIT_NODE_DIED,
-    EXIT_OK,
-    NODE_BV,
-    NODE_EVAL,
-    NODE_EXIT_STATUSES,
-    NODE_SIM,
-    NODE_SUT,
-)
+from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED,
+                                       EXIT_OK, NODE_BV, NODE_EVAL, NODE_EXIT_STATUSES, NODE_SIM, NODE_SUT)
 from evoscen_sim.config.scenario_config import ScenarioConfig
 from evoscen_sim.nodes.bv_nodes import bv_node_names
 from evoscen_sim.nodes.node_params import scenario_parameters

@@ -171,19 +171,10 @@ def hard_brake_params(params: LearnedParams):
         raise InputError("models.learned.hard_brake_*: the minimum of a range exceeds its maximum") from None
 
 
-LEVEL0 = ModelSpec(
-    name="level0",
-    roles=("bv", "sut"),
-    factory=_level0,
-    description="level-0 traffic: IDM, keep lane, forced merges only (docs/method.md §3.3)",
-)
+LEVEL0 = ModelSpec(name="level0", roles=("bv", "sut"), factory=_level0,
+                   description="level-0 traffic: IDM, keep lane, forced merges only (docs/method.md §3.3)")
 register_model(LEVEL0)
 
-LEARNED = ModelSpec(
-    name="learned",
-    roles=("bv",),
-    factory=_learned,
-    params_type=LearnedParams,
-    description="TD3-trained social drivers: competitive, mutual, cooperative by bvs.mix (docs/method.md §3)",
-)
+LEARNED = ModelSpec(name="learned", roles=("bv",), factory=_learned, params_type=LearnedParams,
+                    description="TD3-trained social drivers: competitive, mutual, cooperative by bvs.mix (docs/method.md §3)")
 register_model(LEARNED)

@@ -66,6 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from evoscen_sim.jit import kernel
+from evoscen_sim.physics.neighbors import lane_column
 
 from .car_following import _occupancy
 
@@ -176,10 +177,8 @@ def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_sca
                     grid[k, r, c, 0] = -1.0
         vlat_i = v[i] * np.sin(psi[i])
         for j in range(n):
-            if j == i:
-                continue
-            r = lane[j] - lane[i] + 2
-            if r < 0 or r > 4:
+            r = lane_column(lane[i], lane[j])  # the grid's rows are the neighbourhood's columns
+            if j == i or r < 0:
                 continue
             ds = s[j] - s[i]
             c = int(np.floor((ds + 20.0) / 5.0))

@@ -381,10 +381,5 @@ make_driver = lane_change_factory(lane_change_decision, MobilParams)
 """Factory of the ``mobil`` model (:class:`evoscen_sim.model_registry.ModelSpec`)."""
 
 
-SPEC = ModelSpec(
-    name="mobil",
-    roles=("sut", "bv"),
-    factory=make_driver,
-    params_type=MobilParams,
-    description="MOBIL lane changes (IDM accelerations, keep-right variant) + Krauss car following (docs/method.md §4)",
-)
+SPEC = ModelSpec(name="mobil", roles=("sut", "bv"), factory=make_driver, params_type=MobilParams,
+                 description="MOBIL lane changes (IDM accelerations, keep-right variant) + Krauss car following (docs/method.md §4)")

@@ -315,10 +315,5 @@ def make_driver(vehicles: np.ndarray, params: MutantParams | None, config: Any,
     return MutantDriver(params, int(vehicles[0]), make_base, rng)
 
 
-SPEC = ModelSpec(
-    name=NAME,
-    roles=("sut",),
-    factory=make_driver,
-    params_type=MutantParams,
-    description="a registered SUT model with one deliberate defect (docs/method.md §7, docs/mutants.md)",
-)
+SPEC = ModelSpec(name=NAME, roles=("sut",), factory=make_driver, params_type=MutantParams,
+                 description="a registered SUT model with one deliberate defect (docs/method.md §7, docs/mutants.md)")

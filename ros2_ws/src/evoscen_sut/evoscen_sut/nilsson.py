@@ -348,10 +348,5 @@ make_driver = lane_change_factory(lane_change_decision, NilssonParams)
 """Factory of the ``nilsson`` model (:class:`evoscen_sim.model_registry.ModelSpec`)."""
 
 
-SPEC = ModelSpec(
-    name="nilsson",
-    roles=("sut", "bv"),
-    factory=make_driver,
-    params_type=NilssonParams,
-    description="Nilsson lane utilities (travel time, time gap, remaining distance) + Krauss car following (docs/method.md §4)",
-)
+SPEC = ModelSpec(name="nilsson", roles=("sut", "bv"), factory=make_driver, params_type=NilssonParams,
+                 description="Nilsson lane utilities (travel time, time gap, remaining distance) + Krauss car following (docs/method.md §4)")

@@ -362,10 +362,5 @@ def _factory(vehicles, params, config, rng):
                              krauss_for(config, rng), config.vehicle)
 
 
-SPEC = ModelSpec(
-    name="stackelberg",
-    roles=("sut",),
-    factory=_factory,
-    params_type=StackelbergParams,
-    description="Stackelberg lane change (leader = ego, 2 followers, worst-case best response; docs/method.md §4) + Krauss",
-)
+SPEC = ModelSpec(name="stackelberg", roles=("sut",), factory=_factory, params_type=StackelbergParams,
+                 description="Stackelberg lane change (leader = ego, 2 followers, worst-case best response; docs/method.md §4) + Krauss")

@@ -27,6 +27,13 @@ LEFT = 3
 RIGHT = 1
 
 
+@kernel
+def lane_column(lane_i, lane_j):
+    """The neighbourhood column of a vehicle in lane ``lane_j`` seen from one in ``lane_i``: its lane
+    offset + 2 (0..4), or -1 when it is more than two lanes away (not in the neighbourhood)."""
+    c = lane_j - lane_i + 2
+    return c if 0 <= c <= 4 else -1
+
 
 @dataclass(frozen=True)
 class Neighborhood:
@@ -76,10 +83,8 @@ def _neighborhood_kernel(s, lane, v, a, length):
         best_f[:] = np.inf
         best_r[:] = np.inf
         for j in range(n):
-            if j == i:
-                continue
-            c = lane[j] - lane[i] + 2
-            if c < 0 or c > 4:
+            c = lane_column(lane[i], lane[j])
+            if j == i or c < 0:
                 continue
             ds = s[j] - s[i]
             if ds > 0.0 or (ds == 0.0 and c == 2 and j > i):
