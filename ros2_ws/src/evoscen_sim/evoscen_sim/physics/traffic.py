@@ -28,7 +28,11 @@ After every step of the world (:meth:`evoscen_sim.physics.world.World.step`, ste
    vehicle that finds no safe place keeps driving where it is and tries again at the next step;
    one that reaches the road's end waits at the road's start.
 
-Random draws come from the world's seeded generator (docs/architecture.md: random streams).
+Random draws come from the world's seeded generator (docs/architecture.md: random streams): one
+``normal`` per lane tried, in Python. The search for a place in a lane (positions, lane existence,
+neighbours, safe speed) is one compiled call, :func:`_place_in_lane` (:mod:`evoscen_sim.jit`), with
+the same expressions in the same order as :func:`insertion_speed` and :func:`required_gap`, so its
+results are bit-identical to theirs.
 """
 
 from __future__ import annotations
@@ -37,6 +41,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from evoscen_sim.jit import kernel
+from evoscen_sim.road.road_kernels import lane_borders, lane_present
 
 MERGE_LANE = 0
 
@@ -175,23 +182,22 @@ class TrafficWindow:
         p = self.p
         road = world.road
         lo, hi = s_sut - p.behind_m, s_sut + p.ahead_m
-        inside = (world.s >= lo) & (world.s <= hi)
-        inside[self.sut] = False
-        occupied = np.where(world.lane_change != 0, world.target_lane, world.lane)
+        counts = _lane_counts(world.s, world.lane, world.target_lane, world.lane_change, self.sut, lo, hi,
+                              road.num_lanes)
         rows = []
         length_km = (hi - lo) / 1000.0
         for j, lane in enumerate(self.mainline):
             target = p.lane_density_per_km[j] * length_km
             if target <= 0.0:
                 continue
-            count = int(np.count_nonzero(inside & (occupied == lane)))
+            count = int(counts[lane])
             mean, sd = p.lane_speed_mps[j]
             rows.append(((count - target) / target, lane, mean, sd))
         if self.has_ramp and p.ramp_density_per_km > 0.0:
             start, end = float(road.lane_start_s[MERGE_LANE]), float(road.lane_end_s[MERGE_LANE])
             target = p.ramp_density_per_km * (min(end, hi) - start) / 1000.0
             if lo <= start <= hi and target > 0.0:  # (the start exactly at the front edge: no room yet)
-                count = int(np.count_nonzero(inside & (occupied == MERGE_LANE)))
+                count = int(counts[MERGE_LANE])
                 rows.append(((count - target) / target, MERGE_LANE, *p.ramp_speed_mps))
         rows.sort(key=lambda r: (r[0], r[1]))
         return [r for r in rows if r[0] < 0.0] or rows
@@ -201,8 +207,12 @@ class TrafficWindow:
         road = world.road
         s_sut, v_sut = float(world.s[self.sut]), float(world.v[self.sut])
         half = 0.5 * world.vehicle.length_m
+        tables = road.border_tables()
+        b_tau_sq = float((p.insertion_decel_mps2 * p.insertion_headway_s) ** 2)  # as insertion_speed
+        band, g0 = float(p.insertion_band_m), float(p.insertion_min_gap_m)
+        tau, b = float(p.insertion_headway_s), float(p.insertion_decel_mps2)
         for _, lane, mean, sd in self._targets(world, s_sut):
-            v = float(np.clip(world.rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
+            v = float(_np_clip(world.rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
             v_floor = max(0.0, mean - 2.0 * sd)
             if lane == MERGE_LANE:
                 s_new = float(road.lane_start_s[MERGE_LANE]) + half
@@ -210,67 +220,143 @@ class TrafficWindow:
                 s_new = s_sut + p.ahead_m
             else:
                 s_new = s_sut - p.behind_m
-            for s_try in self._positions(world, i, lane, s_new, s_sut):
-                if not bool(road.lane_exists(np.array([lane]), np.array([s_try]))[0]):
-                    continue
-                v_try = self._safe_speed(world, i, lane, s_try, v, half)
-                if v_try >= v_floor:
-                    world._place(i, lane, s_try, v_try)
-                    return (i, int(lane), float(s_try))
+            found, s_try, v_try = _place_in_lane(
+                world.s, world.d, world.v, world.length, world.width, world.lane, world.target_lane, i, lane,
+                s_new, s_sut, v, v_floor, half, band, g0, tau, b, b_tau_sq, tables)
+            if found:
+                world._place(i, lane, s_try, v_try)
+                return (i, int(lane), float(s_try))
         return None
 
-    def _positions(self, world, i: int, lane: int, s_edge: float, s_sut: float) -> list[float]:
-        """Where a vehicle may enter ``lane``: the edge itself, then the middle of the largest gap
-        of the lane within ``insertion_band_m`` inside the window from that edge (the merge lane:
-        its start only)."""
-        band = self.p.insertion_band_m
-        if lane == MERGE_LANE or band <= 0.0:
-            return [s_edge]
-        inward = -1.0 if s_edge > s_sut else 1.0
-        a, b = sorted((s_edge, s_edge + inward * band))
-        cand = ((world.lane == lane) | (world.target_lane == lane)) & (world.s >= a - 100.0) & (world.s <= b + 100.0)
-        cand[i] = False
-        s = np.sort(np.concatenate([world.s[cand], [a - 1e9, b + 1e9]]))
-        s = np.clip(s, a, b)
-        k = int(np.argmax(np.diff(s)))
-        mid = 0.5 * (s[k] + s[k + 1])
-        return [s_edge] if abs(mid - s_edge) < 1e-9 else [s_edge, float(mid)]
 
-    def _safe_speed(self, world, i: int, lane: int, s_new: float, v: float, half: float) -> float:
-        """``v`` lowered to what the leader allows; -inf when the follower could not follow (or the
-        vehicle would overlap one)."""
-        p = self.p
-        leader, follower = _neighbours(world, i, lane, s_new)
-        if leader >= 0:
-            gap = world.s[leader] - s_new - 0.5 * world.length[leader] - half
-            v = insertion_speed(v, gap, float(world.v[leader]), p)
-        if follower >= 0:
-            gap = s_new - world.s[follower] - 0.5 * world.length[follower] - half
-            if gap < required_gap(float(world.v[follower]), v, p):
-                return -math.inf
-        return v
+def _np_clip(x: float, lo: float, hi: float) -> float:
+    """``np.clip`` of one float, as numpy computes it (``max`` then ``min``, NaN propagated, of equals ``x``)."""
+    if x != x:
+        return x
+    x = x if x >= lo else lo
+    if x != x:
+        return x
+    return x if x <= hi else hi
 
 
-def _neighbours(world, i: int, lane: int, s_new: float) -> tuple[int, int]:
-    """Nearest vehicle ahead of and behind ``s_new`` in ``lane``, -1 if none.
+@kernel
+def _lane_counts(s, lane, target_lane, lane_change, sut, lo, hi, num_lanes):
+    """Vehicles but the SUT with ``lo <= s <= hi`` in each lane (the target lane while changing lanes)."""
+    counts = np.zeros(num_lanes, dtype=np.int64)
+    for j in range(s.shape[0]):
+        if j == sut or not (s[j] >= lo and s[j] <= hi):
+            continue
+        k = target_lane[j] if lane_change[j] != 0 else lane[j]
+        if 0 <= k < num_lanes:
+            counts[k] += 1
+    return counts
 
-    In the lane means: its lane or its target lane is ``lane``, or its body reaches across the
-    lane's border (a vehicle that has just completed a lane change out of it still straddles it).
+
+@kernel
+def _required_gap(v_back, v_front, g0, tau, b):
+    """:func:`required_gap` (same expressions, same order; Python's ``max(0.0, x)``)."""
+    x = (v_back * v_back - v_front * v_front) / (2.0 * b)
+    return g0 + v_back * tau + (x if x > 0.0 else 0.0)
+
+
+@kernel
+def _py_min(a, b):
+    """Python's ``min(a, b)``: ``b`` only when ``b < a``."""
+    return b if b < a else a
+
+
+@kernel
+def _insertion_speed(v_wish, gap_m, v_leader, g0, tau, b, b_tau_sq):
+    """:func:`insertion_speed` (same expressions, same order; ``b_tau_sq`` = ``(b·τ)**2`` from Python)."""
+    g = gap_m - g0
+    if g < 0.0:
+        return -np.inf
+    if v_wish <= v_leader or _required_gap(v_wish, v_leader, g0, tau, b) <= gap_m:
+        if _required_gap(v_wish, v_leader, g0, tau, b) <= gap_m:
+            return v_wish
+        return _py_min(v_wish, g / tau)
+    v = -b * tau + math.sqrt(b_tau_sq + v_leader * v_leader + 2.0 * b * g)
+    if v <= v_leader:
+        v = _py_min(v_leader, g / tau)
+    return _py_min(v_wish, v)
+
+
+@kernel
+def _place_in_lane(s, d, v, length, width, lane_of, target_lane, i, lane, s_edge, s_sut, v_wish, v_floor,
+                   half, band, g0, tau, b, b_tau_sq, tables):
+    """Where vehicle ``i`` (half length ``half``) drawn at ``v_wish`` may enter ``lane`` from the window's
+    edge ``s_edge`` (module docstring, entries; docs/method.md §1): ``(found, s, speed)``.
+
+    The positions tried: the edge, then the middle of the largest gap of the lane within ``band``
+    inside the window from it (the merge lane: its start only). A position counts where the lane
+    exists, the speed lowered to what the leader allows (:func:`insertion_speed`) is at least
+    ``v_floor``, and the follower can follow (:func:`required_gap`). Leader and follower: the
+    nearest vehicles ahead (``s`` >= the position) and behind whose lane or target lane is ``lane``
+    or whose body reaches across the lane's borders there; of equals the lowest index.
     """
-    look = world.road.lane_lookup(np.array([max(s_new, 0.0)]), np.zeros(1))
-    right, left = float(look.d_right[0, lane]), float(look.d_left[0, lane])
-    half_w = 0.5 * world.width
-    across = (world.d + half_w > right) & (world.d - half_w < left)
-    cand = (world.lane == lane) | (world.target_lane == lane) | across
-    cand[i] = False
-    k = np.flatnonzero(cand)
-    if not k.size:
-        return -1, -1
-    ds = world.s[k] - s_new
-    ahead, behind = k[ds >= 0.0], k[ds < 0.0]
-    leader = int(ahead[np.argmin(world.s[ahead])]) if ahead.size else -1
-    follower = int(behind[np.argmax(world.s[behind])]) if behind.size else -1
-    return leader, follower
+    n = s.shape[0]
+    s_mid = s_edge
+    n_pos = 1
+    if lane != MERGE_LANE and not band <= 0.0:
+        inward = -1.0 if s_edge > s_sut else 1.0
+        far = s_edge + inward * band
+        lo, hi = (far, s_edge) if far < s_edge else (s_edge, far)  # sorted((s_edge, far))
+        buf = np.empty(n + 2)
+        m = 0
+        for j in range(n):
+            if j != i and (lane_of[j] == lane or target_lane[j] == lane) and s[j] >= lo - 100.0 \
+                    and s[j] <= hi + 100.0:
+                buf[m] = s[j]
+                m += 1
+        buf[m] = lo - 1e9
+        buf[m + 1] = hi + 1e9
+        pts = np.sort(buf[:m + 2])
+        for q in range(m + 2):  # np.clip(pts, lo, hi)
+            x = pts[q]
+            if x == x:
+                x = x if x > lo else lo
+                x = x if x < hi else hi
+            pts[q] = x
+        k = 0
+        best = pts[1] - pts[0]
+        for q in range(1, m + 1):  # np.argmax(np.diff(pts)): the first largest
+            if pts[q + 1] - pts[q] > best:
+                best = pts[q + 1] - pts[q]
+                k = q
+        s_mid = 0.5 * (pts[k] + pts[k + 1])
+        if not abs(s_mid - s_edge) < 1e-9:
+            n_pos = 2
+    for t in range(n_pos):
+        s_try = s_edge if t == 0 else s_mid
+        if not lane_present(tables, lane, s_try):
+            continue
+        right, left = lane_borders(tables, lane, s_try)
+        leader = -1
+        follower = -1
+        for j in range(n):
+            if j == i:
+                continue
+            half_w = 0.5 * width[j]
+            if not (lane_of[j] == lane or target_lane[j] == lane
+                    or (d[j] + half_w > right and d[j] - half_w < left)):
+                continue
+            ds = s[j] - s_try
+            if ds >= 0.0:
+                if leader < 0 or s[j] < s[leader]:
+                    leader = j
+            elif ds < 0.0 and (follower < 0 or s[j] > s[follower]):
+                follower = j
+        v_try = v_wish
+        if leader >= 0:
+            gap = s[leader] - s_try - 0.5 * length[leader] - half
+            v_try = _insertion_speed(v_try, gap, v[leader], g0, tau, b, b_tau_sq)
+        if follower >= 0:
+            gap = s_try - s[follower] - 0.5 * length[follower] - half
+            if gap < _required_gap(v[follower], v_try, g0, tau, b):
+                v_try = -np.inf
+        if v_try >= v_floor:
+            return True, s_try, v_try
+    return False, 0.0, 0.0
 
 
 def common_shift(prev_s: np.ndarray, s: np.ndarray) -> float:

@@ -52,6 +52,57 @@ class RoadTables(NamedTuple):
     """(m,) the ``s`` the lane-offset cubic is measured from (m)."""
 
 
+class BorderTables(NamedTuple):
+    """A road's lane-border tables for compiled kernels (:meth:`evoscen_sim.road.road_model.RoadModel.border_tables`;
+    read-only arrays, ``m`` table rows, ``n`` lanes): what :func:`lane_lookup_kernel` reads."""
+
+    length_m: float
+    breaks: np.ndarray
+    """(m,) the rows' start ``s`` (m), ascending, the first 0."""
+    seg_const: np.ndarray
+    """(m,) bool: every width and the lane offset are constant in the row (borders tabulated)."""
+    d_right: np.ndarray
+    """(m, n) each lane's right border in a constant row (m)."""
+    d_left: np.ndarray
+    """(m, n) each lane's left border in a constant row (m)."""
+    present: np.ndarray
+    """(m, n) bool: the lane exists in the row."""
+    width_coef: np.ndarray
+    width_origin: np.ndarray
+    offset_coef: np.ndarray
+    offset_origin: np.ndarray
+
+
+@kernel
+def lane_present(bt, lane, s):
+    """``RoadModel.lane_exists(lane, s)`` for one ``(lane, s)`` (``bt``: :class:`BorderTables`)."""
+    if lane < 0 or lane >= bt.present.shape[1]:
+        return False
+    sc = min(max(s, 0.0), bt.length_m)
+    return bt.present[np.searchsorted(bt.breaks, sc, side="right") - 1, lane]
+
+
+@kernel
+def lane_borders(bt, lane, s):
+    """``(d_right, d_left)`` of ``lane`` (a valid index) at ``s``: the values ``RoadModel.lane_lookup``
+    gives (:func:`lane_lookup_kernel`, same expressions in the same order; ``bt``: :class:`BorderTables`)."""
+    nl = bt.present.shape[1]
+    sc = min(max(s, 0.0), bt.length_m)
+    j = np.searchsorted(bt.breaks, sc, side="right") - 1
+    if bt.seg_const[j]:
+        return bt.d_right[j, lane], bt.d_left[j, lane]
+    x = sc - bt.offset_origin[j]
+    c = bt.offset_coef[j]
+    edge = c[0] + x * (c[1] + x * (c[2] + x * c[3]))
+    d_left = edge
+    for k in range(nl - 1, lane - 1, -1):  # from the reference line (left) to the right
+        x = sc - bt.width_origin[j, k]
+        c = bt.width_coef[j, k]
+        d_left = edge
+        edge -= max(c[0] + x * (c[1] + x * (c[2] + x * c[3])), 0.0)
+    return edge, d_left
+
+
 @kernel
 def segment_index(road, s):
     """The lane-table row at ``s`` (clamped to ``[0, length_m]``): the last breakpoint ``<= s``."""

@@ -69,7 +69,7 @@ import numpy as np
 import evoscen_sim
 from evoscen_sim.errors import InputError
 from evoscen_sim.road.opendrive import Lane, LaneSection, OpenDriveMap, Poly3, parse_opendrive
-from evoscen_sim.road.road_kernels import RoadTables, frenet_to_cartesian_kernel, lane_lookup_kernel
+from evoscen_sim.road.road_kernels import BorderTables, RoadTables, frenet_to_cartesian_kernel, lane_lookup_kernel
 
 ArrayLike = Union[float, int, np.ndarray, list, tuple]
 
@@ -291,6 +291,13 @@ class RoadModel:
             width_coef=np.ascontiguousarray(self._w_coef), width_origin=np.ascontiguousarray(self._w_origin),
             offset_coef=np.ascontiguousarray(self._off_coef), offset_origin=np.ascontiguousarray(self._off_origin))
 
+        self._border_tables = BorderTables(
+            length_m=float(self.length_m), breaks=np.ascontiguousarray(self._breaks),
+            seg_const=np.ascontiguousarray(self._seg_const), d_right=np.ascontiguousarray(self._dr_table),
+            d_left=np.ascontiguousarray(self._dl_table), present=np.ascontiguousarray(self._present),
+            width_coef=np.ascontiguousarray(self._w_coef), width_origin=np.ascontiguousarray(self._w_origin),
+            offset_coef=np.ascontiguousarray(self._off_coef), offset_origin=np.ascontiguousarray(self._off_origin))
+
     # ------------------------------------------------------------------ validation helpers
     @staticmethod
     def _lane_present(lane: Lane) -> bool:
@@ -380,6 +387,12 @@ class RoadModel:
         (:func:`~evoscen_sim.road.road_kernels.segment_index`, :func:`~evoscen_sim.road.road_kernels.lane_end_distance`,
         :func:`~evoscen_sim.road.road_kernels.lane_center_d`), which compute what this class's methods do."""
         return self._kernel_tables
+
+    def border_tables(self) -> BorderTables:
+        """The tables :meth:`lane_lookup` reads, for compiled kernels that need one lane's borders
+        (:func:`~evoscen_sim.road.road_kernels.lane_borders`) or existence
+        (:func:`~evoscen_sim.road.road_kernels.lane_present`) at one ``s``, bit-identical to this class's."""
+        return self._border_tables
 
     def lane_exists(self, lane: ArrayLike, s: ArrayLike) -> np.ndarray:
         """True where lane index ``lane`` exists at ``s`` (s clamped to [0, length])."""
