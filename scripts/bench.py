@@ -364,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
         out["learned"] = lc
         print(f"learned BVs (shipped policies, 20 BVs, one batched forward per step; {args.steps} steps x {args.repeats}):")
         print(f"  in-process {lc['learned_steps_per_s']:8.0f} steps/s learned vs {lc['level0_steps_per_s']:8.0f} level-0: "
-              f"+{lc['learned_added_percent']:.0f} % step time   (target <= 50 %)")
+              f"{lc['learned_added_percent']:+.0f} % step time   (target <= 50 %)")
         print(f"  controller (every step) {lc['learned_throttle_us']:.1f} us; a decision step (every 10th: grid, forward, "
               f"rule constraints, controller) {lc['learned_act_us']:.1f} us, of which the grid {lc['grid_us']:.1f} us")
         line = (f"  decision forward pass, {lc['batch']} BVs, 3 policies: compiled kernel {lc['kernel_forward_us']:.1f} us, "

@@ -18,7 +18,8 @@ from evoscen_sim.physics.traffic import (
     new_trips,
     required_gap,
 )
-from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, InitialState, ReentryParams, World
+from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, World
 from evoscen_sim.road.road_model import load_road
 from evoscen_sim.scenario_builders import build_world
 
@@ -46,14 +47,8 @@ def test_required_gap_and_insertion_speed_by_hand() -> None:
 
 
 def _world(road, s, lane, v, params: TrafficParams, seed: int = 0) -> World:
-    n = len(s)
-    init = InitialState(
-        ids=np.arange(n, dtype=np.int64), roles=np.array([ROLE_SUT] + [ROLE_BV] * (n - 1), dtype=np.int64),
-        policies=np.zeros(n, dtype=np.int64), s_m=np.asarray(s, dtype=float),
-        lane=np.asarray(lane, dtype=np.int64), speed_mps=np.asarray(v, dtype=float))
-    cfg = load_scenario_config(None)
-    return World(road, init, vehicle=cfg.vehicle, control=cfg.control, reentry=ReentryParams(), dt_s=0.1,
-                 rng=np.random.default_rng(seed), traffic=params)
+    """Vehicle 0 the SUT, the others BVs, in the traffic window ``params``."""
+    return hand_built_world(road, s, lane, v, roles=[ROLE_SUT] + [ROLE_BV] * (len(s) - 1), seed=seed, traffic=params)
 
 
 def _coast(w: World):

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .control import ControlParams
+from .traffic import TrafficParams
 from .vehicle import VehicleParams
 from .world import ROLE_BV, InitialState, ReentryParams, World
 
@@ -29,8 +30,10 @@ def hand_built_world(
     dt_s: float = 0.1,
     seed: int = 0,
     first_id: int = 0,
+    traffic: TrafficParams | None = None,
 ) -> World:
-    """A world with vehicle ``i`` (id ``first_id + i``) at arc position ``s[i]`` in ``lane[i]`` at ``speed[i]``."""
+    """A world with vehicle ``i`` (id ``first_id + i``) at arc position ``s[i]`` in ``lane[i]`` at ``speed[i]``
+    (``traffic``: the traffic window around its SUT, :mod:`evoscen_sim.physics.traffic`)."""
     n = len(s)
     init = InitialState(
         ids=np.arange(n) + first_id,
@@ -41,4 +44,4 @@ def hand_built_world(
         speed_mps=np.asarray(speed, dtype=float),
     )
     return World(road, init, vehicle=vehicle, control=control, reentry=reentry, dt_s=dt_s,
-                 rng=np.random.default_rng(seed))
+                 rng=np.random.default_rng(seed), traffic=traffic)

@@ -30,9 +30,9 @@ After every step of the world (:meth:`evoscen_sim.physics.world.World.step`, ste
 
 Random draws come from the world's seeded generator (docs/architecture.md: random streams): one
 ``normal`` per lane tried, in Python. The search for a place in a lane (positions, lane existence,
-neighbours, safe speed) is one compiled call, :func:`_place_in_lane` (:mod:`evoscen_sim.jit`), with
-the same expressions in the same order as :func:`insertion_speed` and :func:`required_gap`, so its
-results are bit-identical to theirs.
+neighbours, safe speed) is one compiled call, :func:`_place_in_lane` (:mod:`evoscen_sim.jit`), whose
+:func:`_insertion_speed` and :func:`_required_gap` are also what :func:`insertion_speed` and
+:func:`required_gap` compute (one definition each).
 """
 
 from __future__ import annotations
@@ -77,28 +77,22 @@ def required_gap(v_back: float, v_front: float, p: TrafficParams) -> float:
     ``g0 + v_back·τ + max(0, (v_back² − v_front²) / (2b))``: the follower reacts after τ and
     then brakes with b to the leader's speed, keeping the standstill gap g0 (SUMO's insertion
     checks use the same idea: the safe following speed of Krauss for both the new vehicle and
-    its follower).
+    its follower). Computed by the entry search's kernel, :func:`_required_gap`.
     """
-    return p.insertion_min_gap_m + v_back * p.insertion_headway_s + max(
-        0.0, (v_back * v_back - v_front * v_front) / (2.0 * p.insertion_decel_mps2))
+    return float(_required_gap(float(v_back), float(v_front), float(p.insertion_min_gap_m),
+                               float(p.insertion_headway_s), float(p.insertion_decel_mps2)))
 
 
 def insertion_speed(v_wish: float, gap_m: float, v_leader: float, p: TrafficParams) -> float:
     """The largest speed <= ``v_wish`` at which a vehicle ``gap_m`` behind a leader at ``v_leader``
-    follows it safely (:func:`required_gap` <= gap); -inf when even standing still is not safe."""
-    g = gap_m - p.insertion_min_gap_m
-    if g < 0.0:
-        return -math.inf
-    tau, b = p.insertion_headway_s, p.insertion_decel_mps2
-    if v_wish <= v_leader or required_gap(v_wish, v_leader, p) <= gap_m:
-        if required_gap(v_wish, v_leader, p) <= gap_m:
-            return v_wish
-        return min(v_wish, g / tau)  # slower than the leader: only the headway binds
-    # faster than the leader: the largest v with v·τ + (v² − v_l²)/(2b) <= g (Krauss' safe speed)
-    v = -b * tau + math.sqrt((b * tau) ** 2 + v_leader * v_leader + 2.0 * b * g)
-    if v <= v_leader:  # then only the headway binds
-        v = min(v_leader, g / tau)
-    return min(v_wish, v)
+    follows it safely (:func:`required_gap` <= gap); -inf when even standing still is not safe.
+
+    Slower than the leader only the headway binds (``(gap − g0) / τ``); faster, Krauss' safe speed,
+    the largest v with ``v·τ + (v² − v_l²)/(2b) <= gap − g0``. Computed by the entry search's
+    kernel, :func:`_insertion_speed`."""
+    tau, b = float(p.insertion_headway_s), float(p.insertion_decel_mps2)
+    return float(_insertion_speed(float(v_wish), float(gap_m), float(v_leader), float(p.insertion_min_gap_m),
+                                  tau, b, float((b * tau) ** 2)))
 
 
 def check_shift_points(road, p: TrafficParams, hold_s: float | None = None) -> str | None:  # a RoadModel
@@ -254,7 +248,7 @@ def _lane_counts(s, lane, target_lane, lane_change, sut, lo, hi, num_lanes):
 
 @kernel
 def _required_gap(v_back, v_front, g0, tau, b):
-    """:func:`required_gap` (same expressions, same order; Python's ``max(0.0, x)``)."""
+    """The required gap (:func:`required_gap`; ``max(0.0, x)`` as Python's)."""
     x = (v_back * v_back - v_front * v_front) / (2.0 * b)
     return g0 + v_back * tau + (x if x > 0.0 else 0.0)
 
@@ -267,7 +261,8 @@ def _py_min(a, b):
 
 @kernel
 def _insertion_speed(v_wish, gap_m, v_leader, g0, tau, b, b_tau_sq):
-    """:func:`insertion_speed` (same expressions, same order; ``b_tau_sq`` = ``(b·τ)**2`` from Python)."""
+    """The insertion speed (:func:`insertion_speed`; ``b_tau_sq`` = ``(b·τ)**2``, computed by the caller:
+    bit-identical to the traffic window's Python form before it was compiled, Python's ``min``)."""
     g = gap_m - g0
     if g < 0.0:
         return -np.inf
