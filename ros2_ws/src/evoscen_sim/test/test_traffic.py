@@ -129,6 +129,29 @@ def test_new_trips_and_common_shift() -> None:
     assert new_trips(prev, prev + np.array([3.0, -11.0, 14.5, 0.0]), 0.1).tolist() == [False, True, True, False]
 
 
+def test_common_shift_median_is_numpys() -> None:
+    """The compiled median: numpy's to the bit (a zero's sign aside), for odd and even counts, ties,
+    a NaN; by hand: the middle of 5, the mean of the middle two of 4, and the shift it gives."""
+    from evoscen_sim.physics.traffic import _median
+
+    assert _median(np.array([5.0, -1.0, 3.0, 9.0, 2.0])) == 3.0
+    assert _median(np.array([4.0, 1.0, 3.0, 2.0])) == 2.5
+    assert math.isnan(_median(np.array([1.0, np.nan, 3.0])))
+    rng = np.random.default_rng(7)
+    for _ in range(3000):
+        n = int(rng.integers(3, 45))
+        x = rng.normal(0.0, 500.0, n)
+        if rng.random() < 0.3:
+            x = np.round(x / 100.0) * 100.0  # ties
+        got, ref = _median(x), np.median(x)
+        assert got == ref
+        assert np.float64(got).tobytes() == np.float64(ref).tobytes() or got == 0.0
+        prev = rng.uniform(0.0, 2000.0, n)
+        step = float(np.median((prev + x) - prev))  # common_shift's numpy form
+        ref_shift = step if step < -50.0 else 0.0
+        assert np.float64(common_shift(prev, prev + x)).tobytes() == np.float64(ref_shift).tobytes()
+
+
 def test_window_spawn_fills_the_window_at_its_densities() -> None:
     cfg = load_scenario_config(None, {"seed": 12, "traffic.warmup_s": 0.0})
     w = build_world(cfg)

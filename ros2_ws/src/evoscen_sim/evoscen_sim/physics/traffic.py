@@ -361,8 +361,26 @@ def common_shift(prev_s: np.ndarray, s: np.ndarray) -> float:
     fewer than three vehicles a jump is taken for a re-entry, never a shift."""
     if np.asarray(prev_s).size < 3:
         return 0.0
-    med = float(np.median(np.asarray(s, dtype=float) - np.asarray(prev_s, dtype=float)))
+    med = float(_median(np.asarray(s, dtype=np.float64) - np.asarray(prev_s, dtype=np.float64)))
     return med if med < -50.0 else 0.0
+
+
+@kernel
+def _median(x):
+    """``np.median`` of a 1-D float array: NaN if any value is NaN, else the middle value of the sorted
+    values, or for an even count the mean of the two middle ones, ``(a + b) / 2`` (numpy's mean of
+    two) — the same bits, but for the sign of a zero median (numpy's partition and this sort may put
+    -0.0 and 0.0 in either order; :func:`common_shift` maps both to 0.0). Compiled: called every step
+    by drivers that remember vehicles."""
+    n = x.shape[0]
+    for i in range(n):
+        if x[i] != x[i]:
+            return np.nan
+    y = np.sort(x)
+    h = n // 2
+    if n % 2 == 1:
+        return y[h]
+    return (y[h - 1] + y[h]) / 2.0
 
 
 def new_trips(prev_s: np.ndarray, s: np.ndarray, dt_s: float, *, max_speed_mps: float = 40.0,
