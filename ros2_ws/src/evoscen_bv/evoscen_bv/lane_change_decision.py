@@ -197,17 +197,23 @@ def _grid_kernel(idx, s, lane, v, psi, breaks, present, length_m, v_max, lat_sca
 def forced_merge_targets(view, idx: np.ndarray, within_m: float = FORCED_MERGE_M) -> np.ndarray:
     """The road's mandatory change of each vehicle ``idx``: +1/-1 for a vehicle in a lane that ends
     less than ``within_m`` ahead beside a lane that ends later (left if both neighbours do), else 0."""
-    idx = np.asarray(idx, dtype=np.int64)
-    out = np.zeros(idx.size, dtype=np.int64)
-    end = np.asarray(view.road.lane_end_s, dtype=float)
-    lanes = end.size
-    lane = np.asarray(view.lane)[idx]
-    for k in np.flatnonzero(end[lane] - np.asarray(view.s)[idx] < within_m):  # a few vehicles at most
-        q = int(lane[k])
-        for r in (1, -1):
-            if 0 <= q + r < lanes and end[q + r] > end[q]:
-                out[k] = r
-                break
+    return _forced_merge_kernel(np.asarray(idx, dtype=np.int64), np.asarray(view.lane, dtype=np.int64),
+                                np.asarray(view.s, dtype=np.float64),
+                                np.asarray(view.road.lane_end_s, dtype=np.float64), float(within_m))
+
+
+@kernel
+def _forced_merge_kernel(idx, lane, s, end, within_m):
+    """:func:`forced_merge_targets` over the vehicles ``idx`` (compiled: called on every step)."""
+    out = np.zeros(idx.shape[0], dtype=np.int64)
+    lanes = end.shape[0]
+    for k in range(idx.shape[0]):
+        q = lane[idx[k]]
+        if end[q] - s[idx[k]] < within_m:
+            if q + 1 < lanes and end[q + 1] > end[q]:
+                out[k] = 1
+            elif 0 <= q - 1 and end[q - 1] > end[q]:
+                out[k] = -1
     return out
 
 

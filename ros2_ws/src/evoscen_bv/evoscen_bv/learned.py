@@ -33,7 +33,7 @@ from evoscen_sim.config.scenario_config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 from evoscen_sim.physics.safety import sut_leader_ttc_state
-from evoscen_sim.physics.traffic import new_trips
+from evoscen_sim.physics.traffic import NEW_TRIP_MAX_SPEED_MPS, common_shift_kernel, new_trips_kernel
 from evoscen_sim.physics.vehicle import accel_to_throttle
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
@@ -131,29 +131,58 @@ class HardBrakeState:
         """``throttle`` with the episodes' braking; advances the odometers and starts episodes."""
         p = self.params
         step, dt = int(view.step_index), float(view.dt_s)
-        v = np.asarray(view.v)[vehicles]
-        self.until_step[v <= p.min_speed_mps] = -1  # never into a standstill
-        braking = self.until_step > step
-        sut = np.flatnonzero(np.asarray(view.role) == ROLE_SUT)
-        if sut.size:
-            s, d, length = np.asarray(view.s), np.asarray(view.d), np.asarray(view.length)
-            leader, _ = sut_leader_ttc_state(s, d, np.asarray(view.v), length, np.asarray(view.width), int(sut[0]))
-            hosted = np.flatnonzero(vehicles == leader) if leader >= 0 else np.zeros(0, dtype=np.int64)
-            if hosted.size:
-                k = int(hosted[0])
-                gap = (s[leader] - s[sut[0]]) - 0.5 * (length[leader] + length[sut[0]])
-                if (not braking[k] and gap <= HARD_BRAKE_VIEW_M and v[k] > p.min_speed_mps
-                        and int(np.asarray(view.lane_change)[leader]) == 0):
-                    self.to_go_m[k] -= v[k] * dt
-                    self.driven_m += v[k] * dt
-                    if self.to_go_m[k] <= 0.0:
-                        self.start(k, step, dt)
-                        braking[k] = True
+        v = np.asarray(view.v, dtype=np.float64)
+        braking, k = _hard_brake_scan(np.asarray(vehicles, dtype=np.int64), self.until_step, v,
+                                      np.asarray(view.role, dtype=np.int64), np.asarray(view.s, dtype=np.float64),
+                                      np.asarray(view.d, dtype=np.float64), np.asarray(view.length, dtype=np.float64),
+                                      np.asarray(view.width, dtype=np.float64),
+                                      np.asarray(view.lane_change, dtype=np.int64), float(p.min_speed_mps), step,
+                                      HARD_BRAKE_VIEW_M, ROLE_SUT)
+        if k >= 0:  # the SUT's leader is hosted here and its odometer runs
+            vk = v[vehicles[k]]
+            self.to_go_m[k] -= vk * dt
+            self.driven_m += vk * dt
+            if self.to_go_m[k] <= 0.0:
+                self.start(k, step, dt)
+                braking[k] = True
         if not braking.any():
             return throttle
         out = np.array(throttle, dtype=float)
         out[braking] = np.minimum(out[braking], accel_to_throttle(-self.decel[braking], vehicle_params))
         return out
+
+
+@kernel
+def _hard_brake_scan(vehicles, until_step, v, role, s, d, length, width, lane_change, min_speed, step, view_m,
+                     role_sut):
+    """One step of :meth:`HardBrakeState.bound` up to its random draws (compiled: called on every
+    step): ends the episodes of hosted vehicles at ``min_speed`` or slower (``until_step`` in place)
+    and returns (which hosted vehicles brake, the hosted position whose odometer runs this step or
+    -1): the SUT's leader (:func:`~evoscen_sim.physics.safety.sut_leader_ttc_state`) when it is
+    hosted, not braking, within ``view_m`` (bumper gap), faster than ``min_speed``, not changing lanes."""
+    m = vehicles.shape[0]
+    braking = np.empty(m, dtype=np.bool_)
+    for k in range(m):
+        if v[vehicles[k]] <= min_speed:  # never into a standstill
+            until_step[k] = -1
+        braking[k] = until_step[k] > step
+    sut = -1
+    for j in range(role.shape[0]):
+        if role[j] == role_sut:
+            sut = j
+            break
+    if sut < 0:
+        return braking, -1
+    leader, _ttc = sut_leader_ttc_state(s, d, v, length, width, sut)
+    if leader < 0:
+        return braking, -1
+    for k in range(m):
+        if vehicles[k] == leader:
+            gap = (s[leader] - s[sut]) - 0.5 * (length[leader] + length[sut])
+            if not braking[k] and gap <= view_m and v[leader] > min_speed and lane_change[leader] == 0:
+                return braking, k
+            return braking, -1
+    return braking, -1
 
 
 def shipped_policy_dir() -> Path:
@@ -414,18 +443,11 @@ class LearnedDriver:
         if self.hard_brake is not None:
             throttle = self.hard_brake.bound(view, self.vehicles, throttle, self.vehicle_params)
         if self.lane_hold_s > 0.0:
-            changing = np.asarray(view.lane_change)[self.vehicles] != 0
-            ended = self._changing & ~changing
-            if ended.any():
-                n = int(round(self.lane_hold_s / float(view.dt_s)))
-                self.hold_until_step[ended] = int(view.step_index) + n
-            self._changing = changing
-            s = np.asarray(view.s)[self.vehicles]
-            if self._last_s is not None:  # a vehicle that entered anew: held (hold_on_entry) or free
-                entered = new_trips(self._last_s, s, float(view.dt_s))
-                n = int(round(self.lane_hold_s / float(view.dt_s)))
-                self.hold_until_step[entered] = int(view.step_index) + n if self.hold_on_entry else -1
-            self._last_s = s.copy()
+            dt = float(view.dt_s)
+            self._changing, self._last_s = _lane_hold_step(
+                self.vehicles, np.asarray(view.lane_change, dtype=np.int64), np.asarray(view.s, dtype=np.float64),
+                self._changing, self.hold_until_step, self._last_s, int(view.step_index),
+                int(round(self.lane_hold_s / dt)), self.hold_on_entry, NEW_TRIP_MAX_SPEED_MPS * dt + 10.0)
         request = np.zeros(self.vehicles.size, dtype=np.int64)
         if self.stack is not None and view.step_index % self.config.env.decision_interval_steps == 0:
             positions = np.flatnonzero(view.lane_change[self.vehicles] == 0)
@@ -435,6 +457,29 @@ class LearnedDriver:
                 self.last_request[:] = 0
                 self.last_request[positions] = requested
         return throttle, request
+
+
+@kernel
+def _lane_hold_step(vehicles, lane_change, s_all, changing_before, hold_until, last_s, step, n_hold, hold_on_entry,
+                    forward_m):
+    """One step of the lane hold (compiled: every step): a hosted vehicle whose lane change ended is
+    held ``n_hold`` steps (``hold_until`` in place); then one that began a new trip since the last
+    step (:func:`evoscen_sim.physics.traffic.new_trips`, ``last_s`` None on the first step) is held
+    (``hold_on_entry``) or freed. Returns (which hosted vehicles change lanes, their ``s``)."""
+    m = vehicles.shape[0]
+    changing = np.empty(m, dtype=np.bool_)
+    s = np.empty(m)
+    for k in range(m):
+        changing[k] = lane_change[vehicles[k]] != 0
+        s[k] = s_all[vehicles[k]]
+        if changing_before[k] and not changing[k]:
+            hold_until[k] = step + n_hold
+    if last_s is not None:
+        entered = new_trips_kernel(last_s, s, common_shift_kernel(last_s, s), forward_m)
+        for k in range(m):
+            if entered[k]:
+                hold_until[k] = step + n_hold if hold_on_entry else -1
+    return changing, s
 
 
 def load_policies(directory: Path | str) -> tuple[NumpyActor, dict[int, NumpyActor], TrainingConfig]:

@@ -359,9 +359,16 @@ def common_shift(prev_s: np.ndarray, s: np.ndarray) -> float:
     negative), 0.0 when there was none: the median step of ``s`` when it is a fall of more than
     50 m (a shift moves every vehicle by one distance; entries move a few vehicles only). With
     fewer than three vehicles a jump is taken for a re-entry, never a shift."""
-    if np.asarray(prev_s).size < 3:
+    return float(common_shift_kernel(np.asarray(prev_s, dtype=np.float64).ravel(),
+                                     np.asarray(s, dtype=np.float64).ravel()))
+
+
+@kernel
+def common_shift_kernel(prev_s, s):
+    """:func:`common_shift` of 1-D float arrays, for compiled callers."""
+    if prev_s.shape[0] < 3:
         return 0.0
-    med = float(_median(np.asarray(s, dtype=np.float64) - np.asarray(prev_s, dtype=np.float64)))
+    med = _median(s - prev_s)
     return med if med < -50.0 else 0.0
 
 
@@ -383,15 +390,29 @@ def _median(x):
     return (y[h - 1] + y[h]) / 2.0
 
 
-def new_trips(prev_s: np.ndarray, s: np.ndarray, dt_s: float, *, max_speed_mps: float = 40.0,
+NEW_TRIP_MAX_SPEED_MPS = 40.0
+"""A vehicle that moved farther than this speed allows (+ 10 m) began a new trip (:func:`new_trips`)."""
+
+
+def new_trips(prev_s: np.ndarray, s: np.ndarray, dt_s: float, *, max_speed_mps: float = NEW_TRIP_MAX_SPEED_MPS,
               shift_m: float | None = None) -> np.ndarray:
     """Which vehicles began a new trip between two states (entered the window or re-entered the
     road): their step of ``s``, less the common shift (``shift_m``, else :func:`common_shift`), is
     more than 10 m backwards or more than ``max_speed_mps * dt_s + 10`` m forwards. What a driver
     uses to forget a vehicle's past (a window entry can also move a vehicle by less than that: it
     then counts as the same trip)."""
-    prev_s = np.asarray(prev_s, dtype=float)
-    s = np.asarray(s, dtype=float)
-    shift = common_shift(prev_s, s) if shift_m is None else shift_m
-    d = s - prev_s - shift
-    return (d < -10.0) | (d > max_speed_mps * dt_s + 10.0)
+    prev_s = np.asarray(prev_s, dtype=np.float64)
+    s = np.asarray(s, dtype=np.float64)
+    shift = common_shift(prev_s, s) if shift_m is None else float(shift_m)
+    return new_trips_kernel(prev_s, s, shift, float(max_speed_mps) * float(dt_s) + 10.0)
+
+
+@kernel
+def new_trips_kernel(prev_s, s, shift, forward_m):
+    """:func:`new_trips` with the shift and the forward limit (``max_speed_mps * dt_s + 10``) given,
+    for compiled callers."""
+    out = np.empty(s.shape[0], dtype=np.bool_)
+    for j in range(s.shape[0]):
+        d = s[j] - prev_s[j] - shift
+        out[j] = d < -10.0 or d > forward_m
+    return out
