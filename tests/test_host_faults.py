@@ -284,21 +284,13 @@ class _ReadOnly(_FullDisk):
         return self._f.fileno()
 
 
-@pytest.mark.parametrize("writer", ["inline", "process"])
-def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypatch: pytest.MonkeyPatch,
-                                       writer: str) -> None:
-    """Every write fails from some point on (the file system remounted read-only): one line naming
-    the cause and the reindexer; the reindexer reads exactly the states written before it."""
+def _run_read_only_after(monkeypatch: pytest.MonkeyPatch, bag: Path, capacity: int, writer: str):
+    """Run the reference configuration into ``bag`` on a file system that turns read-only once
+    ``capacity`` bytes are written (:class:`_ReadOnly`); its HostFault, the file system writable again."""
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_record import bag_file
-    from evoscen_record.reindex import reindex_bag
     from evoscen_sim.errors import HostFault
 
-    chunks = _chunks(reference)
-    k = len(chunks) // 3
-    capacity = (chunks[k - 1][0] + chunks[k][0]) // 2
-    n, kept = _expected(reference, capacity)
-    bag = tmp_path / "bag"
     budget = [capacity]
     real = bag_file._open_file
 
@@ -312,10 +304,25 @@ def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypa
     monkeypatch.setattr(bag_file, "_open_file", fake)
     with pytest.raises(HostFault) as info:
         run_inprocess(_cfg(), bag_dir=bag, bag_writer=writer)
-    fault = info.value
+    monkeypatch.undo()
+    return info.value
+
+
+@pytest.mark.parametrize("writer", ["inline", "process"])
+def test_output_made_read_only_mid_run(tmp_path: Path, reference: Path, monkeypatch: pytest.MonkeyPatch,
+                                       writer: str) -> None:
+    """Every write fails from some point on (the file system remounted read-only): one line naming
+    the cause and the reindexer; the reindexer reads exactly the states written before it."""
+    from evoscen_record.reindex import reindex_bag
+
+    chunks = _chunks(reference)
+    k = len(chunks) // 3
+    capacity = (chunks[k - 1][0] + chunks[k][0]) // 2
+    n, kept = _expected(reference, capacity)
+    bag = tmp_path / "bag"
+    fault = _run_read_only_after(monkeypatch, bag, capacity, writer)
     assert fault.errno == errno.EROFS and fault.bag_state == "reindex" and fault.steps == n
     assert "Read-only file system (EROFS)" in fault.line() and f"reindex.py {bag}" in fault.line()
-    monkeypatch.undo()
     reindex_bag(bag, keep_original=False)
     assert _worlds(bag / "bag_0.mcap") == kept
 
@@ -335,10 +342,7 @@ def test_read_only_between_a_chunk_and_its_indexes(tmp_path: Path, reference: Pa
     """The file system turns read-only after a chunk record reached the file but before its message
     indexes did, and the file cannot be cut back: the chunk is complete, so the reindexer reads its
     states too, and the line must count them (the states it names are the ones the bag holds)."""
-    from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_record import bag_file
     from evoscen_record.reindex import reindex_bag
-    from evoscen_sim.errors import HostFault
 
     records = _chunk_record_ends(reference)
     k = len(records) // 3
@@ -346,24 +350,10 @@ def test_read_only_between_a_chunk_and_its_indexes(tmp_path: Path, reference: Pa
     kept = [w for w in _worlds(reference) if w[0] <= last]
     assert 0 < len(kept) < len(_worlds(reference))
     bag = tmp_path / "bag"
-    budget = [capacity]
-    real = bag_file._open_file
-
-    def fake(path: Path):
-        if not str(path).startswith(str(bag)):
-            return real(path)
-        if budget[0] <= 0:
-            raise OSError(errno.EROFS, os.strerror(errno.EROFS), str(path))
-        return _ReadOnly(path, budget)
-
-    monkeypatch.setattr(bag_file, "_open_file", fake)
-    with pytest.raises(HostFault) as info:
-        run_inprocess(_cfg(), bag_dir=bag, bag_writer=writer)
-    fault = info.value
+    fault = _run_read_only_after(monkeypatch, bag, capacity, writer)
     assert (bag / "bag_0.mcap").stat().st_size == capacity  # not cut back: read-only
     assert fault.errno == errno.EROFS and fault.bag_state == "reindex" and fault.steps == len(kept)
     assert f"holds the {len(kept)} world states" in fault.line()
-    monkeypatch.undo()
     assert reindex_bag(bag, keep_original=False).steps == len(kept)
     assert _worlds(bag / "bag_0.mcap") == kept
 
