@@ -122,8 +122,10 @@ def run_node(make: Callable[[], object], args: list[str] | None) -> int:
     """``main`` of an evoscen node: ``make()`` builds it (after ``rclpy.init``), ``.run()`` runs it.
 
     Bad parameters (InputError, NodeParameterError) are one line ``error: ...`` and exit 2;
-    Ctrl-C before the run is 130. After the run the process ends at once with its status,
-    without middleware teardown (see :func:`evoscen_contract.graph.exit_now`).
+    Ctrl-C before the run is 130. The process ends at once with its status, without middleware
+    teardown (see :func:`evoscen_contract.graph.exit_now`): also after bad parameters, whose node
+    already holds a DDS participant — destroying it could hang under load (seen in CI: the one
+    error line printed, then no exit within 60 s), and there is nothing to finish.
     """
     graph.init(args)
     try:
@@ -131,10 +133,10 @@ def run_node(make: Callable[[], object], args: list[str] | None) -> int:
             node = make()
         except (InputError, NodeParameterError) as exc:
             print(f"error: {exc}", file=sys.stderr)
-            return EXIT_BAD_INPUT
+            graph.exit_now(EXIT_BAD_INPUT)
         graph.exit_now(node.run())
     except KeyboardInterrupt:
-        return EXIT_INTERRUPTED
+        graph.exit_now(EXIT_INTERRUPTED)
     finally:
-        graph.shutdown()
+        graph.shutdown()  # only on an unexpected exception (a traceback follows)
     return 0  # not reached: exit_now ends the process
