@@ -463,13 +463,15 @@ def markdown_table(result: dict[str, Any]) -> str:
 
 
 def plot_histograms(result: dict[str, Any], out_dir: Path) -> list[Path]:
-    """One PNG per distribution: the simulation's histogram beside highD's, as shares per bin."""
+    """One PNG per distribution: the simulation's histogram beside highD's (share per unit, so bins of
+    different widths compare)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     written = []
+    piece_m = float(result.get("settings", {}).get("piece_m", PieceConfig.piece_m))
     for key, h in result["histograms"].items():
         edges = np.asarray(h["edges"])
         ref = np.asarray(h["highd_counts"], dtype=float)
@@ -477,12 +479,13 @@ def plot_histograms(result: dict[str, Any], out_dir: Path) -> list[Path]:
         width = np.diff(edges)
         left = edges[:-1]
         fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
-        ax.bar(left + 0.05 * width, ref / max(ref.sum(), 1.0), width=0.45 * width, align="edge",
-               label=f"highD, 120 km/h ({int(ref.sum())} vehicles)", color="tab:gray")
-        ax.bar(left + 0.5 * width, sim / max(sim.sum(), 1.0), width=0.45 * width, align="edge",
-               label=f"simulation ({int(sim.sum())} pieces of 420 m)", color="tab:blue")
+        # share per unit of the quantity (the bins may differ in width: TTC's do)
+        ax.bar(left + 0.05 * width, ref / max(ref.sum(), 1.0) / width, width=0.45 * width, align="edge",
+               label=f"highD, 120 km/h ({int(ref.sum())} vehicles in the bins)", color="tab:gray")
+        ax.bar(left + 0.5 * width, sim / max(sim.sum(), 1.0) / width, width=0.45 * width, align="edge",
+               label=f"simulation ({int(sim.sum())} pieces of {piece_m:g} m in the bins)", color="tab:blue")
         ax.set_xlabel(f"{h['title']} ({h['unit']})")
-        ax.set_ylabel("share of the values in the bins")
+        ax.set_ylabel(f"share of the values in the bins per {h['unit']}")
         ax.set_title(f"{h['title']}: S = 1 - JS = {_f(h['similarity'], 3)}")
         ax.legend()
         fig.text(0.99, 0.01, "highD: Krajewski et al., ITSC 2018", ha="right", va="bottom", fontsize=7)
