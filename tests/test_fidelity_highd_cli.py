@@ -70,6 +70,8 @@ def test_a_bag_and_its_run_in_process_give_the_same_table(recorded_run, tmp_path
     ([], "BAG: expected one or more bags"),
     (["--seeds", "0"], "--seeds = '0': expected an integer >= 1"),
     (["--seeds", "1", "--piece-m", "-3"], "--piece-m '-3': expected a length > 0 (m)"),
+    (["--seeds", "1", "--piece-m", "100", "--min-piece-m", "200"], "--min-piece-m '200': expected a length <= --piece-m"),
+    (["--reference", "no/such.json"], "no/such.json: cannot read the highD aggregates"),
 ])
 def test_bad_input_is_one_error_line(args, needle):
     res = script(*args)

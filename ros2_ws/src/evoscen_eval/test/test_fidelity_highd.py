@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from evoscen_eval.fidelity_highd import (PieceConfig, compare, histogram_similarity, lane_change_rates,
+from evoscen_eval.fidelity_highd import (Measures, PieceConfig, compare, histogram_similarity, lane_change_rates,
                                          load_reference, markdown_table, run_density, run_measures)
 from evoscen_eval.highd_export import VirtualRoad
 from evoscen_eval.similarity import js_divergence
@@ -226,6 +226,23 @@ def test_run_density_and_its_bin():
     m = run_measures(run, PieceConfig(piece_m=100.0), road=ROAD)
     groups = [r["group"] for r in lane_change_rates(m, load_reference())]
     assert groups[-1] == "density outside the bins" and "density 10-15 veh/km/lane" in groups
+
+
+def test_pooled_runs_keep_each_run_s_density():
+    # the traffic run twice; density: all five vehicles stay inside the default section [s_SUT - 150,
+    # s_SUT + 250] on lanes 1-3, and without a scenario the mainline lanes are 1..the highest lane index (3):
+    # 5 / 0.4 km / 3 lanes = 4.17 veh/km/lane, below highD's bins. The second run is told to be denser:
+    # each trip keeps its own run's density.
+    a = run_measures(traffic_run(), PieceConfig(piece_m=100.0), road=ROAD)
+    assert a.runs[0]["density_veh_per_km_per_lane"] == pytest.approx(5 / 0.4 / 3)
+    b = run_measures(traffic_run(), PieceConfig(piece_m=100.0), road=ROAD)
+    b.runs[0]["density_veh_per_km_per_lane"] = 12.0
+    both = Measures.concat([a, b])
+    assert both.pieces == 24 and both.run.tolist() == [0] * 12 + [1] * 12
+    assert both.trip_density().tolist() == [a.runs[0]["density_veh_per_km_per_lane"]] * 4 + [12.0] * 4
+    rates = {r["group"]: r for r in lane_change_rates(both, load_reference())}
+    assert rates["density 10-15 veh/km/lane"]["vehicle_km"] == pytest.approx(0.25 + 0.5 + 0.25 + 0.3)
+    assert rates["density outside the bins"]["vehicle_km"] == pytest.approx(1.3)
 
 
 def test_shipped_reference_is_the_120_kmh_subset():
