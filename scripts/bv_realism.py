@@ -9,7 +9,7 @@ Runs every (profile, seed) in process (``bvs.driver: learned``, no bag) and prin
 profile, the pooled figures of :func:`evoscen_eval.bv_realism.bv_realism`: BV lane changes
 per vehicle-km, BV-BV collisions per vehicle-hour, SUT collisions, and the BVs' time-headway
 distribution, with highD's published figure beside each one that has one
-(:data:`evoscen_eval.bv_realism.HIGHD_REFERENCE`; lane changes: ~0.12 per vehicle-km).
+(:data:`evoscen_eval.bv_realism.HIGHD_REFERENCE`; lane changes: 0.295 per vehicle-km at 120 km/h).
 ``--traffic`` sets ``traffic.mode`` (window: the traffic moves with the SUT; loop: vehicles
 re-enter at the road's start), so the same seeds compare both. Bad input prints one line
 ``error: ...`` and exits 2.

@@ -59,15 +59,22 @@ from evoscen_contract.contract import (EVENT_COLLISION, EVENT_LANE_CHANGE, KIND_
 POLICY_NAMES = {POLICY_CODES[name]: name for name in SOCIAL_POLICIES}
 """The world table's ``policy`` codes of the learned BVs' social types (code -> name)."""
 
-HIGHD_LANE_CHANGES = 5600
-HIGHD_VEHICLE_KM = 45000.0
-HIGHD_REFERENCE: dict[str, float] = {"bv_lane_changes_per_vehicle_km": HIGHD_LANE_CHANGES / HIGHD_VEHICLE_KM}
-"""Published highD aggregates, by the key of the figure they stand beside: 5,600 complete lane
-changes over 45,000 km driven (0.124 per vehicle-km). No published aggregate of highD's time
-headway (median, share below 1 s) was found to cite, so THW has no reference value here; compare
-distributions with ``scripts/experiment_fidelity.py`` and your own copy of highD instead."""
+def _shipped_lane_change_rate() -> float:
+    """highD's lane changes per vehicle-km at 120 km/h, from the shipped aggregates (docs/fidelity.md)."""
+    from evoscen_eval.fidelity_highd import load_reference
+
+    return float(load_reference()["speed_limit_120_kmh"]["lane_changes_per_vehicle_km"])
+
+
+HIGHD_REFERENCE: dict[str, float] = {"bv_lane_changes_per_vehicle_km": _shipped_lane_change_rate()}
+"""highD figures, by the key of the figure they stand beside: lane changes per vehicle-km of the
+recordings with a 120 km/h limit (the road's), each vehicle's lane changes summed over the distance
+driven (0.295; shipped aggregates, ``evoscen_eval/data/highd_aggregates.json``). The paper's "5,600
+complete lane changes in 45,000 km" (0.124) counts only manoeuvres seen whole inside the ~420-m
+recorded section and undercounts. THW has no reference here: highD's aggregate is each vehicle's
+*minimum* THW over 420 m, not a per-state sample; ``scripts/fidelity_highd.py`` compares that."""
 HIGHD_SOURCE = ("Krajewski, Bock, Kloeker, Eckstein: The highD Dataset, IEEE ITSC 2018, doi:10.1109/ITSC.2018.8569552 "
-                "(abstract: 16.5 h, 110,000 vehicles, 45,000 km, 5,600 complete lane changes)")
+                "(per-vehicle summaries of the 120 km/h recordings, aggregated: evoscen_eval/data/highd_aggregates.json)")
 
 
 def time_headways(s: np.ndarray, lane: np.ndarray, speed: np.ndarray, length: np.ndarray, bv: np.ndarray,
