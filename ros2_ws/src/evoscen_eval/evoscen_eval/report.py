@@ -93,6 +93,21 @@ def write_stream_report(stream: ScoreStream, info: dict[str, Any], warnings: lis
     return report
 
 
+def score_line(report: dict[str, Any]) -> str:
+    """The scores in one line, each term as weight × score (the effective weights, which sum the
+    weighted terms to I), e.g. ``intelligence: 0.6889 = 0.6 × safety 0.8104 + 0.2 × efficiency 0.1874
+    + 0.2 × interaction 0.8260  complexity: 0.2605  SUT collisions: 0  exposures: 1``."""
+    g, c = report["intelligence"], report["complexity"]["score"]
+    ew = g.get("effective_weights", g["weights"])
+    terms = []
+    for name in ("safety", "efficiency", "interaction"):
+        score = report[name]["score"]
+        terms.append(f"{name} undefined (left out)" if score is None else f"{ew[name]:g} × {name} {score:.4f}")
+    intel = "–" if g["score"] is None else f"{g['score']:.4f}"
+    return (f"intelligence: {intel} = " + " + ".join(terms) + "  complexity: " + ("-" if c is None else f"{c:.4f}")
+            + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
+
+
 ANIMATION_FILE = "run.gif"
 """The report's bird's-eye animation (:mod:`evoscen_eval.animation`)."""
 
