@@ -171,3 +171,14 @@ def test_no_plots_writes_no_animation_and_zero_frames_none(tmp_path):
     assert sorted(p.name for p in (tmp_path / "none").iterdir()) == ["report.json", "report.md"]
     write_report(run, tmp_path / "zero", override=EVL, animation_frames=0)
     assert not (tmp_path / "zero" / "run.gif").exists() and (tmp_path / "zero" / "timeline.png").exists()
+
+
+def test_the_printed_scores_are_weight_times_score():
+    from evoscen_eval.report import score_line
+
+    rep = {"intelligence": {"score": 0.6889, "weights": {"safety": 0.6, "efficiency": 0.2, "interaction": 0.2}},
+           "safety": {"score": 0.8104, "collisions": 0, "exposures": 1}, "efficiency": {"score": 0.1874},
+           "interaction": {"score": None}, "complexity": {"score": None}}
+    rep["intelligence"]["effective_weights"] = {"safety": 0.75, "efficiency": 0.25, "interaction": 0.0}
+    assert score_line(rep) == ("intelligence: 0.6889 = 0.75 × safety 0.8104 + 0.25 × efficiency 0.1874 + interaction "
+                               "undefined (left out)  complexity: -  SUT collisions: 0  exposures: 1")
