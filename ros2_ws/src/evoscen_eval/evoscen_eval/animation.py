@@ -124,6 +124,36 @@ VIEW_HEIGHT_M = 30.0
 """Height of the view around the SUT (m)."""
 
 
+@dataclass
+class FrameNote:
+    """What a drawn frame marks over the states it stands for, ``[state, until)``."""
+
+    index: int
+    """The frame's index in :attr:`FrameSeries.frames`."""
+    state: int
+    until: int
+    lane_change: int
+    """The SUT's first lane change in those states (+1 left, -1 right, 0 none)."""
+    exposure: dict[str, Any] | None
+    collision: dict[str, Any] | None
+
+
+def frame_notes(series: FrameSeries, report: dict[str, Any], frames: int) -> list[FrameNote]:
+    """The ``frames`` frames :func:`write_animation` draws and what each marks: the SUT's lane change,
+    the first exposure (``report``'s ``safety.exposure_list``) and collision overlapping its states."""
+    idx = pick(len(series.frames), frames)
+    safety = report["safety"]
+    out = []
+    for n, i in enumerate(idx):
+        stop = idx[n + 1] if n + 1 < len(idx) else len(series.frames)
+        fr = series.frames[i]
+        until = series.frames[stop].state if stop < len(series.frames) else series.frames[-1].state + series.stride
+        change = next((f.lane_change for f in series.frames[i:stop] if f.lane_change), 0)
+        hit = next((c for c in safety["collision_list"] if fr.state <= int(c["state"]) < until), None)
+        out.append(FrameNote(i, fr.state, until, change, _exposure_at(safety["exposure_list"], fr.state, until), hit))
+    return out
+
+
 def write_animation(series: FrameSeries, lane_segments: np.ndarray | None, report: dict[str, Any], path: Path,
                     *, frames: int = ANIMATION_FRAMES, frame_ms: int = FRAME_MS, title: str | None = None
                     ) -> int:
@@ -137,11 +167,9 @@ def write_animation(series: FrameSeries, lane_segments: np.ndarray | None, repor
 
     from .exposure_rules import RULE_TEXT, involved
 
-    chosen = [series.frames[i] for i in pick(len(series.frames), frames)]
-    if not chosen:
+    notes = frame_notes(series, report, frames)
+    if not notes:
         return 0
-    safety = report["safety"]
-    exposures, collisions = safety["exposure_list"], safety["collision_list"]
     half = series.window_m
     scale = WIDTH_PX / (2.0 * half)
     head_px, foot_px = 30, 14
@@ -157,8 +185,8 @@ def write_animation(series: FrameSeries, lane_segments: np.ndarray | None, repor
     foot.putpalette(palette)
     ImageDraw.Draw(foot).text((4, 1), legend, fill=_INDEX["dark"], font=font)
     images = []
-    for n, fr in enumerate(chosen):
-        span_end = chosen[n + 1].state if n + 1 < len(chosen) else fr.state + series.stride
+    for note in notes:
+        fr, change, x, hit = series.frames[note.index], note.lane_change, note.exposure, note.collision
         c = fr.columns
         cx, cy = float(c["x"][fr.sut_row]), float(c["y"][fr.sut_row])
 
@@ -174,8 +202,6 @@ def write_animation(series: FrameSeries, lane_segments: np.ndarray | None, repor
             xs, ys = px(segs[near][:, :, 0], segs[near][:, :, 1])
             for line in np.stack([xs, ys], axis=-1).tolist():
                 draw.line([tuple(p) for p in line], fill=_INDEX["lane"], width=1)
-        x = _exposure_at(exposures, fr.state, span_end)
-        hit = next((col for col in collisions if fr.state <= int(col["state"]) < span_end), None)
         red = set(involved(x)) if x else set()
         if hit is not None:
             red |= {int(i) for i in hit["ids"]}
@@ -195,14 +221,14 @@ def write_animation(series: FrameSeries, lane_segments: np.ndarray | None, repor
                 (a0, b0), (a1, b1) = px(c["x"][j] - ca[j] * hl[j] * 0.8, c["y"][j] - sa[j] * hl[j] * 0.8), \
                     px(c["x"][j] + ca[j] * hl[j] * 0.8, c["y"][j] + sa[j] * hl[j] * 0.8)
                 draw.line([(float(a0), float(b0)), (float(a1), float(b1))], fill=_INDEX["black"], width=1)
-        if fr.lane_change:
-            yaw = float(c["yaw"][fr.sut_row]) + fr.lane_change * math.pi / 2
+        if change:
+            yaw = float(c["yaw"][fr.sut_row]) + change * math.pi / 2
             (x0, y0), (x1, y1) = px(cx, cy), px(cx + 5.0 * math.cos(yaw), cy + 5.0 * math.sin(yaw))
             draw.line([(float(x0), float(y0)), (float(x1), float(y1))], fill=_INDEX["black"], width=2)
             draw.ellipse([float(x1) - 3, float(y1) - 3, float(x1) + 3, float(y1) + 3], fill=_INDEX["black"])
         what = []
-        if fr.lane_change:
-            what.append("SUT lane change " + ("left" if fr.lane_change > 0 else "right"))
+        if change:
+            what.append("SUT lane change " + ("left" if change > 0 else "right"))
         if hit is not None:
             what.append("COLLISION")
         if x is not None:

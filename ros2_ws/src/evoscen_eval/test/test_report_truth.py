@@ -11,7 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from evoscen_eval.animation import FrameSeries, pick, write_animation
+from evoscen_eval.animation import FrameSeries, frame_notes, pick, write_animation
 from evoscen_eval.clips import clip_frames, events_of
 from evoscen_eval.exposure_rules import involved, rule_text
 from evoscen_eval.metrics import evaluate
@@ -182,3 +182,18 @@ def test_the_printed_scores_are_weight_times_score():
     rep["intelligence"]["effective_weights"] = {"safety": 0.75, "efficiency": 0.25, "interaction": 0.0}
     assert score_line(rep) == ("intelligence: 0.6889 = 0.75 × safety 0.8104 + 0.25 × efficiency 0.1874 + interaction "
                                "undefined (left out)  complexity: -  SUT collisions: 0  exposures: 1")
+
+
+def test_each_drawn_frame_marks_the_lane_change_and_exposure_of_its_states():
+    """rear_run, 40 frames kept, 4 drawn (pick: 0, 13, 26, 39): frame 0 stands for states 0..12, which
+    hold the SUT's left change (5..9) and the exposure's start (7, the rear conflict and cut-in by
+    vehicle 1); frames 13 and 26 hold the exposure (to 40) but no change; the last stands for 39."""
+    run = rear_run()
+    rep = evaluate(run, EV)
+    notes = frame_notes(clip_frames(run, 100), rep, 4)
+    assert [(n.state, n.until, n.lane_change) for n in notes] == [(0, 13, 1), (13, 26, 0), (26, 39, 0), (39, 40, 0)]
+    assert all(n.exposure is rep["safety"]["exposure_list"][0] for n in notes)
+    assert involved(notes[0].exposure) == [1] and all(n.collision is None for n in notes)
+    (early,) = frame_notes(clip_frames(run, 100), {"safety": {"exposure_list": [], "collision_list": [
+        {"state": 3, "ids": [0, 1]}]}}, 1)
+    assert early.collision == {"state": 3, "ids": [0, 1]} and early.lane_change == 1
