@@ -107,7 +107,7 @@ def gallery_markdown(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> 
     """``gallery.md``: every critical event of the finished runs, most severe first
     (:func:`evoscen_eval.clips.rank_key`), with its picture, clip and reproduce command."""
     from evoscen_eval.clips import rank_key
-    from evoscen_eval.exposure_rules import rules_summary
+    from evoscen_eval.exposure_rules import rules_summary, ttc_text
 
     events = []
     for r in runs:
@@ -128,7 +128,7 @@ def gallery_markdown(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> 
         base = f"runs/{r.key}"
         pic = f"![scene]({base}/{e['png']})" if e.get("png") else "–"
         sev = "–" if e["severity"] is None else f"{e['severity']:.2f}"
-        ttc = "–" if e.get("min_ttc_s") is None else f"{e['min_ttc_s']:.2f}"
+        ttc = ttc_text(e.get("min_ttc_s"))
         cell = ", ".join(f"{k}={v}" for k, v in r.cell) or "–"
         gif = f"[clip.gif]({base}/{e['gif']})" if e.get("gif") else "–"
         rules = rules_summary(e).replace("|", "\\|") if e["kind"] == "exposure" else "–"

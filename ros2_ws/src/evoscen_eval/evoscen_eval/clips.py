@@ -32,7 +32,7 @@ import numpy as np
 from evoscen_contract import contract as C
 
 from .animation import ANIMATION_FRAMES, FrameSeries, write_animation
-from .exposure_rules import involved, rules_summary
+from .exposure_rules import involved
 
 CLIP_S = 5.0
 """Seconds of the run kept on either side of an event (SUMO SSM's default ``extratime``, the
@@ -146,7 +146,7 @@ def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: fl
     """
     from evoscen_record.scenario_record import SCENARIO_METADATA
 
-    from .report import _snapshot
+    from .report import _snapshot, exposure_caption
     from .rundata import read_run
     from .plot_inputs import Scene
 
@@ -175,11 +175,11 @@ def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: fl
         if 0 <= row < clip.states:
             scene = Scene(state=k, time_s=k * dt, columns={f: clip.columns[f][row] for f in clip.columns},
                           ids=clip.ids, sut_index=clip.sut_index)
-            what = ("collision" if event["kind"] == "collision" else
-                    f"exposure (severity {event['severity']:.2f}, min TTC "
-                    f"{'–' if event['min_ttc_s'] is None else format(event['min_ttc_s'], '.2f')} s)")
-            png = _snapshot(plt, scene, clip.lane_segments, set(event["ids"]), f"{what} at t = {k * dt:.1f} s"
-                            + (f": {rules_summary(event)}" if event.get("rules") else ""), clip_dir, "scene.png")
+            if event["kind"] == "collision":
+                title = f"collision at t = {k * dt:.1f} s"
+            else:  # the report's words for the exposure (evoscen_eval.report.exposure_caption)
+                title = f"exposure at its most severe state, t = {k * dt:.1f} s: " + exposure_caption(event)
+            png = _snapshot(plt, scene, clip.lane_segments, set(event["ids"]), title, clip_dir, "scene.png")
         gif = None
         if animation_frames > 0 and write_animation(clip_frames(clip, 4 * animation_frames), clip.lane_segments,
                                                     clip_report(event, k_from, dt), clip_dir / "clip.gif",

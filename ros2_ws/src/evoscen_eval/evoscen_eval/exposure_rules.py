@@ -182,6 +182,11 @@ def involved(exposure: dict[str, Any]) -> list[int]:
     return list(dict.fromkeys(r["vehicle_id"] for r in exposure.get("rules", []) if r.get("vehicle_id") is not None))
 
 
+def ttc_text(ttc_s: float | None) -> str:
+    """An exposure's lowest TTC ahead as every report prints it: 4 significant digits, ``–`` for none."""
+    return "–" if ttc_s is None else f"{ttc_s:.4g}"
+
+
 def rules_summary(exposure: dict[str, Any]) -> str:
     """An exposure's rules in one line (``; ``-separated), or ``–`` for a report without them."""
     rules = exposure.get("rules")

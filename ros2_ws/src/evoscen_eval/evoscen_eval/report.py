@@ -31,7 +31,7 @@ from evoscen_sim.config.scenario_config import EvaluationConfig
 from evoscen_sim.errors import HostFault, InputError
 
 from .animation import ANIMATION_FRAMES, write_animation
-from .exposure_rules import definition, involved, rules_summary
+from .exposure_rules import definition, involved, rules_summary, ttc_text
 from .metrics import evaluate, report_of_stream, run_info, stream_run
 from .plot_inputs import SPEED_BINS, TTC_BINS, PlotData, Scene
 from .rundata import RunData, evaluation_settings_of
@@ -137,7 +137,7 @@ def exposure_caption(x: dict[str, Any]) -> str:
     """An exposure in one line: its rules with their values and vehicles, its lowest TTC ahead and
     its severity — the words of report.md's exposure table and of the worst-exposure snapshot."""
     ttc = x["min_ttc_s"]
-    return (f"{rules_summary(x)}; lowest TTC ahead {'– (never closing)' if ttc is None else f'{ttc:.3g} s'}; "
+    return (f"{rules_summary(x)}; lowest TTC ahead {'– (never closing)' if ttc is None else ttc_text(ttc) + ' s'}; "
             f"severity {x['severity']:.3g}")
 
 
@@ -148,7 +148,7 @@ def exposure_rows(exposures: list[dict[str, Any]], limit: int = 50) -> list[str]
            "lowest TTC ahead (s) | severity |", "|---|---|---|---|---|---|"]
     for n, x in enumerate(exposures[:limit], 1):
         out.append(f"| {n} | {x['start_time_s']:.1f} | {x['states']}{' (open)' if x['open_at_end'] else ''} | "
-                   f"{esc(rules_summary(x))} | {_f(x['min_ttc_s'], 4)} | {_f(x['severity'], 3)} |")
+                   f"{esc(rules_summary(x))} | {ttc_text(x['min_ttc_s'])} | {_f(x['severity'], 3)} |")
     if len(exposures) > limit:
         out.append(f"\n… and {len(exposures) - limit} more (report.json lists all).")
     out.append("")
