@@ -171,7 +171,8 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
     axes = list(spec.grid)
     lines = [f"# Campaign {spec.name}\n",
              f"{len(rows)} of {len(runs)} runs finished; {len(spec.seeds)} seeds per cell; spec `{spec.path.name}`. "
-             "Scores: mean ± 95 % Student-t interval over seeds (C: the scenario's complexity per run, – for a "
+             "Scores (I_s, I_e, I_i unweighted, each in [0, 1]): mean ± 95 % Student-t interval over seeds "
+             "(C: the scenario's complexity per run, – for a "
              "run shorter than one window); counts: mean [95 % bootstrap interval].\n"]
     rng = np.random.default_rng(0)  # the bootstrap's draws: fixed, so the summary is reproducible
     body = []
