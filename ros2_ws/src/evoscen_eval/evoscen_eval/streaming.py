@@ -26,7 +26,11 @@ as a whole run would) to
   :data:`~evoscen_eval.plot_inputs.TIMELINE_POINTS` points (a longer run is drawn from buckets of
   2^n states: the first speed and lane and the lowest TTC of each; :mod:`evoscen_eval.plot_inputs`),
   and the scenes of the report's snapshots (the states of the first collisions and of the worst exposure);
-* what each SUT collision was (:mod:`evoscen_eval.sut_collisions`).
+* what each SUT collision was (:mod:`evoscen_eval.sut_collisions`);
+* per exposure the rules that made it one, their extreme values and vehicles, and each state's
+  severity over those rules (:mod:`evoscen_eval.exposure_rules`);
+* one state in every few with the vehicles near the SUT, for the animation (at most
+  :data:`~evoscen_eval.animation.KEEP_FRAMES`; :mod:`evoscen_eval.animation`).
 
 What stays proportional to the run is its output: the exposure, collision and lane-change
 lists and the per-window counts (one entry per 100 states, one per traffic window). Blocks start at multiples of
