@@ -2,6 +2,7 @@
 """Score a recorded run from its bag alone: report.json, report.md and plots.
 
     python scripts/evaluate.py BAG [--out DIR] [--config FILE] [--overwrite] [--no-plots] [--reindex]
+                                   [--animation-frames N]
 
 BAG is a bag directory (``metadata.yaml`` + ``.mcap``) or its ``.mcap`` file. The evaluation
 settings are the ones recorded in the bag (the run's scenario); ``--config FILE`` scores with
@@ -11,7 +12,8 @@ evaluated up to the damage, with one warning saying how many steps were read and
 command that rebuilds such a bag (``scripts/reindex.py BAG``); ``--reindex`` runs it first.
 
 ``--out`` defaults to ``<the bag's directory>/../report_offline``; an existing non-empty
-directory is replaced only with ``--overwrite``. Exit status: 0 done, 2 bad input, 5 the report could not be
+directory is replaced only with ``--overwrite``. ``--animation-frames N`` sets the frames of the
+bird's-eye animation ``run.gif`` (default 120; 0: none; ``--no-plots`` writes none). Exit status: 0 done, 2 bad input, 5 the report could not be
 written (a full disk, a read-only file system: one line naming the file).
 """
 
@@ -33,6 +35,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--config", type=Path, help="scenario YAML whose 'evaluation' section to use instead of the bag's")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing report in --out")
     ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only")
+    ap.add_argument("--animation-frames", default=None, metavar="N",
+                    help="frames of the bird's-eye animation run.gif (default 120; 0: none)")
     ap.add_argument("--reindex", action="store_true",
                     help="first rebuild the bag's summary and metadata.yaml (scripts/reindex.py), e.g. after a killed recorder")
     return ap.parse_args(argv)
@@ -45,6 +49,15 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
+    from evoscen_eval.animation import ANIMATION_FRAMES
+
+    try:
+        frames = ANIMATION_FRAMES if args.animation_frames is None else int(args.animation_frames)
+        if frames < 0:
+            raise ValueError
+    except ValueError:
+        print(f"error: --animation-frames: {args.animation_frames!r}: expected a whole number >= 0", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         override = load_scenario_config(args.config).evaluation if args.config is not None else None
         bag_path = args.bag
@@ -76,19 +89,17 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             report = write_stream_report(run.stream, run.info, run.warnings, out, plots=not args.no_plots,
-                                         source=str(bag_path), lane_segments=run.lane_segments)
+                                         source=str(bag_path), lane_segments=run.lane_segments,
+                                         animation_frames=frames)
         except HostFault as fault:  # a full disk, a read-only file system
             print(f"error: {fault.line()}", file=sys.stderr)
             return EXIT_HOST_FAULT
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    g, c = report["intelligence"], report["complexity"]["score"]
-    w = g["weighted"]
-    print(f"{report['run']['steps']} steps; intelligence: {g['score']:.4f} (weighted safety {w['safety']:.4f}, "
-          f"efficiency {w['efficiency']:.4f}, interaction {w['interaction']:.4f})  complexity: "
-          + ("-" if c is None else f"{c:.4f}")
-          + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
+    from evoscen_eval.report import score_line
+
+    print(f"{report['run']['steps']} steps; {score_line(report)}")
     print(f"report: {out / 'report.md'}")
     return EXIT_OK
 

@@ -124,9 +124,9 @@ def main(argv: list[str] | None = None) -> int:
     table = markdown_table(header, rows)
     first_report = results[rounds[0].key]["report"]
     ssm_table = markdown_table(["SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "seeds"], ssm_rows)
-    pair_table = (markdown_table(["A", "B", "I(A) − I(B), paired by seed", "seeds", "significant (95 %)"], pair_rows)
+    pair_table = (markdown_table(["A", "B", "I(A) − I(B), paired by seed", "seeds", "A vs B (95 %)"], pair_rows)
                   if pair_rows else "")
-    eff_table = (markdown_table(["A", "B", "I_e(A) − I_e(B), paired by seed", "seeds", "significant (95 %)"], eff_rows)
+    eff_table = (markdown_table(["A", "B", "I_e(A) − I_e(B), paired by seed", "seeds", "A vs B (95 %)"], eff_rows)
                  if eff_rows else "")
     text = (f"# Intelligence experiment\n\n{len(suts)} SUTs x {seeds} seeds ({first}..{first + seeds - 1}), "
             f"{any_cfg.steps} steps, {any_cfg.bvs.count} BVs ({any_cfg.bvs.driver}, mix {args.mix}); weights "
@@ -155,7 +155,7 @@ def paired_comparisons(suts: list[str], rounds, results, section: str = "intelli
                        ) -> tuple[list[list[str]], list[list]]:
     """Every pair of SUTs: the per-seed difference of ``section``'s score (intelligence, or a term:
     efficiency, safety, interaction), mean ± 95 % interval (shared seeds)."""
-    from evoscen_bringup.experiments import fmt_ci
+    from evoscen_bringup.experiments import difference_words, fmt_ci
     from evoscen_bringup.sensitivity import paired
 
     scores = {sut: {r.cfg.seed: results[r.key]["report"][section]["score"] for r in rounds if r.label == sut}
@@ -165,8 +165,7 @@ def paired_comparisons(suts: list[str], rounds, results, section: str = "intelli
         for b in suts[i + 1:]:
             d = paired(scores[a], scores[b])
             sig = d.n >= 2 and abs(d.mean) > d.half
-            rows.append([a, b, fmt_ci(d.mean, d.half), str(d.n), ("yes, " + (a if d.mean > 0 else b) + " higher")
-                         if sig else "no"])
+            rows.append([a, b, fmt_ci(d.mean, d.half), str(d.n), difference_words(d.mean, d.half, d.n)])
             csv_rows.append([a, b, d.mean, d.half, d.n, int(sig)])
     return rows, csv_rows
 

@@ -182,7 +182,7 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
               scenarios: list[str], mutants: list[str]) -> tuple[dict, str]:
     """One design's tables and files in ``out`` (sensitivity.md/.csv, mutation_scores.csv, rounds.csv,
     sensitivity.png). Returns (scenario, base) -> :class:`DesignSummary` and the score table (Markdown)."""
-    from evoscen_bringup.experiments import fmt_ci, markdown_table, mean_ci, write_csv
+    from evoscen_bringup.experiments import difference_words, fmt_ci, markdown_table, mean_ci, write_csv
     from evoscen_bringup.sensitivity import (
         SCORES,
         SSM_RATES,
@@ -221,8 +221,9 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     unit = design.unit
     first_report = next(iter(next(iter(reports.values())).values()))
     ssm_header = ["mutant", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "n"]
-    header = ["mutant", "class", "ΔI (intact − mutant)", "ΔI_s", "ΔI_e", "ΔI_i", "Δ collisions (mutant − intact)",
-              "Δ exposures", "Δ min PET (s)", "detected", f"{unit}s needed", "pairing r"]
+    header = ["mutant", "class", "ΔI (intact − mutant)", "mutant's I vs intact (95 %)", "ΔI_s", "ΔI_e", "ΔI_i",
+              "Δ collisions (mutant − intact)", "Δ exposures (mutant − intact)", "Δ min PET (s, intact − mutant)",
+              "detected", f"{unit}s needed", "pairing r"]
     csv_rows, score_rows, md_parts, plot_data = [], [], [], []
     summaries = {}
     round_rows = []
@@ -250,7 +251,10 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                 r_pair = summary.pairing_r[m]
                 hit = diffs["intelligence"].above_zero
                 points.append((m, diffs["intelligence"]))
-                rows.append([m, LIBRARY[m].klass, *(fmt_ci(diffs[n].mean, diffs[n].half) for n in SCORES),
+                di = diffs["intelligence"]
+                cells = [fmt_ci(diffs[n].mean, diffs[n].half) for n in SCORES]
+                # in words the mutant against the intact model: mutant − intact, the negative of the column's
+                rows.append([m, LIBRARY[m].klass, cells[0], difference_words(-di.mean, di.half, di.n), *cells[1:],
                              fmt_ci(d_col.mean, d_col.half, 2), fmt_ci(d_exp.mean, d_exp.half, 2),
                              fmt_ci(d_pet.mean, d_pet.half, 2), "yes" if hit else "no", "–" if need is None else str(need),
                              "–" if math.isnan(r_pair) else f"{r_pair:.2f}"])
@@ -301,6 +305,7 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                                   for s, d, b, k, n, x, m, h, r in score_rows])
     cfg0 = rounds[0].cfg
     wall = sum(results[r.key]["wall_time_s"] for r in rounds)
+    simulated = sum(results[r.key]["report"]["run"]["duration_s"] for r in rounds)
     variants = len(scenarios) * len(bases) * (1 + len(mutants))
     text = (f"# Sensitivity experiment (SUT mutation analysis)\n\n{len(bases)} base SUT(s) x {len(mutants)} mutants "
             f"x {len(scenarios)} scenarios x {design.runs} {unit}s ({design.seeds[0]}..{design.seeds[-1]}), "
@@ -308,8 +313,10 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
             f"initial state after the warm-up and every random stream); differences intact − mutant of the "
             f"unweighted scores (Δ collisions/exposures: mutant − intact; Δ min PET: intact − mutant of the run's "
             f"smallest lane-change PET, > 0 when the mutant cuts in closer), mean ± 95 % interval over {unit}s; "
-            f"detected: the intelligence interval lies above 0; pairing r: correlation over {unit}s of intact and "
-            f"mutant intelligence; {wall:.0f} s of simulation in all.\n\n{compute_text(design, cfg0, variants)}\n\n"
+            f"the mutant's I in words: 'significantly lower' (= detected: the intact − mutant interval lies above 0), "
+            f"'significantly higher' or 'no significant difference'; pairing r: correlation over {unit}s of intact and "
+            f"mutant intelligence; {simulated:,.0f} s simulated (scored states of all runs), {wall:,.0f} s wall "
+            f"time in all.\n\n{compute_text(design, cfg0, variants)}\n\n"
             f"{score_table}\n" + "\n".join(md_parts) + "\n![sensitivity](sensitivity.png)\n")
     (out / "sensitivity.md").write_text(text, encoding="utf-8")
     plot(out / "sensitivity.png", plot_data)

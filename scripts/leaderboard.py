@@ -92,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     from evoscen_bringup.experiments import (
         Round,
+        difference_words,
         fmt_ci,
         markdown_table,
         mean_ci,
@@ -161,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             sig = d.n >= 2 and math.isfinite(d.half) and abs(d.mean) > d.half
             d_text = fmt_ci(d.mean, d.half)
-            sig_text = ("yes, " + ("higher" if d.mean > 0 else "lower")) if sig else "no"
+            sig_text = difference_words(d.mean, d.half, d.n)
             d_csv, sig = [d.mean, d.half, d.n], int(sig)
         rows.append([str(rank), sut, fmt_ci(*stats[sut]), *(fmt_ci(*t) for t in terms), d_text, sig_text,
                      fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
@@ -198,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
               episode_rows)
 
     header = ["rank", "SUT", "intelligence", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)",
-              f"ΔI vs {args.reference} (paired)", "significant (95 %)", "collisions / episode", "exposures / episode",
+              f"ΔI = SUT − {args.reference} (paired)", f"SUT vs {args.reference} (95 %)", "collisions / episode",
+              "exposures / episode",
               "n"]
     table = markdown_table(header, rows)
     first_report = next((results[r.key]["report"] for r in rounds if r.label in ok), None)
@@ -206,14 +208,18 @@ def main(argv: list[str] | None = None) -> int:
                                ssm_rows) if ssm_rows else ""
     cfg0 = rounds[0].cfg
     wall = sum(results[r.key]["wall_time_s"] for r in rounds if r.key in results)
-    ref_note = (f"ΔI: the SUT's intelligence minus {args.reference}'s on the same episodes, mean ± 95 % interval of "
-                f"the per-episode difference; significant when the interval excludes 0."
+    simulated = sum(results[r.key]["report"]["run"]["duration_s"] for r in rounds if r.key in results)
+    ref_note = (f"ΔI = SUT − {args.reference}: the SUT's intelligence minus {args.reference}'s on the same episodes, "
+                "mean ± 95 % interval of the per-episode difference; 'significantly higher' ('lower') when the whole "
+                "interval lies above (below) 0, else 'no significant difference'. The safety, efficiency and "
+                "interaction columns are the weighted terms (weight × score), which sum to the intelligence."
                 if ref else f"The reference {args.reference} failed: no paired differences.")
     text = (f"# Planner leaderboard\n\n{len(suts)} SUTs x {episodes} episodes (seeds {first}..{first + episodes - 1}) "
             f"x {steps} steps, after a warm-up of {cfg0.traffic.warmup_s:g} s, among {cfg0.bvs.count} BVs "
             f"({cfg0.bvs.driver}); weights {cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
             f"{cfg0.evaluation.weight_interaction:g}; mean ± 95 % interval over the episodes; ranked by mean "
-            f"intelligence. {ref_note} {wall:.0f} s of simulation in all.\n\n{table}\n"
+            f"intelligence. {ref_note} {simulated:,.0f} s simulated (scored states of all episodes), {wall:,.0f} s "
+            f"wall time in all.\n\n{table}\n"
             + (f"Surrogate safety per SUT-km (docs/evaluation.md §9; front: the SUT behind its leader, rear: its "
                f"follower behind it), mean ± 95 % interval over the episodes:\n\n{ssm_table}\n" if ssm_table else "")
             + "![leaderboard](leaderboard.png)\n\nMade by:\n\n    python scripts/leaderboard.py "
@@ -261,7 +267,7 @@ def plot(path: Path, rows, reference: str | None) -> None:
             color = ("tab:green" if d.mean > 0 else "tab:red") if sig else "tab:gray"
             ax.errorbar([d.mean], [y], xerr=[[h], [h]], fmt="o", color=color, capsize=3)
         ax.axvline(0.0, color="k", lw=0.8)
-        ax.set_xlabel(f"ΔI − {reference}, paired by episode (95 % CI)")
+        ax.set_xlabel(f"ΔI = SUT − {reference}, paired by episode (95 % CI)")
         ax.set_title(f"Against {reference}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

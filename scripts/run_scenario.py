@@ -119,11 +119,9 @@ def print_scores(report_dir: Path) -> None:
         print(f"error: no report was written ({path} is missing)", file=sys.stderr)
         return
     r = json.loads(path.read_text(encoding="utf-8"))
-    w, c = r["intelligence"]["weighted"], r["complexity"]["score"]
-    print(f"intelligence: {r['intelligence']['score']:.4f} (weighted safety {w['safety']:.4f}, efficiency "
-          f"{w['efficiency']:.4f}, interaction {w['interaction']:.4f})  complexity: "
-          + ("-" if c is None else f"{c:.4f}")
-          + f"  SUT collisions: {r['safety']['collisions']}  exposures: {r['safety']['exposures']}")
+    from evoscen_eval.report import score_line
+
+    print(score_line(r))
     for warning in r["warnings"]:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"report: {report_dir / 'report.md'}")

@@ -169,7 +169,7 @@ def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
     report = json.loads((out / "runs" / runs[4].key / "report.json").read_text())
     assert report["intelligence"]["score"] == here["intelligence"]["score"]
     summary = (out / "summary.md").read_text()
-    assert "## Paired by seed: mobil − each other sut.model (intelligence)" in summary
+    assert "## Paired by seed: each other sut.model − mobil (intelligence)" in summary
     assert "| level0 | 3 |" in summary  # the paired row: 3 shared seeds
     for name in ("summary.png", "distributions.png"):
         assert (out / name).stat().st_size > 0 and f"]({name})" in summary

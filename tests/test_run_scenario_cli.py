@@ -203,10 +203,13 @@ def test_successful_run_outputs(recorded_run):
     assert {"report.json", "report.md", "speed.png", "timeline.png", "traffic.png", "ttc.png"} <= names
     report = json.loads((out / "report" / "report.json").read_text())
     # plus a snapshot at the worst exposure (if any) and at each SUT collision (numbered)
-    extra = names - {"report.json", "report.md", "speed.png", "timeline.png", "traffic.png", "ttc.png"}
+    extra = names - {"report.json", "report.md", "speed.png", "timeline.png", "traffic.png", "ttc.png", "run.gif"}
+    assert "run.gif" in names  # the bird's-eye animation
     assert ("worst_exposure.png" in extra) == bool(report["safety"]["exposures"]), extra
     assert all(re.fullmatch(r"collision_\d+\.png", n) for n in extra - {"worst_exposure.png"}), extra
-    assert re.search(r"^intelligence: [0-9.]+ \(weighted safety [0-9.]+, efficiency [0-9.]+, interaction [0-9.]+\)"
+    # weight × score per term (the effective weights: 0.75/0.25 when interaction is undefined, evaluation.md §4)
+    assert re.search(r"^intelligence: [0-9.]+ = [0-9.]+ × safety [0-9.]+ \+ [0-9.]+ × efficiency [0-9.]+ \+ "
+                     r"([0-9.]+ × interaction [0-9.]+|interaction undefined \(left out\))"
                      r"  complexity: [0-9.]+  SUT collisions: \d+  exposures: \d+$", res.stdout, re.M), res.stdout
     assert f"report: {out / 'report' / 'report.md'}" in res.stdout
     assert sorted(p.name for p in (out / "bag").iterdir()) == ["bag_0.mcap", "metadata.yaml"]

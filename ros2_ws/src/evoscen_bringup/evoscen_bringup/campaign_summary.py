@@ -107,6 +107,7 @@ def gallery_markdown(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> 
     """``gallery.md``: every critical event of the finished runs, most severe first
     (:func:`evoscen_eval.clips.rank_key`), with its picture, clip and reproduce command."""
     from evoscen_eval.clips import rank_key
+    from evoscen_eval.exposure_rules import rules_summary, ttc_text
 
     events = []
     for r in runs:
@@ -115,19 +116,25 @@ def gallery_markdown(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> 
             events += [(e, r) for e in json.loads(path.read_text(encoding="utf-8"))]
     events.sort(key=lambda item: rank_key(item[0]))
     lines = [f"# Critical events of campaign {spec.name}\n",
-             f"{len(events)} events (SUT collisions, then exposures by severity max(2 s / TTC, −a / 6 m/s²)); "
-             f"each a clip of ±{spec.clip_s:g} s (`python scripts/replay.py CLIP`, Foxglove) and the command that "
-             "runs the same configuration to the clip's end.\n",
-             "| rank | event | cell | seed | t (s) | severity | min TTC (s) | scene | clip | reproduce |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             f"{len(events)} events: SUT collisions, then exposures by falling severity (at the exposure's worst "
+             "state the largest ratio over the rules that hold there, 1 at a rule's threshold, 2 at twice the "
+             "danger: TTC, gap or headway at half the threshold, braking or DRAC at twice it; docs/evaluation.md "
+             f"§2.1); each a clip of ±{spec.clip_s:g} s (`python scripts/replay.py CLIP`, Foxglove), its animation "
+             "and the command that runs the same configuration to the clip's end.\n",
+             "| rank | event | cell | seed | t (s) | severity | rules: value vs threshold (vehicle) | "
+             "lowest TTC ahead (s) | vehicles involved | scene | animation | clip | reproduce |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for n, (e, r) in enumerate(events, 1):
         base = f"runs/{r.key}"
         pic = f"![scene]({base}/{e['png']})" if e.get("png") else "–"
         sev = "–" if e["severity"] is None else f"{e['severity']:.2f}"
-        ttc = "–" if e.get("min_ttc_s") is None else f"{e['min_ttc_s']:.2f}"
+        ttc = ttc_text(e.get("min_ttc_s"))
         cell = ", ".join(f"{k}={v}" for k, v in r.cell) or "–"
-        lines.append(f"| {n} | {e['kind']} | {cell} | {r.seed} | {e['time_s']:.1f} | {sev} | {ttc} | {pic} | "
-                     f"`{base}/{e['clip']}` | `{e.get('command') or '–'}` |")
+        gif = f"[clip.gif]({base}/{e['gif']})" if e.get("gif") else "–"
+        rules = rules_summary(e).replace("|", "\\|") if e["kind"] == "exposure" else "–"
+        ids = ", ".join(str(i) for i in e.get("ids", [])) or "–"
+        lines.append(f"| {n} | {e['kind']} | {cell} | {r.seed} | {e['time_s']:.1f} | {sev} | {rules} | {ttc} | {ids} | "
+                     f"{pic} | {gif} | `{base}/{e['clip']}` | `{e.get('command') or '–'}` |")
     return "\n".join(lines) + "\n"
 
 
@@ -159,12 +166,13 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
     """Per-cell means with 95 % intervals (Student t for scores, bootstrap for counts) and, with
     ``compare``, paired differences to the reference on shared seeds."""
     from .sensitivity import paired
-    from .stats import fmt_ci, markdown_table, mean_ci
+    from .stats import difference_words, fmt_ci, markdown_table, mean_ci
 
     axes = list(spec.grid)
     lines = [f"# Campaign {spec.name}\n",
              f"{len(rows)} of {len(runs)} runs finished; {len(spec.seeds)} seeds per cell; spec `{spec.path.name}`. "
-             "Scores: mean ± 95 % Student-t interval over seeds (C: the scenario's complexity per run, – for a "
+             "Scores (I_s, I_e, I_i unweighted, each in [0, 1]): mean ± 95 % Student-t interval over seeds "
+             "(C: the scenario's complexity per run, – for a "
              "run shorter than one window); counts: mean [95 % bootstrap interval].\n"]
     rng = np.random.default_rng(0)  # the bootstrap's draws: fixed, so the summary is reproducible
     body = []
@@ -192,8 +200,10 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
             ref_cell = cell[:i] + (ref,) + cell[i + 1:]
             base = {m["seed"]: m["intelligence"] for m in grouped.get(ref_cell, [])}
             other = {m["seed"]: m["intelligence"] for m in members}
-            p = paired(base, other)
-            comp.append([*cell, str(p.n), fmt_ci(p.mean, p.half), "yes" if p.above_zero else "no"])
-        lines.append(f"\n## Paired by seed: {ref} − each other {axis} (intelligence)\n")
-        lines.append(markdown_table([*axes, "seeds", "ΔI", "interval above 0"], comp))
+            p = paired(other, base)  # this cell − the reference (the leaderboard's SUT − reference)
+            comp.append([*cell, str(p.n), fmt_ci(p.mean, p.half), difference_words(p.mean, p.half, p.n)])
+        lines.append(f"\n## Paired by seed: each other {axis} − {ref} (intelligence)\n")
+        lines.append(f"ΔI = the cell's intelligence − {ref}'s on the same seed, mean ± 95 % Student-t interval; "
+                     "'significantly higher' ('lower'): the whole interval above (below) 0.\n")
+        lines.append(markdown_table([*axes, "seeds", f"ΔI (− {ref})", f"vs {ref} (95 %)"], comp))
     return "\n".join(lines) + "\n"

@@ -29,7 +29,7 @@ from typing import Any, TypeVar
 from evoscen_eval.plot_inputs import SPEED_BINS, TTC_BINS  # noqa: F401 - the histograms' bins (the plots read them here)
 from evoscen_sim.config.scenario_config import ScenarioConfig
 
-from .stats import fmt_ci, markdown_table, mean_ci  # noqa: F401 - the experiments' scripts import them from here
+from .stats import difference_words, fmt_ci, markdown_table, mean_ci  # noqa: F401 - the experiments' scripts import them from here
 
 
 @dataclass(frozen=True)

@@ -33,3 +33,16 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines) + "\n"
+
+
+def difference_words(mean: float, half: float, n: int) -> str:
+    """A paired difference ``a − b`` with its 95 % interval ``mean ± half`` over ``n`` pairs, in words:
+    ``significantly higher`` (the whole interval above 0: a above b), ``significantly lower`` (below 0),
+    ``no significant difference`` (the interval holds 0) or ``– (n < 2)`` (no interval)."""
+    if n < 2 or not (math.isfinite(mean) and math.isfinite(half)):
+        return "– (n < 2)" if n < 2 else "–"
+    if mean - half > 0.0:
+        return "significantly higher"
+    if mean + half < 0.0:
+        return "significantly lower"
+    return "no significant difference"

@@ -6,12 +6,19 @@ run's messages stamped from ``t_k - clip_s`` to ``t_k + clip_s`` (clamped to the
 latched topics' last message before that (the map and the roster: a player that opens the
 clip sees the road and who is who) and the run's scenario record, in a rosbag2 bag of its
 own (``scripts/replay.py``, Foxglove, ``ros2 bag play``). Beside it: a bird's-eye PNG of state
-k (the report's snapshot) and the command that runs the same configuration to the clip's end
-in-process — deterministic, so its bag holds the very same world states.
+k (the report's snapshot, the vehicles involved outlined red), an animation of the clip
+(``clip.gif``, :mod:`evoscen_eval.animation`) and the command that runs the same configuration to
+the clip's end in-process — deterministic, so its bag holds the very same world states.
+
+Involved vehicles (``clips.json`` ``ids``): a collision's pair; an exposure's counterparts, the
+vehicles its rules name (:func:`evoscen_eval.exposure_rules.involved`: the leader, the follower,
+the new follower of a cut-in, the vehicle beside), with the rules themselves in ``rules``.
 
 Severity (the gallery's order): every collision before every exposure; exposures by their
-severity max(TTC threshold / TTC, −a / hard-brake threshold) at the worst state (the report's
-``exposure_list[i].severity``: 2 at TTC 1 s or at −12 m/s²); collisions by their time.
+severity (the report's ``exposure_list[i].severity``: at the exposure's worst state the largest
+ratio over the rules that hold, 1 at a rule's threshold and 2 at twice the danger — TTC, gap or
+headway at half the threshold, braking or DRAC at twice it; docs/evaluation.md §2.1); collisions by
+their time.
 """
 
 from __future__ import annotations
@@ -21,7 +28,11 @@ import shlex
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from evoscen_contract import contract as C
+
+from .animation import ANIMATION_FRAMES, FrameSeries, write_animation
+from .exposure_rules import involved
 
 CLIP_S = 5.0
 """Seconds of the run kept on either side of an event (SUMO SSM's default ``extratime``, the
@@ -35,9 +46,10 @@ def events_of(report: dict[str, Any]) -> list[dict[str, Any]]:
         out.append({"kind": "collision", "state": int(c["state"]), "time_s": float(c["time_s"]), "ids": list(c["ids"]),
                     "severity": None, "min_ttc_s": None})
     for x in report["safety"]["exposure_list"]:
-        out.append({"kind": "exposure", "state": int(x["worst_state"]), "time_s": None, "ids": [],
+        out.append({"kind": "exposure", "state": int(x["worst_state"]), "time_s": None, "ids": involved(x),
                     "severity": float(x["severity"]), "min_ttc_s": x["min_ttc_s"],
-                    "start_state": int(x["start_state"]), "end_state": int(x["end_state"])})
+                    "start_state": int(x["start_state"]), "end_state": int(x["end_state"]),
+                    "rules": list(x.get("rules", []))})
     return out
 
 
@@ -102,17 +114,39 @@ def bag_metadata(bag_dir: Path, name: str) -> dict[str, dict[str, str]]:
     return {}
 
 
-def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: float = CLIP_S,
-             scenario_file: Path | None = None, run_name: str | None = None) -> list[dict[str, Any]]:
-    """A clip, a PNG and a reproduce command for every critical event of a recorded run.
+def clip_frames(clip, keep: int) -> FrameSeries:
+    """The animation frames of a clip's :class:`~evoscen_eval.rundata.RunData` (every state up to ``keep``)."""
+    series = FrameSeries(keep=max(1, keep))
+    if clip.states:
+        tables = np.stack([np.asarray(clip.columns[f], dtype=np.float64) for f in C.WORLD_FIELDS], axis=-1)
+        series.add_block(np.arange(clip.states), np.asarray(clip.time_s, dtype=np.float64), tables,
+                         np.asarray(clip.ids), clip.sut_index)
+    return series
 
-    Writes ``run_dir/clips/<n>-<kind>-<state>/{bag/, scene.png}`` and ``run_dir/clips.json``;
-    returns one entry per event (what :func:`events_of` gives, plus ``clip``, ``png``,
-    ``command``, ``messages``, ``from_state``, ``to_state``; paths relative to ``run_dir``).
+
+def clip_report(event: dict[str, Any], k_from: int, dt: float) -> dict[str, Any]:
+    """The event as the animation reads a report, its states counted from the clip's first."""
+    if event["kind"] == "collision":
+        return {"safety": {"exposure_list": [], "collision_list": [
+            {"state": event["state"] - k_from, "ids": event["ids"]}]}}
+    x = {"start_state": event["start_state"] - k_from, "end_state": event["end_state"] - k_from,
+         "rules": event.get("rules", [])}
+    return {"safety": {"exposure_list": [x], "collision_list": []}}
+
+
+def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: float = CLIP_S,
+             scenario_file: Path | None = None, run_name: str | None = None,
+             animation_frames: int = ANIMATION_FRAMES) -> list[dict[str, Any]]:
+    """A clip, a PNG, an animation and a reproduce command for every critical event of a recorded run.
+
+    Writes ``run_dir/clips/<n>-<kind>-<state>/{bag/, scene.png, clip.gif}`` (the GIF of
+    ``animation_frames`` frames; 0: none) and ``run_dir/clips.json``; returns one entry per event
+    (what :func:`events_of` gives, plus ``clip``, ``png``, ``gif``, ``command``, ``messages``,
+    ``from_state``, ``to_state``; paths relative to ``run_dir``).
     """
     from evoscen_record.scenario_record import SCENARIO_METADATA
 
-    from .report import _snapshot
+    from .report import _snapshot, exposure_caption
     from .rundata import read_run
     from .plot_inputs import Scene
 
@@ -141,17 +175,23 @@ def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: fl
         if 0 <= row < clip.states:
             scene = Scene(state=k, time_s=k * dt, columns={f: clip.columns[f][row] for f in clip.columns},
                           ids=clip.ids, sut_index=clip.sut_index)
-            what = ("collision" if event["kind"] == "collision" else
-                    f"exposure (severity {event['severity']:.2f}, min TTC "
-                    f"{'–' if event['min_ttc_s'] is None else format(event['min_ttc_s'], '.2f')} s)")
-            png = _snapshot(plt, scene, clip.lane_segments, set(event["ids"]), f"{what} at t = {k * dt:.1f} s",
-                            clip_dir, "scene.png")
+            if event["kind"] == "collision":
+                title = f"collision at t = {k * dt:.1f} s"
+            else:  # the report's words for the exposure (evoscen_eval.report.exposure_caption)
+                title = f"exposure at its most severe state, t = {k * dt:.1f} s: " + exposure_caption(event)
+            png = _snapshot(plt, scene, clip.lane_segments, set(event["ids"]), title, clip_dir, "scene.png")
+        gif = None
+        if animation_frames > 0 and write_animation(clip_frames(clip, 4 * animation_frames), clip.lane_segments,
+                                                    clip_report(event, k_from, dt), clip_dir / "clip.gif",
+                                                    frames=animation_frames, title=f"{event['kind']} {n}"):
+            gif = "clip.gif"
         command = None
         if scenario_file is not None:
             command = (f"python scripts/run_scenario.py --mode inprocess --config {shlex.quote(str(scenario_file))} "
                        f"--steps {k_to} --out {shlex.quote(f'runs/repro/{run_name or run_dir.name}-{name}')}")
         out.append({**event, "state": k, "time_s": k * dt, "clip": f"clips/{name}/bag",
-                    "png": f"clips/{name}/{png}" if png else None, "command": command, "messages": count,
+                    "png": f"clips/{name}/{png}" if png else None, "gif": f"clips/{name}/{gif}" if gif else None,
+                    "command": command, "messages": count,
                     "from_state": k_from, "to_state": k_to})
     (run_dir / "clips.json").write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
     return out

@@ -66,6 +66,8 @@ class PlotData:
     collision_scenes: dict[int, Scene] = field(default_factory=dict)
     worst_scene: Scene | None = None
     lane_segments: np.ndarray | None = None
+    frames: object | None = None
+    """The animation's frames (:class:`~evoscen_eval.animation.FrameSeries`), None without them."""
 
 
 class PlotSeries:

@@ -11,7 +11,12 @@ Plots (matplotlib, Agg): the SUT's TTC distribution (``ttc.png``) and speed dist
 marked (``timeline.png``); the BVs within 100 m of the SUT over time with each 30-s window's mean
 (``traffic.png``); a bird's-eye snapshot of the scene at each SUT collision
 (``collision_<n>.png``, the first :data:`MAX_SNAPSHOTS`) and at the worst exposure
-(``worst_exposure.png``).
+(``worst_exposure.png``); and a bird's-eye animation around the SUT (``run.gif``,
+:mod:`evoscen_eval.animation`).
+
+Each exposure is listed with the rules that made it one, their values and the vehicles involved
+(:mod:`evoscen_eval.exposure_rules`); the worst-exposure snapshot's title and the exposure table
+print the same entry of ``safety.exposure_list`` (:func:`exposure_caption`).
 """
 
 from __future__ import annotations
@@ -25,6 +30,8 @@ import numpy as np
 from evoscen_sim.config.scenario_config import EvaluationConfig
 from evoscen_sim.errors import HostFault, InputError
 
+from .animation import ANIMATION_FRAMES, write_animation
+from .exposure_rules import definition, involved, rules_summary, ttc_text
 from .metrics import evaluate, report_of_stream, run_info, stream_run
 from .plot_inputs import SPEED_BINS, TTC_BINS, PlotData, Scene
 from .rundata import RunData, evaluation_settings_of
@@ -46,20 +53,23 @@ def report_of(run: RunData, override: EvaluationConfig | None = None) -> dict[st
 
 
 def write_report(run: RunData, out_dir: Path | str, *, override: EvaluationConfig | None = None,
-                 plots: bool = True, source: str | None = None) -> dict[str, Any]:
-    """Score ``run`` and write ``report.json``, ``report.md`` and (``plots``) the PNGs into ``out_dir``.
+                 plots: bool = True, source: str | None = None, animation_frames: int = ANIMATION_FRAMES
+                 ) -> dict[str, Any]:
+    """Score ``run`` and write ``report.json``, ``report.md`` and (``plots``) the PNGs and the
+    animation of ``animation_frames`` frames (0: none) into ``out_dir``.
 
     Returns the report dict. InputError if ``out_dir`` cannot be written; HostFault if the disk is
     full or the file system read-only (:data:`~evoscen_sim.errors.HostFault.ERRNOS`).
     """
     stream = stream_run(run, evaluation_settings(run, override))
     return write_stream_report(stream, run_info(run), list(run.warnings), out_dir, plots=plots, source=source,
-                               lane_segments=run.lane_segments)
+                               lane_segments=run.lane_segments, animation_frames=animation_frames)
 
 
 def write_stream_report(stream: ScoreStream, info: dict[str, Any], warnings: list[str], out_dir: Path | str, *,
                         plots: bool = True, source: str | None = None,
-                        lane_segments: np.ndarray | None = None) -> dict[str, Any]:
+                        lane_segments: np.ndarray | None = None,
+                        animation_frames: int = ANIMATION_FRAMES) -> dict[str, Any]:
     """:func:`write_report` for a run scored as it streamed (``info``: :func:`~evoscen_eval.metrics.run_info_of`)."""
     report = report_of_stream(stream, info, warnings)
     if source is not None:
@@ -67,15 +77,39 @@ def write_stream_report(stream: ScoreStream, info: dict[str, Any], warnings: lis
     out = Path(out_dir)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        images = draw_plots(stream.plot_data(lane_segments), stream.ev, report, out) if plots else []
+        images = []
+        if plots:
+            plot = stream.plot_data(lane_segments)
+            images = draw_plots(plot, stream.ev, report, out)
+            if animation_frames > 0 and write_animation(plot.frames, lane_segments, report, out / ANIMATION_FILE,
+                                                        frames=animation_frames):
+                images.append(ANIMATION_FILE)
         (out / "report.json").write_text(json.dumps(report, indent=2, allow_nan=False) + "\n", encoding="utf-8")
-        (out / "report.md").write_text(markdown(report, images), encoding="utf-8")
+        (out / "report.md").write_text(markdown(report, images, stream.ev), encoding="utf-8")
     except OSError as exc:
         if exc.errno in HostFault.ERRNOS:  # a full disk, a read-only file system: the host's, not the input's
             raise HostFault.of(exc, exc.filename or out) from None
         raise InputError(f"report directory {str(out)!r}: cannot write: {exc.strerror or exc}") from None
     return report
 
+
+def score_line(report: dict[str, Any]) -> str:
+    """The scores in one line, each term as weight × score (the effective weights, which sum the
+    weighted terms to I), e.g. ``intelligence: 0.6889 = 0.6 × safety 0.8104 + 0.2 × efficiency 0.1874
+    + 0.2 × interaction 0.8260  complexity: 0.2605  SUT collisions: 0  exposures: 1``."""
+    g, c = report["intelligence"], report["complexity"]["score"]
+    ew = g.get("effective_weights", g["weights"])
+    terms = []
+    for name in ("safety", "efficiency", "interaction"):
+        score = report[name]["score"]
+        terms.append(f"{name} undefined (left out)" if score is None else f"{ew[name]:g} × {name} {score:.4f}")
+    intel = "–" if g["score"] is None else f"{g['score']:.4f}"
+    return (f"intelligence: {intel} = " + " + ".join(terms) + "  complexity: " + ("-" if c is None else f"{c:.4f}")
+            + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
+
+
+ANIMATION_FILE = "run.gif"
+"""The report's bird's-eye animation (:mod:`evoscen_eval.animation`)."""
 
 # ---------------------------------------------------------------------- markdown
 
@@ -99,8 +133,31 @@ def _table(rows: list[tuple[str, Any, str]]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def markdown(report: dict[str, Any], images: list[str]) -> str:
-    """``report.md``: the scores and their inputs as tables, then the plots."""
+def exposure_caption(x: dict[str, Any]) -> str:
+    """An exposure in one line: its rules with their values and vehicles, its lowest TTC ahead and
+    its severity — the words of report.md's exposure table and of the worst-exposure snapshot."""
+    ttc = x["min_ttc_s"]
+    return (f"{rules_summary(x)}; lowest TTC ahead {'– (never closing)' if ttc is None else ttc_text(ttc) + ' s'}; "
+            f"severity {x['severity']:.3g}")
+
+
+def exposure_rows(exposures: list[dict[str, Any]], limit: int = 50) -> list[str]:
+    """report.md's exposure table: one row per exposure (the first ``limit``)."""
+    esc = lambda text: str(text).replace("|", "\\|")  # noqa: E731
+    out = ["\n| exposure | start (s) | states | rules that made it one: value vs threshold (vehicle) | "
+           "lowest TTC ahead (s) | severity |", "|---|---|---|---|---|---|"]
+    for n, x in enumerate(exposures[:limit], 1):
+        out.append(f"| {n} | {x['start_time_s']:.1f} | {x['states']}{' (open)' if x['open_at_end'] else ''} | "
+                   f"{esc(rules_summary(x))} | {ttc_text(x['min_ttc_s'])} | {_f(x['severity'], 3)} |")
+    if len(exposures) > limit:
+        out.append(f"\n… and {len(exposures) - limit} more (report.json lists all).")
+    out.append("")
+    return out
+
+
+def markdown(report: dict[str, Any], images: list[str], ev: EvaluationConfig | None = None) -> str:
+    """``report.md``: the scores and their inputs as tables, then the plots (``ev``: the settings
+    the run was scored under, for the exposure rules in words)."""
     r, s, e, i, g, c = (report[k] for k in ("run", "safety", "efficiency", "interaction", "intelligence", "complexity"))
     w = g["weighted"]
     ew = g.get("effective_weights", g["weights"])
@@ -129,16 +186,21 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
             ("C'", s["collisions_used"], "C as it enters I_s" + (f" (C·{s['count_factor']:.6g})" if scaled else "")),
             ("E'", s["exposures_used"], "E as it enters I_s" + (f" (E·{s['count_factor']:.6g})" if scaled else "")),
         ]
-    out += ["## Safety\n", formula, _table([
+    rules = (definition(ev) if ev is not None else
+             [f"see docs/evaluation.md §2 (TTC threshold {s['ttc_threshold_s']:g} s, hard braking "
+              f"{s['hard_brake_mps2']:g} m/s²)"])
+    rules_md = ("A state is dangerous when one of these rules holds (docs/evaluation.md §2); an exposure is a "
+                "maximal run of dangerous states:\n\n" + "\n".join(f"- {r}" for r in rules) + "\n")
+    out += ["## Safety\n", formula, rules_md, _table([
         ("C", s["collisions"], "collisions involving the SUT (one per contact), counted in the run"),
         ("C_max", s["collision_cap"], "collision cap"),
-        ("E", s["exposures"], f"exposures (maximal runs of states with TTC < {s['ttc_threshold_s']:g} s "
-                              f"or acceleration < −{s['hard_brake_mps2']:g} m/s²), counted in the run"),
+        ("E", s["exposures"], "exposures (maximal runs of dangerous states: the rules above), counted in the run"),
         *counts,
         ("open at end", s["exposures_open_at_end"], "exposures still open when the run ended (counted)"),
         ("dangerous states", s["dangerous_states"], "states in exposures"),
         ("min TTC (s)", s["min_ttc_s"], "lowest TTC to the vehicle ahead in the SUT's path (– = never closing)"),
-        ("min acceleration (m/s²)", s["min_accel_mps2"], "the SUT's hardest braking"),
+        ("min acceleration (m/s²)", s["min_accel_mps2"], "the SUT's hardest braking (dangerous only as the "
+                                                        "hard-braking rule above reads it)"),
         ("all collisions", s["collisions_all"], "every colliding pair, BVs included"),
     ])]
     cf = s.get("conflicts")
@@ -172,15 +234,7 @@ def markdown(report: dict[str, Any], images: list[str]) -> str:
             ("min lane-change PET (s)", cf["min_pet_s"], f"over {len(cf['lane_change_pet'])} SUT lane changes"),
         ])]
     if s["exposure_list"]:
-        out += ["\n| exposure | start (s) | states | min TTC (s) | min accel (m/s²) | rear / cut-in / beside states |",
-                "|---|---|---|---|---|---|"]
-        for n, x in enumerate(s["exposure_list"][:50], 1):
-            out.append(f"| {n} | {x['start_time_s']:.1f} | {x['states']}{' (open)' if x['open_at_end'] else ''} | "
-                       f"{_f(x['min_ttc_s'], 3)} | {_f(x['min_accel_mps2'], 3)} | "
-                       f"{x.get('rear_states', 0)} / {x.get('cut_in_states', 0)} / {x.get('beside_states', 0)} |")
-        if len(s["exposure_list"]) > 50:
-            out.append(f"\n… and {len(s['exposure_list']) - 50} more (report.json lists all).")
-        out.append("")
+        out += exposure_rows(s["exposure_list"])
     if "surrogate_safety" in report:
         out += surrogate_markdown(report["surrogate_safety"])
     out += ["\n## Efficiency\n", "I_e = 0.5·(density-speed term + e^(−T̄_l/3))\n", _table([
@@ -320,17 +374,29 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
     axes[2].axhline(ev.ttc_threshold_s, color="tab:red", ls="--", lw=0.8)
     axes[2].set(ylabel=f"TTC (s, ≤{TTC_PLOT_MAX_S:g})", xlabel="time (s)")
     dt = report["run"]["dt_s"]
-    last_t = report["run"]["duration_s"] + (float(t[0]) if t.size else 0.0)
-    for x in report["safety"]["exposure_list"]:
+    t0 = float(t[0]) if t.size else 0.0
+    spans = exposure_spans(report, t0)
+    for a, b in spans:
         for ax in axes:
-            ax.axvspan(x["start_time_s"], min(x["start_time_s"] + x["states"] * dt, last_t),
-                       color="tab:orange", alpha=0.3, lw=0)
+            ax.axvspan(a, b, color="tab:orange", alpha=0.35, lw=0)
+    if spans:  # a marker above each exposure: visible whatever the run's length
+        axes[0].plot([(a + b) / 2 for a, b in spans], [1.0] * len(spans), "v", color="tab:orange", ms=7,
+                     transform=axes[0].get_xaxis_transform(), clip_on=False, label="exposure")
     for col in report["safety"]["collision_list"]:
         for ax in axes:
             ax.axvline(col["time_s"], color="tab:red", lw=1.2)
+    starts = lane_change_marks(report, t0, t, plot.timeline_lane)
+    for direction, marker, colour in ((1, "^", "tab:green"), (-1, "v", "tab:purple")):
+        pts = [(tm, lane) for tm, lane, d in starts if d == direction]
+        if pts:
+            axes[1].plot(*zip(*pts), marker, color=colour, ms=4, ls="none",
+                         label="SUT lane change " + ("left" if direction > 0 else "right"))
+    if starts:
+        axes[1].legend(loc="upper right", fontsize=7)
     every = "" if plot.timeline_stride == 1 else f"; one point per {plot.timeline_stride} states, lowest TTC"
-    axes[0].set_title(f"SUT timeline: {report['safety']['exposures']} exposures (shaded), "
-                      f"{report['safety']['collisions']} collisions (red){every}")
+    axes[0].set_title(f"SUT timeline: {report['safety']['exposures']} exposures (shaded, ▼; at least "
+                      f"{100 * MIN_SPAN_SHARE:g} % of the axis wide), {len(starts)} SUT lane changes (▲ left, ▼ right), "
+                      f"{report['safety']['collisions']} collisions (red){every}", fontsize=9)
     names.append(_save(fig, out, "timeline.png"))
 
     if "traffic" in report:
@@ -343,9 +409,61 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
                                    f"collision {n} at t = {col['time_s']:.1f} s", out, f"collision_{n}.png"))
     if plot.worst_scene is not None:
         w = plot.worst_scene
-        names.append(_snapshot(plt, w, plot.lane_segments, set(), f"worst exposure at t = {w.time_s:.1f} s: TTC "
-                               f"{w.sut_ttc:.2f} s, accel {w.sut_accel:.2f} m/s²", out, "worst_exposure.png"))
+        n, x = worst_exposure_of(report, w.state)
+        names.append(_snapshot(plt, w, plot.lane_segments, set(involved(x)) if x else set(),
+                               worst_exposure_title(report, w.state, w.time_s), out, "worst_exposure.png"))
     return names
+
+
+MIN_SPAN_SHARE = 0.004
+"""An exposure's span on the timeline is at least this share of the run's duration wide (0.4 %: 1.2 s of a
+300-s run), so a one-state exposure is not a hairline."""
+
+
+def exposure_spans(report: dict[str, Any], t0: float = 0.0) -> list[tuple[float, float]]:
+    """Each exposure's (start, end) on the timeline (s): its states, widened about their middle to at
+    least :data:`MIN_SPAN_SHARE` of the run's duration and clamped to the run."""
+    dt, duration = report["run"]["dt_s"], report["run"]["duration_s"]
+    last = t0 + duration
+    width = MIN_SPAN_SHARE * duration
+    out = []
+    for x in report["safety"]["exposure_list"]:
+        a, b = x["start_time_s"], min(x["start_time_s"] + x["states"] * dt, last)
+        if b - a < width:
+            mid = (a + b) / 2
+            a, b = max(t0, mid - width / 2), min(last, mid + width / 2)
+        out.append((a, b))
+    return out
+
+
+def lane_change_marks(report: dict[str, Any], t0: float, times: np.ndarray, lanes: np.ndarray
+                      ) -> list[tuple[float, float, int]]:
+    """The SUT's lane changes as (time of the first state, lane there, +1 left / -1 right), from
+    ``safety.conflicts.lane_change_pet`` (one entry per change; none in a report without it); the
+    lane and so the direction (towards the target lane) from the timeline's point at that time."""
+    dt = report["run"]["dt_s"]
+    out = []
+    for c in (report["safety"].get("conflicts") or {}).get("lane_change_pet", []):
+        tm = t0 + int(c["start_state"]) * dt
+        i = max(0, int(np.searchsorted(times, tm + 1e-9, side="right")) - 1)
+        lane = float(lanes[i]) if len(lanes) else float(c["target_lane"])
+        out.append((tm, lane, 1 if int(c["target_lane"]) > lane else -1))
+    return out
+
+
+def worst_exposure_of(report: dict[str, Any], state: int) -> tuple[int, dict[str, Any] | None]:
+    """The exposure whose worst state is ``state`` and its number in report.md's table (1-based)."""
+    for n, x in enumerate(report["safety"]["exposure_list"], 1):
+        if int(x["worst_state"]) == int(state):
+            return n, x
+    return 0, None
+
+
+def worst_exposure_title(report: dict[str, Any], state: int, time_s: float) -> str:
+    """The title of ``worst_exposure.png``: the exposure's entry in report.md's words (:func:`exposure_caption`)."""
+    n, x = worst_exposure_of(report, state)
+    head = f"worst exposure (no. {n} of report.md) at its most severe state, t = {time_s:.1f} s"
+    return head + (": " + exposure_caption(x) if x else "")
 
 
 def _traffic_plot(plt, plot: PlotData, tr: dict[str, Any], dt: float, out: Path) -> str:
@@ -412,5 +530,10 @@ def _snapshot(plt, scene: Scene, lane_segments: np.ndarray | None, highlight: se
     ax.set_xlim(cx - half, cx + half)
     ax.set_ylim(cy - 15, cy + 15)
     ax.set_aspect("equal")
-    ax.set(xlabel="x (m)", ylabel="y (m)", title=f"{title} (SUT orange, involved vehicles outlined red; ids, km/h)")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    import textwrap
+
+    wrapped = "\n".join(line for part in title.split("\n") for line in textwrap.wrap(part, 120))
+    ax.set_title(f"{wrapped}\n(SUT orange, involved vehicles outlined red; ids, km/h)", fontsize=8)
     return _save(fig, out, name)

@@ -26,7 +26,11 @@ as a whole run would) to
   :data:`~evoscen_eval.plot_inputs.TIMELINE_POINTS` points (a longer run is drawn from buckets of
   2^n states: the first speed and lane and the lowest TTC of each; :mod:`evoscen_eval.plot_inputs`),
   and the scenes of the report's snapshots (the states of the first collisions and of the worst exposure);
-* what each SUT collision was (:mod:`evoscen_eval.sut_collisions`).
+* what each SUT collision was (:mod:`evoscen_eval.sut_collisions`);
+* per exposure the rules that made it one, their extreme values and vehicles, and each state's
+  severity over those rules (:mod:`evoscen_eval.exposure_rules`);
+* one state in every few with the vehicles near the SUT, for the animation (at most
+  :data:`~evoscen_eval.animation.KEEP_FRAMES`; :mod:`evoscen_eval.animation`).
 
 What stays proportional to the run is its output: the exposure, collision and lane-change
 lists and the per-window counts (one entry per 100 states, one per traffic window). Blocks start at multiples of
@@ -48,7 +52,6 @@ from evoscen_contract import contract as C
 from evoscen_sim.physics.safety import (
     attribution_steps,
     beside_gap,
-    beside_severity,
     cut_in_gap,
     danger_terms,
     drac,
@@ -60,6 +63,9 @@ from evoscen_sim.physics.safety import (
     sut_ttc,
 )
 
+from .animation import FrameSeries
+from .exposure_rules import ExposureRules, RuleInputs
+from .exposure_rules import severity as rule_severity
 from .plot_inputs import PlotData, PlotSeries, Scene, scene_of
 from .sut_collisions import SutCollisions
 from .sut_lane_changes import SutLaneChanges
@@ -91,6 +97,7 @@ class _Exposure:
     cut_in_states: int = 0
     beside_states: int = 0
     headway_states: int = 0
+    rules: ExposureRules | None = None
 
 
 class ScoreStream:
@@ -158,6 +165,7 @@ class ScoreStream:
         self.traffic_empty = 0
         # plots
         self.plots = PlotSeries()
+        self.frames = FrameSeries()  # the animation's (evoscen_eval.animation)
         self._worst_sev = -math.inf
         self.worst_scene: Scene | None = None
         self._finished = False
@@ -242,7 +250,7 @@ class ScoreStream:
         leader, gap = sut_leader(s, d, length, width, sut)
         l_speed = np.where(leader >= 0, v[rows, np.maximum(leader, 0)], np.nan)
         drac_sut = drac(gap, speed, l_speed)
-        _, cut_gap = cut_in_gap(s, d, length, width, c["lane"], c["target_lane"], c["lane_change"], sut)
+        cut_j, cut_gap = cut_in_gap(s, d, length, width, c["lane"], c["target_lane"], c["lane_change"], sut)
         beside_j, beside_g = beside_gap(s, length, c["lane"], c["target_lane"], c["lane_change"], sut)
         terms, self._headway_run = danger_terms(
             ev, dt, ttc=ttc, sut_accel=accel, drac_sut=drac_sut, follower_ttc_s=f_ttc, follower_accel=f_accel,
@@ -307,23 +315,15 @@ class ScoreStream:
         self._ssm_block("front", ttc, drac_sut, leader)
         self._ssm_block("rear", f_ttc, drac_f, follower)
 
-        # --- exposures (maximal runs of dangerous states, continued across blocks)
-        severity = np.maximum(ev.ttc_threshold_s / np.maximum(ttc, 1e-3), -accel / ev.hard_brake_mps2)
-        if ev.hard_braking == "conflict":  # a needed deceleration beyond hard braking, as the SUT's own braking
-            # DRAC is infinite while closing in at contact (gap <= 0): capped where the TTC term is (TTC
-            # floored at 1 ms), so contact is as severe as TTC -> 0 and the report stays finite (JSON)
-            severity = np.maximum(severity, np.minimum(drac_sut / ev.hard_brake_mps2, ev.ttc_threshold_s / 1e-3))
-        f_sev = np.maximum(ev.ttc_threshold_s / np.maximum(f_ttc, 1e-3), -f_accel / ev.hard_brake_mps2)
-        severity = np.where(rear_danger, np.maximum(severity, f_sev), severity)
-        if ev.cut_in_gap_m > 0.0:  # a cut-in: the threshold over the gap (2 at half the threshold), as TTC's
-            severity = np.where(cut_in, np.maximum(severity, ev.cut_in_gap_m / np.maximum(cut_gap, 1e-3)), severity)
-        if beside.any():  # 1 as the bodies begin to overlap, 2 side by side (safety.beside_severity)
-            lsum = length[rows, np.maximum(beside_j, 0)] + length[:, sut]
-            severity = np.where(beside, np.maximum(severity, beside_severity(beside_g, lsum)), severity)
-        if tailgate.any():  # tailgating: the threshold over the time headway (2 at half the threshold)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                h_sev = ev.headway_threshold_s / np.maximum(gap / np.maximum(speed, 1e-3), 1e-3)
-            severity = np.where(tailgate, np.maximum(severity, h_sev), severity)
+        # --- exposures (maximal runs of dangerous states, continued across blocks); the severity and
+        # the rule, measure and vehicle behind each state: evoscen_eval.exposure_rules
+        with np.errstate(divide="ignore", invalid="ignore"):
+            headway = gap / np.maximum(speed, 1e-3)
+        rq = RuleInputs(ttc=ttc, accel=accel, drac_sut=drac_sut, leader=leader, follower=follower,
+                        follower_ttc=f_ttc, follower_accel=f_accel, follower_thw=thw, cut_in_vehicle=cut_j,
+                        cut_in_gap=cut_gap, beside_vehicle=beside_j, beside_gap=beside_g,
+                        beside_length_sum=length[rows, np.maximum(beside_j, 0)] + length[:, sut], headway=headway)
+        severity = rule_severity(ev, terms, rq)
         run_starts, run_ends = exposure_runs(danger)
         if self._open is not None and not (run_starts.size and run_starts[0] == 0):
             self._close_exposure(k0)
@@ -332,7 +332,7 @@ class ScoreStream:
             if r0 == 0 and self._open is not None:
                 x = self._open
             else:
-                x = self._open = _Exposure(start=k0 + r0, start_time_s=float(times[r0]))
+                x = self._open = _Exposure(start=k0 + r0, start_time_s=float(times[r0]), rules=ExposureRules())
                 exposure_starts.append(k0 + r0)
             seg = slice(r0, r1)
             x.min_ttc = min(x.min_ttc, float(ttc[seg].min()))
@@ -344,6 +344,7 @@ class ScoreStream:
             x.cut_in_states += int(cut_in[seg].sum())
             x.beside_states += int(beside[seg].sum())
             x.headway_states += int(tailgate[seg].sum())
+            x.rules.add(seg, k0, times, ev, terms, rq, self.ids)
             if severity[r0 + m] > self._worst_sev:
                 self._worst_sev = float(severity[r0 + m])
                 self.worst_scene = scene_of(tables, times, r0 + m, k0 + r0 + m, self.ids, sut)
@@ -385,6 +386,7 @@ class ScoreStream:
 
         # --- plots
         self.plots.add_block(ks, times, speed, lane, ttc, bvs_near)
+        self.frames.add_block(ks, times, tables, self.ids, sut)
         self.collisions.add_block(k0, ks, tables, times, lc, self.ids, sut, dt)
 
     def _ssm_block(self, side: str, ttc: np.ndarray, drac_v: np.ndarray, other: np.ndarray) -> None:
@@ -427,6 +429,7 @@ class ScoreStream:
             "open_at_end": False, "min_ttc_s": _finite(x.min_ttc), "min_accel_mps2": x.min_accel,
             "worst_state": x.worst, "severity": x.severity, "rear_states": x.rear_states,
             "cut_in_states": x.cut_in_states, "beside_states": x.beside_states, "headway_states": x.headway_states,
+            "rule_states": dict(x.rules.rule_states), "rules": x.rules.records(),
         })
 
     def _add_windows(self, key: str, first: int, sums: np.ndarray) -> None:
@@ -460,7 +463,7 @@ class ScoreStream:
         self.finish()
         return PlotData(states=self.states, **self.plots.timeline_fields(),
                         collision_scenes=dict(self.collisions.scenes),
-                        worst_scene=self.worst_scene, lane_segments=lane_segments)
+                        worst_scene=self.worst_scene, lane_segments=lane_segments, frames=self.frames)
 
     @property
     def collision_kinds(self) -> dict[int, str]:

@@ -117,9 +117,10 @@ def test_lane_change_beside_a_vehicle_by_hand():
     only = replace(EV, rear_conflicts="none", cut_in_gap_m=0.0)
     rep = evaluate(run, only)
     s = rep["safety"]
-    # report.md's exposure table says what made the exposure dangerous: 0 rear, 0 cut-in, 5 beside states
+    # report.md's exposure table says what made the exposure dangerous: the beside rule alone, its gap, the vehicle
     row = next(line for line in markdown(rep, []).splitlines() if line.startswith("| 1 | 0.5 | 5 |"))
-    assert row.endswith("| 0 / 0 / 5 |")
+    assert row == ("| 1 | 0.5 | 5 | lane change beside: gap to the vehicle beside -2.8 m < 0 m (vehicle 1) | – | "
+                   f"{1.0 + 2.8 / 4.8:.3g} |")
     assert [(e["start_state"], e["end_state"], e["beside_states"], e["cut_in_states"]) for e in s["exposure_list"]] \
         == [(5, 10, 5, 0)]
     assert s["exposure_list"][0]["severity"] == pytest.approx(1.0 + 2.8 / 4.8)
