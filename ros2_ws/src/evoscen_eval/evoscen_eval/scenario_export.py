@@ -111,13 +111,15 @@ class RangeExport:
         return next(t for t in self.tracks if t.role == C.ROLE_SUT)
 
 
-def _split(x: np.ndarray, y: np.ndarray, v: np.ndarray, dt: float) -> list[int]:
-    """Indices where a new piece begins (0 first)."""
-    if x.shape[0] < 2:
-        return [0]
-    step = np.hypot(np.diff(x), np.diff(y))
-    reach = np.maximum(np.abs(v[1:]), np.abs(v[:-1])) * dt + JUMP_SLACK_M
-    return [0, *(int(k) + 1 for k in np.flatnonzero(step > reach))]
+def _split(x: np.ndarray, y: np.ndarray, v: np.ndarray, dt: float, events: set[int]) -> list[int]:
+    """Indices where a new piece begins (0 first): the states a re-entry or a shift led to (``events``)
+    and every step longer than the vehicle can drive."""
+    starts = {0} | {k for k in events if 0 < k < x.shape[0]}
+    if x.shape[0] >= 2:
+        step = np.hypot(np.diff(x), np.diff(y))
+        reach = np.maximum(np.abs(v[1:]), np.abs(v[:-1])) * dt + JUMP_SLACK_M
+        starts.update(int(k) + 1 for k in np.flatnonzero(step > reach))
+    return sorted(starts)
 
 
 def load_range(bag: Path | str, t_from_s: float | None = None, t_to_s: float | None = None, *,
@@ -148,12 +150,19 @@ def load_range(bag: Path | str, t_from_s: float | None = None, t_to_s: float | N
     cols = {f: run.columns[f][k_from:k_to + 1] for f in ("x", "y", "yaw", "speed", "accel", "role", "policy",
                                                           "length", "width", "lane", "s", "d")}
     dt = float(run.dt_s)
+    # the state each re-entry / shift led to (its event carries that state's time), from the range's start
+    jumps: dict[int, set[int]] = {int(vid): set() for vid in run.ids.tolist()}
+    for e in run.events:
+        if e["name"] in (C.EVENT_REENTRY, C.EVENT_SHIFT):
+            k = int(np.searchsorted(t, float(e["time_s"]) - EPS_T)) - k_from
+            for vid in (e.get("ids") or []) if e["name"] == C.EVENT_REENTRY else list(jumps):
+                jumps.setdefault(int(vid), set()).add(k)
     tracks = []
     for v, vid in enumerate(run.ids.tolist()):
         x, y, yaw = cols["x"][:, v], cols["y"][:, v], cols["yaw"][:, v]
         speed, accel = cols["speed"][:, v], cols["accel"][:, v]
         length, width = float(cols["length"][0, v]), float(cols["width"][0, v])
-        starts = _split(x, y, speed, dt)
+        starts = _split(x, y, speed, dt, jumps[int(vid)])
         pieces = [Piece(a, x[a:b].copy(), y[a:b].copy(), np.unwrap(yaw[a:b]), speed[a:b].copy(), accel[a:b].copy())
                   for a, b in zip(starts, [*starts[1:], x.shape[0]])]
         tracks.append(Track(int(vid), int(cols["role"][0, v]), int(cols["policy"][0, v]), length, width,
@@ -548,6 +557,7 @@ def write_commonroad(ex: RangeExport, out_dir: Path | str, name: str = "scenario
                              time_step=Interval(p.k0 + last, p.k0 + last))
     problems = PlanningProblemSet([PlanningProblem(PLANNING_PROBLEM_ID, start, GoalRegion([goal_state]))])
     path = out_dir / f"{name}.xml"
+    path.unlink(missing_ok=True)  # the writer asks (on stdout) before it replaces a file
     CommonRoadFileWriter(scenario, problems, author="evoscen", affiliation="evoscen",
                          source=f"evoscen bag {ex.bag.name} from t = {ex.t_from_s:.1f} s", tags={Tag.HIGHWAY},
                          decimal_precision=6, file_format=FileFormat.XML,
