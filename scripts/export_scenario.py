@@ -21,8 +21,7 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (the workspace's packages on sys.path)
-
-EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT = 0, 1, 2
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -123,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"error: {exc.filename or args.out}: cannot write the export: {exc.strerror or exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    return EXIT_OK if ok else EXIT_CHECK_FAILED
+    return EXIT_OK if ok else 1  # a check failed (docs/export.md)
 
 
 if __name__ == "__main__":
