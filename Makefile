@@ -10,6 +10,8 @@ REQ_STAMP   := $(VENV)/.requirements-installed
 # the example plug-in packages under examples/ that make setup installs (see $(EXAMPLES_STAMP) below)
 EXAMPLE_PACKAGES := examples/fiss_sut
 EXAMPLES_STAMP   := $(VENV)/.examples-installed
+# the export tools' packages (requirements-export.txt, docs/export.md "Packages")
+EXPORT_STAMP     := $(VENV)/.export-requirements-installed
 # Run anything with the workspace overlay (colcon's install/setup.sh) on top of the venv.
 RUN         := . $(VENV)/bin/activate && . $(INSTALL)/setup.sh &&
 DEMO_OUT    ?= runs/demo
@@ -17,7 +19,7 @@ PYTEST_ARGS ?=
 
 .PHONY: setup build demo test test-fast lint bench clean
 
-setup: $(REQ_STAMP) $(EXAMPLES_STAMP) build
+setup: $(REQ_STAMP) $(EXAMPLES_STAMP) $(EXPORT_STAMP) build
 
 $(REQ_STAMP): requirements.txt requirements-runtime.txt
 	@$(PYTHON_BOOT) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null || { \
@@ -32,6 +34,13 @@ $(REQ_STAMP): requirements.txt requirements-runtime.txt
 $(EXAMPLES_STAMP): $(REQ_STAMP) $(addsuffix /pyproject.toml,$(EXAMPLE_PACKAGES))
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-build-isolation -c requirements-runtime.txt \
 	    $(addprefix -e ,$(EXAMPLE_PACKAGES))
+	touch $@
+
+# OpenSCENARIO / CommonRoad export (scripts/export_scenario.py): every dependency is pinned in the file,
+# installed with --no-deps so that no pin of requirements.txt changes (commonroad-io's protobuf pin is
+# left unmet on purpose: docs/export.md "Packages"); wheels only, ~35 s on the 2-core VM with a warm cache.
+$(EXPORT_STAMP): $(REQ_STAMP) requirements-export.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --only-binary :all: -r requirements-export.txt
 	touch $@
 
 # --symlink-install: the install tree links to the sources (Python modules, share files), so an

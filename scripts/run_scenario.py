@@ -62,6 +62,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                     help="graph (default): one ROS 2 process per node, lockstep; inprocess: all cores in one process, "
                          "no middleware")
     add_scenario_options(ap)
+    ap.add_argument("--start-from", type=Path, default=None, metavar="FILE.xosc",
+                    help="start from the initial state of an exported OpenSCENARIO file (its vehicles, lanes, "
+                    "positions, speeds and sizes) instead of the spawn layout; --mode inprocess (docs/export.md)")
     ap.add_argument("--out", default="runs/latest", help="output directory (default runs/latest)")
     ap.add_argument("--no-record", action="store_true", help="do not record a bag")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag and report in OUT/report")
@@ -187,6 +190,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.external_sut and args.mode != "graph":
         print("error: --external-sut needs --mode graph (an external SUT node answers on the wire)", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.start_from is not None and args.mode != "inprocess":
+        print("error: --start-from: needs --mode inprocess (the node graph builds its world from the scenario file)",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.mode == "graph":
         for name, value, ok in (("--domain-id", args.domain_id, args.domain_id is None or 0 <= args.domain_id <= 232),
                                 ("--deadline", args.deadline, args.deadline > 0),
@@ -199,7 +206,15 @@ def main(argv: list[str] | None = None) -> int:
         # everything the run needs is validated (config, map, SUT, spawn) before the output
         # directory is touched, so a bad input never costs an existing bag
         cfg = load_scenario_config(args.config, overrides)
-        scenario = build_scenario(cfg)
+        if args.start_from is not None:  # docs/export.md "Starting evoscen from an exported scenario"
+            from evoscen_bringup.scenario import build_scenario_from_start, load_road_of, start_overrides
+            from evoscen_eval.scenario_export import initial_state_from_xosc
+
+            start = initial_state_from_xosc(args.start_from, load_road_of(cfg))
+            cfg = load_scenario_config(args.config, {**overrides, **start_overrides(start)})
+            scenario = build_scenario_from_start(cfg, start)
+        else:
+            scenario = build_scenario(cfg)
         out = args.out
         bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
         if args.mode == "graph" and bag_dir is None:

@@ -76,3 +76,54 @@ def build_scenario(cfg: ScenarioConfig) -> Scenario:
     world = build_world(cfg)
     return Scenario(config=cfg, road=world.road, world=world, bv_driver=build_bv_drivers(cfg),
                     sut=build_sut_driver(cfg), bv_indices=bv_indices(cfg))
+
+
+def start_overrides(start) -> dict[str, str]:
+    """The configuration keys a start read from a file sets (:func:`build_scenario_from_start`): as many
+    BVs as it has, none laid out on the merge lane (the spawn layout is not used)."""
+    return {"bvs.count": str(len(start.ids) - 1), "spawn.ramp_vehicles": "0"}
+
+
+def build_scenario_from_start(cfg: ScenarioConfig, start) -> Scenario:
+    """A scenario whose world starts in ``start`` (an
+    :class:`evoscen_eval.scenario_export.ImportedStart`: ``run_scenario.py --start-from``,
+    docs/export.md "Starting evoscen from an exported scenario") instead of the spawn layout and the
+    warm-up: each vehicle at its ``s``, ``d`` and heading in its lane, at its speed, with its length and
+    width (a lane change under way is not carried over: the vehicle keeps the lane that holds its centre
+    and its lane keeper steers it to that lane's centre); the SUT is vehicle 0. The BVs keep their recorded policy codes
+    when ``bvs.driver`` is ``learned`` and the code is a learned one, else they get the scenario's
+    (:func:`bv_policy_codes`). ``cfg`` must have ``bvs.count`` = the start's BVs (:func:`start_overrides`).
+    """
+    from evoscen_contract.contract import POLICY_CODES as CODES
+    from evoscen_sim.physics.scenario_params import reentry_params_from_config, traffic_params_from_config
+    from evoscen_sim.physics.world import InitialState
+
+    road = load_road_of(cfg)
+    rngs = scenario_rngs(cfg.seed)
+    policies = np.asarray(start.policies, dtype=np.int64).copy()
+    drawn = bv_policy_codes(cfg, rngs["spawn"])
+    learned = {CODES[n] for n in ("competitive", "mutual", "cooperative") if n in CODES}
+    for i in range(1, len(policies)):
+        if not (cfg.bvs.driver == "learned" and int(policies[i]) in learned):
+            policies[i] = drawn[i - 1]
+    policies[0] = CODES["sut"]
+    initial = InitialState(ids=np.asarray(start.ids, dtype=np.int64), roles=np.asarray(start.roles, dtype=np.int64),
+                           policies=policies, s_m=np.asarray(start.s_m, dtype=float),
+                           lane=np.asarray(start.lane, dtype=np.int64),
+                           speed_mps=np.asarray(start.speed_mps, dtype=float))
+    world = World(road, initial, vehicle=cfg.vehicle, control=cfg.control, reentry=reentry_params_from_config(cfg),
+                  dt_s=cfg.dt_s, rng=rngs["world"], traffic=traffic_params_from_config(cfg, road))
+    world.length[:] = start.length_m
+    world.width[:] = start.width_m
+    world.d[:] = start.d_m
+    world.psi[:] = start.heading_rel
+    world.refresh()
+    return Scenario(config=cfg, road=road, world=world, bv_driver=build_bv_drivers(cfg),
+                    sut=build_sut_driver(cfg), bv_indices=bv_indices(cfg))
+
+
+def load_road_of(cfg: ScenarioConfig) -> RoadModel:
+    """The road of ``cfg``'s map."""
+    from evoscen_sim.road.road_model import load_road
+
+    return load_road(cfg.map)
