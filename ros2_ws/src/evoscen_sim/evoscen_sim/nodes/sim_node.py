@@ -69,9 +69,13 @@ from .node_params import own_parameters, run_node, scenario_from_node
 
 NODE_NAME = T.NODE_SIM
 LEAVE_ANNOUNCE_S = 0.05  # see SimulationNode._leave
-DEATH_CHECK_S = 0.1
+DEATH_CHECK_S = 0.05
 """A step's commands outstanding this long: look in ``deaths_file`` for controllers whose process ended
 (then the run is aborted at once; a normal step never waits this long, so it never reads the file)."""
+DEAD_READER_WAIT_S = 0.2
+"""After an abort for a controller whose process ended, how long the end waits for acknowledgements of
+``/evoscen/world`` (the dead one, still matched, never acknowledges; the other topics, which the
+recorder alone reads, are waited for first)."""
 WIRE_EVENTS_PER_STEP = 4
 """At most this many wire ``fault`` events per step (distinct topic/publisher/reason; the rest are counted)."""
 WIRE_EVENTS_PER_RUN = 200
@@ -505,8 +509,12 @@ class SimulationNode(Port):
         if outcome.wall_s is not None:  # start-up was over
             self._report(outcome.steps, outcome.wall_s)
         end = time.monotonic() + 1.0  # a dead reader would hold this for the whole timeout: 1 s in all
-        for pub in self.pub.values():
-            pub.wait_for_all_acked(graph.duration(max(end - time.monotonic(), 0.0)))
+        dead = self._died(self.aborted_by)  # a controller whose process ended: a world reader that never acks
+        for name in sorted(self.pub, key=lambda n: n == T.WORLD.name):  # the world last: the recorder's topics first
+            wait_s = max(end - time.monotonic(), 0.0)
+            if dead and name == T.WORLD.name:  # the recorder acknowledged what followed the final world state
+                wait_s = min(wait_s, DEAD_READER_WAIT_S)
+            self.pub[name].wait_for_all_acked(graph.duration(wait_s))
         self._leave()
         return EXIT_STATUS[outcome.kind]
 
