@@ -200,8 +200,12 @@ def list_mutants() -> list[str]:
     from evoscen_sut import mutants
 
     every = [n for n in model_names("sut") if n != "mutant"]
+    # where the library says which bases a mutant applies to: a ``bases`` field of the mutant, or a
+    # function of the library named for it (``applicable_bases(name)``, ``applies_to(name)``, ...);
+    # without either, every SUT model but ``mutant`` (mutant.py's base choices)
     applies = next((f for n, f in inspect.getmembers(mutants, inspect.isfunction)
-                    if n in ("applicable_bases", "bases_of", "applies_to", "mutant_bases")), None)
+                    if not n.startswith("_") and ("applic" in n or "applies" in n or n.startswith("bases"))
+                    and len(inspect.signature(f).parameters) >= 1), None)
     lines = []
     for m in mutants.LIBRARY.values():
         bases = list(applies(m.name)) if applies is not None else list(getattr(m, "bases", None) or every)
@@ -308,8 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     except PluginFault as exc:  # a driver raised (docs/plugins.md §3): one line, a controller fault
         print(f"error: {exc}", file=sys.stderr)
         if exc.bag_dir is not None:
-            print(f"aborted: the bag {exc.bag_dir} is finished ({exc.steps} world states); the run is not scored",
-                  file=sys.stderr)
+            print(f"aborted: the bag {exc.bag_dir} is finished ({exc.steps} world states); the run is not scored")
         return EXIT_FAULT
     print(f"steps: {summary.steps}  simulated: {summary.sim_time_s:.1f} s  wall: {summary.wall_time_s:.2f} s  "
           f"({summary.steps_per_s:.0f} steps/s)")
