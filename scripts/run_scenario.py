@@ -208,7 +208,13 @@ def list_mutants() -> list[str]:
                     and len(inspect.signature(f).parameters) >= 1), None)
     lines = []
     for m in mutants.LIBRARY.values():
-        bases = list(applies(m.name)) if applies is not None else list(getattr(m, "bases", None) or every)
+        bases = list(getattr(m, "bases", None) or every)
+        if applies is not None:
+            try:  # applies(name) -> the bases, or applies(name, base) -> whether it applies
+                two = len(inspect.signature(applies).parameters) >= 2
+                bases = [b for b in every if applies(m.name, b)] if two else list(applies(m.name))
+            except Exception:  # noqa: BLE001 - a listing never fails on it: every base
+                bases = every
         bases = [b for b in bases if b in every] if bases else bases
         desc = m.description.split(": ")[0].split(". ")[0].rstrip(".")
         lines.append((m.name, "built-in (evoscen_sut.mutants)", m.klass,
