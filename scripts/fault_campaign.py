@@ -324,7 +324,7 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
             problems.append(f"no launcher's error line naming {node}")
         if status == 4 and fault[3] == "lockstep" and fault[2] not in ("sim", "eval"):
             # a controller killed in the lockstep: the launcher's line is the one error line, and the
-            # simulation's deadline abort (its consequence) is in the finished bag, naming it
+            # simulation's abort (its consequence) is in the finished bag, naming it
             if len(errors) != 1:
                 problems.append(f"{len(errors)} error lines, expected the launcher's one")
             if fault_events is None or ("abort", node) not in fault_events:

@@ -14,8 +14,11 @@ until every publisher has N matched subscriptions; at the end the tool stays unt
 reliable subscriber has acknowledged every message. Discovery is local
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``) unless ``--discovery-range`` says otherwise.
 
-Exit status: 0 done; 1 no subscribers within ``--wait-timeout``; 2 bad input (one line
-``error: ...`` naming the bag/argument); 130 Ctrl-C (143 SIGTERM).
+Exit status: 0 done (a ``warning:`` line names the topics no subscriber matched while their
+messages went out, if some had none); 1 nobody received the messages: no subscribers within
+``--wait-timeout``, or no subscriber matched on any topic during the replay (one ``error:`` line;
+[choice] a replay that reached nobody is a failure a script must see, docs/architecture.md §7);
+2 bad input (one line ``error: ...`` naming the bag/argument); 130 Ctrl-C (143 SIGTERM).
 """
 
 from __future__ import annotations
@@ -211,6 +214,22 @@ def publish(pub, data: bytes, deadline_s: float) -> None:
             time.sleep(PUBLISH_RETRY_S)
 
 
+def unheard_status(used: list[str], heard: set[str], sent: int) -> int:
+    """The exit status after the replay, saying what reached nobody: no subscriber matched on any
+    topic while its messages went out: one ``error:`` line, status 1;
+    some topics without one: a ``warning:`` line naming them, status 0."""
+    deaf = [t for t in used if t not in heard]
+    if used and len(deaf) == len(used):
+        print(f"error: no subscriber matched any of the {len(used)} topics while they were replayed: the {sent} "
+              "messages reached nobody; start the receiving node first (same ROS_DOMAIN_ID and discovery range) "
+              "or pass --wait-subscribers 1", file=sys.stderr)
+        return 1  # nobody received the messages (the module docstring)
+    if deaf:
+        print(f"warning: no subscriber matched {', '.join(deaf)} while they were replayed: their messages reached "
+              "nobody", file=sys.stderr)
+    return EXIT_OK
+
+
 def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeout: float, topics) -> int:
     """Publish the bag (see the module docstring); returns the exit status."""
     from evoscen_contract.graph import init, make_node, shutdown
@@ -237,18 +256,23 @@ def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeo
             if short:
                 print(f"error: --wait-subscribers {args.wait_subscribers}: after {wait_timeout:g} s (--wait-timeout) "
                       f"fewer subscribers on {', '.join(short)}", file=sys.stderr)
-                return 1
+                return 1  # nobody received the messages (the module docstring)
         if start_delay > 0:
             time.sleep(start_delay)
         pacer = Pacer(rate)
+        heard: set[str] = set()  # topics that had a matched subscriber when one of their messages went out
+        used: set[str] = set()  # topics with messages
         wall0 = time.monotonic()
         names = list(pubs)
         while True:
             pacer.restart()
             for topic, log_time, data in iter_replay(args.bag, names):
                 pacer.wait(log_time)
+                if topic not in heard and pubs[topic].get_subscription_count() > 0:
+                    heard.add(topic)  # a matched subscriber when a message went out: it was received
                 publish(pubs[topic], data, wait_timeout)
                 sent += 1
+                used.add(topic)
                 t_first = log_time if t_first is None else min(t_first, log_time)
                 t_last = log_time if t_last is None else max(t_last, log_time)
             passes += 1
@@ -262,7 +286,7 @@ def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeo
         sim = (t_last - t_first) * 1e-9 if sent else 0.0
         print(f"replayed: {sent} messages on {len(topics)} topic{'s' if len(topics) != 1 else ''}, {passes} pass{'es' if passes != 1 else ''}, "
               f"simulated {sim:.3f} s, wall {wall:.3f} s", flush=True)
-        return EXIT_OK
+        return unheard_status(sorted(used), heard, sent)
     except Interrupted as exc:
         wall = time.monotonic() - wall0 if wall0 is not None else 0.0
         print(f"interrupted: {sent} messages sent, {passes} full passes, wall {wall:.3f} s", flush=True)

@@ -35,6 +35,8 @@ from evoscen_contract.contract import (
 )
 
 MODES = ("graph", "inprocess")
+ABORTED = (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_NODE_DIED)
+"""Statuses of a graph run that ended early (a refused answer, a controller fault, a dead node): no score."""
 
 
 def add_scenario_options(ap: argparse.ArgumentParser) -> None:
@@ -65,6 +67,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--start-from", type=Path, default=None, metavar="FILE.xosc",
                     help="start from the initial state of an exported OpenSCENARIO file (its vehicles, lanes, "
                     "positions, speeds and sizes) instead of the spawn layout; --mode inprocess (docs/export.md)")
+    ap.add_argument("--list-suts", action="store_true",
+                    help="list the installed SUT models (name, built-in or entry point package, description) and exit")
+    ap.add_argument("--list-mutants", action="store_true",
+                    help="list the SUT mutants (name, class, the SUT models they apply to, description) and exit")
     ap.add_argument("--out", default="runs/latest", help="output directory (default runs/latest)")
     ap.add_argument("--no-record", action="store_true", help="do not record a bag")
     ap.add_argument("--overwrite", action="store_true", help="replace an existing bag in OUT/bag and report in OUT/report")
@@ -150,7 +156,9 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
         return result.status
     counts: dict[str, int] = {}
     if not any(bag_dir.glob("*.mcap")) if bag_dir.is_dir() else True:
-        print(f"error: no bag was written in {bag_dir} (the run ended during start-up)", file=sys.stderr)
+        # an error line only when no node said one (a failed run has said why in its own line)
+        print(f"{'error: ' if result.status == EXIT_OK else ''}no bag was written in {bag_dir} "
+              "(the run ended during start-up)", file=sys.stderr)
         return result.status or EXIT_FAULT
     try:
         for topic, _type, _t, _data in open_bag_reader(bag_dir):
@@ -164,19 +172,70 @@ def run_graph_mode(args: argparse.Namespace, cfg, out: Path, bag_dir: Path, repo
           f"nodes: " + ", ".join(f"{n}={s}" for n, s in result.node_status.items()))
     size = sum(f.stat().st_size for f in bag_dir.iterdir())
     print(f"bag: {bag_dir}  ({sum(counts.values())} messages, {size / 1e6:.2f} MB)")
+    if result.status in ABORTED:  # a controller fault or a dead node ended the run early: not scored
+        print(f"aborted: the run ended at step {steps} of {cfg.steps} (exit status {result.status}); "
+              "the run is not scored")
+        return result.status
     print_scores(report_dir)
     return result.status
 
 
+def list_suts() -> list[str]:
+    """One line per SUT model: name, where it comes from, description; then the entry points that failed to load."""
+    from evoscen_sim.model_registry import broken_plugins, get_model, model_names, model_source
+
+    names = model_names("sut")
+    rows = [(n, model_source(n), get_model(n, "sut").description) for n in names]
+    width = [max(len(r[i]) for r in rows) for i in (0, 1)]
+    lines = [f"{n:<{width[0]}}  {src:<{width[1]}}  {desc}".rstrip() for n, src, desc in rows]
+    lines += [f"{n:<{width[0]}}  failed to load: {why}" for n, why in sorted(broken_plugins().items())]
+    return lines
+
+
+def list_mutants() -> list[str]:
+    """One line per mutant of the library (``evoscen_sut.mutants``): name, class, the SUT models it
+    applies to, description (its first sentence)."""
+    import inspect
+
+    from evoscen_sim.model_registry import model_names
+    from evoscen_sut import mutants
+
+    every = [n for n in model_names("sut") if n != "mutant"]
+    # where the library says which bases a mutant applies to: a ``bases`` field of the mutant, or a
+    # function of the library named for it (``applicable_bases(name)``, ``applies_to(name)``, ...);
+    # without either, every SUT model but ``mutant`` (mutant.py's base choices)
+    applies = next((f for n, f in inspect.getmembers(mutants, inspect.isfunction)
+                    if not n.startswith("_") and ("applic" in n or "applies" in n or n.startswith("bases"))
+                    and len(inspect.signature(f).parameters) >= 1), None)
+    lines = []
+    for m in mutants.LIBRARY.values():
+        bases = list(getattr(m, "bases", None) or every)
+        if applies is not None:
+            try:  # applies(name) -> the bases, or applies(name, base) -> whether it applies
+                two = len(inspect.signature(applies).parameters) >= 2
+                bases = [b for b in every if applies(m.name, b)] if two else list(applies(m.name))
+            except Exception:  # noqa: BLE001 - a listing never fails on it: every base
+                bases = every
+        bases = [b for b in bases if b in every] if bases else bases
+        desc = m.description.split(": ")[0].split(". ")[0].rstrip(".")
+        lines.append((m.name, "built-in (evoscen_sut.mutants)", m.klass,
+                      "bases: " + (", ".join(bases) if bases != every else f"any SUT model ({len(every)})"), desc))
+    width = [max(len(r[i]) for r in lines) for i in range(4)]
+    return [f"{a:<{width[0]}}  {b:<{width[1]}}  {c:<{width[2]}}  {d:<{width[3]}}  {e}" for a, b, c, d, e in lines]
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    if args.list_suts or args.list_mutants:
+        print("\n".join(list_suts() if args.list_suts else list_mutants()))
+        return EXIT_OK
     from evoscen_bringup.domains import reserve_domain
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_record.bag_writer import BagWriterError
     from evoscen_sim.config.limits import parse_cli_int, parse_cli_path
     from evoscen_sim.config.scenario_config import dump_config, load_scenario_config
-    from evoscen_sim.errors import HostFault, InputError
+    from evoscen_sim.errors import HostFault, InputError, PluginFault
 
     try:
         args.out = parse_cli_path("--out", args.out)
@@ -255,7 +314,7 @@ def main(argv: list[str] | None = None) -> int:
         except BagWriterError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return EXIT_NODE_DIED
-        except HostFault:
+        except (HostFault, PluginFault):
             if bar is not None:  # the error line on a line of its own
                 bar.close()
                 bar = None
@@ -269,6 +328,11 @@ def main(argv: list[str] | None = None) -> int:
     except HostFault as exc:
         print(f"error: {exc.line()}", file=sys.stderr)
         return EXIT_HOST_FAULT
+    except PluginFault as exc:  # a driver raised (docs/plugins.md §3): one line, a controller fault
+        print(f"error: {exc}", file=sys.stderr)
+        if exc.bag_dir is not None:
+            print(f"aborted: the bag {exc.bag_dir} is finished ({exc.steps} world states); the run is not scored")
+        return EXIT_FAULT
     print(f"steps: {summary.steps}  simulated: {summary.sim_time_s:.1f} s  wall: {summary.wall_time_s:.2f} s  "
           f"({summary.steps_per_s:.0f} steps/s)")
     print(f"collisions: {summary.collisions}  lane changes: {summary.lane_changes}  re-entries: {summary.reentries}  "

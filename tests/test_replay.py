@@ -311,6 +311,7 @@ def error_runs(bag: Path, tmp_path_factory: pytest.TempPathFactory, domain: int)
         "type_not_installed": [str(_write_foreign_bag(base / "foreign"))],
         "no_subscribers_process": [str(bag), "--topics", "/clock", "--wait-subscribers", "1",
                                    "--wait-timeout", "0.5", "--domain-id", str(domain)],
+        "nobody_listening_process": [str(bag), "--rate", "0", "--wait-timeout", "0.5", "--domain-id", str(domain)],
     }
     procs = {name: subprocess.Popen([sys.executable, REPLAY, *args], cwd=REPO, env=_env(domain), text=True,
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -351,3 +352,34 @@ def test_no_subscribers_within_the_timeout_is_status_1(error_runs) -> None:
     assert code == 1, stderr
     assert re.search(r"^error: --wait-subscribers 1: after 0.5 s .*fewer subscribers on /clock$", stderr, re.M), stderr
     assert "replayed" not in stdout
+
+
+def test_a_replay_nobody_received_is_status_1(error_runs, recorded) -> None:
+    """No subscriber on the domain: every message went to nobody - one error line saying so, status 1
+    (docs/architecture.md §7), after the usual summary."""
+    _args, code, stdout, stderr = error_runs["nobody_listening_process"]
+    assert code == 1, stderr
+    topics = [t for t, msgs in recorded.items() if msgs]
+    sent = sum(len(recorded[t]) for t in topics)
+    assert _summary(stdout)["messages"] == sent
+    errors = [line for line in stderr.splitlines() if line.startswith(("error:", "warning:"))]
+    assert errors == [f"error: no subscriber matched any of the {len(topics)} topics while they were replayed: the "
+                      f"{sent} messages reached nobody; start the receiving node first (same ROS_DOMAIN_ID and "
+                      "discovery range) or pass --wait-subscribers 1"], stderr
+
+
+def test_topics_nobody_received_are_a_warning(capsys) -> None:
+    """Some topics without a subscriber (a viewer that reads a few): one warning naming them, status 0."""
+    import importlib.util
+
+    sys.path.insert(0, str(REPO / "scripts"))
+    try:
+        spec = importlib.util.spec_from_file_location("evoscen_replay_cli_status", REPO / REPLAY)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(REPO / "scripts"))
+    assert module.unheard_status(["/clock", "/evoscen/events", "/evoscen/world"], {"/evoscen/world"}, 30) == 0
+    assert capsys.readouterr().err == ("warning: no subscriber matched /clock, /evoscen/events while they were "
+                                       "replayed: their messages reached nobody\n")
+    assert module.unheard_status(["/clock"], {"/clock"}, 10) == 0 and capsys.readouterr().err == ""

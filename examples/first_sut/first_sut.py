@@ -12,10 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from evoscen_sim.config.scenario_config import number
-from evoscen_sim.model_registry import ModelSpec
-from evoscen_sim.physics.neighbors import LEFT, OWN
-from evoscen_sim.physics.vehicle import accel_to_throttle
+from evoscen_sim.api import LEFT, OWN, ModelSpec, accel_to_throttle, number
 # --8<-- [end:header]
 
 
@@ -60,7 +57,7 @@ class FirstSut:
         self.p = params
         self.vehicle = vehicle_params  # vehicle limits: throttle scaling
 
-    def act(self, view):  # view: a traffic view (evoscen_sim.physics.view)
+    def act(self, view):  # view: a traffic view (evoscen_sim.api.TrafficView)
         nb = view.neighborhood()
         accel = np.zeros(len(self.vehicles))
         request = np.zeros(len(self.vehicles), dtype=np.int64)

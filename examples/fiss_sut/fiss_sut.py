@@ -39,11 +39,7 @@ from dataclasses import dataclass
 
 import fiss_planner as fp
 import numpy as np
-from evoscen_sim.config.scenario_config import flag, integer, number, number_range, text
-from evoscen_sim.errors import InputError
-from evoscen_sim.model_registry import ModelSpec
-from evoscen_sim.physics.neighbors import OWN
-from evoscen_sim.physics.vehicle import accel_to_throttle
+from evoscen_sim.api import OWN, InputError, ModelSpec, accel_to_throttle, flag, integer, number, number_range, text
 
 PLANNERS = ("fop", "fop_plus", "fiss", "fiss_plus")
 """fiss-planner's planners: FOP (Werling et al. 2010), FOP+, FISS (2022), FISS+ (2023)."""

@@ -13,11 +13,12 @@ processes (``python -m <pkg>.<node> --ros-args --params-file ...``), and supervi
 * a node that dies is named on stderr with how it ended (``graph: evoscen_eval ended early
   (killed by SIGKILL (signal 9))``), and the graph ends within seconds: the evaluator's death or
   any death during start-up (before the simulation node's ``ready_file`` exists) stops the
-  simulation node at once (SIGINT); a controller's death in the lockstep is left to the
-  simulation's deadline abort (its fault events go into the bag), with a SIGINT after ``deadline_s`` ·
-  ``max_misses`` + 5 s as a backstop; the launcher writes the dead controller's name into the
-  simulation's ``deaths_file``, so that the simulation's abort line says it is a consequence (no
-  second ``error:`` line); the simulation node's death sends SIGTERM to the evaluator (which
+  simulation node at once (SIGINT); a controller whose process ended in the lockstep (killed, or
+  ended with its own fault line: its driver raised, status 3) is named in the simulation's
+  ``deaths_file`` at once, and the simulation aborts the run at the step it waits for (a ``fault``
+  event of kind ``abort`` in the bag; no deadline waits), its abort line saying that it is a
+  consequence (no second ``error:`` line), with a SIGINT after ``deadline_s`` · ``max_misses`` + 5 s
+  as a backstop; the simulation node's death sends SIGTERM to the evaluator (which
   finishes the bag) and SIGINT to the controllers, SIGKILL after 5 s;
 * the exit status is one of :data:`EXIT_OK` 0, :data:`EXIT_BAD_INPUT` 2, :data:`EXIT_FAULT` 3,
   :data:`EXIT_NODE_DIED` 4, :data:`EXIT_HOST_FAULT` 5, :data:`EXIT_INTERRUPTED` 130 (:func:`graph_status`), never a raw
@@ -46,6 +47,7 @@ import yaml
 from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_NODE_DIED,
                                        EXIT_OK, NODE_BV, NODE_EVAL, NODE_EXIT_STATUSES, NODE_SIM, NODE_SUT)
 from evoscen_sim.config.scenario_config import ScenarioConfig
+from evoscen_sim.model_registry import QUIET_ENV as PLUGIN_WARNINGS_SHOWN
 from evoscen_sim.nodes.bv_nodes import bv_node_names
 from evoscen_sim.nodes.node_params import scenario_parameters
 
@@ -166,6 +168,7 @@ def node_environment(domain_id: int, discovery_range: str) -> dict[str, str]:
     env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; the discovery range decides
     env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
     env["PYTHONUNBUFFERED"] = "1"
+    env[PLUGIN_WARNINGS_SHOWN] = "1"  # the launcher warned of broken plug-ins; its nodes keep quiet about them
     return env
 
 
@@ -223,12 +226,16 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
         deaths.append(name)
         print(f"graph: {name} {why} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
 
-    def tell_simulation() -> None:
-        """A controller died in the lockstep: name it in the simulation's ``deaths_file`` (written
-        whole, then renamed), so that its deadline abort, which follows, says it is a consequence."""
+    ended: list[str] = []  # controllers whose process ended in the lockstep, named in deaths_file
+
+    def tell_simulation(name: str) -> None:
+        """A controller's process ended in the lockstep: name it in the simulation's ``deaths_file``
+        (written whole, then renamed); the simulation aborts the run at the step it waits for, its
+        abort line saying that it is a consequence."""
+        ended.append(name)
         part = deaths_file.with_name(deaths_file.name + ".part")
         try:
-            part.write_text("".join(f"{n}\n" for n in deaths if n not in (NODE_SIM, NODE_EVAL)), encoding="utf-8")
+            part.write_text("".join(f"{n}\n" for n in ended), encoding="utf-8")
             os.replace(part, deaths_file)
         except OSError:  # the output directory is gone or full: the abort line keeps its 'error:'
             pass
@@ -263,6 +270,19 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                     died[name] = "refused its driver's answer"
                     stop_sim_at = time.monotonic()
                     continue
+                if name != NODE_EVAL and p.returncode == EXIT_FAULT:
+                    # a controller fault the controller said in its one line (its driver raised, its
+                    # start-up timed out): not a death. In the lockstep the simulation, told at once,
+                    # aborts the run at the step it waits for (no deadline waits); in start-up: stop it
+                    died[name] = "ended with a controller fault (exit status 3)"
+                    print(f"graph: {name} {died[name]} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
+                    if started:
+                        tell_simulation(name)
+                        if stop_sim_at is None:
+                            stop_sim_at = time.monotonic() + fault_wait_s
+                    else:
+                        stop_sim_at = time.monotonic()
+                    continue
                 note(name, f"ended early ({describe_status(p.returncode)})"
                      + ("" if started else " during start-up"))
                 if name == NODE_EVAL or not started:
@@ -273,7 +293,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                     # a controller in the lockstep: the simulation's deadline misses abort the run
                     # (fault events in the bag; exit status 4, the abort is its consequence); stop
                     # it if that does not happen in time
-                    tell_simulation()
+                    tell_simulation(name)
                     if stop_sim_at is None:
                         stop_sim_at = time.monotonic() + fault_wait_s
             if stop_sim_at is not None and time.monotonic() >= stop_sim_at:
@@ -345,7 +365,9 @@ def graph_status(node_status: dict[str, int | None], died: dict[str, str], inter
 
     The simulation node's bad input (2) first, then 2 from any node (a bad parameter, or a controller
     that refused its driver's answer: a controller fault that follows is its consequence), then 5
-    from the recorder (a fault of the host: it could not write the bag and stopped the run), then a
+    from the recorder (a fault of the host: it could not write the bag and stopped the run), then 3
+    from a controller of ``died`` that is not in ``deaths`` (it said its fault in one line: its driver
+    raised, docs/plugins.md §3; the abort that follows is its consequence), then a
     node that died (4: ``deaths``, killed by a signal or ended non-zero on its own before the run
     did; the simulation's deadline abort that follows a controller's death is its consequence), then
     the simulation node's 3 (a controller fault: a live controller missed its deadlines, or start-up
@@ -360,7 +382,9 @@ def graph_status(node_status: dict[str, int | None], died: dict[str, str], inter
         return EXIT_BAD_INPUT     # answer left the lockstep, and any fault that followed is its consequence
     if EXIT_HOST_FAULT in others:  # the recorder could not write: it stopped the run (its one line)
         return EXIT_HOST_FAULT
-    if deaths:  # a death; a deadline abort of the simulation that followed it is its consequence
+    if any(node_status.get(n) == EXIT_FAULT for n in died if n not in deaths and n not in (NODE_SIM, NODE_EVAL)):
+        return EXIT_FAULT  # a controller that ended with its own fault line (its driver raised): the abort follows
+    if deaths:  # a death; an abort of the simulation that followed it is its consequence
         return EXIT_NODE_DIED
     if sim == EXIT_FAULT:
         return sim

@@ -25,9 +25,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from evoscen_contract.contract import KIND_INTERRUPTED
+import numpy as np
+from evoscen_contract.contract import KIND_ABORT, KIND_INTERRUPTED, NODE_BV, NODE_SUT
 from evoscen_record.step_recorder import StepRecorder
 from evoscen_sim.config.scenario_config import ScenarioConfig
+from evoscen_sim.errors import PluginFault
+from evoscen_sim.nodes.bv_nodes import bv_node_names
+from evoscen_sim.physics.events import fault_event
 from evoscen_sim.physics.step_loop import Commands, Port, StepLoop
 
 from .scenario import Scenario, build_scenario
@@ -104,6 +108,9 @@ class _InProcessPort(Port):
         self.sut_ids = sc.world.ids[[sc.sut_index]]
         self._cols = None  # the columns of the state being sent
         self.ctrl_c: _CtrlC | None = None
+        self.fault: PluginFault | None = None  # a driver that raised (the run was aborted)
+        nodes = bv_node_names(sc.config)
+        self.bv_node = nodes[0] if len(nodes) == 1 else NODE_BV  # the BV node named in a BV driver's fault
 
     def begin_step(self, step: int) -> None:
         """A noted Ctrl-C takes effect here (:class:`_CtrlC`)."""
@@ -133,7 +140,14 @@ class _InProcessPort(Port):
 
     def commands(self, step: int) -> Commands:
         sc, rec = self.sc, self.rec
-        bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
+        try:
+            bv_thr, bv_lc, sut_thr, sut_lc = sc.commands()
+        except PluginFault as fault:  # a driver raised: the run is aborted here, as the graph's simulation does
+            self.fault = fault
+            controller = NODE_SUT if fault.role == "sut" else self.bv_node
+            event = fault_event(sc.world, KIND_ABORT, controller, 1, str(fault))
+            empty = np.empty(0)
+            return Commands(empty, empty, [[event]], abort=f"controller '{controller}' failed at step {step}; run aborted")
         if rec is not None:
             t_ns = sc.world.time_ns
             if len(self.bv_ids):  # no BVs, no BV controller: no BV commands (as in the node graph)
@@ -186,7 +200,10 @@ def run_inprocess(
     the step boundary after the failed write, with the bag finished from every step that reached
     the disk, or cut back to them for ``scripts/reindex.py`` when there is no room to finish it
     (``HostFault.bag_state``); a report that cannot be written is one too, the bag finished. A Ctrl-C after the last step began lets the run
-    complete and then raises KeyboardInterrupt.
+    complete and then raises KeyboardInterrupt. A driver that raises ends the run ``aborted`` at that
+    step (a ``fault`` event of kind ``abort`` naming it, then ``run_end``), the bag finished, and
+    :class:`~evoscen_sim.errors.PluginFault` is raised (``bag_dir``, ``steps`` set); the run is not
+    scored.
     """
     sc = scenario if scenario is not None else build_scenario(cfg)
     n_steps = cfg.steps if steps is None else steps
@@ -232,6 +249,9 @@ def run_inprocess(
         summary.bag_bytes = sum(f.stat().st_size for f in Path(bag_dir).iterdir())
     if outcome.kind == KIND_INTERRUPTED:
         raise KeyboardInterrupt
+    if port.fault is not None:  # a driver raised: the bag is finished (run_end aborted); not scored
+        port.fault.bag_dir, port.fault.steps = bag_dir, summary.steps + 1
+        raise port.fault
     if acc is not None:
         from evoscen_sim.errors import HostFault
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from evoscen_sim.config.scenario_config import ScenarioConfig
-from evoscen_sim.model_registry import checked_answer
+from evoscen_sim.model_registry import checked_answer, driver_identity, plugin_failure
 from evoscen_sim.nodes.bv_nodes import build_bv_drivers
 from evoscen_sim.physics.world import World
 from evoscen_sim.road.road_model import RoadModel
@@ -42,10 +42,26 @@ class Scenario:
     sut_index: int = SUT_INDEX
 
     def commands(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Ask every driver: ``(bv_throttle, bv_lane_change, sut_throttle, sut_lane_change)``."""
-        bv_thr, bv_lc = checked_answer(self.bv_driver, self.bv_driver.act(self.world))
-        sut_thr, sut_lc = checked_answer(self.sut, self.sut.act(self.world))
+        """Ask every driver: ``(bv_throttle, bv_lane_change, sut_throttle, sut_lane_change)``.
+
+        A driver that raises is a :class:`~evoscen_sim.errors.PluginFault` naming it (one line)."""
+        try:
+            bv_answer = self.bv_driver.act(self.world)
+        except Exception as exc:  # a model's failure is named in one line
+            raise self._failure(exc, self.bv_driver, ("bv", self.config.bvs.driver)) from exc
+        bv_thr, bv_lc = checked_answer(self.bv_driver, bv_answer)
+        try:
+            sut_answer = self.sut.act(self.world)
+        except Exception as exc:
+            raise self._failure(exc, self.sut, ("sut", self.config.sut.model)) from exc
+        sut_thr, sut_lc = checked_answer(self.sut, sut_answer)
         return bv_thr, bv_lc, sut_thr, sut_lc
+
+    def _failure(self, exc: Exception, driver: object, role_name: tuple[str, str]):
+        role, name = role_name
+        name, role = driver_identity(driver, (name, role))
+        step = self.world.step_index
+        return plugin_failure(exc, name, role, f"act() at step {step}", driver, step=step)
 
     def step(self) -> tuple:
         """One lockstep cycle in-process: ask the drivers, then advance the world; returns the world's

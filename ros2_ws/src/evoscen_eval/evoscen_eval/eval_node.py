@@ -30,6 +30,7 @@ Scoring: the world tables, events and map markers the node writes into the bag a
 the same order, into a :class:`~evoscen_eval.rundata.RunAccumulator`, which scores them as
 they come (:mod:`evoscen_eval.streaming`: nothing of the run is kept, so a long run costs no
 memory); when the run ends the node writes ``report.json``, ``report.md`` and the plots into ``report_dir``
+(not for a run that ended ``aborted``: it is not scored)
 (:mod:`evoscen_eval.report`) — the very numbers ``scripts/evaluate.py`` computes from the bag.
 The SUT's exposures go out live as ``evoscen/exposure`` events from the simulation node (same
 definitions, :mod:`evoscen_sim.physics.safety`).
@@ -155,6 +156,7 @@ class EvaluatorNode:
         self.markers_every = self.cfg.recording.markers_every
         self.latest_markers = -self.markers_every * self.dt_ns  # the first markers are due at t = 0
         self.run_end_ns: int | None = None
+        self.run_end_kind: str | None = None  # completed, aborted or interrupted
 
     def _on_signal(self, signum, frame) -> None:
         self._stop_signal = signum
@@ -207,6 +209,7 @@ class EvaluatorNode:
             self.latest_markers = max(self.latest_markers, t_ns)
         if run_end:
             self.run_end_ns = t_ns
+            self.run_end_kind = _run_end_kind(data)
 
     def _refuse(self, topic: str, gid: bytes | None, reason: str) -> None:
         self.refused += 1
@@ -264,7 +267,12 @@ class EvaluatorNode:
         if status == EXIT_INTERRUPTED:
             name = signal.Signals(self._stop_signal or signal.SIGINT).name
             print(f"{NODE_NAME}: {name}: bag finished with {self.bag.message_count} messages", file=sys.stderr)
-        if self.acc is not None and status != EXIT_INTERRUPTED:
+        if self.acc is not None and status != EXIT_INTERRUPTED and self.run_end_kind == T.KIND_ABORTED:
+            # a run aborted (a controller fault: its driver raised, it died or missed its deadlines) is
+            # not scored: a score of its first steps would pass for the run's (docs/recording.md)
+            print(f"{NODE_NAME}: the run was aborted: bag finished with {self.bag.message_count} messages; "
+                  "no report (an aborted run is not scored)", file=sys.stderr)
+        elif self.acc is not None and status != EXIT_INTERRUPTED:
             status = self._write_report(status)
         return status
 
@@ -303,6 +311,17 @@ def _stamp_ns(topic: str, data: bytes) -> int:
     sec = int.from_bytes(data[at:at + 4], "little", signed=True)
     nanosec = int.from_bytes(data[at + 4:at + 8], "little")
     return sec * 1_000_000_000 + nanosec
+
+
+def _run_end_kind(data: bytes) -> str | None:
+    """The ``kind`` of the ``run_end`` event in serialized ``/evoscen/events`` bytes."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.serialization import deserialize_message
+
+    for event in T.parse_events(deserialize_message(bytes(data), DiagnosticArray)):
+        if event.get("name") == T.EVENT_RUN_END:
+            return event.get("kind")
+    return None
 
 
 def main(args: list[str] | None = None) -> int:

@@ -65,3 +65,28 @@ class HostFault(RuntimeError):
             return f"{what}; the bag {self.bag_dir} is gone (its directory was removed); {fix}, then run again"
         return (f"{what}; the bag {self.bag_dir} holds{steps} but could not be finished; {fix}, then run: "
                 f"python scripts/reindex.py {self.bag_dir}")
+
+
+class PluginFault(RuntimeError):
+    """A driver model (a plug-in or a built-in) raised an exception while it was built or asked for
+    commands (docs/plugins.md §3, docs/recording.md).
+
+    The message is one line naming the model, its role, what it was doing (``act() at step 12``,
+    ``its factory``), the exception's type and message and the file and line in the model's code
+    where it was raised. The run ends there: in-process the bag is finished (``run_end`` of kind
+    ``aborted``), in the graph the controller prints ``error: <node>: <message>`` and exits, and the
+    simulation aborts the run at once. Command-line tools print ``error: <message>`` and exit with
+    status 3 (:data:`evoscen_contract.contract.EXIT_FAULT`, a controller fault), no traceback.
+
+    ``model``, ``role``: the model's name and role; ``step``: the step at which ``act`` raised (None
+    for the factory); ``bag_dir``, ``steps``: the run's finished bag and its world states (set by the
+    in-process runner; None otherwise).
+    """
+
+    def __init__(self, message: str, *, model: str, role: str, step: int | None = None) -> None:
+        super().__init__(message)
+        self.model = model
+        self.role = role
+        self.step = step
+        self.bag_dir = None
+        self.steps: int | None = None

@@ -34,13 +34,15 @@ configuration can import it.
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata
 from typing import Any
 
-from .errors import InputError
+from .errors import InputError, PluginFault
 
 ROLES = ("sut", "bv")
 ENTRY_POINT_GROUPS = {"sut": "evoscen.sut", "bv": "evoscen.bv"}
@@ -87,6 +89,8 @@ class ModelSpec:
 _REGISTRY: dict[str, ModelSpec] = {}
 _PARAMETER_SETS: dict[str, type] = {}
 _PLUGINS: dict[str, metadata.EntryPoint] = {}
+_BROKEN: dict[str, str] = {}
+"""Entry-point name -> why it failed to load (:func:`discover`)."""
 """Model name -> the entry point that registered it (plug-ins only), for :func:`plugin_entry_point`."""
 _discovered = False
 
@@ -124,7 +128,15 @@ def unregister_model(name: str) -> None:
 
 
 def discover() -> None:
-    """Import the built-in model modules and load the entry points (once per process)."""
+    """Import the built-in model modules and load the entry points (once per process).
+
+    An entry point that fails to load (an import error, a value that is no :class:`ModelSpec`,
+    a model name that is taken) does not stop the others: it is reported in one line
+    ``warning: entry point 'x' in group 'evoscen.sut' (pkg:SPEC) failed to load: ...`` on stderr
+    (when a model is first looked up or listed) and only a run that selects it fails, with that line as its error (:func:`broken_plugin`;
+    docs/plugins.md §3). [choice] One stale plug-in in the ``.venv`` must not stop the runs of
+    every other model; the warning names it so that it can be fixed or uninstalled.
+    """
     global _discovered
     if _discovered:
         return
@@ -137,22 +149,73 @@ def discover() -> None:
     builtin = set(_REGISTRY)
     for role, group in ENTRY_POINT_GROUPS.items():
         for ep in metadata.entry_points(group=group):
-            try:
-                spec = ep.load()
-            except Exception as exc:  # noqa: BLE001 - a broken plug-in must be named, not crash
-                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) failed to load: {exc}") from None
-            if not isinstance(spec, ModelSpec):
-                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) is not an "
-                                 f"evoscen_sim.model_registry.ModelSpec (got {type(spec).__name__})")
-            taken = ("a built-in model" if spec.name in builtin else
-                     f"the parameter set models.{spec.name}" if spec.name in _PARAMETER_SETS else None)
-            if taken is not None:
-                raise InputError(f"entry point {ep.name!r} in group {group!r} ({ep.value}) registers the model "
-                                 f"{spec.name!r}, the name of {taken}: give the plug-in's model another name")
-            if role not in spec.roles:
-                spec = ModelSpec(spec.name, (*spec.roles, role), spec.factory, spec.params_type, spec.description)
-            register_model(spec)
-            _PLUGINS[spec.name] = ep
+            problem = _load_entry_point(ep, role, group, builtin)
+            if problem is not None:
+                _BROKEN.setdefault(ep.name, problem)
+
+
+_warned = False
+
+
+def _warn_broken() -> None:
+    """The broken entry points' warnings, once per process (not where :data:`QUIET_ENV` is ``1``).
+    Printed when a model is looked up or listed, not at discovery: a run that selects a broken
+    plug-in fails with its one line only (the configuration refuses it before any look-up)."""
+    global _warned
+    if _warned:
+        return
+    _warned = True
+    if os.environ.get(QUIET_ENV) != "1":
+        for problem in _BROKEN.values():
+            print(f"warning: {problem}", file=sys.stderr)
+
+
+QUIET_ENV = "EVOSCEN_PLUGIN_WARNINGS_SHOWN"
+"""Set to ``1`` in the environment of processes whose parent already printed the broken entry
+points' warnings (the node graph's nodes): they keep quiet about them."""
+
+
+def _load_entry_point(ep: metadata.EntryPoint, role: str, group: str, builtin: set[str]) -> str | None:
+    """Register the model of entry point ``ep``; None, or one line saying why it cannot be."""
+    where = f"entry point {ep.name!r} in group {group!r} ({ep.value})"
+    try:
+        spec = ep.load()
+    except Exception as exc:  # noqa: BLE001 - a broken plug-in must be named, not crash
+        return f"{where} failed to load: {_exception_text(exc)}"
+    if not isinstance(spec, ModelSpec):
+        return (f"{where} is not an evoscen_sim.api.ModelSpec (got {type(spec).__name__})")
+    taken = ("a built-in model" if spec.name in builtin else
+             f"the parameter set models.{spec.name}" if spec.name in _PARAMETER_SETS else None)
+    if taken is not None:
+        return (f"{where} registers the model {spec.name!r}, the name of {taken}: give the plug-in's "
+                "model another name")
+    if role not in spec.roles:
+        spec = ModelSpec(spec.name, (*spec.roles, role), spec.factory, spec.params_type, spec.description)
+    try:
+        register_model(spec)
+    except ValueError as exc:
+        return f"{where}: {exc}"
+    _PLUGINS[spec.name] = ep
+    return None
+
+
+def broken_plugin(name: str) -> str | None:
+    """Why the entry point named ``name`` could not be loaded (one line), or None if it loaded or
+    does not exist. A run that selects it fails with this line (exit status 2)."""
+    discover()
+    return _BROKEN.get(name)
+
+
+def broken_plugins() -> dict[str, str]:
+    """Every entry point that failed to load: its name -> why (one line)."""
+    discover()
+    return dict(_BROKEN)
+
+
+def _exception_text(exc: BaseException) -> str:
+    """``Type: first line of the message`` (the type alone when there is no message)."""
+    lines = str(exc).strip().splitlines()
+    return type(exc).__name__ + (f": {lines[0].strip()}" if lines else "")
 
 
 def plugin_entry_point(name: str) -> metadata.EntryPoint | None:
@@ -162,15 +225,36 @@ def plugin_entry_point(name: str) -> metadata.EntryPoint | None:
     return _PLUGINS.get(name)
 
 
+def model_source(name: str) -> str:
+    """Where model ``name`` comes from, in words: ``built-in (evoscen_sut)``, ``entry point
+    first_sut = first_sut:SPEC (evoscen-first-sut 0.1.0)``, ``registered in this process (module)``."""
+    discover()
+    ep = _PLUGINS.get(name)
+    if ep is not None:
+        dist = getattr(ep, "dist", None)
+        pkg = f" ({dist.metadata['Name']} {dist.version})" if dist is not None else ""
+        return f"entry point {ep.name} = {ep.value}{pkg}"
+    spec = _REGISTRY.get(name)
+    if spec is None:
+        return "unknown"
+    module = getattr(spec.factory, "__module__", None) or "?"
+    top = module.split(".")[0]
+    return f"built-in ({top})" if top.startswith("evoscen_") else f"registered in this process ({module})"
+
+
 def model_names(role: str) -> tuple[str, ...]:
     """Names of the models that can play ``role``, sorted."""
     discover()
+    _warn_broken()
     return tuple(sorted(name for name, spec in _REGISTRY.items() if role in spec.roles))
 
 
 def get_model(name: str, role: str) -> ModelSpec:
     """The spec of model ``name`` for ``role``; InputError listing the valid choices otherwise."""
     discover()
+    if name in _BROKEN:
+        raise InputError(_BROKEN[name])
+    _warn_broken()
     spec = _REGISTRY.get(name)
     if spec is None or role not in spec.roles:
         key = "sut.model" if role == "sut" else "bvs.driver"
@@ -187,9 +271,65 @@ def create_driver(name: str, role: str, vehicles, config, rng) -> Any:
     if spec.params_type is not None and params is None:
         params = spec.params_type()
     vehicles = np.asarray(vehicles, dtype=np.int64)
-    driver = spec.factory(vehicles, params, config, rng)
+    try:
+        driver = spec.factory(vehicles, params, config, rng)
+    except (InputError, PluginFault):  # the model's own one-line error (e.g. a mutant's base), or a nested model's fault
+        raise
+    except Exception as exc:  # a model's failure is named in one line, not a traceback
+        raise plugin_failure(exc, name, role, "its factory", spec.factory) from exc
     _remember(driver, (name, role, len(vehicles)))
     return driver
+
+
+def plugin_failure(exc: BaseException, name: str, role: str, during: str, code: Any = None,
+                   step: int | None = None) -> PluginFault:
+    """The :class:`PluginFault` of model ``name`` (``role``) whose code raised ``exc`` while
+    ``during`` (``"act() at step 12"``, ``"its factory"``): one line with the exception's type and
+    first message line and ``file:line`` of the innermost frame in the model's own code (the
+    package or module of its factory, else of ``code``; else the innermost frame)."""
+    ep = _PLUGINS.get(name)
+    origin = f" (entry point {ep.value})" if ep is not None else ""
+    spec = _REGISTRY.get(name)
+    where = _frame_in(exc, spec.factory if spec is not None else code)
+    return PluginFault(f"{role} model {name!r}{origin}: {during} raised {_exception_text(exc)}"
+                       + (f" ({where})" if where else ""), model=name, role=role, step=step)
+
+
+def driver_identity(driver: Any, default: tuple[str, str]) -> tuple[str, str]:
+    """(model name, role) of a driver built by :func:`create_driver`, else ``default``."""
+    built = _built(driver)
+    return (built[0], built[1]) if built is not None else default
+
+
+def _frame_in(exc: BaseException, code: Any) -> str:
+    """``file:line`` of the innermost traceback frame of ``exc`` in ``code``'s package (see
+    :func:`plugin_failure`); the path relative to the working directory when it lies below it."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    if not frames:
+        return ""
+    def own(filename: str) -> bool:  # a file of the model's package (a single-module plug-in: that file)
+        return False
+
+    module = sys.modules.get(getattr(code, "__module__", None) or type(code).__module__)
+    top = sys.modules.get(module.__name__.split(".")[0]) if module is not None else None
+    top_file = getattr(top, "__file__", None)
+    if top_file:
+        top_file = os.path.abspath(top_file)
+        if os.path.basename(top_file) == "__init__.py":
+            home = os.path.dirname(top_file) + os.sep
+
+            def own(filename: str) -> bool:
+                return os.path.abspath(filename).startswith(home)
+        else:
+            def own(filename: str) -> bool:
+                return os.path.abspath(filename) == top_file
+    mine = [f for f in frames if own(f.filename)]
+    chosen = mine[-1] if mine else frames[-1]
+    path = os.path.abspath(chosen.filename)
+    rel = os.path.relpath(path)
+    return f"{path if rel.startswith('..') else rel}:{chosen.lineno}"
 
 
 _BUILT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -28,7 +28,7 @@ from evoscen_sim.config.config_checks import _Bad, _join, _show, _unknown_text
 from evoscen_sim.config.config_schema import EvaluationConfig, ScenarioConfig
 from evoscen_sim.config.limits import MAX_CONFIG_BYTES, check_yaml_depth, read_text_limited
 from evoscen_sim.errors import InputError
-from evoscen_sim.model_registry import discover, parameter_names, params_type_of
+from evoscen_sim.model_registry import broken_plugin, broken_plugins, discover, parameter_names, params_type_of
 from evoscen_sim.share import PACKAGE, share_candidates, share_path
 
 _DEFAULT_CONFIG = "config/default_scenario.yaml"
@@ -252,6 +252,22 @@ def _build_models(raw: Any, path: str, ctx: Context, explicit: set[str]) -> dict
     return out
 
 
+def _refuse_broken_plugins(data: Any, ctx: Context) -> None:
+    """A ``sut.model``, ``bvs.driver`` or ``models.<name>`` naming an entry point that failed to
+    load: its one line (why it failed) as this run's error (docs/plugins.md §3)."""
+    if not broken_plugins() or not isinstance(data, Mapping):
+        return
+    for section, key in (("sut", "model"), ("bvs", "driver")):
+        part = data.get(section)
+        name = part.get(key) if isinstance(part, Mapping) else None
+        if isinstance(name, str) and broken_plugin(name) is not None:
+            ctx.fail(f"{section}.{key}", name, broken_plugin(name))
+    models = data.get("models")
+    for name in models if isinstance(models, Mapping) else ():
+        if isinstance(name, str) and broken_plugin(name) is not None:
+            ctx.fail(f"models.{name}", "{...}", broken_plugin(name))
+
+
 def _cross_check(cfg: ScenarioConfig, ctx: Context, explicit: set[str]) -> None:
     count_text = f"bvs.count = {cfg.bvs.count}"
     if ctx.from_cli("bvs.count") and not ctx.from_cli("spawn.ramp_vehicles"):
@@ -313,6 +329,7 @@ def config_from_dict(data: Any, *, source: str = "<dict>",
     if overrides:
         data = _apply_overrides(data, overrides, source, override_keys, cli_paths)
     ctx = Context(source, _lines or {}, cli_paths, override_keys)
+    _refuse_broken_plugins(data, ctx)
     explicit: set[str] = set()
     cfg = build(ScenarioConfig, data, "", ctx, explicit)
     _cross_check(cfg, ctx, explicit)

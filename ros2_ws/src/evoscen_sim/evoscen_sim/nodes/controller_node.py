@@ -38,8 +38,8 @@ from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPT
 from evoscen_contract.messages import WorldMessages
 
 from evoscen_sim.config.config_checks import names, number
-from evoscen_sim.errors import InputError
-from evoscen_sim.model_registry import checked_answer
+from evoscen_sim.errors import InputError, PluginFault
+from evoscen_sim.model_registry import checked_answer, driver_identity, plugin_failure
 from evoscen_sim.physics.view import WorldView
 from evoscen_sim.road.road_model import load_road
 
@@ -90,6 +90,13 @@ class ControllerNode:
         self.wait_for_nodes = list(own.wait_for_nodes)
         self.discovery_settle_s = own.discovery_settle_s
         self._first_seen: dict[str, float] = {}
+        try:
+            self._build(build, params, name, command_spec)
+        except PluginFault as exc:  # one line naming this node (run_node prints it; exit status 3)
+            raise PluginFault(f"{name}: {exc}", model=exc.model, role=exc.role, step=exc.step) from None
+
+    def _build(self, build: Callable, params, name: str, command_spec: T.TopicSpec) -> None:
+        """The driver, the subscriptions and publisher, the warm-up (:meth:`__init__`)."""
         self.driver, self.vehicles = build(params, self.cfg, name)
         self._build_args = (params, name)
         self.road = load_road(self.cfg.map)
@@ -119,7 +126,7 @@ class ControllerNode:
         params, name = self._build_args
         spare, _ = build(params, self.cfg, name)
         table = decode_table(self.msgs.world(world.columns(), world.time_ns))
-        throttle, lane_change = checked_answer(spare, spare.act(WorldView(self.road, table.columns(), 0, self.cfg.dt_s)))
+        throttle, lane_change = checked_answer(spare, self._act(spare, WorldView(self.road, table.columns(), 0, self.cfg.dt_s)))
         WorldMessages(self.cfg.dt_s).commands(table.data[self.vehicles, 0], np.asarray(throttle, float),
                                               np.asarray(lane_change, float), 0)
 
@@ -169,10 +176,20 @@ class ControllerNode:
         if t_ns >= self.final_ns:
             return False
         view = WorldView(self.road, table.columns(), t_ns // self.dt_ns, self.cfg.dt_s)
-        throttle, lane_change = checked_answer(self.driver, self.driver.act(view))
+        throttle, lane_change = checked_answer(self.driver, self._act(self.driver, view))
         ids = view.ids[self.vehicles]
         self.pub.publish(self.msgs.commands(ids, np.asarray(throttle, float), np.asarray(lane_change, float), t_ns))
         return True
+
+    def _act(self, driver, view):
+        """``driver.act(view)``; an exception is a :class:`PluginFault` naming the model (one line)."""
+        try:
+            return driver.act(view)
+        except Exception as exc:  # a model's failure is named in one line, not a traceback
+            default = ("sut", self.cfg.sut.model) if self.name == T.NODE_SUT else ("bv", self.cfg.bvs.driver)
+            name, role = driver_identity(driver, (default[1], default[0]))
+            step = int(view.step_index)
+            raise plugin_failure(exc, name, role, f"act() at step {step}", driver, step=step) from exc
 
     def _finish(self) -> int:
         """The run is over: our last commands acknowledged (bounded wait), exit status 0."""
@@ -209,6 +226,9 @@ class ControllerNode:
         except InputError as exc:  # the driver's answer is malformed (checked_answer): one line, no traceback
             print(f"error: {self.name}: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
+        except PluginFault as exc:  # the driver raised: one line, a controller fault; the launcher
+            print(f"error: {self.name}: {exc}", file=sys.stderr)  # tells the simulation, which aborts at once
+            return EXIT_FAULT
 
 
 def run_controller(name: str, command_spec: T.TopicSpec | Callable, build: Callable, args: list[str] | None) -> int:

@@ -17,14 +17,14 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from evoscen_contract import graph
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED
+from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_INTERRUPTED
 from evoscen_contract.graph import NodeParameterError, parameter_sources
 
 from evoscen_sim.config.config_checks import _Bad
 from evoscen_sim.config.config_load import Context, build, parse_yaml
 from evoscen_sim.config.limits import MAX_CONFIG_BYTES, read_text_limited
 from evoscen_sim.config.scenario_config import ScenarioConfig, config_from_dict, config_to_dict
-from evoscen_sim.errors import InputError
+from evoscen_sim.errors import InputError, PluginFault
 
 
 def scenario_from_node(params: Mapping[str, Any], node_name: str) -> ScenarioConfig:
@@ -121,7 +121,8 @@ def scenario_parameters(cfg: ScenarioConfig) -> dict[str, Any]:
 def run_node(make: Callable[[], object], args: list[str] | None) -> int:
     """``main`` of an evoscen node: ``make()`` builds it (after ``rclpy.init``), ``.run()`` runs it.
 
-    Bad parameters (InputError, NodeParameterError) are one line ``error: ...`` and exit 2;
+    Bad parameters (InputError, NodeParameterError) are one line ``error: ...`` and exit 2; a driver
+    model that raises while the node is built (:class:`~evoscen_sim.errors.PluginFault`) one line and exit 3;
     Ctrl-C before the run is 130. The process ends at once with its status, without middleware
     teardown (see :func:`evoscen_contract.graph.exit_now`): also after bad parameters, whose node
     already holds a DDS participant — destroying it could hang under load (seen in CI: the one
@@ -134,6 +135,9 @@ def run_node(make: Callable[[], object], args: list[str] | None) -> int:
         except (InputError, NodeParameterError) as exc:
             print(f"error: {exc}", file=sys.stderr)
             graph.exit_now(EXIT_BAD_INPUT)
+        except PluginFault as exc:  # a driver model raised while built or warming up: a controller fault
+            print(f"error: {exc}", file=sys.stderr)
+            graph.exit_now(EXIT_FAULT)
         graph.exit_now(node.run())
     except KeyboardInterrupt:
         graph.exit_now(EXIT_INTERRUPTED)

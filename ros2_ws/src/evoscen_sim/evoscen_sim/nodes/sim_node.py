@@ -39,9 +39,11 @@ before, a recorder stalled ~10 s filled a controller's history and its publish f
 ``ready_file`` [""]: a file created once start-up is over, just before step 0 (the launcher
 reads it to tell a death during start-up from one during the lockstep).
 ``deaths_file`` [""]: a file in which the launcher names (one a line) the controllers whose
-process ended during the lockstep; a deadline abort for a controller named there is the
-consequence of its death, which the launcher reports (exit status 4): the node's abort line then
-goes without the ``error:`` prefix and says so.
+process ended during the lockstep; a step waiting for the answer of a controller named there is
+aborted at once (``DEATH_CHECK_S`` after it began: no deadline waits; a ``fault`` event of kind
+``abort``); an abort for a controller named there is the consequence of its end, which the
+launcher or the controller reports (exit status 4 or 3): the node's abort line then goes without
+the ``error:`` prefix and says so.
 """
 
 from __future__ import annotations
@@ -67,6 +69,13 @@ from .node_params import own_parameters, run_node, scenario_from_node
 
 NODE_NAME = T.NODE_SIM
 LEAVE_ANNOUNCE_S = 0.05  # see SimulationNode._leave
+DEATH_CHECK_S = 0.05
+"""A step's commands outstanding this long: look in ``deaths_file`` for controllers whose process ended
+(then the run is aborted at once; a normal step never waits this long, so it never reads the file)."""
+DEAD_READER_WAIT_S = 0.2
+"""After an abort for a controller whose process ended, how long the end waits for acknowledgements of
+``/evoscen/world`` (the dead one, still matched, never acknowledges; the other topics, which the
+recorder alone reads, are waited for first)."""
 WIRE_EVENTS_PER_STEP = 4
 """At most this many wire ``fault`` events per step (distinct topic/publisher/reason; the rest are counted)."""
 WIRE_EVENTS_PER_RUN = 200
@@ -334,7 +343,8 @@ class SimulationNode(Port):
         pending = set(self.controllers)
         malformed: set[str] = set()
         events: list[list[dict]] = []
-        deadline = time.monotonic() + timeout_s
+        start = time.monotonic()
+        deadline = start + timeout_s
         while True:
             for c in self.controllers:
                 taker, topic = self.takers[c], self.controller_topics[c].name
@@ -345,6 +355,10 @@ class SimulationNode(Port):
             if not pending or remaining <= 0:
                 break
             self._check_interrupt()
+            if self.deaths_file and time.monotonic() - start >= DEATH_CHECK_S:
+                dead = [c for c in self.controllers if c in pending and c in self._ended()]
+                if dead:  # its process ended (the launcher named it): no answer will come
+                    return self._abort_for_death(dead[0], step, events)
             self.pump.wait(min(remaining, 0.1))
         order = self.controllers
         if any(self.misses[c] + 1 >= self.max_misses for c in pending | malformed):
@@ -374,6 +388,16 @@ class SimulationNode(Port):
                 return Commands(self.throttle, self.lane_change, events, abort=text)
         self._flush_wire_faults(events)
         return Commands(self.throttle, self.lane_change, events)
+
+    def _abort_for_death(self, c: str, step: int, events: list[list[dict]]) -> Commands:
+        """Abort the run at ``step``: controller ``c``'s process ended (``deaths_file``) before it answered."""
+        self.misses[c] += 1
+        text = f"controller '{c}' ended before answering step {step}; run aborted"
+        self._flush_wire_faults(events)
+        events.append([fault_event(self.world, T.KIND_ABORT, c, self.misses[c], text)])
+        self.node.get_logger().warning(text)
+        self.aborted_by = c
+        return Commands(self.throttle, self.lane_change, events, abort=text)
 
     def _one_command(self, c: str, topic: str, data: bytes, gid: bytes | None, t_ns: int,
                      pending: set, malformed: set) -> None:
@@ -485,20 +509,28 @@ class SimulationNode(Port):
         if outcome.wall_s is not None:  # start-up was over
             self._report(outcome.steps, outcome.wall_s)
         end = time.monotonic() + 1.0  # a dead reader would hold this for the whole timeout: 1 s in all
-        for pub in self.pub.values():
-            pub.wait_for_all_acked(graph.duration(max(end - time.monotonic(), 0.0)))
+        dead = self._died(self.aborted_by)  # a controller whose process ended: a world reader that never acks
+        for name in sorted(self.pub, key=lambda n: n == T.WORLD.name):  # the world last: the recorder's topics first
+            wait_s = max(end - time.monotonic(), 0.0)
+            if dead and name == T.WORLD.name:  # the recorder acknowledged what followed the final world state
+                wait_s = min(wait_s, DEAD_READER_WAIT_S)
+            self.pub[name].wait_for_all_acked(graph.duration(wait_s))
         self._leave()
         return EXIT_STATUS[outcome.kind]
 
     def _died(self, controller: str | None) -> bool:
         """Whether the launcher named ``controller`` in ``deaths_file`` (its process ended)."""
-        if controller is None or not self.deaths_file:
-            return False
+        return controller is not None and controller in self._ended()
+
+    def _ended(self) -> set[str]:
+        """The controllers the launcher named in ``deaths_file`` (their processes ended)."""
+        if not self.deaths_file:
+            return set()
         try:
             with open(self.deaths_file, encoding="utf-8") as f:
-                return controller in f.read().split()
+                return set(f.read().split())
         except OSError:  # none written (no controller died), or unreadable
-            return False
+            return set()
 
     def _leave(self) -> None:
         """Withdraw our publishers, so that peers see us gone at once.

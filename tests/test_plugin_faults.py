@@ -1,0 +1,315 @@
+"""A driver plug-in that fails, and the plug-in face that lasts (docs/plugins.md §3, §19; docs/recording.md).
+
+* A model whose ``act`` raises: one ``error:`` line naming the model, the step, the exception and the
+  plug-in's file:line, exit status 3, no traceback, a finished bag ending ``aborted``, no score — in
+  process (a model registered in this process) and in the node graph (an entry point in a directory on
+  PYTHONPATH: a ``*.dist-info`` with ``entry_points.txt`` is all ``importlib.metadata`` needs), where
+  the run ends within 2 s of the failed step although the deadline is 10 s.
+* A factory that raises: the same line and status before anything runs.
+* ``run_scenario.py --list-suts`` / ``--list-mutants``.
+* The face: its names pinned; the examples import evoscen from it alone; a 0.4 import path works with a
+  DeprecationWarning naming the new one.
+"""
+
+from __future__ import annotations
+
+import ast
+import os
+import re
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPT = REPO / "scripts" / "run_scenario.py"
+FAIL_STEP = 3
+"""The step at whose ``act`` the in-process test model raises."""
+
+
+class _Raising:
+    """A SUT driver: keeps its lane at zero throttle, then divides by zero at step FAIL_STEP."""
+
+    def __init__(self, vehicles):
+        self.vehicles = vehicles
+
+    def act(self, view):
+        if view.step_index == FAIL_STEP:
+            return 1 / 0  # the failing line the error must name
+        return np.zeros(len(self.vehicles)), np.zeros(len(self.vehicles), dtype=np.int64)
+
+
+RAISING_LINE = next(i for i, line in enumerate(Path(__file__).read_text().splitlines(), 1)
+                    if "return 1 / 0" in line)
+
+
+def _factory_raises(vehicles, params, config, rng):
+    raise KeyError("no_such_setting")
+
+
+def _run_cli_here(argv: list[str], capsys) -> tuple[int, str, str]:
+    """``scripts/run_scenario.py``'s ``main(argv)`` in this process (sees in-process registrations)."""
+    sys.path.insert(0, str(REPO / "scripts"))
+    try:
+        import run_scenario
+    finally:
+        sys.path.remove(str(REPO / "scripts"))
+    capsys.readouterr()
+    code = run_scenario.main(argv)
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@pytest.fixture
+def registered():
+    from evoscen_sim.api import ModelSpec, register_model, unregister_model
+
+    register_model(ModelSpec("raising_sut", ("sut",), lambda v, p, c, r: _Raising(v), description="raises"))
+    register_model(ModelSpec("unbuildable_sut", ("sut",), _factory_raises, description="cannot be built"))
+    yield
+    unregister_model("raising_sut")
+    unregister_model("unbuildable_sut")
+
+
+def _bag_events(bag_dir: Path) -> list[dict]:
+    from diagnostic_msgs.msg import DiagnosticArray
+    from evoscen_contract.topics import parse_events
+    from evoscen_record.bag_reader import open_bag_reader
+    from rclpy.serialization import deserialize_message
+
+    return [ev for topic, _type, _t, data in open_bag_reader(bag_dir) if topic == "/evoscen/events"
+            for ev in parse_events(deserialize_message(data, DiagnosticArray))]
+
+
+def test_act_raising_in_process_is_one_line_status_3(registered, tmp_path, capsys):
+    out = tmp_path / "run"
+    code, stdout, stderr = _run_cli_here(["--mode", "inprocess", "--sut", "raising_sut", "--steps", "20", "--bvs", "3",
+                                          "--out", str(out), "--quiet", "--no-plots", "--bag-writer", "inline"], capsys)
+    assert code == 3, stderr
+    assert "Traceback" not in stderr
+    here = os.path.relpath(__file__)
+    assert stderr.splitlines() == [
+        f"error: sut model 'raising_sut': act() at step {FAIL_STEP} raised ZeroDivisionError: division by zero "
+        f"({here}:{RAISING_LINE})"], stderr
+    assert stdout.splitlines() == [
+        f"aborted: the bag {out / 'bag'} is finished ({FAIL_STEP + 1} world states); the run is not scored"], stdout
+    assert not (out / "report" / "report.json").exists()
+    events = _bag_events(out / "bag")
+    assert [e["name"] for e in events[-2:]] == ["evoscen/fault", "evoscen/run_end"], events[-2:]
+    fault, end = events[-2:]
+    assert (fault["kind"], fault["controller"], fault["step"]) == ("abort", "evoscen_sut", FAIL_STEP)
+    assert "ZeroDivisionError" in fault["message"]
+    assert end["kind"] == "aborted" and end["step"] == FAIL_STEP
+
+
+def test_factory_raising_is_one_line_status_3(registered, tmp_path, capsys):
+    code, stdout, stderr = _run_cli_here(["--mode", "inprocess", "--sut", "unbuildable_sut", "--steps", "5",
+                                          "--out", str(tmp_path / "run"), "--quiet"], capsys)
+    assert code == 3 and stdout == ""
+    here = os.path.relpath(__file__)
+    line = next(i for i, text in enumerate(Path(__file__).read_text().splitlines(), 1) if 'raise KeyError("no_such' in text)
+    assert stderr.splitlines() == [f"error: sut model 'unbuildable_sut': its factory raised KeyError: 'no_such_setting' "
+                                   f"({here}:{line})"], stderr
+    assert not (tmp_path / "run").exists()  # failed before the output was touched
+
+
+def test_list_suts_and_mutants(registered, capsys):
+    code, stdout, _ = _run_cli_here(["--list-suts"], capsys)
+    assert code == 0
+    rows = {line.split()[0]: line for line in stdout.splitlines()}
+    assert {"mobil", "nilsson", "stackelberg", "mutant", "level0", "raising_sut"} <= set(rows)
+    assert re.fullmatch(r"mobil +built-in \(evoscen_sut\) +MOBIL lane changes .*", rows["mobil"]), rows["mobil"]
+    assert re.fullmatch(r"raising_sut +registered in this process \((tests\.)?test_plugin_faults\) +raises", rows["raising_sut"])
+    code, stdout, _ = _run_cli_here(["--list-mutants"], capsys)
+    from evoscen_sut.mutants import LIBRARY
+
+    lines = stdout.splitlines()
+    assert code == 0 and [line.split()[0] for line in lines] == list(LIBRARY)
+    assert re.fullmatch(r"weak_braking +built-in \(evoscen_sut\.mutants\) +control +bases: any SUT model \(\d+\) +"
+                        r"Braking commands reach the wheels at 40 % \(worn brakes / saturated actuator\)",
+                        lines[list(LIBRARY).index("weak_braking")]), lines
+
+
+# ------------------------------------------------------------------ the node graph
+
+PLUGIN = textwrap.dedent('''
+    import numpy as np
+    from evoscen_sim.api import ModelSpec
+
+
+    class Diverging:
+        def __init__(self, vehicles):
+            self.vehicles = vehicles
+
+        def act(self, view):
+            if view.step_index == 30:
+                raise RuntimeError("planner diverged")
+            return np.zeros(1), np.zeros(1, dtype=np.int64)
+
+
+    SPEC = ModelSpec("diverging_sut", ("sut",), lambda v, p, c, r: Diverging(v), description="raises at step 30")
+''')
+PLUGIN_LINE = next(i for i, line in enumerate(PLUGIN.splitlines(), 1) if "raise RuntimeError" in line)
+
+
+@pytest.mark.e2e
+def test_act_raising_in_the_graph_ends_within_2_s(tmp_path):
+    site = tmp_path / "site"
+    (site / "diverging_sut-0.1.dist-info").mkdir(parents=True)
+    (site / "diverging_sut.py").write_text(PLUGIN)
+    (site / "diverging_sut-0.1.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: diverging-sut\nVersion: 0.1\n")
+    (site / "diverging_sut-0.1.dist-info" / "entry_points.txt").write_text("[evoscen.sut]\ndiverging_sut = diverging_sut:SPEC\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), *(p for p in sys.path if p)]))
+    out = tmp_path / "run"
+    # deadline 10 s, 5 misses: waiting out the deadlines would take 50 s
+    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--sut", "diverging_sut", "--steps", "60", "--bvs", "3",
+                             "--deadline", "10", "--out", str(out), "--no-plots"], cwd=REPO, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    lines: list[str] = []
+    failed_at: list[float] = []
+    ended_at: list[float] = []  # the launcher's first line after the graph has ended (its summary)
+
+    def read_stderr():
+        for line in proc.stderr:
+            if line.startswith("error: evoscen_sut:") and not failed_at:
+                failed_at.append(time.monotonic())
+            lines.append(line.rstrip("\n"))
+
+    reader = threading.Thread(target=read_stderr)
+    reader.start()
+    out_lines = []
+    try:
+        for line in proc.stdout:
+            if line.startswith("steps:") and not ended_at:
+                ended_at.append(time.monotonic())
+            out_lines.append(line)
+        proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    reader.join(10)
+    stdout, stderr = "".join(out_lines), "\n".join(lines)
+    ended = ended_at[0]
+    assert proc.returncode == 3, stderr
+    assert "Traceback" not in stderr
+    errors = [line for line in lines if line.startswith("error:")]
+    assert len(errors) == 1 and re.fullmatch(
+        r"error: evoscen_sut: sut model 'diverging_sut' \(entry point diverging_sut:SPEC\): act\(\) at step 30 raised "
+        rf"RuntimeError: planner diverged \(.*diverging_sut\.py:{PLUGIN_LINE}\)", errors[0]), errors
+    print(f"\nthe graph ended {ended - failed_at[0]:.2f} s after the plug-in's error line (os.getloadavg: "
+          f"{os.getloadavg()[0]:.1f})")
+    assert ended - failed_at[0] < 2.0, f"ended {ended - failed_at[0]:.2f} s after the failed step\n{stderr}"
+    assert "intelligence" not in stdout and "aborted: the run ended at step 30 of 60 (exit status 3)" in stdout, stdout
+    assert not (out / "report" / "report.json").exists()
+    events = _bag_events(out / "bag")
+    fault, end = events[-2:]
+    assert (fault["name"], fault["kind"], fault["controller"], fault["step"]) == ("evoscen/fault", "abort", "evoscen_sut", 30)
+    assert (end["name"], end["kind"]) == ("evoscen/run_end", "aborted")
+
+
+# ------------------------------------------------------------------ the face
+
+FACE = sorted([
+    "InputError", "LANE_OFFSETS", "LEFT", "ModelSpec", "Neighborhood", "OWN", "POLICY_CODES", "PluginFault", "RIGHT",
+    "ROLE_BV", "ROLE_SUT", "RoadModel", "ScenarioConfig", "TrafficView", "VehicleParams", "accel_to_throttle",
+    "checked_answer", "common_shift", "flag", "hand_built_world", "integer", "load_road", "names", "new_trips", "number",
+    "number_range", "register_model", "resolve_map_path", "scenario_rngs", "text", "throttle_to_accel",
+    "time_headway", "time_to_collision", "unregister_model",
+])
+
+
+def test_the_face_is_pinned_and_every_name_resolves():
+    import evoscen_sim.api as api
+
+    assert api.__all__ == FACE, "the plug-in face changed: a deliberate change updates FACE (docs/plugins.md §19)"
+    from evoscen_sim.model_registry import ModelSpec
+    from evoscen_sim.physics.neighbors import OWN
+
+    assert api.ModelSpec is ModelSpec and api.OWN is OWN == 2
+    for name in FACE:
+        assert getattr(api, name) is not None, name
+    with pytest.raises(AttributeError, match="the plug-in face"):
+        api.no_such_name  # noqa: B018
+
+
+def test_the_face_imports_nothing_heavy():
+    code = ("import sys; import evoscen_sim.api; from evoscen_sim.api import ModelSpec, number; "
+            "print(sorted(m for m in ('rclpy', 'numba', 'evoscen_sim.physics.world', 'evoscen_sim.road.road_model') "
+            "if m in sys.modules))")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
+    assert res.stdout.strip() == "[]", res.stdout
+
+
+def test_examples_import_evoscen_only_from_the_face():
+    files = sorted((REPO / "examples").rglob("*.py"))
+    assert len(files) >= 4
+    seen = []
+    for path in files:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            for name in names:
+                if name.startswith("evoscen"):
+                    seen.append((path.name, name))
+    assert seen and all(module == "evoscen_sim.api" for _, module in seen), seen
+    assert {"first_sut.py", "fiss_sut.py", "sumo_sut.py"} <= {f for f, _ in seen}
+
+
+def test_a_04_path_imports_with_a_deprecation_warning():
+    sys.modules.pop("evoscen_sim.models", None)
+    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.models is deprecated .*use evoscen_sim\.model_registry"):
+        import evoscen_sim.models as old
+    from evoscen_sim import model_registry
+
+    assert old.ModelSpec is model_registry.ModelSpec and old.SUT_MODELS == model_registry.SUT_MODELS
+    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.config\.number .*use evoscen_sim\.config\.scenario_config\.number"):
+        from evoscen_sim.config import number
+    from evoscen_sim.config.config_checks import number as new_number
+
+    assert number is new_number
+    with pytest.warns(DeprecationWarning, match=r"evoscen_eval\.streaming\.TTC_BINS .*use evoscen_eval\.plot_inputs\.TTC_BINS"):
+        from evoscen_eval.streaming import TTC_BINS
+    from evoscen_eval.plot_inputs import TTC_BINS as new_bins
+
+    assert TTC_BINS is new_bins
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        from evoscen_sim.api import ModelSpec  # the face: no warning
+
+        assert ModelSpec is old.ModelSpec
+
+
+def test_every_moved_path_resolves():
+    from evoscen_sim import moved_paths
+
+    assert len(moved_paths.MOVED_MODULES) + len(moved_paths.PACKAGE_MODULES) == 41
+    assert sum(len(v) for v in moved_paths.MOVED_NAMES.values()) + 2 == 32  # + evoscen_contract.cdr's two
+    import importlib
+    import importlib.util
+
+    for new in [*moved_paths.MOVED_MODULES.values(), *moved_paths.PACKAGE_MODULES.values()]:
+        assert importlib.util.find_spec(new) is not None, new
+    for old, moved in moved_paths.MOVED_NAMES.items():
+        for name, new in moved.items():
+            assert hasattr(importlib.import_module(new), name), (old, name, new)
+
+
+def test_a_controller_fault_line_comes_before_the_abort_and_deaths():
+    """graph_status (docs/recording.md): a controller that ended with its own fault line (3: its driver
+    raised) is the cause of the simulation's abort (3) that follows; a kill (4) stays a death."""
+    from evoscen_bringup.graph_runner import graph_status
+
+    ok = {"evoscen_eval": 0, "evoscen_bv": 0}
+    failed = {"evoscen_sut": "ended with a controller fault (exit status 3)"}
+    assert graph_status({**ok, "evoscen_sut": 3, "evoscen_sim": 3}, failed, False) == 3
+    # a BV node killed as well, after it: the first cause still decides
+    assert graph_status({**ok, "evoscen_sut": 3, "evoscen_bv": -9, "evoscen_sim": 3},
+                        {**failed, "evoscen_bv": "ended early (killed by SIGKILL (signal 9))"}, False, ["evoscen_bv"]) == 3
+    assert graph_status({**ok, "evoscen_sut": -9, "evoscen_sim": 3},
+                        {"evoscen_sut": "ended early (killed by SIGKILL (signal 9))"}, False, ["evoscen_sut"]) == 4
