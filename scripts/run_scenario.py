@@ -201,9 +201,10 @@ def main(argv: list[str] | None = None) -> int:
         # everything the run needs is validated (config, map, SUT, spawn) before the output
         # directory is touched, so a bad input never costs an existing bag
         cfg = load_scenario_config(args.config, overrides)
-        scenario = build_scenario(cfg)
         out = args.out
         bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
+        # without a bag one driver of all BVs: the same run (docs/performance.md "Shared starts")
+        scenario = build_scenario(cfg, partitioned=bag_dir is not None or args.mode == "graph")
         if args.mode == "graph" and bag_dir is None:
             raise InputError("--mode graph always records (the evaluator node is part of the graph): "
                              "drop --no-record / recording.enabled: false, or use --mode inprocess")
