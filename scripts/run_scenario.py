@@ -203,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
         cfg = load_scenario_config(args.config, overrides)
         out = args.out
         bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
-        # without a bag one driver of all BVs: the same run (docs/performance.md "Shared starts")
+        # without a bag one driver of all BVs: the same run (docs/performance.md "Experiments")
         scenario = build_scenario(cfg, partitioned=bag_dir is not None or args.mode == "graph")
         if args.mode == "graph" and bag_dir is None:
             raise InputError("--mode graph always records (the evaluator node is part of the graph): "

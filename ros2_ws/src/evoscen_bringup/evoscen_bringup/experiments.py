@@ -8,7 +8,7 @@ A *round* is one in-process run of a scenario configuration (no bag), scored lik
 
 * **parallel** — Ray tasks of one CPU, ``jobs`` workers on a local Ray; the rounds that begin from
   the same state (the SUT variants of a seed: :func:`evoscen_bringup.starts.start_key`) go to one
-  task together, which computes their warm-up once (docs/performance.md "Shared starts");
+  task together, which computes their warm-up once (docs/performance.md "Experiments");
 * **resumable** — each finished round is saved under ``OUT/runs/<key>/`` (``result.json``,
   ``report.json``, ``plot.json``), the key a hash of the round's whole resolved configuration,
   of the code version and of the plug-in the round uses; a round whose result exists is read back

@@ -190,7 +190,7 @@ def run_inprocess(
     complete and then raises KeyboardInterrupt.
     """
     # without a bag nobody sees the BV nodes' partition: one driver of all BVs, the same world and
-    # scores at a third of the per-call cost (docs/performance.md "Shared starts")
+    # scores at a third of the per-call cost (docs/performance.md "Experiments")
     sc = scenario if scenario is not None else build_scenario(cfg, partitioned=bag_dir is not None)
     n_steps = cfg.steps if steps is None else steps
     world = sc.world

@@ -6,7 +6,7 @@ model and its mutants, the planners of a leaderboard) begin from the same state 
 lane keeper on the SUT's vehicle, whatever the SUT model). A :class:`StartCache` builds that
 state once — the road, the world after the warm-up (with its random stream) and the fresh BV
 driver(s) — and hands every run a **deep copy** of it, so each run steps its own objects and gets
-exactly what building it from scratch would give (docs/performance.md "Shared starts"). The copy
+exactly what building it from scratch would give (docs/performance.md "Experiments"). The copy
 is generic (:func:`copy.deepcopy` of the world and the drivers; only the road, whose arrays are
 read-only, is shared): a field added to the world or to a driver is copied with the rest.
 
