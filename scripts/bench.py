@@ -33,6 +33,14 @@ With ``--learned``: the learned BVs' cost — the in-process rate of the default
 with ``bvs.driver: learned`` vs ``level0``, the driver's time per step, and one batched
 decision forward pass for all BVs in numpy and in torch (same weights, their max difference).
 
+With ``--experiment``: the throughput of a small sensitivity experiment (MOBIL and the mutants of
+``--experiment-mutants`` on ``--experiment-episodes`` seeds of 300 steps after the 200-step warm-up,
+learned BVs, no bag) on ``--jobs`` Ray workers, counted in simulated steps, warm-ups included, per
+second of wall time (the workers started and warm: a first small design runs before the timed one),
+beside the core's rate measured in this same process just before and after (in-process, learned BVs,
+one BV driver, recording off): the ratio experiment / (core x workers) is the share of the machine's
+stepping the experiment machinery keeps (docs/performance.md "Experiments").
+
 With ``--sut-models``: the per-decision cost of every registered SUT model (median over a
 run of the default scenario) and the in-process rate with it as the SUT.
 
@@ -45,6 +53,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import sys
 import tempfile
@@ -228,6 +237,76 @@ def learned_bv_costs(steps: int, repeats: int) -> dict:
     return out
 
 
+EXPERIMENT_SEED = 95000
+"""First seed of the benchmark's experiment designs (any: the throughput does not depend on it)."""
+
+
+def core_rate(steps: int, repeats: int, driver: str = "learned") -> float:
+    """The core's median in-process rate (steps/s; one BV driver of all BVs, recording off, default SUT)."""
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.config.scenario_config import load_scenario_config
+
+    cfg = load_scenario_config(None, {"bvs.driver": driver, "bvs.nodes": "single"})
+    rates = []
+    for _ in range(repeats):
+        sc = build_scenario(cfg)
+        for _ in range(300):
+            sc.step()
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            sc.step()
+        rates.append(steps / (time.perf_counter() - t0))
+    return statistics.median(rates)
+
+
+def experiment_throughput(episodes: int, mutants: list[str], jobs: int, steps: int, repeats: int,
+                          episode_steps: int = 300) -> dict:
+    """A small sensitivity design (MOBIL and ``mutants`` on ``episodes`` seeds, ``episode_steps`` each,
+    the scenario's warm-up before every run) on ``jobs`` Ray workers: simulated steps per second of
+    wall time, warm-ups included, beside the core's rate (:func:`core_rate`, before and after)."""
+    import ray
+    from evoscen_bringup.campaign import OBJECT_STORE_BYTES
+    from evoscen_bringup.experiments import Round, config_loader, run_rounds
+    from evoscen_sut.mutants import mutant_overrides
+
+    load = config_loader(None)
+    variants = [{"sut.model": "mobil"}] + [mutant_overrides("mobil", m) for m in mutants]
+
+    def design(first: int, n: int) -> list:
+        return [Round(f"v{i}", load({**v, "seed": str(seed), "steps": str(episode_steps),
+                                     "recording.enabled": "false"}))
+                for seed in range(first, first + n) for i, v in enumerate(variants)]
+
+    core_before = core_rate(steps, repeats)
+    cfg = design(EXPERIMENT_SEED, 1)[0].cfg
+    warm = int(round(cfg.traffic.warmup_s / cfg.dt_s)) if cfg.traffic.mode == "window" else 0
+    t_cold = time.perf_counter()
+    ray.init(num_cpus=jobs, include_dashboard=False, log_to_driver=False, configure_logging=False,
+             object_store_memory=OBJECT_STORE_BYTES)
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            # the workers started, their imports done and compiled kernels loaded: one design per worker
+            run_rounds(design(EXPERIMENT_SEED, jobs), Path(tmp) / "start", jobs=jobs)
+            cold_s = time.perf_counter() - t_cold
+            rounds = design(EXPERIMENT_SEED + jobs, episodes)
+            t0 = time.perf_counter()
+            results = run_rounds(rounds, Path(tmp) / "timed", jobs=jobs)
+            wall = time.perf_counter() - t0
+    finally:
+        ray.shutdown()
+    core_after = core_rate(steps, repeats)
+    core = statistics.mean([core_before, core_after])
+    simulated = len(rounds) * (episode_steps + warm)
+    rate = simulated / wall
+    busy = sum(r["wall_time_s"] for r in results.values())  # in the workers: set-up, stepping, scoring
+    return {"runs": len(rounds), "episodes": episodes, "variants": len(variants), "episode_steps": episode_steps,
+            "warmup_steps": warm, "simulated_steps": simulated, "wall_s": wall, "steps_per_s": rate,
+            "worker_steps_per_s": simulated / busy, "start_s": cold_s, "jobs": jobs,
+            "core_steps_per_s_before": core_before, "core_steps_per_s_after": core_after,
+            "core_steps_per_s": core, "ratio_to_core_x_jobs": rate / (core * jobs),
+            "worker_ratio_to_core": simulated / busy / core}
+
+
 def _forward_costs(drv, world, grid) -> dict:
     """One batched decision forward pass for all BVs (each through its own policy): the compiled
     kernel used at run time, plain numpy matmuls, and torch (same weights); max differences."""
@@ -291,16 +370,31 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sut-models", action="store_true", help="also the per-decision cost of every SUT model")
     ap.add_argument("--learned", action="store_true",
                     help="also the learned BVs' inference cost and the in-process rate with learned vs level-0 BVs")
+    ap.add_argument("--experiment", action="store_true",
+                    help="also the throughput of a small sensitivity experiment beside the core's rate")
+    ap.add_argument("--experiment-episodes", type=int, default=8,
+                    help="--experiment: seeds (episodes per variant; default 8)")
+    ap.add_argument("--experiment-mutants", default="tailgating,blind_behind,stale",
+                    help="--experiment: mutants of MOBIL run beside it (default tailgating,blind_behind,stale)")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                    help="--experiment: Ray workers (default: CPU count)")
     ap.add_argument("--bv-driver", choices=("level0", "learned"), default="level0",
                     help="the BVs' drivers in every figure but --learned's (default level0)")
     ap.add_argument("--json", action="store_true", help="also print the figures as one JSON line")
     args = ap.parse_args(argv)
-    for name in ("steps", "repeats", "bag_steps", "graph_steps", "graph_repeats"):
+    for name in ("steps", "repeats", "bag_steps", "graph_steps", "graph_repeats", "experiment_episodes", "jobs"):
         lowest = 0 if name == "bag_steps" else 1
         if getattr(args, name) < lowest:
             print(f"error: --{name.replace('_', '-')} = {getattr(args, name)}: expected "
                   f"{'an integer >= 0 (0 = skip)' if lowest == 0 else 'a positive integer'}", file=sys.stderr)
             return EXIT_BAD_INPUT
+    mutants = [m.strip() for m in args.experiment_mutants.split(",") if m.strip()]
+    from evoscen_sut.mutants import LIBRARY
+
+    if len(set(mutants)) != len(mutants) or any(m not in LIBRARY for m in mutants):
+        print(f"error: --experiment-mutants = {args.experiment_mutants!r}: expected distinct comma-separated "
+              f"mutant names from {', '.join(LIBRARY)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
 
     partitions = [p.strip() for p in args.bv_nodes.split(",") if p.strip()]
     for p in partitions:
@@ -374,6 +468,19 @@ def main(argv: list[str] | None = None) -> int:
         print(line)
         print(f"  max |difference| to the kernel: numpy {lc['max_abs_diff_numpy_kernel']:.1e}"
               + (f", torch (float32) {lc['max_abs_diff_torch_kernel']:.1e}" if "torch_forward_us" in lc else ""))
+    if args.experiment:
+        ex = experiment_throughput(args.experiment_episodes, mutants, args.jobs, args.steps, args.repeats)
+        out["experiment"] = ex
+        print(f"experiment throughput (sensitivity design: MOBIL + {ex['variants'] - 1} mutants x {ex['episodes']} "
+              f"episodes x {ex['episode_steps']} steps + {ex['warmup_steps']} warm-up steps, learned BVs, "
+              f"{ex['jobs']} Ray workers, started and warm; {ex['start_s']:.1f} s to start them):")
+        print(f"  {ex['runs']} runs, {ex['simulated_steps']:,} simulated steps (warm-ups included) in "
+              f"{ex['wall_s']:.1f} s: {ex['steps_per_s']:8.0f} steps/s")
+        print(f"  core in this process (learned BVs, one driver, recording off): {ex['core_steps_per_s_before']:.0f} "
+              f"before, {ex['core_steps_per_s_after']:.0f} after; experiment / (core x {ex['jobs']} workers) = "
+              f"{ex['ratio_to_core_x_jobs']:.2f}   (target >= 0.60)")
+        print(f"  in the workers (the runs' own wall time: set-up, stepping, scoring): "
+              f"{ex['worker_steps_per_s']:8.0f} steps/s per worker = {ex['worker_ratio_to_core']:.2f} of the core")
     if not args.no_sumo:
         sys.path.insert(0, str(Path(__file__).resolve().parent))
         from sumo_baseline import measure_sumo_steps_per_second, sumo_available

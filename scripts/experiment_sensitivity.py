@@ -134,9 +134,10 @@ def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants:
     """The rounds of every design: per scenario, SUT variant (intact, then each mutant) and seed of the
     design, one run of the design's steps. Returns the rounds and their key -> (design, scenario,
     base, variant); every variant of a scenario runs on the same seeds (paired)."""
-    from evoscen_bringup.experiments import Round
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_bringup.experiments import Round, config_loader
     from evoscen_sut.mutants import mutant_overrides
+
+    load = config_loader(config)
 
     variants: list[tuple[str, str, dict[str, str]]] = []  # (base, mutant or intact, overrides)
     for base in bases:
@@ -152,7 +153,7 @@ def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants:
                                  "recording.enabled": "false"}
                     if scenario != "evolving":
                         overrides["bvs.driver"] = scenario
-                    rnd = Round(f"{scenario}--{base}--{variant}", load_scenario_config(config, overrides))
+                    rnd = Round(f"{scenario}--{base}--{variant}", load(overrides))
                     rounds.append(rnd)
                     meta[rnd.key] = (design.name, scenario, base, variant)
     return rounds, meta

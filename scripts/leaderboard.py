@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         write_csv,
     )
     from evoscen_bringup.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_bringup.experiments import config_loader
 
     def build():
         episodes = positive_int("--episodes", args.episodes)
@@ -110,8 +110,9 @@ def main(argv: list[str] | None = None) -> int:
         first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
         suts = resolve_suts(args.suts, args.reference)
-        rounds = [Round(sut, load_scenario_config(args.config, {"sut.model": sut, "seed": str(seed),
-                                                                "steps": str(steps), "recording.enabled": "false"}))
+        load = config_loader(args.config)
+        rounds = [Round(sut, load({"sut.model": sut, "seed": str(seed), "steps": str(steps),
+                                   "recording.enabled": "false"}))
                   for sut in suts for seed in range(first, first + episodes)]
         return suts, rounds, episodes, steps, first, jobs
 

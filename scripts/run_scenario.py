@@ -265,6 +265,8 @@ def main(argv: list[str] | None = None) -> int:
         # everything the run needs is validated (config, map, SUT, spawn) before the output
         # directory is touched, so a bad input never costs an existing bag
         cfg = load_scenario_config(args.config, overrides)
+        out = args.out
+        bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
         if args.start_from is not None:  # docs/export.md "Starting evoscen from an exported scenario"
             from evoscen_bringup.scenario import build_scenario_from_start, load_road_of, start_overrides
             from evoscen_eval.scenario_export import initial_state_from_xosc
@@ -273,9 +275,8 @@ def main(argv: list[str] | None = None) -> int:
             cfg = load_scenario_config(args.config, {**overrides, **start_overrides(start)})
             scenario = build_scenario_from_start(cfg, start)
         else:
-            scenario = build_scenario(cfg)
-        out = args.out
-        bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
+            # without a bag one driver of all BVs: the same run (docs/performance.md "Experiments")
+            scenario = build_scenario(cfg, partitioned=bag_dir is not None or args.mode == "graph")
         if args.mode == "graph" and bag_dir is None:
             raise InputError("--mode graph always records (the evaluator node is part of the graph): "
                              "drop --no-record / recording.enabled: false, or use --mode inprocess")

@@ -1,4 +1,4 @@
-"""``scripts/bench.py``: bad arguments are one-line errors before anything is measured.
+"""``scripts/bench.py`` and ``scripts/profile_episodes.py``: bad arguments are one-line errors before anything is measured.
 
 The benchmark's figures are not asserted (shared, noisy machines); its argument checks are.
 """
@@ -47,3 +47,34 @@ def test_bad_bv_node_partitions_are_refused(value):
     assert lines == [f"error: --bv-nodes = {value!r}: expected comma-separated by_policy, single or numbers "
                      "in [1, 32]"], res.stderr
     assert "steps/s" not in res.stdout
+
+
+@pytest.mark.parametrize("value", ["stale,stale"])
+def test_bad_experiment_mutants_are_refused(value):
+    res = bench("--experiment", "--experiment-mutants", value)
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith(f"error: --experiment-mutants = {value!r}: expected distinct "
+                                                   "comma-separated mutant names from "), res.stderr
+    assert "steps/s" not in res.stdout
+
+
+@pytest.mark.parametrize("flag, value", [("--experiment-episodes", 0)])
+def test_out_of_range_experiment_counts_are_refused(flag, value):
+    res = bench("--experiment", flag, value)
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert lines == [f"error: {flag} = {value}: expected a positive integer"], res.stderr
+
+
+@pytest.mark.parametrize("args, expected", [
+    (("--scenario", "sumo"), "error: --scenario 'sumo': expected one of evolving, level0, nilsson, mobil"),
+    (("--mutants", "stale,nosuch"), "error: --mutants: unknown mutant 'nosuch': expected 'all' or names from "),
+])
+def test_profile_episodes_bad_arguments_are_one_line(args, expected):
+    res = subprocess.run([sys.executable, "scripts/profile_episodes.py", *args], cwd=REPO, capture_output=True,
+                         text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith(expected), res.stderr
+    assert "ms per episode" not in res.stdout

@@ -92,15 +92,50 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     row.update(traffic_columns(report))
     row["clips"] = len(clips)
     row["wall_time_s"] = time.perf_counter() - t0
+    row["node"] = "local"
     try:
         import ray
 
-        row["node"] = ray.get_runtime_context().get_node_id()[:12]
-    except Exception:  # noqa: BLE001 - outside Ray (tests call it directly)
-        row["node"] = "local"
+        if ray.is_initialized():  # else outside Ray (tests, the benchmark): asking would start a Ray
+            row["node"] = ray.get_runtime_context().get_node_id()[:12]
+    except Exception:  # noqa: BLE001 - outside Ray
+        pass
     row["pid"] = os.getpid()
     plot = {"ttc_hist": summary.plot.ttc_hist.tolist(), "speed_hist": summary.plot.speed_hist.tolist()}
     return {"row": row, "report": report, "plot": plot, "files": files}
+
+
+def execute_batch(runs: Sequence[CampaignRun], out_dir: str, record: str,
+                  clip_s: float = 5.0) -> list[dict[str, Any]]:
+    """:func:`execute` for each run of a batch (one Ray task), in order; a run that fails gives
+    ``{"error": one line, "host_fault": (path, cause) or None}`` in its place and the others go on.
+    The runs of a batch share their start when they can (:mod:`evoscen_bringup.starts`)."""
+    out = []
+    for run in runs:
+        try:
+            out.append(execute(run, out_dir, record, clip_s))
+        except Exception as exc:  # noqa: BLE001 - reported per run by the driver, as a failed task is
+            out.append(_failure(exc))
+    return out
+
+
+def _failure(exc: BaseException) -> dict[str, Any]:
+    """A failed run's answer (:func:`execute_batch`): its error line and, for a fault of the host, the
+    file and the reason (plain values: they travel back from the worker)."""
+    fault = _host_fault_of(exc)
+    return {"error": _task_error(exc), "host_fault": None if fault is None else (str(fault.path), fault.cause)}
+
+
+_STARTS = None  # this worker's StartCache (evoscen_bringup.starts), made on first use
+
+
+def _starts():
+    global _STARTS
+    if _STARTS is None:
+        from .starts import StartCache
+
+        _STARTS = StartCache()
+    return _STARTS
 
 
 def _simulate(run: CampaignRun, out_dir: str, record: str, clip_s: float):
@@ -115,8 +150,11 @@ def _simulate(run: CampaignRun, out_dir: str, record: str, clip_s: float):
     clips: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory(prefix="evoscen-run-") as tmp:
         bag = Path(tmp) / "bag" if record != "none" else None
+        # a shared start (the warm-up once per start); without a bag one driver of all BVs
+        scenario = _starts().scenario(run.cfg, partitioned=bag is not None)
         # inline: a campaign runs one task per CPU, so there is no free core for a writer process
-        summary = run_inprocess(run.cfg, bag_dir=bag, evaluate=True, plots=False, bag_writer="inline")
+        summary = run_inprocess(run.cfg, bag_dir=bag, scenario=scenario, evaluate=True, plots=False,
+                                bag_writer="inline")
         if bag is not None:
             scenario_file = (Path(out_dir) / "runs" / run.key / "scenario.yaml").resolve()
             clips = mine_run(bag, summary.report, Path(tmp), clip_s=clip_s, scenario_file=scenario_file,
@@ -196,13 +234,33 @@ def _write_files(run_dir: Path, files: Mapping[str, bytes]) -> None:
         target.write_bytes(data)
 
 
+BATCH_RUNS = 16
+"""The most runs one Ray task computes (:func:`batches`): a start's SUT variants go together so that the
+warm-up is computed once for them; a cap keeps the tasks many enough to share out (docs/performance.md)."""
+
+
+def batches(runs: Sequence[CampaignRun], group: Callable[[CampaignRun], Any] | None,
+            size: int = BATCH_RUNS) -> list[list[CampaignRun]]:
+    """``runs`` cut into Ray tasks: with ``group``, the runs of one group value (in the order of their
+    first run) in batches of at most ``size``; without, one run per task."""
+    if group is None or size <= 1:
+        return [[r] for r in runs]
+    groups: dict[Any, list[CampaignRun]] = {}
+    for r in runs:
+        groups.setdefault(group(r), []).append(r)
+    return [g[i:i + size] for g in groups.values() for i in range(0, len(g), size)]
+
+
 def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "none", clip_s: float = 5.0,
                  address: str | None = None, cpus: int | None = None, retries: int = 3,
-                 progress: Callable[[int, int, float], None] | None = None) -> CampaignResult:
+                 progress: Callable[[int, int, float], None] | None = None,
+                 group: Callable[[CampaignRun], Any] | None = None, batch_runs: int = BATCH_RUNS) -> CampaignResult:
     """Run every run of ``runs`` without a result in ``out_dir`` on Ray (see the module docstring).
 
     ``progress(done, total, runs_per_s)`` after each finished run. Ctrl-C cancels what is left
     (finished runs are kept; ``interrupted`` is set). :func:`~evoscen_bringup.campaign_summary.write_results` writes the table.
+    ``group`` (e.g. :func:`evoscen_bringup.starts.start_key` of the run's configuration): the runs of
+    one value go to one task, up to ``batch_runs`` at a time (:func:`batches`); the results are the same.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     end_leftovers(out_dir)  # of a driver that was killed (scripts/campaign.py names them)
@@ -211,8 +269,8 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
     t0 = time.monotonic()
     if todo:
         with _ctrl_c_interrupts() as arm:
-            _run_todo(todo, out_dir, result, len(runs), t0, record=record, clip_s=clip_s, address=address,
-                      cpus=cpus, retries=retries, progress=progress, arm=arm)
+            _run_todo(batches(todo, group, batch_runs), out_dir, result, len(runs), t0, record=record,
+                      clip_s=clip_s, address=address, cpus=cpus, retries=retries, progress=progress, arm=arm)
     result.wall_s = time.monotonic() - t0
     return result
 
@@ -242,10 +300,11 @@ def _ctrl_c_interrupts():
             signal.signal(sig, handler)
 
 
-def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult, total: int, t0: float, *,
+def _run_todo(todo: Sequence[Sequence[CampaignRun]], out_dir: Path, result: CampaignResult, total: int, t0: float, *,
               record: str, clip_s: float, address: str | None, cpus: int | None, retries: int,
               progress: Callable[[int, int, float], None] | None, arm: Callable[[], None]) -> None:
-    """Submit ``todo`` to Ray and write each result as it comes (see :func:`run_campaign`)."""
+    """Submit ``todo`` (batches of runs, one task each) to Ray and write each result as it comes (see
+    :func:`run_campaign`)."""
     import ray
 
     started = not ray.is_initialized()
@@ -258,42 +317,19 @@ def _run_todo(todo: Sequence[CampaignRun], out_dir: Path, result: CampaignResult
             if session:
                 _note_driver(out_dir, session)
     arm()
-    task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute)
-    pending = {task.remote(r, str(out_dir), record, clip_s): r for r in todo}
+    task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute_batch)
+    pending = {task.remote(batch, str(out_dir), record, clip_s): batch for batch in todo}
     try:
         while pending:
             ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
             for ref in ready:
-                run = pending.pop(ref)
+                batch = pending.pop(ref)
                 try:
-                    done = ray.get(ref)
-                except Exception as exc:  # noqa: BLE001 - the task failed after its retries
-                    fault = _host_fault_of(exc)
-                    if fault is not None:  # the worker's disk: every other run would fail alike
-                        result.host_fault = (f"run {run.key} (seed {run.seed}): cannot write {fault.path} on its "
-                                             f"worker: {fault.cause}")
-                        raise _HostFaultStop from None
-                    result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): {_task_error(exc)}")
-                    continue
-                path = result_path(out_dir, run.key)
-                try:
-                    _write_files(path.parent, done["files"])
-                    write_atomic(path.with_name("scenario.yaml"),
-                                  yaml.safe_dump(config_to_dict(run.cfg), sort_keys=False))
-                    write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
-                    write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
-                    write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
-                except OSError as exc:  # not marked done: the same command computes it again
-                    from evoscen_sim.errors import HostFault
-
-                    fault = HostFault.of(exc, exc.filename or path.parent)
-                    result.host_fault = f"run {run.key} (seed {run.seed}): {fault}"
-                    raise _HostFaultStop from None
-                result.computed += 1
-                result.nodes.add(done["row"]["node"])
-                if progress is not None:
-                    rate = result.computed / max(time.monotonic() - t0, 1e-9)
-                    progress(result.already_done + result.computed, total, rate)
+                    answers = ray.get(ref)
+                except Exception as exc:  # noqa: BLE001 - the task failed after its retries: all its runs
+                    answers = [_failure(exc)] * len(batch)
+                for run, done in zip(batch, answers):
+                    _take(run, done, out_dir, result, total, t0, progress)
     except (KeyboardInterrupt, _HostFaultStop) as exc:
         result.interrupted = isinstance(exc, KeyboardInterrupt)
         if not started:  # a cluster's workers outlive this driver: ask them to drop our tasks
@@ -313,6 +349,37 @@ def _note_driver(out_dir: Path, session_dir: str) -> None:
     with contextlib.suppress(OSError):  # only a help for the next start: never a reason to stop
         write_atomic(out_dir / DRIVER_FILE, json.dumps({"pid": os.getpid(), "start": start_time(os.getpid()),
                                                           "session_dir": session_dir}) + "\n")
+
+
+def _take(run: CampaignRun, done: dict[str, Any], out_dir: Path, result: CampaignResult, total: int, t0: float,
+          progress: Callable[[int, int, float], None] | None) -> None:
+    """One run's answer from its task: its files written (the run then counts as done), or its failure
+    noted; a fault of the host stops the campaign (:class:`_HostFaultStop`)."""
+    if "error" in done:
+        if done["host_fault"] is not None:  # the worker's disk: every other run would fail alike
+            path, cause = done["host_fault"]
+            result.host_fault = f"run {run.key} (seed {run.seed}): cannot write {path} on its worker: {cause}"
+            raise _HostFaultStop
+        result.failed.append(f"{run.key} ({dict(run.cell)}, seed {run.seed}): {done['error']}")
+        return
+    path = result_path(out_dir, run.key)
+    try:
+        _write_files(path.parent, done["files"])
+        write_atomic(path.with_name("scenario.yaml"), yaml.safe_dump(config_to_dict(run.cfg), sort_keys=False))
+        write_atomic(path.with_name("report.json"), json.dumps(done["report"], indent=1) + "\n")
+        write_atomic(path.with_name("plot.json"), json.dumps(done["plot"]) + "\n")
+        write_atomic(path, json.dumps(done["row"]) + "\n")  # last: the run counts as done
+    except OSError as exc:  # not marked done: the same command computes it again
+        from evoscen_sim.errors import HostFault
+
+        fault = HostFault.of(exc, exc.filename or path.parent)
+        result.host_fault = f"run {run.key} (seed {run.seed}): {fault}"
+        raise _HostFaultStop from None
+    result.computed += 1
+    result.nodes.add(done["row"]["node"])
+    if progress is not None:
+        rate = result.computed / max(time.monotonic() - t0, 1e-9)
+        progress(result.already_done + result.computed, total, rate)
 
 
 class _HostFaultStop(Exception):

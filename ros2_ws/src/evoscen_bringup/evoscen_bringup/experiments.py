@@ -6,7 +6,9 @@ A *round* is one in-process run of a scenario configuration (no bag), scored lik
 :func:`run_rounds` on the one execution path of many runs, :mod:`evoscen_bringup.campaign`
 (docs/campaigns.md):
 
-* **parallel** — one Ray task of one CPU per round, ``jobs`` workers on a local Ray;
+* **parallel** — Ray tasks of one CPU, ``jobs`` workers on a local Ray; the rounds that begin from
+  the same state (the SUT variants of a seed: :func:`evoscen_bringup.starts.start_key`) go to one
+  task together, which computes their warm-up once (docs/performance.md "Experiments");
 * **resumable** — each finished round is saved under ``OUT/runs/<key>/`` (``result.json``,
   ``report.json``, ``plot.json``), the key a hash of the round's whole resolved configuration,
   of the code version and of the plug-in the round uses; a round whose result exists is read back
@@ -21,7 +23,8 @@ Each round's result holds its ``report.json`` dict plus histograms of the SUT's 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import functools
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
@@ -39,9 +42,10 @@ class Round:
     label: str
     cfg: ScenarioConfig
 
-    @property
+    @functools.cached_property
     def key(self) -> str:
-        """The round's campaign key (:func:`evoscen_bringup.campaign_spec.run_key`: configuration, code version, plug-ins)."""
+        """The round's campaign key (:func:`evoscen_bringup.campaign_spec.run_key`: configuration, code version,
+        plug-ins), worked out once (the experiments look it up many times)."""
         from .campaign_spec import code_version, run_key
 
         return run_key(self.cfg, code_version())
@@ -60,6 +64,7 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     """
     from .campaign import load_result, result_path, run_campaign
     from .campaign_spec import CampaignRun
+    from .starts import start_key
 
     runs = [CampaignRun(rnd.key, (("label", rnd.label),), rnd.cfg.seed, rnd.cfg) for rnd in rounds]
     total = len(runs)
@@ -71,7 +76,9 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
         if progress is not None:
             progress(n, total, f"{rate:.2f} rounds/s")
 
-    result = run_campaign(runs, out_dir, cpus=jobs, progress=tick) if done < total else None
+    # rounds record no bag: their BVs are driven by one driver (partitioned=False, as campaign._simulate)
+    result = (run_campaign(runs, out_dir, cpus=jobs, progress=tick,
+                           group=lambda r: start_key(r.cfg, partitioned=False)) if done < total else None)
     if result is not None and result.interrupted:
         raise KeyboardInterrupt
     if result is not None and result.failed:
@@ -89,6 +96,31 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
         out[rnd.key] = {"label": rnd.label, "seed": rnd.cfg.seed, "steps": row["steps"],
                         "wall_time_s": row["wall_time_s"], "report": saved["report"], **saved["plot"]}
     return out
+
+
+def config_loader(path: Path | None) -> Callable[[Mapping[str, object]], ScenarioConfig]:
+    """``load(overrides)``: :func:`~evoscen_sim.config.scenario_config.load_scenario_config` of ``path`` (None:
+    the shipped default) with ``overrides``, the file read and parsed once for all the rounds of an
+    experiment (parsing is ~50-80 ms a round; the validation, which every round still gets, ~1 ms)."""
+    from evoscen_sim.config.config_load import _DEFAULT_CONFIG, config_from_dict, parse_yaml
+    from evoscen_sim.config.limits import MAX_CONFIG_BYTES, read_text_limited
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.share import share_path
+
+    parsed: list = []
+
+    def load(overrides: Mapping[str, object]) -> ScenarioConfig:
+        if not parsed:  # the first round as the one-call loader does it (every error alike), then parsed once
+            cfg = load_scenario_config(path, overrides)
+            file_path = share_path(_DEFAULT_CONFIG) if path is None else Path(path)
+            label = str(path) if path is not None else str(file_path)
+            text = read_text_limited(file_path, label, "scenario config file", MAX_CONFIG_BYTES)
+            parsed.append((*parse_yaml(text, label), label, file_path.resolve().parent))
+            return cfg
+        data, lines, label, base_dir = parsed[0]
+        return config_from_dict(data, source=label, base_dir=base_dir, overrides=overrides, _lines=lines)
+
+    return load
 
 
 T = TypeVar("T")

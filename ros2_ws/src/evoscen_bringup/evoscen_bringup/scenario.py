@@ -87,10 +87,16 @@ class Scenario:
         return throttle, lane_change
 
 
-def build_scenario(cfg: ScenarioConfig) -> Scenario:
-    """Road, spawn layout, world and drivers for ``cfg`` (deterministic in ``cfg.seed``)."""
+def build_scenario(cfg: ScenarioConfig, *, partitioned: bool = True) -> Scenario:
+    """Road, spawn layout, world and drivers for ``cfg`` (deterministic in ``cfg.seed``).
+
+    ``partitioned`` (default): the BVs are driven as the BV nodes of ``bvs.nodes`` drive them, one
+    driver per node (what a recorded run records); else by one driver of all BVs, as ``bvs.nodes:
+    single`` — the same world, events and scores (docs/architecture.md §5, "BV nodes") with the
+    per-call cost paid once (docs/performance.md "Experiments")."""
     world = build_world(cfg)
-    return Scenario(config=cfg, road=world.road, world=world, bv_driver=build_bv_drivers(cfg),
+    bv = build_bv_drivers(cfg) if partitioned else build_bv_driver(cfg)
+    return Scenario(config=cfg, road=world.road, world=world, bv_driver=bv,
                     sut=build_sut_driver(cfg), bv_indices=bv_indices(cfg))
 
 

@@ -1,0 +1,142 @@
+"""Shared episode starts and batched rounds (evoscen_bringup.starts, campaign.batches/execute_batch).
+
+A run from a shared start (the warm-up computed once, copied for every SUT variant) must score
+exactly as the same run built from scratch, and a batch of runs in one task exactly as one run
+per task: the reports are compared as JSON text, byte for byte.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import pytest
+from evoscen_bringup import campaign
+from evoscen_bringup.campaign import batches, execute, execute_batch
+from evoscen_bringup.campaign_spec import CampaignRun
+from evoscen_bringup.experiments import config_loader
+from evoscen_bringup.inprocess import run_inprocess
+from evoscen_bringup.scenario import build_scenario
+from evoscen_bringup.starts import StartCache, start_key
+from evoscen_sim.config.scenario_config import load_scenario_config
+from evoscen_sim.errors import HostFault
+from evoscen_sut.mutants import mutant_overrides
+
+SEEDS = (90000, 90001)
+VARIANTS = ({"sut.model": "mobil"}, mutant_overrides("mobil", "stale"))
+STEPS = 50
+
+
+def _cfg(seed: int, variant: dict, **extra: str):
+    return load_scenario_config(None, {**variant, "seed": str(seed), "steps": str(STEPS),
+                                       "recording.enabled": "false", **extra})
+
+
+def _report_text(summary) -> str:
+    return json.dumps(summary.report, sort_keys=True)
+
+
+def test_start_key_leaves_out_only_what_picks_the_sut_driver():
+    intact, stale = (_cfg(SEEDS[0], v) for v in VARIANTS)
+    assert start_key(intact) == start_key(stale)  # sut.model and models.mutant differ: the same start
+    assert start_key(intact) != start_key(_cfg(SEEDS[1], VARIANTS[0]))  # another seed
+    assert start_key(intact) != start_key(_cfg(SEEDS[0], VARIANTS[0], **{"bvs.count": "12"}))
+    assert start_key(intact) != start_key(intact, partitioned=False)
+    # MOBIL BVs: models.mobil drives them, so it stays in the key (a mutant of mobil keeps it unchanged)
+    bv_mobil = {"bvs.driver": "mobil"}
+    assert start_key(_cfg(SEEDS[0], VARIANTS[0], **bv_mobil)) == start_key(_cfg(SEEDS[0], VARIANTS[1], **bv_mobil))
+    assert (start_key(_cfg(SEEDS[0], VARIANTS[0], **bv_mobil))
+            != start_key(_cfg(SEEDS[0], VARIANTS[0], **bv_mobil, **{"models.mobil.politeness": "0.9"})))
+
+
+def test_shared_start_scores_as_a_run_built_from_scratch():
+    cache = StartCache()
+    for seed in SEEDS:
+        for variant in VARIANTS:  # the second variant of a seed starts from the first's start, copied
+            cfg = _cfg(seed, variant)
+            fresh = run_inprocess(cfg, bag_dir=None, scenario=build_scenario(cfg), evaluate=True, plots=False)
+            shared = run_inprocess(cfg, bag_dir=None, scenario=cache.scenario(cfg, partitioned=False),
+                                   evaluate=True, plots=False)
+            assert _report_text(shared) == _report_text(fresh), (seed, variant)
+            assert shared.plot.ttc_hist.tolist() == fresh.plot.ttc_hist.tolist()
+    assert (cache.built, cache.reused) == (2, 2)  # one warm-up per seed, reused by the other variant
+
+
+def test_config_loader_equals_load_scenario_config():
+    load = config_loader(None)
+    for seed in SEEDS:
+        for variant in VARIANTS:
+            assert load({**variant, "seed": str(seed)}) == load_scenario_config(None, {**variant, "seed": str(seed)})
+
+
+@dataclass(frozen=True)
+class _Run:
+    key: str
+    group: str
+
+
+def test_batches_keep_a_group_together_in_order_up_to_the_cap():
+    runs = [_Run(f"r{i}", g) for i, g in enumerate("abab" "ac" "aa")]  # a: r0 r2 r4 r6 r7, b: r1 r3, c: r5
+    got = [[r.key for r in b] for b in batches(runs, lambda r: r.group, size=3)]
+    assert got == [["r0", "r2", "r4"], ["r6", "r7"], ["r1", "r3"], ["r5"]]
+    assert [[r.key for r in b] for b in batches(runs, None)] == [[r.key] for r in runs]
+    assert [[r.key for r in b] for b in batches(runs, lambda r: r.group, size=1)] == [[r.key] for r in runs]
+
+
+def _runs() -> list[CampaignRun]:
+    return [CampaignRun(f"k{seed}{i}", (("label", str(i)),), seed, _cfg(seed, v))
+            for seed in SEEDS for i, v in enumerate(VARIANTS)]
+
+
+def test_a_batch_gives_the_results_of_one_run_per_task(tmp_path, monkeypatch):
+    runs = _runs()
+    alone = []
+    for run in runs:  # one run per task: a fresh worker cache each time, nothing shared
+        monkeypatch.setattr(campaign, "_STARTS", None)
+        alone.append(execute(run, str(tmp_path), "none"))
+    monkeypatch.setattr(campaign, "_STARTS", None)
+    together = [a for b in batches(runs, lambda r: start_key(r.cfg, partitioned=False))
+                for a in execute_batch(b, str(tmp_path), "none")]
+    assert campaign._STARTS.built == len(SEEDS)
+    by_key = {a["row"]["key"]: a for a in together}
+    for a in alone:
+        b = by_key[a["row"]["key"]]
+        assert json.dumps(b["report"], sort_keys=True) == json.dumps(a["report"], sort_keys=True)
+        assert b["plot"] == a["plot"]
+        skip = ("wall_time_s", "pid", "node")
+        assert {k: v for k, v in b["row"].items() if k not in skip} == {k: v for k, v in a["row"].items()
+                                                                          if k not in skip}
+
+
+def test_a_failed_run_of_a_batch_is_reported_and_the_others_go_on(tmp_path, monkeypatch):
+    runs = _runs()[:3]
+
+    def fake(run, out_dir, record, clip_s=5.0):
+        if run.key == runs[1].key:
+            raise ValueError("bad plug-in answer\nsecond line")
+        if run.key == runs[2].key:
+            raise HostFault("cannot write /x: full", path="/x", cause="No space left on device (ENOSPC)")
+        return {"row": {"key": run.key}}
+
+    monkeypatch.setattr(campaign, "execute", fake)
+    assert execute_batch(runs, str(tmp_path), "none") == [
+        {"row": {"key": runs[0].key}},
+        {"error": "ValueError: bad plug-in answer", "host_fault": None},
+        {"error": "HostFault: cannot write /x: full", "host_fault": ("/x", "No space left on device (ENOSPC)")}]
+
+
+@pytest.mark.parametrize("answer, failed, fault", [
+    ({"error": "ValueError: boom", "host_fault": None}, ["k ({'cell': 'cell'}, seed 3): ValueError: boom"], None),
+    ({"error": "HostFault: x", "host_fault": ("/x", "full")}, [], "run k (seed 3): cannot write /x on its worker: full"),
+])
+def test_a_failed_answer_is_noted_as_a_failed_task_was(tmp_path, answer, failed, fault):
+    run = CampaignRun("k", (("cell", "cell"),), 3, _cfg(3, VARIANTS[0]))
+    result = campaign.CampaignResult(runs=1, already_done=0)
+    if fault is None:
+        campaign._take(run, answer, tmp_path, result, 1, 0.0, None)
+    else:
+        with pytest.raises(campaign._HostFaultStop):
+            campaign._take(run, answer, tmp_path, result, 1, 0.0, None)
+    assert result.failed == failed
+    assert result.host_fault == fault
+    assert not (tmp_path / "runs").exists()
