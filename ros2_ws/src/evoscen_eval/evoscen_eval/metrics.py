@@ -138,6 +138,37 @@ def complexity_score(exposures: float, lane_changes: float, accel_decel: float,
                                                             - math.exp(-accel_decel / k3))
 
 
+def progress_score(sut_distance_m: float, reference_distance_m: float) -> float:
+    """P = min(1, d_SUT / d_ref): the SUT's distance over the distance the traffic around it
+    covered in the same time (docs/evaluation.md §10.2); 1 where the reference is 0 (the traffic
+    allowed no progress, none is owed)."""
+    if reference_distance_m <= 0.0:
+        return 1.0
+    return min(1.0, max(sut_distance_m, 0.0) / reference_distance_m)
+
+
+def comparative_safety_score(collisions: float, exposures: float, sut_km: float, scale_per_km: float,
+                             collision_exposures: float) -> tuple[float, float]:
+    """S = 1/(1 + r/r0), r = (E + κ·C)/km the SUT's exposure rate per SUT-km with a collision
+    counting κ exposures, r0 = ``scale_per_km`` (docs/evaluation.md §10.1). Returns (S, r): no
+    count gives S = 1 however far the SUT drove; counts over 0 km give r = ∞, S = 0."""
+    count = exposures + collision_exposures * collisions
+    if count <= 0.0:
+        return 1.0, 0.0
+    if sut_km <= 0.0:
+        return 0.0, math.inf
+    rate = count / sut_km
+    return 1.0 / (1.0 + rate / scale_per_km), rate
+
+
+def comparative_score(progress: float, safety: float, lane_change_time: float, interaction: float,
+                      weights: tuple[float, float, float]) -> float:
+    """D = P·(i_s·S + i_e·L + i_i·X)  (docs/evaluation.md §10): every term defined in every run,
+    the weights never renormalised."""
+    w_s, w_e, w_i = weights
+    return progress * (w_s * safety + w_e * lane_change_time + w_i * interaction)
+
+
 def max_in_view(ev) -> int:  # EvaluationConfig
     """H: the most vehicles that fit in the view at minimum spacing."""
     return ev.view_lanes * max(1, math.floor((ev.view_behind_m + ev.view_ahead_m) / ev.min_spacing_m))
@@ -339,6 +370,7 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         warnings_extra.append("no defined intelligence term has a non-zero weight: no intelligence score")
     intelligence = {"score": score, "weights": weights, "weighted": weighted,
                     "undefined_terms": ev.undefined_terms, "defined": defined, "effective_weights": effective}
+    comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
 
     # --- complexity
     W = ev.window_steps
@@ -370,10 +402,72 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "efficiency": efficiency,
         "interaction": interaction,
         "intelligence": intelligence,
+        "comparative": comparative,
         "complexity": complexity,
         "traffic": traffic_of_stream(st),
         "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
     }
+
+
+def comparative_of_stream(st: ScoreStream, collisions: int, exposures: int, durations: list[float],
+                          per_change: list[tuple[float, float, float, int]]) -> dict[str, Any]:
+    """The report's ``comparative`` section: the comparative score D and its terms with their
+    inputs (docs/evaluation.md §10). ``durations``: the completed SUT lane changes' times (s);
+    ``per_change``: each SUT lane change's (|v~|, |a~|, L̄, BVs in view), as I_i reads them."""
+    ev = st.ev
+    dt = st.dt_s if st.dt_s is not None else 0.1
+    d_sut = dt * st.speed_sum
+    d_ref = dt * st.ref_speed_sum
+    p = progress_score(d_sut, d_ref)
+    km = d_sut / 1000.0
+    s, rate = comparative_safety_score(collisions, exposures, km, ev.safety_rate_scale_per_km,
+                                       ev.collision_exposures)
+    neutral = ev.no_lane_change_value
+    t_l = float(np.mean(durations)) if durations else None
+    lct = math.exp(-t_l / ev.lane_change_time_scale_s) if durations else neutral
+    if per_change:
+        x = interaction_score(float(np.mean([c[0] for c in per_change])), float(np.mean([c[1] for c in per_change])),
+                              float(np.mean([c[2] for c in per_change])), ev.dv_max_mps, ev.da_max_mps2)
+    else:
+        x = neutral
+    weights = {"safety": ev.weight_safety, "lane_change_time": ev.weight_efficiency,
+               "interaction": ev.weight_interaction}
+    terms = {"safety": s, "lane_change_time": lct, "interaction": x}
+    return {
+        "score": comparative_score(p, s, lct, x, (weights["safety"], weights["lane_change_time"],
+                                                  weights["interaction"])),
+        "score_form": ev.score_form,
+        "progress": {"score": p, "sut_distance_m": d_sut, "reference_distance_m": d_ref,
+                     "reference_mean_speed_mps": st.ref_speed_sum / st.states,
+                     "states_without_vehicle_in_view": st.ref_empty_states, "v_max_mps": ev.v_max_mps},
+        "safety": {"score": s, "collisions": collisions, "exposures": exposures,
+                   "collision_exposures": ev.collision_exposures, "sut_km": km, "rate_per_km": _finite(rate),
+                   "rate_scale_per_km": ev.safety_rate_scale_per_km},
+        "lane_change_time": {"score": lct, "defined": bool(durations), "mean_lane_change_time_s": t_l,
+                             "lane_change_time_scale_s": ev.lane_change_time_scale_s},
+        "interaction": {"score": x, "defined": bool(per_change)},
+        "no_lane_change_value": neutral,
+        "weights": weights,
+        "weighted": {k: p * weights[k] * terms[k] for k in weights},
+    }
+
+
+#: The scores an experiment compares, by the names of the method's sections (:func:`compared_scores`).
+COMPARED_SCORES = ("intelligence", "safety", "efficiency", "interaction")
+
+
+def compared_scores(report: dict[str, Any]) -> dict[str, float | None]:
+    """The scores evoscen's experiments compare SUTs with, from a ``report.json`` dict, under the
+    names of the method's sections (:data:`COMPARED_SCORES`), as ``evaluation.score_form`` selects
+    (docs/evaluation.md §10): ``comparative`` -> D as ``intelligence``, its S as ``safety``, its
+    progress P as ``efficiency`` and its X as ``interaction``; ``method`` (or a report from before
+    the comparative score) -> the method's I, I_s, I_e, I_i as they are (``None`` where undefined)."""
+    comp = report.get("comparative")
+    form = (report.get("settings") or {}).get("score_form", "method")
+    if form == "comparative" and comp:
+        return {"intelligence": comp["score"], "safety": comp["safety"]["score"],
+                "efficiency": comp["progress"]["score"], "interaction": comp["interaction"]["score"]}
+    return {name: report[name]["score"] for name in COMPARED_SCORES}
 
 
 def surrogate_safety_of_stream(st: ScoreStream, pets: list[float | None]) -> dict[str, Any]:
