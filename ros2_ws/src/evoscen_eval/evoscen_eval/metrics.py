@@ -30,6 +30,12 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   T̄_l is undefined and I_e is the density-speed term alone; without any SUT lane change I_i
   is undefined (``null``) and I renormalises the remaining weights. ``literal``: the old
   arithmetic (T̄_l = ``no_lane_change_time_s``, I_i = 1).
+* **Comparative score** (``comparative``, docs/evaluation.md §10; :func:`comparative_of_stream`) —
+  D = P·(i_s·S + i_e·L + i_i·X) with the method's weights, never renormalised: P = min(1, the SUT's
+  distance / the distance at the mean speed of the vehicles in its view), S = 1/(1 + r/r0) with r =
+  (E + κ·C) per SUT-km, L and X the lane-change time and interaction terms or
+  ``no_lane_change_value`` without a SUT lane change. ``score_form`` says which score experiments
+  compare (:func:`compared_scores`); I is reported unchanged.
 * **Collisions C** — the ``evoscen/collision`` events involving the SUT (the simulation
   emits one per contact, not one per overlapping step); ``collisions_all`` counts every pair.
 * **Counts in I_s** (``count_normalisation`` [method_length]) — C and E are counted per run;
@@ -468,6 +474,18 @@ def compared_scores(report: dict[str, Any]) -> dict[str, float | None]:
         return {"intelligence": comp["score"], "safety": comp["safety"]["score"],
                 "efficiency": comp["progress"]["score"], "interaction": comp["interaction"]["score"]}
     return {name: report[name]["score"] for name in COMPARED_SCORES}
+
+
+def compared_weighted(report: dict[str, Any]) -> dict[str, float | None]:
+    """The weighted terms of the compared score (:func:`compared_scores`), summing to it: ``comparative``
+    -> P·i_s·S as ``safety``, P·i_e·L (the lane-change time term) as ``efficiency``, P·i_i·X as
+    ``interaction``; ``method`` -> the method's ``intelligence.weighted``."""
+    comp = report.get("comparative")
+    form = (report.get("settings") or {}).get("score_form", "method")
+    if form == "comparative" and comp:
+        w = comp["weighted"]
+        return {"safety": w["safety"], "efficiency": w["lane_change_time"], "interaction": w["interaction"]}
+    return dict(report["intelligence"]["weighted"])
 
 
 def surrogate_safety_of_stream(st: ScoreStream, pets: list[float | None]) -> dict[str, Any]:
