@@ -89,6 +89,10 @@ def main(argv: list[str] | None = None) -> int:
           f"efficiency {w['efficiency']:.4f}, interaction {w['interaction']:.4f})  complexity: "
           + ("-" if c is None else f"{c:.4f}")
           + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
+    d = report.get("comparative")
+    if d:  # docs/evaluation.md §10
+        print(f"comparative: {d['score']:.4f} (progress {d['progress']['score']:.4f}, safety {d['safety']['score']:.4f}, "
+              f"lane-change time {d['lane_change_time']['score']:.4f}, interaction {d['interaction']['score']:.4f})")
     print(f"report: {out / 'report.md'}")
     return EXIT_OK
 
