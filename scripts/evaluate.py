@@ -100,6 +100,10 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_eval.report import score_line
 
     print(f"{report['run']['steps']} steps; {score_line(report)}")
+    d = report.get("comparative")
+    if d:  # docs/evaluation.md §10
+        print(f"comparative: {d['score']:.4f} (progress {d['progress']['score']:.4f}, safety {d['safety']['score']:.4f}, "
+              f"lane-change time {d['lane_change_time']['score']:.4f}, interaction {d['interaction']['score']:.4f})")
     print(f"report: {out / 'report.md'}")
     return EXIT_OK
 

@@ -10,8 +10,10 @@ rounds run on ``--jobs`` Ray workers (the campaign engine) and are saved as they
 continues where it stopped (a finished round is not recomputed). Writes into ``--out``:
 ``intelligence.csv`` / ``intelligence.md`` (per SUT: the weighted safety, efficiency and
 interaction terms and the intelligence score, mean ± 95 % interval over seeds, with the
-collisions and exposures; below it every pair of SUTs compared on the same seeds: the mean
-per-seed difference of intelligence with its 95 % interval, and of the efficiency term; then per SUT
+collisions and exposures, and the comparative score D (docs/evaluation.md §10); below it every pair of
+SUTs compared on the same seeds: the mean per-seed difference of the score ``evaluation.score_form``
+selects (D by default, the method's I with ``method``) with its 95 % interval, and of the method's
+efficiency term; then per SUT
 its surrogate-safety rates per SUT-km, docs/evaluation.md), ``surrogate_safety.csv``, ``paired.csv``,
 ``paired_efficiency.csv``, ``rounds.csv`` (every round, with its rates), ``ttc.png`` and ``speed.png``
 (the SUTs' distributions overlaid, pooled over seeds); prints the table. Exit status: 0 done,
@@ -82,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
 
     header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
-              "collisions", "exposures", "seeds"]
+              "collisions", "exposures", "seeds", "comparative D"]
     from evoscen_bringup.sensitivity import SSM_RATES, ssm_label, ssm_rate
 
     rows, csv_rows, round_rows, ssm_rows, ssm_csv = [], [], [], [], []
@@ -93,8 +95,10 @@ def main(argv: list[str] | None = None) -> int:
         total = mean_ci([x["intelligence"]["score"] for x in reps])
         col = mean_ci([x["safety"]["collisions"] for x in reps])
         exp = mean_ci([x["safety"]["exposures"] for x in reps])
-        rows.append([sut, *(fmt_ci(*c) for c in cols), fmt_ci(*total), fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
-        csv_rows.append([sut, *(v for c in (*cols, total, col, exp) for v in c), len(reps)])
+        comp = mean_ci([x["comparative"]["score"] for x in reps])  # docs/evaluation.md §10
+        rows.append([sut, *(fmt_ci(*c) for c in cols), fmt_ci(*total), fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps)),
+                     fmt_ci(*comp)])
+        csv_rows.append([sut, *(v for c in (*cols, total, col, exp) for v in c), len(reps), *comp])
         rates = [mean_ci([v for v in (ssm_rate(x, side, m) for x in reps) if v == v]) for side, m in SSM_RATES]  # v == v: not nan
         ssm_rows.append([sut, *(fmt_ci(*c, 2) for c in rates), str(len(reps))])
         ssm_csv.append([sut, *(v for c in rates for v in c), len(reps)])
@@ -103,14 +107,14 @@ def main(argv: list[str] | None = None) -> int:
             round_rows.append([sut, r["seed"], r["steps"], x["safety"]["score"], x["efficiency"]["score"],
                                x["interaction"]["score"], x["intelligence"]["score"], x["safety"]["collisions"],
                                x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"], r["wall_time_s"],
-                               *(ssm_rate(x, side, m) for side, m in SSM_RATES)])
+                               *(ssm_rate(x, side, m) for side, m in SSM_RATES), x["comparative"]["score"]])
     write_csv(args.out / "intelligence.csv",
               ["sut", *(f"{k}_{s}" for k in ("safety_weighted", "efficiency_weighted", "interaction_weighted",
                                              "intelligence", "collisions", "exposures") for s in ("mean", "ci95")),
-               "seeds"], csv_rows)
+               "seeds", "comparative_mean", "comparative_ci95"], csv_rows)
     write_csv(args.out / "rounds.csv", ["sut", "seed", "steps", "safety", "efficiency", "interaction", "intelligence",
                                         "collisions", "exposures", "mean_speed_mps", "wall_time_s",
-                                        *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES)], round_rows)
+                                        *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES), "comparative"], round_rows)
     write_csv(args.out / "surrogate_safety.csv",
               ["sut", *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "seeds"], ssm_csv)
     pair_rows, pair_csv = paired_comparisons(suts, rounds, results)
@@ -124,7 +128,10 @@ def main(argv: list[str] | None = None) -> int:
     table = markdown_table(header, rows)
     first_report = results[rounds[0].key]["report"]
     ssm_table = markdown_table(["SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "seeds"], ssm_rows)
-    pair_table = (markdown_table(["A", "B", "I(A) − I(B), paired by seed", "seeds", "A vs B (95 %)"], pair_rows)
+    compared = ("D" if (first_report.get("settings") or {}).get("score_form") == "comparative" and "comparative"
+                in first_report else "I")  # evaluation.score_form: the score SUTs are compared with
+    pair_table = (markdown_table(["A", "B", f"{compared}(A) − {compared}(B), paired by seed", "seeds",
+                                  "A vs B (95 %)"], pair_rows)
                   if pair_rows else "")
     eff_table = (markdown_table(["A", "B", "I_e(A) − I_e(B), paired by seed", "seeds", "A vs B (95 %)"], eff_rows)
                  if eff_rows else "")
@@ -153,13 +160,18 @@ def main(argv: list[str] | None = None) -> int:
 
 def paired_comparisons(suts: list[str], rounds, results, section: str = "intelligence"
                        ) -> tuple[list[list[str]], list[list]]:
-    """Every pair of SUTs: the per-seed difference of ``section``'s score (intelligence, or a term:
-    efficiency, safety, interaction), mean ± 95 % interval (shared seeds)."""
+    """Every pair of SUTs: the per-seed difference of ``section``'s score (intelligence: the score
+    ``evaluation.score_form`` selects, D by default; or a term of the method: efficiency, safety,
+    interaction), mean ± 95 % interval (shared seeds)."""
     from evoscen_bringup.experiments import difference_words, fmt_ci
     from evoscen_bringup.sensitivity import paired
 
-    scores = {sut: {r.cfg.seed: results[r.key]["report"][section]["score"] for r in rounds if r.label == sut}
-              for sut in suts}
+    from evoscen_eval.metrics import compared_scores
+
+    def value(report: dict):  # the total as evaluation.score_form selects it (docs/evaluation.md §10); a term: the method's
+        return compared_scores(report)[section] if section == "intelligence" else report[section]["score"]
+
+    scores = {sut: {r.cfg.seed: value(results[r.key]["report"]) for r in rounds if r.label == sut} for sut in suts}
     rows, csv_rows = [], []
     for i, a in enumerate(suts):
         for b in suts[i + 1:]:

@@ -308,7 +308,12 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     wall = sum(results[r.key]["wall_time_s"] for r in rounds)
     simulated = sum(results[r.key]["report"]["run"]["duration_s"] for r in rounds)
     variants = len(scenarios) * len(bases) * (1 + len(mutants))
-    text = (f"# Sensitivity experiment (SUT mutation analysis)\n\n{len(bases)} base SUT(s) x {len(mutants)} mutants "
+    form = (first_report.get("settings") or {}).get("score_form", "method")
+    form_text = ("the comparative score (evaluation.score_form: comparative, docs/evaluation.md §10): I = D, I_s = its "
+                 "safety S, I_e = its progress P, I_i = its interaction X" if form == "comparative" else
+                 "the method's intelligence (evaluation.score_form: method)")
+    text = (f"# Sensitivity experiment (SUT mutation analysis)\n\nScores: {form_text}.\n\n"
+            f"{len(bases)} base SUT(s) x {len(mutants)} mutants "
             f"x {len(scenarios)} scenarios x {design.runs} {unit}s ({design.seeds[0]}..{design.seeds[-1]}), "
             f"{design.steps} steps, {cfg0.bvs.count} BVs; paired by {unit} (common random numbers: a seed fixes the "
             f"initial state after the warm-up and every random stream); differences intact − mutant of the "

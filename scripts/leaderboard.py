@@ -10,7 +10,10 @@ the default test (docs/sensitivity.md, the episodes design): ``--episodes`` shor
 runs of ``--episode-steps`` steps among the configuration's BVs (the shipped default: learned
 social drivers), each episode its own seed from ``--first-seed`` on. Every SUT gets the same
 seeds (the same initial traffic after the warm-up and the same random streams) and the same
-SUT steps, so the SUTs are compared paired, episode by episode. Per SUT: the intelligence score
+SUT steps, so the SUTs are compared paired, episode by episode. "Intelligence" is the score
+``evaluation.score_form`` selects (docs/evaluation.md §10): the comparative score D by default, its
+weighted terms P·i_s·S (safety), P·i_e·L (efficiency: the lane-change time term) and P·i_i·X
+(interaction); with ``method`` the method's I and its terms. Per SUT: that score
 and its three weighted terms (safety, efficiency, interaction), mean ± 95 % Student-t interval
 over the episodes, n, the collisions and exposures per episode, the surrogate-safety rates per
 SUT-km (docs/evaluation.md §9), and the paired difference of intelligence against
@@ -138,8 +141,10 @@ def main(argv: list[str] | None = None) -> int:
     order = ranked({s: stats[s][0] for s in ok})
     ref = args.reference if args.reference in ok else None
 
-    def weighted(rep: dict, term: str) -> float:
-        value = rep["intelligence"]["weighted"].get(term)
+    from evoscen_eval.metrics import compared_weighted
+
+    def weighted(rep: dict, term: str) -> float:  # the compared score's terms (evaluation.score_form)
+        value = compared_weighted(rep).get(term)
         return math.nan if value is None else float(value)
 
     def ci(values) -> tuple[float, float]:

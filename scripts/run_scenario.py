@@ -131,6 +131,10 @@ def print_scores(report_dir: Path) -> None:
     from evoscen_eval.report import score_line
 
     print(score_line(r))
+    d = r.get("comparative")
+    if d:  # docs/evaluation.md §10
+        print(f"comparative: {d['score']:.4f} (progress {d['progress']['score']:.4f}, safety {d['safety']['score']:.4f}, "
+              f"lane-change time {d['lane_change_time']['score']:.4f}, interaction {d['interaction']['score']:.4f})")
     for warning in r["warnings"]:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"report: {report_dir / 'report.md'}")

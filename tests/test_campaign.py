@@ -162,7 +162,9 @@ def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
     here_run = run_inprocess(runs[4].cfg, bag_dir=None, evaluate=True, plots=False)
     here, here_plot = here_run.report, here_run.plot
     row = next(row for row in table if row["key"] == runs[4].key)
-    assert row["intelligence"] == here["intelligence"]["score"]
+    from evoscen_eval.metrics import compared_scores
+
+    assert row["intelligence"] == compared_scores(here)["intelligence"] == here["comparative"]["score"]
     assert row["collisions"] == here["safety"]["collisions"] and row["seed"] == 1 and row["sut.model"] == "level0"
     assert row["traffic_mean_bvs"] == here["traffic"]["mean_bvs"]
     assert row["traffic_empty_share"] == here["traffic"]["empty_share"]

@@ -68,7 +68,7 @@ def test_intelligence_paired_comparisons(intelligence):
     out, res = intelligence
     assert res.returncode == 0, res.stderr
     rounds = read_csv(out / "rounds.csv")
-    score = {(r["sut"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+    score = {(r["sut"], int(r["seed"])): float(r["comparative"]) for r in rounds}  # evaluation.score_form's default
     pairs = read_csv(out / "paired.csv")
     assert [(p["sut_a"], p["sut_b"]) for p in pairs] == [("nilsson", "mobil"), ("nilsson", "stackelberg"),
                                                          ("mobil", "stackelberg")]

@@ -82,8 +82,11 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
         raise HostFault.of(exc, exc.filename or tempfile.gettempdir()) from None
     report = summary.report
     row: dict[str, Any] = {"key": run.key, **dict(run.cell), "seed": run.seed, "steps": summary.steps}
+    from evoscen_eval.metrics import compared_scores
+
+    compared = compared_scores(report)  # evaluation.score_form: D and its terms [default], or the method's
     for name in SCORE_COLUMNS:
-        value = report[name]["score"]
+        value = compared[name] if name in compared else report[name]["score"]
         row[name] = math.nan if value is None else float(value)
     row["collisions"] = int(report["safety"]["collisions"])
     for kind, count in report["safety"]["collisions_by_kind"].items():

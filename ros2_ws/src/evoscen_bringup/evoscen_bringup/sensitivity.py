@@ -38,8 +38,10 @@ from dataclasses import dataclass
 import numpy as np
 
 SCORES = ("intelligence", "safety", "efficiency", "interaction")
-"""The report's scores compared intact − mutant (each the unweighted ``score`` of its section,
-``intelligence`` the total)."""
+"""The report's scores compared intact − mutant, as ``evaluation.score_form`` selects them
+(:func:`evoscen_eval.metrics.compared_scores`): the comparative score D, its safety S, progress P
+and interaction X [default], or the method's I, I_s, I_e, I_i (each the unweighted ``score`` of
+its section, ``intelligence`` the total)."""
 
 
 @dataclass(frozen=True)
@@ -122,11 +124,13 @@ def mutation_score(detected: Sequence[bool]) -> float:
 
 
 def score_of(report: Mapping, name: str) -> float:
-    """The score ``name`` (one of :data:`SCORES`) of a ``report.json`` dict; ``nan`` when the
-    report leaves it undefined (``null``, docs/evaluation.md "Undefined score terms")."""
+    """The score ``name`` (one of :data:`SCORES`, in the form the report's ``evaluation.score_form``
+    selects) of a ``report.json`` dict; ``nan`` when the report leaves it undefined (``null``, docs/evaluation.md "Undefined score terms")."""
     if name not in SCORES:
         raise ValueError(f"score {name!r}: expected one of {', '.join(SCORES)}")
-    value = report[name]["score"]
+    from evoscen_eval.metrics import compared_scores
+
+    value = compared_scores(report)[name]
     return math.nan if value is None else float(value)
 
 

@@ -30,6 +30,12 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   T̄_l is undefined and I_e is the density-speed term alone; without any SUT lane change I_i
   is undefined (``null``) and I renormalises the remaining weights. ``literal``: the old
   arithmetic (T̄_l = ``no_lane_change_time_s``, I_i = 1).
+* **Comparative score** (``comparative``, docs/evaluation.md §10; :func:`comparative_of_stream`) —
+  D = P·(i_s·S + i_e·L + i_i·X) with the method's weights, never renormalised: P = min(1, the SUT's
+  distance / the distance at the mean speed of the vehicles in its view), S = 1/(1 + r/r0) with r =
+  (E + κ·C) per SUT-km, L and X the lane-change time and interaction terms or
+  ``no_lane_change_value`` without a SUT lane change. ``score_form`` says which score experiments
+  compare (:func:`compared_scores`); I is reported unchanged.
 * **Collisions C** — the ``evoscen/collision`` events involving the SUT (the simulation
   emits one per contact, not one per overlapping step); ``collisions_all`` counts every pair.
 * **Counts in I_s** (``count_normalisation`` [method_length]) — C and E are counted per run;
@@ -136,6 +142,37 @@ def complexity_score(exposures: float, lane_changes: float, accel_decel: float,
     """C = 0.4·(1 − e^(−E/k1)) + 0.3·(2 − e^(−LC/k2) − e^(−AD/k3))  (docs/method.md §5.2)."""
     return 0.4 * (1.0 - math.exp(-exposures / k1)) + 0.3 * (2.0 - math.exp(-lane_changes / k2)
                                                             - math.exp(-accel_decel / k3))
+
+
+def progress_score(sut_distance_m: float, reference_distance_m: float) -> float:
+    """P = min(1, d_SUT / d_ref): the SUT's distance over the distance the traffic around it
+    covered in the same time (docs/evaluation.md §10.2); 1 where the reference is 0 (the traffic
+    allowed no progress, none is owed)."""
+    if reference_distance_m <= 0.0:
+        return 1.0
+    return min(1.0, max(sut_distance_m, 0.0) / reference_distance_m)
+
+
+def comparative_safety_score(collisions: float, exposures: float, sut_km: float, scale_per_km: float,
+                             collision_exposures: float) -> tuple[float, float]:
+    """S = 1/(1 + r/r0), r = (E + κ·C)/km the SUT's exposure rate per SUT-km with a collision
+    counting κ exposures, r0 = ``scale_per_km`` (docs/evaluation.md §10.1). Returns (S, r): no
+    count gives S = 1 however far the SUT drove; counts over 0 km give r = ∞, S = 0."""
+    count = exposures + collision_exposures * collisions
+    if count <= 0.0:
+        return 1.0, 0.0
+    if sut_km <= 0.0:
+        return 0.0, math.inf
+    rate = count / sut_km
+    return 1.0 / (1.0 + rate / scale_per_km), rate
+
+
+def comparative_score(progress: float, safety: float, lane_change_time: float, interaction: float,
+                      weights: tuple[float, float, float]) -> float:
+    """D = P·(i_s·S + i_e·L + i_i·X)  (docs/evaluation.md §10): every term defined in every run,
+    the weights never renormalised."""
+    w_s, w_e, w_i = weights
+    return progress * (w_s * safety + w_e * lane_change_time + w_i * interaction)
 
 
 def max_in_view(ev) -> int:  # EvaluationConfig
@@ -339,6 +376,7 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         warnings_extra.append("no defined intelligence term has a non-zero weight: no intelligence score")
     intelligence = {"score": score, "weights": weights, "weighted": weighted,
                     "undefined_terms": ev.undefined_terms, "defined": defined, "effective_weights": effective}
+    comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
 
     # --- complexity
     W = ev.window_steps
@@ -370,10 +408,84 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "efficiency": efficiency,
         "interaction": interaction,
         "intelligence": intelligence,
+        "comparative": comparative,
         "complexity": complexity,
         "traffic": traffic_of_stream(st),
         "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
     }
+
+
+def comparative_of_stream(st: ScoreStream, collisions: int, exposures: int, durations: list[float],
+                          per_change: list[tuple[float, float, float, int]]) -> dict[str, Any]:
+    """The report's ``comparative`` section: the comparative score D and its terms with their
+    inputs (docs/evaluation.md §10). ``durations``: the completed SUT lane changes' times (s);
+    ``per_change``: each SUT lane change's (|v~|, |a~|, L̄, BVs in view), as I_i reads them."""
+    ev = st.ev
+    dt = st.dt_s if st.dt_s is not None else 0.1
+    d_sut = dt * st.speed_sum
+    d_ref = dt * st.ref_speed_sum
+    p = progress_score(d_sut, d_ref)
+    km = d_sut / 1000.0
+    s, rate = comparative_safety_score(collisions, exposures, km, ev.safety_rate_scale_per_km,
+                                       ev.collision_exposures)
+    neutral = ev.no_lane_change_value
+    t_l = float(np.mean(durations)) if durations else None
+    lct = math.exp(-t_l / ev.lane_change_time_scale_s) if durations else neutral
+    if per_change:
+        x = interaction_score(float(np.mean([c[0] for c in per_change])), float(np.mean([c[1] for c in per_change])),
+                              float(np.mean([c[2] for c in per_change])), ev.dv_max_mps, ev.da_max_mps2)
+    else:
+        x = neutral
+    weights = {"safety": ev.weight_safety, "lane_change_time": ev.weight_efficiency,
+               "interaction": ev.weight_interaction}
+    terms = {"safety": s, "lane_change_time": lct, "interaction": x}
+    return {
+        "score": comparative_score(p, s, lct, x, (weights["safety"], weights["lane_change_time"],
+                                                  weights["interaction"])),
+        "score_form": ev.score_form,
+        "progress": {"score": p, "sut_distance_m": d_sut, "reference_distance_m": d_ref,
+                     "reference_mean_speed_mps": st.ref_speed_sum / st.states,
+                     "states_without_vehicle_in_view": st.ref_empty_states, "v_max_mps": ev.v_max_mps},
+        "safety": {"score": s, "collisions": collisions, "exposures": exposures,
+                   "collision_exposures": ev.collision_exposures, "sut_km": km, "rate_per_km": _finite(rate),
+                   "rate_scale_per_km": ev.safety_rate_scale_per_km},
+        "lane_change_time": {"score": lct, "defined": bool(durations), "mean_lane_change_time_s": t_l,
+                             "lane_change_time_scale_s": ev.lane_change_time_scale_s},
+        "interaction": {"score": x, "defined": bool(per_change)},
+        "no_lane_change_value": neutral,
+        "weights": weights,
+        "weighted": {k: p * weights[k] * terms[k] for k in weights},
+    }
+
+
+#: The scores an experiment compares, by the names of the method's sections (:func:`compared_scores`).
+COMPARED_SCORES = ("intelligence", "safety", "efficiency", "interaction")
+
+
+def compared_scores(report: dict[str, Any]) -> dict[str, float | None]:
+    """The scores evoscen's experiments compare SUTs with, from a ``report.json`` dict, under the
+    names of the method's sections (:data:`COMPARED_SCORES`), as ``evaluation.score_form`` selects
+    (docs/evaluation.md §10): ``comparative`` -> D as ``intelligence``, its S as ``safety``, its
+    progress P as ``efficiency`` and its X as ``interaction``; ``method`` (or a report from before
+    the comparative score) -> the method's I, I_s, I_e, I_i as they are (``None`` where undefined)."""
+    comp = report.get("comparative")
+    form = (report.get("settings") or {}).get("score_form", "method")
+    if form == "comparative" and comp:
+        return {"intelligence": comp["score"], "safety": comp["safety"]["score"],
+                "efficiency": comp["progress"]["score"], "interaction": comp["interaction"]["score"]}
+    return {name: report[name]["score"] for name in COMPARED_SCORES}
+
+
+def compared_weighted(report: dict[str, Any]) -> dict[str, float | None]:
+    """The weighted terms of the compared score (:func:`compared_scores`), summing to it: ``comparative``
+    -> P·i_s·S as ``safety``, P·i_e·L (the lane-change time term) as ``efficiency``, P·i_i·X as
+    ``interaction``; ``method`` -> the method's ``intelligence.weighted``."""
+    comp = report.get("comparative")
+    form = (report.get("settings") or {}).get("score_form", "method")
+    if form == "comparative" and comp:
+        w = comp["weighted"]
+        return {"safety": w["safety"], "efficiency": w["lane_change_time"], "interaction": w["interaction"]}
+    return dict(report["intelligence"]["weighted"])
 
 
 def surrogate_safety_of_stream(st: ScoreStream, pets: list[float | None]) -> dict[str, Any]:

@@ -173,6 +173,14 @@ def markdown(report: dict[str, Any], images: list[str], ev: EvaluationConfig | N
             f"| interaction I_i | {_f(i['score'])}{'' if i.get('defined', True) else ' (undefined: no SUT lane change, left out)'}"
             f" | {_f(ew['interaction'])} | {_f(w['interaction'])} |",
             f"| **intelligence I** | | | **{_f(g['score'])}** |\n"]
+    d = report.get("comparative")
+    if d:  # docs/evaluation.md §10: the score experiments compare SUTs with (evaluation.score_form)
+        dw = d["weights"]
+        out[-1] = out[-1][:-1]  # the table goes on
+        out += [f"| comparative D = P·({dw['safety']:g}·S + {dw['lane_change_time']:g}·L + {dw['interaction']:g}·X): "
+                f"P {_f(d['progress']['score'])}, "
+                f"S {_f(d['safety']['score'])}, L {_f(d['lane_change_time']['score'])}, X {_f(d['interaction']['score'])}"
+                f" | | | **{_f(d['score'])}** |\n"]
     scaled = s.get("count_normalisation") == "method_length"
     formula = ("I_s = 0.7·(1 − min(C', C_max)/C_max) + 0.3·e^(−E'), C' = C·N_ref/N, E' = E·N_ref/N "
                "(counts scaled to the method's run length)\n" if scaled else "I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)\n")

@@ -138,6 +138,10 @@ class ScoreStream:
                                      "drac_sut", "drac_follower", "drac_follower_att", "in_view", "cut_in",
                                      "cut_in_only", "beside", "beside_only", "headway", "headway_only")}
         self.speed_sum = 0.0
+        # the comparative score's progress reference (docs/evaluation.md §10): per state the mean
+        # speed of the other vehicles in the SUT's view (v_max_mps with none in view), summed
+        self.ref_speed_sum = 0.0
+        self.ref_empty_states = 0
         self.min_ttc = math.inf
         self.min_accel = math.inf
         self.min_f_ttc = math.inf
@@ -301,6 +305,10 @@ class ScoreStream:
         nb["drac_follower_att"] += int(((drac_f > ev.drac_threshold_mps2) & attributed).sum())
         nb["in_view"] += int(in_view.sum())
         self.speed_sum += float(speed.sum())
+        n_view = in_view.sum(axis=1)
+        v_view = np.where(in_view, v, 0.0).sum(axis=1)
+        self.ref_speed_sum += float(np.where(n_view > 0, v_view / np.maximum(n_view, 1), ev.v_max_mps).sum())
+        self.ref_empty_states += int((n_view == 0).sum())
         self.min_ttc = min(self.min_ttc, float(ttc.min()))
         self.min_accel = min(self.min_accel, float(accel.min()))
         self.min_f_ttc = min(self.min_f_ttc, float(f_ttc.min()))

@@ -32,13 +32,28 @@ def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # 
     """
     from evoscen_sim.config.scenario_config import config_to_dict
 
-    scenario = config_to_dict(cfg)
+    scenario = _without_unset(config_to_dict(cfg))
     scenario["map"], digest = portable_map_ref(cfg.map)
     meta = {SCENARIO_KEY: yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None),
             MAP_HASH_KEY: digest}
     if external_sut:
         meta[SUT_SOURCE_KEY] = EXTERNAL_SUT
     return meta
+
+
+def _without_unset(scenario: dict) -> dict:
+    """``scenario`` without the ``evaluation`` keys of
+    :data:`evoscen_sim.config.config_schema.RECORDED_WHEN_SET` that hold their defaults: those keys
+    shape only the comparative score (docs/evaluation.md §10), so a run at the defaults records the
+    bytes it recorded before they existed, and a set one is recorded (and scored again from the bag)."""
+    from evoscen_sim.config.config_schema import RECORDED_WHEN_SET, EvaluationConfig
+
+    section = scenario.get("evaluation")
+    if isinstance(section, dict):
+        defaults = EvaluationConfig()
+        scenario["evaluation"] = {k: v for k, v in section.items()
+                                  if not (k in RECORDED_WHEN_SET and v == getattr(defaults, k))}
+    return scenario
 
 
 def portable_map_ref(map_path: str | Path) -> tuple[str, str]:

@@ -30,6 +30,11 @@ Operators (parameters in brackets; see docs/mutants.md for the reasons of the de
   - ``over_eager`` [``retune``]: the base model's own parameters re-tuned to change lanes
     eagerly (:data:`EAGER_PRESETS` for ``mobil``, ``nilsson``, ``stackelberg``; for any model,
     ``retune: "name=value, ..."`` names parameters of ``models.<base>`` to replace).
+  - ``timid`` [``speed_factor``]: the base's desired speed multiplied by ``speed_factor`` (its
+    desired-speed parameters, :func:`timid_parameters`): the SUT gives away progress the traffic
+    allows.
+  - ``frozen``: no discretionary lane change — the base's lane-change requests pass only while
+    the SUT is on a lane that ends ahead (the merge lane: the mandatory merge); elsewhere none.
 
 * control —
 
@@ -71,7 +76,7 @@ from evoscen_sim.physics.view import WorldView
 NAME = "mutant"
 
 PERCEPTION = ("blind_behind", "short_view", "stale")
-DECISION = ("ignores_new_follower", "late_lane_change", "over_eager")
+DECISION = ("ignores_new_follower", "late_lane_change", "over_eager", "timid", "frozen")
 CONTROL = ("reaction_time", "weak_braking", "late_braking", "tailgating")
 OPERATORS = PERCEPTION + DECISION + CONTROL
 """Every operator, by class: perception, decision, control."""
@@ -119,6 +124,10 @@ class MutantParams:
     extra_gap_m: float = number(15.0, 0.0, 500.0)
     """``tailgating``: the vehicles ahead in the own lane appear this much farther (m). Default
     15 m: the Krauss follower's ~1 s headway at highway speed (25–33 m/s) shrinks to ~0.5 s."""
+    speed_factor: float = number(0.6, 0.0, 1.0, lo_open=True)
+    """``timid``: the base's desired speed is multiplied by this. Default 0.6: a driver at 60 % of
+    the speed it was built for (72 km/h where the built-in models want 120 km/h), far below the
+    mainline's 90 km/h minimum (docs/mutants.md)."""
     retune: str = text("preset")
     """``over_eager``: ``preset`` (:data:`EAGER_PRESETS` of the base model) or
     ``"name=value, ..."``: parameters of ``models.<base>`` to replace (applied on top of the
@@ -225,6 +234,12 @@ class MutantDriver:
         ahead = (view.lane[others] == view.lane[ego]) & (view.s[others] > view.s[ego])
         return subview(view, ego, others, s_shift=np.where(ahead, self.params.extra_gap_m, 0.0))
 
+    def _on_ending_lane(self, view: Any) -> bool:
+        """The SUT is on a lane that ends ahead (the merge lane): changing out of it is mandatory."""
+        ego = self.ego
+        dist = view.road.distance_to_lane_end(np.array([view.lane[ego]]), np.array([view.s[ego]], dtype=float))
+        return bool(np.isfinite(dist[0]))
+
     def act(self, view: Any) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} of the SUT."""
         p, op = self.params, self.params.operator
@@ -248,6 +263,8 @@ class MutantDriver:
                 self._commands.extend([(throttle.copy(), np.zeros_like(lane_change))] * p.delay_steps)
             self._commands.append((throttle.copy(), lane_change.copy()))
             throttle, lane_change = (x.copy() for x in self._commands[0])
+        elif op == "frozen":
+            lane_change = np.where(self._on_ending_lane(view), lane_change, 0)
         elif op == "weak_braking":
             throttle = np.where(throttle < 0.0, throttle * p.brake_factor, throttle)
         elif op == "late_braking":
@@ -290,6 +307,55 @@ def _retuned(base: str, base_params: Any, retune: str) -> Any:
     return dataclasses.replace(base_params, **checked)
 
 
+KRAUSS_BASES = ("mobil", "nilsson", "stackelberg")
+"""Built-in SUT models whose car following is the scenario's Krauss model (``models.krauss``):
+``timid`` scales its desired speed too."""
+SPEED_FIELDS = ("desired_speed_mps", "speed_factor")
+"""Parameters of ``models.<base>`` that set a desired speed (a speed, or a multiple of the speed
+limit as ``sumo_sut``'s ``speed_factor``): ``timid`` scales each one the base has."""
+
+
+def _replaced(obj: Any, **changes: Any) -> Any:
+    """``obj`` with ``changes`` (a dataclass through :func:`dataclasses.replace`, else a shallow copy)."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return dataclasses.replace(obj, **changes)
+    out = copy.copy(obj)
+    for key, value in changes.items():
+        setattr(out, key, value)
+    return out
+
+
+def timid_parameters(base: str, base_params: Any, config: Any, factor: float) -> tuple[Any, Any, list[str]]:
+    """The base's parameters and the scenario with every desired speed of the base multiplied by
+    ``factor`` (``timid``), and the keys changed: each of :data:`SPEED_FIELDS` its parameters have,
+    ``models.krauss.desired_speed_mps`` for :data:`KRAUSS_BASES` (the configuration handed to the
+    base only: the BVs keep theirs), ``level0.desired_speed_mps`` (the range) for ``level0``.
+    InputError (one line) for a base without a desired speed evoscen knows."""
+    changed: list[str] = []
+    if base_params is not None and dataclasses.is_dataclass(base_params):
+        names = {f.name for f in dataclasses.fields(base_params)}
+        updates = {n: getattr(base_params, n) * factor for n in SPEED_FIELDS if n in names}
+        if updates:
+            base_params = dataclasses.replace(base_params, **updates)
+            changed += [f"models.{base}.{n}" for n in updates]
+    if base in KRAUSS_BASES:
+        from .krauss import NAME as KRAUSS, krauss_params_from_config
+
+        kp = krauss_params_from_config(config)
+        models = dict(getattr(config, "models", None) or {})
+        models[KRAUSS] = dataclasses.replace(kp, desired_speed_mps=kp.desired_speed_mps * factor)
+        config = _replaced(config, models=models)
+        changed.append(f"models.{KRAUSS}.desired_speed_mps")
+    if base == "level0":
+        lo, hi = config.level0.desired_speed_mps
+        config = _replaced(config, level0=_replaced(config.level0, desired_speed_mps=(lo * factor, hi * factor)))
+        changed.append("level0.desired_speed_mps")
+    if not changed:
+        raise InputError(f"models.mutant.operator 'timid': base model '{base}' has no desired speed to scale "
+                         f"(expected a parameter {' or '.join(SPEED_FIELDS)} in models.{base})")
+    return base_params, config, changed
+
+
 def make_driver(vehicles: np.ndarray, params: MutantParams | None, config: Any,
                 rng: np.random.Generator) -> MutantDriver:
     """Factory of the ``mutant`` model (:class:`evoscen_sim.model_registry.ModelSpec`)."""
@@ -308,6 +374,8 @@ def make_driver(vehicles: np.ndarray, params: MutantParams | None, config: Any,
             base_params = spec.params_type()
     if params.operator == "over_eager":
         base_params = _retuned(params.base, base_params, params.retune)
+    if params.operator == "timid":
+        base_params, config, _ = timid_parameters(params.base, base_params, config, params.speed_factor)
 
     def make_base(rows: np.ndarray, generator: np.random.Generator) -> Any:
         return spec.factory(np.asarray(rows, dtype=np.int64), base_params, config, generator)

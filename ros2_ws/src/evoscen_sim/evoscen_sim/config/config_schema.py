@@ -293,6 +293,14 @@ HARD_BRAKING_RULES = ("conflict", "own")
 UNDEFINED_TERM_RULES = ("exclude", "literal")
 #: ``evaluation.count_normalisation`` values.
 COUNT_NORMALISATIONS = ("method_length", "literal")
+#: ``evaluation.score_form`` values: the score experiments compare SUTs with (docs/evaluation.md §10).
+SCORE_FORMS = ("comparative", "method")
+#: The ``evaluation`` keys a bag's scenario record carries only when they differ from their defaults
+#: (:func:`evoscen_record.scenario_record.scenario_metadata`): they select and shape the comparative
+#: score (docs/evaluation.md §10), which reads nothing the recording depends on, so a run at the
+#: defaults records the same bytes as before the keys existed; a recorded section without them is
+#: scored with their defaults.
+RECORDED_WHEN_SET = ("score_form", "no_lane_change_value", "safety_rate_scale_per_km", "collision_exposures")
 
 
 @dataclass(frozen=True)
@@ -412,6 +420,22 @@ class EvaluationConfig:
     """A score term undefined in the run (T_l without a completed SUT lane change; I_i without
     any SUT lane change): exclude = left out and the remaining weights renormalised;
     literal = T_l = no_lane_change_time_s and I_i = 1 (the method's arithmetic taken literally)."""
+    score_form: str = field(default="comparative", metadata=_check(_Str(lambda: SCORE_FORMS)))
+    """The score evoscen's experiments compare SUTs with (sensitivity, intelligence, leaderboard,
+    campaigns): comparative = the comparative score D (report.json ``comparative``: every term
+    defined in every run, safety per SUT-km without saturation, progress relative to the traffic);
+    method = the method's intelligence I (``intelligence``, as shaped by the keys above). Every
+    report carries both. See docs/evaluation.md §10."""
+    no_lane_change_value: float = field(default=0.5, metadata=_check(_Float(0.0, 1.0)))
+    """Comparative score: the value of its lane-change time and interaction terms in a run without
+    (completed) SUT lane change, in [0, 1], the same for every SUT; 0.5 = the middle of the
+    terms' range (docs/evaluation.md §10)."""
+    safety_rate_scale_per_km: float = field(default=1.0, metadata=_POSITIVE)
+    """Comparative score: the exposure rate per SUT-km at which its safety term is 1/2,
+    S = 1/(1 + r/scale) (docs/evaluation.md §10)."""
+    collision_exposures: float = field(default=10.0, metadata=_NON_NEGATIVE)
+    """Comparative score: a SUT collision counts as this many exposures in the safety rate
+    (docs/evaluation.md §10)."""
 
 
 @dataclass(frozen=True)
