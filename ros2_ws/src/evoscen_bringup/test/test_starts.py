@@ -140,3 +140,17 @@ def test_a_failed_answer_is_noted_as_a_failed_task_was(tmp_path, answer, failed,
     assert result.failed == failed
     assert result.host_fault == fault
     assert not (tmp_path / "runs").exists()
+
+
+def test_a_recorded_run_from_a_shared_start_writes_the_same_bag(tmp_path):
+    cache = StartCache()
+    for k, variant in enumerate(VARIANTS):  # the second from the first's start, copied; BV nodes as recorded
+        cfg = load_scenario_config(None, {**variant, "seed": str(SEEDS[0]), "steps": "40"})
+        fresh, shared = tmp_path / f"fresh{k}" / "bag", tmp_path / f"shared{k}" / "bag"
+        run_inprocess(cfg, bag_dir=fresh, scenario=build_scenario(cfg), bag_writer="inline")
+        run_inprocess(cfg, bag_dir=shared, scenario=cache.scenario(cfg, partitioned=True), bag_writer="inline")
+        names = sorted(p.name for p in fresh.iterdir())
+        assert names == sorted(p.name for p in shared.iterdir())
+        for name in names:
+            assert (shared / name).read_bytes() == (fresh / name).read_bytes(), (variant, name)
+    assert (cache.built, cache.reused) == (1, 1)
