@@ -6,7 +6,7 @@ from highD's per-truck speeds, :mod:`evoscen_sim.physics.makeup`) and truck para
 follows (:func:`evoscen_bv.car_following.leaders`: vehicles *occupying* its lane — in it, changing
 into it or reaching into it — and its target lane's while it changes lanes; the merge lane's end
 as a standing leader), braking at most ``max_decel_mps2``. It changes lanes by MOBIL's asymmetric
-keep-right rules (:func:`evoscen_sut.mobil.lane_change_decision`) with truck IDM parameters, a
+keep-right rules (:func:`evoscen_sut.mobil.lane_change_decision`'s kernel) with truck IDM parameters, a
 larger keep-right bias and politeness, and never into the leftmost ``keep_off_left_lanes`` lanes.
 
 :class:`MakeupDriver` drives the BVs under ``bvs.makeup: highd``: the cars with ``bvs.driver`` (its
@@ -23,7 +23,8 @@ import numpy as np
 from evoscen_sim.config.scenario_config import integer, number
 from evoscen_sim.jit import kernel
 from evoscen_sim.physics.idm import idm_scalar
-from evoscen_sut.mobil import MobilParams, lane_change_decision
+from evoscen_sut.krauss_lane_change import kernel_params
+from evoscen_sut.mobil import MobilKernelParams, MobilParams, _mobil_decision_kernel, conflict_rule
 
 from .car_following import _occupancy, leaders
 
@@ -69,6 +70,10 @@ class TruckParams:
     """The merge lane's end is a standing leader this far before it (m), in the IDM and in MOBIL. [choice] 50:
     the map's merge lane narrows over its last 50 m, and a 2.5-m-wide truck standing there reaches into
     lane II (cars: 15 m, ``level0.merge_stop_margin_m``)."""
+    decision_interval_steps: int = integer(5, 1, 1000)
+    """A truck decides on lane changes every this many simulation steps (at steps that are multiples of it).
+    [choice] 5 (0.5 s at dt = 0.1 s): a driver's reaction time; and the decision is the driver's costliest
+    part (docs/performance.md)."""
     keep_off_left_lanes: int = integer(1, 0, 8)
     """A truck never changes into the leftmost this-many lanes. [choice] 1: German rules bar trucks over
     3.5 t from the left lane of a carriageway with three lanes or more (StVO §7(3c))."""
@@ -112,6 +117,8 @@ class TruckDriver:
         self.desired_speed_mps = np.asarray(desired_speed_mps, dtype=float).copy()
         self.vehicle_params = vehicle_params
         self.mobil = _mobil_params(params)
+        self._mobil_kernel_args = (kernel_params(MobilKernelParams, self.mobil), conflict_rule(self.mobil))
+        """What :func:`evoscen_sut.mobil.lane_change_decision` makes of the parameters each call, made once."""
         self._margin = _Margin(float(params.merge_stop_margin_m))
 
     def restrict(self, positions: np.ndarray) -> None:
@@ -134,7 +141,13 @@ class TruckDriver:
         acc = self.accel(view)
         vp = self.vehicle_params
         throttle = np.clip(np.where(acc >= 0.0, acc / vp.max_accel_mps2, acc / vp.max_brake_mps2), -1.0, 1.0)
-        request = np.asarray(lane_change_decision(view, self.vehicles, self.mobil), dtype=np.int64).copy()
+        if int(view.step_index) % int(self.params.decision_interval_steps) != 0:
+            return throttle, np.zeros(self.vehicles.size, dtype=np.int64)
+        nb = view.neighborhood()  # evoscen_sut.mobil.lane_change_decision, its parameters made once
+        request = np.asarray(_mobil_decision_kernel(
+            self.vehicles, view.s, view.d, view.v, view.length, view.lane, view.target_lane, view.lane_change,
+            view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower,
+            nb.follower_speed_mps, view.road.kernel_tables(), *self._mobil_kernel_args), dtype=np.int64).copy()
         top = int(view.road.num_lanes) - int(self.params.keep_off_left_lanes)
         lane = np.asarray(view.lane)[self.vehicles]
         content = np.asarray(view.v, dtype=float)[self.vehicles] > self.desired_speed_mps - self.params.overtake_deficit_mps

@@ -219,11 +219,12 @@ class TrafficWindow:
             if mk is None:
                 v = float(_np_clip(world.rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
                 v_floor = max(0.0, mean - 2.0 * sd)
-            else:  # highd: the slot's own desired speed, trucks on the right (docs/bv-profiles.md)
+            else:  # highd: the slot's own desired speed, lowered to any safe one; trucks on the right
+                # (docs/bv-profiles.md, "Traffic make-up")
                 v = float(mk.wish_mps[i])
                 if lane == MERGE_LANE:  # from the on-ramp: at most the ramp's mean speed
                     v = min(v, float(mean))
-                v_floor = min(max(0.0, mean - 2.0 * sd), v)
+                v_floor = 0.0  # any safe speed up to the wish (SUMO's departSpeed="max")
             if lane == MERGE_LANE:
                 s_new = float(road.lane_start_s[MERGE_LANE]) + half
             elif v < v_sut:
