@@ -26,7 +26,7 @@ from evoscen_sim.physics.idm import idm_scalar
 from evoscen_sut.krauss_lane_change import kernel_params
 from evoscen_sut.mobil import MobilKernelParams, MobilParams, _mobil_decision_kernel, conflict_rule
 
-from .car_following import _occupancy, leaders
+from .car_following import _ALL_SEEN, _nearest_leaders, _occupancy, leaders
 
 
 @dataclass(frozen=True)
@@ -126,33 +126,64 @@ class TruckDriver:
         self.vehicles = self.vehicles[positions]
         self.desired_speed_mps = self.desired_speed_mps[positions]
 
-    def accel(self, view) -> np.ndarray:
-        """IDM acceleration of every hosted truck (m/s², at least ``-max_decel_mps2``)."""
-        gap, vl, _ = leaders(view, self.vehicles, self._margin)
+    def accel(self, view, occ: np.ndarray | None = None) -> np.ndarray:
+        """IDM acceleration of every hosted truck (m/s², at least ``-max_decel_mps2``); ``occ``: the view's
+        :func:`evoscen_bv.car_following._occupancy`, if the caller has it."""
+        if occ is None:
+            gap, vl, _ = leaders(view, self.vehicles, self._margin)
+        else:  # leaders() from the occupancy given
+            stop = float(view.road.lane_end_s[0]) - self._margin.merge_stop_margin_m
+            gap, vl, _ = _nearest_leaders(self.vehicles, view.s, view.v, view.accel, view.lane, view.lane_change,
+                                          view.target_lane, view.length, view.lane_lookup().present, stop, occ,
+                                          _ALL_SEEN, 0, occ, np.zeros(self.vehicles.size, dtype=np.bool_))
         p = self.params
         return _truck_accel(self.vehicles, np.asarray(view.v, dtype=float), self.desired_speed_mps, gap, vl,
                             p.time_headway_s, p.min_gap_m, p.accel_mps2, p.comfort_decel_mps2, p.delta,
                             p.max_decel_mps2)
 
-    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
-        """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted truck."""
+    def act(self, view, occ: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted truck (``occ`` as
+        :meth:`accel`'s)."""
         if self.vehicles.size == 0:
             return np.zeros(0), np.zeros(0, dtype=np.int64)
-        acc = self.accel(view)
+        acc = self.accel(view, occ)
+        p = self.params
         vp = self.vehicle_params
-        throttle = np.clip(np.where(acc >= 0.0, acc / vp.max_accel_mps2, acc / vp.max_brake_mps2), -1.0, 1.0)
-        if int(view.step_index) % int(self.params.decision_interval_steps) != 0:
-            return throttle, np.zeros(self.vehicles.size, dtype=np.int64)
-        nb = view.neighborhood()  # evoscen_sut.mobil.lane_change_decision, its parameters made once
-        request = np.asarray(_mobil_decision_kernel(
-            self.vehicles, view.s, view.d, view.v, view.length, view.lane, view.target_lane, view.lane_change,
-            view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower,
-            nb.follower_speed_mps, view.road.kernel_tables(), *self._mobil_kernel_args), dtype=np.int64).copy()
-        top = int(view.road.num_lanes) - int(self.params.keep_off_left_lanes)
-        lane = np.asarray(view.lane)[self.vehicles]
-        content = np.asarray(view.v, dtype=float)[self.vehicles] > self.desired_speed_mps - self.params.overtake_deficit_mps
-        request[(request > 0) & ((lane + 1 >= top) | (content & (lane > 0)))] = 0
-        return throttle, request
+        decide = int(view.step_index) % int(p.decision_interval_steps) == 0
+        if decide:
+            nb = view.neighborhood()  # evoscen_sut.mobil.lane_change_decision, its parameters made once
+            request = _mobil_decision_kernel(
+                self.vehicles, view.s, view.d, view.v, view.length, view.lane, view.target_lane, view.lane_change,
+                view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower,
+                nb.follower_speed_mps, view.road.kernel_tables(), *self._mobil_kernel_args)
+        else:
+            request = np.zeros(self.vehicles.size, dtype=np.int64)
+        return _truck_commands(self.vehicles, acc, np.asarray(request, dtype=np.int64), decide,
+                               np.asarray(view.v, dtype=float), np.asarray(view.lane, dtype=np.int64),
+                               self.desired_speed_mps, float(p.overtake_deficit_mps),
+                               int(view.road.num_lanes) - int(p.keep_off_left_lanes),
+                               float(vp.max_accel_mps2), float(vp.max_brake_mps2))
+
+
+@kernel
+def _truck_commands(idx, acc, request, decide, v, lane, desired, deficit, top, max_accel, max_brake):
+    """Throttle (the acceleration as a command, as :func:`evoscen_sim.physics.vehicle.accel_to_throttle`) and
+    the lane-change request of each truck: MOBIL's, less a left change into the lanes from ``top`` on or
+    while the truck is within ``deficit`` of its desired speed (off the merge lane)."""
+    m = idx.shape[0]
+    throttle = np.empty(m)
+    out = np.zeros(m, dtype=np.int64)
+    for k in range(m):
+        a = acc[k]
+        u = a / max_accel if a >= 0.0 else a / max_brake
+        throttle[k] = min(max(u, -1.0), 1.0)
+        if decide:
+            r = request[k]
+            i = idx[k]
+            if r > 0 and (lane[i] + 1 >= top or (v[i] > desired[k] - deficit and lane[i] > 0)):
+                r = 0
+            out[k] = r
+    return throttle, out
 
 
 @kernel
@@ -179,6 +210,9 @@ class MakeupDriver:
         self.truck = np.asarray(truck, dtype=bool).copy()
         self.car_driver = car_driver
         self.truck_driver = truck_driver
+        self._car_pos: np.ndarray | None = None
+        self._truck_pos: np.ndarray | None = None
+        self._approach: tuple | None = None
 
     def restrict(self, positions: np.ndarray) -> None:
         """Host only the vehicles at ``positions`` of :attr:`vehicles` (before the first :meth:`act`)."""
@@ -190,41 +224,54 @@ class MakeupDriver:
         self.truck_driver.restrict(truck_rank[positions[keep]])
         self.vehicles = self.vehicles[positions]
         self.truck = keep
+        self._car_pos = None
+
+    def _layout(self) -> None:
+        """Where the cars and the trucks sit in the answer (made once per restrict)."""
+        self._car_pos = np.flatnonzero(~self.truck)
+        self._truck_pos = np.flatnonzero(self.truck)
+        self._approach = None
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:
+        if self._car_pos is None:
+            self._layout()
         throttle = np.zeros(self.vehicles.size)
         request = np.zeros(self.vehicles.size, dtype=np.int64)
-        if (~self.truck).any():
+        lk = view.lane_lookup()
+        occ = _occupancy(view.s, view.d, view.psi, view.lane, view.lane_change, view.target_lane, view.length,
+                         view.width, lk.d_right, lk.d_left, lk.present, -1)
+        if self._car_pos.size:
             thr, lc = self.car_driver.act(view)
-            throttle[~self.truck] = self.approach_bound(view, np.asarray(thr, dtype=float))
-            request[~self.truck] = lc
-        if self.truck.any():
-            thr, lc = self.truck_driver.act(view)
-            throttle[self.truck], request[self.truck] = thr, lc
+            throttle[self._car_pos] = self.approach_bound(view, np.asarray(thr, dtype=float), occ)
+            request[self._car_pos] = lc
+        if self._truck_pos.size:
+            thr, lc = self.truck_driver.act(view, occ)
+            throttle[self._truck_pos], request[self._truck_pos] = thr, lc
         return throttle, request
 
-
-    def approach_bound(self, view, throttle: np.ndarray) -> np.ndarray:
+    def approach_bound(self, view, throttle: np.ndarray, occ: np.ndarray | None = None) -> np.ndarray:
         """The cars' ``throttle`` bounded by the approach braking (docs/bv-profiles.md, "Traffic make-up"):
         closing in at Δv on a leader it perceives (occupying its lane or its target lane ahead of it; under
         the ``driver`` profile once perceived, :class:`evoscen_bv.car_following.ReactionState`), a car brakes
         at least at b = Δv² / (2 (gap − margin)) once b reaches the trigger, at most ``max_decel_mps2`` of
         its profile (the full brake where the gap is already below the margin)."""
         car = self.car_driver
-        idx = np.asarray(car.vehicles, dtype=np.int64)
-        lk = view.lane_lookup()
-        occ = _occupancy(view.s, view.d, view.psi, view.lane, view.lane_change, view.target_lane, view.length,
-                         view.width, lk.d_right, lk.d_left, lk.present, -1)
+        if self._approach is None:
+            brake = float(car.vehicle_params.max_brake_mps2)
+            profile = getattr(car, "profile", None)
+            max_decel = brake if profile is None or profile.max_decel_mps2 is None else float(profile.max_decel_mps2)
+            self._approach = (np.asarray(car.vehicles, dtype=np.int64), max_decel, brake,
+                              np.zeros((1, 1, 1), dtype=np.int64))
+        idx, max_decel, brake, no_seen = self._approach
+        if occ is None:
+            lk = view.lane_lookup()
+            occ = _occupancy(view.s, view.d, view.psi, view.lane, view.lane_change, view.target_lane, view.length,
+                             view.width, lk.d_right, lk.d_left, lk.present, -1)
         reaction = getattr(car, "reaction", None)
-        seen = reaction.seen if reaction is not None and reaction.seen is not None else None
+        seen = reaction.seen if reaction is not None else None
         full = reaction.n_react + 1 if seen is not None else 0
-        brake = float(car.vehicle_params.max_brake_mps2)
-        profile = getattr(car, "profile", None)
-        max_decel = brake if profile is None or profile.max_decel_mps2 is None else float(profile.max_decel_mps2)
-        return _approach_kernel(idx, np.asarray(view.s, dtype=float), np.asarray(view.v, dtype=float),
-                                np.asarray(view.lane, dtype=np.int64), np.asarray(view.target_lane, dtype=np.int64),
-                                np.asarray(view.length, dtype=float), occ,
-                                seen if seen is not None else np.zeros((1, 1, 1), dtype=np.int64), seen is not None,
+        return _approach_kernel(idx, view.s, view.v, view.lane, view.target_lane, view.length, occ,
+                                seen if seen is not None else no_seen, seen is not None,
                                 full, APPROACH.trigger_mps2, APPROACH.margin_m, max_decel, brake,
                                 np.array(throttle, dtype=float))
 
