@@ -47,6 +47,11 @@ from evoscen_sim.road.road_kernels import lane_borders, lane_present
 
 MERGE_LANE = 0
 
+ENTRY_RETRY_STEPS = 10
+"""Under ``bvs.makeup: highd`` a vehicle that found no place to enter tries again this many steps later
+(every step under ``uniform``). [choice] 10 (1 s at dt = 0.1 s): trucks enter lane II only and waited there
+often, and the search every step cost the make-up a tenth of its step rate (docs/bv-profiles.md)."""
+
 
 @dataclass(frozen=True)
 class TrafficParams:
@@ -139,6 +144,8 @@ class TrafficWindow:
         self.mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
         self.makeup = makeup
         """The highd make-up's entries (:class:`evoscen_sim.physics.makeup.WindowMakeup`); None: uniform."""
+        self._retry_step = np.zeros(world.n, dtype=np.int64) if makeup is not None else None
+        """highd: the step from which each vehicle that found no place tries again (None: uniform, every step)."""
         self.truck_lanes = (frozenset([*self.mainline[:makeup.truck_entry_lanes],
                                        *([MERGE_LANE] if makeup.truck_ramp_entries else [])])
                             if makeup is not None else frozenset())
@@ -168,8 +175,14 @@ class TrafficWindow:
         out = ((s < lo) | (s > hi)) & (world.role != world.role[self.sut])
         out[self.sut] = False
         road_end = world.road.length_m
+        retry = self._retry_step
         for i in np.flatnonzero(out):
-            placed = self._enter(world, int(i))
+            if retry is not None and retry[i] > world.step_index:
+                placed = None  # highd: it found no place lately; it tries again at its retry step
+            else:
+                placed = self._enter(world, int(i))
+                if placed is None and retry is not None:
+                    retry[i] = world.step_index + ENTRY_RETRY_STEPS
             if placed is not None:
                 result.reentries.append(placed)
             elif s[i] > road_end:  # no safe place: wait at the road's start (outside the window)
