@@ -2,7 +2,7 @@
 """The background traffic's make-up beside highD's, measured from recorded bags (docs/bv-profiles.md).
 
     python scripts/traffic_makeup.py [--makeup highd] [--seeds 7001 7002 ...] [--steps 3000] [--sut mobil]
-                                     [--bv-driver learned] [--out DIR] [--bench STEPS] [--json OUT]
+                                     [--bv-driver learned] [--out DIR] [--bench ROUNDS] [--json OUT]
                                      [--set KEY=VALUE ...]
 
 Records one bag per seed in process (``bvs.makeup`` of ``--makeup``), reads each back
@@ -15,8 +15,8 @@ Records one bag per seed in process (``bvs.makeup`` of ``--makeup``), reads each
 * BV lane changes per vehicle-km, all and per class, and per class without the merges from the merge
   lane (highD's recordings are mostly without an on-ramp); BV-BV collisions per vehicle-hour;
 * trucks' steps in the leftmost lane; the BVs within ±100 m of the SUT, the lowest 30-s mean;
-* with ``--bench N``: in-process steps/s (recording off, best of 3 runs of N steps) of this make-up
-  and of ``uniform`` on the first seed.
+* with ``--bench N``: in-process steps/s (recording off; N rounds of 300 steps alternating the two,
+  best of each) of this make-up and of ``uniform`` on the first seed, and their ratio.
 
 Beside each, highD's figure at 120 km/h (Krajewski et al., *The highD Dataset*, ITSC 2018): the
 numbers below are copied from its per-vehicle aggregates. A trip ends where the vehicle leaves the
@@ -164,19 +164,22 @@ def pooled(runs: list[dict]) -> dict:
     }
 
 
-def bench(cfg, steps: int, repeats: int = 3, warmup: int = 300) -> float:
-    """Best in-process steps/s of ``repeats`` runs of ``steps`` steps (recording off)."""
+def bench(configs: dict, rounds: int = 15, steps: int = 300, warmup: int = 300) -> dict:
+    """Best in-process steps/s of each config (recording off) over ``rounds`` rounds of ``steps`` steps,
+    the configs alternated in every round (a shared machine's load hits both alike)."""
     from evoscen_bringup.scenario import build_scenario
 
-    best = 0.0
-    for _ in range(repeats):
-        sc = build_scenario(cfg)
+    scenarios = {name: build_scenario(cfg) for name, cfg in configs.items()}
+    for sc in scenarios.values():
         for _ in range(warmup):
             sc.step()
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            sc.step()
-        best = max(best, steps / (time.perf_counter() - t0))
+    best = dict.fromkeys(configs, 0.0)
+    for _ in range(rounds):
+        for name, sc in scenarios.items():
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                sc.step()
+            best[name] = max(best[name], steps / (time.perf_counter() - t0))
     return best
 
 
@@ -188,7 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--sut", default="mobil", help="sut.model (default mobil)")
     ap.add_argument("--bv-driver", default=None, help="bvs.driver (default: the config's)")
     ap.add_argument("--out", type=Path, default=None, help="keep the bags here (default: a temporary directory)")
-    ap.add_argument("--bench", type=int, default=0, metavar="STEPS", help="also time STEPS steps vs uniform")
+    ap.add_argument("--bench", type=int, default=0, metavar="ROUNDS",
+                    help="also time this make-up against uniform: ROUNDS alternated rounds of 300 steps, best of each")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
                     help="scenario overrides, e.g. models.truck.threshold_mps2=0.4")
@@ -229,8 +233,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"{f['bv_bv_collisions']} BV-BV collisions ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
     out = pooled(runs)
     if args.bench:
-        out["steps_per_s"] = bench(config(args.seeds[0], args.makeup), args.bench)
-        out["steps_per_s_uniform"] = bench(config(args.seeds[0], "uniform"), args.bench)
+        rates = bench({args.makeup: config(args.seeds[0], args.makeup), "uniform": config(args.seeds[0], "uniform")},
+                      rounds=args.bench)
+        out["steps_per_s"] = rates[args.makeup]
+        out["steps_per_s_uniform"] = rates["uniform"]
+        out["steps_per_s_ratio"] = rates[args.makeup] / rates["uniform"]
     print(json.dumps({"makeup": args.makeup, "seeds": args.seeds, "steps": args.steps, "sut": args.sut,
                       "figures": out, "highd": HIGHD}, indent=1))
     if args.json:

@@ -120,6 +120,7 @@ class TruckDriver:
         self._mobil_kernel_args = (kernel_params(MobilKernelParams, self.mobil), conflict_rule(self.mobil))
         """What :func:`evoscen_sut.mobil.lane_change_decision` makes of the parameters each call, made once."""
         self._margin = _Margin(float(params.merge_stop_margin_m))
+        self._no_late: np.ndarray | None = None
 
     def restrict(self, positions: np.ndarray) -> None:
         """Host only the vehicles at ``positions`` of :attr:`vehicles`."""
@@ -132,10 +133,12 @@ class TruckDriver:
         if occ is None:
             gap, vl, _ = leaders(view, self.vehicles, self._margin)
         else:  # leaders() from the occupancy given
+            if self._no_late is None or self._no_late.size != self.vehicles.size:
+                self._no_late = np.zeros(self.vehicles.size, dtype=np.bool_)
             stop = float(view.road.lane_end_s[0]) - self._margin.merge_stop_margin_m
             gap, vl, _ = _nearest_leaders(self.vehicles, view.s, view.v, view.accel, view.lane, view.lane_change,
                                           view.target_lane, view.length, view.lane_lookup().present, stop, occ,
-                                          _ALL_SEEN, 0, occ, np.zeros(self.vehicles.size, dtype=np.bool_))
+                                          _ALL_SEEN, 0, occ, self._no_late)
         p = self.params
         return _truck_accel(self.vehicles, np.asarray(view.v, dtype=float), self.desired_speed_mps, gap, vl,
                             p.time_headway_s, p.min_gap_m, p.accel_mps2, p.comfort_decel_mps2, p.delta,
