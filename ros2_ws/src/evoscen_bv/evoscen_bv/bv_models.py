@@ -20,9 +20,11 @@ from pathlib import Path
 
 from evoscen_sim.config.scenario_config import flag, number, text
 from evoscen_sim.errors import InputError
-from evoscen_sim.model_registry import ModelSpec, register_model
+from evoscen_sim.model_registry import ModelSpec, register_makeup_driver, register_model, register_parameter_set
+from evoscen_sim.physics.makeup import HighdMakeupParams
 
 from .level0 import Level0Driver, level0_params_from_config
+from .truck import TruckParams
 
 SHIPPED = "shipped"
 SHIPPED_SETS = {SHIPPED: "", "v0.1.0": "v0.1.0"}
@@ -178,3 +180,15 @@ register_model(LEVEL0)
 LEARNED = ModelSpec(name="learned", roles=("bv",), factory=_learned, params_type=LearnedParams,
                     description="TD3-trained social drivers: competitive, mutual, cooperative by bvs.mix (docs/method.md §3)")
 register_model(LEARNED)
+
+
+def _makeup_driver(vehicles, makeup, config, car_driver):
+    from .truck import makeup_driver
+
+    return makeup_driver(vehicles, makeup, config, car_driver)
+
+
+# bvs.makeup: highd (docs/bv-profiles.md, "Traffic make-up"): its parameter sets and its driver
+register_parameter_set("highd", HighdMakeupParams)
+register_parameter_set("truck", TruckParams)
+register_makeup_driver("highd", _makeup_driver)

@@ -412,7 +412,7 @@ class ReactionState:
 def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, params: CarFollowingParams,
                      max_accel: float, max_brake: float, constants: tuple | None = None,
                      reaction: ReactionState | None = None, late: np.ndarray | None = None,
-                     sut: int = -1) -> np.ndarray:
+                     sut: int = -1, max_speed: np.ndarray | None = None) -> np.ndarray:
     """The run-time throttle of vehicles ``idx``, fused into one compiled pass.
 
     The same quantities as :func:`controller_observations`, the controller's forward pass
@@ -424,6 +424,8 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
     ``None``: the ``safety_net`` profile (instant reaction, braking up to the full brake).
     ``late``: per vehicle of ``idx``, True where it does not yield to the SUT's lane-change intent
     (:func:`_late_occupancy`; ``sut``: the SUT's row, -1 none); ``None``: every vehicle yields on it.
+    ``max_speed``: the lane limits that cap the desired speed, as the lane look-up's ``max_speed_mps``
+    (None: the lane look-up's; all NaN: no cap, the kernels' "no limit").
     """
     idx = np.asarray(idx, dtype=np.int64)
     late = np.zeros(idx.shape[0], dtype=np.bool_) if late is None else np.asarray(late, dtype=np.bool_)
@@ -431,7 +433,8 @@ def learned_throttle(view, idx: np.ndarray, desired_speed: np.ndarray, bank, par
         constants = throttle_constants(bank, params, view.road, max_accel, max_brake)
     lk = view.lane_lookup()
     args = (np.asarray(idx, dtype=np.int64), view.s, view.d, view.psi, view.v, view.accel, view.lane, view.lane_change,
-            view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present, lk.max_speed_mps,
+            view.target_lane, view.length, view.width, lk.d_right, lk.d_left, lk.present,
+            lk.max_speed_mps if max_speed is None else max_speed,
             np.asarray(desired_speed, dtype=float), *constants)
     if reaction is None:  # the safety_net profile
         return _learned_throttle_kernel(*args, late, np.int64(sut))

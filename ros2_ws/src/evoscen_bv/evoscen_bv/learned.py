@@ -350,6 +350,10 @@ class LearnedDriver:
         self.default_column = int(self.column_of_code[default_code]) if decision_actors else -1
         lo, hi = config.env.desired_speed_mps
         self.desired_speed_mps = rng.uniform(lo, hi, size=self.vehicles.size)
+        self.speed_cap = True
+        """Whether the desired speed is capped by the lane's speed limit (False: ``bvs.makeup: highd``,
+        whose drawn desired speeds are the drivers' own; docs/bv-profiles.md, "Traffic make-up")."""
+        self._nan_limits: np.ndarray | None = None
         self.hard_brake: HardBrakeState | None = None
         if hard_brake is not None:
             child = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
@@ -396,7 +400,14 @@ class LearnedDriver:
                 late = np.asarray(view.policy)[self.vehicles] == POLICY_CODE["competitive"]
         return learned_throttle(view, self.vehicles, self.desired_speed_mps, self.controller_bank,
                                 self.config.car_following, 0.0, 0.0, self._throttle_constants, self.reaction,
-                                late, sut)
+                                late, sut, max_speed=None if self.speed_cap else self._no_limits(view))
+
+    def _no_limits(self, view) -> np.ndarray:
+        """Lane limits that cap nothing (all NaN), shaped as the view's look-up (kept between steps)."""
+        shape = view.lane_lookup().max_speed_mps.shape
+        if self._nan_limits is None or self._nan_limits.shape != shape:
+            self._nan_limits = np.full(shape, np.nan)
+        return self._nan_limits
 
     def _merge_seek_bound(self, view, throttle: np.ndarray) -> np.ndarray:
         """``throttle`` bounded by the merge's speed adaptation (:func:`merge_seek_accel`) for the

@@ -66,6 +66,8 @@ class Level0Driver:
         self.vehicle_params = vehicle_params
         lo, hi = params.desired_speed_range_mps
         self.desired_speed_mps = rng.uniform(lo, hi, size=self.vehicles.size)
+        self.speed_cap = True
+        """Whether the desired speed is capped by the lane's speed limit (False: ``bvs.makeup: highd``)."""
 
     def restrict(self, positions: np.ndarray) -> None:
         """Host only the vehicles at ``positions`` of :attr:`vehicles`, each with the state it was
@@ -81,7 +83,7 @@ class Level0Driver:
         nb = world.neighborhood()
         return _level0_kernel(
             self.vehicles, world.v, world.s, world.lane, world.lane_change, world.length,
-            world.speed_limit_mps, self.desired_speed_mps,
+            world.speed_limit_mps if self.speed_cap else np.full(world.n, np.inf), self.desired_speed_mps,
             nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower_speed_mps,
             float(world.road.lane_end_s[MERGE_LANE]),
             idm.time_headway_s, idm.min_gap_m, idm.accel_mps2, idm.comfort_decel_mps2, idm.delta,

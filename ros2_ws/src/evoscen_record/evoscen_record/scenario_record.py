@@ -33,6 +33,10 @@ def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # 
     from evoscen_sim.config.scenario_config import config_to_dict
 
     scenario = _without_unset(config_to_dict(cfg))
+    if scenario.get("bvs", {}).get("makeup") == "uniform":
+        # [choice] absent = uniform: bags of the traffic before make-ups existed stay byte-identical
+        # (docs/bv-profiles.md, "Traffic make-up"); a reader's default fills it in.
+        del scenario["bvs"]["makeup"]
     scenario["map"], digest = portable_map_ref(cfg.map)
     meta = {SCENARIO_KEY: yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None),
             MAP_HASH_KEY: digest}

@@ -118,6 +118,26 @@ def register_parameter_set(name: str, params_type: type) -> None:
     _PARAMETER_SETS[name] = params_type
 
 
+_MAKEUP_DRIVERS: dict[str, Callable[..., Any]] = {}
+"""``bvs.makeup`` value -> ``factory(vehicles, makeup, config, car_driver) -> driver`` (see
+:func:`register_makeup_driver`)."""
+
+
+def register_makeup_driver(makeup: str, factory: Callable[..., Any]) -> None:
+    """Register how the BVs are driven under ``bvs.makeup: <makeup>``: ``factory(vehicles, makeup,
+    config, car_driver)`` wraps the ``bvs.driver`` built for all BVs (``car_driver``) with the
+    drivers of the other classes (``makeup``: :class:`evoscen_sim.physics.makeup.Makeup`)."""
+    _MAKEUP_DRIVERS[makeup] = factory
+
+
+def makeup_driver_factory(makeup: str) -> Callable[..., Any]:
+    """The factory :func:`register_makeup_driver` registered for ``makeup``."""
+    discover()
+    if makeup not in _MAKEUP_DRIVERS:
+        raise InputError(f"bvs.makeup = {makeup}: no driver registered for it")
+    return _MAKEUP_DRIVERS[makeup]
+
+
 def unregister_model(name: str) -> None:
     """Remove a model from the registry (tests; plug-ins are normally permanent)."""
     global SUT_MODELS, BV_DRIVERS

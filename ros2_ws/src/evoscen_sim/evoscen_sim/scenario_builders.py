@@ -13,9 +13,10 @@ import numpy as np
 from evoscen_contract.contract import POLICY_CODES
 
 from .config.scenario_config import ScenarioConfig, mix_counts
-from .model_registry import checked_answer, create_driver, rehosted
+from .model_registry import checked_answer, create_driver, makeup_driver_factory, rehosted
 from .physics.scenario_params import reentry_params_from_config, traffic_params_from_config
-from .physics.spawn import spawn_layout, window_layout
+from .physics.makeup import HIGHD, HighdMakeupParams, Makeup, draw_makeup, window_makeup
+from .physics.spawn import spawn_layout, window_layout, window_layout_makeup
 from .physics.world import World
 from .road.road_model import RoadModel, load_road
 
@@ -40,8 +41,22 @@ def bv_policy_codes(cfg: ScenarioConfig, rng: np.random.Generator) -> np.ndarray
 
 def scenario_rngs(seed: int) -> dict[str, np.random.Generator]:
     """The scenario's independent random streams (the same in every runner and node)."""
-    names = ("spawn", "world", "bv", "sut", "warmup_bv", "warmup_sut")
+    names = ("spawn", "world", "bv", "sut", "warmup_bv", "warmup_sut", "makeup")  # (a new name goes last:
+    # each child's seed depends on its position only, so the streams before it keep their draws)
     return {name: np.random.default_rng(s) for name, s in zip(names, np.random.SeedSequence(seed).spawn(len(names)))}
+
+
+def highd_params(cfg: ScenarioConfig) -> HighdMakeupParams:
+    """The ``models.highd`` parameter set of ``cfg`` (absent: its defaults)."""
+    return cfg.models.get(HIGHD) or HighdMakeupParams()
+
+
+def bv_makeup(cfg: ScenarioConfig) -> Makeup | None:
+    """The BV slots' classes, bodies and desired speeds under ``bvs.makeup: highd`` (from the
+    ``makeup`` stream: the same in the simulation node and every BV node); None for ``uniform``."""
+    if cfg.bvs.makeup != HIGHD:
+        return None
+    return draw_makeup(cfg.bvs.count, highd_params(cfg), cfg.vehicle.width_m, scenario_rngs(cfg.seed)["makeup"])
 
 
 def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
@@ -50,6 +65,19 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
     rngs = scenario_rngs(cfg.seed)
     vehicle = cfg.vehicle
     traffic = traffic_params_from_config(cfg, road)
+    makeup = bv_makeup(cfg)
+    if traffic is not None and makeup is not None:
+        hp = highd_params(cfg)
+        initial = window_layout_makeup(
+            road, traffic, makeup, hp.truck_entry_lanes, bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
+            sut_policy=POLICY_CODES["sut"], sut_lane=cfg.sut.lane, sut_s_m=cfg.sut.s_m,
+            sut_speed_mps=cfg.sut.speed_mps, sut_length_m=vehicle.length_m, sut_width_m=vehicle.width_m,
+            rng=rngs["spawn"])
+        world = World(road, initial, vehicle=vehicle, control=cfg.control,
+                      reentry=reentry_params_from_config(cfg), dt_s=cfg.dt_s, rng=rngs["world"], traffic=traffic,
+                      makeup=window_makeup(makeup, hp))
+        warm_up(world, cfg, int(round(traffic.warmup_s / cfg.dt_s)))
+        return world
     if traffic is not None:
         initial = window_layout(
             road, traffic, bv_policies=bv_policy_codes(cfg, rngs["spawn"]), sut_policy=POLICY_CODES["sut"],
@@ -103,7 +131,7 @@ def warm_up(world: World, cfg: ScenarioConfig, steps: int) -> None:
         return
     rngs = scenario_rngs(cfg.seed)
     bvs = bv_indices(cfg)
-    bv_driver = create_driver(cfg.bvs.driver, "bv", bvs, cfg, rngs["warmup_bv"]) if bvs.size else None
+    bv_driver = make_bv_driver(cfg, bvs, rngs["warmup_bv"]) if bvs.size else None
     sut_driver = create_driver(WARMUP_SUT_MODEL, "sut", [SUT_INDEX], cfg, rngs["warmup_sut"])
     s_hold = float(world.s[SUT_INDEX])
     throttle = np.zeros(world.n)
@@ -125,6 +153,17 @@ def bv_indices(cfg: ScenarioConfig) -> np.ndarray:
     return np.arange(1, cfg.bvs.count + 1)
 
 
+def make_bv_driver(cfg: ScenarioConfig, bvs: np.ndarray, rng: np.random.Generator):
+    """The driver of all BVs ``bvs``: ``bvs.driver`` built from ``rng``; under ``bvs.makeup: highd`` its cars
+    keep it with their drawn desired speeds, not capped at the lane's limit, and its trucks get the truck
+    driver (:func:`evoscen_sim.model_registry.create_driver` of ``truck``: docs/bv-profiles.md)."""
+    driver = create_driver(cfg.bvs.driver, "bv", bvs, cfg, rng)
+    makeup = bv_makeup(cfg)
+    if makeup is None:
+        return driver
+    return makeup_driver_factory(cfg.bvs.makeup)(bvs, makeup, cfg, driver)
+
+
 def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):
     """The driver of the BVs at world indices ``rows`` (default: all BVs; what one BV node hosts).
 
@@ -135,7 +174,7 @@ def build_bv_driver(cfg: ScenarioConfig, rows: np.ndarray | None = None):
     BVs and its answer cut to ``rows`` (:class:`RowsOf`) — exact whatever it draws per step.
     """
     bvs = bv_indices(cfg)
-    driver = create_driver(cfg.bvs.driver, "bv", bvs, cfg, scenario_rngs(cfg.seed)["bv"])
+    driver = make_bv_driver(cfg, bvs, scenario_rngs(cfg.seed)["bv"])
     if rows is None or np.array_equal(rows, bvs):
         return driver
     positions = np.searchsorted(bvs, np.asarray(rows, dtype=np.int64))

@@ -276,6 +276,13 @@ def _cross_check(cfg: ScenarioConfig, ctx: Context, explicit: set[str]) -> None:
         ctx.fail("spawn.ramp_vehicles", cfg.spawn.ramp_vehicles,
                  f"expected an integer in [0, bvs.count] with {count_text}",
                  is_default="spawn.ramp_vehicles" not in explicit)
+    if cfg.bvs.makeup != "uniform":
+        if cfg.traffic.mode != "window":
+            ctx.fail("bvs.makeup", cfg.bvs.makeup, "expected uniform with traffic.mode = "
+                     f"{cfg.traffic.mode} (the highd make-up needs traffic.mode: window)")
+        if cfg.bvs.driver not in ("learned", "level0"):
+            ctx.fail("bvs.makeup", cfg.bvs.makeup, f"expected uniform with bvs.driver = {cfg.bvs.driver} "
+                     "(the highd make-up's cars are learned or level0 drivers)")
     ev = cfg.evaluation
     if ev.weight_safety + ev.weight_efficiency + ev.weight_interaction == 0:
         ctx.fail("evaluation.weight_safety", ev.weight_safety,

@@ -44,6 +44,8 @@ COMPRESSIONS: tuple[str, ...] = ("zstd", "lz4", "none")
 MAX_S_M = 2393.0
 #: Upper bound of the speed ranges ``spawn.speed_mps`` / ``level0.desired_speed_mps`` (m/s).
 MAX_RANGE_SPEED_MPS = 40.0
+#: Values of ``bvs.makeup`` (:mod:`evoscen_sim.physics.makeup`).
+MAKEUPS: tuple[str, ...] = ("uniform", "highd")
 #: Upper bound of ``bvs.count``.
 MAX_BV_COUNT = 200
 
@@ -72,6 +74,13 @@ class BvConfig:
     split by id into N nodes of consecutive ids. A vehicle keeps its id and its driver type for the
     whole run (an entry at a window edge reuses its slot), so it stays with its node. The world, the
     events and the scores do not depend on the split (docs/architecture.md §5, "BV nodes")."""
+    makeup: str = field(default="uniform", metadata=_check(_Str(lambda: MAKEUPS)))
+    """The traffic's make-up (docs/bv-profiles.md, "Traffic make-up"; :mod:`evoscen_sim.physics.makeup`):
+    ``uniform`` (default) every BV a car of the ``vehicle`` section, its desired speed capped at the
+    lane's limit; ``highd`` cars and trucks with lengths, widths and desired speeds (not capped) drawn
+    from the highD dataset's figures (``models.highd``; Krajewski et al., ITSC 2018), trucks driven by
+    the truck driver (``models.truck``), cars by ``bvs.driver`` (``learned`` or ``level0``); needs
+    ``traffic.mode: window``. A bag records the key only when it is not ``uniform``."""
 
 
 @dataclass(frozen=True)

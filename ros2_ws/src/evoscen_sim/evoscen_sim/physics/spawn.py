@@ -181,3 +181,97 @@ def window_layout(
         lane=np.array([sut_lane] + lane_list, dtype=np.int64),
         speed_mps=np.concatenate([[sut_speed_mps], np.asarray(v_list, dtype=float)]),
     )
+
+
+def window_layout_makeup(
+    road,
+    params,
+    makeup,  # evoscen_sim.physics.makeup.Makeup
+    truck_entry_lanes: int,
+    *,
+    bv_policies: np.ndarray,
+    sut_policy: int,
+    sut_lane: int,
+    sut_s_m: float,
+    sut_speed_mps: float,
+    sut_length_m: float,
+    sut_width_m: float,
+    rng: np.random.Generator,
+) -> InitialState:
+    """:func:`window_layout` for the ``highd`` make-up (docs/bv-profiles.md, "Traffic make-up").
+
+    The same lanes, counts and slots (one ``uniform`` offset per lane), but each BV brings its own
+    length and width, trucks take the slots of the rightmost ``truck_entry_lanes`` mainline lanes
+    first (the other lanes only when those are full), and every BV starts at its own desired speed,
+    lowered front to back by the safe-insertion rule over the gaps of the actual bodies.
+    """
+    from .traffic import insertion_speed, required_gap
+
+    p = params
+    n_bv = int(len(bv_policies))
+    if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
+        raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
+    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    dens = np.asarray(p.lane_density_per_km, dtype=float)
+    if n_bv and dens.sum() <= 0.0:
+        raise InputError("traffic.lane_density_per_km: all zero, so the window cannot hold the BVs "
+                         f"(bvs.count = {n_bv})")
+    quota = n_bv * dens / dens.sum() if n_bv else np.zeros_like(dens)
+    counts = np.floor(quota).astype(int)
+    for j in np.argsort(-(quota - counts), kind="stable")[: n_bv - int(counts.sum())]:
+        counts[j] += 1
+    # which BV goes to which lane: trucks to the right lanes first, then cars (each in index order)
+    lane_of_slot = np.repeat(np.array(mainline[: len(counts)], dtype=np.int64), counts)
+    right = np.isin(lane_of_slot, mainline[:truck_entry_lanes])
+    slot_order = np.concatenate([np.flatnonzero(right), np.flatnonzero(~right)])
+    bv_order = np.concatenate([np.flatnonzero(makeup.truck), np.flatnonzero(~makeup.truck)])
+    lane_bv = np.empty(n_bv, dtype=np.int64)
+    lane_bv[bv_order] = lane_of_slot[slot_order]
+    length = np.asarray(makeup.length_m, dtype=float)
+    lo, hi = sut_s_m - p.behind_m, sut_s_m + p.ahead_m
+    s_bv = np.empty(n_bv)
+    v_bv = np.empty(n_bv)
+    half_sut = 0.5 * sut_length_m
+    for lane in mainline:
+        members = np.flatnonzero(lane_bv == lane)
+        n = members.size
+        if n == 0:
+            continue
+        slots_n = n + 1 if lane == sut_lane else n
+        pitch = (hi - lo) / slots_n
+        offset = rng.uniform(0.0, pitch)
+        slots = lo + offset + pitch * np.arange(slots_n)
+        if lane == sut_lane:
+            slots = np.delete(slots, int(np.argmin(np.abs(slots - sut_s_m))))
+        s_bv[members] = slots
+        v = np.asarray(makeup.desired_speed_mps, dtype=float)[members].copy()
+        half = 0.5 * length[members]
+        order = np.argsort(-slots)
+        lead_s, lead_v, lead_half = np.inf, 0.0, 0.0
+        for k in order:
+            s = float(slots[k])
+            if lane == sut_lane and lead_s > sut_s_m > s:
+                lead_s, lead_v, lead_half = sut_s_m, sut_speed_mps, half_sut
+            if np.isfinite(lead_s):
+                v[k] = insertion_speed(float(v[k]), lead_s - s - lead_half - half[k], lead_v, p)
+            if lane == sut_lane and s > sut_s_m:
+                nxt = slots[slots > sut_s_m]
+                if s == float(nxt.min()) and s - sut_s_m - half[k] - half_sut < required_gap(
+                        sut_speed_mps, float(v[k]), p):
+                    raised = max(float(v[k]), sut_speed_mps)
+                    v[k] = (insertion_speed(raised, lead_s - s - lead_half - half[k], lead_v, p)
+                            if np.isfinite(lead_s) else raised)
+            if not np.isfinite(v[k]) or v[k] < 0.0:
+                v[k] = 0.0
+            lead_s, lead_v, lead_half = s, float(v[k]), float(half[k])
+        v_bv[members] = v
+    return InitialState(
+        ids=np.arange(n_bv + 1, dtype=np.int64),
+        roles=np.array([ROLE_SUT] + [ROLE_BV] * n_bv, dtype=np.int64),
+        policies=np.concatenate([[sut_policy], np.asarray(bv_policies, dtype=np.int64)]).astype(np.int64),
+        s_m=np.concatenate([[sut_s_m], s_bv]),
+        lane=np.concatenate([[sut_lane], lane_bv]).astype(np.int64),
+        speed_mps=np.concatenate([[sut_speed_mps], v_bv]),
+        length_m=np.concatenate([[sut_length_m], length]),
+        width_m=np.concatenate([[sut_width_m], np.asarray(makeup.width_m, dtype=float)]),
+    )

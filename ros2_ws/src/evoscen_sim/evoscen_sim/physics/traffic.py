@@ -47,6 +47,11 @@ from evoscen_sim.road.road_kernels import lane_borders, lane_present
 
 MERGE_LANE = 0
 
+ENTRY_RETRY_STEPS = 10
+"""Under ``bvs.makeup: highd`` a vehicle that found no place to enter tries again this many steps later
+(every step under ``uniform``). [choice] 10 (1 s at dt = 0.1 s): trucks enter lane II only and waited there
+often, and the search every step cost the make-up a tenth of its step rate (docs/bv-profiles.md)."""
+
 
 @dataclass(frozen=True)
 class TrafficParams:
@@ -132,11 +137,18 @@ def check_shift_points(road, p: TrafficParams, hold_s: float | None = None) -> s
 class TrafficWindow:
     """Keeps the traffic of a :class:`~evoscen_sim.physics.world.World` around its SUT (module docstring)."""
 
-    def __init__(self, world, params: TrafficParams, sut_index: int) -> None:
+    def __init__(self, world, params: TrafficParams, sut_index: int, makeup=None) -> None:
         road = world.road
         self.p = params
         self.sut = int(sut_index)
         self.mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+        self.makeup = makeup
+        """The highd make-up's entries (:class:`evoscen_sim.physics.makeup.WindowMakeup`); None: uniform."""
+        self._retry_step = np.zeros(world.n, dtype=np.int64) if makeup is not None else None
+        """highd: the step from which each vehicle that found no place tries again (None: uniform, every step)."""
+        self.truck_lanes = (frozenset([*self.mainline[:makeup.truck_entry_lanes],
+                                       *([MERGE_LANE] if makeup.truck_ramp_entries else [])])
+                            if makeup is not None else frozenset())
         if len(params.lane_density_per_km) != len(self.mainline) or len(params.lane_speed_mps) != len(self.mainline):
             raise ValueError(
                 f"traffic: lane_density_per_km and lane_speed_mps need one entry per mainline lane "
@@ -163,16 +175,23 @@ class TrafficWindow:
         out = ((s < lo) | (s > hi)) & (world.role != world.role[self.sut])
         out[self.sut] = False
         road_end = world.road.length_m
+        retry = self._retry_step
         for i in np.flatnonzero(out):
-            placed = self._enter(world, int(i))
+            if retry is not None and retry[i] > world.step_index:
+                placed = None  # highd: it found no place lately; it tries again at its retry step
+            else:
+                placed = self._enter(world, int(i))
+                if placed is None and retry is not None:
+                    retry[i] = world.step_index + ENTRY_RETRY_STEPS
             if placed is not None:
                 result.reentries.append(placed)
             elif s[i] > road_end:  # no safe place: wait at the road's start (outside the window)
                 result.reentries.append(world._reenter(int(i)))
 
     # ------------------------------------------------------------------ entries
-    def _targets(self, world, s_sut: float) -> list[tuple[float, int, float, float]]:
-        """(relative deficit, lane, mean speed, sd) of every lane that may take a vehicle, most wanted first."""
+    def _targets(self, world, s_sut: float, allowed: frozenset | None = None) -> list[tuple[float, int, float, float]]:
+        """(relative deficit, lane, mean speed, sd) of every lane that may take a vehicle, most wanted first
+        (of the lanes in ``allowed`` only, when given: a truck's)."""
         p = self.p
         road = world.road
         lo, hi = s_sut - p.behind_m, s_sut + p.ahead_m
@@ -194,20 +213,31 @@ class TrafficWindow:
                 count = int(counts[MERGE_LANE])
                 rows.append(((count - target) / target, MERGE_LANE, *p.ramp_speed_mps))
         rows.sort(key=lambda r: (r[0], r[1]))
+        if allowed is not None:
+            rows = [r for r in rows if r[1] in allowed]
         return [r for r in rows if r[0] < 0.0] or rows
 
     def _enter(self, world, i: int) -> tuple[int, int, float] | None:
         p = self.p
         road = world.road
         s_sut, v_sut = float(world.s[self.sut]), float(world.v[self.sut])
-        half = 0.5 * world.vehicle.length_m
+        half = 0.5 * world.length[i]  # (uniform: the vehicle section's length, as every vehicle's)
         tables = road.border_tables()
         b_tau_sq = float((p.insertion_decel_mps2 * p.insertion_headway_s) ** 2)  # as insertion_speed
         band, g0 = float(p.insertion_band_m), float(p.insertion_min_gap_m)
         tau, b = float(p.insertion_headway_s), float(p.insertion_decel_mps2)
-        for _, lane, mean, sd in self._targets(world, s_sut):
-            v = float(_np_clip(world.rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
-            v_floor = max(0.0, mean - 2.0 * sd)
+        mk = self.makeup
+        allowed = self.truck_lanes if mk is not None and mk.truck[i] else None
+        for _, lane, mean, sd in self._targets(world, s_sut, allowed):
+            if mk is None:
+                v = float(_np_clip(world.rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
+                v_floor = max(0.0, mean - 2.0 * sd)
+            else:  # highd: the slot's own desired speed, lowered to any safe one; trucks on the right
+                # (docs/bv-profiles.md, "Traffic make-up")
+                v = float(mk.wish_mps[i])
+                if lane == MERGE_LANE:  # from the on-ramp: at most the ramp's mean speed
+                    v = min(v, float(mean))
+                v_floor = 0.0  # any safe speed up to the wish (SUMO's departSpeed="max")
             if lane == MERGE_LANE:
                 s_new = float(road.lane_start_s[MERGE_LANE]) + half
             elif v < v_sut:

@@ -69,6 +69,10 @@ class InitialState:
     s_m: np.ndarray
     lane: np.ndarray
     speed_mps: np.ndarray
+    length_m: np.ndarray | None = None
+    """Per-vehicle body length (m); None: every vehicle the ``vehicle`` section's (``bvs.makeup``)."""
+    width_m: np.ndarray | None = None
+    """Per-vehicle body width (m); None: the ``vehicle`` section's."""
 
 
 @dataclass
@@ -138,6 +142,7 @@ class World:
         dt_s: float,
         rng: np.random.Generator,
         traffic: TrafficParams | None = None,
+        makeup=None,  # evoscen_sim.physics.makeup.WindowMakeup: the highd make-up's entries
     ) -> None:
         self.road = road
         self.vehicle = vehicle
@@ -149,8 +154,10 @@ class World:
         self.ids = np.asarray(initial.ids, dtype=np.int64).copy()
         self.role = np.asarray(initial.roles, dtype=np.int64).copy()
         self.policy = np.asarray(initial.policies, dtype=np.int64).copy()
-        self.length = np.full(n, vehicle.length_m)
-        self.width = np.full(n, vehicle.width_m)
+        self.length = (np.full(n, vehicle.length_m) if initial.length_m is None
+                       else np.asarray(initial.length_m, dtype=float).copy())
+        self.width = (np.full(n, vehicle.width_m) if initial.width_m is None
+                      else np.asarray(initial.width_m, dtype=float).copy())
         self.lane = np.asarray(initial.lane, dtype=np.int64).copy()
         self.s = np.asarray(initial.s_m, dtype=float).copy()
         self.d = road.lane_center_d(self.lane, self.s).astype(float)
@@ -182,7 +189,7 @@ class World:
         sut = np.flatnonzero(self.role == ROLE_SUT)
         self.window: TrafficWindow | None = None
         if traffic is not None and sut.size:
-            self.window = TrafficWindow(self, traffic, int(sut[0]))
+            self.window = TrafficWindow(self, traffic, int(sut[0]), makeup)
 
     @property
     def time_s(self) -> float:
