@@ -131,9 +131,14 @@ def test_list_suts_and_mutants(registered, capsys):
 
     lines = stdout.splitlines()
     assert code == 0 and [line.split()[0] for line in lines] == list(LIBRARY)
-    assert re.fullmatch(r"weak_braking +built-in \(evoscen_sut\.mutants\) +control +bases: any SUT model \(\d+\) +"
+    # the bases each mutant states (docs/mutants.md): a control defect applies to every base, a
+    # lane-change defect not to the lane keeper level0
+    assert re.fullmatch(r"weak_braking +built-in \(evoscen_sut\.mutants\) +control +"
+                        r"bases: level0, mobil, nilsson, stackelberg, fiss, sumo_sut +"
                         r"Braking commands reach the wheels at 40 % \(worn brakes / saturated actuator\)",
                         lines[list(LIBRARY).index("weak_braking")]), lines
+    assert re.fullmatch(r"frozen +built-in \(evoscen_sut\.mutants\) +decision +bases: mobil, nilsson, stackelberg, fiss, "
+                        r"sumo_sut +.*", lines[list(LIBRARY).index("frozen")]), lines
 
 
 # ------------------------------------------------------------------ the node graph
