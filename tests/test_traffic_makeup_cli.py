@@ -62,6 +62,42 @@ def test_pooled_figures_by_hand():
     assert f["min_30s_mean_bvs_within_100m"] == 6.5 and f["mean_bvs_within_100m"] == pytest.approx(8.5)
 
 
+def test_run_figures_by_hand():
+    """A run's own figures: merges by class, BV-BV collisions only, slot-hours, a truck's steps in the
+    leftmost lane; the BVs near the SUT are the given report's."""
+    from types import SimpleNamespace
+
+    tm = _module()
+    k, t = 11, np.arange(11.0)
+    # columns: SUT (id 0, lane 4), car (id 1: merge lane 0 for t <= 4, then lane 1), truck (id 2, 12 m:
+    # lane 2, then the leftmost lane 4 for t >= 7: 4 states)
+    lane = np.stack([np.full(k, 4.0), np.where(t <= 4, 0.0, 1.0), np.where(t >= 7, 4.0, 2.0)], axis=1)
+    cols = {"id": np.tile([0.0, 1.0, 2.0], (k, 1)), "role": np.tile([1.0, 0.0, 0.0], (k, 1)),
+            "length": np.tile([4.5, 4.5, 12.0], (k, 1)), "width": np.tile([1.9, 1.9, 2.5], (k, 1)),
+            "s": np.stack([300 + 30 * t, 250 + 25 * t, 200 + 22 * t], axis=1),
+            "speed": np.tile([30.0, 25.0, 22.0], (k, 1)), "lane": lane, "d": -(4 - lane) * 3.5 - 1.75}
+    for name in ("accel", "heading_rel"):
+        cols[name] = np.zeros((k, 3))
+    events = [
+        {"name": "evoscen/lane_change", "kind": "completed", "ids": [1], "from_lane": 0, "time_s": 5.0},
+        {"name": "evoscen/lane_change", "kind": "completed", "ids": [2], "from_lane": 2, "time_s": 7.0},
+        {"name": "evoscen/lane_change", "kind": "started", "ids": [1], "from_lane": 0, "time_s": 4.0},
+        {"name": "evoscen/collision", "ids": [1, 2], "time_s": 8.0},
+        {"name": "evoscen/collision", "ids": [0, 1], "time_s": 9.0},  # the SUT's: not BV-BV
+    ]
+    run = SimpleNamespace(time_s=t, columns=cols, ids=np.array([0, 1, 2]), sut_index=0, events=events,
+                          scenario=None, warnings=[], states=k, dt_s=1.0,
+                          events_named=lambda name, kind=None: [e for e in events if e["name"] == name and (
+                              kind is None or e.get("kind") == kind)])
+    f = tm.figures(run, {"traffic": {"min_window_mean_bvs": 7.0, "mean_bvs": 9.0}})
+    assert f["merges"] == {"car": 1, "truck": 0}
+    assert f["bv_bv_collisions"] == 1
+    assert f["vehicle_hours"] == pytest.approx(2 * 10 * 1.0 / 3600.0)  # two BV slots, ten steps of 1 s
+    assert (f["slots"], f["truck_slots"], f["leftmost_lane"], f["truck_steps_leftmost_lane"]) == (2, 1, 4, 4)
+    assert (f["min_30s_mean_bvs_within_100m"], f["mean_bvs_within_100m"]) == (7.0, 9.0)
+    assert f["measures"].trip_truck.tolist() == [False, True]  # one trip each, classed by length
+
+
 def test_highd_figures_are_the_shipped_aggregates():
     tm = _module()
     h = tm.highd_figures()
