@@ -197,9 +197,12 @@ def main(argv: list[str] | None = None) -> int:
         return load_scenario_config(None, over)
 
     runs = []
+    recorded_makeups = []
     for bag in args.bags or []:
         try:
-            runs.append(figures(read_run(bag)))
+            run = read_run(bag)
+            recorded_makeups.append(((run.scenario or {}).get("bvs") or {}).get("makeup", "uniform"))
+            runs.append(figures(run))
         except InputError as exc:
             print(f"error: --bags: {exc}", file=sys.stderr)
             return EXIT_BAD_INPUT
@@ -226,8 +229,9 @@ def main(argv: list[str] | None = None) -> int:
         out["steps_per_s"] = rates[args.makeup]
         out["steps_per_s_uniform"] = rates["uniform"]
         out["steps_per_s_ratio"] = rates[args.makeup] / rates["uniform"]
-    print(json.dumps({"makeup": args.makeup, "seeds": [str(b) for b in args.bags] if args.bags else args.seeds, "steps": args.steps, "sut": args.sut,
-                      "figures": out, "highd": highd_figures()}, indent=1))
+    head = ({"bags": [str(b) for b in args.bags], "makeup": sorted(set(recorded_makeups))} if args.bags else
+            {"makeup": args.makeup, "seeds": args.seeds, "steps": args.steps, "sut": args.sut})
+    print(json.dumps({**head, "figures": out, "highd": highd_figures()}, indent=1))
     if args.json:
         args.json.write_text(json.dumps({"figures": out, "highd": highd_figures()}, indent=2))
     return EXIT_OK
