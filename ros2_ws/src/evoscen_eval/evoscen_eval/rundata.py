@@ -119,18 +119,13 @@ class RunAccumulator:
 
     def add_world_columns(self, columns: Mapping[str, np.ndarray], t_ns: int) -> None:
         """A world state from the world's columns (copied)."""
-        # filled column by column (the same float64 values as np.column_stack of them, without its
-        # per-column reshaping: docs/performance.md "Per-step work of the scores")
+        # the fields stacked as rows, then transposed: the same float64 values as np.column_stack of
+        # them at a fifth of its cost (docs/performance.md "Per-step work of the scores")
         fields = C.WORLD_FIELDS
-        first = np.asarray(columns[fields[0]])
-        if first.ndim != 1:
-            raise ValueError(f"world column {fields[0]!r}: expected one value per vehicle, got shape {first.shape}")
-        table = np.empty((first.shape[0], len(fields)), dtype=np.float64)
-        for j, f in enumerate(fields):
-            col = columns[f]
-            if np.shape(col) != first.shape:
-                raise ValueError(f"world column {f!r}: expected {first.shape[0]} values, got shape {np.shape(col)}")
-            table[:, j] = col
+        rows = np.array([columns[f] for f in fields], dtype=np.float64)
+        if rows.ndim != 2:
+            raise ValueError(f"world columns: expected one value per vehicle in each, got shape {rows.shape}")
+        table = rows.T.copy()
         self._add_state(table, t_ns)
 
     def add_events(self, events: Iterable[Mapping[str, Any]]) -> None:
