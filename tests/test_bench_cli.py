@@ -1,4 +1,4 @@
-"""``scripts/bench.py`` and ``scripts/profile_episodes.py``: bad arguments are one-line errors before anything is measured.
+"""``scripts/bench.py``, ``scripts/profile_episodes.py``, ``scripts/sut_step_cost.py``: bad arguments are one-line errors before anything runs.
 
 The benchmark's figures are not asserted (shared, noisy machines); its argument checks are.
 """
@@ -78,3 +78,16 @@ def test_profile_episodes_bad_arguments_are_one_line(args, expected):
     lines = [line for line in res.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith(expected), res.stderr
     assert "ms per episode" not in res.stdout
+
+
+@pytest.mark.parametrize("args, expected", [
+    (("--repeats", "0"), "error: --repeats = '0': expected an integer >= 1"),
+    (("--mutants", "stale,nosuch"), "error: --mutants: unknown mutant 'nosuch': expected 'all' or names from "),
+])
+def test_sut_step_cost_bad_arguments_are_one_line(args, expected):
+    res = subprocess.run([sys.executable, "scripts/sut_step_cost.py", *args], cwd=REPO, capture_output=True,
+                         text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith(expected), res.stderr
+    assert "CPU us per step" not in res.stdout

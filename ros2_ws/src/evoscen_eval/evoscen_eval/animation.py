@@ -44,6 +44,7 @@ POLICY_COLOURS = {
 
 _F = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
 _FIELDS = ("x", "y", "yaw", "length", "width", "policy", "speed")
+_FIELD_COLUMNS = np.array([_F[f] for f in _FIELDS])
 
 
 @dataclass
@@ -70,20 +71,27 @@ class FrameSeries:
 
     def add_block(self, ks: np.ndarray, times: np.ndarray, tables: np.ndarray, ids: np.ndarray, sut: int) -> None:
         """A block's states ``ks`` (``tables`` ``[n, V, F]``)."""
+        # the block's states at once where it can be (docs/performance.md "Per-step work of the scores"):
+        # the vehicles near the SUT in every state, the lane-change signs, the kept fields
         lc_sut = tables[:, sut, _F["lane_change"]]
+        signs = [int(v) for v in np.sign(lc_sut).tolist()]
+        x = tables[:, :, _F["x"]]
+        near_all = np.abs(x - x[:, sut:sut + 1]) <= self.window_m + 10.0  # [n, V]
+        kept = tables[:, :, _FIELD_COLUMNS]  # [n, V, len(_FIELDS)]
+        time_list = times.tolist()
         for r, k in enumerate(ks.tolist()):
-            if lc_sut[r] != 0 and self.frames and self.frames[-1].state // self.stride == k // self.stride \
+            if signs[r] and self.frames and self.frames[-1].state // self.stride == k // self.stride \
                     and not self.frames[-1].lane_change:
-                self.frames[-1].lane_change = int(np.sign(lc_sut[r]))
+                self.frames[-1].lane_change = signs[r]
             if k % self.stride:
                 continue
-            table = tables[r]
-            x = table[:, _F["x"]]
-            near = np.flatnonzero(np.abs(x - x[sut]) <= self.window_m + 10.0)
-            self.frames.append(Frame(state=k, time_s=float(times[r]),
-                                     columns={f: table[near, _F[f]].copy() for f in _FIELDS},
-                                     ids=ids[near].copy(), sut_row=int(np.flatnonzero(near == sut)[0]),
-                                     lane_change=int(np.sign(lc_sut[r]))))
+            near = np.flatnonzero(near_all[r])
+            cols = kept[r, near].T.copy()  # [len(_FIELDS), m]: each field's values contiguous
+            sut_row = int(np.searchsorted(near, sut))
+            if sut_row == near.size or near[sut_row] != sut:
+                raise IndexError(f"state {k}: the SUT is not near itself (x = {x[r, sut]})")
+            self.frames.append(Frame(state=k, time_s=float(time_list[r]), columns=dict(zip(_FIELDS, cols)),
+                                     ids=ids[near], sut_row=sut_row, lane_change=signs[r]))
             while len(self.frames) > self.keep:
                 self.stride *= 2
                 merged: list[Frame] = []

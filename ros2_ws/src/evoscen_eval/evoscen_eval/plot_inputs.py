@@ -94,18 +94,25 @@ class PlotSeries:
         unique, first = np.unique(buckets, return_index=True)  # buckets ascend: each a contiguous run
         near_sums = np.add.reduceat(bvs, first).tolist()
         sizes = np.diff(np.append(first, buckets.size)).tolist()
-        for i, b in enumerate(unique.tolist()):
-            sel = np.flatnonzero(buckets == b)
-            low = float(ttc[sel].min())
-            if tl["bucket"] and tl["bucket"][-1] == b:
-                tl["ttc"][-1] = min(tl["ttc"][-1], low)
-                tl["bvs"][-1] += near_sums[i]
-                tl["n"][-1] += sizes[i]
-                continue
-            r = int(sel[0])
-            for key, value in (("bucket", b), ("t", float(times[r])), ("speed", float(speed[r])),
-                               ("lane", float(lane[r])), ("ttc", low), ("bvs", near_sums[i]), ("n", sizes[i])):
-                tl[key].append(value)
+        # per bucket at once (docs/performance.md "Per-step work of the scores"): the lowest TTC of each
+        # contiguous run, the first state's values
+        lows = np.minimum.reduceat(np.asarray(ttc, dtype=np.float64), first).tolist()
+        bs = unique.tolist()
+        i0 = 0
+        if tl["bucket"] and bs and tl["bucket"][-1] == bs[0]:  # only a block's first bucket can go on
+            tl["ttc"][-1] = min(tl["ttc"][-1], lows[0])
+            tl["bvs"][-1] += near_sums[0]
+            tl["n"][-1] += sizes[0]
+            i0 = 1
+        if i0 < len(bs):
+            r = first[i0:]
+            tl["bucket"] += bs[i0:]
+            tl["t"] += np.asarray(times, dtype=np.float64)[r].tolist()
+            tl["speed"] += np.asarray(speed, dtype=np.float64)[r].tolist()
+            tl["lane"] += np.asarray(lane, dtype=np.float64)[r].tolist()
+            tl["ttc"] += lows[i0:]
+            tl["bvs"] += near_sums[i0:]
+            tl["n"] += sizes[i0:]
         while len(tl["bucket"]) > TIMELINE_POINTS:
             self._stride *= 2
             merged: dict[str, list] = {key: [] for key in tl}

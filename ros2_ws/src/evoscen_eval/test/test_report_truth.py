@@ -197,3 +197,23 @@ def test_each_drawn_frame_marks_the_lane_change_and_exposure_of_its_states():
     (early,) = frame_notes(clip_frames(run, 100), {"safety": {"exposure_list": [], "collision_list": [
         {"state": 3, "ids": [0, 1]}]}}, 1)
     assert early.collision == {"state": 3, "ids": [0, 1]} and early.lane_change == 1
+
+
+def test_frames_keep_the_vehicles_within_the_window_of_the_sut():
+    """A frame keeps the vehicles whose x is within window + 10 m of the SUT's (here 90 m), their
+    fields and ids, the SUT's row among them and the sign of its lane change."""
+    from evoscen_contract import contract as C
+
+    f = {name: j for j, name in enumerate(C.WORLD_FIELDS)}
+    tables = np.zeros((2, 4, len(C.WORLD_FIELDS)))
+    tables[0, :, f["x"]] = [0.0, 50.0, 141.0, -41.0]  # |x - 50| = 50, 0, 91, 91
+    tables[1, :, f["x"]] = [0.0, 50.0, 139.0, -39.0]  # 50, 0, 89, 89
+    tables[:, :, f["speed"]] = [20.0, 25.0, 30.0, 35.0]
+    tables[1, 1, f["lane_change"]] = -1.0
+    series = FrameSeries(window_m=80.0)
+    series.add_block(np.arange(2), np.array([0.0, 0.1]), tables, np.array([10, 11, 12, 13]), 1)
+    first, second = series.frames
+    assert first.ids.tolist() == [10, 11] and first.sut_row == 1 and first.lane_change == 0
+    assert first.columns["speed"].tolist() == [20.0, 25.0] and first.columns["x"].tolist() == [0.0, 50.0]
+    assert second.ids.tolist() == [10, 11, 12, 13] and second.sut_row == 1 and second.lane_change == -1
+    assert second.columns["x"].tolist() == [0.0, 50.0, 139.0, -39.0] and second.time_s == 0.1

@@ -27,7 +27,7 @@ from evoscen_sim.physics.vehicle import VehicleParams, accel_to_throttle
 from evoscen_sim.road.road_kernels import lane_center_d, lane_end_distance
 
 from .kernel_math import maximum, minimum
-from .krauss import follow_speed_scalar, krauss_for, next_speed_scalar
+from .krauss import KraussCarFollowing, follow_speed_scalar, krauss_for, next_speed_scalar
 
 
 @lru_cache(maxsize=128)
@@ -40,12 +40,49 @@ def kernel_params_type(params_class: type) -> type:
     return namedtuple(name, [f.name for f in fields(params_class)], module=params_class.__module__)
 
 
+_KERNEL_PARAMS: dict[tuple[int, int], tuple[type, Any, tuple]] = {}
+""":func:`kernel_params`'s tuples by the identity of (tuple type, parameter set); each entry holds
+both objects, so an id is not reused while its entry lives."""
+_KERNEL_PARAMS_MAX = 256
+
+
+def by_identity(fn: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    """``fn`` of one frozen parameter set, remembered by the identity of its argument (the last
+    :data:`_KERNEL_PARAMS_MAX` sets): a lookup without hashing the dataclass's fields, for what a
+    model derives from its parameters every decision (docs/performance.md "Per-step work of the SUT
+    drivers"). ``fn`` itself is called once per parameter set object."""
+    memo: dict[int, tuple[Any, Any]] = {}
+
+    def cached(params: Any) -> Any:
+        hit = memo.get(id(params))
+        if hit is not None and hit[0] is params:
+            return hit[1]
+        out = fn(params)
+        if len(memo) >= _KERNEL_PARAMS_MAX:
+            memo.clear()
+        memo[id(params)] = (params, out)
+        return out
+
+    cached.__doc__, cached.__name__, cached.__qualname__ = fn.__doc__, fn.__name__, fn.__qualname__
+    cached.__module__, cached.__wrapped__ = fn.__module__, fn  # type: ignore[attr-defined]
+    return cached
+
+
 def kernel_params(tuple_type: type, params: Any) -> tuple:
     """``params`` (a frozen parameter dataclass) as ``tuple_type``, a named tuple with (some of)
     its field names, for compiled kernels: numbers as float, flags as bool (cached: one tuple per
-    parameter set, as the models call it every decision)."""
+    parameter set, as the models call it every decision; looked up by identity, a parameter set
+    being frozen — docs/performance.md "Per-step work of the SUT drivers")."""
+    key = (id(tuple_type), id(params))
+    hit = _KERNEL_PARAMS.get(key)
+    if hit is not None and hit[0] is tuple_type and hit[1] is params:
+        return hit[2]
     values = (getattr(params, name) for name in tuple_type._fields)
-    return tuple_type(*(v if isinstance(v, bool) else float(v) for v in values))
+    out = tuple_type(*(v if isinstance(v, bool) else float(v) for v in values))
+    if len(_KERNEL_PARAMS) >= _KERNEL_PARAMS_MAX:
+        _KERNEL_PARAMS.clear()
+    _KERNEL_PARAMS[key] = (tuple_type, params, out)
+    return out
 
 
 @kernel
@@ -100,6 +137,8 @@ class KraussLaneChangeDriver:
         self.krauss = krauss
         self.vehicle_params = vehicle_params
         self.stop_margin_m = float(stop_margin_m)
+        self._params_memo: tuple | None = None
+        self._factors_memo: tuple | None = None
 
     def acceleration(self, view: Any) -> np.ndarray:
         """Desired acceleration (m/s²) of every driven vehicle (see the class docstring)."""
@@ -128,8 +167,6 @@ class KraussLaneChangeDriver:
 
     def _compiled_krauss(self) -> bool:
         """The car follower is exactly :class:`evoscen_sut.krauss.KraussCarFollowing` (compiled path)."""
-        from .krauss import KraussCarFollowing
-
         return type(self.krauss) is KraussCarFollowing
 
     def _acceleration_throttle(self, view: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -147,19 +184,46 @@ class KraussLaneChangeDriver:
         n_changing = _count_changing(idx, lane, target_lane)
         u_target = kr.rng.random(n_changing) if n_changing else _NO_DRAWS
         nb = view.neighborhood()
-        return _krauss_kernel(idx, kr.factors(idx), u, u_target, view.s, view.v, view.length, lane, target_lane,
+        return _krauss_kernel(idx, self._factors(kr, idx), u, u_target, view.s, view.v, view.length, lane, target_lane,
                               view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, view.road.kernel_tables(),
-                              _krauss_params(kr.params, self.vehicle_params, self.stop_margin_m,
-                                             float(kr.dt_s), float(view.dt_s)))
+                              self._kernel_params(kr, float(view.dt_s)))
+
+    def _kernel_params(self, kr: KraussCarFollowing, view_dt_s: float) -> KraussDriverParams:
+        """:func:`_krauss_params` of this driver, kept while the car follower's parameters and the
+        vehicle limits are the same objects and the margin and steps the same values (no hashing of
+        the frozen parameter sets every step; docs/performance.md "Per-step work of the SUT drivers")."""
+        c = self._params_memo
+        if (c is not None and c[0] is kr.params and c[1] is self.vehicle_params and c[2] == self.stop_margin_m
+                and c[3] == kr.dt_s and c[4] == view_dt_s):
+            return c[5]
+        out = _krauss_params(kr.params, self.vehicle_params, self.stop_margin_m, float(kr.dt_s), view_dt_s)
+        self._params_memo = (kr.params, self.vehicle_params, self.stop_margin_m, kr.dt_s, view_dt_s, out)
+        return out
+
+    def _factors(self, kr: KraussCarFollowing, idx: np.ndarray) -> np.ndarray:
+        """``kr.factors(idx)``, kept while the car follower, its speed factors (drawn once, when it was
+        built) and the driven vehicles are the same objects."""
+        c = self._factors_memo
+        if c is not None and c[0] is kr and c[1] is kr.speed_factors and c[2] is idx:
+            return c[3]
+        out = kr.factors(idx)
+        self._factors_memo = (kr, kr.speed_factors, idx, out)
+        return out
+
+    def lane_change(self, view: Any) -> np.ndarray:
+        """The lane-change request of :meth:`act` alone (the decision draws no random numbers)."""
+        return self.decide(view, self.vehicles, self.params)
+
+    def throttle(self, view: Any) -> np.ndarray:
+        """The throttle of :meth:`act` alone, with the same random draws."""
+        if self._compiled_krauss():
+            return self._acceleration_throttle(view)[1]
+        return accel_to_throttle(self._acceleration_generic(view), self.vehicle_params)
 
     def act(self, view: Any) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each driven vehicle."""
-        request = self.decide(view, self.vehicles, self.params)
-        if self._compiled_krauss():
-            throttle = self._acceleration_throttle(view)[1]
-        else:
-            throttle = accel_to_throttle(self._acceleration_generic(view), self.vehicle_params)
-        return throttle, request
+        request = self.lane_change(view)
+        return self.throttle(view), request
 
 
 _NO_DRAWS = np.zeros(0)

@@ -79,7 +79,7 @@ from evoscen_sim.road.road_kernels import lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum, nan_to_num
-from .krauss_lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
+from .krauss_lane_change import by_identity, kernel_params, kernel_params_type, lane_change_factory, settled
 
 IDM_MAX_DECEL_MPS2 = 9.0
 """Lower clip of the IDM accelerations MOBIL compares (m/s²; the IDM helper's default)."""
@@ -159,6 +159,7 @@ MobilKernelParams = kernel_params_type(MobilParams)
 """:class:`MobilParams` as the compiled kernels read them (:func:`evoscen_sut.krauss_lane_change.kernel_params`)."""
 
 
+@by_identity
 @lru_cache(maxsize=64)
 def conflict_rule(p: MobilParams) -> ConflictRule:
     """MOBIL's pair test of :func:`evoscen_sut.conflicts.resolve_conflicts`: the rear vehicle's IDM

@@ -73,6 +73,8 @@ from evoscen_sim.model_registry import ModelSpec, get_model, model_names
 from evoscen_sim.physics.traffic import common_shift
 from evoscen_sim.physics.view import WorldView
 
+from .krauss_lane_change import KraussLaneChangeDriver
+
 NAME = "mutant"
 
 PERCEPTION = ("blind_behind", "short_view", "stale")
@@ -152,20 +154,90 @@ def view_columns(view: Any) -> dict[str, np.ndarray]:
     }
 
 
+_ATTRS = {"id": "ids", "role": "role", "policy": "policy", "s": "s", "d": "d", "heading_rel": "psi", "speed": "v",
+          "accel": "accel", "steer": "steer", "lane": "lane", "target_lane": "target_lane",
+          "lane_change": "lane_change", "length": "length", "width": "width"}
+"""World-table column -> the view attribute it fills (:class:`WorldView`)."""
+_INTS = frozenset(("id", "role", "policy", "lane", "target_lane", "lane_change"))
+
+
+class RowView(WorldView):
+    """A :class:`WorldView` of selected rows: each column taken with one index from its source
+    (no copy of the whole table first; docs/performance.md "Per-step work of the SUT drivers").
+    Road look-ups and the neighbourhood are computed for these rows, as for any view."""
+
+    def __init__(self, road: Any, columns: dict[str, np.ndarray], step_index: int, dt_s: float,
+                 speed_limit_mps: np.ndarray | None = None) -> None:
+        # the columns are fresh arrays of the right dtypes (:func:`subview`): no checks, no copies;
+        # ``speed_limit_mps``: the rows' limits where known (each row's own road look-up)
+        self.road = road
+        self.dt_s = float(dt_s)
+        self.step_index = int(step_index)
+        self.ids, self.role, self.policy = columns["id"], columns["role"], columns["policy"]
+        self.lane, self.target_lane, self.lane_change = columns["lane"], columns["target_lane"], columns["lane_change"]
+        self.s, self.d, self.psi, self.v = columns["s"], columns["d"], columns["heading_rel"], columns["speed"]
+        self.accel, self.steer, self.length, self.width = (columns["accel"], columns["steer"], columns["length"],
+                                                           columns["width"])
+        self.n = int(self.s.shape[0])
+        self._neighborhood = None
+        self._speed_limit = speed_limit_mps
+        self._lanes = None
+
+
+_ATTR_DTYPES = tuple((col, attr, np.int64 if col in _INTS else np.float64) for col, attr in _ATTRS.items())
+
+
+def _rows_of(view: Any, rows: np.ndarray) -> dict[str, np.ndarray]:
+    """The columns of ``view``'s ``rows`` (fresh arrays), as :func:`view_columns` then :class:`WorldView`
+    would make them (ints as int64, floats as float64)."""
+    out = {}
+    for col, attr, dtype in _ATTR_DTYPES:
+        x = getattr(view, attr)
+        x = x[rows] if type(x) is np.ndarray else np.asarray(x)[rows]
+        out[col] = x if x.dtype == dtype else x.astype(dtype)
+    return out
+
+
+def _speed_limits(view: Any, rows: np.ndarray) -> np.ndarray:
+    """The speed limits of ``view``'s ``rows`` (its own, computed once per state)."""
+    return np.asarray(view.speed_limit_mps, dtype=float)[rows]
+
+
 def subview(view: Any, ego: int, others: np.ndarray, *, source: dict[str, np.ndarray] | None = None,
-            s_shift: np.ndarray | None = None) -> WorldView:
+            s_shift: np.ndarray | None = None) -> Any:
     """A view with the ego (row ``ego`` of ``view``) in row 0, then the rows ``others`` of
     ``source`` (default: ``view``'s columns) in their order; ``s_shift`` (per row of ``others``)
-    is added to those vehicles' ``s``."""
-    own = view_columns(view)
-    src = own if source is None else source
+    is added to those vehicles' ``s``.
+
+    The same numbers as a :class:`WorldView` of the copied columns (docs/performance.md "Per-step
+    work of the SUT drivers"): when that would be ``view`` itself in its own order (the ego in row 0,
+    every other vehicle after it in order, no shift, no other source) it is ``view``, whose road
+    look-ups and neighbourhood are computed already; otherwise each row keeps its speed limit from
+    ``view`` (or from ``source["speed_limit_mps"]`` where the source has it), the road look-up of a
+    row being its own: only the rows moved by ``s_shift`` are looked up again."""
     rows = np.asarray(others, dtype=np.int64)
-    cols: dict[str, np.ndarray] = {}
-    for c in _COLUMNS:
-        cols[c] = np.concatenate([own[c][ego:ego + 1], src[c][rows]])
+    if (source is None and s_shift is None and ego == 0 and rows.shape[0] == view.n - 1
+            and bool((rows == np.arange(1, view.n)).all())):
+        return view
+    if source is None:
+        take = np.concatenate((np.array([ego], dtype=np.int64), rows))
+        cols = _rows_of(view, take)
+        limit = _speed_limits(view, take)
+    else:
+        own = _rows_of(view, np.array([ego], dtype=np.int64))
+        cols = {}
+        for c in _COLUMNS:
+            x = np.concatenate([own[c], source[c][rows]])
+            cols[c] = x.astype(np.int64, copy=False) if c in _INTS else x
+        known = source.get("speed_limit_mps")
+        limit = None if known is None else np.concatenate([_speed_limits(view, np.array([ego])), known[rows]])
     if s_shift is not None:
         cols["s"][1:] += s_shift
-    return WorldView(view.road, cols, view.step_index, view.dt_s)
+        moved = np.flatnonzero(np.asarray(s_shift) != 0.0) + 1
+        if limit is not None and moved.size:
+            lanes = view.road.lane_lookup(np.maximum(cols["s"][moved], 0.0), cols["d"][moved])
+            limit[moved] = lanes.max_speed_mps[np.arange(moved.size), cols["lane"][moved]]
+    return RowView(view.road, cols, view.step_index, view.dt_s, limit)
 
 
 def _others(view: Any, ego: int) -> np.ndarray:
@@ -199,7 +271,7 @@ class MutantDriver:
         self._requests: deque[np.ndarray] = deque(maxlen=params.delay_steps + 1)
 
     # -- the views of the perception and decision operators
-    def perceived(self, view: Any) -> WorldView:
+    def perceived(self, view: Any) -> Any:
         """The view the base driver perceives (perception operators), the full view otherwise."""
         ego, op = self.ego, self.params.operator
         others = _others(view, ego)
@@ -209,11 +281,13 @@ class MutantDriver:
             return subview(view, ego, others[view.s[others] - view.s[ego] <= self.params.view_m])
         if op == "stale":
             now = view_columns(view)
+            now["speed_limit_mps"] = _speed_limits(view, np.arange(view.n))  # a copy: the rows' own
             if self._snapshots:  # a window shift moved every vehicle: the remembered states move too
                 shift = common_shift(self._snapshots[-1]["s"], now["s"])
                 if shift:
                     for old in self._snapshots:
                         old["s"] = old["s"] + shift
+                        old.pop("speed_limit_mps", None)  # looked up again where the vehicles are now
             self._snapshots.append(now)
             old = self._snapshots[0]  # delay_steps ago, or the oldest seen
             ego_id = view.ids[ego]
@@ -221,14 +295,14 @@ class MutantDriver:
             return subview(view, ego, rows, source=old)
         return subview(view, ego, others)
 
-    def _without_new_followers(self, view: Any) -> WorldView:
+    def _without_new_followers(self, view: Any) -> Any:
         ego = self.ego
         others = _others(view, ego)
         beside = np.abs(view.lane[others] - view.lane[ego]) == 1
         behind = view.s[others] < view.s[ego]
         return subview(view, ego, others[~(beside & behind)])
 
-    def _tailgate(self, view: Any) -> WorldView:
+    def _tailgate(self, view: Any) -> Any:
         ego = self.ego
         others = _others(view, ego)
         ahead = (view.lane[others] == view.lane[ego]) & (view.s[others] > view.s[ego])
@@ -240,15 +314,32 @@ class MutantDriver:
         dist = view.road.distance_to_lane_end(np.array([view.lane[ego]]), np.array([view.s[ego]], dtype=float))
         return bool(np.isfinite(dist[0]))
 
+    @staticmethod
+    def _throttle(driver: Any, view: Any) -> np.ndarray:
+        """``driver.act(view)[0]``; a :class:`KraussLaneChangeDriver` computes the throttle alone (the
+        same numbers and random draws; docs/performance.md "Per-step work of the SUT drivers")."""
+        if isinstance(driver, KraussLaneChangeDriver):
+            return driver.throttle(view)
+        return driver.act(view)[0]
+
+    @staticmethod
+    def _lane_change(driver: Any, view: Any) -> np.ndarray:
+        """``driver.act(view)[1]``; a :class:`KraussLaneChangeDriver` decides alone: the throttle it
+        would also compute draws only from the twin's own copy of the random generator, which
+        nothing else reads."""
+        if isinstance(driver, KraussLaneChangeDriver):
+            return driver.lane_change(view)
+        return driver.act(view)[1]
+
     def act(self, view: Any) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} of the SUT."""
         p, op = self.params, self.params.operator
         if op == "ignores_new_follower":
-            throttle = np.asarray(self.base.act(self.perceived(view))[0], dtype=float)
-            lane_change = np.asarray(self.decider.act(self._without_new_followers(view))[1])
+            throttle = np.asarray(self._throttle(self.base, self.perceived(view)), dtype=float)
+            lane_change = np.asarray(self._lane_change(self.decider, self._without_new_followers(view)))
         elif op == "tailgating":
-            throttle = np.asarray(self.base.act(self._tailgate(view))[0], dtype=float)
-            lane_change = np.asarray(self.decider.act(self.perceived(view))[1])
+            throttle = np.asarray(self._throttle(self.base, self._tailgate(view)), dtype=float)
+            lane_change = np.asarray(self._lane_change(self.decider, self.perceived(view)))
         else:
             throttle, lane_change = self.base.act(self.perceived(view) if self._filtered else view)
             throttle = np.asarray(throttle, dtype=float)

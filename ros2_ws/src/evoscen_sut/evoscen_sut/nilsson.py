@@ -88,7 +88,7 @@ from evoscen_sim.road.road_kernels import lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum
-from .krauss_lane_change import kernel_params, kernel_params_type, lane_change_factory, settled
+from .krauss_lane_change import by_identity, kernel_params, kernel_params_type, lane_change_factory, settled
 
 
 @dataclass(frozen=True)
@@ -162,6 +162,7 @@ NilssonKernelParams = kernel_params_type(NilssonParams)
 """:class:`NilssonParams` as the compiled kernels read them (:func:`evoscen_sut.krauss_lane_change.kernel_params`)."""
 
 
+@by_identity
 @lru_cache(maxsize=64)
 def conflict_rule(p: NilssonParams) -> ConflictRule:
     """Nilsson's pair test of :func:`evoscen_sut.conflicts.resolve_conflicts`: the safety distance

@@ -125,3 +125,20 @@ def test_kernel_params_are_the_dataclass_fields_declared_once() -> None:
     assert mobil.MobilKernelParams._fields[:3] == ("politeness", "threshold_mps2", "bias_mps2")
     assert nilsson.NilssonKernelParams._fields[:2] == ("desired_speed_mps", "look_ahead_time_s")
     assert kernel_params(mobil.MobilKernelParams, mobil.MobilParams()).politeness == 0.25
+
+
+def test_kernel_params_and_conflict_rules_are_built_once_per_parameter_set() -> None:
+    """A model asks for its kernel tuple and pair test every decision: one object per parameter set,
+    the values of each set (an equal but distinct set gives equal values)."""
+    import dataclasses
+
+    from evoscen_sut.krauss_lane_change import kernel_params
+
+    p = mobil.MobilParams()
+    q = dataclasses.replace(p, politeness=0.5)
+    a = kernel_params(mobil.MobilKernelParams, p)
+    assert kernel_params(mobil.MobilKernelParams, p) is a
+    assert kernel_params(mobil.MobilKernelParams, q).politeness == 0.5 and a.politeness == 0.25
+    assert kernel_params(mobil.MobilKernelParams, mobil.MobilParams()) == a
+    assert mobil.conflict_rule(p) is mobil.conflict_rule(p)
+    assert mobil.conflict_rule(q).safe_decel_mps2 == 4.0 and mobil.conflict_rule.__wrapped__(p) == mobil.conflict_rule(p)

@@ -291,3 +291,67 @@ def test_library_and_overrides() -> None:
             assert drv.params.operator == m.operator and drv.params.base == base
             for k, v in m.params.items():
                 assert getattr(drv.params, k) == v
+
+
+# ------------------------------------------------------------------ views without whole-table copies
+def _copied_view(view, ego, rows, source=None, s_shift=None):
+    """The filtered view by its definition: every column copied, then the rows taken (a WorldView)."""
+    own = M.view_columns(view)
+    src = own if source is None else source
+    cols = {c: np.concatenate([own[c][ego:ego + 1], src[c][np.asarray(rows, dtype=np.int64)]]) for c in M._COLUMNS}
+    if s_shift is not None:
+        cols["s"][1:] += s_shift
+    return WorldView(view.road, cols, view.step_index, view.dt_s)
+
+
+def _same_view(a, b) -> None:
+    for attr in ("ids", "role", "policy", "s", "d", "psi", "v", "accel", "steer", "lane", "target_lane",
+                 "lane_change", "length", "width", "speed_limit_mps"):
+        x, y = getattr(a, attr), getattr(b, attr)
+        assert x.dtype == y.dtype and np.array_equal(x, y, equal_nan=True), attr
+    na, nb = a.neighborhood(), b.neighborhood()
+    for f in ("leader", "follower", "gap_front_m", "gap_rear_m", "leader_speed_mps", "follower_speed_mps"):
+        assert np.array_equal(getattr(na, f), getattr(nb, f), equal_nan=True), f
+    assert (a.n, a.step_index, a.dt_s) == (b.n, b.step_index, b.dt_s)
+
+
+def test_subview_is_the_copied_view_row_for_row(road) -> None:
+    # ego 1 of 5, vehicle 0 on the merge lane (which exists from s = 600 m to about 1,000 m): filtered
+    # rows, rows moved by a shift (looked up again at their new s), rows of a remembered source
+    w = hand_built_world(road, s=[650.0, 700.0, 730.0, 685.0, 820.0], lane=[0, 1, 1, 2, 1],
+                         speed=[20.0, 25.0, 20.0, 35.0, 30.0])
+    rows = np.array([0, 2, 4])
+    _same_view(M.subview(w, 1, rows), _copied_view(w, 1, rows))
+    shift = np.array([400.0, 15.0, 0.0])
+    moved = M.subview(w, 1, rows, s_shift=shift)
+    _same_view(moved, _copied_view(w, 1, rows, s_shift=shift))
+    assert np.isnan(moved.speed_limit_mps[1]) and moved.speed_limit_mps[0] == pytest.approx(120 / 3.6)  # no lane 0
+    old = M.view_columns(w)
+    old["s"] = old["s"] - 7.0
+    _same_view(M.subview(w, 1, np.array([3, 0]), source=old), _copied_view(w, 1, [3, 0], source=old))
+    old["speed_limit_mps"] = np.full(w.n, 12.5)  # a source's own limits are taken as they are
+    assert M.subview(w, 1, np.array([3, 0]), source=old).speed_limit_mps.tolist()[1:] == [12.5, 12.5]
+
+
+def test_subview_of_everything_in_order_is_the_view_itself(road) -> None:
+    w = blocked_left(road)
+    assert M.subview(w, 0, np.array([1, 2])) is w
+    assert M.subview(w, 0, np.array([2, 1])) is not w  # another order: a view of its own
+    assert M.subview(w, 0, np.array([1, 2]), s_shift=np.zeros(2)) is not w
+
+
+@pytest.mark.parametrize("operator", ["tailgating", "ignores_new_follower"])
+def test_two_view_operators_draw_and_decide_as_two_full_drivers(road, operator) -> None:
+    # throttle from one base driver, lane change from the twin: the same commands and the same
+    # state of the scenario's generator as running act() of both on their views
+    w = hand_built_world(road, s=[300.0, 324.8, 290.0, 340.0], lane=[1, 1, 2, 2], speed=[25.0, 22.0, 30.0, 25.0])
+    cfg = cfg_for("mobil", operator)
+    m = create_driver("mutant", "sut", EGO, cfg, np.random.default_rng(4))
+    ref = create_driver("mutant", "sut", EGO, cfg, np.random.default_rng(4))
+    for _ in range(3):
+        view_t = ref._tailgate(w) if operator == "tailgating" else ref.perceived(w)
+        view_c = ref.perceived(w) if operator == "tailgating" else ref._without_new_followers(w)
+        want_t, want_c = ref.base.act(view_t)[0], ref.decider.act(view_c)[1]
+        got_t, got_c = m.act(w)
+        assert np.array_equal(got_t, want_t) and np.array_equal(got_c, want_c)
+    assert m.base.krauss.rng.random() == ref.base.krauss.rng.random()

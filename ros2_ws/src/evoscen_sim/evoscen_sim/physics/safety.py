@@ -391,7 +391,12 @@ def drac_one(gap_m: float, speed_mps: float, leader_speed_mps: float) -> float:
 def follower_headway(gap_m: np.ndarray, follower_speed_mps: np.ndarray) -> np.ndarray:
     """The follower's time headway to the SUT (s): gap / its speed while it moves, else ``inf``
     (also ``inf`` without a follower: ``inf`` gap or ``nan`` speed); negative while the bodies
-    overlap longitudinally."""
+    overlap longitudinally. Scalars give a numpy float."""
+    if np.ndim(gap_m) == 0 and np.ndim(follower_speed_mps) == 0:
+        # one state in plain floats (the live monitor): the same IEEE operations, at a fraction of
+        # numpy's per-call cost (docs/performance.md "Per-step work of the scores")
+        g, v = float(gap_m), float(follower_speed_mps)
+        return np.float64((g / v if v > 0.0 else math.inf) if math.isfinite(g) else math.inf)
     with np.errstate(divide="ignore", invalid="ignore"):
         thw = np.where(follower_speed_mps > 0.0, gap_m / follower_speed_mps, np.inf)
     return np.where(np.isfinite(gap_m), thw, np.inf)
