@@ -3,14 +3,18 @@
 OpenSCENARIO 1.2 or a CommonRoad scenario (docs/export.md).
 
     python scripts/export_scenario.py BAG [--from T] [--to T] --format xosc|commonroad [--out DIR] [--check]
+    python scripts/export_scenario.py BAG [--from T] --compare-start RUN_BAG
     python scripts/export_scenario.py RUN_OR_CAMPAIGN_DIR --format xosc|commonroad [--check]
 
 BAG is a bag directory (or its ``.mcap`` file): a run's ``OUT/bag`` or a clip's ``clips/<n>-<kind>-<k>/bag``.
 ``--from``/``--to`` are run times in seconds (default: the bag's first and last state). A directory
 holding ``clips.json`` (a campaign run) or ``runs/*/clips.json`` (a campaign's output) exports
-every clip listed, each into ``<clip>/export/``. ``--check``: the ASAM Quality Checker on an
-OpenSCENARIO file, and the independent collision check (shapely on the exported boxes) against
-evoscen's collision events; exit 1 when either fails. Bad input: one ``error:`` line, exit 2.
+every clip listed, each into ``<clip>/export/``, and ends with a summary line per clip and a total.
+``--check``: the ASAM Quality Checker on an OpenSCENARIO file, commonroad-io's read-back of a
+CommonRoad file (obstacles, time steps), and the independent collision check (shapely on the exported
+boxes) against evoscen's collision events; ``--compare-start RUN_BAG``: a run started with
+``--start-from`` the export against the range's first state; exit 1 when a check fails. Bad input:
+one ``error:`` line, exit 2.
 """
 
 from __future__ import annotations
