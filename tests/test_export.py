@@ -152,6 +152,11 @@ for tag, bag, t0, t1, d in zip(("run", "crash"), sys.argv[1:3], (2.0, None), (12
                 "lanelets": len(sc.lanelet_network.lanelets), "dt": sc.dt,
                 "start": [float(v) for v in pp.initial_state.position] + [pp.initial_state.velocity],
                 "goal_step": [g.time_step.start for g in pp.goal.state_list]}
+    ex = X.load_range(bag, t0, t1)
+    out[tag]["check"] = X.check_commonroad(ex, path)
+    ex.tracks.pop()  # the file now holds an obstacle (or more) that was not exported
+    ex.states += 1
+    out[tag]["doctored"] = X.check_commonroad(ex, path)[2]
 print(json.dumps(out))
 """
     res = subprocess.run([sys.executable, "-c", code, str(recorded_run.bag_dir), str(crash / "bag"),
@@ -174,6 +179,8 @@ print(json.dumps(out))
         p = ex.sut.pieces[0]
         np.testing.assert_allclose(g["start"], [p.x[0], p.y[0], p.speed[0]], atol=1e-5)
         assert g["goal_step"] == [p.k0 + p.steps - 1]
+        assert g["check"] == [len(pieces), ex.states, []]
+        assert [line.split(":")[0] for line in g["doctored"]] == ["obstacles", "time steps"]
     assert got["crash"]["types"] == ["TRUCK", "CAR"]
 
 
@@ -194,6 +201,14 @@ def test_an_exported_start_restarts_evoscen_in_the_same_state(recorded_run, cli,
         np.testing.assert_allclose(b.columns[field][0][ib], a.columns[field][k][ia], atol=tol, err_msg=field)
     for field in ("role", "lane"):
         assert b.columns[field][0][ib].tolist() == a.columns[field][k][ia].tolist(), field
+    # compare_start (export_scenario.py --compare-start) says the same, and sees a vehicle 2 cm off
+    ex = X.load_range(recorded_run.bag_dir, t_from, t_from + 1.0)
+    assert X.compare_start(ex, tmp_path / "run" / "bag") == (len(a.ids), [])
+    ex.tracks[1].pieces[0].x[0] += 0.02
+    ex.tracks[2].pieces[0].speed[0] -= 0.02
+    assert X.compare_start(ex, tmp_path / "run" / "bag")[1] == [
+        f"vehicle {ex.tracks[1].vid}: position 0.0200 m from the export's",
+        f"vehicle {ex.tracks[2].vid}: speed 0.0200 m/s from the export's"]
 
 
 def _export_main():
@@ -215,6 +230,7 @@ def _export_main():
     (["{bag}", "--format", "osc"], "error: --format: 'osc': expected one of xosc, commonroad"),
     (["{junk}"], "error: bag "),
     (["{missing}"], "error: "),
+    (["{bag}", "--compare-start", "{junk}"], "error: --compare-start: "),
 ])
 def test_bad_input_is_one_error_line_and_status_2(recorded_run, tmp_path, capsys, args, start):
     junk = tmp_path / "junk.mcap"
@@ -239,3 +255,50 @@ def test_a_start_file_that_is_not_a_scenario_is_one_line(tmp_path):
     nosut.write_text(START.replace('name="sut"', 'name="ego"').replace('entityRef="sut"', 'entityRef="ego"'))
     with pytest.raises(InputError, match="expected exactly one SUT"):
         initial_state_from_xosc(nosut, load_road())
+
+
+def test_a_vehicle_that_jumps_right_after_the_first_state_exports_valid_openscenario(tmp_path):
+    """A first piece of a single state (a re-entry at the range's second state) has no trajectory:
+    Init places the vehicle, no empty event is written (an Event needs an action), and the box check
+    reads its state at t = 0 from Init."""
+    from evoscen_contract import contract as C
+    from evoscen_eval import scenario_export as X
+    from evoscen_sim.config.scenario_config import share_path
+
+    def piece(k0, x, y, v=10.0):
+        n = len(x)
+        return X.Piece(k0, np.array(x, float), np.full(n, y), np.zeros(n), np.full(n, v), np.zeros(n))
+
+    # straight stretch of the shipped map: s = x, d = y; lane III centre y = -8.75, lane V -1.75
+    sut = X.Track(0, C.ROLE_SUT, 0, 5.0, 2.0, "car", 2, 100.0, -8.75, [piece(0, [100.0, 101.0, 102.0, 103.0], -8.75)])
+    bv = X.Track(1, C.ROLE_BV, 0, 4.5, 1.8, "car", 4, 50.0, -1.75,
+                 [piece(0, [50.0], -1.75), piece(1, [300.0, 301.0, 302.0], -1.75)])
+    ex = X.RangeExport(tmp_path / "bag", 0.0, 0.1, 4, [sut, bv], [], Path(share_path("maps/onramp.xodr")), None)
+    path = X.write_xosc(ex, tmp_path)
+    text = path.read_text()
+    assert text.count('<Event name="bv1_piece') == 1 and 'name="bv1_piece1"' in text
+    tracks = X.read_xosc_tracks(path)
+    assert [s[:2] for s in tracks["bv1"].samples] == [(0.0, 50.0), (0.1, 300.0), (0.2, 301.0), (0.3, 302.0)]
+    assert len(tracks["sut"].samples) == 4  # its vertex at t = 0 is not doubled by the Init pose
+    assert X.check_xosc(path) == []
+
+
+def test_a_campaigns_clips_export_with_a_summary_per_clip_and_a_total(crash, tmp_path):
+    """``export_scenario.py CAMPAIGN --format commonroad --check``: each clip read back by commonroad-io
+    (one obstacle per BV piece: the truck and the car), its collision found by the box check."""
+    import shutil
+
+    from evoscen_eval import scenario_export as X
+
+    run = tmp_path / "camp" / "runs" / "k1"
+    shutil.copytree(crash / "bag", run / "clips" / "001-collision-7" / "bag")
+    (run / "clips.json").write_text(json.dumps([{"kind": "collision", "clip": "clips/001-collision-7/bag"}]))
+    states = X.load_range(crash / "bag").states
+    res = subprocess.run([sys.executable, str(EXPORT), str(tmp_path / "camp"), "--format", "commonroad", "--check"],
+                         cwd=REPO, capture_output=True, text=True, timeout=120, check=False)
+    assert res.returncode == 0, res.stdout + res.stderr
+    out = res.stdout
+    assert f"2 obstacles (exported 2), {states} time steps (exported {states}); same" in out
+    assert (f"runs/k1/clips/001-collision-7: collision, 3 vehicles, {states} states; read back 2/2 obstacles, "
+            f"{states}/{states} steps; 1 collision(s) agree;") in out
+    assert "1 clip(s) exported (1 collision)" in out and "1 passed, 0 failed; collisions: 1 in 1 clip(s)" in out

@@ -241,6 +241,10 @@ def write_xosc(ex: RangeExport, out_dir: Path | str, name: str = "scenario") -> 
             float(p0.speed[0]), xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0)))
         man = xosc.Maneuver(f"{tr.name}_motion")
         for n, p in enumerate(tr.pieces):
+            if n == 0 and p.steps < 2:
+                # a first piece of one state (a jump right after the range's first state): Init places
+                # the vehicle there, and an event without an action is invalid (docs/export.md "Pieces")
+                continue
             t0 = p.k0 * ex.dt_s
             ev = xosc.Event(f"{tr.name}_piece{n}", xosc.Priority.parallel)
             ev.add_trigger(xosc.ValueTrigger(f"{tr.name}_piece{n}_start", 0, xosc.ConditionEdge.none,
@@ -326,7 +330,8 @@ class XoscTrack:
     init_pose: tuple[float, float, float]
     init_speed: float
     samples: list[tuple[float, float, float, float]]
-    """(time, x, y, heading) of every polyline vertex of its FollowTrajectoryActions, by time."""
+    """(time, x, y, heading) of every polyline vertex of its FollowTrajectoryActions, by time, and its
+    Init pose at time 0 when no vertex is there."""
 
 
 def read_xosc_tracks(path: Path | str) -> dict[str, XoscTrack]:
@@ -340,9 +345,11 @@ def read_xosc_tracks(path: Path | str) -> dict[str, XoscTrack]:
         props = {p.get("name"): p.get("value") for p in veh.iter("Property")}
         out[obj.get("name")] = XoscTrack(obj.get("name"), veh.get("vehicleCategory"), float(dims.get("length")),
                                          float(dims.get("width")), props, (0.0, 0.0, 0.0), 0.0, [])
+    placed = set()
     for private in root.iter("Private"):
         tr = out[private.get("entityRef")]
         for wp in private.iter("WorldPosition"):
+            placed.add(tr.name)
             tr.init_pose = (float(wp.get("x")), float(wp.get("y")), float(wp.get("h")))
         for sa in private.iter("AbsoluteTargetSpeed"):
             tr.init_speed = float(sa.get("value"))
@@ -353,6 +360,9 @@ def read_xosc_tracks(path: Path | str) -> dict[str, XoscTrack]:
             out[actor].samples.append((float(vertex.get("time")), float(wp.get("x")), float(wp.get("y")),
                                        float(wp.get("h"))))
     for tr in out.values():
+        # the Init pose is the state at time 0; a first piece of a single state has no vertex there
+        if tr.name in placed and not any(abs(t) < EPS_T for t, *_ in tr.samples):
+            tr.samples.append((0.0, *tr.init_pose))
         tr.samples.sort()
     return out
 
@@ -565,6 +575,38 @@ def write_commonroad(ex: RangeExport, out_dir: Path | str, name: str = "scenario
     return path
 
 
+def check_commonroad(ex: RangeExport, path: Path | str) -> tuple[int, int, list[str]]:
+    """Read ``path`` back with commonroad-io's ``CommonRoadFileReader`` and compare it with what
+    :func:`write_commonroad` wrote for ``ex``: one dynamic obstacle per BV piece (same ids, first and
+    last time steps), the scenario's time steps (its last = ``ex.states - 1``), ``dt``, and the SUT's
+    planning problem starting at time step 0. Returns ``(obstacles, time steps, problems)``: the
+    counts read back and one line per difference (empty: the file holds what was exported)."""
+    protobuf_runtime()
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    scenario, problems = CommonRoadFileReader(str(path)).open()
+    want = {obstacle_id(t.vid, n): (p.k0, p.k0 + p.steps - 1)
+            for t in ex.tracks if t.role != C.ROLE_SUT for n, p in enumerate(t.pieces)}
+    got = {o.obstacle_id: (o.initial_state.time_step,
+                           o.prediction.final_time_step if o.prediction is not None else o.initial_state.time_step)
+           for o in scenario.dynamic_obstacles}
+    steps = 1 + max([last for _, last in got.values()] + [0])
+    out = []
+    if sorted(got) != sorted(want):
+        out.append(f"obstacles: read back {len(got)}, exported {len(want)} "
+                   f"(missing {sorted(set(want) - set(got))[:5]}, extra {sorted(set(got) - set(want))[:5]})")
+    out += [f"obstacle {i}: time steps {got[i][0]}..{got[i][1]} read back, {want[i][0]}..{want[i][1]} exported"
+            for i in sorted(set(got) & set(want)) if got[i] != want[i]]
+    if steps != ex.states:
+        out.append(f"time steps: read back {steps}, exported {ex.states}")
+    if abs(float(scenario.dt) - ex.dt_s) > 1e-9:
+        out.append(f"dt: read back {scenario.dt}, exported {ex.dt_s}")
+    pps = list(problems.planning_problem_dict.values())
+    if [pp.planning_problem_id for pp in pps] != [PLANNING_PROBLEM_ID] or pps[0].initial_state.time_step != 0:
+        out.append(f"planning problem: expected one (id {PLANNING_PROBLEM_ID}) starting at time step 0")
+    return len(got), steps, out
+
+
 # ---------------------------------------------------------------------------------- a start from a file
 
 
@@ -630,3 +672,38 @@ def initial_state_from_xosc(path: Path | str, road) -> ImportedStart:
         lane=lane.astype(np.int64), speed_mps=np.array([r[2].init_speed for r in rows]),
         length_m=np.array([r[2].length_m for r in rows]), width_m=np.array([r[2].width_m for r in rows]),
         classes=[r[2].category for r in rows])
+
+
+START_TOLERANCE_M = 0.01
+START_TOLERANCE_MPS = 0.01
+"""How far a run started from an export may be from the range's first state (position m, speed m/s)."""
+
+
+def compare_start(ex: RangeExport, run_bag: Path | str, truck_min_length_m: float = TRUCK_MIN_LENGTH_M
+                  ) -> tuple[int, list[str]]:
+    """The first state of ``run_bag`` (a run started with ``--start-from`` the export of ``ex``)
+    against the range's first state: the same vehicle ids, and for each its role, class, lane,
+    position (``x``, ``y`` within :data:`START_TOLERANCE_M`) and speed (within
+    :data:`START_TOLERANCE_MPS`). Returns ``(vehicles compared, one line per difference)``."""
+    from .rundata import read_run
+
+    run = read_run(run_bag)
+    col = {f: run.columns[f][0] for f in ("x", "y", "speed", "role", "lane", "length")}
+    got = {int(vid): v for v, vid in enumerate(run.ids.tolist())}
+    out = []
+    want = {t.vid: t for t in ex.tracks}
+    if sorted(got) != sorted(want):
+        out.append(f"vehicle ids: run {sorted(got)}, export {sorted(want)}")
+    for vid in sorted(set(got) & set(want)):
+        t, v, p = want[vid], got[vid], want[vid].pieces[0]
+        klass = vehicle_class(float(col["length"][v]), truck_min_length_m)
+        if int(col["role"][v]) != t.role or klass != t.klass or int(col["lane"][v]) != t.lane0:
+            out.append(f"vehicle {vid}: role/class/lane {int(col['role'][v])}/{klass}/{int(col['lane'][v])}, "
+                       f"export {t.role}/{t.klass}/{t.lane0}")
+        dxy = math.hypot(float(col["x"][v]) - p.x[0], float(col["y"][v]) - p.y[0])
+        if dxy > START_TOLERANCE_M:
+            out.append(f"vehicle {vid}: position {dxy:.4f} m from the export's")
+        dv = abs(float(col["speed"][v]) - p.speed[0])
+        if dv > START_TOLERANCE_MPS:
+            out.append(f"vehicle {vid}: speed {dv:.4f} m/s from the export's")
+    return len(set(got) & set(want)), out
