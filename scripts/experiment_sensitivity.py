@@ -269,6 +269,18 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     def rates(key: tuple[str, str, str], side: str, measure: str) -> dict[int, float]:
         return {s: ssm_rate(r, side, measure) for s, r in reports[key].items()}
 
+    def speeds(key: tuple[str, str, str], which: str) -> dict[int, float]:
+        """Per seed the SUT's mean speed (``sut``) or the comparative score's reference speed (``reference``:
+        the mean speed of the vehicles in the SUT's view, docs/evaluation.md §10.2), m/s; nan where absent."""
+        out = {}
+        for s, r in reports[key].items():
+            if which == "sut":
+                v = (r.get("efficiency") or {}).get("mean_speed_mps")
+            else:
+                v = (((r.get("comparative") or {}).get("progress")) or {}).get("reference_mean_speed_mps")
+            out[s] = math.nan if v is None else float(v)
+        return out
+
     unit = design.unit
     first_report = next(iter(next(iter(reports.values())).values()))
     ssm_header = ["mutant", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "n"]
@@ -276,7 +288,7 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
               "Δ collisions (mutant − intact)", "Δ exposures (mutant − intact)", "Δ min PET (s, intact − mutant)",
               "detected", f"{unit}s needed", "pairing r"]
     csv_rows, score_rows, md_parts, plot_data = [], [], [], []
-    block_rows, block_csv, csv_na = [], [], []
+    block_rows, block_csv, csv_na, speed_csv = [], [], [], []
     blocks = [SeedBlock(a, b) for a, b in design.block_bounds]
     summaries = {}
     round_rows = []
@@ -291,6 +303,9 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
             rows, points = [], []
             intact_rates = [mean_ci([v for v in rates(intact_key, side, ms).values() if not math.isnan(v)])
                             for side, ms in SSM_RATES]
+            v_i = mean_ci([v for v in speeds(intact_key, "sut").values() if not math.isnan(v)])
+            ref_i = mean_ci([v for v in speeds(intact_key, "reference").values() if not math.isnan(v)])
+            speed_rows = []
             ssm_rows = [["intact (mean)", *(fmt_ci(mean, half, 2) for mean, half in intact_rates),
                          str(len(reports[intact_key]))]]
             per_block = {m: block_detection(per_seed(intact_key, "intelligence"),
@@ -315,6 +330,14 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                 d_pet = paired(min_pet(intact_key), min_pet(key))
                 d_ssm = [paired(rates(key, side, ms), rates(intact_key, side, ms)) for side, ms in SSM_RATES]
                 ssm_rows.append([m, *(fmt_ci(d.mean, d.half, 2) for d in d_ssm), str(d_ssm[0].n)])
+                d_v = paired(speeds(key, "sut"), speeds(intact_key, "sut"))
+                d_ref = paired(speeds(key, "reference"), speeds(intact_key, "reference"))
+                speed_rows.append([m, fmt_ci(d_v.mean, d_v.half, 2), fmt_ci(d_ref.mean, d_ref.half, 2),
+                                   # the ratio only where the SUT's speed changed beyond noise
+                                   f"{d_ref.mean / d_v.mean:.2f}" if d_v.n >= 2 and abs(d_v.mean) > d_v.half else "–",
+                                   str(d_v.n)])
+                speed_csv.append([design.name, scenario, driver, base, m, d_v.mean, d_v.half, d_ref.mean, d_ref.half,
+                                  d_v.n])
                 need = seeds_needed(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
                 r_pair = summary.pairing_r[m]
                 hit = diffs["intelligence"].above_zero
@@ -359,7 +382,13 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                             f"detects).\n\n" + markdown_table(block_header, block_rows[-1])
                             + f"\nSurrogate safety of the SUT per SUT-km (docs/evaluation.md): the intact model's mean "
                             f"± 95 % interval over {unit}s, then each mutant's paired difference mutant − intact "
-                            f"(> 0: more conflicts), n {unit}s.\n\n" + markdown_table(ssm_header, ssm_rows))
+                            f"(> 0: more conflicts), n {unit}s.\n\n" + markdown_table(ssm_header, ssm_rows)
+                            + f"\nSpeeds (m/s): the intact SUT's mean {fmt_ci(*v_i, 2)}, the progress reference (the "
+                            f"mean speed of the vehicles in its view, docs/evaluation.md §10.2) {fmt_ci(*ref_i, 2)}; "
+                            f"per mutant the paired differences mutant − intact and their ratio (how much of the "
+                            f"SUT's change the reference follows; where the SUT's change is significant).\n\n"
+                            + markdown_table(["mutant", "Δ SUT speed", "Δ reference speed", "ratio", "n"],
+                                             speed_rows))
             plot_data.append((f"{scenario} / {base}", points))
     for rnd in rounds:
         _, scenario, base, variant = meta[rnd.key]
@@ -386,6 +415,9 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     write_csv(out / "blocks.csv", ["design", "scenario", "bv_driver", "base", "mutant", "class", "block_first_seed",
                                    "block_last_seed", "d_intelligence_mean", "d_intelligence_ci95", "n", "detected",
                                    "needed"], block_csv)
+    write_csv(out / "speeds.csv", ["design", "scenario", "bv_driver", "base", "mutant", "d_sut_speed_mean",
+                                   "d_sut_speed_ci95", "d_reference_speed_mean", "d_reference_speed_ci95", "n"],
+              speed_csv)
     write_csv(out / "not_applicable.csv", ["scenario", "bv_driver", "base", "mutant", "class", "applies_to"], csv_na)
     write_csv(out / "rounds.csv", ["design", "scenario", "base", "variant", "seed", "steps", *SCORES, "collisions",
                                    "exposures", "wall_time_s",
@@ -512,7 +544,7 @@ def main(argv: list[str] | None = None) -> int:
         print(compute_text(design, cfg0, variants))
         print(score_table, end="")
         print(f"written: {args.out / 'sensitivity.md'}, sensitivity.csv, mutation_scores.csv, blocks.csv, "
-              f"not_applicable.csv, rounds.csv, sensitivity.png")
+              f"not_applicable.csv, speeds.csv, rounds.csv, sensitivity.png")
         return EXIT_OK
 
     summaries, computes, walls = {}, {}, {}

@@ -220,6 +220,8 @@ def test_sensitivity_seed_blocks_and_a_base_a_mutant_does_not_apply_to(tmp_path)
     assert scores["mobil"]["detected_per_block"] == ";".join(map(str, per_block))
     assert scores["mobil"]["min_detected_over_blocks"] == str(min(per_block))
     assert [(r["base"], r["mutant"]) for r in read_csv(out / "not_applicable.csv")] == [("level0", "frozen")]
+    (sp,) = read_csv(out / "speeds.csv")  # mutant − intact speeds, paired over all 4 episodes
+    assert (sp["base"], sp["mutant"], sp["n"]) == ("mobil", "frozen", "4")
     text = (out / "sensitivity.md").read_text()
     assert "| frozen | decision | not applicable to level0 |" in text and "ΔI block 9–10" in text
     assert "detected 0/1 applicable (base, mutant) pairs" in text or "detected 1/1 applicable" in text
