@@ -5,6 +5,7 @@
                                             [--mutants all|NAME,...] [--scenarios evolving,level0,nilsson,mobil]
                                             [--design episodes|long] [--episodes 100] [--episode-steps 300]
                                             [--seeds 10] [--steps 3000] [--first-seed S] [--jobs N]
+                                            [--blocks K] [--block-size N] [--seed-blocks A:B,C:D]
     python scripts/experiment_sensitivity.py --compare-designs [--first-seed S] [--long-first-seed S] ...
 
 For every base SUT model (``--base``, comma-separated) and every scenario, the intact model and
@@ -18,10 +19,15 @@ streams); without ``--design`` the design whose flags are given runs, else
 ``mobil``) — every BV driven by that model. Per mutant and scenario: the paired difference
 intact − mutant of the intelligence score and of each sub-score, with its 95 % interval over
 seeds, *detected* when the intelligence interval lies above zero, and the seeds needed to
-detect it; per scenario the mutation score (detected / all). Rounds run on ``--jobs`` Ray
+detect it; per scenario the mutation score (detected / all). Only the mutants that apply to a base
+run on it (:func:`evoscen_sut.mutants.mutants_for`); the others are reported as not applicable and the
+mutation score counts applicable (base, mutant) pairs. With seed blocks (``--blocks``/``--block-size``
+or ``--seed-blocks``, docs/sensitivity.md "Seed blocks") every mutant's interval, detection and
+episodes needed are also given per block, and the mutation score per block and its minimum. Rounds run on ``--jobs`` Ray
 workers (the campaign engine) and are saved as they finish: an interrupted experiment
 continues where it stopped. Writes ``sensitivity.md``, ``sensitivity.csv``,
-``mutation_scores.csv``, ``rounds.csv`` and ``sensitivity.png`` into ``--out`` and prints the
+``mutation_scores.csv``, ``blocks.csv``, ``not_applicable.csv``, ``speeds.csv``, ``rounds.csv`` and
+``sensitivity.png`` into ``--out`` and prints the
 tables.
 
 ``--compare-designs`` runs both designs at equal compute (the same SUT steps per variant:
