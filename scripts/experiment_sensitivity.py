@@ -5,6 +5,7 @@
                                             [--mutants all|NAME,...] [--scenarios evolving,level0,nilsson,mobil]
                                             [--design episodes|long] [--episodes 100] [--episode-steps 300]
                                             [--seeds 10] [--steps 3000] [--first-seed S] [--jobs N]
+                                            [--blocks K] [--block-size N] [--seed-blocks A:B,C:D]
     python scripts/experiment_sensitivity.py --compare-designs [--first-seed S] [--long-first-seed S] ...
 
 For every base SUT model (``--base``, comma-separated) and every scenario, the intact model and
@@ -18,10 +19,15 @@ streams); without ``--design`` the design whose flags are given runs, else
 ``mobil``) — every BV driven by that model. Per mutant and scenario: the paired difference
 intact − mutant of the intelligence score and of each sub-score, with its 95 % interval over
 seeds, *detected* when the intelligence interval lies above zero, and the seeds needed to
-detect it; per scenario the mutation score (detected / all). Rounds run on ``--jobs`` Ray
+detect it; per scenario the mutation score (detected / all). Only the mutants that apply to a base
+run on it (:func:`evoscen_sut.mutants.mutants_for`); the others are reported as not applicable and the
+mutation score counts applicable (base, mutant) pairs. With seed blocks (``--blocks``/``--block-size``
+or ``--seed-blocks``, docs/sensitivity.md "Seed blocks") every mutant's interval, detection and
+episodes needed are also given per block, and the mutation score per block and its minimum. Rounds run on ``--jobs`` Ray
 workers (the campaign engine) and are saved as they finish: an interrupted experiment
 continues where it stopped. Writes ``sensitivity.md``, ``sensitivity.csv``,
-``mutation_scores.csv``, ``rounds.csv`` and ``sensitivity.png`` into ``--out`` and prints the
+``mutation_scores.csv``, ``blocks.csv``, ``not_applicable.csv``, ``speeds.csv``, ``rounds.csv`` and
+``sensitivity.png`` into ``--out`` and prints the
 tables.
 
 ``--compare-designs`` runs both designs at equal compute (the same SUT steps per variant:
@@ -72,6 +78,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--first-seed", default="0", help="first seed (default 0; with --compare-designs the episodes')")
     ap.add_argument("--long-first-seed", help="with --compare-designs: the long design's first seed (default: the "
                                               "seed after the episodes')")
+    ap.add_argument("--blocks", help="seed blocks: this many blocks of --block-size seeds each, one after the other "
+                                     "from --first-seed (replaces --episodes/--seeds; default: one block)")
+    ap.add_argument("--block-size", help="seeds (episodes, or long runs) per block (default: the design's "
+                                         f"--episodes {EPISODES} or --seeds {SEEDS})")
+    ap.add_argument("--seed-blocks", help="explicit seed blocks 'A:B,C:D' (seeds A..B and C..D, both ends included, "
+                                          "disjoint); replaces --first-seed, --blocks, --block-size")
     ap.add_argument("--compare-designs", action="store_true",
                     help="run both designs at equal SUT steps and compare their detection")
     ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
@@ -86,7 +98,7 @@ def resolve_designs(args: argparse.Namespace) -> list:
     ``--design``, ``--long-first-seed`` without ``--compare-designs``, unequal SUT steps.
     """
     from evoscen_bringup.experiments import positive_int
-    from evoscen_bringup.sensitivity import DESIGNS, Design
+    from evoscen_bringup.sensitivity import DESIGNS, Design, blocked_design
     from evoscen_sim.errors import InputError
 
     ep_flags = [f for f, v in (("--episodes", args.episodes), ("--episode-steps", args.episode_steps)) if v is not None]
@@ -117,6 +129,12 @@ def resolve_designs(args: argparse.Namespace) -> list:
     first = positive_int("--first-seed", args.first_seed, 0)
     episodes = Design("episodes", value("--episodes", args.episodes, EPISODES),
                       value("--episode-steps", args.episode_steps, EPISODE_STEPS), first)
+    blocks = resolve_blocks(args, names[0], first)
+    if blocks is not None:
+        name = names[0]
+        steps = (episodes.steps if name == "episodes"
+                 else value("--steps", args.steps, STEPS))
+        return [blocked_design(name, steps, [(b.first, b.last) for b in blocks])]
     long_first = first
     if args.compare_designs:
         long_first = (first + episodes.runs if args.long_first_seed is None
@@ -129,20 +147,55 @@ def resolve_designs(args: argparse.Namespace) -> list:
     return [d for d in (episodes, long) if d.name in names]
 
 
+def resolve_blocks(args: argparse.Namespace, design: str, first: int) -> list | None:
+    """The seed blocks (:class:`evoscen_bringup.replication.SeedBlock`) of ``--blocks``/``--block-size`` or
+    ``--seed-blocks``; None when neither is given (one block: the design's runs from ``--first-seed``).
+
+    InputError (one line): blocks with ``--compare-designs``, with the design's run count (``--episodes``,
+    ``--seeds``), ``--seed-blocks`` with ``--first-seed``/``--blocks``/``--block-size``."""
+    from evoscen_bringup.experiments import positive_int
+    from evoscen_bringup.replication import consecutive_blocks, parse_seed_blocks
+    from evoscen_sim.errors import InputError
+
+    given = [f for f, v in (("--blocks", args.blocks), ("--block-size", args.block_size),
+                            ("--seed-blocks", args.seed_blocks)) if v is not None]
+    if not given:
+        return None
+    if args.compare_designs:
+        raise InputError(f"{given[0]} does not apply with --compare-designs (each design runs one block)")
+    runs_flag = "--episodes" if design == "episodes" else "--seeds"
+    if (args.episodes if design == "episodes" else args.seeds) is not None:
+        raise InputError(f"{runs_flag} and {given[0]} together: a blocked design's runs are its blocks' seeds")
+    if args.seed_blocks is not None:
+        other = [f for f in ("--blocks", "--block-size") if f in given]
+        if other or args.first_seed != "0":
+            raise InputError(f"--seed-blocks and {other[0] if other else '--first-seed'} together: the blocks "
+                             f"name their seeds")
+        return parse_seed_blocks(args.seed_blocks)
+    count = positive_int("--blocks", "1" if args.blocks is None else args.blocks)
+    size = positive_int("--block-size", args.block_size if args.block_size is not None
+                        else (EPISODES if design == "episodes" else SEEDS))
+    return consecutive_blocks(first, count, size)
+
+
 def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants: list[str],
                  config: Path | None) -> tuple[list, dict[str, tuple[str, str, str, str]]]:
-    """The rounds of every design: per scenario, SUT variant (intact, then each mutant) and seed of the
-    design, one run of the design's steps. Returns the rounds and their key -> (design, scenario,
+    """The rounds of every design: per scenario, SUT variant (intact, then each mutant that applies to the
+    base, :func:`evoscen_bringup.replication.applicable_split`) and seed of the design, one run of the design's
+    steps. Returns the rounds and their key -> (design, scenario,
     base, variant); every variant of a scenario runs on the same seeds (paired)."""
     from evoscen_bringup.experiments import Round, config_loader
     from evoscen_sut.mutants import mutant_overrides
 
     load = config_loader(config)
 
+    from evoscen_bringup.replication import applicable_split
+
     variants: list[tuple[str, str, dict[str, str]]] = []  # (base, mutant or intact, overrides)
     for base in bases:
         variants.append((base, INTACT, {"sut.model": base}))
-        variants += [(base, m, mutant_overrides(base, m)) for m in mutants]
+        # only the mutants that apply to the base run (docs/sensitivity.md "Every base")
+        variants += [(base, m, mutant_overrides(base, m)) for m in applicable_split(base, mutants)[0]]
     rounds = []
     meta: dict[str, tuple[str, str, str, str]] = {}
     for design in designs:
@@ -173,7 +226,9 @@ def compute_text(design, cfg, variants: int) -> str:
     warm = (f"the warm-up (traffic.warmup_s = {cfg.traffic.warmup_s:g} s, {w} steps) runs before every run and is "
             f"extra compute, the same per run in either design: {design.runs} x {w} = {c.warmup_steps:,} steps"
             if w else "no warm-up (traffic.warmup_s = 0 or no traffic window)")
-    return (f"Design {design.name}: {design.runs} {design.unit}s (seeds {design.seeds[0]}..{design.seeds[-1]}) x "
+    seeds = (f"seeds {design.seeds[0]}..{design.seeds[-1]}" if len(design.block_bounds) == 1 else
+             "seed blocks " + ", ".join(f"{a}..{b}" for a, b in design.block_bounds))
+    return (f"Design {design.name}: {design.runs} {design.unit}s ({seeds}) x "
             f"{design.steps:,} steps = {c.sut_steps:,} SUT steps per variant and scenario; {warm}; "
             f"{c.total:,} simulated steps per variant and scenario, {c.total * variants:,} in all "
             f"({variants} variant-scenario pairs, {design.runs * variants:,} runs).")
@@ -184,6 +239,7 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     """One design's tables and files in ``out`` (sensitivity.md/.csv, mutation_scores.csv, rounds.csv,
     sensitivity.png). Returns (scenario, base) -> :class:`DesignSummary` and the score table (Markdown)."""
     from evoscen_bringup.experiments import difference_words, fmt_ci, markdown_table, mean_ci, write_csv
+    from evoscen_bringup.replication import SeedBlock, applicable_split, block_detection, block_scores
     from evoscen_bringup.sensitivity import (
         SCORES,
         SSM_RATES,
@@ -219,6 +275,18 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     def rates(key: tuple[str, str, str], side: str, measure: str) -> dict[int, float]:
         return {s: ssm_rate(r, side, measure) for s, r in reports[key].items()}
 
+    def speeds(key: tuple[str, str, str], which: str) -> dict[int, float]:
+        """Per seed the SUT's mean speed (``sut``) or the comparative score's reference speed (``reference``:
+        the mean speed of the vehicles in the SUT's view, docs/evaluation.md §10.2), m/s; nan where absent."""
+        out = {}
+        for s, r in reports[key].items():
+            if which == "sut":
+                v = (r.get("efficiency") or {}).get("mean_speed_mps")
+            else:
+                v = (((r.get("comparative") or {}).get("progress")) or {}).get("reference_mean_speed_mps")
+            out[s] = math.nan if v is None else float(v)
+        return out
+
     unit = design.unit
     first_report = next(iter(next(iter(reports.values())).values()))
     ssm_header = ["mutant", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "n"]
@@ -226,21 +294,41 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
               "Δ collisions (mutant − intact)", "Δ exposures (mutant − intact)", "Δ min PET (s, intact − mutant)",
               "detected", f"{unit}s needed", "pairing r"]
     csv_rows, score_rows, md_parts, plot_data = [], [], [], []
+    block_rows, block_csv, csv_na, speed_csv = [], [], [], []
+    blocks = [SeedBlock(a, b) for a, b in design.block_bounds]
     summaries = {}
     round_rows = []
     for scenario in scenarios:
         driver = next(r.cfg.bvs.driver for r in rounds if meta[r.key][1] == scenario)
         for base in bases:
             intact_key = (scenario, base, INTACT)
+            applicable, not_applicable = applicable_split(base, mutants)
             summary = summarise_design(per_seed(intact_key, "intelligence"),
-                                       {m: per_seed((scenario, base, m), "intelligence") for m in mutants})
+                                       {m: per_seed((scenario, base, m), "intelligence") for m in applicable})
             summaries[(scenario, base)] = summary
             rows, points = [], []
             intact_rates = [mean_ci([v for v in rates(intact_key, side, ms).values() if not math.isnan(v)])
                             for side, ms in SSM_RATES]
+            v_i = mean_ci([v for v in speeds(intact_key, "sut").values() if not math.isnan(v)])
+            ref_i = mean_ci([v for v in speeds(intact_key, "reference").values() if not math.isnan(v)])
+            speed_rows = []
             ssm_rows = [["intact (mean)", *(fmt_ci(mean, half, 2) for mean, half in intact_rates),
                          str(len(reports[intact_key]))]]
-            for m in mutants:
+            per_block = {m: block_detection(per_seed(intact_key, "intelligence"),
+                                            per_seed((scenario, base, m), "intelligence"), blocks)
+                         for m in applicable}
+            b_scores = block_scores(per_block, blocks)
+            block_rows.append([m_row for m in applicable for m_row in [
+                [m, *(cell for b in per_block[m].per_block for cell in (
+                    f"{fmt_ci(b.diff.mean, b.diff.half)} (n {b.diff.n})", "yes" if b.detected else "no",
+                    "–" if b.needed is None else str(b.needed))),
+                 f"{per_block[m].detected_blocks}/{len(blocks)}"]]])
+            for m in applicable:
+                for b in per_block[m].per_block:
+                    block_csv.append([design.name, scenario, driver, base, m, LIBRARY[m].klass, b.block.first,
+                                      b.block.last, b.diff.mean, b.diff.half, b.diff.n, int(b.detected),
+                                      "" if b.needed is None else b.needed])
+            for m in applicable:
                 key = (scenario, base, m)
                 diffs = {name: paired(per_seed(intact_key, name), per_seed(key, name)) for name in SCORES}
                 d_col = paired(counts(key, "safety", "collisions"), counts(intact_key, "safety", "collisions"))
@@ -248,6 +336,14 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                 d_pet = paired(min_pet(intact_key), min_pet(key))
                 d_ssm = [paired(rates(key, side, ms), rates(intact_key, side, ms)) for side, ms in SSM_RATES]
                 ssm_rows.append([m, *(fmt_ci(d.mean, d.half, 2) for d in d_ssm), str(d_ssm[0].n)])
+                d_v = paired(speeds(key, "sut"), speeds(intact_key, "sut"))
+                d_ref = paired(speeds(key, "reference"), speeds(intact_key, "reference"))
+                speed_rows.append([m, fmt_ci(d_v.mean, d_v.half, 2), fmt_ci(d_ref.mean, d_ref.half, 2),
+                                   # the ratio only where the SUT's speed changed beyond noise
+                                   f"{d_ref.mean / d_v.mean:.2f}" if d_v.n >= 2 and abs(d_v.mean) > d_v.half else "–",
+                                   str(d_v.n)])
+                speed_csv.append([design.name, scenario, driver, base, m, d_v.mean, d_v.half, d_ref.mean, d_ref.half,
+                                  d_v.n])
                 need = seeds_needed(per_seed(intact_key, "intelligence"), per_seed(key, "intelligence"))
                 r_pair = summary.pairing_r[m]
                 hit = diffs["intelligence"].above_zero
@@ -264,17 +360,41 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
                                  d_col.mean, d_col.half, d_exp.mean, d_exp.half, d_pet.mean, d_pet.half, int(hit),
                                  "" if need is None else need, diffs["intelligence"].n, r_pair,
                                  *(v for d in d_ssm for v in (d.mean, d.half)), d_ssm[0].n])
+            for m in not_applicable:
+                rows.append([m, LIBRARY[m].klass, f"not applicable to {base}", *["–"] * (len(header) - 3)])
+                csv_na.append([scenario, driver, base, m, LIBRARY[m].klass, LIBRARY[m].applies])
             intact_i = mean_ci(list(per_seed(intact_key, "intelligence").values()))
+            low = b_scores.min_block
             score_rows.append([scenario, driver, base, summary.detected, summary.mutants, summary.score, *intact_i,
-                               summary.median_r])
+                               summary.median_r, len(not_applicable), ";".join(map(str, b_scores.detected)),
+                               b_scores.min_detected, "" if low is None else low.label, b_scores.every_block])
             score = summary.score
+            block_header = ["mutant", *(h for b in blocks for h in (f"ΔI block {b.label}", f"detected {b.label}",
+                                                                   f"{unit}s needed {b.label}")),
+                            "detected in blocks"]
+            per_block_text = ", ".join(f"{k}/{summary.mutants} in block {b.label}"
+                                       for k, b in zip(b_scores.detected, blocks))
             md_parts.append(f"## {scenario} (BVs: {driver}), SUT {base}\n\nIntact intelligence "
-                            f"{fmt_ci(*intact_i)}; mutation score {summary.detected}/{summary.mutants}"
-                            f"{'' if math.isnan(score) else f' = {score:.2f}'}.\n\n"
+                            f"{fmt_ci(*intact_i)}; mutation score over all {unit}s {summary.detected}/{summary.mutants}"
+                            f"{'' if math.isnan(score) else f' = {score:.2f}'} (applicable mutants; "
+                            f"{len(not_applicable)} not applicable to {base}"
+                            f"{': ' + ', '.join(not_applicable) if not_applicable else ''}); per block: "
+                            f"{per_block_text}; minimum over blocks {b_scores.min_detected}/{summary.mutants}"
+                            f"{'' if low is None else f' (block {low.label})'}; detected in every block "
+                            f"{b_scores.every_block}/{summary.mutants}.\n\n"
                             + markdown_table(header, rows)
+                            + f"\nPer seed block: ΔI = intact − mutant over the block's {unit}s (95 % interval, n), "
+                            f"detected, {unit}s needed (the smallest n from which every prefix of the block's {unit}s "
+                            f"detects).\n\n" + markdown_table(block_header, block_rows[-1])
                             + f"\nSurrogate safety of the SUT per SUT-km (docs/evaluation.md): the intact model's mean "
                             f"± 95 % interval over {unit}s, then each mutant's paired difference mutant − intact "
-                            f"(> 0: more conflicts), n {unit}s.\n\n" + markdown_table(ssm_header, ssm_rows))
+                            f"(> 0: more conflicts), n {unit}s.\n\n" + markdown_table(ssm_header, ssm_rows)
+                            + f"\nSpeeds (m/s): the intact SUT's mean {fmt_ci(*v_i, 2)}, the progress reference (the "
+                            f"mean speed of the vehicles in its view, docs/evaluation.md §10.2) {fmt_ci(*ref_i, 2)}; "
+                            f"per mutant the paired differences mutant − intact and their ratio (how much of the "
+                            f"SUT's change the reference follows; where the SUT's change is significant).\n\n"
+                            + markdown_table(["mutant", "Δ SUT speed", "Δ reference speed", "ratio", "n"],
+                                             speed_rows))
             plot_data.append((f"{scenario} / {base}", points))
     for rnd in rounds:
         _, scenario, base, variant = meta[rnd.key]
@@ -295,26 +415,46 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
               csv_rows)
     write_csv(out / "mutation_scores.csv", ["scenario", "bv_driver", "base", "detected", "mutants",
                                             "mutation_score", "intact_intelligence_mean",
-                                            "intact_intelligence_ci95", "median_pairing_r"], score_rows)
+                                            "intact_intelligence_ci95", "median_pairing_r", "not_applicable",
+                                            "detected_per_block", "min_detected_over_blocks", "min_block",
+                                            "detected_every_block"], score_rows)
+    write_csv(out / "blocks.csv", ["design", "scenario", "bv_driver", "base", "mutant", "class", "block_first_seed",
+                                   "block_last_seed", "d_intelligence_mean", "d_intelligence_ci95", "n", "detected",
+                                   "needed"], block_csv)
+    write_csv(out / "speeds.csv", ["design", "scenario", "bv_driver", "base", "mutant", "d_sut_speed_mean",
+                                   "d_sut_speed_ci95", "d_reference_speed_mean", "d_reference_speed_ci95", "n"],
+              speed_csv)
+    write_csv(out / "not_applicable.csv", ["scenario", "bv_driver", "base", "mutant", "class", "applies_to"], csv_na)
     write_csv(out / "rounds.csv", ["design", "scenario", "base", "variant", "seed", "steps", *SCORES, "collisions",
                                    "exposures", "wall_time_s",
                                    *(f"ssm_{side}_{ms}_per_km" for side, ms in SSM_RATES)], round_rows)
     score_table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", "intact I",
-                                  "median pairing r"],
+                                  "median pairing r", "not applicable", "detected per block",
+                                  "min over blocks (block)", "detected in every block"],
                                  [[s, d, b, f"{k}/{n}", "–" if math.isnan(x) else f"{x:.2f}", fmt_ci(m, h),
-                                   "–" if math.isnan(r) else f"{r:.2f}"]
-                                  for s, d, b, k, n, x, m, h, r in score_rows])
+                                   "–" if math.isnan(r) else f"{r:.2f}", str(na), per.replace(";", ", "),
+                                   f"{lo}/{n} ({lo_b})", f"{ev}/{n}"]
+                                  for s, d, b, k, n, x, m, h, r, na, per, lo, lo_b, ev in score_rows])
+    pooled = []
+    for scenario in scenarios:
+        own = [row for row in score_rows if row[0] == scenario]
+        k, n = sum(row[3] for row in own), sum(row[4] for row in own)
+        every = sum(row[13] for row in own)
+        pooled.append(f"{scenario}: detected {k}/{n} applicable (base, mutant) pairs over all {unit}s, "
+                      f"{every}/{n} in every block; {sum(row[9] for row in own)} pairs not applicable")
+    score_table += "\nMutation score over the applicable (base, mutant) pairs: " + "; ".join(pooled) + ".\n"
     cfg0 = rounds[0].cfg
     wall = sum(results[r.key]["wall_time_s"] for r in rounds)
     simulated = sum(results[r.key]["report"]["run"]["duration_s"] for r in rounds)
-    variants = len(scenarios) * len(bases) * (1 + len(mutants))
+    variants = len({meta[r.key][1:] for r in rounds})
     form = (first_report.get("settings") or {}).get("score_form", "method")
     form_text = ("the comparative score (evaluation.score_form: comparative, docs/evaluation.md §10): I = D, I_s = its "
                  "safety S, I_e = its progress P, I_i = its interaction X" if form == "comparative" else
                  "the method's intelligence (evaluation.score_form: method)")
     text = (f"# Sensitivity experiment (SUT mutation analysis)\n\nScores: {form_text}.\n\n"
             f"{len(bases)} base SUT(s) x {len(mutants)} mutants "
-            f"x {len(scenarios)} scenarios x {design.runs} {unit}s ({design.seeds[0]}..{design.seeds[-1]}), "
+            f"x {len(scenarios)} scenarios x {design.runs} {unit}s (seed blocks "
+            f"{', '.join(b.label for b in blocks)}; no sequential stopping: every block runs all its {unit}s), "
             f"{design.steps} steps, {cfg0.bvs.count} BVs; paired by {unit} (common random numbers: a seed fixes the "
             f"initial state after the warm-up and every random stream); differences intact − mutant of the "
             f"unweighted scores (Δ collisions/exposures: mutant − intact; Δ min PET: intact − mutant of the run's "
@@ -403,14 +543,14 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
 
     cfg0 = rounds[0].cfg
-    variants = len(scenarios) * len(bases) * (1 + len(mutants))
+    variants = len({meta[r.key][1:] for r in rounds})
     if not args.compare_designs:
         (design,) = designs
         _, score_table = summarise(design, rounds, results, meta, args.out, bases, scenarios, mutants)
         print(compute_text(design, cfg0, variants))
         print(score_table, end="")
-        print(f"written: {args.out / 'sensitivity.md'}, sensitivity.csv, mutation_scores.csv, rounds.csv, "
-              f"sensitivity.png")
+        print(f"written: {args.out / 'sensitivity.md'}, sensitivity.csv, mutation_scores.csv, blocks.csv, "
+              f"not_applicable.csv, speeds.csv, rounds.csv, sensitivity.png")
         return EXIT_OK
 
     summaries, computes, walls = {}, {}, {}

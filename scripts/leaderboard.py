@@ -2,7 +2,9 @@
 """The planner leaderboard: every installed SUT in the default test, ranked by intelligence.
 
     python scripts/leaderboard.py [--out DIR] [--config FILE] [--suts all|NAME,...] [--reference mobil]
-                                  [--episodes N] [--episode-steps 300] [--first-seed 20000] [--jobs N]
+                                  [--blocks 2] [--block-size 100] [--first-seed 20000] | [--episodes N]
+                                  | [--seed-blocks A:B,C:D] [--episode-steps 300]
+                                  [--mutant-refs timid,frozen|none] [--mutant-base mobil] [--jobs N]
 
 Every SUT model installed — the built-ins and the ``evoscen.sut`` plug-ins (docs/plugins.md);
 not the sensitivity experiment's ``mutant`` wrapper, which is a defect of another model — runs
@@ -21,10 +23,19 @@ SUT-km (docs/evaluation.md §9), and the paired difference of intelligence again
 when the interval excludes 0). SUTs are ranked by mean intelligence (ties: by name). A SUT whose
 runs fail is listed as failed with the first error, not ranked; the others are still ranked.
 
+The episodes come in seed blocks (default 2 × 100 from ``--first-seed``; ``--episodes N``: one block;
+``--seed-blocks``: blocks named by their seeds). Beside the ranked table: every term of the comparative
+score (D, S, P, L, X) and of the method's (I, I_s, I_e, I_i), unweighted; every pair of SUTs paired by
+episode with its interval, n and "significantly higher/lower"; the planners' order in each block and
+Kendall's τ-b between blocks (:func:`evoscen_bringup.replication.kendall_tau`). ``--mutant-refs``
+mutants of ``--mutant-base`` (default ``timid`` and ``frozen`` of MOBIL) are ranked beside the
+planners as references and left out of τ (docs/experiments.md §4).
+
 Runs go on ``--jobs`` Ray workers (the campaign engine, one run per worker process) and are saved
 as they finish: an interrupted leaderboard continues where it stopped. Writes into ``--out``:
-``leaderboard.md`` (the ranked table, the surrogate-safety table, the command), ``leaderboard.csv``
-(one row per SUT, ranked, failed SUTs last), ``episodes.csv`` (every episode of every SUT) and
+``leaderboard.md`` (the ranked table, the terms, the pairs, the orders per block, the surrogate-safety
+table, the command), ``leaderboard.csv`` (one row per SUT, ranked, failed SUTs last), ``episodes.csv``
+(every episode of every SUT), ``terms.csv``, ``pairs.csv``, ``blocks.csv``, ``kendall.csv`` and
 ``leaderboard.png`` (intelligence with its interval and the paired difference against the
 reference, per SUT); prints the tables. Exit status: 0 done (failed SUTs included), 2 bad
 input, 130 interrupted.
@@ -41,10 +52,14 @@ from pathlib import Path
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
 
-EPISODES, EPISODE_STEPS, FIRST_SEED = "200", "300", "20000"
-"""The defaults: 200 episodes of 300 steps per SUT on seeds 20000.. (docs/experiments.md §4: the built-ins and
-both example plug-ins, 1,200 runs, took 7 min 36 s on 2 cores; the budget is 20 minutes)."""
+BLOCKS, BLOCK_SIZE, EPISODE_STEPS, FIRST_SEED = "2", "100", "300", "20000"
+"""The defaults: 2 blocks of 100 episodes of 300 steps per SUT on seeds 20000..20199 (docs/experiments.md §4: the
+built-ins and both example plug-ins, 1,200 runs, took 7 min 36 s on 2 cores; the budget is 20 minutes); two
+blocks so that the order's agreement between disjoint seeds (Kendall τ) is measured."""
 REFERENCE = "mobil"
+MUTANT_REFS = "timid,frozen"
+"""The reference mutants ranked beside the SUTs (docs/experiments.md §4 "References"): a planner that gives away
+progress and one that never changes lanes by choice, both of ``--mutant-base``."""
 TERMS = ("safety", "efficiency", "interaction")
 
 
@@ -54,9 +69,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--config", type=Path, help="base scenario YAML (default: the shipped default)")
     ap.add_argument("--suts", default="all", help="'all' (every installed SUT model) or comma-separated SUT models")
     ap.add_argument("--reference", default=REFERENCE, help=f"the SUT the others are compared with (default {REFERENCE})")
-    ap.add_argument("--episodes", default=EPISODES, help=f"episodes (seeds) per SUT (default {EPISODES})")
+    ap.add_argument("--episodes", help="episodes (seeds) per SUT in one block (default: --blocks blocks of "
+                                       "--block-size)")
+    ap.add_argument("--blocks", help=f"seed blocks, one after the other from --first-seed (default {BLOCKS})")
+    ap.add_argument("--block-size", help=f"episodes per block (default {BLOCK_SIZE})")
+    ap.add_argument("--seed-blocks", help="explicit seed blocks 'A:B,C:D' (seeds A..B and C..D, both included, "
+                                          "disjoint); replaces --first-seed, --blocks, --block-size, --episodes")
     ap.add_argument("--episode-steps", default=EPISODE_STEPS, help=f"steps per episode (default {EPISODE_STEPS})")
     ap.add_argument("--first-seed", default=FIRST_SEED, help=f"first episode's seed (default {FIRST_SEED})")
+    ap.add_argument("--mutant-refs", default=MUTANT_REFS,
+                    help=f"'none' or comma-separated mutants of --mutant-base ranked beside the SUTs as references "
+                         f"(default {MUTANT_REFS})")
+    ap.add_argument("--mutant-base", default=REFERENCE,
+                    help=f"the SUT whose mutants are the references (default {REFERENCE}; one of the SUTs ranked)")
     ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
     return ap.parse_args(argv)
 
@@ -86,6 +111,140 @@ def resolve_suts(text: str, reference: str) -> list[str]:
     return suts
 
 
+def resolve_blocks(args: argparse.Namespace) -> list:
+    """The seed blocks (:class:`evoscen_bringup.replication.SeedBlock`): ``--seed-blocks``, or ``--episodes``
+    (one block), or ``--blocks`` × ``--block-size`` from ``--first-seed`` (InputError of one line on a bad
+    value or a mix)."""
+    from evoscen_bringup.experiments import positive_int
+    from evoscen_bringup.replication import consecutive_blocks, parse_seed_blocks
+    from evoscen_sim.errors import InputError
+
+    first = positive_int("--first-seed", args.first_seed, 0)
+    if args.seed_blocks is not None:
+        other = [f for f, v in (("--episodes", args.episodes), ("--blocks", args.blocks),
+                                ("--block-size", args.block_size)) if v is not None]
+        if other or args.first_seed != FIRST_SEED:
+            raise InputError(f"--seed-blocks and {other[0] if other else '--first-seed'} together: the blocks "
+                             f"name their seeds")
+        return parse_seed_blocks(args.seed_blocks)
+    if args.episodes is not None:
+        if args.blocks is not None or args.block_size is not None:
+            raise InputError(f"--episodes and {'--blocks' if args.blocks is not None else '--block-size'} together: "
+                             f"--episodes is one block")
+        return consecutive_blocks(first, 1, positive_int("--episodes", args.episodes))
+    return consecutive_blocks(first, positive_int("--blocks", args.blocks or BLOCKS),
+                              positive_int("--block-size", args.block_size or BLOCK_SIZE))
+
+
+def resolve_mutant_refs(text: str, base: str, suts: list[str]) -> list[str]:
+    """The reference mutants of ``--mutant-refs`` ('none': none); each must be in the library and apply to
+    ``base``, which must be among ``suts`` (InputError of one line)."""
+    from evoscen_bringup.experiments import distinct_names
+    from evoscen_sim.errors import InputError
+    from evoscen_sut.mutants import LIBRARY, mutants_for
+
+    if text.strip() == "none":
+        return []
+    names = distinct_names("--mutant-refs", text, "mutant names")
+    if base not in suts:
+        raise InputError(f"--mutant-base {base!r} is not among the SUTs ranked ({', '.join(suts)})")
+    for name in names:
+        if name not in LIBRARY:
+            raise InputError(f"--mutant-refs: unknown mutant {name!r}: expected 'none' or names from "
+                             f"{', '.join(LIBRARY)}")
+        if name not in mutants_for(base):
+            raise InputError(f"--mutant-refs: {name!r} does not apply to --mutant-base {base!r} (docs/mutants.md)")
+    return names
+
+
+def ref_label(mutant: str, base: str) -> str:
+    """The leaderboard's name of a reference mutant: ``timid(mobil)``."""
+    return f"{mutant}({base})"
+
+
+METHOD_TERMS = (("I", "intelligence"), ("I_s", "safety"), ("I_e", "efficiency"), ("I_i", "interaction"))
+"""The method's score and its sub-scores (the report's sections' ``score``; docs/evaluation.md §1)."""
+COMPARATIVE_TERMS = (("D", ("score",)), ("S", ("safety", "score")), ("P", ("progress", "score")),
+                     ("L", ("lane_change_time", "score")), ("X", ("interaction", "score")))
+"""The comparative score and its terms (the report's ``comparative`` section; docs/evaluation.md §10)."""
+
+
+def term_values(report: dict) -> dict[str, float]:
+    """Every term of both scores of one ``report.json`` dict (``nan`` where undefined or absent)."""
+    out = {}
+    comp = report.get("comparative") or {}
+    for name, path in COMPARATIVE_TERMS:
+        v = comp
+        for k in path:
+            v = (v or {}).get(k) if isinstance(v, dict) else None
+        out[name] = math.nan if v is None else float(v)
+    for name, section in METHOD_TERMS:
+        v = (report.get(section) or {}).get("score")
+        out[name] = math.nan if v is None else float(v)
+    return out
+
+
+def block_orders(values: dict[str, dict[int, float]], blocks: list, names: list[str]) -> tuple[list, list]:
+    """Per block the mean score of each of ``names`` (SUT -> seed -> score) and its rank in that block, and
+    Kendall's τ-b between every two blocks. Returns (per-block rows [block, sut, mean, rank], τ rows
+    [block a, block b, τ, concordant, discordant, n])."""
+    from evoscen_bringup.replication import kendall_tau, restrict
+
+    means = []
+    for b in blocks:
+        m = {}
+        for name in names:
+            vals = [v for v in restrict(values[name], b).values() if not math.isnan(v)]
+            m[name] = sum(vals) / len(vals) if vals else math.nan
+        means.append(m)
+    rows = []
+    for b, m in zip(blocks, means):
+        order = ranked(m)
+        rows += [[b.label, name, m[name], order.index(name) + 1] for name in names]
+    taus = []
+    for i in range(len(blocks)):
+        for j in range(i + 1, len(blocks)):
+            tau, c, d, n = kendall_tau(means[i], means[j])
+            taus.append([blocks[i].label, blocks[j].label, tau, c, d, n])
+    return rows, taus
+
+
+def term_rows(terms: dict[str, dict[int, dict[str, float]]], order: list[str]) -> tuple[list, list]:
+    """Per SUT (in ``order``) every term of both scores (``terms``: SUT -> seed -> term -> value), mean ± 95 %
+    interval over the episodes where it is defined, and that n. Returns Markdown rows and CSV rows."""
+    from evoscen_bringup.experiments import fmt_ci, mean_ci
+
+    names = [n for n, _ in COMPARATIVE_TERMS] + [n for n, _ in METHOD_TERMS]
+    md, rows = [], []
+    for sut in order:
+        cells, values = [], []
+        for name in names:
+            vals = [t[name] for t in terms[sut].values() if not math.isnan(t[name])]
+            mean, half = mean_ci(vals)
+            cells.append(f"{fmt_ci(mean, half, 3)}" + ("" if len(vals) == len(terms[sut]) else f" (n {len(vals)})"))
+            values += [mean, half, len(vals)]
+        md.append([sut, *cells, str(len(terms[sut]))])
+        rows.append([sut, *values])
+    return md, rows
+
+
+def pair_rows(values: dict[str, dict[int, float]], order: list[str]) -> tuple[list, list, list]:
+    """Every pair of SUTs (a ranked above b): a − b paired by episode, mean ± 95 % interval, n and the words
+    (:func:`evoscen_bringup.replication.pairwise`). Returns Markdown rows, CSV rows and the significant
+    pairs as sentences."""
+    from evoscen_bringup.experiments import fmt_ci
+    from evoscen_bringup.replication import pairwise
+
+    md, rows, sig = [], [], []
+    for p in pairwise(order, values):
+        d = p.diff
+        md.append([p.a, p.b, fmt_ci(d.mean, d.half), str(d.n), p.words])
+        rows.append([p.a, p.b, d.mean, d.half, d.n, p.words])
+        if p.significant:
+            sig.append(f"{p.a} {p.words} than {p.b} ({fmt_ci(d.mean, d.half)}, n {d.n})")
+    return md, rows, sig
+
+
 def ranked(means: dict[str, float]) -> list[str]:
     """SUT names by mean intelligence, highest first; ties (and nan, last) by name."""
     return sorted(means, key=lambda s: (math.isnan(means[s]), -means[s] if not math.isnan(means[s]) else 0.0, s))
@@ -106,23 +265,30 @@ def main(argv: list[str] | None = None) -> int:
     )
     from evoscen_bringup.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
     from evoscen_bringup.experiments import config_loader
+    from evoscen_sut.mutants import mutant_overrides
 
     def build():
-        episodes = positive_int("--episodes", args.episodes)
+        blocks = resolve_blocks(args)
         steps = positive_int("--episode-steps", args.episode_steps)
-        first = positive_int("--first-seed", args.first_seed, 0)
         jobs = positive_int("--jobs", args.jobs)
-        suts = resolve_suts(args.suts, args.reference)
+        planners = resolve_suts(args.suts, args.reference)
+        refs = resolve_mutant_refs(args.mutant_refs, args.mutant_base, planners)
         load = config_loader(args.config)
-        rounds = [Round(sut, load({"sut.model": sut, "seed": str(seed), "steps": str(steps),
-                                   "recording.enabled": "false"}))
-                  for sut in suts for seed in range(first, first + episodes)]
-        return suts, rounds, episodes, steps, first, jobs
+        seeds = [s for b in blocks for s in b.seeds]
+        common = {"steps": str(steps), "recording.enabled": "false"}
+        rounds = [Round(sut, load({"sut.model": sut, "seed": str(seed), **common}))
+                  for sut in planners for seed in seeds]
+        rounds += [Round(ref_label(m, args.mutant_base),
+                         load({**mutant_overrides(args.mutant_base, m), "seed": str(seed), **common}))
+                   for m in refs for seed in seeds]
+        return planners, [ref_label(m, args.mutant_base) for m in refs], rounds, blocks, steps, jobs
 
     built = set_up(args.out, build)
     if built is None:
         return EXIT_BAD_INPUT
-    suts, rounds, episodes, steps, first, jobs = built
+    planners, ref_names, rounds, blocks, steps, jobs = built
+    suts = planners + ref_names
+    episodes = sum(b.size for b in blocks)
 
     failures: dict[str, str] = {}
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="leaderboard", failures=failures)
@@ -204,6 +370,26 @@ def main(argv: list[str] | None = None) -> int:
                "exposures", "mean_speed_mps", "wall_time_s", *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES)],
               episode_rows)
 
+    # per-term tables, significant pairs, orders per block (docs/experiments.md §4)
+    terms = {s: {seed: term_values(rep) for seed, rep in reports[s].items()} for s in ok}
+    t_md, t_rows = term_rows(terms, order)
+    term_names = [n for n, _ in COMPARATIVE_TERMS] + [n for n, _ in METHOD_TERMS]
+    write_csv(args.out / "terms.csv", ["sut", *(f"{n}_{k}" for n in term_names for k in ("mean", "ci95", "n"))],
+              t_rows)
+    p_md, p_rows, significant = pair_rows(intel, order)
+    write_csv(args.out / "pairs.csv", ["a", "b", "d_intelligence_mean", "d_intelligence_ci95", "n", "a_vs_b"], p_rows)
+    ranked_planners = [s for s in order if s in planners]
+    b_rows, taus = block_orders(intel, blocks, ranked_planners)
+    write_csv(args.out / "blocks.csv", ["block", "sut", "intelligence_mean", "rank"], b_rows)
+    write_csv(args.out / "kendall.csv", ["block_a", "block_b", "tau_b", "concordant", "discordant", "n"], taus)
+    terms_table = markdown_table(["SUT", *term_names, "episodes"], t_md)
+    pairs_table = markdown_table(["a", "b", "ΔI = a − b (paired, 95 %)", "n", "a vs b"], p_md)
+    block_table = markdown_table(["SUT", *(f"block {b.label}: I (rank)" for b in blocks)],
+                                 [[sut, *(f"{r[2]:.3f} ({r[3]})" for b in blocks for r in b_rows
+                                          if r[0] == b.label and r[1] == sut)] for sut in ranked_planners])
+    tau_text = ("; ".join(f"blocks {a} and {b}: τ = {t:.2f} ({c} concordant, {d} discordant pairs of {n} SUTs)"
+                          for a, b, t, c, d, n in taus) if taus else
+                "one block: no agreement between blocks measured (give --blocks 2 or more)")
     header = ["rank", "SUT", "intelligence", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)",
               f"ΔI = SUT − {args.reference} (paired)", f"SUT vs {args.reference} (95 %)", "collisions / episode",
               "exposures / episode",
@@ -220,12 +406,22 @@ def main(argv: list[str] | None = None) -> int:
                 "interval lies above (below) 0, else 'no significant difference'. The safety, efficiency and "
                 "interaction columns are the weighted terms (weight × score), which sum to the intelligence."
                 if ref else f"The reference {args.reference} failed: no paired differences.")
-    text = (f"# Planner leaderboard\n\n{len(suts)} SUTs x {episodes} episodes (seeds {first}..{first + episodes - 1}) "
+    refs_text = (f" References: {', '.join(ref_names)}, mutants of {args.mutant_base} (docs/mutants.md), ranked beside "
+                 f"the planners and left out of the agreement between blocks." if ref_names else "")
+    verdict = (f"## Every term\n\nThe comparative score D and its terms S, P, L, X (docs/evaluation.md §10) and the "
+               f"method's I, I_s, I_e, I_i (§1), unweighted, mean ± 95 % interval over the episodes (n where a term "
+               f"is undefined in some):\n\n{terms_table}\n## Pairs\n\nEvery pair, a ranked above b: ΔI = a − b "
+               f"paired by episode over all blocks, 95 % Student-t interval, n episodes. Significant: "
+               + ("; ".join(significant) if significant else "none") + f".\n\n{pairs_table}\n"
+               f"## Does the order replicate?\n\nThe planners' mean intelligence and rank per seed block; Kendall's "
+               f"τ-b between the blocks' orders (1: the same order, −1: reversed): {tau_text}.\n\n{block_table}\n")
+    blocks_text = ", ".join(b.label for b in blocks)
+    text = (f"# Planner leaderboard\n\n{len(suts)} SUTs x {episodes} episodes (seed blocks {blocks_text}) "
             f"x {steps} steps, after a warm-up of {cfg0.traffic.warmup_s:g} s, among {cfg0.bvs.count} BVs "
             f"({cfg0.bvs.driver}); weights {cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
             f"{cfg0.evaluation.weight_interaction:g}; mean ± 95 % interval over the episodes; ranked by mean "
-            f"intelligence. {ref_note} {simulated:,.0f} s simulated (scored states of all episodes), {wall:,.0f} s "
-            f"wall time in all.\n\n{table}\n"
+            f"intelligence.{refs_text} {ref_note} {simulated:,.0f} s simulated (scored states of all episodes), "
+            f"{wall:,.0f} s wall time in all.\n\n{table}\n{verdict}\n"
             + (f"Surrogate safety per SUT-km (docs/evaluation.md §9; front: the SUT behind its leader, rear: its "
                f"follower behind it), mean ± 95 % interval over the episodes:\n\n{ssm_table}\n" if ssm_table else "")
             + "![leaderboard](leaderboard.png)\n\nMade by:\n\n    python scripts/leaderboard.py "
@@ -234,11 +430,15 @@ def main(argv: list[str] | None = None) -> int:
     if plot_rows:
         plot(args.out / "leaderboard.png", plot_rows, args.reference if ref else None)
     print(table, end="")
+    print("\n" + terms_table, end="")
+    print("\nsignificant pairs: " + ("; ".join(significant) if significant else "none"))
+    print(f"order between blocks: {tau_text}")
     if ssm_table:
         print("\n" + ssm_table, end="")
     for sut, (count, error) in failed.items():
         print(f"failed: {sut}: {count}/{episodes} episodes: {error}", file=sys.stderr)
-    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv"
+    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv, terms.csv, pairs.csv, blocks.csv, "
+          f"kendall.csv"
           + (", leaderboard.png" if plot_rows else ""))
     return EXIT_OK
 

@@ -196,6 +196,37 @@ def test_sensitivity_episodes_design(tmp_path):
     assert "Surrogate safety of the SUT per SUT-km" in (out / "sensitivity.md").read_text()
 
 
+def test_sensitivity_seed_blocks_and_a_base_a_mutant_does_not_apply_to(tmp_path):
+    out = tmp_path / "blk"
+    res = script("experiment_sensitivity.py", "--out", out, "--seed-blocks", "5:6,9:10", "--episode-steps", 20,
+                 "--jobs", 1, "--mutants", "frozen", "--scenarios", "level0", "--base", "mobil,level0")
+    assert res.returncode == 0, res.stderr
+    rounds = read_csv(out / "rounds.csv")
+    # frozen does not apply to level0 (it changes no lane by choice): not run there
+    assert sorted({(r["base"], r["variant"]) for r in rounds}) == [("level0", "intact"), ("mobil", "frozen"),
+                                                                   ("mobil", "intact")]
+    val = {(r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds if r["base"] == "mobil"}
+    blocks = read_csv(out / "blocks.csv")
+    assert [(b["base"], b["mutant"], b["block_first_seed"], b["block_last_seed"]) for b in blocks] == [
+        ("mobil", "frozen", "5", "6"), ("mobil", "frozen", "9", "10")]
+    for b, seeds in zip(blocks, ([5, 6], [9, 10])):
+        mean, half = _paired_by_hand(val, "frozen", seeds)
+        assert float(b["d_intelligence_mean"]) == pytest.approx(mean) and b["n"] == "2"
+        assert float(b["d_intelligence_ci95"]) == pytest.approx(half)
+        assert b["detected"] == str(int(mean - half > 0))
+    scores = {r["base"]: r for r in read_csv(out / "mutation_scores.csv")}
+    assert (scores["level0"]["mutants"], scores["level0"]["not_applicable"]) == ("0", "1")
+    per_block = [int(b["detected"]) for b in blocks]
+    assert scores["mobil"]["detected_per_block"] == ";".join(map(str, per_block))
+    assert scores["mobil"]["min_detected_over_blocks"] == str(min(per_block))
+    assert [(r["base"], r["mutant"]) for r in read_csv(out / "not_applicable.csv")] == [("level0", "frozen")]
+    (sp,) = read_csv(out / "speeds.csv")  # mutant − intact speeds, paired over all 4 episodes
+    assert (sp["base"], sp["mutant"], sp["n"]) == ("mobil", "frozen", "4")
+    text = (out / "sensitivity.md").read_text()
+    assert "| frozen | decision | not applicable to level0 |" in text and "ΔI block 9–10" in text
+    assert "detected 0/1 applicable (base, mutant) pairs" in text or "detected 1/1 applicable" in text
+
+
 def test_sensitivity_compare_designs(tmp_path):
     out = tmp_path / "cmp"
     res = script("experiment_sensitivity.py", "--out", out, "--compare-designs", "--episodes", 4, "--episode-steps",

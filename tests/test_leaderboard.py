@@ -59,6 +59,14 @@ def test_ranked_by_mean_intelligence_ties_by_name_undefined_last(board):
     (["--episode-steps", "x"], "error: --episode-steps = 'x': expected an integer >= 1"),
     (["--first-seed", "-1"], "error: --first-seed = '-1': expected an integer >= 0"),
     (["--jobs", "0"], "error: --jobs = '0': expected an integer >= 1"),
+    (["--episodes", "3", "--blocks", "2"], "error: --episodes and --blocks together: --episodes is one block"),
+    (["--seed-blocks", "5:3"], "error: --seed-blocks: block '5:3': expected first:last"),
+    (["--seed-blocks", "0:9", "--first-seed", "4"], "error: --seed-blocks and --first-seed together"),
+    (["--block-size", "0"], "error: --block-size = '0': expected an integer >= 1"),
+    (["--mutant-refs", "nosuch"], "error: --mutant-refs: unknown mutant 'nosuch'"),
+    (["--suts", "level0,mobil", "--mutant-base", "level0", "--mutant-refs", "frozen"],
+     "error: --mutant-refs: 'frozen' does not apply to --mutant-base 'level0'"),
+    (["--suts", "nilsson,mobil", "--mutant-base", "fiss"], "error: --mutant-base 'fiss' is not among the SUTs ranked"),
 ])
 def test_bad_input_is_one_line_and_exit_2_before_anything_is_written(board, tmp_path, capsys, args, expected):
     out = tmp_path / "out"
@@ -66,6 +74,44 @@ def test_bad_input_is_one_line_and_exit_2_before_anything_is_written(board, tmp_
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
     assert len(err) == 1 and err[0].startswith(expected), err
     assert not out.exists()
+
+
+def test_seed_blocks_default_to_two_blocks_of_100_from_20000(board):
+    from evoscen_bringup.replication import SeedBlock
+
+    assert board.resolve_blocks(board.parse_args([])) == [SeedBlock(20000, 20099), SeedBlock(20100, 20199)]
+    assert board.resolve_blocks(board.parse_args(["--episodes", "3", "--first-seed", "7"])) == [SeedBlock(7, 9)]
+    assert board.resolve_blocks(board.parse_args(["--blocks", "3", "--block-size", "2", "--first-seed", "0"])) == [
+        SeedBlock(0, 1), SeedBlock(2, 3), SeedBlock(4, 5)]
+    assert board.resolve_blocks(board.parse_args(["--seed-blocks", "10:11,30:32"])) == [SeedBlock(10, 11),
+                                                                                      SeedBlock(30, 32)]
+    assert board.resolve_mutant_refs("timid,frozen", "mobil", ["mobil", "nilsson"]) == ["timid", "frozen"]
+    assert board.resolve_mutant_refs("none", "fiss", ["mobil"]) == []
+    assert board.ref_label("timid", "mobil") == "timid(mobil)"
+
+
+def test_terms_pairs_and_block_orders_by_hand(board):
+    from evoscen_bringup.replication import consecutive_blocks
+
+    def t(d, s, p, i_i=0.5):
+        return {"D": d, "S": s, "P": p, "L": 0.5, "X": 0.5, "I": d, "I_s": s, "I_e": p, "I_i": i_i}
+
+    terms = {"a": {0: t(0.8, 1.0, 1.0), 1: t(0.6, 0.5, 1.0, math.nan)}, "b": {0: t(0.4, 1.0, 0.5), 1: t(0.2, 0.5, 0.5)}}
+    md, rows = board.term_rows(terms, ["a", "b"])
+    # a's D: 0.7 ± t(0.975, 1)·0.1414/√2 = 0.7 ± 12.706·0.1 = 0.7 ± 1.271; a's I_i defined in 1 of 2 episodes
+    assert md[0][0] == "a" and md[0][1] == "0.700 ± 1.271" and md[0][9].endswith("(n 1)") and md[0][-1] == "2"
+    assert rows[1][1:4] == [pytest.approx(0.3), pytest.approx(12.706204736 * 0.1), 2]
+    # pairs: a − b = 0.4, 0.4 -> 0.4 ± 0 over 2 episodes: significantly higher
+    values = {"a": {0: 0.8, 1: 0.6}, "b": {0: 0.4, 1: 0.2}, "c": {0: 0.5, 1: 0.7}}
+    p_md, p_rows, sig = board.pair_rows(values, ["a", "c", "b"])
+    assert p_md[0] == ["a", "c", "0.1000 ± 2.5412", "2", "no significant difference"]
+    assert p_md[1] == ["a", "b", "0.4000 ± 0.0000", "2", "significantly higher"]
+    assert sig == ["a significantly higher than b (0.4000 ± 0.0000, n 2)"]
+    # orders per block: block 0..0 ranks a (0.8), c (0.5), b (0.4); block 1..1 c (0.7), a (0.6), b (0.2):
+    # one discordant pair (a, c) of 3 -> τ = (2 − 1) / 3
+    b_rows, taus = board.block_orders(values, consecutive_blocks(0, 2, 1), ["a", "b", "c"])
+    assert [(r[1], r[3]) for r in b_rows if r[0] == "1–1"] == [("a", 2), ("b", 3), ("c", 1)]
+    assert taus == [["0–0", "1–1", pytest.approx(1 / 3), 2, 1, 3]]
 
 
 @pytest.fixture(scope="module")
@@ -87,11 +133,11 @@ def bad_plugin(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory, bad_plugin, env_with_path):
-    """Two built-in SUTs and the failing plug-in, 3 episodes of 50 steps."""
+    """Two built-in SUTs, the failing plug-in and MOBIL's ``frozen`` as a reference, 3 episodes of 50 steps."""
     out = tmp_path_factory.mktemp("board") / "lb"
     env = env_with_path(bad_plugin)
     res = subprocess.run([sys.executable, "scripts/leaderboard.py", "--suts", "nilsson,mobil,bad_sut", "--episodes", "3",
-                          "--episode-steps", "50", "--first-seed", "7", "--jobs", "2", "--out", str(out)],
+                          "--episode-steps", "50", "--first-seed", "7", "--mutant-refs", "frozen", "--jobs", "2", "--out", str(out)],
                          cwd=REPO, capture_output=True, text=True, timeout=300, check=False, env=env)
     return out, res
 
@@ -104,14 +150,14 @@ def test_ranked_table_and_paired_interval_by_hand(small):
         assert (out / name).stat().st_size > 0, name
     episodes = read_csv(out / "episodes.csv")
     assert sorted((e["sut"], e["seed"], e["steps"]) for e in episodes) == [
-        (s, str(seed), "50") for s in ("mobil", "nilsson") for seed in (7, 8, 9)]
+        (s, str(seed), "50") for s in ("frozen(mobil)", "mobil", "nilsson") for seed in (7, 8, 9)]
     intel = {(e["sut"], int(e["seed"])): float(e["intelligence"]) for e in episodes}
-    mean = {s: sum(intel[(s, k)] for k in (7, 8, 9)) / 3 for s in ("mobil", "nilsson")}
+    mean = {s: sum(intel[(s, k)] for k in (7, 8, 9)) / 3 for s in ("frozen(mobil)", "mobil", "nilsson")}
     board = read_csv(out / "leaderboard.csv")
     ok = [r for r in board if r["status"] == "ok"]
     # ranked by mean intelligence, highest first
     expected = sorted(mean, key=lambda s: -mean[s])
-    assert [r["sut"] for r in ok] == expected and [r["rank"] for r in ok] == ["1", "2"]
+    assert [r["sut"] for r in ok] == expected and [r["rank"] for r in ok] == ["1", "2", "3"]
     for row in ok:
         assert float(row["intelligence_mean"]) == pytest.approx(mean[row["sut"]])
         assert row["episodes"] == "3"
@@ -131,6 +177,9 @@ def test_ranked_table_and_paired_interval_by_hand(small):
     text = (out / "leaderboard.md").read_text(encoding="utf-8")
     assert f"| 1 | {expected[0]} |" in text and "| reference |" in text and "TTC<3 s front /km" in text
     assert f"| 1 | {expected[0]} |" in res.stdout
+    assert "one block: no agreement between blocks measured" in text and "## Every term" in text
+    pairs = read_csv(out / "pairs.csv")
+    assert [(r["a"], r["b"]) for r in pairs] == [(a, b) for i, a in enumerate(expected) for b in expected[i + 1:]]
 
 
 @pytest.mark.e2e

@@ -50,6 +50,13 @@ def exp():
     (["--episode-steps", "x"], "error: --episode-steps = 'x': expected an integer >= 1"),
     (["--compare-designs", "--long-first-seed", "-3"], "error: --long-first-seed = '-3': expected an integer >= 0"),
     (["--seeds", "0"], "error: --seeds = '0': expected an integer >= 1"),
+    (["--episodes", "5", "--blocks", "2"], "error: --episodes and --blocks together: a blocked design's runs are "
+                                           "its blocks' seeds"),
+    (["--seed-blocks", "0:9", "--blocks", "2"], "error: --seed-blocks and --blocks together: the blocks name their "
+                                                "seeds"),
+    (["--seed-blocks", "0:9,5:12"], "error: --seed-blocks: blocks 0:9 and 5:12 overlap"),
+    (["--compare-designs", "--blocks", "2"], "error: --blocks does not apply with --compare-designs"),
+    (["--blocks", "0"], "error: --blocks = '0': expected an integer >= 1"),
 ])
 def test_bad_design_arguments_are_one_line(exp, tmp_path, capsys, args, expected):
     out = tmp_path / "o"
@@ -110,6 +117,22 @@ def test_episodes_design_builds_n_x_variants_paired_rounds(exp):
             assert (cfg.traffic, cfg.bvs, cfg.sut.s_m, cfg.sut.lane, cfg.dt_s) == (
                 intact.traffic, intact.bvs, intact.sut.s_m, intact.sut.lane, intact.dt_s)
     assert by[("level0", "stale")][7].models["mutant"].operator == "stale"
+
+
+def test_seed_blocks_build_every_block_and_only_applicable_mutants(exp):
+    (design,) = exp.resolve_designs(exp.parse_args(["--blocks", "2", "--block-size", "2", "--first-seed", "10",
+                                                    "--episode-steps", "20"]))
+    assert (design.name, design.runs, design.steps, design.block_bounds) == ("episodes", 4, 20, ((10, 11), (12, 13)))
+    (explicit,) = exp.resolve_designs(exp.parse_args(["--seed-blocks", "5:6,90:90", "--design", "long"]))
+    assert (explicit.name, explicit.runs, explicit.steps, list(explicit.seeds)) == ("long", 3, 3000, [5, 6, 90])
+    rounds, meta = exp.build_rounds([explicit], ["mobil", "sumo_sut"], ["level0"], ["tailgating", "frozen"], None)
+    variants = sorted({meta[r.key][2:] for r in rounds})
+    # sumo_sut: tailgating needs two driver instances, not applicable, so not run
+    assert variants == [("mobil", "frozen"), ("mobil", "intact"), ("mobil", "tailgating"), ("sumo_sut", "frozen"),
+                        ("sumo_sut", "intact")]
+    assert sorted(r.cfg.seed for r in rounds if meta[r.key][2:] == ("sumo_sut", "frozen")) == [5, 6, 90]
+    assert exp.compute_text(explicit, rounds[0].cfg, 5).startswith(
+        "Design long: 3 seeds (seed blocks 5..6, 90..90) x 3,000 steps = 9,000 SUT steps")
 
 
 def test_compare_designs_builds_both_on_disjoint_seeds(exp):

@@ -170,16 +170,33 @@ class Design:
     runs: int
     steps: int
     first_seed: int
+    blocks: tuple[tuple[int, int], ...] = ()
+    """Seed blocks (first, last), both ends included, disjoint (docs/sensitivity.md "Seed blocks"); empty:
+    one block, ``first_seed`` .. ``first_seed + runs − 1``. With blocks, ``runs`` is their total and
+    ``first_seed`` the first block's first seed (:func:`blocked_design`)."""
 
     @property
-    def seeds(self) -> range:
-        """The seeds of the runs (one per run: an episode's or a long run's)."""
-        return range(self.first_seed, self.first_seed + self.runs)
+    def seeds(self) -> Sequence[int]:
+        """The seeds of the runs (one per run: an episode's or a long run's), block after block."""
+        if not self.blocks:
+            return range(self.first_seed, self.first_seed + self.runs)
+        return [s for first, last in self.blocks for s in range(first, last + 1)]
+
+    @property
+    def block_bounds(self) -> tuple[tuple[int, int], ...]:
+        """The seed blocks (first, last); one block without explicit blocks."""
+        return self.blocks or ((self.first_seed, self.first_seed + self.runs - 1),)
 
     @property
     def unit(self) -> str:
         """What one run is called: ``episode`` or ``seed``."""
         return "episode" if self.name == "episodes" else "seed"
+
+
+def blocked_design(name: str, steps: int, blocks: Sequence[tuple[int, int]]) -> Design:
+    """A design over seed blocks (first, last): ``runs`` = the seeds of all blocks."""
+    blocks = tuple((int(a), int(b)) for a, b in blocks)
+    return Design(name, sum(b - a + 1 for a, b in blocks), steps, blocks[0][0], blocks)
 
 
 @dataclass(frozen=True)

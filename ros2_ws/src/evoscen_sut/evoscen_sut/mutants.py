@@ -42,6 +42,11 @@ parameter set, not a SUT model) and the plug-in examples ``fiss`` (examples/fiss
 ``sumo_sut`` (examples/sumo_sut)."""
 LANE_CHANGING = ("mobil", "nilsson", "stackelberg", "fiss", "sumo_sut")
 """Bases that decide lane changes (``level0`` keeps its lane but for the forced merge)."""
+SINGLE_INSTANCE = ("sumo_sut",)
+"""Bases that allow one driver instance per process (``sumo_sut``: libsumo runs one SUMO simulation per
+process, docs/plugins.md): the operators that run two instances of the base (``ignores_new_follower``,
+``tailgating``, :mod:`evoscen_sut.mutant`) do not apply to them."""
+TWO_INSTANCES = tuple(b for b in KNOWN_BASES if b not in SINGLE_INSTANCE)
 ANY_BASE = "any base: the defect acts on what every driver sees or commands"
 CHANGES_LANES = "bases that decide lane changes (not level0, which keeps its lane but for the forced merge)"
 
@@ -70,7 +75,9 @@ _ENTRIES = (
             "they were 5 steps ago; a closing follower seems farther than it is.", delay_steps=5, bases=KNOWN_BASES, applies=ANY_BASE),
     _mutant("ignores_new_follower",
             "Gap acceptance without regard to the new follower: the lane-change decision does not "
-            "see vehicles behind the SUT in the adjacent lanes (car following is intact).", bases=LANE_CHANGING, applies=CHANGES_LANES),
+            "see vehicles behind the SUT in the adjacent lanes (car following is intact).",
+            bases=tuple(b for b in LANE_CHANGING if b in TWO_INSTANCES),
+            applies=CHANGES_LANES + "; two instances of the base (not sumo_sut: one SUMO per process)"),
     _mutant("late_lane_change",
             "Lane changes executed 1 s (10 steps) after the decision: the gap judged acceptable may "
             "have closed.", delay_steps=10, bases=LANE_CHANGING, applies=CHANGES_LANES),
@@ -102,7 +109,9 @@ _ENTRIES = (
             "brake) are ignored, so braking starts later and harder.", brake_onset=0.25, bases=KNOWN_BASES, applies=ANY_BASE),
     _mutant("tailgating",
             "Tailgating: the car follower sees the vehicles ahead in its lane 15 m farther, so it "
-            "follows at ~0.5 s instead of ~1 s at highway speed.", extra_gap_m=15.0, bases=KNOWN_BASES, applies=ANY_BASE),
+            "follows at ~0.5 s instead of ~1 s at highway speed.", extra_gap_m=15.0, bases=TWO_INSTANCES,
+            applies="any base that allows two instances of its driver in one process (the throttle and the lane "
+                    "change come from two views; not sumo_sut: one SUMO per process)"),
 )
 
 LIBRARY: dict[str, Mutant] = {m.name: m for m in _ENTRIES}

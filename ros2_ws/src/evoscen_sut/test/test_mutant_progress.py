@@ -121,6 +121,10 @@ def test_every_mutant_states_its_bases() -> None:
     assert "level0" not in applicable_bases("frozen") and {"fiss", "sumo_sut"} <= set(applicable_bases("frozen"))
     assert applicable_bases("over_eager") == ("mobil", "nilsson", "stackelberg")
     assert "frozen" in mutants_for("sumo_sut") and "frozen" not in mutants_for("level0")
+    # two instances of the base driver: not for sumo_sut (one SUMO per process)
+    assert applicable_bases("tailgating") == ("level0", "mobil", "nilsson", "stackelberg", "fiss")
+    assert applicable_bases("ignores_new_follower") == ("mobil", "nilsson", "stackelberg", "fiss")
+    assert len(mutants_for("sumo_sut")) == 9 and len(mutants_for("fiss")) == 11 and len(mutants_for("mobil")) == 12
     assert "timid" not in mutants_for("my_own_plugin") and "weak_braking" in mutants_for("my_own_plugin")
     with pytest.raises(InputError, match="mutant 'nosuch'"):
         applicable_bases("nosuch")
