@@ -120,18 +120,7 @@ def window_layout(
 
     p = params
     n_bv = int(len(bv_policies))
-    if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
-        raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
-    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
-    dens = np.asarray(p.lane_density_per_km, dtype=float)
-    if n_bv and dens.sum() <= 0.0:
-        raise InputError("traffic.lane_density_per_km: all zero, so the window cannot hold the BVs "
-                         f"(bvs.count = {n_bv})")
-    # largest-remainder split of the BVs over the lanes
-    quota = n_bv * dens / dens.sum() if n_bv else np.zeros_like(dens)
-    counts = np.floor(quota).astype(int)
-    for j in np.argsort(-(quota - counts), kind="stable")[: n_bv - int(counts.sum())]:
-        counts[j] += 1
+    mainline, counts = _mainline_counts(road, p, n_bv, sut_lane, sut_s_m)
     lo, hi = sut_s_m - p.behind_m, sut_s_m + p.ahead_m
     s_list: list[float] = []
     lane_list: list[int] = []
@@ -209,17 +198,7 @@ def window_layout_makeup(
 
     p = params
     n_bv = int(len(bv_policies))
-    if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
-        raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
-    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
-    dens = np.asarray(p.lane_density_per_km, dtype=float)
-    if n_bv and dens.sum() <= 0.0:
-        raise InputError("traffic.lane_density_per_km: all zero, so the window cannot hold the BVs "
-                         f"(bvs.count = {n_bv})")
-    quota = n_bv * dens / dens.sum() if n_bv else np.zeros_like(dens)
-    counts = np.floor(quota).astype(int)
-    for j in np.argsort(-(quota - counts), kind="stable")[: n_bv - int(counts.sum())]:
-        counts[j] += 1
+    mainline, counts = _mainline_counts(road, p, n_bv, sut_lane, sut_s_m)
     # which BV goes to which lane: trucks to the right lanes first, then cars (each in index order)
     lane_of_slot = np.repeat(np.array(mainline[: len(counts)], dtype=np.int64), counts)
     right = np.isin(lane_of_slot, mainline[:truck_entry_lanes])
@@ -275,3 +254,20 @@ def window_layout_makeup(
         length_m=np.concatenate([[sut_length_m], length]),
         width_m=np.concatenate([[sut_width_m], np.asarray(makeup.width_m, dtype=float)]),
     )
+
+
+def _mainline_counts(road, p, n_bv: int, sut_lane: int, sut_s_m: float) -> tuple[list[int], np.ndarray]:
+    """The window layouts' shared start: the SUT's lane checked, the mainline lanes, and the BVs split
+    over them by ``traffic.lane_density_per_km`` (largest remainder)."""
+    if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
+        raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
+    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    dens = np.asarray(p.lane_density_per_km, dtype=float)
+    if n_bv and dens.sum() <= 0.0:
+        raise InputError("traffic.lane_density_per_km: all zero, so the window cannot hold the BVs "
+                         f"(bvs.count = {n_bv})")
+    quota = n_bv * dens / dens.sum() if n_bv else np.zeros_like(dens)
+    counts = np.floor(quota).astype(int)
+    for j in np.argsort(-(quota - counts), kind="stable")[: n_bv - int(counts.sum())]:
+        counts[j] += 1
+    return mainline, counts
