@@ -68,13 +68,9 @@ def _number(flag: str, text: str, *, integer: bool = False, lo: float = 0.0, inc
 
 def resolve_bag(run: Path) -> Path:
     """A bag path from RUN: the bag itself, or a run directory's ``bag/``."""
-    from evoscen_sim.errors import InputError
+    from evoscen_record.bag_reader import bag_or_run_dir
 
-    if not run.exists():
-        raise InputError(f"--bags {run}: no such bag or run directory")
-    if run.is_dir() and not (run / "metadata.yaml").exists() and not any(run.glob("*.mcap")) and (run / "bag").is_dir():
-        return run / "bag"
-    return run
+    return bag_or_run_dir(run, "--bags ")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,6 +16,17 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 
 
+def bag_or_run_dir(path: Path, label: str = "") -> Path:
+    """A bag directory from ``path``: the bag itself, or a run directory's ``bag/`` (what
+    ``run_scenario.py --out`` writes). ``label`` prefixes the error (e.g. ``"--bags "``)."""
+    if not path.exists():
+        raise InputError(f"{label}{path}: no such bag or run directory")
+    if (path.is_dir() and not (path / "metadata.yaml").exists() and not any(path.glob("*.mcap"))
+            and (path / "bag").is_dir()):
+        return path / "bag"
+    return path
+
+
 def read_bag_metadata(bag_dir: Path) -> dict[str, Any] | None:
     """The ``rosbag2_bagfile_information`` mapping of ``bag_dir/metadata.yaml`` (None if absent).
 
