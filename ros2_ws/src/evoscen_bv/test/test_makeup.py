@@ -202,3 +202,56 @@ def test_config_errors_and_metadata() -> None:
         load_scenario_config(None, {"bvs.makeup": "cars"})
     assert "makeup" not in scenario_metadata(load_scenario_config(None))[SCENARIO_KEY]
     assert "makeup: highd" in scenario_metadata(load_scenario_config(None, {"bvs.makeup": "highd"}))[SCENARIO_KEY]
+
+
+# ---------------------------------------------------------------- car lanes (models.highd.car_lanes)
+def test_cars_by_speed_spawn_sorts_the_lanes_right_to_left() -> None:
+    from evoscen_sim.physics.makeup import Makeup
+    from evoscen_sim.physics.spawn import window_layout_makeup
+    from evoscen_sim.scenario_builders import traffic_params_from_config
+
+    cfg = load_scenario_config(None, {"bvs.makeup": "highd"})
+    rd = load_road(cfg.map)
+    tp = traffic_params_from_config(cfg, rd)
+    n = 8  # two per mainline lane (equal densities); slots 0 and 5 trucks
+    speeds = np.array([24.0, 35.0, 21.0, 30.0, 27.0, 22.0, 33.0, 25.0])
+    truck = np.zeros(n, dtype=bool)
+    truck[[0, 5]] = True
+    mk = Makeup(truck=truck, length_m=np.where(truck, 16.0, 4.5), width_m=np.where(truck, 2.5, 1.9),
+                desired_speed_mps=speeds)
+    kw = dict(bv_policies=np.zeros(n, dtype=np.int64), sut_policy=0, sut_lane=2, sut_s_m=1000.0,
+              sut_speed_mps=28.0, sut_length_m=4.5, sut_width_m=1.9)
+    by_speed = window_layout_makeup(rd, tp, mk, 1, cars_by_speed=True, rng=np.random.default_rng(1), **kw)
+    by_index = window_layout_makeup(rd, tp, mk, 1, cars_by_speed=False, rng=np.random.default_rng(1), **kw)
+    lanes = sorted(set(by_speed.lane[1:].tolist()))
+    assert len(lanes) == 4
+    # trucks take the rightmost lane; the cars, slowest first, fill the rest from right to left:
+    # cars by speed 21 (2), 25 (7), 27 (4), 30 (3), 33 (6), 35 (1)
+    want = {0: lanes[0], 5: lanes[0], 2: lanes[1], 7: lanes[1], 4: lanes[2], 3: lanes[2], 6: lanes[3], 1: lanes[3]}
+    assert {k: int(by_speed.lane[k + 1]) for k in range(n)} == want
+    # by_density keeps index order: cars 1, 2 | 3, 4 | 6, 7
+    assert [int(by_index.lane[k + 1]) for k in (1, 2, 3, 4, 6, 7)] == [lanes[1]] * 2 + [lanes[2]] * 2 + [lanes[3]] * 2
+
+
+def test_cars_by_speed_entry_prefers_the_lane_nearest_in_speed() -> None:
+    from evoscen_sim.physics.traffic import _by_speed, _lane_mean_speeds
+
+    s = np.array([0.0, 50.0, 60.0, 500.0, 70.0, 80.0])
+    v = np.array([28.0, 20.0, 24.0, 40.0, 31.0, 33.0])
+    lane = np.array([2, 1, 1, 3, 2, 4], dtype=np.int64)
+    target = lane.copy()
+    change = np.zeros(6, dtype=np.int64)
+    target[5], change[5] = 3, 1  # the vehicle changing to lane 3 counts there
+    m = _lane_mean_speeds(s, v, lane, target, change, -100.0, 200.0, 5)
+    assert np.isnan(m[0]) and np.isnan(m[4])
+    assert m[1:4].tolist() == pytest.approx([22.0, 29.5, 33.0])  # vehicle 3 (s = 500) outside the window
+    rows = [(-0.5, 1, 26.0, 1.5), (-0.3, 2, 28.0, 1.5), (-0.2, 3, 30.0, 1.5), (-0.1, 4, 32.0, 1.5)]
+    # wish 34: |33 − 34| = 1 (lane 3), |32 − 34| = 2 (lane 4, empty: its entry mean), 4.5, 12
+    assert [r[1] for r in _by_speed(rows, 34.0, m)] == [3, 4, 2, 1]
+    # wish 22: lane 1 (0), lane 2 (7.5), lane 4 (10), lane 3 (11)
+    assert [r[1] for r in _by_speed(rows, 22.0, m)] == [1, 2, 4, 3]
+
+
+def test_car_lanes_is_checked() -> None:
+    with pytest.raises(InputError, match=r"car_lanes"):
+        load_scenario_config(None, {"bvs.makeup": "highd", "models.highd.car_lanes": "by_colour"})

@@ -69,7 +69,7 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
     if traffic is not None and makeup is not None:
         hp = highd_params(cfg)
         initial = window_layout_makeup(
-            road, traffic, makeup, hp.truck_entry_lanes, bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
+            road, traffic, makeup, hp.truck_entry_lanes, cars_by_speed=hp.car_lanes == "by_speed", bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
             sut_policy=POLICY_CODES["sut"], sut_lane=cfg.sut.lane, sut_s_m=cfg.sut.s_m,
             sut_speed_mps=cfg.sut.speed_mps, sut_length_m=vehicle.length_m, sut_width_m=vehicle.width_m,
             rng=rngs["spawn"])

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from evoscen_sim.config.config_checks import flag, integer, number
+from evoscen_sim.config.config_checks import flag, integer, number, text
 from evoscen_sim.config.config_schema import MAKEUPS  # noqa: F401  (the values of ``bvs.makeup``)
 
 TRUCK_MIN_LENGTH_M = 7.0
@@ -78,6 +78,15 @@ class HighdMakeupParams:
     """Trucks enter the traffic window on the rightmost this-many mainline lanes (highD: trucks keep right).
     [choice] 1, lane II: with 2, trucks entering in lane III changed to lane II soon after, most of their
     lane changes (traffic_makeup.py)."""
+    car_lanes: str = text("by_speed", ("by_speed", "by_density"))
+    """Which mainline lane a car starts or enters in. ``by_speed``: at the start, the slowest cars take
+    the rightmost slots left by the trucks and the fastest the leftmost; on entry, of the lanes below
+    their target density, the one whose traffic in the window moves nearest the car's desired speed
+    (its ``traffic.lane_speed_mps`` mean while it is empty). ``by_density``: the lane furthest below
+    its target, whatever the car's speed (the make-up's first form). [choice] by_speed: highD's lanes
+    are sorted by speed (drivers keep right unless overtaking), and with ``by_density`` fast cars
+    entered behind slow ones and spent 42 % of their time held up below their desired speed
+    (docs/bv-profiles.md, "Where the cars' speed goes")."""
     truck_ramp_entries: bool = flag(False)
     """Whether trucks also enter on the merge lane. [choice] false: the truck driver has no gap-seeking
     merge (the learned cars' ``merge_seek``), and trucks that entered there stopped near its end and
@@ -155,10 +164,12 @@ class WindowMakeup:
     ``truck_ramp_entries``)."""
     truck_entry_lanes: int
     truck_ramp_entries: bool = False
+    cars_by_speed: bool = False
+    """Cars enter the lane whose traffic moves nearest their desired speed (``car_lanes: by_speed``)."""
 
 
 def window_makeup(m: Makeup, p: HighdMakeupParams) -> WindowMakeup:
     """:class:`WindowMakeup` of the BV slots of ``m`` behind the SUT's row."""
     return WindowMakeup(wish_mps=np.concatenate([[np.nan], m.desired_speed_mps]),
                         truck=np.concatenate([[False], m.truck]), truck_entry_lanes=int(p.truck_entry_lanes),
-                        truck_ramp_entries=bool(p.truck_ramp_entries))
+                        truck_ramp_entries=bool(p.truck_ramp_entries), cars_by_speed=p.car_lanes == "by_speed")

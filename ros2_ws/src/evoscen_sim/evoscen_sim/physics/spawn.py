@@ -178,6 +178,7 @@ def window_layout_makeup(
     makeup,  # evoscen_sim.physics.makeup.Makeup
     truck_entry_lanes: int,
     *,
+    cars_by_speed: bool = False,
     bv_policies: np.ndarray,
     sut_policy: int,
     sut_lane: int,
@@ -191,8 +192,10 @@ def window_layout_makeup(
 
     The same lanes, counts and slots (one ``uniform`` offset per lane), but each BV brings its own
     length and width, trucks take the slots of the rightmost ``truck_entry_lanes`` mainline lanes
-    first (the other lanes only when those are full), and every BV starts at its own desired speed,
-    lowered front to back by the safe-insertion rule over the gaps of the actual bodies.
+    first (the other lanes only when those are full), then the cars — in index order, or with
+    ``cars_by_speed`` slowest first, so that the lanes are sorted by speed from right to left
+    (``models.highd.car_lanes``) —, and every BV starts at its own desired speed, lowered front to back
+    by the safe-insertion rule over the gaps of the actual bodies.
     """
     from .traffic import insertion_speed, required_gap
 
@@ -203,7 +206,10 @@ def window_layout_makeup(
     lane_of_slot = np.repeat(np.array(mainline[: len(counts)], dtype=np.int64), counts)
     right = np.isin(lane_of_slot, mainline[:truck_entry_lanes])
     slot_order = np.concatenate([np.flatnonzero(right), np.flatnonzero(~right)])
-    bv_order = np.concatenate([np.flatnonzero(makeup.truck), np.flatnonzero(~makeup.truck)])
+    cars = np.flatnonzero(~makeup.truck)
+    if cars_by_speed:
+        cars = cars[np.argsort(np.asarray(makeup.desired_speed_mps, dtype=float)[cars], kind="stable")]
+    bv_order = np.concatenate([np.flatnonzero(makeup.truck), cars])
     lane_bv = np.empty(n_bv, dtype=np.int64)
     lane_bv[bv_order] = lane_of_slot[slot_order]
     length = np.asarray(makeup.length_m, dtype=float)

@@ -228,7 +228,12 @@ class TrafficWindow:
         tau, b = float(p.insertion_headway_s), float(p.insertion_decel_mps2)
         mk = self.makeup
         allowed = self.truck_lanes if mk is not None and mk.truck[i] else None
-        for _, lane, mean, sd in self._targets(world, s_sut, allowed):
+        rows = self._targets(world, s_sut, allowed)
+        if mk is not None and mk.cars_by_speed and not mk.truck[i]:
+            rows = _by_speed(rows, float(mk.wish_mps[i]), _lane_mean_speeds(
+                world.s, world.v, world.lane, world.target_lane, world.lane_change,
+                s_sut - p.behind_m, s_sut + p.ahead_m, road.num_lanes))
+        for _, lane, mean, sd in rows:
             if mk is None:
                 v = float(_np_clip(world.rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
                 v_floor = max(0.0, mean - 2.0 * sd)
@@ -251,6 +256,37 @@ class TrafficWindow:
                 world._place(i, lane, s_try, v_try)
                 return (i, int(lane), float(s_try))
         return None
+
+
+def _by_speed(rows: list, wish: float, lane_speed: np.ndarray) -> list:
+    """``rows`` of :meth:`TrafficWindow._targets` for a car under ``models.highd.car_lanes: by_speed``:
+    the lanes nearest in speed first — the mean speed of the lane's vehicles in the window, or the
+    row's entry mean while it has none —, ties by the rows' order (docs/bv-profiles.md, "Traffic
+    make-up")."""
+    def gap(k: int) -> float:
+        _, lane, mean, _ = rows[k]
+        v = lane_speed[lane]
+        return abs((mean if np.isnan(v) else v) - wish)
+    return [rows[k] for k in sorted(range(len(rows)), key=lambda k: (gap(k), k))]
+
+
+@kernel
+def _lane_mean_speeds(s, v, lane, target_lane, lane_change, lo, hi, num_lanes):
+    """Mean speed of the vehicles with ``lo <= s <= hi`` in each lane, the SUT included (the target lane
+    while changing lanes; NaN for a lane with none)."""
+    total = np.zeros(num_lanes)
+    counts = np.zeros(num_lanes, dtype=np.int64)
+    for j in range(s.shape[0]):
+        if lo <= s[j] <= hi:
+            k = target_lane[j] if lane_change[j] != 0 else lane[j]
+            if 0 <= k < num_lanes:
+                total[k] += v[j]
+                counts[k] += 1
+    out = np.full(num_lanes, np.nan)
+    for k in range(num_lanes):
+        if counts[k] > 0:
+            out[k] = total[k] / counts[k]
+    return out
 
 
 def _np_clip(x: float, lo: float, hi: float) -> float:
