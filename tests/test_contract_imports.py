@@ -48,7 +48,7 @@ CORE_MODULES = (
     "evoscen_sim.config.config_checks",
     "evoscen_sim.config.config_load",
     "evoscen_sim.config.config_schema",
-    "evoscen_sim.config.limits",
+    "evoscen_sim.limits",
     "evoscen_sim.physics.collision",
     "evoscen_sim.physics.control",
     "evoscen_sim.physics.hand_built",

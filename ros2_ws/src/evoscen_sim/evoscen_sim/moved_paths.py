@@ -17,6 +17,11 @@ each with one :class:`DeprecationWarning` naming the new path. [choice] A warnin
 for one release: a plug-in written for 0.4 keeps working while its author moves it to
 :mod:`evoscen_sim.api`, the face that lasts (docs/plugins.md §19). Standard library only: every
 package imports this module from its ``__init__``.
+
+The simulation's modules moved again into rooms named for what they hold (docs/architecture.md
+§1, "Module map"): the paths of 0.6 that moved (:data:`ROOM_MODULES`) are served the same way
+from :data:`ROOMS_MOVED_IN` until :data:`ROOMS_REMOVED_IN`, one release; a 0.4 path whose 0.5
+module moved again leads straight to the module's current path.
 """
 
 from __future__ import annotations
@@ -29,7 +34,13 @@ import types
 import warnings
 
 REMOVED_IN = "0.7.0"
-"""The release that drops these aliases."""
+"""The release that drops the aliases of the paths 0.5.0 moved."""
+
+ROOMS_MOVED_IN = "0.7.0"
+"""The release that moves the modules of :data:`ROOM_MODULES`."""
+
+ROOMS_REMOVED_IN = "0.8.0"
+"""The release that drops the aliases of :data:`ROOM_MODULES`."""
 
 MOVED_MODULES: dict[str, str] = {
     "evoscen_bringup.bag_writer": "evoscen_record.bag_writer",
@@ -52,7 +63,6 @@ MOVED_MODULES: dict[str, str] = {
     "evoscen_sim.control": "evoscen_sim.physics.control",
     "evoscen_sim.controller_node": "evoscen_sim.nodes.controller_node",
     "evoscen_sim.events": "evoscen_sim.physics.events",
-    "evoscen_sim.limits": "evoscen_sim.config.limits",
     "evoscen_sim.models": "evoscen_sim.model_registry",
     "evoscen_sim.neighbors": "evoscen_sim.physics.neighbors",
     "evoscen_sim.node_params": "evoscen_sim.nodes.node_params",
@@ -72,8 +82,14 @@ MOVED_MODULES: dict[str, str] = {
     "evoscen_sut.lane_change": "evoscen_sut.krauss_lane_change",
     "evoscen_sut.models": "evoscen_sut.sut_models",
 }
-"""0.4 module path -> its 0.5 path (``evoscen_sim.config`` and ``evoscen_sim.road``, packages now,
-are in :data:`PACKAGE_MODULES`)."""
+"""0.4 module path -> the module's current path (``evoscen_sim.config`` and ``evoscen_sim.road``,
+packages now, are in :data:`PACKAGE_MODULES`). ``evoscen_sim.limits``, moved to
+``evoscen_sim.config.limits`` in 0.5.0, is the module's own path again (0.7.0): no alias."""
+
+ROOM_MODULES: dict[str, str] = {
+    "evoscen_sim.config.limits": "evoscen_sim.limits",
+}
+"""0.6 module path -> its path since :data:`ROOMS_MOVED_IN` (docs/architecture.md §1)."""
 
 PACKAGE_MODULES: dict[str, str] = {
     "evoscen_sim.config": "evoscen_sim.config.scenario_config",
@@ -155,8 +171,14 @@ def _stacklevel() -> int:
 
 
 def _warn(old: str, new: str) -> None:
-    warnings.warn(f"{old} is deprecated (moved in evoscen 0.5.0; removed in {REMOVED_IN}): use {new}",
+    moved, removed = (ROOMS_MOVED_IN, ROOMS_REMOVED_IN) if old in ROOM_MODULES else ("0.5.0", REMOVED_IN)
+    warnings.warn(f"{old} is deprecated (moved in evoscen {moved}; removed in {removed}): use {new}",
                   DeprecationWarning, stacklevel=_stacklevel())
+
+
+def _module_target(old: str) -> str:
+    """The current path of a moved module path (:data:`MOVED_MODULES` or :data:`ROOM_MODULES`)."""
+    return ROOM_MODULES[old] if old in ROOM_MODULES else MOVED_MODULES[old]
 
 
 def moved_attribute(module: str, name: str):
@@ -179,7 +201,7 @@ class _Alias(types.ModuleType):
         target = MOVED_NAMES.get(old, {}).get(name)
         if target is not None:
             return getattr(importlib.import_module(target), name)
-        return getattr(importlib.import_module(MOVED_MODULES[old]), name)
+        return getattr(importlib.import_module(_module_target(old)), name)
 
 
 class _Loader(importlib.abc.Loader):
@@ -187,7 +209,7 @@ class _Loader(importlib.abc.Loader):
         return _Alias(spec.name)
 
     def exec_module(self, module) -> None:
-        new = MOVED_MODULES[module.__name__]
+        new = _module_target(module.__name__)
         _warn(module.__name__, new)
         target = importlib.import_module(new)
         module.__doc__ = target.__doc__
@@ -195,15 +217,15 @@ class _Loader(importlib.abc.Loader):
 
 
 class _Finder(importlib.abc.MetaPathFinder):
-    """Finds the 0.4 module paths of :data:`MOVED_MODULES` (only those)."""
+    """Finds the moved module paths of :data:`MOVED_MODULES` and :data:`ROOM_MODULES` (only those)."""
 
     def find_spec(self, fullname, path, target=None):
-        if fullname not in MOVED_MODULES:
+        if fullname not in MOVED_MODULES and fullname not in ROOM_MODULES:
             return None
         return importlib.util.spec_from_loader(fullname, _Loader())
 
 
 def install() -> None:
-    """Put the finder of the 0.4 module paths on ``sys.meta_path`` (once per process)."""
+    """Put the finder of the moved module paths on ``sys.meta_path`` (once per process)."""
     if not any(isinstance(f, _Finder) for f in sys.meta_path):
         sys.meta_path.append(_Finder())

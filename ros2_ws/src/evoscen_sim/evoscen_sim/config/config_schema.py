@@ -34,7 +34,7 @@ from evoscen_sim.config.config_checks import (
     _StepSize,
     _Str,
 )
-from evoscen_sim.config.limits import MAX_STEPS
+from evoscen_sim.limits import MAX_STEPS
 from evoscen_sim.errors import InputError
 
 #: Bag compression modes selectable by ``recording.compression``.
@@ -461,7 +461,7 @@ class ScenarioConfig:
     """Fixed integration step (s), in [1e-6, 1] and a whole number of nanoseconds (the bag's
     stamps are integer ns; docs/input-limits.md)."""
     steps: int = field(default=3000, metadata=_check(_Int(1, MAX_STEPS)))
-    """Number of simulation steps, 1..1,000,000 (:data:`evoscen_sim.config.limits.MAX_STEPS`)."""
+    """Number of simulation steps, 1..1,000,000 (:data:`evoscen_sim.limits.MAX_STEPS`)."""
     seed: int = field(default=0, metadata=_check(_Int(0)))
     """Seed of the scenario's numpy Generator, >= 0."""
     bvs: BvConfig = _section(BvConfig)

@@ -1,0 +1,68 @@
+"""The layout of the packages keeps what docs/architecture.md §1 ("Module map") says of it.
+
+* The ground floor of ``evoscen_sim`` (``errors``, ``limits``, ``jit``) imports nothing else of
+  evoscen but itself, and the package's ``__init__`` only the standard-library ``moved_paths``.
+* The paths the rooms replaced still import, as aliases of the new modules, with one
+  DeprecationWarning naming the new path.
+
+Read statically with :mod:`ast` (the import graph of tests/test_import_cycles.py); nothing here
+starts a simulation.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the import graph of the cycle test
+from test_import_cycles import SRC, import_graph, project_modules
+
+GROUND_FLOOR = ("evoscen_sim.errors", "evoscen_sim.limits", "evoscen_sim.jit")
+
+
+def test_the_ground_floor_imports_nothing_else_of_evoscen() -> None:
+    graph = import_graph(project_modules())
+    for name in GROUND_FLOOR:
+        assert name in graph, name
+    upward = sorted(f"{name} -> {target}" for name in GROUND_FLOOR for target in graph[name]
+                    if target not in GROUND_FLOOR)
+    assert upward == [], "the ground floor imports from above it: " + "; ".join(upward)
+    # limits raises the one error type; errors and jit import nothing of evoscen
+    assert graph["evoscen_sim.limits"] == {"evoscen_sim.errors"}
+    assert graph["evoscen_sim.errors"] == set() and graph["evoscen_sim.jit"] == set()
+    assert graph["evoscen_sim"] == {"evoscen_sim.moved_paths"} and graph["evoscen_sim.moved_paths"] == set()
+
+
+def _room_paths() -> list[tuple[str, str]]:
+    from evoscen_sim import moved_paths
+
+    return sorted(moved_paths.ROOM_MODULES.items())
+
+
+@pytest.mark.parametrize(("old", "new"), _room_paths())
+def test_a_path_the_rooms_replaced_is_an_alias_that_warns(old: str, new: str) -> None:
+    from evoscen_sim import moved_paths
+
+    assert not (SRC / "evoscen_sim" / (old.replace(".", "/") + ".py")).exists(), old
+    target = importlib.import_module(new)
+    sys.modules.pop(old, None)
+    pattern = (rf"{old.replace('.', '[.]')} is deprecated \(moved in evoscen {moved_paths.ROOMS_MOVED_IN}; "
+               rf"removed in {moved_paths.ROOMS_REMOVED_IN}\): use {new.replace('.', '[.]')}$")
+    with pytest.warns(DeprecationWarning, match=pattern):
+        alias = importlib.import_module(old)
+    public = [name for name in vars(target) if not name.startswith("_")]
+    assert public, new
+    for name in public:
+        assert getattr(alias, name) is getattr(target, name), (old, name)
+    sys.modules.pop(old, None)
+
+
+def test_the_new_paths_import_without_a_warning() -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for _, new in _room_paths():
+            importlib.import_module(new)
