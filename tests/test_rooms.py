@@ -66,3 +66,24 @@ def test_the_new_paths_import_without_a_warning() -> None:
         warnings.simplefilter("error")
         for _, new in _room_paths():
             importlib.import_module(new)
+
+
+def test_a_04_path_leads_to_the_room_its_module_lives_in_now() -> None:
+    """``evoscen_sim.traffic`` (a module in 0.4) is the traffic room's package: its 0.4 names come from
+    the window module with the 0.5 warning; a 0.4 module path whose 0.5 module moved again is an
+    alias of the module's current path."""
+    from evoscen_sim.traffic import window
+
+    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.traffic\.TrafficWindow is deprecated \(moved in "
+                                                r"evoscen 0\.5\.0; removed in 0\.7\.0\): use evoscen_sim\.traffic\.window\."):
+        from evoscen_sim.traffic import TrafficWindow
+    assert TrafficWindow is window.TrafficWindow
+    with pytest.raises(ImportError):
+        from evoscen_sim.traffic import no_such_name  # noqa: F401
+    sys.modules.pop("evoscen_sim.spawn", None)
+    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.spawn is deprecated .*use evoscen_sim\.traffic\.spawn$"):
+        import evoscen_sim.spawn as old_spawn
+    from evoscen_sim.traffic import spawn
+
+    assert old_spawn.window_layout is spawn.window_layout
+    sys.modules.pop("evoscen_sim.spawn", None)

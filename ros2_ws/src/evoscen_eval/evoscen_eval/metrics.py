@@ -9,7 +9,7 @@ so the arithmetic can be checked by hand.
 The **[choice]** points the method leaves open, as implemented (all configurable under
 ``evaluation.*``; docs/evaluation.md states them with their reasons):
 
-* **Dangerous state / exposure** — :mod:`evoscen_sim.physics.safety`: TTC to the vehicle ahead in the
+* **Dangerous state / exposure** — :mod:`evoscen_sim.danger.safety`: TTC to the vehicle ahead in the
   SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``, or a rear
   conflict attributed to the SUT (``rear_conflicts`` [after_lane_change]: the follower in its
   path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2`` within
@@ -84,7 +84,7 @@ from typing import Any
 
 import numpy as np
 from evoscen_contract import contract as C
-from evoscen_sim.physics.safety import attribution_steps
+from evoscen_sim.danger.safety import attribution_steps
 
 from .rundata import RunData, run_info_of
 from .streaming import SSM_SIDES, TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, ScoreStream, activity_accel, traffic_window_states  # noqa: F401 - activity_accel: AD's definition, here with the scores

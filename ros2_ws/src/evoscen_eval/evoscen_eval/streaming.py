@@ -5,7 +5,7 @@ a bag as it is read, the in-process runner after each step) and the events, and 
 ``report.json`` dict and what the report's plots need (:class:`~evoscen_eval.plot_inputs.PlotData`)
 at the end. It holds no ``[K, V]`` array: states wait in a block of :data:`BLOCK_STATES` and each block is
 reduced with the same broadcasting definitions the scores are written in
-(:mod:`evoscen_sim.physics.safety`; they act row by row, so a block gives the same per-state values
+(:mod:`evoscen_sim.danger.safety`; they act row by row, so a block gives the same per-state values
 as a whole run would) to
 
 * running sums, counts, minima and maxima (efficiency, the conflict figures);
@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from evoscen_contract import contract as C
-from evoscen_sim.physics.safety import (
+from evoscen_sim.danger.safety import (
     attribution_steps,
     beside_gap,
     cut_in_gap,
@@ -240,7 +240,7 @@ class ScoreStream:
         rows = np.arange(n)
         s, d, v, a, length, width = c["s"], c["d"], c["speed"], c["accel"], c["length"], c["width"]
 
-        # --- per-state quantities of the SUT (evoscen_sim.physics.safety, row by row)
+        # --- per-state quantities of the SUT (evoscen_sim.danger.safety, row by row)
         ttc = sut_ttc(s, d, v, length, width, sut)
         speed, accel, lane, lc_sut = v[:, sut], a[:, sut], c["lane"][:, sut], c["lane_change"][:, sut]
         follower, f_ttc = follower_ttc(s, d, v, length, width, sut)
@@ -416,14 +416,14 @@ class ScoreStream:
         return int((on & (cp != prev)).sum())
 
     def _attributed(self, lc_sut: np.ndarray, ks: np.ndarray, after: int) -> np.ndarray:
-        """:func:`evoscen_sim.physics.safety.rear_attributed`, continued from the previous block."""
+        """:func:`evoscen_sim.danger.safety.rear_attributed`, continued from the previous block."""
         mode = self.ev.rear_conflicts
         if mode == "all":
             return np.ones(ks.shape[0], dtype=bool)
         if mode == "none":
             return np.zeros(ks.shape[0], dtype=bool)
         if mode != "after_lane_change":
-            from evoscen_sim.physics.safety import rear_attributed
+            from evoscen_sim.danger.safety import rear_attributed
 
             rear_attributed(lc_sut, mode, after)  # raises the error naming the modes
         last = np.maximum(np.maximum.accumulate(np.where(lc_sut != 0, ks, -1)), self._rear_last)

@@ -62,22 +62,21 @@ MOVED_MODULES: dict[str, str] = {
     "evoscen_sim.config_schema": "evoscen_sim.config.config_schema",
     "evoscen_sim.control": "evoscen_sim.physics.control",
     "evoscen_sim.controller_node": "evoscen_sim.nodes.controller_node",
-    "evoscen_sim.events": "evoscen_sim.physics.events",
+    "evoscen_sim.events": "evoscen_sim.danger.events",
     "evoscen_sim.models": "evoscen_sim.model_registry",
     "evoscen_sim.neighbors": "evoscen_sim.physics.neighbors",
     "evoscen_sim.node_params": "evoscen_sim.nodes.node_params",
     "evoscen_sim.opendrive": "evoscen_sim.road.opendrive",
     "evoscen_sim.road_kernels": "evoscen_sim.road.road_kernels",
-    "evoscen_sim.safety": "evoscen_sim.physics.safety",
+    "evoscen_sim.safety": "evoscen_sim.danger.safety",
     "evoscen_sim.scenario": "evoscen_sim.scenario_builders",
-    "evoscen_sim.scenario_params": "evoscen_sim.physics.scenario_params",
+    "evoscen_sim.scenario_params": "evoscen_sim.traffic.scenario_params",
     "evoscen_sim.sim_node": "evoscen_sim.nodes.sim_node",
-    "evoscen_sim.spawn": "evoscen_sim.physics.spawn",
-    "evoscen_sim.step_loop": "evoscen_sim.physics.step_loop",
-    "evoscen_sim.testing": "evoscen_sim.physics.hand_built",
-    "evoscen_sim.traffic": "evoscen_sim.physics.traffic",
+    "evoscen_sim.spawn": "evoscen_sim.traffic.spawn",
+    "evoscen_sim.step_loop": "evoscen_sim.loop.step_loop",
+    "evoscen_sim.testing": "evoscen_sim.loop.hand_built",
     "evoscen_sim.vehicle": "evoscen_sim.physics.vehicle",
-    "evoscen_sim.view": "evoscen_sim.physics.view",
+    "evoscen_sim.view": "evoscen_sim.loop.view",
     "evoscen_sim.world": "evoscen_sim.physics.world",
     "evoscen_sut.lane_change": "evoscen_sut.krauss_lane_change",
     "evoscen_sut.models": "evoscen_sut.sut_models",
@@ -88,15 +87,25 @@ packages now, are in :data:`PACKAGE_MODULES`). ``evoscen_sim.limits``, moved to
 
 ROOM_MODULES: dict[str, str] = {
     "evoscen_sim.config.limits": "evoscen_sim.limits",
+    "evoscen_sim.physics.events": "evoscen_sim.danger.events",
+    "evoscen_sim.physics.hand_built": "evoscen_sim.loop.hand_built",
+    "evoscen_sim.physics.makeup": "evoscen_sim.traffic.makeup",
+    "evoscen_sim.physics.safety": "evoscen_sim.danger.safety",
+    "evoscen_sim.physics.scenario_params": "evoscen_sim.traffic.scenario_params",
+    "evoscen_sim.physics.spawn": "evoscen_sim.traffic.spawn",
+    "evoscen_sim.physics.step_loop": "evoscen_sim.loop.step_loop",
+    "evoscen_sim.physics.traffic": "evoscen_sim.traffic.window",
+    "evoscen_sim.physics.view": "evoscen_sim.loop.view",
 }
 """0.6 module path -> its path since :data:`ROOMS_MOVED_IN` (docs/architecture.md §1)."""
 
 PACKAGE_MODULES: dict[str, str] = {
     "evoscen_sim.config": "evoscen_sim.config.scenario_config",
     "evoscen_sim.road": "evoscen_sim.road.road_model",
+    "evoscen_sim.traffic": "evoscen_sim.traffic.window",
 }
-"""0.4 modules that are packages since 0.5: their 0.4 names (:data:`PACKAGE_NAMES`) come from this
-module (the package's ``__getattr__``)."""
+"""0.4 modules that are packages now (``evoscen_sim.traffic`` since 0.7.0, the room of the traffic):
+their 0.4 names (:data:`PACKAGE_NAMES`) come from this module (the package's ``__getattr__``)."""
 
 PACKAGE_NAMES: dict[str, frozenset[str]] = {
     "evoscen_sim.config": frozenset((
@@ -111,8 +120,12 @@ PACKAGE_NAMES: dict[str, frozenset[str]] = {
     "evoscen_sim.road": frozenset((
         "DEFAULT_MAP_PATH", "DRIVABLE_LANE_TYPES", "Lane", "LaneLookup", "LaneMarking", "LaneSection",
         "MARKING_STEP_M", "OpenDriveMap", "Poly3", "RoadModel", "RoadTables", "load_road", "parse_opendrive")),
+    "evoscen_sim.traffic": frozenset((
+        "ENTRY_RETRY_STEPS", "MERGE_LANE", "NEW_TRIP_MAX_SPEED_MPS", "TrafficParams", "TrafficWindow",
+        "check_shift_points", "common_shift", "common_shift_kernel", "insertion_speed", "new_trips", "new_trips_kernel",
+        "required_gap")),
 }
-"""The public names of the 0.4 modules ``evoscen_sim.config`` and ``evoscen_sim.road``."""
+"""The public names of the 0.4 modules ``evoscen_sim.config``, ``evoscen_sim.road`` and ``evoscen_sim.traffic``."""
 
 MOVED_NAMES: dict[str, dict[str, str]] = {
     "evoscen_bringup.campaign": {

@@ -1,4 +1,4 @@
-"""The traffic window's compiled entry search (evoscen_sim.physics.traffic, docs/method.md §1) against
+"""The traffic window's compiled entry search (evoscen_sim.traffic.window, docs/method.md §1) against
 a straightforward numpy reference of the same rule (kept here): the same placement, speed and random
 draws on random worlds, step by step over random runs, and cases derived by hand."""
 
@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from evoscen_sim.config.scenario_config import load_scenario_config
-from evoscen_sim.physics.traffic import (
+from evoscen_sim.traffic.window import (
     MERGE_LANE,
     TrafficParams,
     _lane_counts,
@@ -21,7 +21,7 @@ from evoscen_sim.physics.traffic import (
     insertion_speed,
     required_gap,
 )
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, World
 from evoscen_sim.road.road_kernels import lane_borders, lane_present
 from evoscen_sim.road.road_model import load_road

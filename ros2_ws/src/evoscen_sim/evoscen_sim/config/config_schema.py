@@ -44,7 +44,7 @@ COMPRESSIONS: tuple[str, ...] = ("zstd", "lz4", "none")
 MAX_S_M = 2393.0
 #: Upper bound of the speed ranges ``spawn.speed_mps`` / ``level0.desired_speed_mps`` (m/s).
 MAX_RANGE_SPEED_MPS = 40.0
-#: Values of ``bvs.makeup`` (:mod:`evoscen_sim.physics.makeup`).
+#: Values of ``bvs.makeup`` (:mod:`evoscen_sim.traffic.makeup`).
 MAKEUPS: tuple[str, ...] = ("uniform", "highd")
 #: Upper bound of ``bvs.count``.
 MAX_BV_COUNT = 200
@@ -75,7 +75,7 @@ class BvConfig:
     whole run (an entry at a window edge reuses its slot), so it stays with its node. The world, the
     events and the scores do not depend on the split (docs/architecture.md §5, "BV nodes")."""
     makeup: str = field(default="uniform", metadata=_check(_Str(lambda: MAKEUPS)))
-    """The traffic's make-up (docs/bv-profiles.md, "Traffic make-up"; :mod:`evoscen_sim.physics.makeup`):
+    """The traffic's make-up (docs/bv-profiles.md, "Traffic make-up"; :mod:`evoscen_sim.traffic.makeup`):
     ``uniform`` (default) every BV a car of the ``vehicle`` section, its desired speed capped at the
     lane's limit; ``highd`` cars and trucks with lengths, widths and desired speeds (not capped) drawn
     from the highD dataset's figures (``models.highd``; Krajewski et al., ITSC 2018), trucks driven by
@@ -131,7 +131,7 @@ TRAFFIC_MODES: tuple[str, ...] = ("window", "loop")
 @dataclass(frozen=True)
 class TrafficConfig:
     """Where the traffic is during the run (docs/method.md §1 [choice]); the defaults of
-    :class:`evoscen_sim.physics.traffic.TrafficParams`."""
+    :class:`evoscen_sim.traffic.window.TrafficParams`."""
 
     mode: str = field(default="window", metadata=_check(_Str(lambda: TRAFFIC_MODES)))
     """``window``: a window of traffic moves with the SUT (vehicles leave it and enter at its edges
@@ -292,11 +292,11 @@ class RecordingConfig:
 
 EFFICIENCY_DENSITY_FORMS = ("literal", "normalised")
 ACCEL_ACTIVITY_FORMS = ("smoothed", "literal")
-#: ``evaluation.rear_conflicts`` values (see :mod:`evoscen_sim.physics.safety`).
+#: ``evaluation.rear_conflicts`` values (see :mod:`evoscen_sim.danger.safety`).
 REAR_CONFLICT_MODES = ("after_lane_change", "all", "none")
-#: ``evaluation.rear_braking`` values (see :mod:`evoscen_sim.physics.safety`).
+#: ``evaluation.rear_braking`` values (see :mod:`evoscen_sim.danger.safety`).
 REAR_BRAKING_RULES = ("within_headway", "any")
-#: ``evaluation.hard_braking`` values (see :mod:`evoscen_sim.physics.safety`).
+#: ``evaluation.hard_braking`` values (see :mod:`evoscen_sim.danger.safety`).
 HARD_BRAKING_RULES = ("conflict", "own")
 #: ``evaluation.undefined_terms`` values.
 UNDEFINED_TERM_RULES = ("exclude", "literal")

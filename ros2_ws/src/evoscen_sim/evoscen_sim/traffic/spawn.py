@@ -18,8 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from evoscen_sim.errors import InputError
-
-from .world import ROLE_BV, ROLE_SUT, InitialState
+from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, InitialState
 
 MERGE_LANE = 0
 
@@ -112,11 +111,11 @@ def window_layout(
     SUT's lane leaving out the slot nearest the SUT; speeds are drawn from the lane's
     distribution (truncated at ±2 sd) and then, front to back in each lane, lowered where needed
     so that every vehicle follows its leader by the safe-insertion rule
-    (:func:`evoscen_sim.physics.traffic.insertion_speed`; the SUT's speed is its own, so a BV that the SUT
+    (:func:`evoscen_sim.traffic.window.insertion_speed`; the SUT's speed is its own, so a BV that the SUT
     could not follow safely is moved one slot further back). The merge lane starts empty: it is
     fed when its start comes into the window.
     """
-    from .traffic import insertion_speed, required_gap
+    from .window import insertion_speed, required_gap
 
     p = params
     n_bv = int(len(bv_policies))
@@ -175,7 +174,7 @@ def window_layout(
 def window_layout_makeup(
     road,
     params,
-    makeup,  # evoscen_sim.physics.makeup.Makeup
+    makeup,  # evoscen_sim.traffic.makeup.Makeup
     truck_entry_lanes: int,
     *,
     cars_by_speed: bool = False,
@@ -197,7 +196,7 @@ def window_layout_makeup(
     (``models.highd.car_lanes``) —, and every BV starts at its own desired speed, lowered front to back
     by the safe-insertion rule over the gaps of the actual bodies.
     """
-    from .traffic import insertion_speed, required_gap
+    from .window import insertion_speed, required_gap
 
     p = params
     n_bv = int(len(bv_policies))

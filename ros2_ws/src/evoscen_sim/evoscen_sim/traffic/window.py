@@ -143,7 +143,7 @@ class TrafficWindow:
         self.sut = int(sut_index)
         self.mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
         self.makeup = makeup
-        """The highd make-up's entries (:class:`evoscen_sim.physics.makeup.WindowMakeup`); None: uniform."""
+        """The highd make-up's entries (:class:`evoscen_sim.traffic.makeup.WindowMakeup`); None: uniform."""
         self._retry_step = np.zeros(world.n, dtype=np.int64) if makeup is not None else None
         """highd: the step from which each vehicle that found no place tries again (None: uniform, every step)."""
         self.truck_lanes = (frozenset([*self.mainline[:makeup.truck_entry_lanes],

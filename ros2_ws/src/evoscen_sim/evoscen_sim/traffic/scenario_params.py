@@ -9,9 +9,9 @@ parameters are built here from their sections.
 from __future__ import annotations
 
 from evoscen_sim.errors import InputError
+from evoscen_sim.physics.world import ReentryParams
 
-from .traffic import TrafficParams, check_shift_points
-from .world import ReentryParams
+from .window import TrafficParams, check_shift_points
 
 
 def reentry_params_from_config(cfg) -> ReentryParams:
