@@ -158,9 +158,11 @@ def _random_world(road, seed: int) -> World:
     lane[ramp] = 0
     lane[0] = g.integers(1, 5)
     v = g.uniform(15.0, 36.0, n)
+    band = float(g.choice([0.0, 50.0, 80.0]))
+    speeds = tuple((float(g.uniform(22.0, 33.0)), float(g.choice([0.0, 1.5, 4.0]))) for _ in range(4))
     params = replace(
-        P, insertion_band_m=float(g.choice([0.0, 50.0, 80.0])),
-        lane_speed_mps=tuple((float(g.uniform(22.0, 33.0)), float(g.choice([0.0, 1.5, 4.0]))) for _ in range(4)),
+        P, insertion_band_m=band,
+        lane_speed_mean_mps=tuple(mean for mean, _ in speeds), lane_speed_sd_mps=tuple(sd for _, sd in speeds),
         lane_density_per_km=tuple(float(x) for x in g.choice([0.0, 12.5, 30.0], 4)),
         ramp_density_per_km=float(g.choice([0.0, 10.0])))
     w = _world(road, s, lane, v, params, seed=seed)

@@ -129,9 +129,11 @@ TRAFFIC_MODES: tuple[str, ...] = ("window", "loop")
 
 
 @dataclass(frozen=True)
-class TrafficConfig:
-    """Where the traffic is during the run (docs/method.md §1 [choice]); the defaults of
-    :class:`evoscen_sim.traffic.window.TrafficParams`."""
+class TrafficParams:
+    """Where the traffic is during the run (docs/method.md §1 [choice]): the ``traffic`` section, and
+    the parameters the traffic window takes as they are (:class:`evoscen_sim.traffic.window.TrafficWindow`,
+    built by :func:`evoscen_sim.traffic.scenario_params.traffic_params_from_config`): one declaration,
+    one set of defaults and checks."""
 
     mode: str = field(default="window", metadata=_check(_Str(lambda: TRAFFIC_MODES)))
     """``window``: a window of traffic moves with the SUT (vehicles leave it and enter at its edges
@@ -176,6 +178,16 @@ class TrafficConfig:
     shift_to_m: float = field(default=300.0, metadata=_check(_Float(0.0, MAX_S_M)))
     """Where the shift puts the SUT (m); the road must be uniform (same lanes, straight) over the
     window with its exit margins around both points (checked against the map)."""
+
+    @property
+    def lane_speed_mps(self) -> tuple[tuple[float, float], ...]:
+        """(mean, standard deviation) of the entry speed of each mainline lane, rightmost first (m/s):
+        ``lane_speed_mean_mps`` and ``lane_speed_sd_mps`` paired."""
+        return tuple(zip(self.lane_speed_mean_mps, self.lane_speed_sd_mps))
+
+
+TrafficConfig = TrafficParams
+"""The ``traffic`` section's type: the traffic window's :class:`TrafficParams` itself."""
 
 
 _POSITIVE = _check(_Float(0.0, lo_open=True))

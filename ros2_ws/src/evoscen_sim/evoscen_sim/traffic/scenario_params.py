@@ -1,9 +1,10 @@
 """The simulation core's parameter objects of a scenario configuration that are built from it.
 
-The ``vehicle`` and ``control`` sections *are* the core's :class:`~evoscen_sim.physics.vehicle.VehicleParams`
-and :class:`~evoscen_sim.physics.control.ControlParams` (one dataclass each, :mod:`evoscen_sim.config.config_schema`):
-``cfg.vehicle`` and ``cfg.control`` are passed as they are. The re-entry and traffic-window
-parameters are built here from their sections.
+The ``vehicle``, ``control`` and ``traffic`` sections *are* the core's
+:class:`~evoscen_sim.physics.vehicle.VehicleParams`, :class:`~evoscen_sim.physics.control.ControlParams` and
+:class:`~evoscen_sim.traffic.window.TrafficParams` (one dataclass each, :mod:`evoscen_sim.config.config_schema`):
+they are passed as they are, the traffic section once checked against the road here. The re-entry
+parameters are built here from their section.
 """
 
 from __future__ import annotations
@@ -34,14 +35,7 @@ def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # a RoadMode
         if len(getattr(t, key)) != mainline:
             raise InputError(f"traffic.{key}: expected one entry per mainline lane of the map ({mainline}), "
                              f"got {len(getattr(t, key))}")
-    params = TrafficParams(
-        behind_m=t.behind_m, ahead_m=t.ahead_m, exit_margin_m=t.exit_margin_m,
-        lane_density_per_km=tuple(t.lane_density_per_km), lane_speed_mps=tuple(zip(t.lane_speed_mean_mps, t.lane_speed_sd_mps)),
-        ramp_density_per_km=t.ramp_density_per_km, ramp_speed_mps=tuple(t.ramp_speed_mps),
-        insertion_headway_s=t.insertion_headway_s, insertion_decel_mps2=t.insertion_decel_mps2,
-        insertion_min_gap_m=t.insertion_min_gap_m, insertion_band_m=t.insertion_band_m, warmup_s=t.warmup_s,
-        shift_from_m=t.shift_from_m, shift_to_m=t.shift_to_m,
-    )
+    params = t  # the section is the window's TrafficParams (one declaration: config_schema)
     why = check_shift_points(road, params, cfg.sut.s_m)
     if why is not None:
         raise InputError(why)

@@ -38,10 +38,10 @@ neighbours, safe speed) is one compiled call, :func:`_place_in_lane` (:mod:`evos
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from evoscen_sim.config.config_schema import TrafficParams
 from evoscen_sim.jit import kernel
 from evoscen_sim.road.road_kernels import lane_borders, lane_present
 
@@ -51,29 +51,6 @@ ENTRY_RETRY_STEPS = 10
 """Under ``bvs.makeup: highd`` a vehicle that found no place to enter tries again this many steps later
 (every step under ``uniform``). [choice] 10 (1 s at dt = 0.1 s): trucks enter lane II only and waited there
 often, and the search every step cost the make-up a tenth of its step rate (docs/bv-profiles.md)."""
-
-
-@dataclass(frozen=True)
-class TrafficParams:
-    """The traffic window (the ``traffic`` section of the scenario; docs/method.md §1)."""
-
-    behind_m: float = 150.0
-    ahead_m: float = 250.0
-    exit_margin_m: float = 10.0
-    lane_density_per_km: tuple[float, ...] = (12.5, 12.5, 12.5, 12.5)
-    """Target density of the mainline lanes, rightmost (II) first (vehicles per km)."""
-    lane_speed_mps: tuple[tuple[float, float], ...] = ((26.0, 1.5), (28.0, 1.5), (30.0, 1.5), (32.0, 1.5))
-    """(mean, standard deviation) of the entry speed of the mainline lanes, rightmost first (m/s)."""
-    ramp_density_per_km: float = 10.0
-    ramp_speed_mps: tuple[float, float] = (22.0, 2.0)
-    insertion_headway_s: float = 1.0
-    insertion_decel_mps2: float = 4.5
-    insertion_min_gap_m: float = 2.5
-    insertion_band_m: float = 50.0
-    """How far inside the window from its edge a vehicle may enter when the edge itself is taken (m)."""
-    shift_from_m: float = 2000.0
-    shift_to_m: float = 300.0
-    warmup_s: float = 20.0
 
 
 def required_gap(v_back: float, v_front: float, p: TrafficParams) -> float:
