@@ -324,7 +324,7 @@ class World:
         road = self.road
         p = self.reentry
         others = np.arange(self.n) != i
-        ramp_lane = 0
+        ramp_lane = road.merge_lane
         choice: tuple[int, float] | None = None
         if road.lane_start_s[ramp_lane] > 0.0 and self.rng.random() < p.ramp_share:
             entry_s = float(road.lane_start_s[ramp_lane])
@@ -332,7 +332,7 @@ class World:
             if space >= p.min_gap_m:
                 choice = (ramp_lane, entry_s)
         if choice is None:
-            mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+            mainline = road.mainline_lanes
             spaces = [self._free_space(k, 0.0, others)[0] for k in mainline]
             best = int(np.argmax(spaces))  # first lane (rightmost) among equals
             lane = mainline[best]

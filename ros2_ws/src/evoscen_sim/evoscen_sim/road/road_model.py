@@ -101,6 +101,10 @@ DRIVABLE_LANE_TYPES = frozenset(["driving", "entry", "exit", "onRamp", "offRamp"
 #: Spacing (m) of the samples of :meth:`RoadModel.lane_markings`.
 MARKING_STEP_M = 5.0
 
+MERGE_LANE = 0
+"""Lane index of the merge (acceleration) lane, lane I: the rightmost lane (docs/CONVENTIONS.md); the
+on-ramp feeds it. The one definition: the traffic, spawn, the level-0 driver and the scripts import it."""
+
 
 @dataclass(frozen=True)
 class LaneMarking:
@@ -279,6 +283,7 @@ class RoadModel:
         self.lane_start_s: np.ndarray = _readonly(start)
         self.lane_end_s: np.ndarray = _readonly(end)
         self.lane_full_width_end_s: np.ndarray = _readonly(full_end)
+        self._mainline_lanes: tuple[int, ...] = tuple(k for k in range(n) if start[k] <= 0.0)
         self._reaches_end = _readonly(end >= self.length_m)
         widths0 = [lane.widths[0].value(0.0) for k, sec in enumerate(sections)
                    for lane in sec.right if sec_present[k][-lane.id - 1]]
@@ -297,6 +302,25 @@ class RoadModel:
             d_left=np.ascontiguousarray(self._dl_table), present=np.ascontiguousarray(self._present),
             width_coef=np.ascontiguousarray(self._w_coef), width_origin=np.ascontiguousarray(self._w_origin),
             offset_coef=np.ascontiguousarray(self._off_coef), offset_origin=np.ascontiguousarray(self._off_origin))
+
+    # ------------------------------------------------------------------ road facts
+    @property
+    def mainline_lanes(self) -> tuple[int, ...]:
+        """The mainline lanes: those that exist from the road's start (``lane_start_s <= 0``), rightmost
+        first (on the shipped map II–V: ``(1, 2, 3, 4)``). The traffic's per-lane lists
+        (``traffic.lane_density_per_km``, …) have one entry per mainline lane, in this order."""
+        return self._mainline_lanes
+
+    @property
+    def merge_lane(self) -> int:
+        """Lane index of the merge lane, :data:`MERGE_LANE` (0, lane I)."""
+        return MERGE_LANE
+
+    @property
+    def has_merge_lane(self) -> bool:
+        """Whether the map has a merge lane: lane I exists and starts after the road's start (is not a
+        mainline lane)."""
+        return self.num_lanes > 0 and MERGE_LANE not in self._mainline_lanes
 
     # ------------------------------------------------------------------ validation helpers
     @staticmethod

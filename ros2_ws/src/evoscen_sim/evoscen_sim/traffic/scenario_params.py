@@ -30,7 +30,7 @@ def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # a RoadMode
     t = cfg.traffic
     if t.mode != "window":
         return None
-    mainline = sum(1 for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0)
+    mainline = len(road.mainline_lanes)
     for key in ("lane_density_per_km", "lane_speed_mean_mps", "lane_speed_sd_mps"):
         if len(getattr(t, key)) != mainline:
             raise InputError(f"traffic.{key}: expected one entry per mainline lane of the map ({mainline}), "

@@ -19,8 +19,7 @@ import numpy as np
 
 from evoscen_sim.errors import InputError
 from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, InitialState
-
-MERGE_LANE = 0
+from evoscen_sim.road.road_model import MERGE_LANE
 
 
 def spawn_layout(
@@ -42,7 +41,7 @@ def spawn_layout(
     n_bv = int(len(bv_policies))
     pitch = mainline_gap_m + vehicle_length_m
     jitter = min(jitter_m, max(0.0, 0.5 * mainline_gap_m - 0.5))
-    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    mainline = road.mainline_lanes
     if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
         raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
 
@@ -266,7 +265,7 @@ def _mainline_counts(road, p, n_bv: int, sut_lane: int, sut_s_m: float) -> tuple
     over them by ``traffic.lane_density_per_km`` (largest remainder)."""
     if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
         raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
-    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    mainline = road.mainline_lanes
     dens = np.asarray(p.lane_density_per_km, dtype=float)
     if n_bv and dens.sum() <= 0.0:
         raise InputError("traffic.lane_density_per_km: all zero, so the window cannot hold the BVs "

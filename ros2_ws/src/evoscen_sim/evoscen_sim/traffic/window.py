@@ -44,8 +44,7 @@ import numpy as np
 from evoscen_sim.config.config_schema import TrafficParams
 from evoscen_sim.jit import kernel
 from evoscen_sim.road.road_kernels import lane_borders, lane_present
-
-MERGE_LANE = 0
+from evoscen_sim.road.road_model import MERGE_LANE
 
 ENTRY_RETRY_STEPS = 10
 """Under ``bvs.makeup: highd`` a vehicle that found no place to enter tries again this many steps later
@@ -118,7 +117,7 @@ class TrafficWindow:
         road = world.road
         self.p = params
         self.sut = int(sut_index)
-        self.mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+        self.mainline = road.mainline_lanes
         self.makeup = makeup
         """The highd make-up's entries (:class:`evoscen_sim.traffic.makeup.WindowMakeup`); None: uniform."""
         self._retry_step = np.zeros(world.n, dtype=np.int64) if makeup is not None else None
@@ -131,7 +130,7 @@ class TrafficWindow:
                 f"traffic: lane_density_per_km and lane_speed_mps need one entry per mainline lane "
                 f"({len(self.mainline)} on this map), got {len(params.lane_density_per_km)} and "
                 f"{len(params.lane_speed_mps)}")
-        self.has_ramp = MERGE_LANE not in self.mainline and road.num_lanes > 0
+        self.has_ramp = road.has_merge_lane
         self.shift_m = params.shift_from_m - params.shift_to_m
 
     # ------------------------------------------------------------------ one step
