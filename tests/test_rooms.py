@@ -87,3 +87,49 @@ def test_a_04_path_leads_to_the_room_its_module_lives_in_now() -> None:
 
     assert old_spawn.window_layout is spawn.window_layout
     sys.modules.pop("evoscen_sim.spawn", None)
+
+
+MAX_FUNCTION_LINES = 120
+MAX_MODULE_LINES = 600
+LONG_MODULES_ALLOWED = ("evoscen_sim.road.opendrive",)
+"""The OpenDRIVE reader: one element per function, their checks and messages (docs/architecture.md §1)."""
+
+
+def size_offenders(modules: dict[str, Path]) -> list[str]:
+    """Functions and methods (nested ones too) longer than :data:`MAX_FUNCTION_LINES` lines, from ``def``
+    (or its first decorator) to the last line, and modules longer than :data:`MAX_MODULE_LINES` lines
+    (but :data:`LONG_MODULES_ALLOWED`), each named with its size."""
+    import ast
+
+    out = []
+    for name, path in sorted(modules.items()):
+        text = path.read_text(encoding="utf-8")
+        lines = len(text.splitlines())
+        if lines > MAX_MODULE_LINES and name not in LONG_MODULES_ALLOWED:
+            out.append(f"module {name}: {lines} lines")
+        for node in ast.walk(ast.parse(text, filename=str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                first = min([node.lineno, *(d.lineno for d in node.decorator_list)])
+                length = node.end_lineno - first + 1
+                if length > MAX_FUNCTION_LINES:
+                    out.append(f"function {name}.{node.name} (line {node.lineno}): {length} lines")
+    return out
+
+
+def test_the_size_check_finds_long_functions_and_modules(tmp_path) -> None:
+    body = "\n".join(f"    x{i} = {i}" for i in range(MAX_FUNCTION_LINES - 1))
+    (tmp_path / "ok.py").write_text(f"def fits():\n{body}\n")  # def + 119 lines: 120
+    (tmp_path / "long.py").write_text(f"@staticmethod\ndef too_long():\n{body}\n"  # decorator + def + 119: 121
+                                      + "\n" * (MAX_MODULE_LINES - MAX_FUNCTION_LINES))
+    modules = {"p.ok": tmp_path / "ok.py", "p.long": tmp_path / "long.py"}
+    assert size_offenders(modules) == [f"module p.long: {MAX_MODULE_LINES + 1} lines",
+                                       "function p.long.too_long (line 2): 121 lines"]
+
+
+def test_no_function_over_120_lines_and_no_module_over_600() -> None:
+    """docs/architecture.md §1: no function over 120 lines, no module over 600 but the OpenDRIVE
+    reader, in the packages' sources (their tests aside)."""
+    modules = project_modules()
+    assert "evoscen_sim.road.opendrive" in modules
+    offenders = size_offenders(modules)
+    assert offenders == [], "too long: " + "; ".join(offenders)
