@@ -37,6 +37,30 @@ def test_the_ground_floor_imports_nothing_else_of_evoscen() -> None:
     assert graph["evoscen_sim"] == {"evoscen_sim.moved_paths"} and graph["evoscen_sim.moved_paths"] == set()
 
 
+_BELOW = ("evoscen_contract", "evoscen_sim.errors", "evoscen_sim.limits", "evoscen_sim.jit", "evoscen_sim.moved_paths",
+          "evoscen_sim.config", "evoscen_sim.road")
+ROOM_IMPORTS = {
+    "evoscen_sim.physics": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.traffic.window"),
+    "evoscen_sim.traffic": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.traffic"),
+    "evoscen_sim.danger": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.danger"),
+    "evoscen_sim.loop": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.traffic", "evoscen_sim.danger", "evoscen_sim.loop"),
+}
+"""What each room may import (docs/architecture.md §1, module map): the ground floor, the contract, the
+configuration and the road below every room; physics only the traffic window of the traffic room (the
+world's step runs it); danger nothing of the traffic or the loop; the loop any room."""
+
+
+def test_each_room_imports_only_what_lies_below_it() -> None:
+    graph = import_graph(project_modules())
+    wrong = []
+    for room, allowed in ROOM_IMPORTS.items():
+        members = [name for name in graph if name == room or name.startswith(room + ".")]
+        assert len(members) > 2, room
+        wrong += [f"{name} -> {target}" for name in members for target in sorted(graph[name])
+                  if not any(target == a or target.startswith(a + ".") for a in allowed)]
+    assert wrong == [], "a room imports from above it: " + "; ".join(wrong)
+
+
 def _room_paths() -> list[tuple[str, str]]:
     from evoscen_sim import moved_paths
 
