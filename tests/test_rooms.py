@@ -157,3 +157,22 @@ def test_no_function_over_120_lines_and_no_module_over_600() -> None:
     assert "evoscen_sim.road.opendrive" in modules
     offenders = size_offenders(modules)
     assert offenders == [], "too long: " + "; ".join(offenders)
+
+
+def test_the_road_facts_are_defined_once() -> None:
+    """``MERGE_LANE`` is assigned in the road model alone, and nothing but the road model works out the
+    mainline lanes from ``lane_start_s`` (they are ``RoadModel.mainline_lanes``)."""
+    import ast
+
+    files = {name: path for name, path in project_modules().items()}
+    files.update({f"scripts.{p.stem}": p for p in sorted((SRC.parents[1] / "scripts").glob("*.py"))})
+    merge, mainline = [], []
+    for name, path in sorted(files.items()):
+        text = path.read_text(encoding="utf-8")
+        for node in ast.walk(ast.parse(text, filename=str(path))):
+            if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "MERGE_LANE" for t in node.targets):
+                merge.append(name)
+        if "lane_start_s[k] <= 0" in text:
+            mainline.append(name)
+    assert merge == ["evoscen_sim.road.road_model"]
+    assert mainline == [], "mainline lanes worked out outside the road model: " + ", ".join(mainline)
