@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def profile(scenario: str, seeds: int, mutants: list[str], steps: int) -> bool:
     """Print the phases of both ways (see the module docstring); True when every report is the same."""
-    import evoscen_sim.physics.step_loop as step_loop
+    import evoscen_sim.loop.step_loop as step_loop
     from evoscen_bringup import inprocess, starts
     from evoscen_bringup import scenario as scenario_mod
     from evoscen_bringup.experiments import Round, config_loader

@@ -91,7 +91,7 @@ def validate(args: argparse.Namespace):
         read_bag_topics,
         select_topics,
     )
-    from evoscen_sim.config.limits import parse_cli_int
+    from evoscen_sim.limits import parse_cli_int
     from evoscen_sim.errors import InputError
 
     rate = parse_rate(args.rate)

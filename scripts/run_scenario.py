@@ -237,7 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_record.bag_writer import BagWriterError
-    from evoscen_sim.config.limits import parse_cli_int, parse_cli_path
+    from evoscen_sim.limits import parse_cli_int, parse_cli_path
     from evoscen_sim.config.scenario_config import dump_config, load_scenario_config
     from evoscen_sim.errors import HostFault, InputError, PluginFault
 

@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def measure(mutants: list[str], repeats: int, steps: int) -> list[str]:
     """The report's lines (see the module docstring)."""
-    import evoscen_sim.physics.step_loop as step_loop
+    import evoscen_sim.loop.step_loop as step_loop
     from evoscen_bringup import inprocess, starts
     from evoscen_bringup.experiments import config_loader
     from evoscen_sut.mutants import mutant_overrides

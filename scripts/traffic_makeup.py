@@ -43,7 +43,6 @@ import numpy as np
 import yaml
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
-MERGE_LANE = 0
 CLASSES = ("car", "truck")
 
 
@@ -70,6 +69,7 @@ def figures(run, report: dict | None = None) -> dict:
     with the run's recorded evaluation settings), whose ``traffic`` section gives the BVs near the SUT."""
     from evoscen_contract.contract import EVENT_COLLISION, EVENT_LANE_CHANGE, KIND_COMPLETED, ROLE_BV
     from evoscen_eval.fidelity_highd import PieceConfig, run_measures
+    from evoscen_sim.road.road_model import MERGE_LANE
 
     truck_length = PieceConfig().truck_length_m
     c = run.columns

@@ -42,7 +42,7 @@ def _strict_int(text: str, lo: int, hi: int, expected: str) -> int:
 
 
 def _positive_int(text: str) -> int:
-    from evoscen_sim.config.limits import MAX_TRAINING_STEPS
+    from evoscen_sim.limits import MAX_TRAINING_STEPS
 
     return _strict_int(text, 1, MAX_TRAINING_STEPS, f"a positive integer (decimal digits, at most {MAX_TRAINING_STEPS})")
 

@@ -1,7 +1,7 @@
 """The "your first SUT" walk-through (docs/plugins.md §2) is code that runs.
 
 * ``examples/first_sut/first_sut.py`` decides as the walk-through says, in situations built by hand
-  (:func:`evoscen_sim.physics.hand_built.hand_built_world`);
+  (:func:`evoscen_sim.loop.hand_built.hand_built_world`);
 * registered in this process (:func:`evoscen_sim.model_registry.register_model`) it is the SUT of an
   in-process run started as ``run_scenario.py --sut first_sut``, and a bad ``models.first_sut``
   parameter is one line naming it;
@@ -60,7 +60,7 @@ def sut_driver(fs, cfg, **params):
 
 def decide(fs, cfg, road, s, lane, speed, **params) -> tuple[float, int]:
     """(throttle, request) of the SUT (vehicle 0) in a hand-built world; the others are BVs."""
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
 
     world = hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
     throttle, request = sut_driver(fs, cfg, **params).act(world)
@@ -76,7 +76,7 @@ def test_slow_leader_and_free_left_lane_requests_left(fs, cfg):
     import first_sut
     import numpy as np
     from evoscen_sim.config.scenario_config import load_scenario_config
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
     from evoscen_sim.road.road_model import load_road
 
     road = load_road()  # the shipped on-ramp map
@@ -132,7 +132,7 @@ def drive(world, sut, steps: int) -> list:
 
 
 def test_blocked_on_the_merge_lane_it_stops_before_the_end_then_merges(fs, cfg, road):
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
 
     wall = np.arange(600.0, 1000.0, 10.0)  # lane 1 full of standing vehicles: never a gap
     world = hand_built_world(road, s=[700.0, *wall], lane=[0] + [1] * wall.size, speed=[22.0] + [0.0] * wall.size,
@@ -150,7 +150,7 @@ def test_blocked_on_the_merge_lane_it_stops_before_the_end_then_merges(fs, cfg, 
 
 
 def test_a_vehicle_changing_into_the_same_lane_from_two_lanes_over_blocks(fs, cfg, road):
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
 
     world = hand_built_world(road, s=[300, 330, 305], lane=[2, 2, 4], speed=[28, 20, 28], roles=[1, 0, 0])
     assert sut_driver(fs, cfg).act(world)[1].tolist() == [1]  # lane 4's vehicle keeps its lane
@@ -162,7 +162,7 @@ def test_decides_again_only_once_settled_after_a_change(fs, cfg, road):
     """Slow leaders in lanes 2 and 3: 2 -> 3, then 3 -> 4; no request during a change, and the
     second only once the SUT is within settle_tolerance_m of lane 3's centre line (not at the
     completion, when its centre has just crossed the line)."""
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
 
     world = hand_built_world(road, s=[300, 340, 360], lane=[2, 2, 3], speed=[25, 20, 20], roles=[1, 0, 0])
     sut = sut_driver(fs, cfg)
@@ -368,7 +368,7 @@ def test_doc_lists_the_declarators_with_their_signatures():
 
 
 def test_doc_names_every_view_attribute_and_road_query():
-    from evoscen_sim.physics.view import TrafficView
+    from evoscen_sim.loop.view import TrafficView
     from evoscen_sim.road.road_model import RoadModel
 
     text = DOC.read_text(encoding="utf-8")

@@ -1,6 +1,6 @@
 """The FISS / FISS+ plug-in (``examples/fiss_sut``, fiss-planner 1.0.0) and the check of every driver's answer.
 
-* In situations built by hand (:func:`evoscen_sim.physics.hand_built.hand_built_world`): a slow leader and a free
+* In situations built by hand (:func:`evoscen_sim.loop.hand_built.hand_built_world`): a slow leader and a free
   lane to the left, it changes left; on the merge lane it leaves it, and where it cannot it waits and
   brakes; a follower closing fast in the target lane makes it wait; no request during a change nor
   before it has settled.
@@ -52,7 +52,7 @@ def driver(fs, cfg, **params):
 
 
 def world_of(road, s, lane, speed):
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
 

@@ -1,6 +1,6 @@
 """SUMO's own driver as a SUT (``examples/sumo_sut``, docs/plugins.md "Example: SUMO's own driver as the SUT").
 
-* In situations built by hand (:func:`evoscen_sim.physics.hand_built.hand_built_world`, stepped with the driver):
+* In situations built by hand (:func:`evoscen_sim.loop.hand_built.hand_built_world`, stepped with the driver):
   a slow leader and a free lane to the left: it changes left; on the merge lane: it merges, and when
   lane 1 is a wall it stops before the lane's end, then merges once there is room; a fast follower
   closing in the target lane: it waits until the follower has passed; the traffic window's shift
@@ -57,7 +57,7 @@ def sut_driver(ss, cfg, seed: int = 0, **params):
 
 
 def world_of(road, s, lane, speed):
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
 
     return hand_built_world(road, s=s, lane=lane, speed=speed, roles=[1] + [0] * (len(s) - 1))
 

@@ -103,7 +103,7 @@ def config_loader(path: Path | None) -> Callable[[Mapping[str, object]], Scenari
     the shipped default) with ``overrides``, the file read and parsed once for all the rounds of an
     experiment (parsing is ~50-80 ms a round; the validation, which every round still gets, ~1 ms)."""
     from evoscen_sim.config.config_load import _DEFAULT_CONFIG, config_from_dict, parse_yaml
-    from evoscen_sim.config.limits import MAX_CONFIG_BYTES, read_text_limited
+    from evoscen_sim.limits import MAX_CONFIG_BYTES, read_text_limited
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.share import share_path
 

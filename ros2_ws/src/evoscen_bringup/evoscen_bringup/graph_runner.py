@@ -185,6 +185,98 @@ def describe_status(returncode: int | None) -> str:
     return f"exit status {returncode}"
 
 
+def _wanted_nodes(cfg: ScenarioConfig, opts: GraphOptions) -> list[tuple[str, str]]:
+    """The nodes the launcher starts, as (node name, module): one BV node per share of ``bvs.nodes``,
+    each under its own name, but for one named in ``wait_for`` (started by hand, docs/architecture.md
+    §5); no SUT node for an external SUT."""
+    wanted = []
+    for name, module in NODES:
+        if name == NODE_BV:
+            wanted += [(bv, module) for bv in bv_node_names(cfg) if bv not in opts.wait_for]
+        elif name != NODE_SUT or not opts.external_sut:
+            wanted.append((name, module))
+    return wanted
+
+
+def _node_ended(name: str, returncode: int, ready_file: Path, died: dict[str, str], note, tell_simulation,
+                stop_sim_at: float | None, fault_wait_s: float, t0: float) -> float | None:
+    """Node ``name`` (not the simulation) ended before the run with ``returncode`` (not 0): how is noted
+    in ``died`` (``note``: a death; ``tell_simulation``: the simulation is told in the lockstep), and
+    the answer is when to stop the simulation (``stop_sim_at``, updated)."""
+    started = ready_file.exists()
+    if name == NODE_EVAL and returncode == EXIT_HOST_FAULT:
+        # the recorder could not write (a full disk): it said so in one line and
+        # finished what it could of the bag; not a death: stop the run now
+        died[name] = "could not write its output"
+        return time.monotonic()
+    if name in (NODE_SUT, NODE_BV) and returncode == EXIT_BAD_INPUT and ready_file.exists():
+        # a controller refused its driver's answer (NaN, a wrong shape: models.checked_answer)
+        # and said so in one line: bad input, not a death; stop the run now rather than
+        # let the simulation wait out its deadlines
+        died[name] = "refused its driver's answer"
+        return time.monotonic()
+    if name != NODE_EVAL and returncode == EXIT_FAULT:
+        # a controller fault the controller said in its one line (its driver raised, its
+        # start-up timed out): not a death. In the lockstep the simulation, told at once,
+        # aborts the run at the step it waits for (no deadline waits); in start-up: stop it
+        died[name] = "ended with a controller fault (exit status 3)"
+        print(f"graph: {name} {died[name]} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
+        if started:
+            tell_simulation(name)
+            return time.monotonic() + fault_wait_s if stop_sim_at is None else stop_sim_at
+        return time.monotonic()
+    note(name, f"ended early ({describe_status(returncode)})" + ("" if started else " during start-up"))
+    if name == NODE_EVAL or not started:
+        # no recorder: nothing would be recorded; during start-up: the simulation would
+        # wait out its start-up timeout for the dead node. Stop the run now.
+        return time.monotonic()
+    # a controller in the lockstep: the simulation's deadline misses abort the run
+    # (fault events in the bag; exit status 4, the abort is its consequence); stop
+    # it if that does not happen in time
+    tell_simulation(name)
+    return time.monotonic() + fault_wait_s if stop_sim_at is None else stop_sim_at
+
+
+def _stop_the_others(sim: subprocess.Popen, procs: dict[str, subprocess.Popen], ready_file: Path,
+                     signalled: set[str], note, opts: GraphOptions) -> None:
+    """The simulation has ended: note its death if it died, and stop the other nodes (at once, together,
+    when it died or the run never reached step 0; else each within ``opts.shutdown_grace_s``)."""
+    started = ready_file.exists()
+    sim_died = sim.returncode not in NODE_EXIT_STATUSES and not (
+        NODE_SIM in signalled and sim.returncode == -signal.SIGTERM)
+    if sim_died and NODE_SIM in signalled and sim.returncode == -signal.SIGKILL:
+        note(NODE_SIM, "did not end on SIGINT/SIGTERM and was stopped with SIGKILL")
+    elif sim_died:
+        note(NODE_SIM, f"died ({describe_status(sim.returncode)})")
+    if sim_died or not started:
+        # nobody will end the run for the others (the simulation died), or they never saw
+        # step 0 and would wait out their start-up timeouts: stop them all now, together.
+        # The evaluator finishes the bag on SIGTERM; SIGTERM before step 0 (a node still
+        # importing would print a KeyboardInterrupt traceback on SIGINT); SIGKILL after 5 s.
+        alive = [n for n in procs if n != NODE_SIM and procs[n].poll() is None]
+        for name in alive:
+            use_int = started and name != NODE_EVAL
+            procs[name].send_signal(signal.SIGINT if use_int else signal.SIGTERM)
+            signalled.add(name)
+        end = time.monotonic() + STOP_GRACE_S
+        for name in alive:
+            _stop(procs[name], max(end - time.monotonic(), 0.0), signals=(signal.SIGKILL,))
+    else:
+        for name in (NODE_EVAL, *[n for n in procs if n not in (NODE_EVAL, NODE_SIM)]):
+            _stop(procs[name], opts.shutdown_grace_s)
+
+
+def _death_line(node_status: dict[str, int | None], died: dict[str, str], deaths: list[str]) -> str:
+    """What the error line of a run with a dead node says: the first node that died and how, or else
+    every node that ended badly."""
+    if deaths or died:
+        first = deaths[0] if deaths else next(iter(died))
+        return f"node {first} {died[first]}; the run ended early"
+    # every node outlived the run, but one ended badly (e.g. stopped by the launcher)
+    return "; ".join(f"node {n} ended with {describe_status(s)}" for n, s in node_status.items()
+                     if s not in (0, None))
+
+
 def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOptions | None = None) -> GraphResult:
     """Run the scenario as a node graph (see the module docstring)."""
     opts = opts or GraphOptions()
@@ -201,12 +293,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     ready_file.unlink(missing_ok=True)
     deaths_file.unlink(missing_ok=True)
     env = node_environment(domain_id, opts.discovery_range)
-    wanted = []  # (node name, module): one BV node per share of bvs.nodes, each under its own name
-    for name, module in NODES:
-        if name == NODE_BV:  # a BV node named in wait_for is started by hand, not here (docs/architecture.md §5)
-            wanted += [(bv, module) for bv in bv_node_names(cfg) if bv not in opts.wait_for]
-        elif name != NODE_SUT or not opts.external_sut:
-            wanted.append((name, module))
+    wanted = _wanted_nodes(cfg, opts)
     procs: dict[str, subprocess.Popen] = {}
     t0 = time.monotonic()
     interrupted = False
@@ -256,46 +343,8 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
             for name, p in procs.items():
                 if name == NODE_SIM or name in died or p.poll() in (None, 0):
                     continue  # 0: a controller answered the final state, the recorder got run_end
-                started = ready_file.exists()
-                if name == NODE_EVAL and p.returncode == EXIT_HOST_FAULT:
-                    # the recorder could not write (a full disk): it said so in one line and
-                    # finished what it could of the bag; not a death: stop the run now
-                    died[name] = "could not write its output"
-                    stop_sim_at = time.monotonic()
-                    continue
-                if name in (NODE_SUT, NODE_BV) and p.returncode == EXIT_BAD_INPUT and ready_file.exists():
-                    # a controller refused its driver's answer (NaN, a wrong shape: models.checked_answer)
-                    # and said so in one line: bad input, not a death; stop the run now rather than
-                    # let the simulation wait out its deadlines
-                    died[name] = "refused its driver's answer"
-                    stop_sim_at = time.monotonic()
-                    continue
-                if name != NODE_EVAL and p.returncode == EXIT_FAULT:
-                    # a controller fault the controller said in its one line (its driver raised, its
-                    # start-up timed out): not a death. In the lockstep the simulation, told at once,
-                    # aborts the run at the step it waits for (no deadline waits); in start-up: stop it
-                    died[name] = "ended with a controller fault (exit status 3)"
-                    print(f"graph: {name} {died[name]} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
-                    if started:
-                        tell_simulation(name)
-                        if stop_sim_at is None:
-                            stop_sim_at = time.monotonic() + fault_wait_s
-                    else:
-                        stop_sim_at = time.monotonic()
-                    continue
-                note(name, f"ended early ({describe_status(p.returncode)})"
-                     + ("" if started else " during start-up"))
-                if name == NODE_EVAL or not started:
-                    # no recorder: nothing would be recorded; during start-up: the simulation would
-                    # wait out its start-up timeout for the dead node. Stop the run now.
-                    stop_sim_at = time.monotonic()
-                else:
-                    # a controller in the lockstep: the simulation's deadline misses abort the run
-                    # (fault events in the bag; exit status 4, the abort is its consequence); stop
-                    # it if that does not happen in time
-                    tell_simulation(name)
-                    if stop_sim_at is None:
-                        stop_sim_at = time.monotonic() + fault_wait_s
+                stop_sim_at = _node_ended(name, p.returncode, ready_file, died, note, tell_simulation, stop_sim_at,
+                                          fault_wait_s, t0)
             if stop_sim_at is not None and time.monotonic() >= stop_sim_at:
                 # SIGTERM before step 0: a node still importing its modules would print a
                 # KeyboardInterrupt traceback on SIGINT (the simulation handles both alike)
@@ -310,29 +359,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 # on, and the wait lasted until the recorder's participant lease ran out (60 s)
                 sim.send_signal(escalate.pop(0)[1])
             time.sleep(0.05)
-        started = ready_file.exists()
-        sim_died = sim.returncode not in NODE_EXIT_STATUSES and not (
-            NODE_SIM in signalled and sim.returncode == -signal.SIGTERM)
-        if sim_died and NODE_SIM in signalled and sim.returncode == -signal.SIGKILL:
-            note(NODE_SIM, "did not end on SIGINT/SIGTERM and was stopped with SIGKILL")
-        elif sim_died:
-            note(NODE_SIM, f"died ({describe_status(sim.returncode)})")
-        if sim_died or not started:
-            # nobody will end the run for the others (the simulation died), or they never saw
-            # step 0 and would wait out their start-up timeouts: stop them all now, together.
-            # The evaluator finishes the bag on SIGTERM; SIGTERM before step 0 (a node still
-            # importing would print a KeyboardInterrupt traceback on SIGINT); SIGKILL after 5 s.
-            alive = [n for n in procs if n != NODE_SIM and procs[n].poll() is None]
-            for name in alive:
-                use_int = started and name != NODE_EVAL
-                procs[name].send_signal(signal.SIGINT if use_int else signal.SIGTERM)
-                signalled.add(name)
-            end = time.monotonic() + STOP_GRACE_S
-            for name in alive:
-                _stop(procs[name], max(end - time.monotonic(), 0.0), signals=(signal.SIGKILL,))
-        else:
-            for name in (NODE_EVAL, *[n for n in procs if n not in (NODE_EVAL, NODE_SIM)]):
-                _stop(procs[name], opts.shutdown_grace_s)
+        _stop_the_others(sim, procs, ready_file, signalled, note, opts)
     finally:
         for p in procs.values():
             if p.poll() is None:
@@ -348,13 +375,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     node_status = {name: p.returncode for name, p in procs.items()}
     status = graph_status(node_status, died, interrupted, deaths)
     if status == EXIT_NODE_DIED:
-        if deaths or died:
-            first = deaths[0] if deaths else next(iter(died))
-            what = f"node {first} {died[first]}; the run ended early"
-        else:  # every node outlived the run, but one ended badly (e.g. stopped by the launcher)
-            what = "; ".join(f"node {n} ended with {describe_status(s)}" for n, s in node_status.items()
-                             if s not in (0, None))
-        print(f"error: graph: {what} (exit status {EXIT_NODE_DIED})", file=sys.stderr)
+        print(f"error: graph: {_death_line(node_status, died, deaths)} (exit status {EXIT_NODE_DIED})", file=sys.stderr)
     return GraphResult(status=status, node_status=node_status, domain_id=domain_id,
                        wall_time_s=time.monotonic() - t0, died=died, deaths=deaths)
 

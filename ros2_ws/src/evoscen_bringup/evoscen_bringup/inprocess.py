@@ -1,7 +1,7 @@
 """The in-process runner: simulation, drivers and recorder composed in one process.
 
 No middleware: the cores are called directly. The steps are run by the step loop the
-simulation node drives too (:class:`evoscen_sim.physics.step_loop.StepLoop`: state at ``t_k`` out,
+simulation node drives too (:class:`evoscen_sim.loop.step_loop.StepLoop`: state at ``t_k`` out,
 commands in, the world integrates to ``t_{k+1}``, its events out with the next state; after
 the last step the final state and a ``run_end`` event); this runner's port asks the BV
 drivers and the SUT for the commands directly (think ROS 2 composition) and records every
@@ -32,8 +32,8 @@ from evoscen_record.step_recorder import StepRecorder
 from evoscen_sim.config.scenario_config import ScenarioConfig
 from evoscen_sim.errors import PluginFault
 from evoscen_sim.nodes.bv_nodes import bv_node_names
-from evoscen_sim.physics.events import fault_event
-from evoscen_sim.physics.step_loop import Commands, Port, StepLoop
+from evoscen_sim.danger.events import fault_event
+from evoscen_sim.loop.step_loop import Commands, Port, StepLoop
 
 from .scenario import Scenario, build_scenario
 

@@ -66,7 +66,7 @@ class Scenario:
     def step(self) -> tuple:
         """One lockstep cycle in-process: ask the drivers, then advance the world; returns the world's
         StepResult. No events, no recording: a test's or a benchmark's step (a run, with its events,
-        exposures and recording, is :class:`evoscen_sim.physics.step_loop.StepLoop`'s, whose in-process port
+        exposures and recording, is :class:`evoscen_sim.loop.step_loop.StepLoop`'s, whose in-process port
         asks :meth:`commands` and :meth:`assemble` likewise)."""
         bv_thr, bv_lc, sut_thr, sut_lc = self.commands()
         return self.apply(bv_thr, bv_lc, sut_thr, sut_lc)
@@ -117,7 +117,7 @@ def build_scenario_from_start(cfg: ScenarioConfig, start) -> Scenario:
     (:func:`bv_policy_codes`). ``cfg`` must have ``bvs.count`` = the start's BVs (:func:`start_overrides`).
     """
     from evoscen_contract.contract import POLICY_CODES as CODES
-    from evoscen_sim.physics.scenario_params import reentry_params_from_config, traffic_params_from_config
+    from evoscen_sim.traffic.scenario_params import reentry_params_from_config, traffic_params_from_config
     from evoscen_sim.physics.world import InitialState
 
     road = load_road_of(cfg)

@@ -21,7 +21,7 @@ from pathlib import Path
 from evoscen_sim.config.scenario_config import flag, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import ModelSpec, register_makeup_driver, register_model, register_parameter_set
-from evoscen_sim.physics.makeup import HighdMakeupParams
+from evoscen_sim.traffic.makeup import HighdMakeupParams
 
 from .level0 import Level0Driver, level0_params_from_config
 from .truck import TruckParams

@@ -31,7 +31,7 @@ exactly.
 from __future__ import annotations
 
 import numpy as np
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 
 from .car_following import (
     CarFollowingParams,

@@ -32,8 +32,8 @@ from evoscen_contract.contract import POLICY_CODES, ROLE_SUT, SOCIAL_POLICIES
 from evoscen_sim.config.scenario_config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
-from evoscen_sim.physics.safety import sut_leader_ttc_state
-from evoscen_sim.physics.traffic import NEW_TRIP_MAX_SPEED_MPS, common_shift_kernel, new_trips_kernel
+from evoscen_sim.danger.safety import sut_leader_ttc_state
+from evoscen_sim.traffic.window import NEW_TRIP_MAX_SPEED_MPS, common_shift_kernel, new_trips_kernel
 from evoscen_sim.physics.vehicle import accel_to_throttle
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
@@ -60,7 +60,7 @@ POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
 
 HARD_BRAKE_VIEW_M = 100.0
 """A hard-braking episode starts only for a BV that is the SUT's leader (the nearest vehicle ahead
-whose body overlaps the SUT's path, :func:`evoscen_sim.physics.safety.sut_leader`) with a bumper-to-bumper
+whose body overlaps the SUT's path, :func:`evoscen_sim.danger.safety.sut_leader`) with a bumper-to-bumper
 gap of at most this many metres. [choice] 100 m: the vehicle a driver follows at highway speed
 (3.3 s at 30 m/s); a leader farther away braking hard is no challenge."""
 
@@ -158,7 +158,7 @@ def _hard_brake_scan(vehicles, until_step, v, role, s, d, length, width, lane_ch
     """One step of :meth:`HardBrakeState.bound` up to its random draws (compiled: called on every
     step): ends the episodes of hosted vehicles at ``min_speed`` or slower (``until_step`` in place)
     and returns (which hosted vehicles brake, the hosted position whose odometer runs this step or
-    -1): the SUT's leader (:func:`~evoscen_sim.physics.safety.sut_leader_ttc_state`) when it is
+    -1): the SUT's leader (:func:`~evoscen_sim.danger.safety.sut_leader_ttc_state`) when it is
     hosted, not braking, within ``view_m`` (bumper gap), faster than ``min_speed``, not changing lanes."""
     m = vehicles.shape[0]
     braking = np.empty(m, dtype=np.bool_)
@@ -475,7 +475,7 @@ def _lane_hold_step(vehicles, lane_change, s_all, changing_before, hold_until, l
                     forward_m):
     """One step of the lane hold (compiled: every step): a hosted vehicle whose lane change ended is
     held ``n_hold`` steps (``hold_until`` in place); then one that began a new trip since the last
-    step (:func:`evoscen_sim.physics.traffic.new_trips`, ``last_s`` None on the first step) is held
+    step (:func:`evoscen_sim.traffic.window.new_trips`, ``last_s`` None on the first step) is held
     (``hold_on_entry``) or freed. Returns (which hosted vehicles change lanes, their ``s``)."""
     m = vehicles.shape[0]
     changing = np.empty(m, dtype=np.bool_)

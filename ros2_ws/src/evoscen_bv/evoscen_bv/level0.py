@@ -26,8 +26,7 @@ from evoscen_sim.config.config_schema import Level0Config
 from evoscen_sim.jit import kernel
 from evoscen_sim.physics.idm import IdmParams, idm_scalar
 from evoscen_sim.physics.neighbors import LEFT, OWN
-
-MERGE_LANE = 0
+from evoscen_sim.road.road_model import MERGE_LANE
 
 
 def _idm_from_section(c: Level0Config) -> IdmParams:

@@ -85,7 +85,7 @@ def settling_check(controller, config: TrainingConfig, road) -> dict:
     a constant 22 m/s in lane 3, starting 55, 10, 40 and 25 m apart at 26, 20, 25 and 23 m/s;
     700 steps. Returns the mean gap (m) and the share of acceleration flips over the last 400
     steps, the collisions, and ``settled`` (see the module docstring)."""
-    from evoscen_sim.physics.hand_built import hand_built_world
+    from evoscen_sim.loop.hand_built import hand_built_world
 
     from .learned import LearnedDriver
 

@@ -22,7 +22,7 @@ from typing import Any
 
 from evoscen_sim.config.config_checks import _Bool, _Float, _Int, _Range, _section, _Str
 from evoscen_sim.config.config_load import Context, build, parse_yaml
-from evoscen_sim.config.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, read_text_limited
+from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, read_text_limited
 from evoscen_sim.share import share_candidates
 
 from .car_following import CarFollowingParams

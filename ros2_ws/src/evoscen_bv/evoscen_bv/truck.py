@@ -1,7 +1,7 @@
 """Truck drivers of the ``highd`` traffic make-up (docs/bv-profiles.md, "Traffic make-up").
 
 A truck follows the IDM (:func:`evoscen_sim.physics.idm.idm_scalar`) with its own desired speed (drawn
-from highD's per-truck speeds, :mod:`evoscen_sim.physics.makeup`) and truck parameters
+from highD's per-truck speeds, :mod:`evoscen_sim.traffic.makeup`) and truck parameters
 (:class:`TruckParams`, ``models.truck``), behind the nearer-braking of the leaders a learned BV
 follows (:func:`evoscen_bv.car_following.leaders`: vehicles *occupying* its lane — in it, changing
 into it or reaching into it — and its target lane's while it changes lanes; the merge lane's end

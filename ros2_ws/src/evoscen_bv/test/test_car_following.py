@@ -17,7 +17,7 @@ from evoscen_bv.car_following import (
     leaders,
     speed_cap_throttle,
 )
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 
 P = CarFollowingParams()

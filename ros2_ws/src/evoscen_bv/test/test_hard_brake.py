@@ -19,7 +19,7 @@ from evoscen_bv.learned import (
 )
 from evoscen_contract.contract import ROLE_BV, ROLE_SUT
 from evoscen_sim.errors import InputError
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.vehicle import VehicleParams
 from evoscen_sim.road.road_model import load_road
 

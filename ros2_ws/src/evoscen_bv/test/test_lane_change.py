@@ -24,7 +24,7 @@ from evoscen_bv.lane_change_decision import (
     social_reward,
     social_terms,
 )
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 
 V_MAX = 33.33

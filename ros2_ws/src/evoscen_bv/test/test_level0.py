@@ -16,7 +16,7 @@ import pytest
 from evoscen_bringup.scenario import build_scenario
 from evoscen_bv.level0 import Level0Driver, Level0Params
 from evoscen_sim.config.scenario_config import load_scenario_config
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.idm import IdmParams, idm_acceleration
 from evoscen_sim.physics.vehicle import VehicleParams
 from evoscen_sim.physics.world import World
@@ -184,7 +184,7 @@ def test_bv_driver_decides_identically_on_the_world_and_on_its_table_view(driver
     from evoscen_contract.tables import table_columns, table_message
     from evoscen_contract.topics import MAP_FRAME, WORLD_FIELDS
     from evoscen_sim.config.scenario_config import load_scenario_config
-    from evoscen_sim.physics.view import WorldView
+    from evoscen_sim.loop.view import WorldView
 
     sc = build_scenario(load_scenario_config(None, {"bvs.driver": driver}))
     for _ in range(1500):  # through merges, lane changes and re-entries

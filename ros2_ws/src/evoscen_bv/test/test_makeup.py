@@ -16,7 +16,7 @@ import pytest
 from evoscen_bv.truck import APPROACH, MakeupDriver, TruckDriver, TruckParams
 from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
-from evoscen_sim.physics.makeup import HighdMakeupParams, draw_makeup, from_quantiles, is_truck, quantile_curve
+from evoscen_sim.traffic.makeup import HighdMakeupParams, draw_makeup, from_quantiles, is_truck, quantile_curve
 from evoscen_sim.physics.vehicle import VehicleParams
 from evoscen_sim.physics.world import ROLE_BV, InitialState, ReentryParams, World
 from evoscen_sim.road.road_model import load_road
@@ -206,8 +206,8 @@ def test_config_errors_and_metadata() -> None:
 
 # ---------------------------------------------------------------- car lanes (models.highd.car_lanes)
 def test_cars_by_speed_spawn_sorts_the_lanes_right_to_left() -> None:
-    from evoscen_sim.physics.makeup import Makeup
-    from evoscen_sim.physics.spawn import window_layout_makeup
+    from evoscen_sim.traffic.makeup import Makeup
+    from evoscen_sim.traffic.spawn import window_layout_makeup
     from evoscen_sim.scenario_builders import traffic_params_from_config
 
     cfg = load_scenario_config(None, {"bvs.makeup": "highd"})
@@ -234,7 +234,7 @@ def test_cars_by_speed_spawn_sorts_the_lanes_right_to_left() -> None:
 
 
 def test_cars_by_speed_entry_prefers_the_lane_nearest_in_speed() -> None:
-    from evoscen_sim.physics.traffic import _by_speed, _lane_mean_speeds
+    from evoscen_sim.traffic.window import _by_speed, _lane_mean_speeds
 
     s = np.array([0.0, 50.0, 60.0, 500.0, 70.0, 80.0])
     v = np.array([28.0, 20.0, 24.0, 40.0, 31.0, 33.0])

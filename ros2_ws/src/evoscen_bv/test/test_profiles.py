@@ -8,7 +8,7 @@ from evoscen_bringup.model_testing import commands_digest
 from evoscen_bv.lane_change_decision import apply_rule_constraints
 from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
 from evoscen_bv.profile import PROFILES, get_profile
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 
 N = 10

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from evoscen_bv.learned import LearnedDriver, load_policies, shipped_policy_dir
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 
 POLICY_DIR = Path(os.environ.get("EVOSCEN_POLICY_DIR") or shipped_policy_dir())

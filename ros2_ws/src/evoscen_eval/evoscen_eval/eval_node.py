@@ -33,7 +33,7 @@ memory); when the run ends the node writes ``report.json``, ``report.md`` and th
 (not for a run that ended ``aborted``: it is not scored)
 (:mod:`evoscen_eval.report`) — the very numbers ``scripts/evaluate.py`` computes from the bag.
 The SUT's exposures go out live as ``evoscen/exposure`` events from the simulation node (same
-definitions, :mod:`evoscen_sim.physics.safety`).
+definitions, :mod:`evoscen_sim.danger.safety`).
 
 Parameters: ``scenario.*``, ``bag_dir`` (required: a new or empty directory), ``report_dir``
 [""; empty = no report], ``report_plots`` [true],

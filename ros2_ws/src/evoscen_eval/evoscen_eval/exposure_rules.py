@@ -2,7 +2,7 @@
 dangerous, the vehicle involved and the value that crossed the rule's threshold, and the
 severity of a state as those rules measure it.
 
-:func:`evoscen_sim.physics.safety.danger_terms` decides *whether* a state is dangerous, term by
+:func:`evoscen_sim.danger.safety.danger_terms` decides *whether* a state is dangerous, term by
 term; this module says *which measure* of a term held (the hard-braking rule holds through the
 DRAC to the leader or through the SUT's own braking; a rear conflict through the follower's TTC
 or its braking) and keeps, per exposure and measure, the most extreme value with its state and
@@ -13,7 +13,7 @@ Severity of a state (:func:`severity`, docs/evaluation.md §2.1): the largest ra
 measures that hold in it, each 1 at its threshold and 2 at twice the danger — threshold / value
 for the TTCs, gaps and headways (2 at half the threshold), value / threshold for decelerations
 and DRAC (2 at twice the threshold), and the overlap rule of the beside measure
-(:func:`~evoscen_sim.physics.safety.beside_severity`: 1 as the bodies begin to overlap, 2 side by
+(:func:`~evoscen_sim.danger.safety.beside_severity`: 1 as the bodies begin to overlap, 2 side by
 side). A measure that does not hold adds nothing: hard braking without a conflict under
 ``hard_braking: conflict`` is no exposure, so it makes none more severe either.
 """
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from evoscen_sim.physics.safety import DangerTerms, beside_severity
+from evoscen_sim.danger.safety import DangerTerms, beside_severity
 
 TTC_FLOOR_S = 1e-3
 """TTCs, gaps and headways below this enter the ratios at it (contact: TTC 0 gives 2 s / 1 ms = 2000)."""

@@ -40,7 +40,7 @@ from itertools import islice
 from pathlib import Path
 
 import numpy as np
-from evoscen_sim.config.limits import MAX_HIGHD_META_BYTES, MAX_HIGHD_TRACKS_BYTES, check_regular_file
+from evoscen_sim.limits import MAX_HIGHD_META_BYTES, MAX_HIGHD_TRACKS_BYTES, check_regular_file
 from evoscen_sim.errors import InputError
 
 #: Every column of a HighD ``NN_tracks.csv``, in HighD's order.

@@ -111,7 +111,7 @@ def unshifted_s(s: np.ndarray, shifts: dict[int, float] | None = None) -> np.nda
     """``s`` (states × vehicles) with the traffic window's shifts undone, so the arc length grows
     along a trip as on an endless road. ``shifts``: the ``shift_m`` of each ``evoscen/shift`` event by
     the state it led to (exact); without them a shift is recognised as a fall of the median step
-    of more than 50 m (:func:`evoscen_sim.physics.traffic.common_shift`: exact to within the vehicles'
+    of more than 50 m (:func:`evoscen_sim.traffic.window.common_shift`: exact to within the vehicles'
     differences of driving in that step)."""
     s = np.asarray(s, dtype=float)
     if s.shape[0] < 2:
@@ -243,6 +243,31 @@ def run_to_highd(run: Any, options: ExportOptions = ExportOptions()) -> HighDRec
         source=str(getattr(run, "source", "run")), warnings=list(getattr(run, "warnings", []) or []))
 
 
+def _recording_meta(frame: np.ndarray, tracks_meta: dict[str, np.ndarray], n_tracks: int, recording_id: int,
+                    rate: float, speed_limit_mps: float, upper_markings: np.ndarray,
+                    lower_markings: np.ndarray) -> dict[str, str]:
+    """HighD's recordingMeta of a recording (:func:`build_recording`): its text fields."""
+    n_frames = int(frame.max())
+    n_trucks = int(np.sum(tracks_meta["class"] == "Truck"))
+    return {
+        "id": str(recording_id),
+        "frameRate": f"{rate:g}",
+        "locationId": "0",
+        "speedLimit": f"{speed_limit_mps:.2f}",
+        "month": "",
+        "weekDay": "",
+        "startTime": "",
+        "duration": f"{n_frames / rate:.2f}",
+        "totalDrivenDistance": f"{float(np.sum(tracks_meta['traveledDistance'])):.2f}",
+        "totalDrivenTime": f"{float(np.sum(tracks_meta['numFrames'])) / rate:.2f}",
+        "numVehicles": str(n_tracks),
+        "numCars": str(n_tracks - n_trucks),
+        "numTrucks": str(n_trucks),
+        "upperLaneMarkings": ";".join(f"{y:.2f}" for y in upper_markings),
+        "lowerLaneMarkings": ";".join(f"{y:.2f}" for y in lower_markings),
+    }
+
+
 def build_recording(*, frame: np.ndarray, track: np.ndarray, time_s: np.ndarray, x_center: np.ndarray,
                     y_center: np.ndarray, length: np.ndarray, width: np.ndarray, x_velocity: np.ndarray,
                     y_velocity: np.ndarray, x_acceleration: np.ndarray, direction: np.ndarray,
@@ -344,25 +369,8 @@ def build_recording(*, frame: np.ndarray, track: np.ndarray, time_s: np.ndarray,
         **(extra_meta or {}),
     }
 
-    n_frames = int(frame.max())
-    n_trucks = int(np.sum(tracks_meta["class"] == "Truck"))
-    recording_meta = {
-        "id": str(recording_id),
-        "frameRate": f"{rate:g}",
-        "locationId": "0",
-        "speedLimit": f"{speed_limit_mps:.2f}",
-        "month": "",
-        "weekDay": "",
-        "startTime": "",
-        "duration": f"{n_frames / rate:.2f}",
-        "totalDrivenDistance": f"{float(np.sum(tracks_meta['traveledDistance'])):.2f}",
-        "totalDrivenTime": f"{float(np.sum(tracks_meta['numFrames'])) / rate:.2f}",
-        "numVehicles": str(n_tracks),
-        "numCars": str(n_tracks - n_trucks),
-        "numTrucks": str(n_trucks),
-        "upperLaneMarkings": ";".join(f"{y:.2f}" for y in upper_markings),
-        "lowerLaneMarkings": ";".join(f"{y:.2f}" for y in lower_markings),
-    }
+    recording_meta = _recording_meta(frame, tracks_meta, n_tracks, recording_id, rate, speed_limit_mps,
+                                     upper_markings, lower_markings)
     return HighDRecording(
         recording_id=recording_id, frame_rate_hz=rate,
         upper_lane_markings=np.asarray(upper_markings, dtype=np.float64),

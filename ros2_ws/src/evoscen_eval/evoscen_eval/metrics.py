@@ -9,7 +9,7 @@ so the arithmetic can be checked by hand.
 The **[choice]** points the method leaves open, as implemented (all configurable under
 ``evaluation.*``; docs/evaluation.md states them with their reasons):
 
-* **Dangerous state / exposure** — :mod:`evoscen_sim.physics.safety`: TTC to the vehicle ahead in the
+* **Dangerous state / exposure** — :mod:`evoscen_sim.danger.safety`: TTC to the vehicle ahead in the
   SUT's path < ``ttc_threshold_s`` or SUT acceleration < ``-hard_brake_mps2``, or a rear
   conflict attributed to the SUT (``rear_conflicts`` [after_lane_change]: the follower in its
   path with TTC < ``ttc_threshold_s`` or braking below ``-hard_brake_mps2`` within
@@ -84,7 +84,7 @@ from typing import Any
 
 import numpy as np
 from evoscen_contract import contract as C
-from evoscen_sim.physics.safety import attribution_steps
+from evoscen_sim.danger.safety import attribution_steps
 
 from .rundata import RunData, run_info_of
 from .streaming import SSM_SIDES, TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, ScoreStream, activity_accel, traffic_window_states  # noqa: F401 - activity_accel: AD's definition, here with the scores
@@ -213,10 +213,35 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
     """The ``report.json`` dict from a finished stream, ``run_info`` and the run's warnings."""
     st.finish()
     ev = st.ev
-    K = st.states
     warnings_extra: list[str] = []
+    safety, i_s, sut_collisions, n_exp = _safety_of_stream(st, warnings_extra)
+    safety["conflicts"], pets = _conflicts_of_stream(st)
+    efficiency, i_e, durations = _efficiency_of_stream(st)
+    interaction, i_i, per_change = _interaction_of_stream(st)
+    intelligence = _intelligence_of_scores(ev, i_s, i_e, i_i, warnings_extra)
+    comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
+    warnings = list(warnings) + warnings_extra
+    complexity = _complexity_of_stream(st, warnings)
+    return {
+        "run": info,
+        "settings": asdict(ev),
+        "warnings": warnings,
+        "safety": safety,
+        "efficiency": efficiency,
+        "interaction": interaction,
+        "intelligence": intelligence,
+        "comparative": comparative,
+        "complexity": complexity,
+        "traffic": traffic_of_stream(st),
+        "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
+    }
 
-    # --- safety
+
+def _safety_of_stream(st: ScoreStream, warnings_extra: list[str]) -> tuple[dict[str, Any], float, list, int]:
+    """The report's ``safety`` section (without ``conflicts``), I_s, the SUT's collisions and the
+    number of exposures; a count-normalisation warning goes to ``warnings_extra``."""
+    ev = st.ev
+    K = st.states
     exposures = st.exposures
     n_exp = len(exposures)
     sut_collisions = st.sut_collisions
@@ -253,7 +278,14 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "exposure_list": exposures,
     }
 
-    # --- conflicts on either side of the SUT (docs/evaluation.md), reported on their own
+    return safety, i_s, sut_collisions, n_exp
+
+
+def _conflicts_of_stream(st: ScoreStream) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """The ``safety.conflicts`` section (conflicts on either side of the SUT, docs/evaluation.md,
+    reported on their own) and each SUT lane change's PET record."""
+    ev = st.ev
+    K = st.states
     changes = st.finished_changes
     after = attribution_steps(ev.rear_attribution_s, st.dt_s if st.dt_s is not None else 0.1)
     pets = [{"start_state": ch.k0, "end_state": ch.k1, "window_end_state": min(ch.k1 + after, K),
@@ -262,7 +294,7 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
             for ch in changes]
     pet_values = [p["pet_s"] for p in pets if p["pet_s"] is not None]
     thr = ev.drac_threshold_mps2
-    safety["conflicts"] = {
+    conflicts = {
         "rear_conflicts": ev.rear_conflicts,
         "rear_attribution_s": ev.rear_attribution_s,
         "rear_braking": ev.rear_braking,
@@ -296,7 +328,13 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "min_pet_s": min(pet_values) if pet_values else None,
     }
 
-    # --- efficiency
+    return conflicts, pets
+
+
+def _efficiency_of_stream(st: ScoreStream) -> tuple[dict[str, Any], float, list[float]]:
+    """The report's ``efficiency`` section, I_e and the completed SUT lane changes' durations (s)."""
+    ev = st.ev
+    K = st.states
     H = max_in_view(ev)
     h_mean = st.n["in_view"] / K
     v_mean = st.speed_sum / K
@@ -325,7 +363,15 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "lane_change_term_used": lc_term_used,
     }
 
-    # --- interaction
+    return efficiency, i_e, durations
+
+
+def _interaction_of_stream(st: ScoreStream) -> tuple[dict[str, Any], float | None, list[tuple[float, float, float, int]]]:
+    """The report's ``interaction`` section, I_i (None when undefined and left out) and each SUT lane
+    change's (|v~|, |a~|, L̄, BVs in view)."""
+    ev = st.ev
+    changes = st.finished_changes
+    exclude = ev.undefined_terms == "exclude"
     intervals = [(ch.k0, ch.k1) for ch in changes]
     per_change = []
     for ch in changes:
@@ -356,7 +402,12 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
                     for (k0, k1), p in zip(intervals, per_change)],
     }
 
-    # --- intelligence
+    return interaction, i_i, per_change
+
+
+def _intelligence_of_scores(ev, i_s: float, i_e: float, i_i: float | None, warnings_extra: list[str]) -> dict[str, Any]:
+    """The report's ``intelligence`` section: the weighted sum of the defined terms (the weights of an
+    undefined one renormalised over the others); a warning goes to ``warnings_extra`` when none is left."""
     weights = {"safety": ev.weight_safety, "efficiency": ev.weight_efficiency, "interaction": ev.weight_interaction}
     scores = {"safety": i_s, "efficiency": i_e, "interaction": i_i}
     defined = {k: v is not None for k, v in scores.items()}
@@ -376,16 +427,20 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         warnings_extra.append("no defined intelligence term has a non-zero weight: no intelligence score")
     intelligence = {"score": score, "weights": weights, "weighted": weighted,
                     "undefined_terms": ev.undefined_terms, "defined": defined, "effective_weights": effective}
-    comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
+    return intelligence
 
-    # --- complexity
+
+def _complexity_of_stream(st: ScoreStream, warnings: list[str]) -> dict[str, Any]:
+    """The report's ``complexity`` section, over the run's whole windows (a warning goes to
+    ``warnings`` when the run is shorter than one)."""
+    ev = st.ev
+    K = st.states
     W = ev.window_steps
     n_win = K // W
     complexity: dict[str, Any] = {"window_steps": W, "windows": n_win, "accel_activity_mps2": ev.accel_activity_mps2,
                                   "accel_activity_form": ev.accel_activity_form,
                                   "accel_activity_window_s": ev.accel_activity_window_s,
                                   "k": [ev.k_exposure, ev.k_lane_change, ev.k_accel]}
-    warnings = list(warnings) + warnings_extra
     if n_win:
         lc_w, ad_w, e_w = (np.asarray(st.windows[key][:n_win], dtype=np.int64)
                            for key in ("lane_changes", "accel_decel", "exposures"))
@@ -400,19 +455,7 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
                            "per_window": {"lane_changes": [], "accel_decel": [], "exposures": []}})
         warnings.append(f"{K} states is shorter than one complexity window ({W} states): no complexity score")
 
-    return {
-        "run": info,
-        "settings": asdict(ev),
-        "warnings": warnings,
-        "safety": safety,
-        "efficiency": efficiency,
-        "interaction": interaction,
-        "intelligence": intelligence,
-        "comparative": comparative,
-        "complexity": complexity,
-        "traffic": traffic_of_stream(st),
-        "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
-    }
+    return complexity
 
 
 def comparative_of_stream(st: ScoreStream, collisions: int, exposures: int, durations: list[float],

@@ -32,7 +32,7 @@ from typing import Any
 import yaml
 from evoscen_contract.qos import QosSpec
 from evoscen_record.bag_reader import bag_file, open_bag_reader, read_bag_metadata
-from evoscen_sim.config.limits import MAX_SECONDS_ARG
+from evoscen_sim.limits import MAX_SECONDS_ARG
 from evoscen_sim.errors import InputError
 
 #: QoS used when a topic has no recorded offer (rclcpp's default profile).
@@ -289,7 +289,7 @@ def parse_rate(text: str | float) -> float:
 
 def parse_seconds(name: str, text: str | float) -> float:
     """A duration argument (``--start-delay``, ``--wait-timeout``): a number of seconds in
-    [0, :data:`~evoscen_sim.config.limits.MAX_SECONDS_ARG`] (one day; ``time.sleep(1e300)`` overflows)."""
+    [0, :data:`~evoscen_sim.limits.MAX_SECONDS_ARG`] (one day; ``time.sleep(1e300)`` overflows)."""
     try:
         value = float(text)
     except (TypeError, ValueError):

@@ -211,36 +211,8 @@ def markdown(report: dict[str, Any], images: list[str], ev: EvaluationConfig | N
                                                         "hard-braking rule above reads it)"),
         ("all collisions", s["collisions_all"], "every colliding pair, BVs included"),
     ])]
-    cf = s.get("conflicts")
-    if cf:
-        out += ["\n### Conflicts on either side of the SUT (docs/evaluation.md)\n", _table([
-            ("rear conflicts", cf["rear_conflicts"], f"which follower conflicts are the SUT's (window "
-                                                      f"{cf['rear_attribution_s']:g} s after a SUT lane change)"),
-            ("rear braking", cf.get("rear_braking", "any"),
-             (f"a follower's hard braking counts within {cf['rear_braking_headway_s']:g} s of headway"
-              if cf.get("rear_braking") == "within_headway" else "a follower's hard braking counts at any distance")),
-            ("rear conflict states", cf["rear_conflict_states"], "follower in the path: TTC below threshold or hard brake"),
-            ("... attributed", cf["rear_conflict_states_attributed"], "of them in the attribution window (dangerous)"),
-            ("cut-in states", cf.get("cut_in_states", 0),
-             (f"SUT changing lanes with its new follower within {cf['cut_in_gap_m']:g} m (dangerous)"
-              if cf.get("cut_in_gap_m") else "not counted (cut_in_gap_m 0)")),
-            ("min cut-in gap (m)", cf.get("min_cut_in_gap_m"), "new follower behind the SUT during its lane changes "
-                                                              "(– = none)"),
-            ("beside states", cf.get("beside_states", 0),
-             ("SUT changing lanes with a vehicle of its target lane beside it (dangerous)"
-              if cf.get("beside_lane_change") else "not counted (beside_lane_change false)")),
-            ("min beside gap (m)", cf.get("min_beside_gap_m"), "longitudinal gap to the target lane's nearest vehicle "
-                                                               "during SUT lane changes; < 0 = beside (– = none)"),
-            ("headway states", cf.get("headway_states", 0),
-             (f"SUT following its leader under {cf['headway_threshold_s']:g} s of time headway, not falling back "
-              "(dangerous)" if cf.get("headway_threshold_s") else "not counted (headway_threshold_s 0)")),
-            ("min follower TTC (s)", cf["min_follower_ttc_s"], "follower onto the SUT (– = never closing)"),
-            ("max DRAC SUT (m/s²)", cf["max_drac_sut_mps2"], "SUT behind its leader (– = infinite)"),
-            ("max DRAC follower (m/s²)", cf["max_drac_follower_mps2"], "follower behind the SUT (– = infinite)"),
-            (f"DRAC > {cf['drac_threshold_mps2']:g} states", f"{cf['drac_sut_states']} / {cf['drac_follower_states']}",
-             "SUT / follower"),
-            ("min lane-change PET (s)", cf["min_pet_s"], f"over {len(cf['lane_change_pet'])} SUT lane changes"),
-        ])]
+    if s.get("conflicts"):
+        out += conflicts_markdown(s["conflicts"])
     if s["exposure_list"]:
         out += exposure_rows(s["exposure_list"])
     if "surrogate_safety" in report:
@@ -282,6 +254,38 @@ def markdown(report: dict[str, Any], images: list[str], ev: EvaluationConfig | N
         out.append("\n## Plots\n")
         out += [f"![{Path(name).stem}]({name})\n" for name in images]
     return "\n".join(out) + "\n"
+
+
+def conflicts_markdown(cf: dict[str, Any]) -> list[str]:
+    """report.md's "Conflicts on either side of the SUT": the ``safety.conflicts`` section as a table."""
+    return ["\n### Conflicts on either side of the SUT (docs/evaluation.md)\n", _table([
+        ("rear conflicts", cf["rear_conflicts"], f"which follower conflicts are the SUT's (window "
+                                                  f"{cf['rear_attribution_s']:g} s after a SUT lane change)"),
+        ("rear braking", cf.get("rear_braking", "any"),
+         (f"a follower's hard braking counts within {cf['rear_braking_headway_s']:g} s of headway"
+          if cf.get("rear_braking") == "within_headway" else "a follower's hard braking counts at any distance")),
+        ("rear conflict states", cf["rear_conflict_states"], "follower in the path: TTC below threshold or hard brake"),
+        ("... attributed", cf["rear_conflict_states_attributed"], "of them in the attribution window (dangerous)"),
+        ("cut-in states", cf.get("cut_in_states", 0),
+         (f"SUT changing lanes with its new follower within {cf['cut_in_gap_m']:g} m (dangerous)"
+          if cf.get("cut_in_gap_m") else "not counted (cut_in_gap_m 0)")),
+        ("min cut-in gap (m)", cf.get("min_cut_in_gap_m"), "new follower behind the SUT during its lane changes "
+                                                          "(– = none)"),
+        ("beside states", cf.get("beside_states", 0),
+         ("SUT changing lanes with a vehicle of its target lane beside it (dangerous)"
+          if cf.get("beside_lane_change") else "not counted (beside_lane_change false)")),
+        ("min beside gap (m)", cf.get("min_beside_gap_m"), "longitudinal gap to the target lane's nearest vehicle "
+                                                           "during SUT lane changes; < 0 = beside (– = none)"),
+        ("headway states", cf.get("headway_states", 0),
+         (f"SUT following its leader under {cf['headway_threshold_s']:g} s of time headway, not falling back "
+          "(dangerous)" if cf.get("headway_threshold_s") else "not counted (headway_threshold_s 0)")),
+        ("min follower TTC (s)", cf["min_follower_ttc_s"], "follower onto the SUT (– = never closing)"),
+        ("max DRAC SUT (m/s²)", cf["max_drac_sut_mps2"], "SUT behind its leader (– = infinite)"),
+        ("max DRAC follower (m/s²)", cf["max_drac_follower_mps2"], "follower behind the SUT (– = infinite)"),
+        (f"DRAC > {cf['drac_threshold_mps2']:g} states", f"{cf['drac_sut_states']} / {cf['drac_follower_states']}",
+         "SUT / follower"),
+        ("min lane-change PET (s)", cf["min_pet_s"], f"over {len(cf['lane_change_pet'])} SUT lane changes"),
+    ])]
 
 
 def surrogate_markdown(ss: dict[str, Any]) -> list[str]:

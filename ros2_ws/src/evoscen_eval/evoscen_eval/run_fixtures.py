@@ -1,4 +1,4 @@
-"""Helpers for tests that drive a hand-built world (:func:`evoscen_sim.physics.hand_built.hand_built_world`)
+"""Helpers for tests that drive a hand-built world (:func:`evoscen_sim.loop.hand_built.hand_built_world`)
 and score the run as the evaluator does, or score a run written down state by state (:func:`make_run`,
 and :func:`rear_run`: a SUT lane change in front of a faster vehicle)."""
 
@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from evoscen_contract import topics as T
 from evoscen_sim.config.scenario_config import EvaluationConfig
-from evoscen_sim.physics.events import ExposureMonitor, step_events
+from evoscen_sim.danger.events import ExposureMonitor, step_events
 
 from .metrics import evaluate
 from .rundata import RunAccumulator, RunData

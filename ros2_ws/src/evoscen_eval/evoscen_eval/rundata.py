@@ -29,7 +29,7 @@ import yaml
 from evoscen_contract import contract as C
 from evoscen_contract.cdr import TableDecodeError, decode_table, events_count
 from evoscen_record.scenario_record import EXTERNAL_SUT, SCENARIO_KEY, SCENARIO_METADATA, SUT_SOURCE_KEY
-from evoscen_sim.config.limits import MAX_STEPS
+from evoscen_sim.limits import MAX_STEPS
 from evoscen_sim.config.scenario_config import EvaluationConfig, evaluation_from_dict
 from evoscen_sim.errors import InputError
 
@@ -495,7 +495,7 @@ def _parse_sut_source(value: str | None, path: Path) -> bool:
 def _parse_scenario(text: str | None, path: Path) -> dict | None:
     if not text:
         return None
-    from evoscen_sim.config.limits import check_yaml_depth
+    from evoscen_sim.limits import check_yaml_depth
 
     check_yaml_depth(text, f"bag {str(path)!r}: the scenario metadata record", "the YAML text")
     try:

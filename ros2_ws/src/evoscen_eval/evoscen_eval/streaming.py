@@ -5,7 +5,7 @@ a bag as it is read, the in-process runner after each step) and the events, and 
 ``report.json`` dict and what the report's plots need (:class:`~evoscen_eval.plot_inputs.PlotData`)
 at the end. It holds no ``[K, V]`` array: states wait in a block of :data:`BLOCK_STATES` and each block is
 reduced with the same broadcasting definitions the scores are written in
-(:mod:`evoscen_sim.physics.safety`; they act row by row, so a block gives the same per-state values
+(:mod:`evoscen_sim.danger.safety`; they act row by row, so a block gives the same per-state values
 as a whole run would) to
 
 * running sums, counts, minima and maxima (efficiency, the conflict figures);
@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from evoscen_contract import contract as C
-from evoscen_sim.physics.safety import (
+from evoscen_sim.danger.safety import (
     attribution_steps,
     beside_gap,
     cut_in_gap,
@@ -240,7 +240,7 @@ class ScoreStream:
         rows = np.arange(n)
         s, d, v, a, length, width = c["s"], c["d"], c["speed"], c["accel"], c["length"], c["width"]
 
-        # --- per-state quantities of the SUT (evoscen_sim.physics.safety, row by row)
+        # --- per-state quantities of the SUT (evoscen_sim.danger.safety, row by row)
         ttc = sut_ttc(s, d, v, length, width, sut)
         speed, accel, lane, lc_sut = v[:, sut], a[:, sut], c["lane"][:, sut], c["lane_change"][:, sut]
         follower, f_ttc = follower_ttc(s, d, v, length, width, sut)
@@ -276,13 +276,7 @@ class ScoreStream:
         starts = (lc != 0) & (lc != prev)
         self._prev_lc = lc[-1].copy()
 
-        # --- AD: |acceleration| above the threshold (trailing mean for 'smoothed', metrics.activity_accel)
-        tail = self._accel_tail if self._accel_tail is not None else np.zeros((0, a.shape[1]))
-        block = np.vstack([tail, a])
-        act = activity_accel(block, dt, ev.accel_activity_form, ev.accel_activity_window_s)[tail.shape[0]:]
-        keep = max(1, int(round(ev.accel_activity_window_s / dt))) - 1 if ev.accel_activity_form == "smoothed" else 0
-        self._accel_tail = block[max(0, block.shape[0] - keep):] if keep else None
-        ad_count = (np.abs(act) > ev.accel_activity_mps2).sum(axis=1)
+        ad_count = self._accel_activity_counts(a, dt)
 
         # --- counts and extremes
         nb = self.n
@@ -332,6 +326,42 @@ class ScoreStream:
                         cut_in_gap=cut_gap, beside_vehicle=beside_j, beside_gap=beside_g,
                         beside_length_sum=length[rows, np.maximum(beside_j, 0)] + length[:, sut], headway=headway)
         severity = rule_severity(ev, terms, rq)
+        exposure_starts = self._exposures_of_block(k0, times, tables, danger, severity, terms, rq)
+
+        # --- complexity windows (state k in window k // W; only whole windows count in the end)
+        self._complexity_windows(ks, starts.sum(axis=1), ad_count, exposure_starts)
+
+        self._traffic_windows(ks, times, bvs_near, dt)
+
+        # --- the SUT's lane changes: interaction sums and PET windows
+        self.changes.add_block(sut, self.ids, lc_sut, ks, c, in_view, starts, v, a,
+                               attribution_steps(ev.rear_attribution_s, dt))
+
+        # --- plots
+        self.plots.add_block(ks, times, speed, lane, ttc, bvs_near)
+        self.frames.add_block(ks, times, tables, self.ids, sut)
+        self.collisions.add_block(k0, ks, tables, times, lc, self.ids, sut, dt)
+
+    def _accel_activity_counts(self, a: np.ndarray, dt: float) -> np.ndarray:
+        """AD of each state of the block: the vehicles whose |acceleration| is above the threshold
+        (the trailing mean for ``smoothed``, :func:`evoscen_eval.metrics.activity_accel`, its tail kept
+        across blocks)."""
+        ev = self.ev
+        tail = self._accel_tail if self._accel_tail is not None else np.zeros((0, a.shape[1]))
+        block = np.vstack([tail, a])
+        act = activity_accel(block, dt, ev.accel_activity_form, ev.accel_activity_window_s)[tail.shape[0]:]
+        keep = max(1, int(round(ev.accel_activity_window_s / dt))) - 1 if ev.accel_activity_form == "smoothed" else 0
+        self._accel_tail = block[max(0, block.shape[0] - keep):] if keep else None
+        return (np.abs(act) > ev.accel_activity_mps2).sum(axis=1)
+
+    def _exposures_of_block(self, k0: int, times: np.ndarray, tables: np.ndarray, danger: np.ndarray,
+                            severity: np.ndarray, terms, rq: RuleInputs) -> list[int]:
+        """Add the block's dangerous states to the exposures (maximal runs of dangerous states, continued
+        across blocks; the worst state by ``severity``, the rules behind each state): the states where
+        an exposure starts."""
+        ev, sut, n = self.ev, self.sut, danger.shape[0]
+        ttc, accel = rq.ttc, rq.accel
+        rear_danger, cut_in, beside, tailgate = terms.rear, terms.cut_in, terms.beside, terms.tailgating
         run_starts, run_ends = exposure_runs(danger)
         if self._open is not None and not (run_starts.size and run_starts[0] == 0):
             self._close_exposure(k0)
@@ -359,20 +389,26 @@ class ScoreStream:
                 self.worst_scene.sut_ttc, self.worst_scene.sut_accel = float(ttc[r0 + m]), float(accel[r0 + m])
             if r1 < n:
                 self._close_exposure(k0 + r1)
+        return exposure_starts
 
-        # --- complexity windows (state k in window k // W; only whole windows count in the end)
+    def _complexity_windows(self, ks: np.ndarray, lane_change_starts: np.ndarray, ad_count: np.ndarray,
+                            exposure_starts: list[int]) -> None:
+        """Add the block's per-state counts to the complexity windows (state k in window k // W; only
+        whole windows count in the end)."""
+        ev = self.ev
         W = ev.window_steps
         w_idx = ks // W
         n_w = int(w_idx[-1]) + 1
-        for key, per_state in (("lane_changes", starts.sum(axis=1)), ("accel_decel", ad_count)):
+        for key, per_state in (("lane_changes", lane_change_starts), ("accel_decel", ad_count)):
             sums = np.bincount(w_idx - w_idx[0], weights=per_state, minlength=n_w - int(w_idx[0]))
             self._add_windows(key, int(w_idx[0]), sums)
         e_w = np.bincount(np.asarray(exposure_starts, dtype=np.int64) // W - int(w_idx[0]),
                           minlength=n_w - int(w_idx[0]))
         self._add_windows("exposures", int(w_idx[0]), e_w)
 
-        # --- traffic around the SUT: per-window sums of the per-state counts (integers, so any
-        # block size gives the same), the time of each window's first state, the states with none
+    def _traffic_windows(self, ks: np.ndarray, times: np.ndarray, bvs_near: np.ndarray, dt: float) -> None:
+        """Traffic around the SUT: per-window sums of the per-state counts (integers, so any block size
+        gives the same), the time of each window's first state, the states with none."""
         if self.traffic_window_states is None:
             self.traffic_window_states = traffic_window_states(dt)
         TW = self.traffic_window_states
@@ -387,15 +423,6 @@ class ScoreStream:
                 self.traffic_window_t0.append(float(times[int(np.argmax(t_idx == w))]))
         self.traffic_sum += int(bvs_near.sum())
         self.traffic_empty += int((bvs_near == 0).sum())
-
-        # --- the SUT's lane changes: interaction sums and PET windows
-        self.changes.add_block(sut, self.ids, lc_sut, ks, c, in_view, starts, v, a,
-                               attribution_steps(ev.rear_attribution_s, dt))
-
-        # --- plots
-        self.plots.add_block(ks, times, speed, lane, ttc, bvs_near)
-        self.frames.add_block(ks, times, tables, self.ids, sut)
-        self.collisions.add_block(k0, ks, tables, times, lc, self.ids, sut, dt)
 
     def _ssm_block(self, side: str, ttc: np.ndarray, drac_v: np.ndarray, other: np.ndarray) -> None:
         """Add a block's states to one side's surrogate-safety sums (``other``: the counterpart's
@@ -416,14 +443,14 @@ class ScoreStream:
         return int((on & (cp != prev)).sum())
 
     def _attributed(self, lc_sut: np.ndarray, ks: np.ndarray, after: int) -> np.ndarray:
-        """:func:`evoscen_sim.physics.safety.rear_attributed`, continued from the previous block."""
+        """:func:`evoscen_sim.danger.safety.rear_attributed`, continued from the previous block."""
         mode = self.ev.rear_conflicts
         if mode == "all":
             return np.ones(ks.shape[0], dtype=bool)
         if mode == "none":
             return np.zeros(ks.shape[0], dtype=bool)
         if mode != "after_lane_change":
-            from evoscen_sim.physics.safety import rear_attributed
+            from evoscen_sim.danger.safety import rear_attributed
 
             rear_attributed(lc_sut, mode, after)  # raises the error naming the modes
         last = np.maximum(np.maximum.accumulate(np.where(lc_sut != 0, ks, -1)), self._rear_last)

@@ -2,7 +2,7 @@
 
 Hand-built runs (every number below follows from the definitions by hand) and scripted
 situations driven by the world's dynamics, where the live ``evoscen/exposure`` events of
-:class:`~evoscen_sim.physics.events.ExposureMonitor` must equal the evaluator's recomputation.
+:class:`~evoscen_sim.danger.events.ExposureMonitor` must equal the evaluator's recomputation.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from evoscen_eval.report import markdown, report_of
 from evoscen_eval.run_fixtures import drive, rear_run
 from evoscen_eval.rundata import RECORDED_BEFORE_KEYS, RunAccumulator, RunData, evaluation_settings_of
 from evoscen_sim.config.scenario_config import EvaluationConfig, ScenarioConfig, config_to_dict
-from evoscen_sim.physics.events import ExposureMonitor
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.danger.events import ExposureMonitor
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 
 EV = EvaluationConfig()

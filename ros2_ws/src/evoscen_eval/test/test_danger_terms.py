@@ -1,6 +1,6 @@
-"""One definition of the SUT's dangerous state (:func:`evoscen_sim.physics.safety.danger_terms`).
+"""One definition of the SUT's dangerous state (:func:`evoscen_sim.danger.safety.danger_terms`).
 
-The live monitor (:class:`evoscen_sim.physics.events.ExposureMonitor`, one state at a time) and the scorer
+The live monitor (:class:`evoscen_sim.danger.events.ExposureMonitor`, one state at a time) and the scorer
 (:class:`evoscen_eval.streaming.ScoreStream`, blocks of states) both call it: shown here by
 watching the calls, and the two paths agree state by state on hand-built runs whose dangerous
 states are derived by hand.
@@ -12,13 +12,13 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import evoscen_eval.streaming as streaming
-import evoscen_sim.physics.events as events
+import evoscen_sim.danger.events as events
 import numpy as np
 import pytest
 from evoscen_eval.metrics import evaluate
 from evoscen_eval.run_fixtures import make_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
-from evoscen_sim.physics.safety import danger_terms
+from evoscen_sim.danger.safety import danger_terms
 
 EV = EvaluationConfig()
 DT = 0.1

@@ -16,7 +16,7 @@ import pytest
 from evoscen_contract import topics as T
 from evoscen_eval.run_fixtures import drive as drive_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 
 EV = EvaluationConfig()

@@ -31,10 +31,10 @@ def read_bag_metadata(bag_dir: Path) -> dict[str, Any] | None:
     """The ``rosbag2_bagfile_information`` mapping of ``bag_dir/metadata.yaml`` (None if absent).
 
     Read with the limits of docs/input-limits.md (at most
-    :data:`~evoscen_sim.config.limits.MAX_METADATA_YAML_BYTES`, UTF-8 without NUL bytes, nesting at
-    most :data:`~evoscen_sim.config.limits.MAX_YAML_DEPTH`); anything else is one InputError line.
+    :data:`~evoscen_sim.limits.MAX_METADATA_YAML_BYTES`, UTF-8 without NUL bytes, nesting at
+    most :data:`~evoscen_sim.limits.MAX_YAML_DEPTH`); anything else is one InputError line.
     """
-    from evoscen_sim.config.limits import MAX_METADATA_YAML_BYTES, check_yaml_depth, read_text_limited
+    from evoscen_sim.limits import MAX_METADATA_YAML_BYTES, check_yaml_depth, read_text_limited
 
     meta_path = bag_dir / "metadata.yaml"
     if not (meta_path.exists() or meta_path.is_symlink()):

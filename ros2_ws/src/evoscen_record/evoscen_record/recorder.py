@@ -36,21 +36,20 @@ offline evaluation and replay).
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 from typing import Any
 
-from mcap.writer import CompressionType, Writer
+from mcap.writer import Writer
 
 from evoscen_contract.contract import TOPIC_WORLD as _WORLD_TOPIC
-from evoscen_contract.qos import rosbag2_qos_yaml
 from evoscen_contract.topics import TopicSpec
+from evoscen_record.bag_channels import COMPRESSIONS, TopicState, check_arguments, register_topics
 from evoscen_record.bag_file import BagFile, prepare_bag_dir
 from evoscen_record.canonical_cdr import CanonicalCdr
 from evoscen_record.mcap_internals import ChunkMessages, FastMessages, count_messages
 from evoscen_record.metadata_yaml import bagfile_information, dump_metadata_yaml
-from evoscen_record.schemas import message_definition, type_description_hash
+from evoscen_record.schemas import message_definition
 from evoscen_sim.errors import HostFault, InputError
 
 #: MCAP header ``library`` string, in every bag: version-free, so that bags stay byte-identical across
@@ -66,23 +65,6 @@ DEFAULT_CHUNK_SIZE: int = 1024 * 1024
 #: messages it had written (see docs/recording.md). Log time, not wall time: chunk boundaries
 #: depend only on the messages, so both runners still write byte-identical bags.
 DEFAULT_CHUNK_DURATION_NS: int = 1_000_000_000
-
-_COMPRESSIONS: dict[str, CompressionType] = {
-    "zstd": CompressionType.ZSTD,
-    "lz4": CompressionType.LZ4,
-    "none": CompressionType.NONE,
-}
-
-
-@dataclass
-class _TopicState:
-    """Per-topic bookkeeping of a recorder."""
-
-    spec: TopicSpec
-    channel_id: int
-    message_count: int = 0
-
-
 
 class BagRecorder:
     """Write a rosbag2 bag directory (MCAP storage) from serialized CDR messages.
@@ -141,20 +123,9 @@ class BagRecorder:
         finish_after_fault: Callable[[Path], tuple[int, bool]] | None = None,
     ) -> None:
         self.bag_dir: Path = Path(bag_dir)
-        if compression not in _COMPRESSIONS:
-            raise InputError(
-                f"BagRecorder compression: {compression!r} is not one of {sorted(_COMPRESSIONS)}"
-            )
-        if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
-            raise InputError(f"BagRecorder chunk_size: {chunk_size!r} is not an integer >= 1 byte")
-        if isinstance(chunk_duration_ns, bool) or not isinstance(chunk_duration_ns, int) or chunk_duration_ns < 0:
-            raise InputError(f"BagRecorder chunk_duration_ns: {chunk_duration_ns!r} is not an integer >= 0 ns")
+        check_arguments(compression, chunk_size, chunk_duration_ns, topics)
         self._chunk_duration_ns = chunk_duration_ns
         self._chunk_start_ns: int | None = None  # log time of the open chunk's first message
-        names = [spec.name for spec in topics]
-        dups = sorted({n for n in names if names.count(n) > 1})
-        if dups:
-            raise InputError(f"BagRecorder topics: duplicate topic names {dups}")
         # Resolve all definitions before touching the disk (fail early, leave nothing).
         definitions = {spec.type_name: message_definition(spec.type_name) for spec in topics}
         self._canonical: CanonicalCdr | None = (
@@ -183,28 +154,10 @@ class BagRecorder:
         self._writer = Writer(
             self._stream,
             chunk_size=chunk_size,
-            compression=_COMPRESSIONS[compression],
+            compression=COMPRESSIONS[compression],
         )
         self._writer.start(profile=PROFILE, library=LIBRARY)
-        schema_ids: dict[str, int] = {}
-        self._topics: dict[str, _TopicState] = {}
-        for spec in topics:
-            if spec.type_name not in schema_ids:
-                schema_ids[spec.type_name] = self._writer.register_schema(
-                    name=spec.type_name,
-                    encoding="ros2msg",
-                    data=definitions[spec.type_name].encode("utf-8"),
-                )
-            channel_id = self._writer.register_channel(
-                topic=spec.name,
-                message_encoding="cdr",
-                schema_id=schema_ids[spec.type_name],
-                metadata={
-                    "offered_qos_profiles": rosbag2_qos_yaml([spec.qos]),
-                    "topic_type_hash": type_description_hash(spec.type_name),
-                },
-            )
-            self._topics[spec.name] = _TopicState(spec=spec, channel_id=channel_id)
+        self._topics: dict[str, TopicState] = register_topics(self._writer, topics, definitions)
         self._chunk: ChunkMessages | None = None
         if fast_writes and chunk_writes and ChunkMessages.usable(self._writer):
             # after the channels: the library writes schemas and channels into its open chunk too

@@ -54,7 +54,7 @@ _SOURCES: dict[str, str] = {
     "resolve_map_path": "evoscen_sim.config.config_load",
     "scenario_rngs": "evoscen_sim.scenario_builders",
     # the view
-    "TrafficView": "evoscen_sim.physics.view",
+    "TrafficView": "evoscen_sim.loop.view",
     "Neighborhood": "evoscen_sim.physics.neighbors",
     "OWN": "evoscen_sim.physics.neighbors",
     "LEFT": "evoscen_sim.physics.neighbors",
@@ -65,14 +65,14 @@ _SOURCES: dict[str, str] = {
     "ROLE_BV": "evoscen_contract.contract",
     "ROLE_SUT": "evoscen_contract.contract",
     "POLICY_CODES": "evoscen_contract.contract",
-    "common_shift": "evoscen_sim.physics.traffic",
-    "new_trips": "evoscen_sim.physics.traffic",
+    "common_shift": "evoscen_sim.traffic.window",
+    "new_trips": "evoscen_sim.traffic.window",
     # the road, the throttle, worlds built by hand
     "RoadModel": "evoscen_sim.road.road_model",
     "load_road": "evoscen_sim.road.road_model",
     "accel_to_throttle": "evoscen_sim.physics.vehicle",
     "throttle_to_accel": "evoscen_sim.physics.vehicle",
-    "hand_built_world": "evoscen_sim.physics.hand_built",
+    "hand_built_world": "evoscen_sim.loop.hand_built",
 }
 """Each name of the face -> the module that defines it (loaded on first use)."""
 

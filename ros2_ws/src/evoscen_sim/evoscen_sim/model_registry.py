@@ -7,7 +7,7 @@ driver for a set of vehicles. A *driver* is any object with::
     act(view) -> (throttle: np.ndarray, lane_change: np.ndarray)
 
 one entry per vehicle it drives, where ``view`` is a traffic view
-(:mod:`evoscen_sim.physics.view`): throttle/brake in [-1, 1], lane-change request in {-1, 0, +1}.
+(:mod:`evoscen_sim.loop.view`): throttle/brake in [-1, 1], lane-change request in {-1, 0, +1}.
 
 Models come from two places, found by :func:`discover`:
 
@@ -126,7 +126,7 @@ _MAKEUP_DRIVERS: dict[str, Callable[..., Any]] = {}
 def register_makeup_driver(makeup: str, factory: Callable[..., Any]) -> None:
     """Register how the BVs are driven under ``bvs.makeup: <makeup>``: ``factory(vehicles, makeup,
     config, car_driver)`` wraps the ``bvs.driver`` built for all BVs (``car_driver``) with the
-    drivers of the other classes (``makeup``: :class:`evoscen_sim.physics.makeup.Makeup`)."""
+    drivers of the other classes (``makeup``: :class:`evoscen_sim.traffic.makeup.Makeup`)."""
     _MAKEUP_DRIVERS[makeup] = factory
 
 

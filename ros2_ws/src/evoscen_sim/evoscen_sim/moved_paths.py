@@ -17,6 +17,11 @@ each with one :class:`DeprecationWarning` naming the new path. [choice] A warnin
 for one release: a plug-in written for 0.4 keeps working while its author moves it to
 :mod:`evoscen_sim.api`, the face that lasts (docs/plugins.md §19). Standard library only: every
 package imports this module from its ``__init__``.
+
+The simulation's modules moved again into rooms named for what they hold (docs/architecture.md
+§1, "Module map"): the paths of 0.6 that moved (:data:`ROOM_MODULES`) are served the same way
+from :data:`ROOMS_MOVED_IN` until :data:`ROOMS_REMOVED_IN`, one release; a 0.4 path whose 0.5
+module moved again leads straight to the module's current path.
 """
 
 from __future__ import annotations
@@ -29,7 +34,13 @@ import types
 import warnings
 
 REMOVED_IN = "0.7.0"
-"""The release that drops these aliases."""
+"""The release that drops the aliases of the paths 0.5.0 moved."""
+
+ROOMS_MOVED_IN = "0.7.0"
+"""The release that moves the modules of :data:`ROOM_MODULES`."""
+
+ROOMS_REMOVED_IN = "0.8.0"
+"""The release that drops the aliases of :data:`ROOM_MODULES`."""
 
 MOVED_MODULES: dict[str, str] = {
     "evoscen_bringup.bag_writer": "evoscen_record.bag_writer",
@@ -51,36 +62,50 @@ MOVED_MODULES: dict[str, str] = {
     "evoscen_sim.config_schema": "evoscen_sim.config.config_schema",
     "evoscen_sim.control": "evoscen_sim.physics.control",
     "evoscen_sim.controller_node": "evoscen_sim.nodes.controller_node",
-    "evoscen_sim.events": "evoscen_sim.physics.events",
-    "evoscen_sim.limits": "evoscen_sim.config.limits",
+    "evoscen_sim.events": "evoscen_sim.danger.events",
     "evoscen_sim.models": "evoscen_sim.model_registry",
     "evoscen_sim.neighbors": "evoscen_sim.physics.neighbors",
     "evoscen_sim.node_params": "evoscen_sim.nodes.node_params",
     "evoscen_sim.opendrive": "evoscen_sim.road.opendrive",
     "evoscen_sim.road_kernels": "evoscen_sim.road.road_kernels",
-    "evoscen_sim.safety": "evoscen_sim.physics.safety",
+    "evoscen_sim.safety": "evoscen_sim.danger.safety",
     "evoscen_sim.scenario": "evoscen_sim.scenario_builders",
-    "evoscen_sim.scenario_params": "evoscen_sim.physics.scenario_params",
+    "evoscen_sim.scenario_params": "evoscen_sim.traffic.scenario_params",
     "evoscen_sim.sim_node": "evoscen_sim.nodes.sim_node",
-    "evoscen_sim.spawn": "evoscen_sim.physics.spawn",
-    "evoscen_sim.step_loop": "evoscen_sim.physics.step_loop",
-    "evoscen_sim.testing": "evoscen_sim.physics.hand_built",
-    "evoscen_sim.traffic": "evoscen_sim.physics.traffic",
+    "evoscen_sim.spawn": "evoscen_sim.traffic.spawn",
+    "evoscen_sim.step_loop": "evoscen_sim.loop.step_loop",
+    "evoscen_sim.testing": "evoscen_sim.loop.hand_built",
     "evoscen_sim.vehicle": "evoscen_sim.physics.vehicle",
-    "evoscen_sim.view": "evoscen_sim.physics.view",
+    "evoscen_sim.view": "evoscen_sim.loop.view",
     "evoscen_sim.world": "evoscen_sim.physics.world",
     "evoscen_sut.lane_change": "evoscen_sut.krauss_lane_change",
     "evoscen_sut.models": "evoscen_sut.sut_models",
 }
-"""0.4 module path -> its 0.5 path (``evoscen_sim.config`` and ``evoscen_sim.road``, packages now,
-are in :data:`PACKAGE_MODULES`)."""
+"""0.4 module path -> the module's current path (``evoscen_sim.config`` and ``evoscen_sim.road``,
+packages now, are in :data:`PACKAGE_MODULES`). ``evoscen_sim.limits``, moved to
+``evoscen_sim.config.limits`` in 0.5.0, is the module's own path again (0.7.0): no alias."""
+
+ROOM_MODULES: dict[str, str] = {
+    "evoscen_sim.config.limits": "evoscen_sim.limits",
+    "evoscen_sim.physics.events": "evoscen_sim.danger.events",
+    "evoscen_sim.physics.hand_built": "evoscen_sim.loop.hand_built",
+    "evoscen_sim.physics.makeup": "evoscen_sim.traffic.makeup",
+    "evoscen_sim.physics.safety": "evoscen_sim.danger.safety",
+    "evoscen_sim.physics.scenario_params": "evoscen_sim.traffic.scenario_params",
+    "evoscen_sim.physics.spawn": "evoscen_sim.traffic.spawn",
+    "evoscen_sim.physics.step_loop": "evoscen_sim.loop.step_loop",
+    "evoscen_sim.physics.traffic": "evoscen_sim.traffic.window",
+    "evoscen_sim.physics.view": "evoscen_sim.loop.view",
+}
+"""0.6 module path -> its path since :data:`ROOMS_MOVED_IN` (docs/architecture.md §1)."""
 
 PACKAGE_MODULES: dict[str, str] = {
     "evoscen_sim.config": "evoscen_sim.config.scenario_config",
     "evoscen_sim.road": "evoscen_sim.road.road_model",
+    "evoscen_sim.traffic": "evoscen_sim.traffic.window",
 }
-"""0.4 modules that are packages since 0.5: their 0.4 names (:data:`PACKAGE_NAMES`) come from this
-module (the package's ``__getattr__``)."""
+"""0.4 modules that are packages now (``evoscen_sim.traffic`` since 0.7.0, the room of the traffic):
+their 0.4 names (:data:`PACKAGE_NAMES`) come from this module (the package's ``__getattr__``)."""
 
 PACKAGE_NAMES: dict[str, frozenset[str]] = {
     "evoscen_sim.config": frozenset((
@@ -95,8 +120,12 @@ PACKAGE_NAMES: dict[str, frozenset[str]] = {
     "evoscen_sim.road": frozenset((
         "DEFAULT_MAP_PATH", "DRIVABLE_LANE_TYPES", "Lane", "LaneLookup", "LaneMarking", "LaneSection",
         "MARKING_STEP_M", "OpenDriveMap", "Poly3", "RoadModel", "RoadTables", "load_road", "parse_opendrive")),
+    "evoscen_sim.traffic": frozenset((
+        "ENTRY_RETRY_STEPS", "MERGE_LANE", "NEW_TRIP_MAX_SPEED_MPS", "TrafficParams", "TrafficWindow",
+        "check_shift_points", "common_shift", "common_shift_kernel", "insertion_speed", "new_trips", "new_trips_kernel",
+        "required_gap")),
 }
-"""The public names of the 0.4 modules ``evoscen_sim.config`` and ``evoscen_sim.road``."""
+"""The public names of the 0.4 modules ``evoscen_sim.config``, ``evoscen_sim.road`` and ``evoscen_sim.traffic``."""
 
 MOVED_NAMES: dict[str, dict[str, str]] = {
     "evoscen_bringup.campaign": {
@@ -155,8 +184,14 @@ def _stacklevel() -> int:
 
 
 def _warn(old: str, new: str) -> None:
-    warnings.warn(f"{old} is deprecated (moved in evoscen 0.5.0; removed in {REMOVED_IN}): use {new}",
+    moved, removed = (ROOMS_MOVED_IN, ROOMS_REMOVED_IN) if old in ROOM_MODULES else ("0.5.0", REMOVED_IN)
+    warnings.warn(f"{old} is deprecated (moved in evoscen {moved}; removed in {removed}): use {new}",
                   DeprecationWarning, stacklevel=_stacklevel())
+
+
+def _module_target(old: str) -> str:
+    """The current path of a moved module path (:data:`MOVED_MODULES` or :data:`ROOM_MODULES`)."""
+    return ROOM_MODULES[old] if old in ROOM_MODULES else MOVED_MODULES[old]
 
 
 def moved_attribute(module: str, name: str):
@@ -179,7 +214,7 @@ class _Alias(types.ModuleType):
         target = MOVED_NAMES.get(old, {}).get(name)
         if target is not None:
             return getattr(importlib.import_module(target), name)
-        return getattr(importlib.import_module(MOVED_MODULES[old]), name)
+        return getattr(importlib.import_module(_module_target(old)), name)
 
 
 class _Loader(importlib.abc.Loader):
@@ -187,7 +222,7 @@ class _Loader(importlib.abc.Loader):
         return _Alias(spec.name)
 
     def exec_module(self, module) -> None:
-        new = MOVED_MODULES[module.__name__]
+        new = _module_target(module.__name__)
         _warn(module.__name__, new)
         target = importlib.import_module(new)
         module.__doc__ = target.__doc__
@@ -195,15 +230,15 @@ class _Loader(importlib.abc.Loader):
 
 
 class _Finder(importlib.abc.MetaPathFinder):
-    """Finds the 0.4 module paths of :data:`MOVED_MODULES` (only those)."""
+    """Finds the moved module paths of :data:`MOVED_MODULES` and :data:`ROOM_MODULES` (only those)."""
 
     def find_spec(self, fullname, path, target=None):
-        if fullname not in MOVED_MODULES:
+        if fullname not in MOVED_MODULES and fullname not in ROOM_MODULES:
             return None
         return importlib.util.spec_from_loader(fullname, _Loader())
 
 
 def install() -> None:
-    """Put the finder of the 0.4 module paths on ``sys.meta_path`` (once per process)."""
+    """Put the finder of the moved module paths on ``sys.meta_path`` (once per process)."""
     if not any(isinstance(f, _Finder) for f in sys.meta_path):
         sys.meta_path.append(_Finder())

@@ -14,11 +14,11 @@ from evoscen_contract.contract import POLICY_CODES
 
 from .config.scenario_config import ScenarioConfig, mix_counts
 from .model_registry import checked_answer, create_driver, makeup_driver_factory, rehosted
-from .physics.scenario_params import reentry_params_from_config, traffic_params_from_config
-from .physics.makeup import HIGHD, HighdMakeupParams, Makeup, draw_makeup, window_makeup
-from .physics.spawn import spawn_layout, window_layout, window_layout_makeup
 from .physics.world import World
 from .road.road_model import RoadModel, load_road
+from .traffic.makeup import HIGHD, HighdMakeupParams, Makeup, draw_makeup, window_makeup
+from .traffic.scenario_params import reentry_params_from_config, traffic_params_from_config
+from .traffic.spawn import spawn_layout, window_layout, window_layout_makeup
 
 SUT_INDEX = 0
 """The SUT is always vehicle 0 (id 0)."""

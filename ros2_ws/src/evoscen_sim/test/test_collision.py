@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 from evoscen_sim.physics.collision import boxes_overlap, overlapping_pairs
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.world import World
 from evoscen_sim.road.road_model import RoadModel, load_road
 

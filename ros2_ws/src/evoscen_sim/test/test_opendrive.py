@@ -272,3 +272,15 @@ def test_missing_file(tmp_path: Path) -> None:
 
 def test_error_is_value_error() -> None:
     assert issubclass(InputError, ValueError)
+
+
+def test_road_facts_mainline_and_merge_lane(tmp_path: Path) -> None:
+    """The mainline lanes are those from the road's start, rightmost first; lane I (index 0) is the merge
+    lane when it starts later (the shipped map: at s = 600 m), else a mainline lane and no merge lane."""
+    from evoscen_sim.road.road_model import MERGE_LANE
+
+    shipped = load_road(DEFAULT_MAP_PATH)
+    assert MERGE_LANE == 0 and shipped.merge_lane == 0
+    assert shipped.mainline_lanes == (1, 2, 3, 4) and shipped.has_merge_lane
+    two = load_road(write(tmp_path, MINIMAL, "two.xodr"))  # both lanes from s = 0: no merge lane
+    assert two.mainline_lanes == (0, 1) and not two.has_merge_lane

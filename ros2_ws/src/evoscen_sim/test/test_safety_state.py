@@ -1,6 +1,6 @@
 """The compiled one-state SUT leader/TTC equals the numpy definitions bit for bit.
 
-The simulation node's live exposure events use :func:`evoscen_sim.physics.safety.sut_leader_ttc_state`;
+The simulation node's live exposure events use :func:`evoscen_sim.danger.safety.sut_leader_ttc_state`;
 the evaluator scores with :func:`sut_leader` / :func:`sut_ttc` over whole runs. The live
 events and the scores must never disagree, so the two are compared here on hand-placed
 edge cases, random dense states and every state of a simulated run.
@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from evoscen_sim.physics.safety import (
+from evoscen_sim.danger.safety import (
     RearAttribution,
     attribution_steps,
     beside_dangerous,

@@ -1,4 +1,4 @@
-"""The traffic window (evoscen_sim.physics.traffic; docs/method.md §1): safe insertion, exits and entries,
+"""The traffic window (evoscen_sim.traffic.window; docs/method.md §1): safe insertion, exits and entries,
 the shift, the window's spawn, and what a run with it looks like."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
-from evoscen_sim.physics.traffic import (
+from evoscen_sim.traffic.window import (
     TrafficParams,
     check_shift_points,
     common_shift,
@@ -18,7 +18,7 @@ from evoscen_sim.physics.traffic import (
     new_trips,
     required_gap,
 )
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, World
 from evoscen_sim.road.road_model import load_road
 from evoscen_sim.scenario_builders import build_world
@@ -70,7 +70,7 @@ def test_shift_moves_every_vehicle_by_one_distance(road) -> None:
 
 
 def test_a_bv_beyond_the_window_enters_at_the_front_edge_into_the_most_wanted_lane(road) -> None:
-    p = replace(P, lane_speed_mps=((25.0, 0.0),) * 4)
+    p = replace(P, lane_speed_mean_mps=(25.0,) * 4, lane_speed_sd_mps=(0.0,) * 4)
     # the BV is 164.3 m behind the SUT after the step: beyond behind_m + exit_margin_m = 160
     # (1,500 m: the merge lane is far from the window)
     w = _world(road, [1500.0, 1336.0], [2, 3], [30.0, 27.0], p)
@@ -80,7 +80,7 @@ def test_a_bv_beyond_the_window_enters_at_the_front_edge_into_the_most_wanted_la
 
 
 def test_an_entry_goes_where_both_it_and_its_follower_can_follow(road) -> None:
-    p = replace(P, lane_speed_mps=((25.0, 0.0),) * 4)
+    p = replace(P, lane_speed_mean_mps=(25.0,) * 4, lane_speed_sd_mps=(0.0,) * 4)
     # lane 1 is the most wanted (1 of 5 vehicles; lanes 2-4 hold 2 of 5 each) but its front edge is
     # taken; the middle of the band's largest gap (1,726.75 m) is 18.95 m behind that vehicle,
     # too close for 25 m/s, the lane's only speed: lane 2 (first of the tied rest) takes it
@@ -93,7 +93,7 @@ def test_an_entry_goes_where_both_it_and_its_follower_can_follow(road) -> None:
 
 
 def test_a_faster_entry_comes_from_behind(road) -> None:
-    p = replace(P, lane_speed_mps=((35.0, 0.0),) * 4)
+    p = replace(P, lane_speed_mean_mps=(35.0,) * 4, lane_speed_sd_mps=(0.0,) * 4)
     w = _world(road, [1500.0, 1765.0], [2, 3], [30.0, 27.0], p)  # 264.7 m ahead after the step: out
     res = _coast(w)
     assert res.reentries == [(1, 1, pytest.approx(w.s[0] - 150.0))]
@@ -132,7 +132,7 @@ def test_new_trips_and_common_shift() -> None:
 def test_common_shift_median_is_numpys() -> None:
     """The compiled median: numpy's to the bit (a zero's sign aside), for odd and even counts, ties,
     a NaN; by hand: the middle of 5, the mean of the middle two of 4, and the shift it gives."""
-    from evoscen_sim.physics.traffic import _median
+    from evoscen_sim.traffic.window import _median
 
     assert _median(np.array([5.0, -1.0, 3.0, 9.0, 2.0])) == 3.0
     assert _median(np.array([4.0, 1.0, 3.0, 2.0])) == 2.5
@@ -260,3 +260,22 @@ def test_the_merge_lanes_start_exactly_at_the_front_edge_is_no_wanted_lane() -> 
     rows = w.window._targets(w, 350.0)
     assert [r[1] for r in rows if r[1] == 0] == []
     assert any(r[1] == 0 for r in w.window._targets(w, 360.0))  # 10 m of it in the window: wanted
+
+
+def test_the_traffic_section_is_the_windows_parameters(road) -> None:
+    """One declaration (docs/architecture.md §1): the ``traffic`` section's dataclass is the window's
+    TrafficParams, defaults and checks included; the window reads the section as it is, its lanes'
+    entry speeds paired from the section's means and standard deviations."""
+    from evoscen_sim.config.config_schema import TrafficConfig
+    from evoscen_sim.traffic.scenario_params import traffic_params_from_config
+
+    assert TrafficParams is TrafficConfig
+    assert P.lane_speed_mps == ((26.0, 1.5), (28.0, 1.5), (30.0, 1.5), (32.0, 1.5))
+    cfg = load_scenario_config(None, {"traffic.lane_speed_mean_mps": [20.0, 21.0, 22.0, 23.0],
+                                      "traffic.lane_speed_sd_mps": [0.0, 1.0, 2.0, 3.0]})
+    params = traffic_params_from_config(cfg, road)
+    assert params is cfg.traffic
+    assert params.lane_speed_mps == ((20.0, 0.0), (21.0, 1.0), (22.0, 2.0), (23.0, 3.0))
+    with pytest.raises(InputError, match=r"traffic\.insertion_decel_mps2"):
+        load_scenario_config(None, {"traffic.insertion_decel_mps2": 0.0})  # the section's check: (0, 10]
+    assert traffic_params_from_config(load_scenario_config(None, {"traffic.mode": "loop"}), road) is None

@@ -1,4 +1,4 @@
-"""The traffic window's compiled entry search (evoscen_sim.physics.traffic, docs/method.md §1) against
+"""The traffic window's compiled entry search (evoscen_sim.traffic.window, docs/method.md §1) against
 a straightforward numpy reference of the same rule (kept here): the same placement, speed and random
 draws on random worlds, step by step over random runs, and cases derived by hand."""
 
@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from evoscen_sim.config.scenario_config import load_scenario_config
-from evoscen_sim.physics.traffic import (
+from evoscen_sim.traffic.window import (
     MERGE_LANE,
     TrafficParams,
     _lane_counts,
@@ -21,7 +21,7 @@ from evoscen_sim.physics.traffic import (
     insertion_speed,
     required_gap,
 )
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, World
 from evoscen_sim.road.road_kernels import lane_borders, lane_present
 from evoscen_sim.road.road_model import load_road
@@ -158,9 +158,11 @@ def _random_world(road, seed: int) -> World:
     lane[ramp] = 0
     lane[0] = g.integers(1, 5)
     v = g.uniform(15.0, 36.0, n)
+    band = float(g.choice([0.0, 50.0, 80.0]))
+    speeds = tuple((float(g.uniform(22.0, 33.0)), float(g.choice([0.0, 1.5, 4.0]))) for _ in range(4))
     params = replace(
-        P, insertion_band_m=float(g.choice([0.0, 50.0, 80.0])),
-        lane_speed_mps=tuple((float(g.uniform(22.0, 33.0)), float(g.choice([0.0, 1.5, 4.0]))) for _ in range(4)),
+        P, insertion_band_m=band,
+        lane_speed_mean_mps=tuple(mean for mean, _ in speeds), lane_speed_sd_mps=tuple(sd for _, sd in speeds),
         lane_density_per_km=tuple(float(x) for x in g.choice([0.0, 12.5, 30.0], 4)),
         ramp_density_per_km=float(g.choice([0.0, 10.0])))
     w = _world(road, s, lane, v, params, seed=seed)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from evoscen_sim.physics.control import ControlParams, DualPidController
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.vehicle import VehicleParams, accel_to_throttle, bicycle_step, throttle_to_accel
 from evoscen_sim.physics.world import World
 from evoscen_sim.road.road_model import RoadModel, load_road

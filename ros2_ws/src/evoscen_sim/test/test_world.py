@@ -9,8 +9,8 @@ from evoscen_bringup.scenario import build_scenario
 from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
 from evoscen_sim.physics.collision import overlapping_pairs
-from evoscen_sim.physics.hand_built import hand_built_world
-from evoscen_sim.physics.spawn import spawn_layout
+from evoscen_sim.loop.hand_built import hand_built_world
+from evoscen_sim.traffic.spawn import spawn_layout
 from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, ReentryParams, World
 from evoscen_sim.road.road_model import RoadModel, load_road
 

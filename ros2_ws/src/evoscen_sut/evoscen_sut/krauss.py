@@ -287,7 +287,7 @@ def krauss_next_speed(speed_mps, max_speed_mps, gap_m, leader_speed_mps, uniform
 
 
 class KraussCarFollowing:
-    """Krauss longitudinal control for vehicles of a traffic view (:mod:`evoscen_sim.physics.view`).
+    """Krauss longitudinal control for vehicles of a traffic view (:mod:`evoscen_sim.loop.view`).
 
     Args:
         params: the model parameters.

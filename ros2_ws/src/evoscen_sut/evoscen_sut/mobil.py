@@ -190,6 +190,29 @@ def _idm(v, v0, gap, v_lead, prm):
 
 
 @kernel
+def _safe_from_movers(i, ln, v0, moving, m, s, v, length, target_lane, prm):
+    """MOBIL's safety criterion against the vehicles changing into lane ``ln`` (``moving[:m]``): neither
+    vehicle ``i`` behind one of them nor one of them behind ``i`` would brake harder than
+    ``safe_decel_mps2`` (IDM with desired speed ``v0``)."""
+    si = s[i]
+    vi = v[i]
+    b_safe = prm.safe_decel_mps2
+    for q in range(m):
+        j = moving[q]
+        if j == i or target_lane[j] != ln:
+            continue
+        ds = s[j] - si
+        gap = abs(ds) - 0.5 * (length[j] + length[i])
+        if ds > 0.0:
+            acc = _idm(vi, v0, gap, v[j], prm)
+        else:
+            acc = _idm(v[j], v0, gap, vi, prm)
+        if acc < -b_safe:
+            return False
+    return True
+
+
+@kernel
 def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear,
                   follower, follower_speed, road, prm):
     """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`MobilEvaluation`."""
@@ -295,20 +318,7 @@ def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, 
         for c in range(3):
             ok = at_n[r, c] >= -b_safe and acc_ego[r, c] >= -b_safe
             if ok:
-                ln = li + c - 1
-                for q in range(m):
-                    j = moving[q]
-                    if j == i or target_lane[j] != ln:
-                        continue
-                    ds = s[j] - si
-                    gap = abs(ds) - 0.5 * (length[j] + length[i])
-                    if ds > 0.0:
-                        acc = _idm(vi, v0[c], gap, v[j], prm)
-                    else:
-                        acc = _idm(v[j], v0[c], gap, vi, prm)
-                    if acc < -b_safe:
-                        ok = False
-                        break
+                ok = _safe_from_movers(i, li + c - 1, v0[c], moving, m, s, v, length, target_lane, prm)
             safe[r, c] = ok
         safe[r, 1] = True
         mandatory[r] = ending[1] and end_gap[1] < prm.merge_mandatory_distance_m

@@ -12,7 +12,7 @@ or a user's ``evoscen.sut`` plug-in — named by ``models.mutant.base``, and deg
 Operators (parameters in brackets; see docs/mutants.md for the reasons of the defaults):
 
 * perception — the base driver decides on a *filtered view*: a
-  :class:`evoscen_sim.physics.view.WorldView` holding the SUT in row 0 and the other vehicles it
+  :class:`evoscen_sim.loop.view.WorldView` holding the SUT in row 0 and the other vehicles it
   perceives after it, in their world order; the base driver is built for row 0.
 
   - ``blind_behind``: vehicles whose centre is behind the SUT's (all lanes) are invisible.
@@ -70,8 +70,8 @@ from evoscen_sim import model_registry as _models
 from evoscen_sim.config.scenario_config import integer, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import ModelSpec, get_model, model_names
-from evoscen_sim.physics.traffic import common_shift
-from evoscen_sim.physics.view import WorldView
+from evoscen_sim.traffic.window import common_shift
+from evoscen_sim.loop.view import WorldView
 
 from .krauss_lane_change import KraussLaneChangeDriver
 

@@ -174,6 +174,56 @@ def conflict_rule(p: NilssonParams) -> ConflictRule:
 
 
 @kernel
+def _nearest_in_lanes(i, s, lane, view_range, front, rear, d_front, d_rear):
+    """The nearest vehicle ahead and behind vehicle ``i`` in every lane within ``view_range``, written
+    into ``front`` / ``rear`` (-1: none) and their arc distances ``d_front`` / ``d_rear`` (inf: none):
+    ahead means a larger ``s``, or the same ``s`` in the same lane and a larger index; the lowest index
+    wins a tie ahead, the highest behind."""
+    n = s.shape[0]
+    nl = front.shape[0]
+    si = s[i]
+    li = lane[i]
+    for ln in range(nl):
+        front[ln] = -1
+        rear[ln] = -1
+        d_front[ln] = np.inf
+        d_rear[ln] = np.inf
+    for j in range(n):
+        if j == i:
+            continue
+        ds = s[j] - si
+        if not (abs(ds) <= view_range):
+            continue
+        lj = lane[j]
+        if lj < 0 or lj >= nl:
+            continue
+        if ds > 0.0 or (ds == 0.0 and lj == li and j > i):
+            if ds < d_front[lj]:  # strict: the lowest index wins a tie
+                d_front[lj] = ds
+                front[lj] = j
+        elif -ds <= d_rear[lj]:  # non-strict: the highest index wins a tie
+            d_rear[lj] = -ds
+            rear[lj] = j
+
+
+@kernel
+def _step_blocked(i, next_lane, s, v, length, lane, target_lane, prm):
+    """Whether a vehicle in (or changing into) ``next_lane`` is within Nilsson's safety distance of
+    vehicle ``i``: ``safety_length_factor · L_i + safety_closing_headway_s · max(closing speed, 0)``."""
+    si = s[i]
+    vi = v[i]
+    for j in range(s.shape[0]):
+        if j == i or not (lane[j] == next_lane or target_lane[j] == next_lane):
+            continue
+        ds = s[j] - si
+        dv_closing = v[j] - vi if ds < 0.0 else vi - v[j]
+        need = prm.safety_length_factor * length[i] + prm.safety_closing_headway_s * maximum(dv_closing, 0.0)
+        if abs(ds) < need:
+            return True
+    return False
+
+
+@kernel
 def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
     """:func:`evaluate` over the vehicles ``idx`` (module docstring); arrays as :class:`NilssonEvaluation`.
 
@@ -182,7 +232,6 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
     :mod:`evoscen_sim.physics.neighbors`); the lowest index wins a tie ahead, the highest behind.
     """
     k = idx.shape[0]
-    n = s.shape[0]
     nl = road.present.shape[1]
     utility = np.empty((k, nl))
     speed = np.empty((k, nl))
@@ -209,28 +258,7 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
         li = lane[i]
         half = 0.5 * length[i]
         seg = segment_index(road, si)
-        # nearest vehicle ahead / behind in every lane
-        for ln in range(nl):
-            front[ln] = -1
-            rear[ln] = -1
-            d_front[ln] = np.inf
-            d_rear[ln] = np.inf
-        for j in range(n):
-            if j == i:
-                continue
-            ds = s[j] - si
-            if not (abs(ds) <= view_range):
-                continue
-            lj = lane[j]
-            if lj < 0 or lj >= nl:
-                continue
-            if ds > 0.0 or (ds == 0.0 and lj == li and j > i):
-                if ds < d_front[lj]:  # strict: the lowest index wins a tie
-                    d_front[lj] = ds
-                    front[lj] = j
-            elif -ds <= d_rear[lj]:  # non-strict: the highest index wins a tie
-                d_rear[lj] = -ds
-                rear[lj] = j
+        _nearest_in_lanes(i, s, lane, view_range, front, rear, d_front, d_rear)
         # lane utilities
         for ln in range(nl):
             exists = road.present[seg, ln]
@@ -281,20 +309,8 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
         tgt = best_other if change else li
         target[r] = tgt
         own_candidate[r] = own_ok
-        # safety of the adjacent step
         step = 1 if tgt > li else (-1 if tgt < li else 0)
-        next_lane = li + step
-        blocked = False
-        for j in range(n):
-            if j == i or not (lane[j] == next_lane or target_lane[j] == next_lane):
-                continue
-            ds = s[j] - si
-            dv_closing = v[j] - vi if ds < 0.0 else vi - v[j]
-            need = prm.safety_length_factor * length[i] + prm.safety_closing_headway_s * maximum(dv_closing, 0.0)
-            if abs(ds) < need:
-                blocked = True
-                break
-        step_safe[r] = step == 0 or not blocked
+        step_safe[r] = step == 0 or not _step_blocked(i, li + step, s, v, length, lane, target_lane, prm)
     return utility, speed, time_gap, score, target, step_safe, own_candidate
 
 

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 import pytest
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.vehicle import VehicleParams, accel_to_throttle
 from evoscen_sim.road.road_model import load_road
 from evoscen_sut.krauss import (

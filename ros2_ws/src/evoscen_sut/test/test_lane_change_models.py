@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from evoscen_bringup.model_testing import model_scenario, run_checked
 from evoscen_sim.config.scenario_config import load_scenario_config
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.physics.vehicle import VehicleParams
 from evoscen_sim.road.road_model import load_road
 from evoscen_sut import mobil, nilsson

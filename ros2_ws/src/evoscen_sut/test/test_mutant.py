@@ -17,8 +17,8 @@ from evoscen_bringup.inprocess import run_inprocess
 from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import ModelSpec, create_driver, register_model, unregister_model
-from evoscen_sim.physics.hand_built import hand_built_world
-from evoscen_sim.physics.view import WorldView
+from evoscen_sim.loop.hand_built import hand_built_world
+from evoscen_sim.loop.view import WorldView
 from evoscen_sim.road.road_model import load_road
 from evoscen_sim.scenario_builders import build_sut_driver
 from evoscen_sut import mutant as M

@@ -13,7 +13,7 @@ import pytest
 from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import create_driver
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 from evoscen_sut import mutant as M
 from evoscen_sut.krauss import KraussParams

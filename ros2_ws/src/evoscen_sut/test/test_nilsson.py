@@ -18,7 +18,7 @@ from dataclasses import fields, replace
 
 import numpy as np
 import pytest
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 from evoscen_sut import nilsson
 from evoscen_sut.nilsson import NilssonParams, evaluate, lane_change_decision

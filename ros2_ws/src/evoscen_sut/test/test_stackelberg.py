@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from evoscen_sim.config.scenario_config import config_from_dict
-from evoscen_sim.physics.hand_built import hand_built_world
+from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
 from evoscen_sut.stackelberg import (
     FOLLOWER_RESPONSES,

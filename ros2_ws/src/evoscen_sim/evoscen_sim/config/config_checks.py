@@ -21,7 +21,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import field
 from typing import Any
 
-from evoscen_sim.config.limits import MAX_DT_NS_RESIDUE, MIN_DT_S
+from evoscen_sim.limits import MAX_DT_NS_RESIDUE, MIN_DT_S
 
 #: BV decision policies, in the canonical order used by the ``"C:M:C"`` mix string.
 POLICIES: tuple[str, ...] = ("competitive", "mutual", "cooperative")

@@ -26,7 +26,7 @@ import yaml
 
 from evoscen_sim.config.config_checks import _Bad, _join, _show, _unknown_text
 from evoscen_sim.config.config_schema import EvaluationConfig, ScenarioConfig
-from evoscen_sim.config.limits import MAX_CONFIG_BYTES, check_yaml_depth, read_text_limited
+from evoscen_sim.limits import MAX_CONFIG_BYTES, check_yaml_depth, read_text_limited
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import broken_plugin, broken_plugins, discover, parameter_names, params_type_of
 from evoscen_sim.share import PACKAGE, share_candidates, share_path

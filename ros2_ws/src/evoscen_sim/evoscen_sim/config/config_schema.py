@@ -34,7 +34,7 @@ from evoscen_sim.config.config_checks import (
     _StepSize,
     _Str,
 )
-from evoscen_sim.config.limits import MAX_STEPS
+from evoscen_sim.limits import MAX_STEPS
 from evoscen_sim.errors import InputError
 
 #: Bag compression modes selectable by ``recording.compression``.
@@ -44,7 +44,7 @@ COMPRESSIONS: tuple[str, ...] = ("zstd", "lz4", "none")
 MAX_S_M = 2393.0
 #: Upper bound of the speed ranges ``spawn.speed_mps`` / ``level0.desired_speed_mps`` (m/s).
 MAX_RANGE_SPEED_MPS = 40.0
-#: Values of ``bvs.makeup`` (:mod:`evoscen_sim.physics.makeup`).
+#: Values of ``bvs.makeup`` (:mod:`evoscen_sim.traffic.makeup`).
 MAKEUPS: tuple[str, ...] = ("uniform", "highd")
 #: Upper bound of ``bvs.count``.
 MAX_BV_COUNT = 200
@@ -75,7 +75,7 @@ class BvConfig:
     whole run (an entry at a window edge reuses its slot), so it stays with its node. The world, the
     events and the scores do not depend on the split (docs/architecture.md §5, "BV nodes")."""
     makeup: str = field(default="uniform", metadata=_check(_Str(lambda: MAKEUPS)))
-    """The traffic's make-up (docs/bv-profiles.md, "Traffic make-up"; :mod:`evoscen_sim.physics.makeup`):
+    """The traffic's make-up (docs/bv-profiles.md, "Traffic make-up"; :mod:`evoscen_sim.traffic.makeup`):
     ``uniform`` (default) every BV a car of the ``vehicle`` section, its desired speed capped at the
     lane's limit; ``highd`` cars and trucks with lengths, widths and desired speeds (not capped) drawn
     from the highD dataset's figures (``models.highd``; Krajewski et al., ITSC 2018), trucks driven by
@@ -129,9 +129,11 @@ TRAFFIC_MODES: tuple[str, ...] = ("window", "loop")
 
 
 @dataclass(frozen=True)
-class TrafficConfig:
-    """Where the traffic is during the run (docs/method.md §1 [choice]); the defaults of
-    :class:`evoscen_sim.physics.traffic.TrafficParams`."""
+class TrafficParams:
+    """Where the traffic is during the run (docs/method.md §1 [choice]): the ``traffic`` section, and
+    the parameters the traffic window takes as they are (:class:`evoscen_sim.traffic.window.TrafficWindow`,
+    built by :func:`evoscen_sim.traffic.scenario_params.traffic_params_from_config`): one declaration,
+    one set of defaults and checks."""
 
     mode: str = field(default="window", metadata=_check(_Str(lambda: TRAFFIC_MODES)))
     """``window``: a window of traffic moves with the SUT (vehicles leave it and enter at its edges
@@ -176,6 +178,16 @@ class TrafficConfig:
     shift_to_m: float = field(default=300.0, metadata=_check(_Float(0.0, MAX_S_M)))
     """Where the shift puts the SUT (m); the road must be uniform (same lanes, straight) over the
     window with its exit margins around both points (checked against the map)."""
+
+    @property
+    def lane_speed_mps(self) -> tuple[tuple[float, float], ...]:
+        """(mean, standard deviation) of the entry speed of each mainline lane, rightmost first (m/s):
+        ``lane_speed_mean_mps`` and ``lane_speed_sd_mps`` paired."""
+        return tuple(zip(self.lane_speed_mean_mps, self.lane_speed_sd_mps))
+
+
+TrafficConfig = TrafficParams
+"""The ``traffic`` section's type: the traffic window's :class:`TrafficParams` itself."""
 
 
 _POSITIVE = _check(_Float(0.0, lo_open=True))
@@ -292,11 +304,11 @@ class RecordingConfig:
 
 EFFICIENCY_DENSITY_FORMS = ("literal", "normalised")
 ACCEL_ACTIVITY_FORMS = ("smoothed", "literal")
-#: ``evaluation.rear_conflicts`` values (see :mod:`evoscen_sim.physics.safety`).
+#: ``evaluation.rear_conflicts`` values (see :mod:`evoscen_sim.danger.safety`).
 REAR_CONFLICT_MODES = ("after_lane_change", "all", "none")
-#: ``evaluation.rear_braking`` values (see :mod:`evoscen_sim.physics.safety`).
+#: ``evaluation.rear_braking`` values (see :mod:`evoscen_sim.danger.safety`).
 REAR_BRAKING_RULES = ("within_headway", "any")
-#: ``evaluation.hard_braking`` values (see :mod:`evoscen_sim.physics.safety`).
+#: ``evaluation.hard_braking`` values (see :mod:`evoscen_sim.danger.safety`).
 HARD_BRAKING_RULES = ("conflict", "own")
 #: ``evaluation.undefined_terms`` values.
 UNDEFINED_TERM_RULES = ("exclude", "literal")
@@ -461,7 +473,7 @@ class ScenarioConfig:
     """Fixed integration step (s), in [1e-6, 1] and a whole number of nanoseconds (the bag's
     stamps are integer ns; docs/input-limits.md)."""
     steps: int = field(default=3000, metadata=_check(_Int(1, MAX_STEPS)))
-    """Number of simulation steps, 1..1,000,000 (:data:`evoscen_sim.config.limits.MAX_STEPS`)."""
+    """Number of simulation steps, 1..1,000,000 (:data:`evoscen_sim.limits.MAX_STEPS`)."""
     seed: int = field(default=0, metadata=_check(_Int(0)))
     """Seed of the scenario's numpy Generator, >= 0."""
     bvs: BvConfig = _section(BvConfig)

@@ -2,7 +2,7 @@
 
 The BV node (:mod:`evoscen_bv.bv_node`) and the SUT node (:mod:`evoscen_sut.sut_node`) are
 this loop with a different driver: take ``/evoscen/world`` at t_k, rebuild a
-:class:`~evoscen_sim.physics.view.WorldView`, ask the driver, publish one command table stamped
+:class:`~evoscen_sim.loop.view.WorldView`, ask the driver, publish one command table stamped
 t_k. Before answering the first world message the node waits until its command publisher
 is matched with the simulation node and the recorder (``command_subscribers``: their node
 names, default ``[evoscen_sim, evoscen_eval]``), so no command is lost.
@@ -40,7 +40,7 @@ from evoscen_contract.messages import WorldMessages
 from evoscen_sim.config.config_checks import names, number
 from evoscen_sim.errors import InputError, PluginFault
 from evoscen_sim.model_registry import checked_answer, driver_identity, plugin_failure
-from evoscen_sim.physics.view import WorldView
+from evoscen_sim.loop.view import WorldView
 from evoscen_sim.road.road_model import load_road
 
 from .node_params import own_parameters, run_node, scenario_from_node

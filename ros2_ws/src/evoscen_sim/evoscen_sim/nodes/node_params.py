@@ -22,7 +22,7 @@ from evoscen_contract.graph import NodeParameterError, parameter_sources
 
 from evoscen_sim.config.config_checks import _Bad
 from evoscen_sim.config.config_load import Context, build, parse_yaml
-from evoscen_sim.config.limits import MAX_CONFIG_BYTES, read_text_limited
+from evoscen_sim.limits import MAX_CONFIG_BYTES, read_text_limited
 from evoscen_sim.config.scenario_config import ScenarioConfig, config_from_dict, config_to_dict
 from evoscen_sim.errors import InputError, PluginFault
 

@@ -3,7 +3,7 @@
     python -m evoscen_sim.nodes.sim_node --ros-args --params-file sim.yaml   (or: ros2 run evoscen_sim sim_node ...)
 
 The steps are run by the step loop the in-process runner drives too
-(:class:`evoscen_sim.physics.step_loop.StepLoop`); this node is the loop's port on the graph. Step k:
+(:class:`evoscen_sim.loop.step_loop.StepLoop`); this node is the loop's port on the graph. Step k:
 publish ``/clock``, ``/evoscen/world`` and ``/evoscen/sut/odom`` at t_k (and the
 latched ``/evoscen/roster`` before the first step); wait until every registered controller
 (``controllers``: the BV nodes, the SUT node) has answered with commands stamped t_k;
@@ -61,8 +61,8 @@ from evoscen_contract.messages import WorldMessages
 
 from evoscen_sim.config.config_checks import flag, integer, names, number, text
 from evoscen_sim.errors import InputError
-from evoscen_sim.physics.events import fault_event, step_events
-from evoscen_sim.physics.step_loop import Commands, Port, RunAborted, StepLoop
+from evoscen_sim.danger.events import fault_event, step_events
+from evoscen_sim.loop.step_loop import Commands, Port, RunAborted, StepLoop
 from evoscen_sim.scenario_builders import SUT_INDEX, build_world
 
 from .node_params import own_parameters, run_node, scenario_from_node
@@ -108,7 +108,7 @@ class SimParams:
 class SimulationNode(Port):
     """The simulation node (see the module docstring): the graph's port of the step loop.
 
-    :class:`~evoscen_sim.physics.step_loop.StepLoop` runs the steps; this node waits for the graph
+    :class:`~evoscen_sim.loop.step_loop.StepLoop` runs the steps; this node waits for the graph
     at start-up (:meth:`start`), keeps flow control towards the recorder (:meth:`begin_step`),
     publishes the states and events on the contract's topics and collects the controllers'
     commands with deadlines (:meth:`commands`: held throttles, wire and deadline faults,
@@ -500,7 +500,7 @@ class SimulationNode(Port):
         return self.controller_rows[controller]
 
     def run(self) -> int:
-        """The whole run (:class:`~evoscen_sim.physics.step_loop.StepLoop` with this port); returns the exit status."""
+        """The whole run (:class:`~evoscen_sim.loop.step_loop.StepLoop` with this port); returns the exit status."""
         outcome = self.loop.run(self.cfg.steps)
         if outcome.kind == T.KIND_ABORTED and self._died(self.aborted_by):
             print(f"{NODE_NAME}: {outcome.text} (its process had ended: the launcher names it)", file=sys.stderr)

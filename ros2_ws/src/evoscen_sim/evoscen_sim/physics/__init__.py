@@ -1,1 +1,2 @@
-"""The simulation core, free of ROS: the world step and its parts, traffic, spawn, step loop, dangerous states, events, the drivers' view."""
+"""Physics, free of ROS: the vehicles' bodies and motion (``vehicle``, ``control``, ``idm``), contact
+(``collision``), who is next to whom (``neighbors``) and the world's state and fixed step (``world``)."""

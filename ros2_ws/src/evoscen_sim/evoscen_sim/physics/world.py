@@ -38,15 +38,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+
 from evoscen_contract.contract import ROLE_BV, ROLE_SUT  # noqa: F401  (re-exported: the world's role codes)
 
 from evoscen_sim.config.config_schema import ReentryConfig
 from evoscen_sim.jit import kernel
+from evoscen_sim.traffic.window import TrafficParams, TrafficWindow
 
 from .collision import overlapping_pairs
 from .control import ControlParams, DualPidController, dual_pid_one
 from .neighbors import Neighborhood, compute_neighborhood
-from .traffic import TrafficParams, TrafficWindow
 from .vehicle import VehicleParams, bicycle_one
 
 
@@ -92,7 +93,7 @@ class StepResult:
     off_road: list[int] = field(default_factory=list)
     shift_m: float = 0.0
     """Distance every vehicle was moved back along the road in this step (the traffic window's
-    shift, :mod:`evoscen_sim.physics.traffic`); 0 when none."""
+    shift, :mod:`evoscen_sim.traffic.window`); 0 when none."""
 
 
 
@@ -142,7 +143,7 @@ class World:
         dt_s: float,
         rng: np.random.Generator,
         traffic: TrafficParams | None = None,
-        makeup=None,  # evoscen_sim.physics.makeup.WindowMakeup: the highd make-up's entries
+        makeup=None,  # evoscen_sim.traffic.makeup.WindowMakeup: the highd make-up's entries
     ) -> None:
         self.road = road
         self.vehicle = vehicle
@@ -323,7 +324,7 @@ class World:
         road = self.road
         p = self.reentry
         others = np.arange(self.n) != i
-        ramp_lane = 0
+        ramp_lane = road.merge_lane
         choice: tuple[int, float] | None = None
         if road.lane_start_s[ramp_lane] > 0.0 and self.rng.random() < p.ramp_share:
             entry_s = float(road.lane_start_s[ramp_lane])
@@ -331,7 +332,7 @@ class World:
             if space >= p.min_gap_m:
                 choice = (ramp_lane, entry_s)
         if choice is None:
-            mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+            mainline = road.mainline_lanes
             spaces = [self._free_space(k, 0.0, others)[0] for k in mainline]
             best = int(np.argmax(spaces))  # first lane (rightmost) among equals
             lane = mainline[best]

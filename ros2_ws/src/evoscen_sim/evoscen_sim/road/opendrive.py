@@ -965,7 +965,7 @@ def parse_opendrive_bytes(data: bytes, fname: str = "<string>") -> OpenDriveMap:
 def parse_opendrive(path: "str | os.PathLike[str]") -> OpenDriveMap:
     """Read and validate an ``.xodr`` file. Raises :class:`InputError` on any problem."""
     fname = os.fspath(path)
-    from evoscen_sim.config.limits import MAX_MAP_BYTES, read_bytes_limited
+    from evoscen_sim.limits import MAX_MAP_BYTES, read_bytes_limited
 
     data = read_bytes_limited(fname, fname, "OpenDRIVE file", MAX_MAP_BYTES)
     return parse_opendrive_bytes(data, fname)

@@ -68,7 +68,8 @@ import numpy as np
 
 import evoscen_sim
 from evoscen_sim.errors import InputError
-from evoscen_sim.road.opendrive import Lane, LaneSection, OpenDriveMap, Poly3, parse_opendrive
+from evoscen_sim.road.lane_tables import DRIVABLE_LANE_TYPES, check_sections, lane_extents, lane_present, lane_table
+from evoscen_sim.road.opendrive import Lane, LaneSection, OpenDriveMap, Poly3, parse_opendrive  # noqa: F401  (Lane, LaneSection, Poly3: names of the 0.4 evoscen_sim.road)
 from evoscen_sim.road.road_kernels import BorderTables, RoadTables, frenet_to_cartesian_kernel, lane_lookup_kernel
 
 ArrayLike = Union[float, int, np.ndarray, list, tuple]
@@ -95,11 +96,12 @@ def _find_default_map() -> Path:
 #: The map shipped with the package.
 DEFAULT_MAP_PATH = _find_default_map()
 
-#: Lane types the simulator can drive on; any other right-lane type is rejected.
-DRIVABLE_LANE_TYPES = frozenset(["driving", "entry", "exit", "onRamp", "offRamp", "mwyEntry", "mwyExit"])
-
 #: Spacing (m) of the samples of :meth:`RoadModel.lane_markings`.
 MARKING_STEP_M = 5.0
+
+MERGE_LANE = 0
+"""Lane index of the merge (acceleration) lane, lane I: the rightmost lane (docs/CONVENTIONS.md); the
+on-ramp feeds it. The one definition: the traffic, spawn, the level-0 driver and the scripts import it."""
 
 
 @dataclass(frozen=True)
@@ -125,17 +127,6 @@ class LaneMarking:
 def _readonly(a: np.ndarray) -> np.ndarray:
     a.setflags(write=False)
     return a
-
-
-def _last_at_or_before(starts: list[float], s: float) -> int:
-    """Index of the last start <= s (-1 if none)."""
-    idx = -1
-    for i, v in enumerate(starts):
-        if v <= s:
-            idx = i
-        else:
-            break
-    return idx
 
 
 class LaneLookup(NamedTuple):
@@ -169,7 +160,7 @@ class RoadModel:
                 "(expected RHT or absent: evoscen traffic drives on the right)"
             )
         sections = road.lane_sections
-        self._check_sections(fname, sections)
+        check_sections(fname, sections)
         n = max(len(sec.right) for sec in sections)
         self.num_lanes: int = n
         self.lane_ids: np.ndarray = _readonly(np.arange(-n, 0, dtype=np.int64))
@@ -183,52 +174,8 @@ class RoadModel:
         self._g_len = _readonly(np.array([p.length_m for p in g], dtype=float))
         self._g_k = _readonly(np.array([p.curvature_per_m for p in g], dtype=float))
 
-        # ---------------- lane table on s breakpoints ----------------
-        breaks = {0.0}
-        for sec in sections:
-            breaks.add(sec.s_m)
-            for lane in sec.right:
-                breaks.update(sec.s_m + w.s_m for w in lane.widths)
-                breaks.update(sec.s_m + v.s_offset_m for v in lane.speeds)
-        breaks.update(p.s_m for p in road.lane_offsets)
-        breaks.update(t.s_m for t in road.types)
-        br = np.array(sorted(b for b in breaks if b < self.length_m), dtype=float)
-        m = len(br)
-        w_coef = np.zeros((m, n, 4))
-        w_origin = np.zeros((m, n))
-        present = np.zeros((m, n), dtype=bool)
-        vmax = np.full((m, n), np.nan)
-        vmin = np.full((m, n), np.nan)
-        off_coef = np.zeros((m, 4))
-        off_origin = np.zeros(m)
-        sec_starts = [sec.s_m for sec in sections]
-        off_starts = [p.s_m for p in road.lane_offsets]
-        type_starts = [t.s_m for t in road.types]
-        sec_present = [[self._lane_present(l) for l in sec.right] for sec in sections]
-        for j, b in enumerate(br):
-            sec = sections[_last_at_or_before(sec_starts, b)]
-            io = _last_at_or_before(off_starts, b)
-            if io >= 0:
-                p = road.lane_offsets[io]
-                off_coef[j] = (p.a, p.b, p.c, p.d)
-                off_origin[j] = p.s_m
-            it = _last_at_or_before(type_starts, b)
-            type_speed = math.inf
-            if it >= 0 and road.types[it].speed is not None:
-                type_speed = road.types[it].speed.max_mps  # type: ignore[union-attr]
-            k_sec = sections.index(sec)
-            for lane in sec.right:
-                i = lane.id + n
-                if not sec_present[k_sec][-lane.id - 1]:
-                    continue
-                iw = _last_at_or_before([sec.s_m + w.s_m for w in lane.widths], b)
-                w = lane.widths[iw]
-                w_coef[j, i] = (w.a, w.b, w.c, w.d)
-                w_origin[j, i] = sec.s_m + w.s_m
-                present[j, i] = True
-                iv = _last_at_or_before([sec.s_m + v.s_offset_m for v in lane.speeds], b)
-                vmax[j, i] = lane.speeds[iv].max_mps if iv >= 0 else type_speed
-                vmin[j, i] = lane.min_speed_mps if lane.min_speed_mps is not None else 0.0
+        sec_present = [[lane_present(l) for l in sec.right] for sec in sections]
+        br, w_coef, w_origin, present, vmax, vmin, off_coef, off_origin = lane_table(road, sections, sec_present, n, self.length_m)
         self._breaks = _readonly(br)
         self._w_coef = _readonly(w_coef)
         self._w_origin = _readonly(w_origin)
@@ -244,41 +191,11 @@ class RoadModel:
         self._dr_table = _readonly(self._dr_table)
         self._dl_table = _readonly(self._dl_table)
 
-        # ---------------- lane extents ----------------
-        start = np.full(n, np.nan)
-        end = np.full(n, np.nan)
-        full_end = np.full(n, np.nan)
-        for i in range(n):
-            lane_id = i - n
-            ks = [k for k, sec in enumerate(sections)
-                  if len(sec.right) >= -lane_id and sec_present[k][-lane_id - 1]]
-            if not ks:
-                raise InputError(
-                    f"{fname}:{road.line}: lane id {lane_id} has zero width in every lane section "
-                    "(expected every lane id up to the widest section to exist somewhere)"
-                )
-            if ks != list(range(ks[0], ks[-1] + 1)):
-                sec = sections[ks[0]]
-                raise InputError(
-                    f"{fname}:{sec.line}: lane id {lane_id} exists in separate s ranges (sections "
-                    f"starting at {[sections[k].s_m for k in ks]}); expected one contiguous range"
-                )
-            start[i] = sections[ks[0]].s_m
-            end[i] = sections[ks[-1]].end_s_m
-            # records (abs start, poly) over the lane's range, then find where the taper begins
-            recs: list[tuple[float, Poly3]] = []
-            for k in ks:
-                lane = sections[k].right[-lane_id - 1]
-                recs.extend((sections[k].s_m + w.s_m, w) for w in lane.widths)
-            fe = end[i]
-            for s_abs, w in reversed(recs):
-                if w.is_constant:
-                    break
-                fe = s_abs
-            full_end[i] = fe
+        start, end, full_end = lane_extents(fname, road, sections, sec_present, n)
         self.lane_start_s: np.ndarray = _readonly(start)
         self.lane_end_s: np.ndarray = _readonly(end)
         self.lane_full_width_end_s: np.ndarray = _readonly(full_end)
+        self._mainline_lanes: tuple[int, ...] = tuple(k for k in range(n) if start[k] <= 0.0)
         self._reaches_end = _readonly(end >= self.length_m)
         widths0 = [lane.widths[0].value(0.0) for k, sec in enumerate(sections)
                    for lane in sec.right if sec_present[k][-lane.id - 1]]
@@ -298,44 +215,24 @@ class RoadModel:
             width_coef=np.ascontiguousarray(self._w_coef), width_origin=np.ascontiguousarray(self._w_origin),
             offset_coef=np.ascontiguousarray(self._off_coef), offset_origin=np.ascontiguousarray(self._off_origin))
 
-    # ------------------------------------------------------------------ validation helpers
-    @staticmethod
-    def _lane_present(lane: Lane) -> bool:
-        return any(w.a != 0.0 or not w.is_constant for w in lane.widths)
+    # ------------------------------------------------------------------ road facts
+    @property
+    def mainline_lanes(self) -> tuple[int, ...]:
+        """The mainline lanes: those that exist from the road's start (``lane_start_s <= 0``), rightmost
+        first (on the shipped map II–V: ``(1, 2, 3, 4)``). The traffic's per-lane lists
+        (``traffic.lane_density_per_km``, …) have one entry per mainline lane, in this order."""
+        return self._mainline_lanes
 
-    @staticmethod
-    def _check_sections(fname: str, sections: tuple[LaneSection, ...]) -> None:
-        for k, sec in enumerate(sections):
-            if sec.left:
-                raise InputError(
-                    f"{fname}:{sec.left[0].line}: <lane> id={sec.left[0].id} in <left> is not "
-                    "supported (expected only right lanes: the reference line is the left edge)"
-                )
-            if not sec.right:
-                raise InputError(
-                    f"{fname}:{sec.line}: <laneSection> s={sec.s_m:g} has no right lanes "
-                    "(expected at least one driving lane)"
-                )
-            for lane in sec.right:
-                if lane.type not in DRIVABLE_LANE_TYPES:
-                    raise InputError(
-                        f"{fname}:{lane.line}: <lane> id={lane.id} attribute 'type'='{lane.type}' "
-                        f"is not supported by the road model (expected one of: "
-                        f"{', '.join(sorted(DRIVABLE_LANE_TYPES))})"
-                    )
-                ids_prev = {l.id for l in sections[k - 1].right} if k > 0 else None
-                ids_next = {l.id for l in sections[k + 1].right} if k + 1 < len(sections) else None
-                for what, target, ids in (("predecessor", lane.predecessor_id, ids_prev),
-                                          ("successor", lane.successor_id, ids_next)):
-                    if target is None or ids is None:
-                        continue
-                    if target != lane.id or target not in ids:
-                        raise InputError(
-                            f"{fname}:{lane.line}: <lane> id={lane.id} has {what} id={target} "
-                            f"(expected the same id {lane.id}, present in the "
-                            f"{'previous' if what == 'predecessor' else 'next'} lane section: "
-                            "renumbering lanes across sections is not supported)"
-                        )
+    @property
+    def merge_lane(self) -> int:
+        """Lane index of the merge lane, :data:`MERGE_LANE` (0, lane I)."""
+        return MERGE_LANE
+
+    @property
+    def has_merge_lane(self) -> bool:
+        """Whether the map has a merge lane: lane I exists and starts after the road's start (is not a
+        mainline lane)."""
+        return self.num_lanes > 0 and MERGE_LANE not in self._mainline_lanes
 
     # ------------------------------------------------------------------ internal lookups
     def _seg(self, s_clamped: np.ndarray) -> np.ndarray:

@@ -79,7 +79,7 @@ class ExposureMonitor:
     the follower in its path when a rear conflict attributed to the SUT makes the state
     dangerous, the new follower when a cut-in does, and the vehicle beside when a lane change
     beside one does) and a ``kind: end`` event when it is over (``steps`` = its length in states).
-    A state is dangerous as :func:`evoscen_sim.physics.safety.danger_terms` says, the evaluator's
+    A state is dangerous as :func:`evoscen_sim.danger.safety.danger_terms` says, the evaluator's
     definition (this monitor gathers its inputs for one state); the rear-conflict
     attribution window (``evaluation.rear_conflicts``, docs/evaluation.md) is the one state
     this monitor keeps besides the open exposure, fed the SUT's ``lane_change`` column of

@@ -18,10 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from evoscen_sim.errors import InputError
-
-from .world import ROLE_BV, ROLE_SUT, InitialState
-
-MERGE_LANE = 0
+from evoscen_sim.physics.world import ROLE_BV, ROLE_SUT, InitialState
+from evoscen_sim.road.road_model import MERGE_LANE
 
 
 def spawn_layout(
@@ -43,7 +41,7 @@ def spawn_layout(
     n_bv = int(len(bv_policies))
     pitch = mainline_gap_m + vehicle_length_m
     jitter = min(jitter_m, max(0.0, 0.5 * mainline_gap_m - 0.5))
-    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    mainline = road.mainline_lanes
     if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
         raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
 
@@ -112,11 +110,11 @@ def window_layout(
     SUT's lane leaving out the slot nearest the SUT; speeds are drawn from the lane's
     distribution (truncated at ±2 sd) and then, front to back in each lane, lowered where needed
     so that every vehicle follows its leader by the safe-insertion rule
-    (:func:`evoscen_sim.physics.traffic.insertion_speed`; the SUT's speed is its own, so a BV that the SUT
+    (:func:`evoscen_sim.traffic.window.insertion_speed`; the SUT's speed is its own, so a BV that the SUT
     could not follow safely is moved one slot further back). The merge lane starts empty: it is
     fed when its start comes into the window.
     """
-    from .traffic import insertion_speed, required_gap
+    from .window import insertion_speed, required_gap
 
     p = params
     n_bv = int(len(bv_policies))
@@ -175,7 +173,7 @@ def window_layout(
 def window_layout_makeup(
     road,
     params,
-    makeup,  # evoscen_sim.physics.makeup.Makeup
+    makeup,  # evoscen_sim.traffic.makeup.Makeup
     truck_entry_lanes: int,
     *,
     cars_by_speed: bool = False,
@@ -197,7 +195,7 @@ def window_layout_makeup(
     (``models.highd.car_lanes``) —, and every BV starts at its own desired speed, lowered front to back
     by the safe-insertion rule over the gaps of the actual bodies.
     """
-    from .traffic import insertion_speed, required_gap
+    from .window import insertion_speed, required_gap
 
     p = params
     n_bv = int(len(bv_policies))
@@ -267,7 +265,7 @@ def _mainline_counts(road, p, n_bv: int, sut_lane: int, sut_s_m: float) -> tuple
     over them by ``traffic.lane_density_per_km`` (largest remainder)."""
     if not road.lane_exists(np.array([sut_lane]), np.array([sut_s_m]))[0]:
         raise InputError(f"spawn: sut.lane {sut_lane} does not exist at sut.s_m = {sut_s_m} m")
-    mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+    mainline = road.mainline_lanes
     dens = np.asarray(p.lane_density_per_km, dtype=float)
     if n_bv and dens.sum() <= 0.0:
         raise InputError("traffic.lane_density_per_km: all zero, so the window cannot hold the BVs "

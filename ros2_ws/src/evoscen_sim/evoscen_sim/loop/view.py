@@ -20,7 +20,7 @@ from typing import Protocol
 
 import numpy as np
 
-from .neighbors import Neighborhood, compute_neighborhood
+from evoscen_sim.physics.neighbors import Neighborhood, compute_neighborhood
 
 
 class TrafficView(Protocol):

@@ -38,42 +38,18 @@ neighbours, safe speed) is one compiled call, :func:`_place_in_lane` (:mod:`evos
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
+from evoscen_sim.config.config_schema import TrafficParams
 from evoscen_sim.jit import kernel
 from evoscen_sim.road.road_kernels import lane_borders, lane_present
-
-MERGE_LANE = 0
+from evoscen_sim.road.road_model import MERGE_LANE
 
 ENTRY_RETRY_STEPS = 10
 """Under ``bvs.makeup: highd`` a vehicle that found no place to enter tries again this many steps later
 (every step under ``uniform``). [choice] 10 (1 s at dt = 0.1 s): trucks enter lane II only and waited there
 often, and the search every step cost the make-up a tenth of its step rate (docs/bv-profiles.md)."""
-
-
-@dataclass(frozen=True)
-class TrafficParams:
-    """The traffic window (the ``traffic`` section of the scenario; docs/method.md §1)."""
-
-    behind_m: float = 150.0
-    ahead_m: float = 250.0
-    exit_margin_m: float = 10.0
-    lane_density_per_km: tuple[float, ...] = (12.5, 12.5, 12.5, 12.5)
-    """Target density of the mainline lanes, rightmost (II) first (vehicles per km)."""
-    lane_speed_mps: tuple[tuple[float, float], ...] = ((26.0, 1.5), (28.0, 1.5), (30.0, 1.5), (32.0, 1.5))
-    """(mean, standard deviation) of the entry speed of the mainline lanes, rightmost first (m/s)."""
-    ramp_density_per_km: float = 10.0
-    ramp_speed_mps: tuple[float, float] = (22.0, 2.0)
-    insertion_headway_s: float = 1.0
-    insertion_decel_mps2: float = 4.5
-    insertion_min_gap_m: float = 2.5
-    insertion_band_m: float = 50.0
-    """How far inside the window from its edge a vehicle may enter when the edge itself is taken (m)."""
-    shift_from_m: float = 2000.0
-    shift_to_m: float = 300.0
-    warmup_s: float = 20.0
 
 
 def required_gap(v_back: float, v_front: float, p: TrafficParams) -> float:
@@ -141,9 +117,9 @@ class TrafficWindow:
         road = world.road
         self.p = params
         self.sut = int(sut_index)
-        self.mainline = [k for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0]
+        self.mainline = road.mainline_lanes
         self.makeup = makeup
-        """The highd make-up's entries (:class:`evoscen_sim.physics.makeup.WindowMakeup`); None: uniform."""
+        """The highd make-up's entries (:class:`evoscen_sim.traffic.makeup.WindowMakeup`); None: uniform."""
         self._retry_step = np.zeros(world.n, dtype=np.int64) if makeup is not None else None
         """highd: the step from which each vehicle that found no place tries again (None: uniform, every step)."""
         self.truck_lanes = (frozenset([*self.mainline[:makeup.truck_entry_lanes],
@@ -154,7 +130,7 @@ class TrafficWindow:
                 f"traffic: lane_density_per_km and lane_speed_mps need one entry per mainline lane "
                 f"({len(self.mainline)} on this map), got {len(params.lane_density_per_km)} and "
                 f"{len(params.lane_speed_mps)}")
-        self.has_ramp = MERGE_LANE not in self.mainline and road.num_lanes > 0
+        self.has_ramp = road.has_merge_lane
         self.shift_m = params.shift_from_m - params.shift_to_m
 
     # ------------------------------------------------------------------ one step

@@ -45,7 +45,7 @@ when its centre crosses the lane line, and follows the SUT through its own lane 
 DRAC (:func:`drac`) is reported, not part of the definition.
 
 :func:`danger_terms` combines the terms: the one place the definition is written, called by
-the live monitor (:class:`evoscen_sim.physics.events.ExposureMonitor`) and by the scorer
+the live monitor (:class:`evoscen_sim.danger.events.ExposureMonitor`) and by the scorer
 (:class:`evoscen_eval.streaming.ScoreStream`).
 
 An **exposure** is a maximal run of consecutive dangerous states (events are counted, not
@@ -67,8 +67,7 @@ import numpy as np
 
 from evoscen_sim.config.scenario_config import HARD_BRAKING_RULES, REAR_BRAKING_RULES, REAR_CONFLICT_MODES
 from evoscen_sim.jit import kernel
-
-from .neighbors import time_to_collision
+from evoscen_sim.physics.neighbors import time_to_collision
 
 
 def _nearest_in_path(ahead: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarray, sut: int
@@ -117,7 +116,7 @@ def sut_leader_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length
                          sut: int) -> tuple[int, float]:
     """:func:`sut_leader`'s leader and :func:`sut_ttc` of ONE state (``[V]`` arrays), compiled.
 
-    The simulation node observes every state (:class:`evoscen_sim.physics.events.ExposureMonitor`):
+    The simulation node observes every state (:class:`evoscen_sim.danger.events.ExposureMonitor`):
     the broadcasting numpy definitions above cost ~50 µs per state for 21 vehicles, this
     ~2 µs. The same IEEE operations in the same order (fastmath off), the first of equal
     distances as ``argmin`` takes it, so the results are bit-identical (a test compares them
@@ -451,7 +450,7 @@ def danger_terms(evaluation, dt_s: float, *, ttc: np.ndarray | float, sut_accel:
                  cut_in_gap_m: np.ndarray | float = np.inf, beside_gap_m: np.ndarray | float = np.inf,
                  headway_run: int = 0) -> tuple[DangerTerms, int]:
     """Whether each state is dangerous for the SUT, term by term: the one definition the live
-    monitor (:class:`evoscen_sim.physics.events.ExposureMonitor`, one state at a time) and the scores
+    monitor (:class:`evoscen_sim.danger.events.ExposureMonitor`, one state at a time) and the scores
     (:class:`evoscen_eval.streaming.ScoreStream`, a block of states at a time) both apply.
 
     ``evaluation``: an :class:`~evoscen_sim.config.scenario_config.EvaluationConfig`; ``dt_s``: the step (the

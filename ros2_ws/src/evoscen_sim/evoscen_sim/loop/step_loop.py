@@ -14,8 +14,8 @@ Step ``k`` (time ``t_k``), in this order:
 4. the world integrates to ``t_{k+1}`` (:meth:`Port.stepped` sees the result).
 
 The events of a step are, in this order: the initial state's exposure events (with the first
-step's only), :func:`~evoscen_sim.physics.events.step_events`, then the exposure events of the new
-state (:class:`~evoscen_sim.physics.events.ExposureMonitor`, which observes every state, the initial
+step's only), :func:`~evoscen_sim.danger.events.step_events`, then the exposure events of the new
+state (:class:`~evoscen_sim.danger.events.ExposureMonitor`, which observes every state, the initial
 one included).
 
 The run ends completed after the last step, aborted when :meth:`Port.start` or
@@ -49,8 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from evoscen_contract.contract import KIND_ABORTED, KIND_COMPLETED, KIND_INTERRUPTED
-
-from .events import ExposureMonitor, run_end_event, step_events
+from evoscen_sim.danger.events import ExposureMonitor, run_end_event, step_events
 
 
 class RunAborted(RuntimeError):

@@ -1,17 +1,18 @@
 """The simulation core's parameter objects of a scenario configuration that are built from it.
 
-The ``vehicle`` and ``control`` sections *are* the core's :class:`~evoscen_sim.physics.vehicle.VehicleParams`
-and :class:`~evoscen_sim.physics.control.ControlParams` (one dataclass each, :mod:`evoscen_sim.config.config_schema`):
-``cfg.vehicle`` and ``cfg.control`` are passed as they are. The re-entry and traffic-window
-parameters are built here from their sections.
+The ``vehicle``, ``control`` and ``traffic`` sections *are* the core's
+:class:`~evoscen_sim.physics.vehicle.VehicleParams`, :class:`~evoscen_sim.physics.control.ControlParams` and
+:class:`~evoscen_sim.traffic.window.TrafficParams` (one dataclass each, :mod:`evoscen_sim.config.config_schema`):
+they are passed as they are, the traffic section once checked against the road here. The re-entry
+parameters are built here from their section.
 """
 
 from __future__ import annotations
 
 from evoscen_sim.errors import InputError
+from evoscen_sim.physics.world import ReentryParams
 
-from .traffic import TrafficParams, check_shift_points
-from .world import ReentryParams
+from .window import TrafficParams, check_shift_points
 
 
 def reentry_params_from_config(cfg) -> ReentryParams:
@@ -29,19 +30,12 @@ def traffic_params_from_config(cfg, road) -> TrafficParams | None:  # a RoadMode
     t = cfg.traffic
     if t.mode != "window":
         return None
-    mainline = sum(1 for k in range(road.num_lanes) if road.lane_start_s[k] <= 0.0)
+    mainline = len(road.mainline_lanes)
     for key in ("lane_density_per_km", "lane_speed_mean_mps", "lane_speed_sd_mps"):
         if len(getattr(t, key)) != mainline:
             raise InputError(f"traffic.{key}: expected one entry per mainline lane of the map ({mainline}), "
                              f"got {len(getattr(t, key))}")
-    params = TrafficParams(
-        behind_m=t.behind_m, ahead_m=t.ahead_m, exit_margin_m=t.exit_margin_m,
-        lane_density_per_km=tuple(t.lane_density_per_km), lane_speed_mps=tuple(zip(t.lane_speed_mean_mps, t.lane_speed_sd_mps)),
-        ramp_density_per_km=t.ramp_density_per_km, ramp_speed_mps=tuple(t.ramp_speed_mps),
-        insertion_headway_s=t.insertion_headway_s, insertion_decel_mps2=t.insertion_decel_mps2,
-        insertion_min_gap_m=t.insertion_min_gap_m, insertion_band_m=t.insertion_band_m, warmup_s=t.warmup_s,
-        shift_from_m=t.shift_from_m, shift_to_m=t.shift_to_m,
-    )
+    params = t  # the section is the window's TrafficParams (one declaration: config_schema)
     why = check_shift_points(road, params, cfg.sut.s_m)
     if why is not None:
         raise InputError(why)
