@@ -216,7 +216,11 @@ def main(argv: list[str] | None = None) -> int:
                 return EXIT_BAD_INPUT
             t0 = time.perf_counter()
             bag = root / f"{args.makeup}_{seed}"
-            summary = run_inprocess(cfg, bag_dir=bag, evaluate=True)
+            try:  # (a policy directory or a map is checked when the run builds its world and drivers)
+                summary = run_inprocess(cfg, bag_dir=bag, evaluate=True)
+            except InputError as exc:
+                print(f"error: {exc}", file=sys.stderr)
+                return EXIT_BAD_INPUT
             f = figures(read_run(bag), summary.report)
             runs.append(f)
             print(f"seed {seed}: {f['truck_slots']} trucks of {f['slots']}, "

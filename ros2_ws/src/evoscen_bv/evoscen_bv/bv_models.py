@@ -27,10 +27,24 @@ from .level0 import Level0Driver, level0_params_from_config
 from .truck import TruckParams
 
 SHIPPED = "shipped"
-SHIPPED_SETS = {SHIPPED: "", "v0.1.0": "v0.1.0"}
-"""``policy_dir`` keywords of the shipped policy sets: ``shipped`` = the current set (trained at
-the method's scale under the ``driver`` profile), ``v0.1.0`` = the first shipped set (0.1.0; 40k controller /
-20k decision steps, trained under the ``safety_net`` rules), kept selectable."""
+LC_CALIBRATED = "lc_calibrated"
+SHIPPED_SETS = {SHIPPED: "", "v0.6.0": "", LC_CALIBRATED: LC_CALIBRATED, "v0.1.0": "v0.1.0"}
+"""``policy_dir`` keywords of the shipped policy sets (directories under ``share/evoscen_bv/policies``):
+``v0.6.0`` = the set of 0.3–0.6 (trained at the method's scale under the ``driver`` profile: the top
+directory), ``lc_calibrated`` = its decision policies retrained on the same controller with the
+lane-change costs calibrated against highD's lane-change rate (docs/learned-bvs.md, "Lane-change
+cost calibrated against highD"), ``v0.1.0`` = the first shipped set (0.1.0; 40k controller / 20k
+decision steps, trained under the ``safety_net`` rules); ``shipped`` = the make-up's set
+(:func:`shipped_set`)."""
+
+
+def shipped_set(policy_dir: str, makeup: str) -> str:
+    """The shipped directory (relative to ``share/evoscen_bv/policies``) of a ``policy_dir`` keyword.
+    [choice] ``shipped`` under ``bvs.makeup: highd`` is ``lc_calibrated`` (the make-up whose lane-change
+    rates are measured against highD's), under ``uniform`` ``v0.6.0`` (its bags unchanged)."""
+    if policy_dir == SHIPPED:
+        return SHIPPED_SETS[LC_CALIBRATED] if makeup == "highd" else SHIPPED_SETS["v0.6.0"]
+    return SHIPPED_SETS[policy_dir]
 
 
 @dataclass(frozen=True)
@@ -40,9 +54,9 @@ class LearnedParams:
     policy_dir: str = text(SHIPPED)
     """Directory of trained policies (``controller.npz``, ``mutual.npz``, ``competitive.npz``,
     ``cooperative.npz``, ``training.yaml``), as written by ``scripts/train_bv.py --out``;
-    ``shipped`` (default) = the policies shipped in ``share/evoscen_bv/policies``, ``v0.1.0`` =
-    the first shipped set in ``policies/v0.1.0`` (:data:`SHIPPED_SETS`). A relative path is relative to
-    the working directory."""
+    ``shipped`` (default) = the shipped set of the make-up (``v0.6.0`` under ``bvs.makeup: uniform``,
+    ``lc_calibrated`` under ``highd``), or one shipped set by name: ``v0.6.0``, ``lc_calibrated``,
+    ``v0.1.0`` (:data:`SHIPPED_SETS`). A relative path is relative to the working directory."""
     on_missing: str = text("error", ("error", "level0"))
     """What to do when the policy directory lacks policies: ``error`` (one-line error, the
     default) or ``level0`` (drive every BV with the level-0 driver instead)."""
@@ -139,7 +153,7 @@ def _learned(vehicles, params: LearnedParams, config, rng):
     from .learned import LearnedDriver, load_policies, shipped_policy_dir
 
     if params.policy_dir in SHIPPED_SETS:
-        directory = shipped_policy_dir() / SHIPPED_SETS[params.policy_dir]
+        directory = shipped_policy_dir() / shipped_set(params.policy_dir, config.bvs.makeup)
     else:
         directory = Path(params.policy_dir)
     try:

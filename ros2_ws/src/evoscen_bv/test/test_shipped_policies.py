@@ -124,3 +124,24 @@ def test_source_tree_fallback_finds_the_policies():
     src = Path(__file__).resolve().parents[1]  # ros2_ws/src/evoscen_bv
     assert path == src / "policies" and path.is_dir()
     assert any(path.iterdir())
+
+
+def test_shipped_keyword_follows_the_makeup_and_every_set_is_selectable():
+    """``policy_dir: shipped`` is the make-up's set (docs/learned-bvs.md, "Lane-change cost calibrated
+    against highD"): ``uniform`` the 0.6.0 set, ``highd`` the calibrated one; each set by name too."""
+    from evoscen_bv.bv_models import shipped_set
+
+    assert shipped_set("shipped", "uniform") == "" and shipped_set("v0.6.0", "highd") == ""
+    assert shipped_set("shipped", "highd") == "lc_calibrated" == shipped_set("lc_calibrated", "uniform")
+    assert shipped_set("v0.1.0", "highd") == "v0.1.0"
+    calibrated = load_policies(shipped_policy_dir() / "lc_calibrated")[2].reward
+    before = load_policies(shipped_policy_dir())[2].reward
+    # one factor on the three lane-change costs, the other rewards as before
+    k = calibrated.lane_change_penalty / before.lane_change_penalty
+    assert k > 1.0
+    assert calibrated.comp_lane_change_penalty == pytest.approx(k * before.comp_lane_change_penalty)
+    assert calibrated.coop_lane_change_penalty == pytest.approx(k * before.coop_lane_change_penalty)
+    assert calibrated.request_penalty == before.request_penalty and calibrated.theta_left == before.theta_left
+    # the controller is the 0.6.0 set's, byte for byte
+    assert (shipped_policy_dir() / "lc_calibrated" / "controller.npz").read_bytes() == \
+        (shipped_policy_dir() / "controller.npz").read_bytes()
