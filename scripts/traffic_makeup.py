@@ -175,8 +175,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bench", type=int, default=0, metavar="ROUNDS",
                     help="also time this make-up against uniform: ROUNDS alternated rounds of 300 steps, best of each")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
-    ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
-                    help="scenario overrides, e.g. models.truck.threshold_mps2=0.4")
+    ap.add_argument("--set", action="extend", nargs="+", default=[], metavar="KEY=VALUE",
+                    help="scenario overrides, e.g. models.truck.threshold_mps2=0.4 (repeatable)")
     args = ap.parse_args(argv)
     if args.steps < 1 or args.bench < 0:
         print("error: --steps: expected an integer >= 1 (and --bench >= 0)", file=sys.stderr)

@@ -111,6 +111,9 @@ def test_highd_figures_are_the_shipped_aggregates():
     (["--steps", "0"], "--steps"),
     (["--bags", "no/such/bag"], "--bags"),
     (["--seeds", "1", "--steps", "5", "--set", "models.learned.policy_dir=no/such/dir"], "policy_dir"),
+    # a second --set adds to the first (it replaced it: the bad directory went unnoticed)
+    (["--seeds", "1", "--steps", "5", "--set", "models.learned.policy_dir=no/such/dir", "--set",
+      "models.highd.truck_share=0.2"], "policy_dir"),
 ])
 def test_bad_input_is_one_line(args, fragment):
     res = subprocess.run([sys.executable, "scripts/traffic_makeup.py", *args], cwd=REPO, capture_output=True,
