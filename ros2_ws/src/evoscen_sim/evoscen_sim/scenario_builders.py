@@ -67,15 +67,16 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
     traffic = traffic_params_from_config(cfg, road)
     makeup = bv_makeup(cfg)
     if traffic is not None and makeup is not None:
-        hp = highd_params(cfg)
+        entries = window_makeup(makeup, highd_params(cfg))  # (the spawn reads the same lane rules)
         initial = window_layout_makeup(
-            road, traffic, makeup, hp.truck_entry_lanes, cars_by_speed=hp.car_lanes == "by_speed", bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
+            road, traffic, makeup, entries.truck_entry_lanes, cars_by_speed=entries.cars_by_speed,
+            bv_policies=bv_policy_codes(cfg, rngs["spawn"]),
             sut_policy=POLICY_CODES["sut"], sut_lane=cfg.sut.lane, sut_s_m=cfg.sut.s_m,
             sut_speed_mps=cfg.sut.speed_mps, sut_length_m=vehicle.length_m, sut_width_m=vehicle.width_m,
             rng=rngs["spawn"])
         world = World(road, initial, vehicle=vehicle, control=cfg.control,
                       reentry=reentry_params_from_config(cfg), dt_s=cfg.dt_s, rng=rngs["world"], traffic=traffic,
-                      makeup=window_makeup(makeup, hp))
+                      makeup=entries)
         warm_up(world, cfg, int(round(traffic.warmup_s / cfg.dt_s)))
         return world
     if traffic is not None:
