@@ -3,8 +3,8 @@
 #   1. the engine: docker when its daemon answers, else podman (docker/setup-podman.sh: installs and
 #      configures it and makes the base image from the Debian mirror: no image registry needed)
 #   2. the images: test, runtime, user-sut, fiss-sut (the runtime image + the fiss plug-in)
-#   3. the end-to-end tests of the node graph inside the test image, no network: the lockstep graphs and the
-#      wire (IMAGE_E2E below; the whole suite ran natively just before; killed nodes, an external SUT
+#   3. end-to-end tests of the node graph inside the test image, no network: a lockstep graph (its bag and
+#      live report), a killed controller and the wire (IMAGE_E2E below; the whole suite ran natively just before; killed nodes, an external SUT
 #      and BV nodes in containers: stages 4-7);
 #      the unit tests ran natively on the same requirements.txt (docs/docker.md)
 #   4. a compose graph (one container per node, three BV containers: one per BV node of the default
@@ -43,7 +43,7 @@ out=$root/runs/ci-container; rm -rf "$out"; mkdir -p "$out"
 # [choice] the node-graph end-to-end tests, not all 240: the native job has just run every test on the same
 # requirements.txt; what the image changes is processes, DDS and the file system, which these exercise
 # (docs/docker.md, "CI in containers"); `make docker-test` runs the whole suite in the image
-IMAGE_E2E="tests/test_graph.py tests/test_wire.py"
+IMAGE_E2E="tests/test_graph.py::test_graph_run_completes tests/test_graph.py::test_graph_bag_equals_inprocess_bag tests/test_graph.py::test_live_report_equals_offline_and_inprocess tests/test_graph.py::test_killed_controller_aborts_cleanly tests/test_graph.py::test_killed_controller_bag_has_one_message_per_step tests/test_wire.py"
 stage "node-graph end-to-end tests in the test image"
 $ENGINE run --rm --network none --shm-size=256m localhost/evoscen-test:latest make test PYTEST_ARGS="-q -p no:cacheprovider -m e2e $IMAGE_E2E"
 
