@@ -256,7 +256,7 @@ def test_the_placement_kernel_equals_the_reference_per_lane(road) -> None:
             got = _place_in_lane(w.s, w.d, w.v, w.length, w.width, w.lane, w.target_lane, i, lane, edge, s_sut,
                                  v, v_floor, 2.4, p.insertion_band_m, p.insertion_min_gap_m, p.insertion_headway_s,
                                  p.insertion_decel_mps2, (p.insertion_decel_mps2 * p.insertion_headway_s) ** 2,
-                                 road.border_tables())
+                                 road.border_tables(), 0.0)
             assert (bool(got[0]), got[1], got[2]) == (want[0], want[1], want[2]), (seed, i, lane, edge)
             n_found += int(want[0])
             n_mid += int(want[0] and want[1] != edge)
@@ -264,10 +264,11 @@ def test_the_placement_kernel_equals_the_reference_per_lane(road) -> None:
     assert n_found >= 100 and n_mid >= 20 and n_lowered >= 20, (n_found, n_mid, n_lowered)
 
 
-def _args(w, i, lane, edge, v, v_floor, p=P):
+def _args(w, i, lane, edge, v, v_floor, p=P, v_raise=0.0):
     return (w.s, w.d, w.v, w.length, w.width, w.lane, w.target_lane, i, lane, edge, float(w.s[0]), v, v_floor,
             0.5 * w.vehicle.length_m, p.insertion_band_m, p.insertion_min_gap_m, p.insertion_headway_s,
-            p.insertion_decel_mps2, (p.insertion_decel_mps2 * p.insertion_headway_s) ** 2, w.road.border_tables())
+            p.insertion_decel_mps2, (p.insertion_decel_mps2 * p.insertion_headway_s) ** 2, w.road.border_tables(),
+            v_raise)
 
 
 def test_a_leader_at_a_known_gap_gives_the_krauss_speed(road) -> None:
@@ -301,6 +302,29 @@ def test_a_follower_that_could_not_follow_moves_the_entry_into_the_band(road) ->
     assert v == insertion_speed(30.0, w.s[3] - 1720.0 - 2.4 - 2.4, 30.0, P) and v == pytest.approx(12.7)
     # without the band only the edge is tried
     assert not _place_in_lane(*_args(w, 1, 1, edge, 30.0, 0.0, replace(P, insertion_band_m=0.0)))[0]
+
+
+def test_a_front_entry_raised_to_the_lowest_speed_its_follower_can_follow(road) -> None:
+    # highd's front_entry_speed raise. A vehicle wishing 22 m/s at the front edge (1,750 m), a follower
+    # at 32 m/s 60 m behind it (bumper to bumper), no band: at 22 m/s the follower needs
+    # 2.5 + 32 + (32² − 22²) / 9 = 94.5 m, so it does not enter; raised, the lowest speed the follower
+    # can follow at 60 m: sqrt(32² − 9 (60 − 2.5 − 32)) = sqrt(794.5) = 28.19 m/s, allowed up to the SUT's 33
+    edge = 1750.0
+    narrow = replace(P, insertion_band_m=0.0)
+    w = _world(road, [1500.0, 1200.0, edge - 60.0 - 4.8], [2, 3, 1], [33.0, 27.0, 32.0], P)
+    assert required_gap(32.0, 22.0, P) == pytest.approx(94.5)
+    assert not _place_in_lane(*_args(w, 1, 1, edge, 22.0, 0.0, narrow))[0]  # 0: never raised
+    found, s_new, v = _place_in_lane(*_args(w, 1, 1, edge, 22.0, 0.0, narrow, v_raise=33.0))
+    assert found and s_new == edge and v == pytest.approx(math.sqrt(794.5))
+    assert required_gap(32.0, v, P) == pytest.approx(60.0)
+    assert not _place_in_lane(*_args(w, 1, 1, edge, 22.0, 0.0, narrow, v_raise=28.0))[0]  # 28.19 > the cap
+    # a leader 40 m beyond the edge at 25 m/s allows at most insertion_speed(33, 40, 25) = 26.85 < 28.19: no place
+    w = _world(road, [1500.0, 1200.0, edge - 60.0 - 4.8, edge + 44.8], [2, 3, 1, 1], [33.0, 27.0, 32.0, 25.0], P)
+    assert insertion_speed(33.0, 40.0, 25.0, P) == pytest.approx(-4.5 + math.sqrt(4.5 ** 2 + 25.0 ** 2 + 9.0 * 37.5))
+    assert not _place_in_lane(*_args(w, 1, 1, edge, 22.0, 0.0, narrow, v_raise=33.0))[0]
+    # a follower too close for any leader speed (gap < g0 + v tau = 34.5 m): never raised into it
+    w = _world(road, [1500.0, 1200.0, edge - 30.0 - 4.8], [2, 3, 1], [33.0, 27.0, 32.0], P)
+    assert not _place_in_lane(*_args(w, 1, 1, edge, 22.0, 0.0, narrow, v_raise=33.0))[0]
 
 
 def test_runs_with_the_compiled_search_equal_the_reference_step_by_step(road) -> None:

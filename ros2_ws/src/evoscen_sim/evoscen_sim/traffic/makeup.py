@@ -87,6 +87,17 @@ class HighdMakeupParams:
     are sorted by speed (drivers keep right unless overtaking), and with ``by_density`` fast cars
     entered behind slow ones and spent 42 % of their time held up below their desired speed
     (docs/bv-profiles.md, "Where the cars' speed goes")."""
+    front_entry_speed: str = text("raise", ("raise", "wish"))
+    """The speed of a vehicle entering at the window's front edge (slower than the SUT: traffic it will catch
+    up with). ``wish``: its desired speed, lowered if its leader needs it (the make-up's first form); where
+    the vehicle behind could not follow it safely, it does not enter and tries again later. ``raise``: in
+    that case, the lowest speed the vehicle behind can follow (safe-insertion rule), if at most the SUT's
+    speed and what its leader allows; it then slows to its wish as its driver does. [choice] raise: the
+    mirror of the rear edge's rule, which lowers an entry's speed for its leader. Under ``wish`` a truck
+    (lane II only, ~22 m/s) needs ~100 m behind it of a car at 32 m/s; with lane II full of faster cars and
+    the SUT, trucks spent 61 % of their time outside the window on 2 of 6 seeds and the SUT's
+    surroundings thinned to 3.8 BVs within ±100 m in a 30-s window (docs/bv-profiles.md, "Entries at the
+    front edge")."""
     truck_ramp_entries: bool = flag(False)
     """Whether trucks also enter on the merge lane. [choice] false: the truck driver has no gap-seeking
     merge (the learned cars' ``merge_seek``), and trucks that entered there stopped near its end and
@@ -164,6 +175,9 @@ class WindowMakeup:
     ``truck_ramp_entries``)."""
     truck_entry_lanes: int
     truck_ramp_entries: bool = False
+    raise_front_entries: bool = False
+    """A vehicle entering at the window's front edge may be faster than its wish, up to the SUT's speed, where
+    its follower could not follow it at its wish (``front_entry_speed: raise``)."""
     cars_by_speed: bool = False
     """Cars enter the lane whose traffic moves nearest their desired speed (``car_lanes: by_speed``)."""
 
@@ -172,4 +186,5 @@ def window_makeup(m: Makeup, p: HighdMakeupParams) -> WindowMakeup:
     """:class:`WindowMakeup` of the BV slots of ``m`` behind the SUT's row."""
     return WindowMakeup(wish_mps=np.concatenate([[np.nan], m.desired_speed_mps]),
                         truck=np.concatenate([[False], m.truck]), truck_entry_lanes=int(p.truck_entry_lanes),
-                        truck_ramp_entries=bool(p.truck_ramp_entries), cars_by_speed=p.car_lanes == "by_speed")
+                        truck_ramp_entries=bool(p.truck_ramp_entries),
+                        raise_front_entries=p.front_entry_speed == "raise", cars_by_speed=p.car_lanes == "by_speed")

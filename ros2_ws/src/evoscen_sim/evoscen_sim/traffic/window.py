@@ -225,9 +225,11 @@ class TrafficWindow:
                 s_new = s_sut + p.ahead_m
             else:
                 s_new = s_sut - p.behind_m
+            # highd, front_entry_speed raise: a vehicle entering ahead may go as fast as the SUT to let its follower follow
+            v_raise = v_sut if mk is not None and mk.raise_front_entries and s_new > s_sut else 0.0
             found, s_try, v_try = _place_in_lane(
                 world.s, world.d, world.v, world.length, world.width, world.lane, world.target_lane, i, lane,
-                s_new, s_sut, v, v_floor, half, band, g0, tau, b, b_tau_sq, tables)
+                s_new, s_sut, v, v_floor, half, band, g0, tau, b, b_tau_sq, tables, v_raise)
             if found:
                 world._place(i, lane, s_try, v_try)
                 return (i, int(lane), float(s_try))
@@ -319,8 +321,20 @@ def _insertion_speed(v_wish, gap_m, v_leader, g0, tau, b, b_tau_sq):
 
 
 @kernel
+def _follow_speed(v_back, gap_m, g0, tau, b):
+    """The lowest speed of a leader ``gap_m`` ahead of a vehicle at ``v_back`` that it can follow
+    (:func:`_required_gap` <= gap): ``sqrt(max(0, v_back² − 2b(gap − g0 − v_back·τ)))``; +inf when even a
+    leader as fast as it is too close (gap < g0 + v_back·τ)."""
+    slack = gap_m - g0 - v_back * tau
+    if slack < 0.0:
+        return np.inf
+    x = v_back * v_back - 2.0 * b * slack
+    return math.sqrt(x) if x > 0.0 else 0.0
+
+
+@kernel
 def _place_in_lane(s, d, v, length, width, lane_of, target_lane, i, lane, s_edge, s_sut, v_wish, v_floor,
-                   half, band, g0, tau, b, b_tau_sq, tables):
+                   half, band, g0, tau, b, b_tau_sq, tables, v_raise):
     """Where vehicle ``i`` (half length ``half``) drawn at ``v_wish`` may enter ``lane`` from the window's
     edge ``s_edge`` (module docstring, entries; docs/method.md §1): ``(found, s, speed)``.
 
@@ -330,6 +344,10 @@ def _place_in_lane(s, d, v, length, width, lane_of, target_lane, i, lane, s_edge
     ``v_floor``, and the follower can follow (:func:`required_gap`). Leader and follower: the
     nearest vehicles ahead (``s`` >= the position) and behind whose lane or target lane is ``lane``
     or whose body reaches across the lane's borders there; of equals the lowest index.
+
+    ``v_raise`` > the speed found: where the follower could not follow, the speed is raised to the lowest
+    one it can follow (:func:`_follow_speed`) if that is at most ``v_raise`` and what the leader allows
+    at ``v_raise``; 0: never raised (the uniform make-up; docs/bv-profiles.md, "Entries at the front edge").
     """
     n = s.shape[0]
     s_mid = s_edge
@@ -384,13 +402,17 @@ def _place_in_lane(s, d, v, length, width, lane_of, target_lane, i, lane, s_edge
             elif ds < 0.0 and (follower < 0 or s[j] > s[follower]):
                 follower = j
         v_try = v_wish
+        v_top = v_raise
         if leader >= 0:
             gap = s[leader] - s_try - 0.5 * length[leader] - half
             v_try = _insertion_speed(v_try, gap, v[leader], g0, tau, b, b_tau_sq)
+            if v_raise > v_try:
+                v_top = _insertion_speed(v_raise, gap, v[leader], g0, tau, b, b_tau_sq)
         if follower >= 0:
             gap = s_try - s[follower] - 0.5 * length[follower] - half
             if gap < _required_gap(v[follower], v_try, g0, tau, b):
-                v_try = -np.inf
+                v_need = _follow_speed(v[follower], gap, g0, tau, b) if v_raise > v_try else np.inf
+                v_try = v_need if v_try < v_need <= v_top else -np.inf
         if v_try >= v_floor:
             return True, s_try, v_try
     return False, 0.0, 0.0
