@@ -1,4 +1,5 @@
-"""``scripts/bench.py``, ``scripts/profile_episodes.py``, ``scripts/sut_step_cost.py``: bad arguments are one-line errors before anything runs.
+"""``scripts/bench.py``, ``scripts/profile_episodes.py``, ``scripts/sut_step_cost.py``,
+``scripts/profile_entries.py``: bad arguments are one-line errors before anything runs.
 
 The benchmark's figures are not asserted (shared, noisy machines); its argument checks are.
 """
@@ -91,3 +92,16 @@ def test_sut_step_cost_bad_arguments_are_one_line(args, expected):
     lines = [line for line in res.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith(expected), res.stderr
     assert "CPU us per step" not in res.stdout
+
+
+@pytest.mark.parametrize("args, expected", [
+    (("--blocks", "0"), "error: --blocks = '0': expected an integer >= 1"),
+    (("--seed", "x"), "error: --seed = 'x': expected an integer >= 0"),
+    (("--driver", "sumo"), "error: --driver 'sumo': expected level0 or learned"),
+])
+def test_profile_entries_bad_arguments_are_one_line(args, expected):
+    res = subprocess.run([sys.executable, "scripts/profile_entries.py", *args], cwd=REPO, capture_output=True,
+                         text=True, timeout=60, check=False)
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert [line for line in res.stderr.splitlines() if line.strip()] == [expected], res.stderr
+    assert "entry tries per step" not in res.stdout

@@ -115,9 +115,9 @@ class TrafficWindow:
 
     def __init__(self, world, params: TrafficParams, sut_index: int, makeup=None) -> None:
         road = world.road
-        self.p = params
         self.sut = int(sut_index)
         self.mainline = road.mainline_lanes
+        self.p = params
         self.makeup = makeup
         """The highd make-up's entries (:class:`evoscen_sim.traffic.makeup.WindowMakeup`); None: uniform."""
         self._retry_step = np.zeros(world.n, dtype=np.int64) if makeup is not None else None
@@ -132,6 +132,25 @@ class TrafficWindow:
                 f"{len(params.lane_speed_mps)}")
         self.has_ramp = road.has_merge_lane
         self.shift_m = params.shift_from_m - params.shift_to_m
+        self._tables = road.border_tables()
+        self._ramp_start_s = float(road.lane_start_s[MERGE_LANE]) if self.has_ramp else 0.0
+        self._ramp_end_s = float(road.lane_end_s[MERGE_LANE]) if self.has_ramp else 0.0
+        self._num_lanes = road.num_lanes
+
+    @property
+    def p(self) -> TrafficParams:
+        """The window's parameters (set: what the entries read of them is worked out once, here)."""
+        return self._p
+
+    @p.setter
+    def p(self, params: TrafficParams) -> None:
+        self._p = params
+        self._lane_rows = tuple(zip(self.mainline, params.lane_density_per_km, params.lane_speed_mps))
+        """(lane, target density, (mean, sd) of entry speed) of each mainline lane, rightmost first."""
+        self._consts = (float(params.insertion_band_m), float(params.insertion_min_gap_m),
+                        float(params.insertion_headway_s), float(params.insertion_decel_mps2),
+                        float((params.insertion_decel_mps2 * params.insertion_headway_s) ** 2))
+        """The safe-insertion rule's band, g0, τ, b and (b·τ)² (:func:`insertion_speed`)."""
 
     # ------------------------------------------------------------------ one step
     def hold(self, world, s_hold: float) -> None:
@@ -169,21 +188,19 @@ class TrafficWindow:
         """(relative deficit, lane, mean speed, sd) of every lane that may take a vehicle, most wanted first
         (of the lanes in ``allowed`` only, when given: a truck's)."""
         p = self.p
-        road = world.road
         lo, hi = s_sut - p.behind_m, s_sut + p.ahead_m
         counts = _lane_counts(world.s, world.lane, world.target_lane, world.lane_change, self.sut, lo, hi,
-                              road.num_lanes)
+                              self._num_lanes)
         rows = []
         length_km = (hi - lo) / 1000.0
-        for j, lane in enumerate(self.mainline):
-            target = p.lane_density_per_km[j] * length_km
+        for lane, density, (mean, sd) in self._lane_rows:
+            target = density * length_km
             if target <= 0.0:
                 continue
             count = int(counts[lane])
-            mean, sd = p.lane_speed_mps[j]
             rows.append(((count - target) / target, lane, mean, sd))
         if self.has_ramp and p.ramp_density_per_km > 0.0:
-            start, end = float(road.lane_start_s[MERGE_LANE]), float(road.lane_end_s[MERGE_LANE])
+            start, end = self._ramp_start_s, self._ramp_end_s
             target = p.ramp_density_per_km * (min(end, hi) - start) / 1000.0
             if lo <= start <= hi and target > 0.0:  # (the start exactly at the front edge: no room yet)
                 count = int(counts[MERGE_LANE])
@@ -195,45 +212,53 @@ class TrafficWindow:
 
     def _enter(self, world, i: int) -> tuple[int, int, float] | None:
         p = self.p
-        road = world.road
         s_sut, v_sut = float(world.s[self.sut]), float(world.v[self.sut])
         half = 0.5 * world.length[i]  # (uniform: the vehicle section's length, as every vehicle's)
-        tables = road.border_tables()
-        b_tau_sq = float((p.insertion_decel_mps2 * p.insertion_headway_s) ** 2)  # as insertion_speed
-        band, g0 = float(p.insertion_band_m), float(p.insertion_min_gap_m)
-        tau, b = float(p.insertion_headway_s), float(p.insertion_decel_mps2)
         mk = self.makeup
         allowed = self.truck_lanes if mk is not None and mk.truck[i] else None
         rows = self._targets(world, s_sut, allowed)
         if mk is not None and mk.cars_by_speed and not mk.truck[i]:
             rows = _by_speed(rows, float(mk.wish_mps[i]), _lane_mean_speeds(
                 world.s, world.v, world.lane, world.target_lane, world.lane_change,
-                s_sut - p.behind_m, s_sut + p.ahead_m, road.num_lanes))
-        for _, lane, mean, sd in rows:
-            if mk is None:
-                v = float(_np_clip(world.rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
-                v_floor = max(0.0, mean - 2.0 * sd)
+                s_sut - p.behind_m, s_sut + p.ahead_m, world.road.num_lanes))
+        n = len(rows)
+        rng = world.rng
+        state = rng.bit_generator.state if mk is None and n > 1 else None
+        v_try, v_floor, s_new, v_raise = [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n
+        for k, (_, lane, mean, sd) in enumerate(rows):
+            if mk is None:  # every lane's draw made here: the kernel tries them in order (one draw per lane tried)
+                v = float(_np_clip(rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
+                v_floor[k] = max(0.0, mean - 2.0 * sd)
             else:  # highd: the slot's own desired speed, lowered to any safe one; trucks on the right
                 # (docs/bv-profiles.md, "Traffic make-up")
                 v = float(mk.wish_mps[i])
                 if lane == MERGE_LANE:  # from the on-ramp: at most the ramp's mean speed
                     v = min(v, float(mean))
-                v_floor = 0.0  # any safe speed up to the wish (SUMO's departSpeed="max")
+                # v_floor 0: any safe speed up to the wish (SUMO's departSpeed="max")
+            v_try[k] = v
             if lane == MERGE_LANE:
-                s_new = float(road.lane_start_s[MERGE_LANE]) + half
+                s_new[k] = self._ramp_start_s + half
             elif v < v_sut:
-                s_new = s_sut + p.ahead_m
+                s_new[k] = s_sut + p.ahead_m
             else:
-                s_new = s_sut - p.behind_m
-            # highd, front_entry_speed raise: a vehicle entering ahead may go as fast as the SUT to let its follower follow
-            v_raise = v_sut if mk is not None and mk.raise_front_entries and s_new > s_sut else 0.0
-            found, s_try, v_try = _place_in_lane(
-                world.s, world.d, world.v, world.length, world.width, world.lane, world.target_lane, i, lane,
-                s_new, s_sut, v, v_floor, half, band, g0, tau, b, b_tau_sq, tables, v_raise)
-            if found:
-                world._place(i, lane, s_try, v_try)
-                return (i, int(lane), float(s_try))
-        return None
+                s_new[k] = s_sut - p.behind_m
+            # highd, front_entry_speed raise: a vehicle entering ahead may go as fast as the SUT for its follower
+            if mk is not None and mk.raise_front_entries and s_new[k] > s_sut:
+                v_raise[k] = v_sut
+        c = self._consts
+        k, s_at, v_at = _place_first(
+            world.s, world.d, world.v, world.length, world.width, world.lane, world.target_lane, i,
+            np.array([r[1] for r in rows], dtype=np.int64), np.array(s_new), s_sut, np.array(v_try),
+            np.array(v_floor), half, c[0], c[1], c[2], c[3], c[4], self._tables, np.array(v_raise))
+        if state is not None and 0 <= k < n - 1:  # placed before the last lane: only k + 1 draws were due
+            rng.bit_generator.state = state
+            for _, _, mean, sd in rows[:k + 1]:
+                rng.normal(mean, sd)
+        if k < 0:
+            return None
+        lane = rows[k][1]
+        world._place(i, lane, s_at, v_at)
+        return (i, int(lane), float(s_at))
 
 
 def _by_speed(rows: list, wish: float, lane_speed: np.ndarray) -> list:
@@ -416,6 +441,20 @@ def _place_in_lane(s, d, v, length, width, lane_of, target_lane, i, lane, s_edge
         if v_try >= v_floor:
             return True, s_try, v_try
     return False, 0.0, 0.0
+
+
+@kernel
+def _place_first(s, d, v, length, width, lane_of, target_lane, i, lanes, s_edges, s_sut, v_wish, v_floor, half, band,
+                 g0, tau, b, b_tau_sq, tables, v_raise):
+    """:func:`_place_in_lane` for vehicle ``i`` in ``lanes[k]`` from ``s_edges[k]`` at ``v_wish[k]``, ``v_floor[k]``,
+    ``v_raise[k]``, k = 0, 1, … until a lane has a place: ``(k, s, speed)``; ``(-1, 0, 0)`` when none has."""
+    for k in range(lanes.shape[0]):
+        found, s_try, v_try = _place_in_lane(s, d, v, length, width, lane_of, target_lane, i, lanes[k], s_edges[k],
+                                             s_sut, v_wish[k], v_floor[k], half, band, g0, tau, b, b_tau_sq, tables,
+                                             v_raise[k])
+        if found:
+            return k, s_try, v_try
+    return -1, 0.0, 0.0
 
 
 def common_shift(prev_s: np.ndarray, s: np.ndarray) -> float:
