@@ -68,40 +68,24 @@ def test_out_of_range_experiment_counts_are_refused(flag, value):
     assert lines == [f"error: {flag} = {value}: expected a positive integer"], res.stderr
 
 
-@pytest.mark.parametrize("args, expected", [
-    (("--scenario", "sumo"), "error: --scenario 'sumo': expected one of evolving, level0, nilsson, mobil"),
-    (("--mutants", "stale,nosuch"), "error: --mutants: unknown mutant 'nosuch': expected 'all' or names from "),
+@pytest.mark.parametrize("script, args, expected, output", [
+    ("profile_episodes.py", ("--scenario", "sumo"),
+     "error: --scenario 'sumo': expected one of evolving, level0, nilsson, mobil", "ms per episode"),
+    ("profile_episodes.py", ("--mutants", "stale,nosuch"),
+     "error: --mutants: unknown mutant 'nosuch': expected 'all' or names from ", "ms per episode"),
+    ("sut_step_cost.py", ("--repeats", "0"), "error: --repeats = '0': expected an integer >= 1", "CPU us per step"),
+    ("sut_step_cost.py", ("--mutants", "stale,nosuch"),
+     "error: --mutants: unknown mutant 'nosuch': expected 'all' or names from ", "CPU us per step"),
+    ("profile_entries.py", ("--blocks", "0"), "error: --blocks = '0': expected an integer >= 1", "tries per step"),
+    ("profile_entries.py", ("--seed", "x"), "error: --seed = 'x': expected an integer >= 0", "tries per step"),
+    ("profile_entries.py", ("--driver", "sumo"), "error: --driver 'sumo': expected level0 or learned",
+     "tries per step"),
 ])
-def test_profile_episodes_bad_arguments_are_one_line(args, expected):
-    res = subprocess.run([sys.executable, "scripts/profile_episodes.py", *args], cwd=REPO, capture_output=True,
+def test_profiling_scripts_bad_arguments_are_one_line(script, args, expected, output):
+    # one line that starts with the expected text, status 2, and nothing measured
+    res = subprocess.run([sys.executable, f"scripts/{script}", *args], cwd=REPO, capture_output=True,
                          text=True, timeout=60, check=False)
     assert res.returncode == 2, res.stdout + res.stderr
     lines = [line for line in res.stderr.splitlines() if line.strip()]
     assert len(lines) == 1 and lines[0].startswith(expected), res.stderr
-    assert "ms per episode" not in res.stdout
-
-
-@pytest.mark.parametrize("args, expected", [
-    (("--repeats", "0"), "error: --repeats = '0': expected an integer >= 1"),
-    (("--mutants", "stale,nosuch"), "error: --mutants: unknown mutant 'nosuch': expected 'all' or names from "),
-])
-def test_sut_step_cost_bad_arguments_are_one_line(args, expected):
-    res = subprocess.run([sys.executable, "scripts/sut_step_cost.py", *args], cwd=REPO, capture_output=True,
-                         text=True, timeout=60, check=False)
-    assert res.returncode == 2, res.stdout + res.stderr
-    lines = [line for line in res.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1 and lines[0].startswith(expected), res.stderr
-    assert "CPU us per step" not in res.stdout
-
-
-@pytest.mark.parametrize("args, expected", [
-    (("--blocks", "0"), "error: --blocks = '0': expected an integer >= 1"),
-    (("--seed", "x"), "error: --seed = 'x': expected an integer >= 0"),
-    (("--driver", "sumo"), "error: --driver 'sumo': expected level0 or learned"),
-])
-def test_profile_entries_bad_arguments_are_one_line(args, expected):
-    res = subprocess.run([sys.executable, "scripts/profile_entries.py", *args], cwd=REPO, capture_output=True,
-                         text=True, timeout=60, check=False)
-    assert res.returncode == 2, res.stdout + res.stderr
-    assert [line for line in res.stderr.splitlines() if line.strip()] == [expected], res.stderr
-    assert "entry tries per step" not in res.stdout
+    assert output not in res.stdout
