@@ -29,8 +29,11 @@ After every step of the world (:meth:`evoscen_sim.physics.world.World.step`, ste
    one that reaches the road's end waits at the road's start.
 
 Random draws come from the world's seeded generator (docs/architecture.md: random streams): one
-``normal`` per lane tried, in Python. The search for a place in a lane (positions, lane existence,
-neighbours, safe speed) is one compiled call, :func:`_place_in_lane` (:mod:`evoscen_sim.jit`), whose
+``normal`` per lane tried, in Python. The search for a place (positions, lane existence, neighbours,
+safe speed) is one compiled call for all the lanes of an entry, :func:`_place_first` over
+:func:`_place_in_lane` (:mod:`evoscen_sim.jit`); the draws of every lane are made before it, and the
+generator's state is put back and only the tried lanes' draws made again when a lane before the last
+takes the vehicle, so the stream is that of one draw per lane tried (docs/performance.md). Its
 :func:`_insertion_speed` and :func:`_required_gap` are also what :func:`insertion_speed` and
 :func:`required_gap` compute (one definition each).
 """
