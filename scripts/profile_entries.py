@@ -34,20 +34,18 @@ def main(argv: list[str] | None = None) -> int:
         args = ap.parse_args(argv)
     except SystemExit as exc:
         return EXIT_OK if exc.code == 0 else EXIT_BAD_INPUT
-    values = {}
-    for name in ("seed", "blocks", "block_steps", "repeats"):
-        text, lo = getattr(args, name), 0 if name == "seed" else 1
-        try:
-            values[name] = int(text)
-        except ValueError:
-            values[name] = None
-        if values[name] is None or values[name] < lo:
-            print(f"error: --{name.replace('_', '-')} = {text!r}: expected an integer >= {lo}", file=sys.stderr)
-            return EXIT_BAD_INPUT
-    if args.driver not in ("level0", "learned"):
-        print(f"error: --driver {args.driver!r}: expected level0 or learned", file=sys.stderr)
+    from evoscen_bringup.experiments import positive_int
+    from evoscen_sim.errors import InputError
+
+    try:
+        for name in ("seed", "blocks", "block_steps", "repeats"):
+            setattr(args, name, positive_int(f"--{name.replace('_', '-')}", getattr(args, name),
+                                             0 if name == "seed" else 1))
+        if args.driver not in ("level0", "learned"):
+            raise InputError(f"--driver {args.driver!r}: expected level0 or learned")
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    args.__dict__.update(values)
 
     import numpy as np
     from evoscen_bringup.scenario import build_scenario
