@@ -22,6 +22,13 @@ in who drives which vehicle.
   The run-time rules of every learned driver here (ego and traffic: reaction time, bounded
   braking, emergency brake, cut-in gap) are those of the config's ``env.profile``
   (docs/bv-profiles.md), so the policies learn with the driver they will run with.
+* ``env.makeup: highd`` (docs/learned-bvs.md, "Trained among the highD make-up"): the decision
+  environments carry the traffic the policies meet under ``bvs.makeup: highd`` — the traffic window
+  (with its warm-up) around a SUT slot driven as traffic, trucks driven by the truck driver, every
+  BV car with its drawn highD desired speed, uncapped, and the cars' approach braking (the ego's
+  too). The ego is a car drawn among those at least :data:`EGO_EDGE_M` inside the window's edges;
+  its episode ends (truncated, not terminal) when the window takes it out, and that last
+  decision's next drivable area is the one it chose (it is elsewhere after a re-entry).
 
 Every episode is built from its own seed (the pipeline derives it from the stage seed and
 the episode index), so an episode can be replayed alone and a resumed run continues
@@ -56,6 +63,8 @@ from .td3 import NumpyActor
 from .training_config import TrainingConfig
 
 MUTUAL_CODE = 1
+EGO_EDGE_M = 50.0
+"""``env.makeup: highd``: the ego is drawn among the cars at least this far inside the window's edges."""
 
 
 class CarFollowingEnv:
@@ -165,6 +174,8 @@ class DecisionEnv:
         """The run-time rule profile every learned driver here drives with (docs/bv-profiles.md)."""
 
     def reset(self, seed: int) -> np.ndarray:
+        if self.config.env.makeup == "highd":
+            return self._reset_makeup(seed)
         from evoscen_sim.scenario_builders import build_world
 
         from evoscen_bv.level0 import Level0Driver, level0_params_from_config
@@ -194,12 +205,75 @@ class DecisionEnv:
                                          rng, vp)
         self.ego_driver = LearnedDriver(np.array([self.ego]), self.controller, {}, self.config, rng, vp)
         self.others = others
+        self.ego_bound = None
+        return self._start()
+
+    def _start(self) -> np.ndarray:
         self.decisions = 0
         self.lane_changes = 0
         self.collisions = 0
+        self.left = False
         self._advance_to_decision(np.int64(0))
         self.obs = self._observe()
         return self.obs
+
+    def _reset_makeup(self, seed: int) -> np.ndarray:
+        """``env.makeup: highd`` (module docstring): the traffic window with the highD make-up around a SUT
+        slot driven as traffic; the ego a car of the window."""
+        import evoscen_bv.bv_models  # noqa: F401  (registers the make-up's driver, used by the warm-up)
+        from evoscen_sim.scenario_builders import build_world, bv_makeup
+
+        from evoscen_bv.level0 import Level0Driver, level0_params_from_config
+
+        from .truck import MakeupDriver, TruckDriver, TruckParams
+
+        rng = np.random.default_rng(seed)
+        n_bv = self.config.env.bv_count
+        cfg = self._config_from_dict({
+            "seed": int(rng.integers(0, 2**31 - 1)),
+            "bvs": {"count": n_bv, "driver": "level0", "makeup": "highd"},
+            "sut": {"lane": int(rng.integers(1, 5))},
+            "traffic": {"mode": "window"},
+        }, source="<training environment>")
+        world = build_world(cfg, self.road)  # (the window's warm-up included: traffic that has settled)
+        self.world = world
+        makeup = bv_makeup(cfg)
+        truck_of = np.zeros(world.n, dtype=bool)  # by world index: the SUT (0) is a car
+        truck_of[1:] = makeup.truck
+        desired = np.full(world.n, np.nan)
+        desired[1:] = makeup.desired_speed_mps
+        cars = np.flatnonzero(~truck_of[1:]) + 1
+        # [choice] the ego is a car at least EGO_EDGE_M inside the window's edges (where the SUT's traffic
+        # is; one at an edge, or outside waiting for a place, would leave at once); any car if none is
+        p = world.window.p
+        rel = world.s[cars] - world.s[0]
+        inner = cars[(rel >= -p.behind_m + EGO_EDGE_M) & (rel <= p.ahead_m - EGO_EDGE_M)]
+        pool = inner if inner.size else cars
+        self.ego = int(pool[rng.integers(0, pool.size)])
+        others = np.array([i for i in range(world.n) if i != self.ego], dtype=np.int64)
+        vp = cfg.vehicle
+        world.policy[:] = MUTUAL_CODE if self.frozen_policy is not None else 0
+        car_others = others[~truck_of[others]]
+        if self.frozen_policy is None:
+            car_driver = Level0Driver(car_others, level0_params_from_config(cfg), rng, vp)
+        else:
+            car_driver = LearnedDriver(car_others, self.controller, {MUTUAL_CODE: self.frozen_policy}, self.config,
+                                       rng, vp)
+        # BV cars take their drawn wishes, uncapped; the SUT slot keeps its driver's draw (a car near the limit)
+        bv_car = car_others > 0
+        car_driver.desired_speed_mps[bv_car] = desired[car_others[bv_car]]
+        car_driver.speed_cap = False
+        truck_params = cfg.models.get("truck") or TruckParams()
+        trucks = TruckDriver(others[truck_of[others]], truck_params, desired[others[truck_of[others]]], vp)
+        self.traffic = MakeupDriver(others, truck_of[others], car_driver, trucks)
+        self.ego_driver = LearnedDriver(np.array([self.ego]), self.controller, {}, self.config, rng, vp)
+        self.ego_driver.desired_speed_mps[:] = desired[self.ego]
+        self.ego_driver.speed_cap = False
+        # the ego's throttle takes the cars' approach braking, as every car of the make-up at run time
+        self.ego_bound = MakeupDriver(np.array([self.ego]), np.zeros(1, dtype=bool), self.ego_driver,
+                                      TruckDriver(np.zeros(0, dtype=np.int64), truck_params, np.zeros(0), vp))
+        self.others = others
+        return self._start()
 
     def _observe(self) -> np.ndarray:
         return observation_grid(self.world, np.array([self.ego]), self.config.grid).reshape(OBS_DIM)
@@ -219,14 +293,28 @@ class DecisionEnv:
             t_o, r_o = self.traffic.act(w)
             throttle[self.others] = t_o
             request[self.others] = r_o
-            throttle[self.ego] = self.ego_driver.throttle(w)[0]
+            ego_throttle = self.ego_driver.throttle(w)
+            if self.ego_bound is not None:
+                ego_throttle = self.ego_bound.approach_bound(w, np.asarray(ego_throttle, dtype=float))
+            throttle[self.ego] = ego_throttle[0]
             request[self.ego] = request_ego
             request_ego = 0
             result = w.step(throttle, request)
             if any(self.ego in pair for pair in result.collisions):
                 collided = True
                 break
+            if w.window is not None and self._ego_left(result):
+                self.left = True  # the window took the ego out (or re-entered it elsewhere): the episode ends
+                break
         return collided
+
+    def _ego_left(self, result) -> bool:
+        """Whether the ego left the traffic window in the step of ``result`` (``env.makeup: highd``)."""
+        if any(r[0] == self.ego for r in result.reentries):
+            return True
+        p = self.world.window.p
+        rel = float(self.world.s[self.ego] - self.world.s[0])
+        return rel > p.ahead_m + p.exit_margin_m or rel < -(p.behind_m + p.exit_margin_m)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """One decision: (next obs, reward, terminal, truncated, info)."""
@@ -243,12 +331,13 @@ class DecisionEnv:
         self.decisions += 1
         self.lane_changes += int(executed[0] != 0)
         self.collisions += int(collided)
-        o_c_next = drivable_area(w, ego, np.zeros(1, dtype=np.int64), p.front_view_m)
+        # an ego the window took out is somewhere else now: its lane's area then is the one it chose
+        o_c_next = o_t if self.left else drivable_area(w, ego, np.zeros(1, dtype=np.int64), p.front_view_m)
         r_i = float(individual_reward(o_c, o_t, theta, requested, executed, o_c_next, p, self.kind)[0])
         space, brake, speed = social_terms(w, self.ego, p)
         reward = r_i + social_reward(self.kind, space, brake, speed, p)
         self.obs = self._observe()
-        truncated = self.decisions >= self.config.env.decision_episode_decisions
+        truncated = self.decisions >= self.config.env.decision_episode_decisions or (self.left and not collided)
         return self.obs, reward, collided, truncated, {
             "requested": int(requested[0]), "executed": int(executed[0]), "collision": collided,
             "speed": float(w.v[self.ego]),

@@ -16,11 +16,12 @@ are the kernels' own, so each field's check follows from the type of its default
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from evoscen_sim.config.config_checks import _Bool, _Float, _Int, _Range, _section, _Str
+from evoscen_sim.config.config_checks import _Bool, _check, _Float, _Int, _Range, _section, _Str
+from evoscen_sim.config.config_schema import MAKEUPS
 from evoscen_sim.config.config_load import Context, build, parse_yaml
 from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, read_text_limited
 from evoscen_sim.share import share_candidates
@@ -62,6 +63,12 @@ class EnvParams:
     """The BV run-time rule profile of the decision environments' drivers (``driver`` or
     ``safety_net``, :mod:`evoscen_bv.profile`, docs/bv-profiles.md); the copy of this file
     in a policy directory records what its policies were trained with."""
+    makeup: str = field(default="uniform", metadata=_check(_Str(lambda: MAKEUPS)))
+    """The traffic of the decision environments (docs/learned-bvs.md, "Trained among the highD make-up"):
+    ``uniform`` (the default of a YAML without the key, as every earlier training ran) = the spawn
+    block on the loop, cars only, desired speeds ``desired_speed_mps``; ``highd`` = the traffic window
+    with ``bvs.makeup: highd`` (trucks with their driver, highD's desired speeds uncapped, the cars'
+    approach braking), the ego a car of the window, its episode cut when it leaves the window."""
 
 
 @dataclass(frozen=True)
