@@ -28,22 +28,26 @@ from .truck import TruckParams
 
 SHIPPED = "shipped"
 LC_CALIBRATED = "lc_calibrated"
-SHIPPED_SETS = {SHIPPED: "", "v0.6.0": "", LC_CALIBRATED: LC_CALIBRATED, "v0.1.0": "v0.1.0"}
+HIGHD_TRAINED = "highd_trained"
+SHIPPED_SETS = {SHIPPED: "", "v0.6.0": "", LC_CALIBRATED: LC_CALIBRATED, HIGHD_TRAINED: HIGHD_TRAINED,
+                "v0.1.0": "v0.1.0"}
 """``policy_dir`` keywords of the shipped policy sets (directories under ``share/evoscen_bv/policies``):
 ``v0.6.0`` = the set of 0.3–0.6 (trained at the method's scale under the ``driver`` profile: the top
 directory), ``lc_calibrated`` = its decision policies retrained on the same controller with the
 lane-change costs calibrated against highD's lane-change rate (docs/learned-bvs.md, "Lane-change
-cost calibrated against highD"), ``v0.1.0`` = the first shipped set (0.1.0; 40k controller / 20k
-decision steps, trained under the ``safety_net`` rules); ``shipped`` = the make-up's set
-(:func:`shipped_set`)."""
+cost calibrated against highD"), ``highd_trained`` = the decision policies trained among the highD
+make-up with those costs (training ``env.makeup: highd``; "Trained among the highD make-up"),
+``v0.1.0`` = the first shipped set (0.1.0; 40k controller / 20k decision steps, trained under the
+``safety_net`` rules); ``shipped`` = the make-up's set (:func:`shipped_set`)."""
 
 
 def shipped_set(policy_dir: str, makeup: str) -> str:
     """The shipped directory (relative to ``share/evoscen_bv/policies``) of a ``policy_dir`` keyword.
-    [choice] ``shipped`` under ``bvs.makeup: highd`` is ``lc_calibrated`` (the make-up whose lane-change
-    rates are measured against highD's), under ``uniform`` ``v0.6.0`` (its bags unchanged)."""
+    [choice] ``shipped`` under ``bvs.makeup: highd`` is ``highd_trained`` (the set trained in the traffic
+    it drives in; its cars' lane-change rate nearest highD's, docs/learned-bvs.md), under ``uniform``
+    ``v0.6.0`` (its bags unchanged)."""
     if policy_dir == SHIPPED:
-        return SHIPPED_SETS[LC_CALIBRATED] if makeup == "highd" else SHIPPED_SETS["v0.6.0"]
+        return SHIPPED_SETS[HIGHD_TRAINED] if makeup == "highd" else SHIPPED_SETS["v0.6.0"]
     return SHIPPED_SETS[policy_dir]
 
 
@@ -55,8 +59,9 @@ class LearnedParams:
     """Directory of trained policies (``controller.npz``, ``mutual.npz``, ``competitive.npz``,
     ``cooperative.npz``, ``training.yaml``), as written by ``scripts/train_bv.py --out``;
     ``shipped`` (default) = the shipped set of the make-up (``v0.6.0`` under ``bvs.makeup: uniform``,
-    ``lc_calibrated`` under ``highd``), or one shipped set by name: ``v0.6.0``, ``lc_calibrated``,
-    ``v0.1.0`` (:data:`SHIPPED_SETS`). A relative path is relative to the working directory."""
+    ``highd_trained`` under ``highd``), or one shipped set by name: ``v0.6.0``, ``lc_calibrated``,
+    ``highd_trained``, ``v0.1.0`` (:data:`SHIPPED_SETS`). A relative path is relative to the working
+    directory."""
     on_missing: str = text("error", ("error", "level0"))
     """What to do when the policy directory lacks policies: ``error`` (one-line error, the
     default) or ``level0`` (drive every BV with the level-0 driver instead)."""

@@ -127,12 +127,13 @@ def test_source_tree_fallback_finds_the_policies():
 
 
 def test_shipped_keyword_follows_the_makeup_and_every_set_is_selectable():
-    """``policy_dir: shipped`` is the make-up's set (docs/learned-bvs.md, "Lane-change cost calibrated
-    against highD"): ``uniform`` the 0.6.0 set, ``highd`` the calibrated one; each set by name too."""
+    """``policy_dir: shipped`` is the make-up's set (docs/learned-bvs.md, "Trained among the highD
+    make-up"): ``uniform`` the 0.6.0 set, ``highd`` the set trained among it; each set by name too."""
     from evoscen_bv.bv_models import shipped_set
 
     assert shipped_set("shipped", "uniform") == "" and shipped_set("v0.6.0", "highd") == ""
-    assert shipped_set("shipped", "highd") == "lc_calibrated" == shipped_set("lc_calibrated", "uniform")
+    assert shipped_set("shipped", "highd") == "highd_trained" == shipped_set("highd_trained", "uniform")
+    assert shipped_set("lc_calibrated", "highd") == "lc_calibrated"
     assert shipped_set("v0.1.0", "highd") == "v0.1.0"
     calibrated = load_policies(shipped_policy_dir() / "lc_calibrated")[2].reward
     before = load_policies(shipped_policy_dir())[2].reward
@@ -144,4 +145,16 @@ def test_shipped_keyword_follows_the_makeup_and_every_set_is_selectable():
     assert calibrated.request_penalty == before.request_penalty and calibrated.theta_left == before.theta_left
     # the controller is the 0.6.0 set's, byte for byte
     assert (shipped_policy_dir() / "lc_calibrated" / "controller.npz").read_bytes() == \
+        (shipped_policy_dir() / "controller.npz").read_bytes()
+
+
+def test_highd_trained_set_is_the_calibrated_costs_trained_among_the_makeup():
+    """``highd_trained``: the training config of ``lc_calibrated`` (the same costs, k = 10) but for
+    ``env.makeup: highd``; the 0.6.0 controller, byte for byte."""
+    trained = load_policies(shipped_policy_dir() / "highd_trained")[2]
+    calibrated = load_policies(shipped_policy_dir() / "lc_calibrated")[2]
+    assert trained.env.makeup == "highd" and calibrated.env.makeup == "uniform"
+    assert trained.reward == calibrated.reward and trained.td3 == calibrated.td3
+    assert trained.steps == calibrated.steps and trained.car_following == calibrated.car_following
+    assert (shipped_policy_dir() / "highd_trained" / "controller.npz").read_bytes() == \
         (shipped_policy_dir() / "controller.npz").read_bytes()
