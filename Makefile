@@ -1,5 +1,8 @@
 # evoscen — two commands on a fresh machine: `make demo` and `make test`.
-# Both run `make setup` first (idempotent): .venv with pinned requirements, then colcon build.
+# `make demo` runs `make setup-core` first (the .venv with the pinned requirements, then colcon build);
+# `make test` runs `make setup`: the core and everything the suite tests (the example plug-ins, the
+# export tools and their checkers, the SUMO reference). Both idempotent. `make test-core` is the
+# lighter suite on the core alone (the tests of the parts not installed are skipped, each saying why).
 
 PYTHON_BOOT ?= $(shell command -v python3.11 || command -v python3)
 VENV        := .venv
@@ -8,18 +11,24 @@ WS          := ros2_ws
 INSTALL     := $(WS)/install
 REQ_STAMP   := $(VENV)/.requirements-installed
 # the example plug-in packages under examples/ that make setup installs (see $(EXAMPLES_STAMP) below)
-EXAMPLE_PACKAGES := examples/fiss_sut
+EXAMPLE_PACKAGES := examples/fiss_sut examples/sumo_sut
 EXAMPLES_STAMP   := $(VENV)/.examples-installed
 # the export tools' packages (requirements-export.txt, docs/export.md "Packages")
 EXPORT_STAMP     := $(VENV)/.export-requirements-installed
+# the SUMO reference (requirements-bench.txt): scripts/bench.py's comparison, the Krauss-vs-SUMO test
+# and examples/sumo_sut; evoscen itself never needs SUMO
+BENCH_STAMP      := $(VENV)/.bench-requirements-installed
 # Run anything with the workspace overlay (colcon's install/setup.sh) on top of the venv.
 RUN         := . $(VENV)/bin/activate && . $(INSTALL)/setup.sh &&
 DEMO_OUT    ?= runs/demo
 PYTEST_ARGS ?=
 
-.PHONY: setup build demo test test-fast lint bench clean
+.PHONY: setup setup-core build demo test test-core test-fast test-repeat lint bench clean
 
-setup: $(REQ_STAMP) $(EXAMPLES_STAMP) $(EXPORT_STAMP) build
+# the core: what evoscen needs to run scenarios, campaigns and experiments
+setup-core: $(REQ_STAMP) build
+# the core and everything the suite tests (the README's `make test`, and CI, run on this)
+setup: setup-core $(EXAMPLES_STAMP) $(EXPORT_STAMP) $(BENCH_STAMP)
 
 $(REQ_STAMP): requirements.txt requirements-runtime.txt
 	@$(PYTHON_BOOT) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null || { \
@@ -31,7 +40,8 @@ $(REQ_STAMP): requirements.txt requirements-runtime.txt
 # The example plug-in packages (docs/plugins.md §17), installed editable into the .venv so that the
 # suite tests them; their own pinned dependencies come from the index, evoscen's pins are kept
 # (-c requirements-runtime.txt); the build backend is the .venv's setuptools (--no-build-isolation).
-$(EXAMPLES_STAMP): $(REQ_STAMP) $(addsuffix /pyproject.toml,$(EXAMPLE_PACKAGES))
+# examples/sumo_sut needs SUMO (requirements-bench.txt: installed first, same pins).
+$(EXAMPLES_STAMP): $(REQ_STAMP) $(BENCH_STAMP) $(addsuffix /pyproject.toml,$(EXAMPLE_PACKAGES))
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-build-isolation -c requirements-runtime.txt \
 	    $(addprefix -e ,$(EXAMPLE_PACKAGES))
 	touch $@
@@ -65,22 +75,34 @@ build: $(REQ_STAMP)
 	    && printf '%s\n' "$$new" > $(BUILD_STAMP); \
 	fi
 
-demo: setup
+demo: setup-core
 	$(RUN) python scripts/run_scenario.py --sut mobil --out $(DEMO_OUT) --overwrite
 
+# the whole suite; EVOSCEN_TEST_EXTRAS=required turns a missing part (a plug-in, SUMO, an export
+# checker) into one error line at the start instead of skipped tests (tests/conftest.py)
 test: setup
+	$(RUN) EVOSCEN_TEST_EXTRAS=required python -m pytest $(PYTEST_ARGS)
+
+# the suite on the core alone (make setup-core): the tests of the parts not installed are skipped
+test-core: setup-core
 	$(RUN) python -m pytest $(PYTEST_ARGS)
 
 # the suite without the end-to-end tests (marker e2e: node graphs, CLI subprocesses, containers)
 test-fast: setup
-	$(RUN) python -m pytest -m "not e2e" $(PYTEST_ARGS)
+	$(RUN) EVOSCEN_TEST_EXTRAS=required python -m pytest -m "not e2e" $(PYTEST_ARGS)
+
+# the timing-sensitive tests (node graphs: deaths, stalls, faults) run REPEAT times in a row; a table of
+# passes per test (scripts/repeat_tests.py; docs/development.md "Repeating timing-sensitive tests")
+REPEAT       ?= 10
+REPEAT_TESTS ?= tests/test_graph.py tests/test_crash.py tests/test_plugin_faults.py \
+                -k "kill or stall or sigint or sigterm or raising_in_the_graph"
+test-repeat: setup
+	$(RUN) python scripts/repeat_tests.py --times $(REPEAT) -- $(REPEAT_TESTS)
 
 # ruff (pinned in requirements.txt; rules in ruff.toml); never reformats
 lint: $(REQ_STAMP)
 	$(VENV)/bin/ruff check .
 
-# Optional SUMO reference for the benchmark (not part of setup: evoscen never needs SUMO).
-BENCH_STAMP := $(VENV)/.bench-requirements-installed
 $(BENCH_STAMP): requirements-bench.txt $(REQ_STAMP)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-bench.txt
 	touch $@

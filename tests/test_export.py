@@ -22,6 +22,9 @@ REPO = Path(__file__).resolve().parents[1]
 EXPORT = REPO / "scripts" / "export_scenario.py"
 
 pytestmark = pytest.mark.e2e
+for _module in ("scenariogeneration", "qc_openscenario", "commonroad", "shapely"):
+    pytest.importorskip(_module, reason=f"the export tools are not installed ({_module}; make setup installs "
+                                        "requirements-export.txt)")
 
 
 def _vehicle(name: str, category: str, length: float, width: float, props: str) -> str:

@@ -119,6 +119,13 @@ def test_episodes_design_builds_n_x_variants_paired_rounds(exp):
     assert by[("level0", "stale")][7].models["mutant"].operator == "stale"
 
 
+def _sumo_sut_installed() -> bool:
+    from evoscen_sim.model_registry import model_names
+
+    return "sumo_sut" in model_names("sut")
+
+
+@pytest.mark.skipif("not _sumo_sut_installed()", reason="the SUMO SUT example plug-in is not installed (make setup)")
 def test_seed_blocks_build_every_block_and_only_applicable_mutants(exp):
     (design,) = exp.resolve_designs(exp.parse_args(["--blocks", "2", "--block-size", "2", "--first-seed", "10",
                                                     "--episode-steps", "20"]))

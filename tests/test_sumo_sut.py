@@ -7,11 +7,11 @@
   (everyone moved back 1700 m) changes nothing but ``s``.
 * One SUMO simulation per process: a second driver takes libsumo, the first then stops in one line;
   a map netconvert cannot convert and a bad parameter are one line each.
-* Installed (``pip install -e examples/sumo_sut``, as CI does): the node graph and the in-process
+* Installed (``make setup`` installs it): the node graph and the in-process
   runner write the same bag, and a small campaign runs it on Ray workers with the result of the
   same run here (e2e).
 
-Needs libsumo and eclipse-sumo (requirements-bench.txt); skipped without them.
+Needs libsumo and eclipse-sumo (requirements-bench.txt); skipped without them (make test-core; make setup installs them).
 """
 
 from __future__ import annotations
@@ -268,7 +268,7 @@ def test_sl2015_changes_left_past_a_slow_leader_too(ss, cfg, road):
 
 def require_installed() -> None:
     if not any(ep.name == "sumo_sut" for ep in importlib.metadata.entry_points(group="evoscen.sut")):
-        pytest.skip("examples/sumo_sut is not installed (pip install -e examples/sumo_sut, as CI does)")
+        pytest.skip("examples/sumo_sut is not installed (make setup installs it)")
 
 
 def run_cli(*args: object) -> subprocess.CompletedProcess:

@@ -197,7 +197,9 @@ class EvaluatorNode:
             canonical = True  # a step without events: the simulation's canonical template
         if topic in self.table_topics:
             if t_ns >= self.cfg.steps * self.dt_ns or (self.run_end_ns is not None and t_ns >= self.run_end_ns):
-                return  # an answer to the final state: no step follows it, the simulation ignores it
+                # an answer to the state the run ended at (the final state, or the step an abort or Ctrl-C
+                # ended it at): the simulation never used it, so it is no answer to a step the run took
+                return
             if t_ns % self.dt_ns:
                 raise ValueError(f"stamp {t_ns} ns is not a step time")
             data, canonical = self._canonical_table(data), True
@@ -210,6 +212,13 @@ class EvaluatorNode:
         if run_end:
             self.run_end_ns = t_ns
             self.run_end_kind = _run_end_kind(data)
+            # [choice] answers that arrived before run_end, to the step the run ended at, go too: a controller
+            # killed right after publishing its answer to step K leaves it with the recorder while the
+            # simulation, told of the death, aborts at K without it (the middleware hands a sample to each
+            # reader in turn). Whatever the order of arrival, the bag's command tables are answers to
+            # steps 0 .. K-1 only (docs/recording.md, "A controller that dies during a step"). They are
+            # still queued: nothing at K is written before every per-step topic has a later message.
+            self.bag.drop_pending(self.table_topics, t_ns)
 
     def _refuse(self, topic: str, gid: bytes | None, reason: str) -> None:
         self.refused += 1

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import bisect
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 
 from evoscen_contract.topics import TopicSpec
 from evoscen_record.recorder import BagRecorder
@@ -45,6 +45,15 @@ class OrderedBag:
             return
         self._seq += 1
         self._pending.append((log_time_ns, self._rank[topic], self._seq, topic, data, canonical))
+
+    def drop_pending(self, topics: Collection[str], from_ns: int) -> int:
+        """Forget the queued messages of ``topics`` with a log time at or after ``from_ns`` (not yet
+        written); returns how many. The evaluator drops the controllers' answers to the step a run
+        ended at (docs/recording.md, "A controller that dies during a step")."""
+        keep = [m for m in self._pending if not (m[3] in topics and m[0] >= from_ns)]
+        dropped = len(self._pending) - len(keep)
+        self._pending = keep
+        return dropped
 
     def flush_before(self, time_ns: int) -> None:
         """Write every queued message with a log time before ``time_ns``, in canonical order."""

@@ -194,3 +194,31 @@ def test_write_parts_equals_write_many(tmp_path: Path, kwargs) -> None:
         bag.write_parts(5, [("/clock", (b"\x00\x01\x00\x00", bytes(8))), ("/nope", (b"",))])
     assert bag.message_count == 1
     bag.close()
+
+
+def test_ordered_bag_drops_the_answers_to_the_step_a_run_ended_at(tmp_path: Path) -> None:
+    """``OrderedBag.drop_pending`` forgets exactly the queued messages of the named topics at or after
+    the time given (the evaluator's rule for a run that ends at step K: no answer to K is recorded),
+    whatever their arrival order; messages of other topics at K and every message before K stay."""
+    from evoscen_record.ordered_bag import OrderedBag
+
+    sut, clock, world = "/evoscen/commands/sut", "/clock", "/evoscen/world"
+    k_ns = 300_000_000  # the step the run ended at (step 3 of 0.1 s)
+    ob = OrderedBag(BagRecorder(tmp_path / "b" / "bag", CONTRACT), CONTRACT)
+    # steps 0..2 answered and flushed as the evaluator does; then the answer to 3 arrives before the end
+    for step in range(3):
+        t = step * 100_000_000
+        ob.add(world, bytes([step]), t, canonical=True)
+        ob.add(sut, bytes([10 + step]), t, canonical=True)
+    ob.flush_before(200_000_000)  # steps 0, 1 written; 2 still queued
+    ob.add(sut, b"\x13", k_ns, canonical=True)  # the answer to K, arrived first
+    ob.add(world, b"\x03", k_ns, canonical=True)
+    ob.add(clock, b"\x00\x01\x00\x00" + bytes(8), k_ns, canonical=True)
+    assert ob.drop_pending({sut}, k_ns) == 1  # only the answer to K, not the answer to 2 nor the state at K
+    assert ob.drop_pending({sut}, k_ns) == 0
+    ob.close()
+    got = [(topic, t, data) for topic, _, t, data in open_bag_reader(tmp_path / "b" / "bag")]
+    assert [(t, n) for t, n, _ in got if t == sut] == [(sut, 0), (sut, 100_000_000), (sut, 200_000_000)]
+    assert [(t, n) for t, n, _ in got if t == world] == [(world, 0), (world, 100_000_000), (world, 200_000_000),
+                                                         (world, k_ns)]
+    assert [(t, n) for t, n, _ in got if t == clock] == [(clock, k_ns)]
