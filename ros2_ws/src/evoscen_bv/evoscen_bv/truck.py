@@ -309,15 +309,47 @@ def _approach_kernel(idx, s, v, lane, target_lane, length, occ, seen, has_seen, 
     return throttle
 
 
+class CutShare:
+    """A driver of all the make-up's cars whose answer is cut to a BV node's share of them (``restrict``):
+    for a car driver whose random draws depend on how many vehicles it drives (the rule-based drivers'
+    Krauss dawdling), so that the world does not depend on ``bvs.nodes``. Its other attributes are the
+    driver's."""
+
+    def __init__(self, driver) -> None:
+        self.driver = driver
+        self.positions: np.ndarray | None = None
+        self.vehicles = np.asarray(driver.vehicles, dtype=np.int64)
+
+    def restrict(self, positions: np.ndarray) -> None:
+        positions = np.asarray(positions, dtype=np.int64)
+        self.positions = positions if self.positions is None else self.positions[positions]
+        self.vehicles = np.asarray(self.driver.vehicles, dtype=np.int64)[self.positions]
+
+    def act(self, view) -> tuple[np.ndarray, np.ndarray]:
+        throttle, request = self.driver.act(view)
+        if self.positions is None:
+            return throttle, request
+        return np.asarray(throttle)[self.positions], np.asarray(request)[self.positions]
+
+    def __getattr__(self, name: str):
+        return getattr(self.driver, name)
+
+
 def makeup_driver(vehicles, makeup, config, car_driver) -> MakeupDriver:
     """The ``highd`` make-up's driver of all BVs ``vehicles`` (registered for ``bvs.makeup: highd``):
     ``car_driver`` (``bvs.driver``, built for all BVs) takes the drawn desired speeds, uncapped, and
-    keeps the cars; the trucks get a :class:`TruckDriver` (``models.truck``)."""
+    keeps the cars; the trucks get a :class:`TruckDriver` (``models.truck``). A car driver with per-slot
+    state (learned, level0) keeps a BV node's share by ``restrict``; a rule-based one (nilsson, mobil:
+    ``drive_only``) drives all the cars in every BV node, its answer cut to the share (:class:`CutShare`)."""
     params = config.models.get("truck") or TruckParams()
     truck = np.asarray(makeup.truck, dtype=bool)
     car_driver.desired_speed_mps = np.asarray(makeup.desired_speed_mps, dtype=float).copy()
     car_driver.speed_cap = False
-    car_driver.restrict(np.flatnonzero(~truck))
+    if hasattr(car_driver, "restrict"):
+        car_driver.restrict(np.flatnonzero(~truck))
+    else:
+        car_driver.drive_only(np.flatnonzero(~truck))
+        car_driver = CutShare(car_driver)
     vehicles = np.asarray(vehicles, dtype=np.int64)
     trucks = TruckDriver(vehicles[truck], params, makeup.desired_speed_mps[truck], config.vehicle)
     return MakeupDriver(vehicles, truck, car_driver, trucks)

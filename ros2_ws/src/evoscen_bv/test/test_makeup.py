@@ -196,12 +196,65 @@ def test_config_errors_and_metadata() -> None:
 
     with pytest.raises(InputError, match=r"key 'bvs.makeup' = 'highd': expected uniform with traffic.mode = loop"):
         load_scenario_config(None, {"bvs.makeup": "highd", "traffic.mode": "loop"})
-    with pytest.raises(InputError, match=r"key 'bvs.makeup' = 'highd': expected uniform with bvs.driver = mobil"):
-        load_scenario_config(None, {"bvs.makeup": "highd", "bvs.driver": "mobil"})
+    from evoscen_sim.model_registry import ModelSpec, register_model, unregister_model
+
+    register_model(ModelSpec(name="own_bv", roles=("bv",), factory=lambda *a: None))
+    try:
+        with pytest.raises(InputError, match=r"key 'bvs.makeup' = 'highd': expected uniform with bvs.driver = own_bv "
+                                             r"\(the highd make-up's cars are learned, level0, nilsson, mobil drivers\)"):
+            load_scenario_config(None, {"bvs.makeup": "highd", "bvs.driver": "own_bv"})
+    finally:
+        unregister_model("own_bv")
+    for driver in ("nilsson", "mobil"):  # the rule-based baselines drive the make-up's cars
+        assert load_scenario_config(None, {"bvs.makeup": "highd", "bvs.driver": driver}).bvs.driver == driver
     with pytest.raises(InputError, match=r"bvs.makeup"):
         load_scenario_config(None, {"bvs.makeup": "cars"})
     assert "makeup" not in scenario_metadata(load_scenario_config(None))[SCENARIO_KEY]
     assert "makeup: highd" in scenario_metadata(load_scenario_config(None, {"bvs.makeup": "highd"}))[SCENARIO_KEY]
+
+
+# ---------------------------------------------------------------- rule-based cars (nilsson, mobil)
+@pytest.mark.parametrize("driver", ["nilsson", "mobil"])
+def test_rule_based_car_follows_its_own_desired_speed_uncapped(road, driver) -> None:
+    """Krauss with a per-vehicle desired speed (docs/bv-profiles.md, "Rule-based cars in the highD make-up"):
+    v_max = the car's own desired speed, not models.krauss's 33.33 x a speed factor, not capped at the
+    lane's 33.33 m/s limit. Krauss never exceeds v_max, and its dawdling (sigma 0.5, at most accel x sigma
+    x dt = 0.13 m/s below the safe speed a step) keeps a free car within a few tenths of it."""
+    from evoscen_sim.model_registry import create_driver
+
+    cfg = load_scenario_config(None)
+    for desired, cap in ((37.0, False), (25.0, False), (37.0, True)):
+        w = world_of(road, [100.0], [2], [20.0], [4.5])
+        car = create_driver(driver, "bv", np.array([0]), cfg, np.random.default_rng(0))
+        car.desired_speed_mps = np.array([desired])
+        car.speed_cap = cap
+        speeds = []
+        for _ in range(400):
+            thr, _ = car.act(w)
+            w.step(np.asarray(thr, dtype=float), np.zeros(1, dtype=np.int64))
+            speeds.append(float(w.v[0]))
+        top = min(desired, 33.33) if cap else desired
+        assert max(speeds) <= top + 0.05, (desired, cap)
+        assert np.mean(speeds[-100:]) > top - 0.6, (desired, cap)
+
+
+def test_rule_based_cars_highd_run_split_does_not_matter() -> None:
+    """nilsson cars among the make-up's trucks: the world is the same whether one BV node drives all or
+    three split by id (the Krauss dawdling draws are those of the driver of all cars: CutShare)."""
+    from evoscen_bringup.scenario import build_scenario
+
+    worlds = []
+    for nodes in ("single", 3):
+        cfg = load_scenario_config(None, {"bvs.makeup": "highd", "bvs.driver": "nilsson", "seed": 4243,
+                                          "bvs.nodes": nodes, "traffic.warmup_s": 5.0})
+        sc = build_scenario(cfg)
+        w = sc.world
+        truck = w.length > 7.0
+        for _ in range(200):
+            sc.step()
+        assert truck.sum() >= 1
+        worlds.append(np.concatenate([w.s, w.v, w.lane]))
+    assert np.array_equal(worlds[0], worlds[1])
 
 
 # ---------------------------------------------------------------- car lanes (models.highd.car_lanes)

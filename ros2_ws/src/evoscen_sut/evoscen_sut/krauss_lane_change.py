@@ -139,6 +139,14 @@ class KraussLaneChangeDriver:
         self.stop_margin_m = float(stop_margin_m)
         self._params_memo: tuple | None = None
         self._factors_memo: tuple | None = None
+        self.desired_speed_mps: np.ndarray | None = None
+        """Per driven vehicle, its own desired speed (m/s), set by ``bvs.makeup: highd``'s driver
+        (:func:`evoscen_bv.truck.makeup_driver`): it replaces ``models.krauss.desired_speed_mps`` × the
+        vehicle's speed factor in the car following. None (default): the Krauss parameters' speed."""
+        self.speed_cap = True
+        """Whether the car following's speed is capped by the lane's limit (False under ``bvs.makeup:
+        highd``: highD's desired speeds are not capped). The lane-change decision keeps its own
+        parameters' desired speed either way (docs/bv-profiles.md, "Rule-based cars in the highD make-up")."""
 
     def acceleration(self, view: Any) -> np.ndarray:
         """Desired acceleration (m/s²) of every driven vehicle (see the class docstring)."""
@@ -148,8 +156,13 @@ class KraussLaneChangeDriver:
 
     def _acceleration_generic(self, view: Any) -> np.ndarray:
         """:meth:`acceleration` for any car follower with ``KraussCarFollowing``'s interface."""
+        from evoscen_sim.errors import InputError
+
         from .krauss import sumo_follow_speed
 
+        if self.desired_speed_mps is not None or not self.speed_cap:
+            raise InputError(f"bvs.makeup: highd: the cars' car follower {type(self.krauss).__name__} takes no "
+                             "desired speed per vehicle (expected evoscen_sut.krauss.KraussCarFollowing)")
         idx = self.vehicles
         acc = np.asarray(self.krauss.acceleration(view, idx), dtype=float).copy()
         offset = np.clip(view.target_lane[idx] - view.lane[idx], -1, 1).astype(np.int64)
@@ -184,9 +197,11 @@ class KraussLaneChangeDriver:
         n_changing = _count_changing(idx, lane, target_lane)
         u_target = kr.rng.random(n_changing) if n_changing else _NO_DRAWS
         nb = view.neighborhood()
-        return _krauss_kernel(idx, self._factors(kr, idx), u, u_target, view.s, view.v, view.length, lane, target_lane,
-                              view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, view.road.kernel_tables(),
-                              self._kernel_params(kr, float(view.dt_s)))
+        prm = self._kernel_params(kr, float(view.dt_s))
+        limit = view.speed_limit_mps if self.speed_cap else np.full(view.s.shape[0], np.nan)
+        return _krauss_kernel(idx, self._factors(kr, idx, prm.desired_speed_mps), u, u_target, view.s, view.v,
+                              view.length, lane, target_lane, limit, nb.gap_front_m, nb.leader_speed_mps,
+                              view.road.kernel_tables(), prm)
 
     def _kernel_params(self, kr: KraussCarFollowing, view_dt_s: float) -> KraussDriverParams:
         """:func:`_krauss_params` of this driver, kept while the car follower's parameters and the
@@ -200,15 +215,29 @@ class KraussLaneChangeDriver:
         self._params_memo = (kr.params, self.vehicle_params, self.stop_margin_m, kr.dt_s, view_dt_s, out)
         return out
 
-    def _factors(self, kr: KraussCarFollowing, idx: np.ndarray) -> np.ndarray:
+    def _factors(self, kr: KraussCarFollowing, idx: np.ndarray, desired_mps: float) -> np.ndarray:
         """``kr.factors(idx)``, kept while the car follower, its speed factors (drawn once, when it was
-        built) and the driven vehicles are the same objects."""
+        built) and the driven vehicles are the same objects; with :attr:`desired_speed_mps` set, the factors
+        that make ``desired_mps`` × factor each vehicle's own desired speed."""
         c = self._factors_memo
-        if c is not None and c[0] is kr and c[1] is kr.speed_factors and c[2] is idx:
-            return c[3]
-        out = kr.factors(idx)
-        self._factors_memo = (kr, kr.speed_factors, idx, out)
+        own = self.desired_speed_mps
+        if c is not None and c[0] is kr and c[1] is kr.speed_factors and c[2] is idx and c[3] is own:
+            return c[4]
+        out = kr.factors(idx) if own is None else np.asarray(own, dtype=float) / desired_mps
+        self._factors_memo = (kr, kr.speed_factors, idx, own, out)
         return out
+
+    def drive_only(self, positions: np.ndarray) -> None:
+        """Drive only the vehicles at ``positions`` of :attr:`vehicles` (with their own desired speeds, if
+        set); before the first :meth:`act`. Not a BV node's ``restrict``: the dawdling draws are one per
+        driven vehicle and step, so a driver of a share would draw otherwise than the driver of all.
+        :func:`evoscen_bv.truck.makeup_driver` keeps it to the make-up's cars once, when it is built; a BV
+        node's share of them is its answer cut (:class:`evoscen_bv.truck.CutShare`)."""
+        positions = np.asarray(positions, dtype=np.int64)
+        self.vehicles = self.vehicles[positions]
+        if self.desired_speed_mps is not None:
+            self.desired_speed_mps = np.asarray(self.desired_speed_mps, dtype=float)[positions]
+        self._factors_memo = None
 
     def lane_change(self, view: Any) -> np.ndarray:
         """The lane-change request of :meth:`act` alone (the decision draws no random numbers)."""

@@ -54,6 +54,15 @@ stated here — docs/method.md §4.3 marks the overall reading):
 * **Availability**: a lane action into a lane that does not exist at the ego's position is
   not available (its row is ``-inf``); while a lane change is in progress no change is
   requested (the decision is 0 and the game is not played).
+* **d_min to every vehicle in the target lane** (``target_gap_rule``; docs/method.md §4.3, "The safety
+  distance of a lane change"): the method judges a lane change by the nearest vehicles ahead and behind
+  in the target lane with a safety distance d_min "of conducting a lane-change action". With
+  ``d_min_now`` (default) a lane action is not available while the bumper-to-bumper gap to the nearest
+  vehicle ahead or behind in its lane *now* is below ``min_gap_m``; a vehicle alongside (bodies
+  overlapping longitudinally: a negative gap) always is. [choice] With ``end_of_game`` (the rule before)
+  only the gaps predicted at the end of the game count, so a faster vehicle alongside that would be
+  ahead by then does not stop the change (measured: about half of intact Stackelberg's exposures were
+  lane changes started beside a vehicle, docs/sensitivity.md).
 * **Hysteresis** (our choice): a lane change is requested only if its worst-case value
   beats the best keep-lane worst-case value by more than ``lane_change_threshold_m``;
   ties (an empty road) keep the lane.
@@ -71,7 +80,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from evoscen_sim.config.scenario_config import integer, number
+from evoscen_sim.config.scenario_config import integer, number, text
 from evoscen_sim.jit import kernel
 from evoscen_sim.model_registry import ModelSpec
 from evoscen_sim.physics.neighbors import LEFT, OWN, RIGHT
@@ -89,6 +98,8 @@ CANDIDATE_SLOTS: tuple[tuple[int, str], ...] = tuple((lane, side) for lane in (-
 """The six candidate followers: (lane offset, ahead/behind), in tie-break order."""
 
 _COLUMNS = np.array([RIGHT, OWN, LEFT], dtype=np.int64)  # neighbourhood columns of lane offsets -1, 0, +1
+TARGET_GAP_RULES: tuple[str, ...] = ("d_min_now", "end_of_game")
+"""Values of :attr:`StackelbergParams.target_gap_rule`."""
 
 
 @dataclass(frozen=True)
@@ -120,6 +131,11 @@ class StackelbergParams:
     lane_change_threshold_m: float = number(1.0, 0.0)
     """Hysteresis (m of payoff), >= 0: a change is requested only if its worst-case value
     exceeds the best keep-lane worst-case value by more than this. Our choice."""
+    target_gap_rule: str = text("d_min_now", TARGET_GAP_RULES)
+    """How d_min applies to the target lane (module docstring): ``d_min_now`` (default) the current gaps
+    to its nearest vehicles ahead and behind must be at least ``min_gap_m`` — a vehicle alongside never
+    lets the change start; ``end_of_game`` only the gaps predicted at the game's end count (the rule of
+    evoscen 0.6)."""
 
 
 # ------------------------------------------------------------------------------------------
@@ -138,7 +154,7 @@ def _game_inputs(view, i: int, params: StackelbergParams) -> tuple:
             float(params.leader_accel_mps2), float(params.leader_decel_mps2),
             float(params.follower_accel_mps2), float(params.follower_decel_mps2),
             float(params.view_distance_m), float(params.time_headway_s), float(params.min_gap_m),
-            float(params.lane_change_threshold_m))
+            float(params.lane_change_threshold_m), params.target_gap_rule == "d_min_now")
 
 
 def game_values(view, i: int, params: StackelbergParams = StackelbergParams()) -> np.ndarray:
@@ -205,7 +221,7 @@ def _travel(v, a_phase, n, tau):
 @kernel
 def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, follower_speed,
                  lane_start, lane_end, road_length, tau, n, leader_up, leader_down, follower_up, follower_down,
-                 d_v, headway, d_min, threshold):
+                 d_v, headway, d_min, threshold, d_min_now):
     """Payoff matrix (9 × 9), the players' candidate slots and the decided lane offset.
 
     Lane arrays are over offsets -1, 0, +1; candidate slot ``2·l + 0`` is the vehicle ahead,
@@ -235,6 +251,8 @@ def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, foll
         v_f[l] = leader_speed[i, col]
         gap_r[l] = gap_rear[i, col]
         v_r[l] = follower_speed[i, col]
+        if d_min_now and l != 1 and (gap_f[l] < d_min or gap_r[l] < d_min):
+            exists[l] = False  # d_min to the target lane's vehicles now; one alongside has a negative gap
     exists[1] = True  # keeping the lane is always an action
     duration = n * tau
     # --- the players: the two smallest constant-speed gaps at the end of the game

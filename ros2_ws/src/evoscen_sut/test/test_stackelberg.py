@@ -195,3 +195,31 @@ def test_spec():
     assert SPEC.params_type is StackelbergParams
     p = StackelbergParams()
     assert (p.steps, p.view_distance_m, p.time_headway_s, p.min_gap_m) == (3, 100.0, 1.5, 2.5)
+
+
+def test_a_vehicle_alongside_in_the_target_lane_stops_the_change(road):
+    # Ego lane 2 at 30 m/s behind a 20 m/s leader (25.2 m), a 20 m/s vehicle in lane 1 40 m ahead of the
+    # ego's centre; in lane 3 a 35 m/s car alongside, its centre 2 m ahead of the ego's: bumper gap
+    # 2 - 4.8 = -2.8 m. The players are the own leader and the lane-1 vehicle, so the lane-3 car keeps
+    # its speed: 105 m in the 3 s. Left with a1 = decelerate and a2 = decelerate (the best second move:
+    # nobody behind in lane 3): the ego covers 28.5 + 25.5 + 22.5 = 76.5 m, d_front = -2.8 + 105 - 76.5
+    # = 25.7, U_neg = 100 - 2.5 = 97.5: 123.2 whatever the players do, the best worst case of all rows,
+    # so the end-of-game rule changes left into the car's side. d_min now (2.5 m) forbids every left
+    # row (-inf); the best is then the right lane: its worst case, the lane-1 player braking (54 m), is
+    # 35.2 + 54 - 76.5 + 97.5 = 110.2 against keeping's 100.2.
+    w = hand_built_world(road, s=[300, 330, 340, 302], lane=[2, 2, 1, 3], speed=[30, 20, 20, 35])
+    old = StackelbergParams(target_gap_rule="end_of_game")
+    assert game_values(w, 0, old)[ROW[(1, "decelerate")]] == pytest.approx(np.full(9, 123.2))
+    assert _decision(w, old) == 1
+    g = game_values(w, 0)
+    assert np.all(g[3:6] == -np.inf)
+    assert g.min(axis=1)[:3].max() == pytest.approx(100.2) and g.min(axis=1)[6:].max() == pytest.approx(110.2)
+    assert _decision(w) == -1
+    # a leader 3 m ahead of the ego's front in lane 3 (>= d_min 2.5): allowed again; 2 m: not
+    for s_car, allowed in ((307.8, True), (306.8, False)):
+        w = hand_built_world(road, s=[300, 330, 340, s_car], lane=[2, 2, 1, 3], speed=[30, 20, 20, 35])
+        assert (game_values(w, 0)[3:6].max() > -np.inf) == allowed, s_car
+    # behind: a follower with 2 m of bumper gap in lane 3 (< 2.5) forbids it too; the old rule did not
+    w = hand_built_world(road, s=[300, 330, 340, 293.2], lane=[2, 2, 1, 3], speed=[30, 20, 20, 20])
+    assert np.all(game_values(w, 0)[3:6] == -np.inf)
+    assert np.all(game_values(w, 0, old)[3:6] > -np.inf)

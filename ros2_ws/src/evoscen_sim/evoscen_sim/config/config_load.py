@@ -25,7 +25,7 @@ from typing import Any, NoReturn
 import yaml
 
 from evoscen_sim.config.config_checks import _Bad, _join, _show, _unknown_text
-from evoscen_sim.config.config_schema import EvaluationConfig, ScenarioConfig
+from evoscen_sim.config.config_schema import MAKEUP_CAR_DRIVERS, EvaluationConfig, ScenarioConfig
 from evoscen_sim.limits import MAX_CONFIG_BYTES, check_yaml_depth, read_text_limited
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import broken_plugin, broken_plugins, discover, parameter_names, params_type_of
@@ -280,9 +280,9 @@ def _cross_check(cfg: ScenarioConfig, ctx: Context, explicit: set[str]) -> None:
         if cfg.traffic.mode != "window":
             ctx.fail("bvs.makeup", cfg.bvs.makeup, "expected uniform with traffic.mode = "
                      f"{cfg.traffic.mode} (the highd make-up needs traffic.mode: window)")
-        if cfg.bvs.driver not in ("learned", "level0"):
+        if cfg.bvs.driver not in MAKEUP_CAR_DRIVERS:
             ctx.fail("bvs.makeup", cfg.bvs.makeup, f"expected uniform with bvs.driver = {cfg.bvs.driver} "
-                     "(the highd make-up's cars are learned or level0 drivers)")
+                     f"(the highd make-up's cars are {', '.join(MAKEUP_CAR_DRIVERS)} drivers)")
     ev = cfg.evaluation
     if ev.weight_safety + ev.weight_efficiency + ev.weight_interaction == 0:
         ctx.fail("evaluation.weight_safety", ev.weight_safety,

@@ -46,6 +46,9 @@ MAX_S_M = 2393.0
 MAX_RANGE_SPEED_MPS = 40.0
 #: Values of ``bvs.makeup`` (:mod:`evoscen_sim.traffic.makeup`).
 MAKEUPS: tuple[str, ...] = ("uniform", "highd")
+#: The ``bvs.driver`` values that can drive the cars of ``bvs.makeup: highd`` (drivers that take a desired
+#: speed per vehicle: docs/bv-profiles.md, "Traffic make-up").
+MAKEUP_CAR_DRIVERS: tuple[str, ...] = ("learned", "level0", "nilsson", "mobil")
 #: Upper bound of ``bvs.count``.
 MAX_BV_COUNT = 200
 
