@@ -104,13 +104,14 @@ def main(argv: list[str] | None = None) -> int:
         csv_rows.append([name, driver, *lc, *ad, *e, score, *per_round, len(rs)])
         bars.append((name, lc, ad, e, score))
         for r, c in zip(rs, cx):
+            run = r["report"]["run"]
             round_rows.append([name, r["seed"], r["steps"], c["lane_changes"], c["accel_decel"], c["exposures"],
-                               c["score"], c["windows"], r["wall_time_s"]])
+                               c["score"], c["windows"], r["wall_time_s"], run.get("makeup"), run.get("bv_trucks")])
     write_csv(args.out / "complexity.csv", ["scenario", "bv_driver", "lc_mean", "lc_ci95", "ad_mean", "ad_ci95",
                                             "e_mean", "e_ci95", "complexity", "complexity_rounds_mean",
                                             "complexity_rounds_ci95", "rounds"], csv_rows)
     write_csv(args.out / "rounds.csv", ["scenario", "seed", "steps", "lc", "ad", "e", "complexity", "windows",
-                                        "wall_time_s"], round_rows)
+                                        "wall_time_s", "makeup", "bv_trucks"], round_rows)
     table = markdown_table(header, rows)
     cfg0 = rounds[0].cfg
     wall = sum(r["wall_time_s"] for r in results.values())

@@ -56,6 +56,14 @@ Then, meant to change behaviour: competitive learned BVs do not yield to the SUT
 (``models.learned.competitive_cut_in: compete``, docs/learned-bvs.md): the worlds of every SUT that changes
 lanes change; the default's bag (a level-0 SUT, which never changes lanes) stays byte-identical, and
 with ``yield`` every command of 1,000 steps equals the code before (test_competitive_cut_in.py).
+
+Then, meant to change behaviour (0.7.0): ``bvs.makeup: highd`` became the default (cars and trucks as in
+highD, the ``highd_trained`` policies; docs/bv-profiles.md), trucks are coloured as trucks in the
+markers, and Stackelberg honours d_min to the target lane's vehicles now
+(``models.stackelberg.target_gap_rule: d_min_now``, docs/method.md §4.3). The defaults' hashes are new
+(:data:`HASHES`); with ``bvs.makeup: uniform`` (and ``target_gap_rule: end_of_game`` for Stackelberg)
+every bag is still the one before, byte for byte (:data:`UNIFORM_HASHES`, the hashes 0.6 pinned; Stackelberg's
+metadata record gains the rule's key, its messages are 0.6's).
 """
 
 from __future__ import annotations
@@ -67,21 +75,44 @@ import pytest
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
-HASHES = {
+UNIFORM_HASHES = {  # bvs.makeup: uniform; Stackelberg with target_gap_rule: end_of_game (the bags of 0.6)
     None: "15dd1faa6d268ba0a7582fa2c2a3856b5acffd7d5b2e65ccfcc3e1ecbd0a0d2d",  # the shipped default (level0 SUT)
     "nilsson": "87733d380065fff56a64841982664fcb0f3393cb43c9dc6670ea698cca26fbd1",
     "mobil": "390fcf8e339c4a1a8b7ea90ea246a4042fbf6d0b1558c3e279b6cf6258347822",
-    "stackelberg": "3acc408f76f68ab14a0c4c6a2e33868d52c004daa1607ba996195d93231852c8",
+    # the metadata record gains models.stackelberg.target_gap_rule; every message of all eleven topics is
+    # byte-identical to 0.6's bag (3acc408f…, compared per topic)
+    "stackelberg": "e5996a6b4b9cb55ddcc6cab553ad10f078ea8f0cc22d69b3767550dd93638b4c",
     "mutant": "93b5fedcac7343512a4b270a815fb38e03b7656584505ec7042ec5dbeee85910",  # the default mutant
 }
 
 
-@pytest.mark.parametrize("model", list(HASHES), ids=lambda m: m or "default")
-def test_bag_bytes_unchanged(model: str | None, tmp_path: Path) -> None:
+HASHES = {  # the shipped defaults (bvs.makeup: highd, the highd_trained policies; evoscen 0.7.0)
+    None: "99c839de31c5f68a88f823c85f5ebfff41c5e376f23be396b4f6d6a8a1cef52f",  # the shipped default (level0 SUT)
+    "nilsson": "25f6ac1b5cfea1deedfaa20547b36bc87ff4c70c65f3a69e4a165423a62bc72e",
+    "mobil": "d536a6fa811bed1435f95fa79aa5b78c2f18c374566a3399f3238f1ebfb8cba7",
+    "stackelberg": "bfb8bf3b306b9cec2e835352725c1eae1d71481b7692ca4c0adeb39f5da42123",
+    "mutant": "3601aa7e6fdfde30f925519e415472abdf9b7ee889470f3a6e57b7ad8bcf2c33",  # the default mutant
+}
+
+
+def _digest(overrides: dict, tmp_path: Path) -> str:
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_sim.config.scenario_config import load_scenario_config
 
-    overrides = {"steps": 3000} | ({"sut.model": model} if model else {})
-    run_inprocess(load_scenario_config(None, overrides), bag_dir=tmp_path / "bag", evaluate=False)
-    digest = hashlib.sha256((tmp_path / "bag" / "bag_0.mcap").read_bytes()).hexdigest()
+    run_inprocess(load_scenario_config(None, {"steps": 3000} | overrides), bag_dir=tmp_path / "bag", evaluate=False)
+    return hashlib.sha256((tmp_path / "bag" / "bag_0.mcap").read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("model", list(HASHES), ids=lambda m: m or "default")
+def test_bag_bytes_unchanged(model: str | None, tmp_path: Path) -> None:
+    digest = _digest({"sut.model": model} if model else {}, tmp_path)
     assert digest == HASHES[model], f"{model or 'default'}: the bag changed ({digest})"
+
+
+@pytest.mark.parametrize("model", list(UNIFORM_HASHES), ids=lambda m: m or "default")
+def test_uniform_bags_are_those_of_0_6(model: str | None, tmp_path: Path) -> None:
+    overrides = {"bvs.makeup": "uniform"} | ({"sut.model": model} if model else {})
+    if model == "stackelberg":
+        overrides["models.stackelberg.target_gap_rule"] = "end_of_game"
+    digest = _digest(overrides, tmp_path)
+    assert digest == UNIFORM_HASHES[model], f"{model or 'default'} (uniform): the bag changed ({digest})"

@@ -121,6 +121,9 @@ def test_complexity_table_and_files(tmp_path):
         c = 0.4 * (1 - math.exp(-e / 25)) + 0.3 * (2 - math.exp(-lc / 8) - math.exp(-ad / 1400))
         assert float(row["complexity"]) == pytest.approx(c)
     assert "| evolving |" in res.stdout
+    # on the default make-up (highD's cars and trucks), the baselines too: every round had trucks among its
+    # 20 BVs (floor(20 x 0.229) = 4 or 5: docs/bv-profiles.md)
+    assert {(r["makeup"], r["bv_trucks"] in ("4", "5")) for r in rounds} == {("highd", True)}
 
 
 def test_sensitivity_paired_by_seed_tables_and_resumption(tmp_path):

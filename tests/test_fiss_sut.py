@@ -327,7 +327,7 @@ def test_a_bad_bv_answer_is_one_line_before_anything_is_written(tmp_path, capsys
             return np.zeros(self.n - 1), np.zeros(self.n - 1, dtype=np.int64)
 
     config = tmp_path / "scenario.yaml"
-    config.write_text("bvs: {driver: short_bv}\n", encoding="utf-8")
+    config.write_text("bvs: {driver: short_bv, makeup: uniform}\n", encoding="utf-8")
     register_model(ModelSpec(name="short_bv", roles=("bv",), factory=lambda v, p, c, r: ShortBv(v)))
     try:
         code = run_scenario.main(["--mode", "inprocess", "--config", str(config), "--steps", "20", "--quiet",

@@ -96,8 +96,12 @@ def test_which_design_runs(exp):
 def test_episodes_design_builds_n_x_variants_paired_rounds(exp):
     (design,) = exp.resolve_designs(exp.parse_args(["--design", "episodes", "--episodes", "3", "--episode-steps",
                                                     "20", "--first-seed", "7"]))
-    rounds, meta = exp.build_rounds([design], ["mobil"], ["level0", "evolving"], ["stale", "tailgating"], None)
-    assert len(rounds) == 3 * 3 * 2  # episodes x (intact + 2 mutants) x scenarios
+    rounds, meta = exp.build_rounds([design], ["mobil"], ["level0", "evolving", "nilsson", "mobil"],
+                                    ["stale", "tailgating"], None)
+    assert len(rounds) == 3 * 3 * 4  # episodes x (intact + 2 mutants) x scenarios
+    # the default scenarios run on the default make-up (highD's cars and trucks), the baselines too: a
+    # baseline differs from the evolving scenario only in the cars' driver (docs/bv-profiles.md)
+    assert {r.cfg.bvs.makeup for r in rounds} == {"highd"}
     assert len({r.key for r in rounds}) == len(rounds) == len(meta)
     assert {r.cfg.steps for r in rounds} == {20}
     assert {meta[r.key][0] for r in rounds} == {"episodes"}
@@ -105,11 +109,13 @@ def test_episodes_design_builds_n_x_variants_paired_rounds(exp):
     for r in rounds:
         _, scenario, base, variant = meta[r.key]
         by.setdefault((scenario, variant), {})[r.cfg.seed] = r.cfg
-    assert sorted(by) == [(s, v) for s in ("evolving", "level0") for v in ("intact", "stale", "tailgating")]
+    assert sorted(by) == [(s, v) for s in ("evolving", "level0", "mobil", "nilsson")
+                          for v in ("intact", "stale", "tailgating")]
     for (scenario, variant), cfgs in by.items():
         assert sorted(cfgs) == [7, 8, 9]  # every variant on the same episodes (seeds)
         for cfg in cfgs.values():
-            assert cfg.bvs.driver == {"level0": "level0", "evolving": "learned"}[scenario]
+            assert cfg.bvs.driver == {"level0": "level0", "evolving": "learned", "nilsson": "nilsson",
+                                      "mobil": "mobil"}[scenario]
             assert cfg.sut.model == ("mobil" if variant == "intact" else "mutant")
             assert not cfg.recording.enabled
             # paired: a mutant's episode differs from the intact one's only in the SUT model

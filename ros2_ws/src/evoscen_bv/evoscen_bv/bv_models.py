@@ -21,7 +21,7 @@ from pathlib import Path
 from evoscen_sim.config.scenario_config import flag, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import ModelSpec, register_makeup_driver, register_model, register_parameter_set
-from evoscen_sim.traffic.makeup import HighdMakeupParams
+from evoscen_sim.traffic.makeup import HighdMakeupParams, shipped_policy_set
 
 from .level0 import Level0Driver, level0_params_from_config
 from .truck import TruckParams
@@ -47,7 +47,7 @@ def shipped_set(policy_dir: str, makeup: str) -> str:
     it drives in; its cars' lane-change rate nearest highD's, docs/learned-bvs.md), under ``uniform``
     ``v0.6.0`` (its bags unchanged)."""
     if policy_dir == SHIPPED:
-        return SHIPPED_SETS[HIGHD_TRAINED] if makeup == "highd" else SHIPPED_SETS["v0.6.0"]
+        return SHIPPED_SETS[shipped_policy_set(makeup)]
     return SHIPPED_SETS[policy_dir]
 
 

@@ -184,7 +184,7 @@ class DecisionEnv:
         n_bv = self.config.env.bv_count
         cfg = self._config_from_dict({
             "seed": int(rng.integers(0, 2**31 - 1)),
-            "bvs": {"count": n_bv, "driver": "level0"},
+            "bvs": {"count": n_bv, "driver": "level0", "makeup": "uniform"},
             "sut": {"lane": int(rng.integers(1, 5)), "s_m": float(rng.uniform(200.0, 700.0))},
             # jitter below 5 m: a larger one can put the first ramp vehicle before the merge lane starts
             "spawn": {"ramp_vehicles": min(3, n_bv), "jitter_m": 4.0},

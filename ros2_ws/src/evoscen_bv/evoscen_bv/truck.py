@@ -332,6 +332,10 @@ class CutShare:
         return np.asarray(throttle)[self.positions], np.asarray(request)[self.positions]
 
     def __getattr__(self, name: str):
+        # only for attributes not found on the share itself; never while it is being unpickled or copied
+        # (no ``driver`` yet: asking the driver for it would recurse)
+        if name.startswith("__") or name == "driver":
+            raise AttributeError(name)
         return getattr(self.driver, name)
 
 

@@ -17,13 +17,13 @@ def test_yield_drives_exactly_as_before_and_compete_is_the_default():
     from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.scenario_builders import build_bv_driver
 
-    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}})).compete_with_sut is True
-    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": {
+    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}})).compete_with_sut is True
+    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}, "models": {
         "learned": {"competitive_cut_in": "yield"}}})).compete_with_sut is False
-    assert commands_digest({"bvs.driver": "learned", "models.learned.competitive_cut_in": "yield"}, 1000) \
+    assert commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform", "models.learned.competitive_cut_in": "yield"}, 1000) \
         == BEFORE_COMMANDS_SHA256
     # seed 3: MOBIL cuts in ahead of a competitive BV within the first 1,000 steps, so the default differs
-    assert commands_digest({"bvs.driver": "learned"}, 1000) != BEFORE_COMMANDS_SHA256
+    assert commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform"}, 1000) != BEFORE_COMMANDS_SHA256
 
 
 def test_rule_based_bvs_ignore_the_key():

@@ -142,7 +142,7 @@ competitive BVs' rule at its earlier form (``competitive_cut_in: yield``)."""
 
 
 def test_off_drives_exactly_as_before():
-    assert commands_digest({"bvs.driver": "learned", "models.learned.hard_brake": False,
+    assert commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform", "models.learned.hard_brake": False,
                             "models.learned.competitive_cut_in": "yield"}, 1000) \
         == BEFORE_COMMANDS_SHA256
 

@@ -253,16 +253,16 @@ def test_the_learned_driver_takes_both_merge_keys_from_the_scenario():
     from evoscen_sim.config.scenario_config import load_scenario_config
 
     # every BV node's driver (bvs.nodes: by_policy, three of them) takes them
-    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0}))
+    sc = build_scenario(load_scenario_config(None, {"bvs.makeup": "uniform", "traffic.warmup_s": 0}))
     drivers = [d for _, d in sc.bv_driver.parts]
     assert len(drivers) == 3
     assert all(d.end_margin_m == float("inf") and d.forced_merge_m == 1000.0 for d in drivers)
-    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models": {"learned": {
+    sc = build_scenario(load_scenario_config(None, {"bvs.makeup": "uniform", "traffic.warmup_s": 0, "models": {"learned": {
         "into_ending_lane": True, "forced_merge_m": 120.0}}}))
     drivers = [d for _, d in sc.bv_driver.parts]
     assert all(d.end_margin_m == 200.0 and d.forced_merge_m == 120.0 for d in drivers)
     assert all(d.merge_seek is True and d.hold_on_entry is True for d in drivers)  # the defaults
-    sc = build_scenario(load_scenario_config(None, {"traffic.warmup_s": 0, "models.learned.merge_seek": False,
+    sc = build_scenario(load_scenario_config(None, {"bvs.makeup": "uniform", "traffic.warmup_s": 0, "models.learned.merge_seek": False,
                                                     "models.learned.hold_on_entry": False}))
     assert all(d.merge_seek is False and d.hold_on_entry is False for _, d in sc.bv_driver.parts)
 

@@ -151,7 +151,7 @@ def test_default_scenario_level0_traffic() -> None:
     """3,000 steps of the default scenario with level-0 BVs: lane changes only from the merge
     lane into lane 1, every merging vehicle leaves lane 0 before 960 m, nobody leaves the road,
     no collisions."""
-    sc = build_scenario(load_scenario_config(None, {"bvs.driver": "level0"}))
+    sc = build_scenario(load_scenario_config(None, {"bvs.driver": "level0", "bvs.makeup": "uniform"}))
     w = sc.world
     changes = []
     executed = 0

@@ -201,7 +201,7 @@ def test_config_errors_and_metadata() -> None:
     register_model(ModelSpec(name="own_bv", roles=("bv",), factory=lambda *a: None))
     try:
         with pytest.raises(InputError, match=r"key 'bvs.makeup' = 'highd': expected uniform with bvs.driver = own_bv "
-                                             r"\(the highd make-up's cars are learned, level0, nilsson, mobil drivers\)"):
+                                             r"\(the highd make-up's cars are learned, level0, nilsson, mobil drivers; set bvs.makeup: uniform\)"):
             load_scenario_config(None, {"bvs.makeup": "highd", "bvs.driver": "own_bv"})
     finally:
         unregister_model("own_bv")
@@ -209,8 +209,16 @@ def test_config_errors_and_metadata() -> None:
         assert load_scenario_config(None, {"bvs.makeup": "highd", "bvs.driver": driver}).bvs.driver == driver
     with pytest.raises(InputError, match=r"bvs.makeup"):
         load_scenario_config(None, {"bvs.makeup": "cars"})
-    assert "makeup" not in scenario_metadata(load_scenario_config(None))[SCENARIO_KEY]
-    assert "makeup: highd" in scenario_metadata(load_scenario_config(None, {"bvs.makeup": "highd"}))[SCENARIO_KEY]
+    # the default is highd (recorded); absent in a bag means uniform, so 0.6's bags keep their bytes
+    assert load_scenario_config(None).bvs.makeup == "highd"
+    assert "makeup: highd" in scenario_metadata(load_scenario_config(None))[SCENARIO_KEY]
+    assert "makeup" not in scenario_metadata(load_scenario_config(None, {"bvs.makeup": "uniform"}))[SCENARIO_KEY]
+    from evoscen_sim.config.scenario_config import config_from_dict
+
+    assert config_from_dict({}).bvs.makeup == "highd"  # a user's file without the key gets the default too
+    with pytest.raises(InputError, match=r"key 'bvs.makeup' = 'highd' \(default\): expected uniform with "
+                                         r"traffic.mode = loop .*set bvs.makeup: uniform"):
+        config_from_dict({"traffic": {"mode": "loop"}}, source="s.yaml")
 
 
 # ---------------------------------------------------------------- rule-based cars (nilsson, mobil)
@@ -308,3 +316,22 @@ def test_cars_by_speed_entry_prefers_the_lane_nearest_in_speed() -> None:
 def test_car_lanes_is_checked() -> None:
     with pytest.raises(InputError, match=r"car_lanes"):
         load_scenario_config(None, {"bvs.makeup": "highd", "models.highd.car_lanes": "by_colour"})
+
+
+def test_rule_based_makeup_driver_copies_and_pickles() -> None:
+    """The experiments copy a seed's BV driver for every variant (evoscen_bringup.starts) and Ray pickles
+    it: a CutShare of nilsson cars survives both and drives as the original (same answer)."""
+    import copy
+    import pickle
+
+    from evoscen_bringup.scenario import build_scenario
+
+    cfg = load_scenario_config(None, {"bvs.makeup": "highd", "bvs.driver": "nilsson", "seed": 5, "traffic.warmup_s": 1.0})
+    sc = build_scenario(cfg)
+    from evoscen_sim.scenario_builders import build_bv_driver
+
+    driver = build_bv_driver(cfg)
+    want = copy.deepcopy(driver).act(sc.world)  # a copy: the original's random stream stays where it is
+    for other in (copy.deepcopy(driver), pickle.loads(pickle.dumps(driver))):
+        got = other.act(sc.world)
+        assert np.array_equal(np.asarray(got[0]), np.asarray(want[0])) and np.array_equal(got[1], want[1])

@@ -73,7 +73,7 @@ def test_smoke_pipeline_all_stages_produces_loadable_policies(tmp_path):
     from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.scenario_builders import build_bv_driver, build_world
 
-    scen = config_from_dict({"bvs": {"driver": "learned", "count": 10}, "spawn": {"ramp_vehicles": 2},
+    scen = config_from_dict({"bvs": {"driver": "learned", "count": 10, "makeup": "uniform"}, "spawn": {"ramp_vehicles": 2},
                              "models": {"learned": {"policy_dir": str(out)}}})
     world = build_world(scen)
     driver = build_bv_driver(scen)
@@ -149,7 +149,7 @@ def test_bad_policy_dir_is_one_line(tmp_path):
     with pytest.raises(InputError) as e:
         build_bv_driver(scen)
     assert str(e.value) == f"models.learned.policy_dir = {missing}: {missing} is not a directory"
-    fallback = config_from_dict({"bvs": {"driver": "learned"},
+    fallback = config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"},
                                  "models": {"learned": {"policy_dir": str(tmp_path), "on_missing": "level0"}}})
     from evoscen_bv.level0 import Level0Driver
 

@@ -124,7 +124,7 @@ def test_driver_emergency_brake_waits_for_the_reaction_time(road, policies):
 
 def _commands_digest(cfg_overrides: dict, steps: int) -> str:
     """:func:`evoscen_bringup.model_testing.commands_digest` with learned BVs."""
-    return commands_digest({"bvs.driver": "learned", **cfg_overrides}, steps)
+    return commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform", **cfg_overrides}, steps)
 
 
 OLD_COMMANDS_SHA256 = "c156b9b4e8f8b032f478a0f2ef18fa95e8884facaf2f9a9c8df1081f4edb08fb"
@@ -140,7 +140,7 @@ def test_safety_net_reproduces_the_old_commands_exactly():
     old = {"models": {"learned": {"profile": "safety_net", "policy_dir": "v0.1.0", "lane_hold_s": 0,
                                   "into_ending_lane": True, "forced_merge_m": 120.0, "merge_seek": False,
                                   "competitive_cut_in": "yield"}},
-           "control.max_heading_ref_rad": 1.5, "traffic.mode": "loop"}  # and re-entry at the road's start
+           "control.max_heading_ref_rad": 1.5, "traffic.mode": "loop", "bvs.makeup": "uniform"}  # and re-entry at the road's start
     assert _commands_digest(old, 400) == OLD_COMMANDS_SHA256
     # the driver profile drives differently
     assert _commands_digest({"models": {"learned": {"policy_dir": "v0.1.0"}}}, 400) != OLD_COMMANDS_SHA256
@@ -206,9 +206,9 @@ def test_scenario_default_profile_is_driver():
     from evoscen_sim.config.scenario_config import config_from_dict
     from evoscen_sim.scenario_builders import build_bv_driver
 
-    drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}}))
+    drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}}))
     assert drv.profile.name == "driver"
-    drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": {"learned": {"profile": "safety_net"}}}))
+    drv = build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}, "models": {"learned": {"profile": "safety_net"}}}))
     assert drv.profile.name == "safety_net"
 
 
@@ -298,8 +298,8 @@ def test_lane_hold_is_a_scenario_key_with_the_old_form_selectable():
     from evoscen_sim.errors import InputError
     from evoscen_sim.scenario_builders import build_bv_driver
 
-    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}})).lane_hold_s == 20.0
-    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned"},
+    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}})).lane_hold_s == 20.0
+    assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"},
                                              "models": {"learned": {"lane_hold_s": 0}}})).lane_hold_s == 0.0
     with pytest.raises(InputError, match=r"models\.learned\.lane_hold_s") as e:
         config_from_dict({"models": {"learned": {"lane_hold_s": -3}}})
@@ -312,7 +312,7 @@ def test_cut_in_decel_is_a_scenario_key_with_the_old_rule_selectable():
     from evoscen_sim.scenario_builders import build_bv_driver
 
     def b(models: dict) -> float | None:
-        return build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": models})).profile \
+        return build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}, "models": models})).profile \
             .cut_in_closing_decel_mps2
 
     assert b({}) is None  # the linear gap only
@@ -379,7 +379,7 @@ def test_standing_leader_rule_is_a_scenario_key_with_the_old_rule_selectable():
     from evoscen_sim.scenario_builders import build_bv_driver
 
     def at_once(models: dict) -> bool:
-        return build_bv_driver(config_from_dict({"bvs": {"driver": "learned"}, "models": models})).profile \
+        return build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}, "models": models})).profile \
             .standing_leader_at_once
 
     assert at_once({}) is True and get_profile("driver").standing_leader_at_once is True

@@ -58,7 +58,7 @@ def _lane_changes_and_collisions(seed: int, steps: int) -> tuple[dict[int, float
     # the run-time rule profile the policies were trained with (their training.yaml's env.profile;
     # the shipped ones: safety_net): the policies are checked under the rules they were designed for
     trained_with = load_policies(POLICY_DIR)[2].env.profile
-    cfg = load_scenario_config(None, {"bvs.driver": "learned", "seed": seed,
+    cfg = load_scenario_config(None, {"bvs.driver": "learned", "bvs.makeup": "uniform", "seed": seed,
                                       "models": {"learned": {"policy_dir": str(POLICY_DIR), "profile": trained_with}}})
     sc = build_scenario(cfg)
     w = sc.world

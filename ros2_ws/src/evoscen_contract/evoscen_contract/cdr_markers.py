@@ -106,8 +106,8 @@ class VehicleMarkersEncoder:
         self._tails = {a: _marker_tail(a) for a in range(4)}
         self._patched: dict[tuple, tuple[bytes, int, int]] = {}
         self._layout: tuple | None = None  # the compiled kernel's templates, made on first use
-        self._colors: dict[float, bytes] = {}
-        self._rows_cache: dict[tuple[str, bytes], np.ndarray] = {}
+        self._colors: dict[tuple, bytes] = {}
+        self._rows_cache: dict[tuple[str, bytes, bytes], np.ndarray] = {}
         """(kind, alignment, id, scale, colour) -> the prefix with those patched, and where stamp and pose go."""
 
     def _marker(self, out: bytearray, kind: str, stamp: bytes, vid: int, pose: tuple, scale: tuple,
@@ -155,31 +155,35 @@ class VehicleMarkersEncoder:
         kmh = speed * 3.6
         out = np.zeros(8 + n * per_vehicle, np.uint8)
         end = kernel(out, np.frombuffer(stamp_bytes(stamp_ns), np.uint8), ids, x, y, yaw, length, width, kmh,
-                     self._color_rows(columns["policy"], n), VEHICLE_HEIGHT_M, pre, at, tails, tail_len)
+                     self._color_rows(columns["policy"], length, n), VEHICLE_HEIGHT_M, pre, at, tails, tail_len)
         if end < 0:  # text the kernel does not format (nan, inf, huge): the kernel checked first
             return self.encode_python(columns, stamp_ns)
         return pad4(out[:end].tobytes())
 
-    def _color_rows(self, policy, n: int) -> np.ndarray:
-        """The box colours (n × 16 bytes, four float32) of the policy codes ``policy``, remembered per
-        column (the policies of a run's vehicles seldom change)."""
-        from .markers import policy_color
+    def _color_rows(self, policy, length, n: int) -> np.ndarray:
+        """The box colours (n × 16 bytes, four float32) of the vehicles with policy codes ``policy`` and
+        lengths ``length`` (:func:`~evoscen_contract.markers.vehicle_color`), remembered per column (the
+        policies and classes of a run's vehicles seldom change)."""
+        from .contract import TRUCK_MIN_LENGTH_M
+        from .markers import vehicle_color
 
         policy = np.asarray(policy)
-        key = (policy.dtype.str, policy.tobytes())
+        truck = np.asarray(length) > TRUCK_MIN_LENGTH_M
+        key = (policy.dtype.str, policy.tobytes(), truck.tobytes())
         rows = self._rows_cache.get(key)
         if rows is None:
-            colors = b"".join([self._color_bytes(code, policy_color) for code in policy.tolist()])
+            colors = b"".join([self._color_bytes((code, bool(t)), vehicle_color(code, 1e9 if t else 0.0))
+                               for code, t in zip(policy.tolist(), truck.tolist())])
             rows = np.frombuffer(colors, np.uint8).reshape(n, 16)
             if len(self._rows_cache) >= 64:
                 self._rows_cache.clear()
             self._rows_cache[key] = rows
         return rows
 
-    def _color_bytes(self, code: float, policy_color) -> bytes:
-        cached = self._colors.get(code)
+    def _color_bytes(self, key: tuple, rgb: tuple) -> bytes:
+        cached = self._colors.get(key)
         if cached is None:
-            cached = self._colors[code] = struct.pack("<4f", *policy_color(code), 1.0)
+            cached = self._colors[key] = struct.pack("<4f", *rgb, 1.0)
         return cached
 
     def _kernel_layout(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
@@ -209,7 +213,7 @@ class VehicleMarkersEncoder:
 
     def encode_python(self, columns, stamp_ns: int) -> bytes:
         """:meth:`encode` marker by marker in Python (the earlier path; the same bytes)."""
-        from .markers import VEHICLE_HEIGHT_M, policy_color
+        from .markers import VEHICLE_HEIGHT_M, vehicle_color
 
         stamp = stamp_bytes(stamp_ns)
         n = len(columns["id"])
@@ -223,7 +227,8 @@ class VehicleMarkersEncoder:
             xi, yi = float(x[i]), float(y[i])
             self._marker(out, "box", stamp, vid,
                          (xi, yi, 0.5 * VEHICLE_HEIGHT_M, 0.0, 0.0, math.sin(half), math.cos(half)),
-                         (float(length[i]), float(width[i]), VEHICLE_HEIGHT_M), (*policy_color(policy[i]), 1.0), "")
+                         (float(length[i]), float(width[i]), VEHICLE_HEIGHT_M),
+                         (*vehicle_color(policy[i], length[i]), 1.0), "")
             self._marker(out, "label", stamp, vid, (xi, yi, VEHICLE_HEIGHT_M + 1.0, 0.0, 0.0, 0.0, 1.0),
                          (0.0, 0.0, 1.2), (1.0, 1.0, 1.0, 1.0), f"{vid}  {float(speed[i]) * 3.6:.0f} km/h")
         return pad4(bytes(out))

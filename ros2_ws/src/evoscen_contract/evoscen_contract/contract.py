@@ -30,6 +30,10 @@ NODE_EVAL: str = "evoscen_eval"
 
 #: Frame of all world-fixed data (the OpenDRIVE inertial frame, x/y in m).
 MAP_FRAME: str = "map"
+TRUCK_MIN_LENGTH_M: float = 7.0
+"""A vehicle longer than this is a truck ([choice] the class travels as the vehicle's length: highD's
+trucks p5 7.1 m, its cars p95 6.2 m; docs/bv-profiles.md). Markers, animations, exports and the report's
+count of trucks all use it."""
 #: Child frame of the SUT odometry.
 SUT_BASE_FRAME: str = "sut/base_link"
 

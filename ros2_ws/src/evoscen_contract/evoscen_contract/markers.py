@@ -2,7 +2,8 @@
 
 * ``/evoscen/markers`` — every vehicle as an oriented box (a ``CUBE`` marker sized to the
   vehicle, 1.5 m high, at its position and heading) coloured by its driver policy (SUT
-  distinct), and a text marker above it with its id and speed (km/h). Published every
+  distinct; a truck — longer than :data:`~evoscen_contract.contract.TRUCK_MIN_LENGTH_M` — in the truck
+  colour whatever its policy code), and a text marker above it with its id and speed (km/h). Published every
   ``recording.markers_every`` steps (building ~40 markers per step in Python is the most
   expensive message of a step, and the bag's largest).
 * ``/evoscen/map_markers`` — the road's lane lines and edges (``LINE_LIST`` segments of the
@@ -20,7 +21,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .tables import stamp_from_ns
-from .contract import MAP_FRAME, POLICY_CODES
+from .contract import MAP_FRAME, POLICY_CODES, TRUCK_MIN_LENGTH_M
 
 VEHICLE_HEIGHT_M = 1.5
 POLICY_COLORS: dict[str, tuple[float, float, float]] = {
@@ -33,6 +34,8 @@ POLICY_COLORS: dict[str, tuple[float, float, float]] = {
     "mobil": (0.0, 0.75, 0.8),  # cyan
 }
 """Box colour (r, g, b) per policy: competitive red, mutual blue, cooperative green, SUT amber."""
+TRUCK_COLOR: tuple[float, float, float] = (0.55, 0.5, 0.15)
+"""Box colour of a truck BV (olive), whatever the policy code its slot carries."""
 _CODE_COLORS = {POLICY_CODES[name]: rgb for name, rgb in POLICY_COLORS.items()}
 CUBE = 1  # visualization_msgs/Marker.CUBE
 TEXT_VIEW_FACING = 9  # visualization_msgs/Marker.TEXT_VIEW_FACING
@@ -41,6 +44,14 @@ TEXT_VIEW_FACING = 9  # visualization_msgs/Marker.TEXT_VIEW_FACING
 def policy_color(code: float) -> tuple[float, float, float]:
     """Box colour of a policy code (white for an unknown code)."""
     return _CODE_COLORS.get(int(code), (1.0, 1.0, 1.0))
+
+
+def vehicle_color(code: float, length_m: float) -> tuple[float, float, float]:
+    """Box colour of a vehicle: :data:`TRUCK_COLOR` for a BV longer than ``TRUCK_MIN_LENGTH_M``, else
+    its policy's (the SUT keeps its colour whatever its length)."""
+    if float(length_m) > TRUCK_MIN_LENGTH_M and int(code) != POLICY_CODES["sut"]:
+        return TRUCK_COLOR
+    return policy_color(code)
 
 
 def _color(rgb: tuple[float, float, float], alpha: float = 1.0):
@@ -74,7 +85,7 @@ def vehicle_markers(columns: Mapping[str, np.ndarray], stamp_ns: int):
         box.scale.x = float(columns["length"][i])
         box.scale.y = float(columns["width"][i])
         box.scale.z = VEHICLE_HEIGHT_M
-        box.color = _color(policy_color(columns["policy"][i]))
+        box.color = _color(vehicle_color(columns["policy"][i], columns["length"][i]))
         label = Marker()
         label.header = box.header
         label.ns = "labels"

@@ -9,8 +9,9 @@ as the report's timeline does, so its memory is bounded whatever the run's lengt
 palette, and saves them as a GIF (fast and small: docs/evaluation.md §7.1).
 
 What a frame shows: lane lines; every vehicle as its box (its own length and width, so a truck
-is as long as it is; boxes of :data:`TRUCK_LENGTH_M` or more carry a line along their length), filled by role and
-driver model (:data:`POLICY_COLOURS`; the SUT orange); a pointer from the SUT towards the side it changes lanes to
+is as long as it is), filled by role and driver model (:data:`POLICY_COLOURS`; the SUT orange) — a truck BV
+(longer than :data:`~evoscen_contract.contract.TRUCK_MIN_LENGTH_M`) olive with a line along its length, whatever
+the policy code its slot carries; a pointer from the SUT towards the side it changes lanes to
 (while it changes lanes in the states the frame stands for); during an exposure (or a collision) in
 those states the SUT and the vehicles its rules name outlined magenta (red is a competitive BV's
 fill) and the rules in the title.
@@ -34,11 +35,11 @@ ANIMATION_FRAMES = 120
 """Frames drawn by default (:func:`write_animation`'s ``frames``; ``--animation-frames``)."""
 FRAME_MS = 100
 """Each frame's display time (ms)."""
-TRUCK_LENGTH_M = 7.0
-"""Vehicles at least this long carry a line along their length (a truck)."""
+TRUCK_LENGTH_M = C.TRUCK_MIN_LENGTH_M
+"""Vehicles longer than this are trucks: olive, with a line along their length."""
 POLICY_COLOURS = {
     "level0": "tab:gray", "mutual": "tab:blue", "competitive": "tab:red", "cooperative": "tab:green",
-    "sut": "orange", "nilsson": "tab:purple", "mobil": "tab:brown",
+    "sut": "orange", "nilsson": "tab:purple", "mobil": "tab:brown", "truck": "tab:olive",
 }
 """Fill of a BV by its ``policy`` (driver model); the SUT is orange whatever its model."""
 
@@ -125,7 +126,7 @@ def _exposure_at(exposures: list[dict[str, Any]], k0: int, k1: int) -> dict[str,
 _PALETTE = {"white": (255, 255, 255), "black": (0, 0, 0), "lane": (170, 170, 170), "red": (214, 39, 40),
             "orange": (255, 165, 0), "tab:gray": (127, 127, 127), "tab:blue": (31, 119, 180),
             "tab:red": (214, 39, 40), "tab:green": (44, 160, 44), "tab:purple": (148, 103, 189),
-            "tab:brown": (140, 86, 75), "dark": (60, 60, 60), "involved": (230, 0, 230)}
+            "tab:brown": (140, 86, 75), "tab:olive": (188, 189, 34), "dark": (60, 60, 60), "involved": (230, 0, 230)}
 _INDEX = {name: i for i, name in enumerate(_PALETTE)}
 WIDTH_PX = 640
 """Width of the animation (px): the view of 2 x :data:`WINDOW_M` at 4 px/m."""
@@ -188,7 +189,7 @@ def write_animation(series: FrameSeries, lane_segments: np.ndarray | None, repor
     font = ImageFont.load_default_imagefont()  # the bitmap font: a tenth of FreeType's time per line
     legend = ("SUT orange; BVs " + ", ".join(f"{n} {POLICY_COLOURS[n].removeprefix('tab:')}"
                                              for n in ("mutual", "competitive", "cooperative", "level0"))
-              + f"; line: >= {TRUCK_LENGTH_M:g} m; magenta: involved")
+              + "; trucks olive; magenta: involved")
     segs = None if lane_segments is None or not len(lane_segments) else np.asarray(lane_segments, dtype=float)
     foot = Image.new("P", (WIDTH_PX, foot_px), _INDEX["white"])
     foot.putpalette(palette)
@@ -222,11 +223,13 @@ def write_animation(series: FrameSeries, lane_segments: np.ndarray | None, repor
         for j, vid in enumerate(fr.ids.tolist()):
             pts = [tuple(p) for p in corners[j]]
             sut = j == fr.sut_row
-            fill = "orange" if sut else POLICY_COLOURS.get(C.POLICY_NAMES.get(int(c["policy"][j]), ""), "tab:gray")
+            truck = c["length"][j] > TRUCK_LENGTH_M
+            fill = ("orange" if sut else "tab:olive" if truck
+                    else POLICY_COLOURS.get(C.POLICY_NAMES.get(int(c["policy"][j]), ""), "tab:gray"))
             outlined = vid in red or (sut and (x is not None or hit is not None))
             draw.polygon(pts, fill=_INDEX[fill], outline=_INDEX["involved" if outlined else "black"],
                          width=3 if outlined else 1)
-            if c["length"][j] >= TRUCK_LENGTH_M:  # a truck: a line along its length
+            if truck:  # a truck: a line along its length
                 (a0, b0), (a1, b1) = px(c["x"][j] - ca[j] * hl[j] * 0.8, c["y"][j] - sa[j] * hl[j] * 0.8), \
                     px(c["x"][j] + ca[j] * hl[j] * 0.8, c["y"][j] + sa[j] * hl[j] * 0.8)
                 draw.line([(float(a0), float(b0)), (float(a1), float(b1))], fill=_INDEX["black"], width=1)

@@ -597,4 +597,4 @@ def traffic_of_stream(st: ScoreStream) -> dict[str, Any]:
 def run_info(run: RunData) -> dict[str, Any]:
     """What run the report is about."""
     return run_info_of(run.scenario, run.external_sut, run.ids, run.sut_index, run.states, run.dt_s,
-                       float(run.time_s[-1] - run.time_s[0]), run.complete)
+                       float(run.time_s[-1] - run.time_s[0]), run.complete, run.columns["length"][0])

@@ -155,6 +155,19 @@ def exposure_rows(exposures: list[dict[str, Any]], limit: int = 50) -> list[str]
     return out
 
 
+def traffic_line(r: dict[str, Any]) -> str:
+    """The report's line saying which traffic the run had (make-up, policy set, BVs per class)."""
+    makeup = r.get("makeup") or "uniform"
+    what = {"highd": "highD make-up (cars and trucks, highD's desired speeds; docs/bv-profiles.md)",
+            "uniform": "uniform make-up (every BV a car, desired speeds capped at the limit)"}.get(makeup, makeup)
+    parts = [f"Traffic: {what}"]
+    if r.get("bv_cars") is not None:
+        parts.append(f"{r['bv_cars']} cars and {r['bv_trucks']} trucks")
+    parts.append(f"cars driven by {r.get('bv_driver') or '?'}"
+                 + (f", policy set {r['policy_set']}" if r.get("policy_set") else ""))
+    return "; ".join(parts) + ".\n"
+
+
 def markdown(report: dict[str, Any], images: list[str], ev: EvaluationConfig | None = None) -> str:
     """``report.md``: the scores and their inputs as tables, then the plots (``ev``: the settings
     the run was scored under, for the exposure rules in words)."""
@@ -163,7 +176,8 @@ def markdown(report: dict[str, Any], images: list[str], ev: EvaluationConfig | N
     ew = g.get("effective_weights", g["weights"])
     out = [f"# Evaluation: {r.get('scenario') or 'run'} (SUT {r.get('sut_model') or '?'}, seed {r.get('seed')})\n",
            f"{r['steps']} steps ({r['duration_s']:.1f} s simulated, dt {r['dt_s']:g} s), {r['bv_count']} BVs "
-           f"({r.get('bv_driver') or '?'}), SUT id {r['sut_id']}; run {'complete' if r['complete'] else 'INCOMPLETE'}.\n"]
+           f"({r.get('bv_driver') or '?'}), SUT id {r['sut_id']}; run {'complete' if r['complete'] else 'INCOMPLETE'}.\n",
+           traffic_line(r)]
     for warning in report["warnings"]:
         out.append(f"> **warning:** {warning}\n")
     out += ["## Intelligence\n",

@@ -218,7 +218,8 @@ class RunAccumulator:
         st = self.stream
         st.finish()
         dt = float(scenario["dt_s"]) if scenario is not None and "dt_s" in scenario else (st.dt_s or 0.1)
-        return run_info_of(scenario, external_sut, st.ids, st.sut, st.states, dt, st.duration_s, self.complete)
+        return run_info_of(scenario, external_sut, st.ids, st.sut, st.states, dt, st.duration_s, self.complete,
+                           st.first_lengths)
 
     def run_data(self, *, scenario: dict | None = None, warnings: Iterable[str] = (),
                  external_sut: bool = False) -> RunData:
@@ -507,15 +508,39 @@ def _parse_scenario(text: str | None, path: Path) -> dict | None:
     return data
 
 
+def traffic_of(scenario: dict | None, lengths: np.ndarray | None, sut_index: int) -> dict[str, Any]:
+    """Which traffic a run had, from its recorded scenario and the first world state's lengths: the
+    make-up (a scenario without ``bvs.makeup`` was ``uniform``: docs/bv-profiles.md), the learned BVs'
+    policy set (``shipped`` resolved to the make-up's set) and the BVs per class (a truck is longer
+    than :data:`~evoscen_sim.traffic.makeup.TRUCK_MIN_LENGTH_M`; the class of a slot is fixed for the run)."""
+    from evoscen_sim.traffic.makeup import TRUCK_MIN_LENGTH_M, shipped_policy_set
+
+    bvs = (scenario or {}).get("bvs") or {}
+    makeup = bvs.get("makeup") or "uniform"
+    policies = None
+    if bvs.get("driver") == "learned":
+        policies = (((scenario or {}).get("models") or {}).get("learned") or {}).get("policy_dir") or "shipped"
+        if policies == "shipped":
+            policies = f"shipped ({shipped_policy_set(makeup)})"
+    cars = trucks = None
+    if lengths is not None:
+        others = np.delete(np.asarray(lengths, dtype=float), sut_index)
+        trucks = int(np.count_nonzero(others > TRUCK_MIN_LENGTH_M))
+        cars = int(others.size - trucks)
+    return {"makeup": makeup, "policy_set": policies, "bv_cars": cars, "bv_trucks": trucks}
+
+
 def run_info_of(scenario: dict | None, external_sut: bool, ids: np.ndarray, sut_index: int, states: int,
-                dt_s: float, duration_s: float, complete: bool) -> dict[str, Any]:
-    """:func:`run_info` from its parts (a streamed run has no :class:`RunData`)."""
+                dt_s: float, duration_s: float, complete: bool, lengths: np.ndarray | None = None) -> dict[str, Any]:
+    """:func:`run_info` from its parts (a streamed run has no :class:`RunData`); ``lengths``: the
+    vehicles' lengths in the first world state (the BVs per class)."""
     sc = scenario or {}
     return {
         "scenario": sc.get("name"),
         "seed": sc.get("seed"),
         "sut_model": EXTERNAL_SUT if external_sut else (sc.get("sut") or {}).get("model"),
         "bv_driver": (sc.get("bvs") or {}).get("driver"),
+        **traffic_of(scenario, lengths, sut_index),
         "bv_count": int(ids.shape[0] - 1),
         "sut_id": int(ids[sut_index]),
         "states": states,

@@ -27,13 +27,12 @@ from pathlib import Path
 
 import numpy as np
 from evoscen_contract import contract as C
+from evoscen_contract.contract import TRUCK_MIN_LENGTH_M  # longer: exported as a truck (docs/export.md)
 from evoscen_sim.errors import InputError
 
 from evoscen_eval.xosc_readback import (  # noqa: F401  (the read-back's names, served here too)
     COLLISION_TIME_TOLERANCE_S, EPS_T, XoscTrack, box_collisions, compare_collisions, read_xosc_tracks)
 
-TRUCK_MIN_LENGTH_M = 7.0
-"""A vehicle longer than this is exported as a truck, else as a car (docs/export.md, [choice])."""
 JUMP_SLACK_M = 5.0
 """A step that moves a vehicle further than ``speed * dt + JUMP_SLACK_M`` (its larger speed of the
 two states) is a jump: a new piece begins (docs/export.md "Pieces")."""

@@ -118,6 +118,7 @@ class ScoreStream:
         self.first_time_s = 0.0
         self.last_time_s = 0.0
         self.ids: np.ndarray | None = None
+        self.first_lengths: np.ndarray | None = None
         self.sut: int | None = None
         self._events_before: list[dict] = []
         # events the scores read
@@ -188,6 +189,7 @@ class ScoreStream:
             if len(suts) != 1:
                 raise ValueError(f"the world table has {len(suts)} vehicles with role 1 (SUT), expected exactly 1")
             self.ids = table[:, _F["id"]].astype(np.int64)
+            self.first_lengths = table[:, _F["length"]].copy()  # the BVs per class (report's run section)
             self.sut = int(suts[0])
             self.first_t_ns = int(t_ns)
             self.first_time_s = time_s

@@ -185,7 +185,8 @@ def test_window_run_vehicle_km_matches_the_distance_driven():
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.traffic.window import new_trips
 
-    cfg = load_scenario_config(None, {"steps": 700, "seed": 7, "bvs.driver": "level0", "traffic.mode": "window"})
+    cfg = load_scenario_config(None, {"steps": 700, "seed": 7, "bvs.driver": "level0", "traffic.mode": "window",
+                                      "bvs.makeup": "uniform"})
     run = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False, keep_run=True).run
     assert run.events_named("evoscen/shift") and run.events_named("evoscen/reentry")
     f = bv_realism(run)

@@ -411,7 +411,7 @@ def test_live_monitor_equals_the_evaluator_on_a_simulated_run(mode):
     # seed 2: three exposures, rear conflicts among them, with the shipped BVs (seed 0 has none: they keep
     # ~30 m and no longer brake for far leaders)
     # (traffic.mode: loop: the traffic this seed was chosen in; the equality does not depend on the design)
-    cfg = load_scenario_config(None, {"steps": 800, "seed": 2, "sut.model": "nilsson", "traffic.mode": "loop",
+    cfg = load_scenario_config(None, {"steps": 800, "seed": 2, "sut.model": "nilsson", "traffic.mode": "loop", "bvs.makeup": "uniform",
                                       "evaluation.ttc_threshold_s": 4.0, "evaluation.rear_conflicts": mode})
     sc = build_scenario(cfg)
     w = sc.world

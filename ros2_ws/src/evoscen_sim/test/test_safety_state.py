@@ -98,7 +98,7 @@ def test_every_state_of_a_run() -> None:
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.scenario_builders import SUT_INDEX
 
-    sc = build_scenario(load_scenario_config(None, {"steps": 1500}))
+    sc = build_scenario(load_scenario_config(None, {"steps": 1500, "sut.model": "mobil"}))
     w = sc.world
     leaders = set()
     for _ in range(1500):

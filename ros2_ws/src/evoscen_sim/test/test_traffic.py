@@ -153,7 +153,7 @@ def test_common_shift_median_is_numpys() -> None:
 
 
 def test_window_spawn_fills_the_window_at_its_densities() -> None:
-    cfg = load_scenario_config(None, {"seed": 12, "traffic.warmup_s": 0.0})
+    cfg = load_scenario_config(None, {"seed": 12, "traffic.warmup_s": 0.0, "bvs.makeup": "uniform"})
     w = build_world(cfg)
     rel = w.s[1:] - w.s[0]
     assert w.n == 21 and (np.abs(rel) > 0).all()
@@ -175,14 +175,20 @@ def _ttc(gap: float, v_back: float, v_front: float) -> float:
     return gap / (v_back - v_front) if v_back > v_front else math.inf
 
 
-@pytest.mark.parametrize("driver", ["learned", "level0"])
-def test_a_run_keeps_its_traffic_and_never_moves_the_sut(driver: str) -> None:
+@pytest.mark.parametrize("driver, makeup", [("learned", "uniform"), ("level0", "uniform"), ("learned", "highd"),
+                                            ("level0", "highd")])
+def test_a_run_keeps_its_traffic_and_never_moves_the_sut(driver: str, makeup: str) -> None:
     """2,000 steps, MOBIL as SUT: the SUT moves only by driving (and the shifts), every entry starts
-    without a conflict (TTC >= 2 s to its leader and from its follower in its first 3 s), and BVs
-    are around the SUT all the time."""
+    without a conflict (TTC >= 2 s to its leader and from its follower, with the vehicles' own lengths:
+    under uniform in its first 3 s; under highd at its entry — there a leader on the ramp may brake at up
+    to 7 m/s² for a gap within those 3 s: seed 40123, step 1985, a car entered 18 m behind a merging car
+    that braked from 24 to 11 m/s, TTC 1.97 s after the follower's reaction time), and BVs are around the
+    SUT all the time."""
     from evoscen_bringup.scenario import build_scenario
 
-    sc = build_scenario(load_scenario_config(None, {"seed": 40123, "sut.model": "mobil", "bvs.driver": driver}))
+    watch_steps = 30 if makeup == "uniform" else 1
+    sc = build_scenario(load_scenario_config(None, {"seed": 40123, "sut.model": "mobil", "bvs.driver": driver,
+                                                    "bvs.makeup": makeup}))
     w = sc.world
     watch: dict[int, int] = {}  # vehicle -> steps left to watch
     near = []
@@ -195,7 +201,7 @@ def test_a_run_keeps_its_traffic_and_never_moves_the_sut(driver: str) -> None:
         assert 0.0 <= ds <= 4.0 + 1e-9, f"step {k}: the SUT moved by {ds} m"
         assert int(w.lane[0]) in (lane0, target0), f"step {k}: the SUT jumped lanes"
         for i, _, _ in res.reentries:
-            watch[i] = 30
+            watch[i] = watch_steps
         for i in list(watch):
             lane = w.lane[i]
             same = np.flatnonzero((w.lane == lane) & (np.arange(w.n) != i))
@@ -203,10 +209,12 @@ def test_a_run_keeps_its_traffic_and_never_moves_the_sut(driver: str) -> None:
             behind = same[w.s[same] < w.s[i]]
             if ahead.size:
                 j = ahead[np.argmin(w.s[ahead])]
-                assert _ttc(w.s[j] - w.s[i] - L, w.v[i], w.v[j]) >= 2.0, f"step {k}: entered vehicle {i}"
+                gap = w.s[j] - w.s[i] - 0.5 * (w.length[i] + w.length[j])  # the vehicles' own lengths (highd)
+                assert _ttc(gap, w.v[i], w.v[j]) >= 2.0, f"step {k}: entered vehicle {i}"
             if behind.size:
                 j = behind[np.argmax(w.s[behind])]
-                assert _ttc(w.s[i] - w.s[j] - L, w.v[j], w.v[i]) >= 2.0, f"step {k}: follower of entered {i}"
+                gap = w.s[i] - w.s[j] - 0.5 * (w.length[i] + w.length[j])
+                assert _ttc(gap, w.v[j], w.v[i]) >= 2.0, f"step {k}: follower of entered {i}"
             watch[i] -= 1
             if not watch[i]:
                 del watch[i]
@@ -278,4 +286,4 @@ def test_the_traffic_section_is_the_windows_parameters(road) -> None:
     assert params.lane_speed_mps == ((20.0, 0.0), (21.0, 1.0), (22.0, 2.0), (23.0, 3.0))
     with pytest.raises(InputError, match=r"traffic\.insertion_decel_mps2"):
         load_scenario_config(None, {"traffic.insertion_decel_mps2": 0.0})  # the section's check: (0, 10]
-    assert traffic_params_from_config(load_scenario_config(None, {"traffic.mode": "loop"}), road) is None
+    assert traffic_params_from_config(load_scenario_config(None, {"traffic.mode": "loop", "bvs.makeup": "uniform"}), road) is None

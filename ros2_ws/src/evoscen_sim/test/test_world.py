@@ -177,7 +177,7 @@ def test_density_constant_over_10000_steps() -> None:
     behind s = 0) when every entry is crowded; in the default scenario that never happens,
     so all 21 vehicles have s in [0, length] at every step.
     """
-    sc = build_scenario(load_scenario_config(None, {"steps": 10000, "traffic.mode": "loop"}))
+    sc = build_scenario(load_scenario_config(None, {"steps": 10000, "traffic.mode": "loop", "bvs.makeup": "uniform"}))
     w = sc.world
     road = sc.road
     n = w.n
@@ -211,7 +211,7 @@ def test_density_constant_over_10000_steps() -> None:
 @pytest.fixture(scope="module")
 def default_scenario():
     """The spawn layout of ``traffic.mode: loop`` (the window's: test_traffic.py)."""
-    return build_scenario(load_scenario_config(None, {"traffic.mode": "loop"}))
+    return build_scenario(load_scenario_config(None, {"traffic.mode": "loop", "bvs.makeup": "uniform"}))
 
 
 def test_spawn_sut_and_roles(default_scenario) -> None:

@@ -59,7 +59,11 @@ stated here — docs/method.md §4.3 marks the overall reading):
   in the target lane with a safety distance d_min "of conducting a lane-change action". With
   ``d_min_now`` (default) a lane action is not available while the bumper-to-bumper gap to the nearest
   vehicle ahead or behind in its lane *now* is below ``min_gap_m``; a vehicle alongside (bodies
-  overlapping longitudinally: a negative gap) always is. [choice] With ``end_of_game`` (the rule before)
+  overlapping longitudinally: a negative gap) always is. Under this rule a vehicle is in the target lane
+  when its lane or its target lane is that lane, except one leaving it on the far side — the vehicles
+  the evaluation's *beside* rule looks at (docs/evaluation.md §3.7): the game's vehicle ahead and behind
+  in the target lane are the nearer of those and of the neighbourhood's by centre, so a truck crawling
+  into the lane from two lanes over is the leader the game plays against, not an empty lane. [choice] With ``end_of_game`` (the rule before)
   only the gaps predicted at the end of the game count, so a faster vehicle alongside that would be
   ahead by then does not stop the change (measured: about half of intact Stackelberg's exposures were
   lane changes started beside a vehicle, docs/sensitivity.md).
@@ -99,6 +103,7 @@ CANDIDATE_SLOTS: tuple[tuple[int, str], ...] = tuple((lane, side) for lane in (-
 
 _COLUMNS = np.array([RIGHT, OWN, LEFT], dtype=np.int64)  # neighbourhood columns of lane offsets -1, 0, +1
 TARGET_GAP_RULES: tuple[str, ...] = ("d_min_now", "end_of_game")
+_NO_ENTERING = (np.full(3, np.inf), np.full(3, np.nan), np.full(3, np.inf), np.full(3, np.nan))
 """Values of :attr:`StackelbergParams.target_gap_rule`."""
 
 
@@ -143,10 +148,42 @@ class StackelbergParams:
 # ------------------------------------------------------------------------------------------
 
 
+@kernel
+def _target_lane_neighbours(i, s, v, length, lane, target_lane):
+    """Per lane offset -1, 0, +1 (offset 0 not used): the vehicle ahead and the vehicle behind ``i`` with the
+    smallest bumper-to-bumper gap among those whose lane or target lane is lane ``lane[i]`` + offset, except
+    one in it leaving it on the far side (``target_gap_rule: d_min_now``; module docstring). Returns
+    ``(gap ahead, its speed, gap behind, its speed)``, arrays of 3 (``inf`` / ``nan`` where none); a vehicle
+    level with ``i`` counts as behind, as in the neighbourhood."""
+    gap_f = np.full(3, np.inf)
+    v_f = np.full(3, np.nan)
+    gap_r = np.full(3, np.inf)
+    v_r = np.full(3, np.nan)
+    for l in (0, 2):
+        off = l - 1
+        tgt = lane[i] + off
+        away = tgt + off
+        for j in range(s.shape[0]):
+            if j == i or not (lane[j] == tgt or target_lane[j] == tgt) or (lane[j] == tgt and target_lane[j] == away):
+                continue
+            gap = abs(s[j] - s[i]) - 0.5 * (length[j] + length[i])
+            if s[j] > s[i]:
+                if gap < gap_f[l]:
+                    gap_f[l] = gap
+                    v_f[l] = v[j]
+            elif gap < gap_r[l]:
+                gap_r[l] = gap
+                v_r[l] = v[j]
+    return gap_f, v_f, gap_r, v_r
+
+
 def _game_inputs(view, i: int, params: StackelbergParams) -> tuple:
     """Arguments of :func:`_game_kernel` for vehicle ``i``."""
     nb = view.neighborhood()
     road = view.road
+    d_min_now = params.target_gap_rule == "d_min_now"
+    entering = (_target_lane_neighbours(int(i), view.s, view.v, view.length, view.lane, view.target_lane)
+                if d_min_now else _NO_ENTERING)
     return (int(i), int(view.lane[i]), float(view.s[i]), float(view.v[i]), float(view.length[i]),
             nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower_speed_mps,
             road.lane_start_s, road.lane_end_s, float(road.length_m),
@@ -154,7 +191,7 @@ def _game_inputs(view, i: int, params: StackelbergParams) -> tuple:
             float(params.leader_accel_mps2), float(params.leader_decel_mps2),
             float(params.follower_accel_mps2), float(params.follower_decel_mps2),
             float(params.view_distance_m), float(params.time_headway_s), float(params.min_gap_m),
-            float(params.lane_change_threshold_m), params.target_gap_rule == "d_min_now")
+            float(params.lane_change_threshold_m), d_min_now, *entering)
 
 
 def game_values(view, i: int, params: StackelbergParams = StackelbergParams()) -> np.ndarray:
@@ -221,7 +258,7 @@ def _travel(v, a_phase, n, tau):
 @kernel
 def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, follower_speed,
                  lane_start, lane_end, road_length, tau, n, leader_up, leader_down, follower_up, follower_down,
-                 d_v, headway, d_min, threshold, d_min_now):
+                 d_v, headway, d_min, threshold, d_min_now, ent_gap_f, ent_v_f, ent_gap_r, ent_v_r):
     """Payoff matrix (9 × 9), the players' candidate slots and the decided lane offset.
 
     Lane arrays are over offsets -1, 0, +1; candidate slot ``2·l + 0`` is the vehicle ahead,
@@ -251,8 +288,14 @@ def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, foll
         v_f[l] = leader_speed[i, col]
         gap_r[l] = gap_rear[i, col]
         v_r[l] = follower_speed[i, col]
-        if d_min_now and l != 1 and (gap_f[l] < d_min or gap_r[l] < d_min):
-            exists[l] = False  # d_min to the target lane's vehicles now; one alongside has a negative gap
+        if d_min_now and l != 1:
+            # the target lane's vehicles: those in it or entering it (not only by centre), the nearer each side
+            if ent_gap_f[l] < gap_f[l]:
+                gap_f[l], v_f[l] = ent_gap_f[l], ent_v_f[l]
+            if ent_gap_r[l] < gap_r[l]:
+                gap_r[l], v_r[l] = ent_gap_r[l], ent_v_r[l]
+            if gap_f[l] < d_min or gap_r[l] < d_min:
+                exists[l] = False  # d_min to the target lane's vehicles now; one alongside has a negative gap
     exists[1] = True  # keeping the lane is always an action
     duration = n * tau
     # --- the players: the two smallest constant-speed gaps at the end of the game

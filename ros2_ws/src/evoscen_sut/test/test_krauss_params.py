@@ -210,7 +210,7 @@ def test_a_krauss_bv_settles_at_its_own_desired_speed() -> None:
     """A Nilsson BV alone on the road (σ = 0, desired 25 m/s): it settles at 25·f, f its speed factor."""
     from evoscen_bringup.scenario import build_scenario
 
-    cfg = load_scenario_config(None, EMPTY_ROAD | {"bvs.count": "1", "bvs.driver": "nilsson", "sut.s_m": "1500",
+    cfg = load_scenario_config(None, EMPTY_ROAD | {"bvs.count": "1", "bvs.driver": "nilsson", "bvs.makeup": "uniform", "sut.s_m": "1500",
                                                    "models": {"krauss": {"desired_speed_mps": 25.0, "sigma": 0.0}}})
     sc = build_scenario(cfg)
     f = sc.bv_driver.krauss.speed_factors[1]

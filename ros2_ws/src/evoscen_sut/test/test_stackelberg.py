@@ -223,3 +223,31 @@ def test_a_vehicle_alongside_in_the_target_lane_stops_the_change(road):
     w = hand_built_world(road, s=[300, 330, 340, 293.2], lane=[2, 2, 1, 3], speed=[30, 20, 20, 20])
     assert np.all(game_values(w, 0)[3:6] == -np.inf)
     assert np.all(game_values(w, 0, old)[3:6] > -np.inf)
+
+
+def test_a_vehicle_changing_into_the_target_lane_from_the_far_side_counts(road):
+    # The lane-3 situation above without the car in lane 3; instead a 17.9-m truck in lane 4 changing into
+    # lane 3 (its target lane), its centre 8 m ahead of the ego's: gap 8 - (17.9 + 4.8) / 2 = -3.35 m. By
+    # centre it is not in lane 3, so the end-of-game rule changes left towards its side; d_min now does not.
+    w = hand_built_world(road, s=[300, 330, 340, 308], lane=[2, 2, 1, 4], speed=[30, 20, 20, 15])
+    w.length[3] = 17.9
+    w.target_lane[3] = 3
+    w.lane_change[3] = -1
+    assert _decision(w, StackelbergParams(target_gap_rule="end_of_game")) == 1
+    assert np.all(game_values(w, 0)[3:6] == -np.inf)
+    # one in lane 3 leaving it to the far side (lane 4) does not count: the left rows are available
+    w = hand_built_world(road, s=[300, 330, 340, 308], lane=[2, 2, 1, 3], speed=[30, 20, 20, 15])
+    w.length[3] = 17.9
+    w.target_lane[3] = 4
+    w.lane_change[3] = 1
+    from evoscen_sut.stackelberg import _target_lane_neighbours
+
+    gap_f, v_f, gap_r, _ = _target_lane_neighbours(0, w.s, w.v, w.length, w.lane, w.target_lane)
+    assert gap_f[2] == np.inf and gap_r[2] == np.inf and np.isnan(v_f[2])
+    # entering from lane 4 (the first world): the truck is the leader of lane 3 at -3.35 m, 15 m/s
+    w = hand_built_world(road, s=[300, 330, 340, 308], lane=[2, 2, 1, 4], speed=[30, 20, 20, 15])
+    w.length[3] = 17.9
+    w.target_lane[3] = 3
+    gap_f, v_f, gap_r, _ = _target_lane_neighbours(0, w.s, w.v, w.length, w.lane, w.target_lane)
+    assert gap_f[2] == pytest.approx(8 - 11.35) and v_f[2] == 15.0 and gap_r[2] == np.inf
+    assert gap_f[0] == pytest.approx(40 - 4.8)  # lane 1: the 20 m/s vehicle 40 m ahead

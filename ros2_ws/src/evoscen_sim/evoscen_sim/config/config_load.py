@@ -277,12 +277,17 @@ def _cross_check(cfg: ScenarioConfig, ctx: Context, explicit: set[str]) -> None:
                  f"expected an integer in [0, bvs.count] with {count_text}",
                  is_default="spawn.ramp_vehicles" not in explicit)
     if cfg.bvs.makeup != "uniform":
+        # [choice] the default make-up (highd) is not dropped silently where it cannot apply: the line
+        # says so, and bvs.makeup: uniform is the one key that selects the traffic without trucks
+        default = "bvs.makeup" not in explicit
         if cfg.traffic.mode != "window":
             ctx.fail("bvs.makeup", cfg.bvs.makeup, "expected uniform with traffic.mode = "
-                     f"{cfg.traffic.mode} (the highd make-up needs traffic.mode: window)")
+                     f"{cfg.traffic.mode} (the highd make-up needs traffic.mode: window; set bvs.makeup: uniform)",
+                     is_default=default)
         if cfg.bvs.driver not in MAKEUP_CAR_DRIVERS:
             ctx.fail("bvs.makeup", cfg.bvs.makeup, f"expected uniform with bvs.driver = {cfg.bvs.driver} "
-                     f"(the highd make-up's cars are {', '.join(MAKEUP_CAR_DRIVERS)} drivers)")
+                     f"(the highd make-up's cars are {', '.join(MAKEUP_CAR_DRIVERS)} drivers; set bvs.makeup: "
+                     "uniform)", is_default=default)
     ev = cfg.evaluation
     if ev.weight_safety + ev.weight_efficiency + ev.weight_interaction == 0:
         ctx.fail("evaluation.weight_safety", ev.weight_safety,

@@ -77,13 +77,14 @@ class BvConfig:
     split by id into N nodes of consecutive ids. A vehicle keeps its id and its driver type for the
     whole run (an entry at a window edge reuses its slot), so it stays with its node. The world, the
     events and the scores do not depend on the split (docs/architecture.md §5, "BV nodes")."""
-    makeup: str = field(default="uniform", metadata=_check(_Str(lambda: MAKEUPS)))
+    makeup: str = field(default="highd", metadata=_check(_Str(lambda: MAKEUPS)))
     """The traffic's make-up (docs/bv-profiles.md, "Traffic make-up"; :mod:`evoscen_sim.traffic.makeup`):
-    ``uniform`` (default) every BV a car of the ``vehicle`` section, its desired speed capped at the
-    lane's limit; ``highd`` cars and trucks with lengths, widths and desired speeds (not capped) drawn
+    ``highd`` (default) cars and trucks with lengths, widths and desired speeds (not capped) drawn
     from the highD dataset's figures (``models.highd``; Krajewski et al., ITSC 2018), trucks driven by
-    the truck driver (``models.truck``), cars by ``bvs.driver`` (``learned`` or ``level0``); needs
-    ``traffic.mode: window``. A bag records the key only when it is not ``uniform``."""
+    the truck driver (``models.truck``), cars by ``bvs.driver`` (one of :data:`MAKEUP_CAR_DRIVERS`);
+    needs ``traffic.mode: window``. ``uniform`` every BV a car of the ``vehicle`` section, its desired
+    speed capped at the lane's limit (the default before evoscen 0.7.0). A bag records the key only when
+    it is not ``uniform``: a bag's scenario without it was uniform traffic."""
 
 
 @dataclass(frozen=True)

@@ -24,12 +24,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from evoscen_contract.contract import TRUCK_MIN_LENGTH_M  # a vehicle longer is a truck (m)
 
 from evoscen_sim.config.config_checks import flag, integer, number, text
 from evoscen_sim.config.config_schema import MAKEUPS  # noqa: F401  (the values of ``bvs.makeup``)
 
-TRUCK_MIN_LENGTH_M = 7.0
-"""A vehicle longer than this is a truck (m)."""
+
+
+def shipped_policy_set(makeup: str) -> str:
+    """The learned BVs' policy set that ``models.learned.policy_dir: shipped`` names under ``makeup``.
+    [choice] ``highd_trained`` under ``highd`` (the set trained in the traffic it drives in; its cars'
+    lane-change rate nearest highD's, docs/learned-bvs.md), ``v0.6.0`` under ``uniform`` (its bags
+    unchanged). :func:`evoscen_bv.bv_models.shipped_set` finds the directory; the report names the set."""
+    return "highd_trained" if makeup == HIGHD else "v0.6.0"
 
 HIGHD = "highd"
 
