@@ -60,8 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--standing-at-once", choices=("true", "false"), default=None,
                     help="models.learned.standing_leader_at_once (default: the config's)")
     ap.add_argument("--traffic", choices=("window", "loop"), default=None,
-                    help="traffic.mode: window (the traffic moves with the SUT) or loop (re-entry at the road's start); "
-                         "default: the config's")
+                    help="traffic.mode: window (the traffic moves with the SUT) or loop (re-entry at the road's start; "
+                         "with the uniform make-up, which the loop needs: bvs.makeup: uniform); default: the config's")
     ap.add_argument("--hard-brake", choices=("true", "false"), default=None,
                     help="models.learned.hard_brake: the SUT's leader brakes hard now and then (default: the config's)")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
@@ -97,6 +97,8 @@ def main(argv: list[str] | None = None) -> int:
                 overrides["models.learned.standing_leader_at_once"] = args.standing_at_once == "true"
             if args.traffic is not None:
                 overrides["traffic.mode"] = args.traffic
+                if args.traffic == "loop":  # the highd make-up needs the window (docs/bv-profiles.md)
+                    overrides["bvs.makeup"] = "uniform"
             if args.hard_brake is not None:
                 overrides["models.learned.hard_brake"] = args.hard_brake == "true"
             try:
@@ -118,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     from evoscen_eval.bv_realism import HIGHD_REFERENCE, HIGHD_SOURCE
 
     width = max(len(label) for _, label, _ in KEYS)
-    print(f"traffic.mode: {cfg.traffic.mode}")
+    print(f"traffic.mode: {cfg.traffic.mode}; bvs.makeup: {cfg.bvs.makeup}")
     print(" " * width + "".join(f"  {p:>12}" for p in out) + f"  {'highD':>12}")
     for key, label, fmt in KEYS:
         ref = fmt.format(HIGHD_REFERENCE[key]) if key in HIGHD_REFERENCE else "-"

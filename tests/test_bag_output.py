@@ -318,7 +318,13 @@ def test_world_physics_consistency(recorded_run, mcap_messages):
         assert np.all((w["accel"] >= -cfg.vehicle.max_brake_mps2 - 1e-9)
                       & (w["accel"] <= cfg.vehicle.max_accel_mps2 + 1e-9))
         assert np.all(w["d"] < 0)  # all lanes are right of the reference line
-        assert np.all(w["length"] == cfg.vehicle.length_m) and np.all(w["width"] == cfg.vehicle.width_m)
+        # bodies: the SUT the vehicle section's; under the default highd make-up each BV slot keeps the body it
+        # was drawn (cars up to 6.9 m at the vehicle section's width, trucks of 7.1 m or more, 2.5 m wide)
+        assert (w["length"][0], w["width"][0]) == (cfg.vehicle.length_m, cfg.vehicle.width_m)
+        assert np.array_equal(w["length"], tables[0]["length"]) and np.array_equal(w["width"], tables[0]["width"])
+        truck = w["length"][1:] > 7.0
+        assert np.all(w["width"][1:][truck] == 2.5) and np.all(w["width"][1:][~truck] == cfg.vehicle.width_m)
+        assert np.all(w["length"][1:][~truck] <= 6.9) and np.all(w["length"][1:][truck] >= 7.1)
         if k == 0:
             continue
         prev = tables[k - 1]

@@ -26,7 +26,8 @@ def test_traffic_option_sets_the_mode(tmp_path, mode):
     res = script("--profiles", "driver", "--seeds", 50001, "--steps", 20, "--json", out, *extra)
     assert res.returncode == 0, res.stderr
     want = mode or "window"  # the shipped default
-    assert f"traffic.mode: {want}" in res.stdout
+    # the loop carries the uniform make-up only: --traffic loop selects it, the default is highd
+    assert f"traffic.mode: {want}; bvs.makeup: {'uniform' if mode == 'loop' else 'highd'}" in res.stdout
     doc = json.loads(out.read_text())
     assert doc["traffic_mode"] == want and doc["args"]["traffic"] == mode
     # the highD column: lane changes per vehicle-km at 120 km/h (per-vehicle counts, shipped aggregates);

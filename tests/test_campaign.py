@@ -315,15 +315,15 @@ CLIPS = """
 name: clips
 steps: 300
 seeds: [19]
-set: {sut.model: mobil, bvs.count: 20, spawn.ramp_vehicles: 1, evaluation.ttc_threshold_s: 6.0}
+set: {sut.model: mobil, bvs.count: 20, spawn.ramp_vehicles: 1, evaluation.ttc_threshold_s: 6.0, bvs.makeup: uniform}
 record: events
 clip_s: 2.0
 """
 
 
 def test_critical_events_become_clips_pictures_and_reproducible_commands(tmp_path):
-    """With a 6 s TTC threshold this run (seed 19, 20 BVs in the traffic window; seeds 0-29 scanned:
-    the only one with two events in 300 steps) has 2 exposures. Every SUT collision and exposure of the
+    """With a 6 s TTC threshold this run (seed 19, 20 BVs of the uniform make-up in the traffic window;
+    seeds 0-29 scanned: the only one with two events in 300 steps) has 2 exposures. Every SUT collision and exposure of the
     run becomes a clip of +-2 s (20 states each side at dt 0.1 s, clamped to the run) with the
     latched map, a picture and a command; the command's run holds the very same world states;
     ``record: events`` keeps no whole bag; the gallery lists collisions first, then exposures

@@ -335,3 +335,26 @@ def test_rule_based_makeup_driver_copies_and_pickles() -> None:
     for other in (copy.deepcopy(driver), pickle.loads(pickle.dumps(driver))):
         got = other.act(sc.world)
         assert np.array_equal(np.asarray(got[0]), np.asarray(want[0])) and np.array_equal(got[1], want[1])
+
+
+def test_the_report_names_the_traffic(tmp_path) -> None:
+    """The report's run section and report.md's first lines say which traffic the run had: the make-up, the
+    cars' driver and policy set (``shipped`` resolved), the cars and trucks among the BVs (a truck longer
+    than 7 m) — counted here from the world the run started with."""
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_sim.scenario_builders import build_world
+
+    for makeup, policies in (("highd", "shipped (highd_trained)"), ("uniform", "shipped (v0.6.0)")):
+        cfg = load_scenario_config(None, {"steps": 30, "seed": 11, "bvs.makeup": makeup})
+        w = build_world(cfg)
+        trucks = int(np.count_nonzero(w.length[1:] > 7.0))
+        assert (trucks >= 4) == (makeup == "highd") and (trucks == 0) == (makeup == "uniform")
+        run_inprocess(cfg, bag_dir=None, report_dir=tmp_path / makeup, plots=False)
+        import json
+
+        run = json.loads((tmp_path / makeup / "report.json").read_text(encoding="utf-8"))["run"]
+        assert (run["makeup"], run["policy_set"], run["bv_cars"], run["bv_trucks"]) == (makeup, policies, 20 - trucks,
+                                                                                       trucks)
+        md = (tmp_path / makeup / "report.md").read_text(encoding="utf-8")
+        assert f"; {20 - trucks} cars and {trucks} trucks; cars driven by learned, policy set {policies}." in md
+        assert ("Traffic: highD make-up" if makeup == "highd" else "Traffic: uniform make-up") in md
