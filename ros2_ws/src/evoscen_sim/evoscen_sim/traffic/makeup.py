@@ -1,9 +1,9 @@
 """The background traffic's make-up (``bvs.makeup``; docs/bv-profiles.md, "Traffic make-up").
 
-* ``uniform`` (default): every BV is a car of the ``vehicle`` section's length and width, its desired
+* ``uniform``: every BV is a car of the ``vehicle`` section's length and width, its desired
   speed the driver's own draw capped at the lane's limit (the traffic before make-ups existed, bag
-  for bag).
-* ``highd``: each BV slot is a car or a truck, with a length, a width and a desired speed drawn from
+  for bag; the default before 0.7.0).
+* ``highd`` (default): each BV slot is a car or a truck, with a length, a width and a desired speed drawn from
   the per-class figures of the highD dataset's recordings with a 120 km/h limit (R. Krajewski, J. Bock,
   L. Kloeker, L. Eckstein, *The highD Dataset*, IEEE ITSC 2018): :class:`HighdMakeupParams`, the
   parameter set ``models.highd``.
