@@ -90,7 +90,7 @@ HASHES = {  # the shipped defaults (bvs.makeup: highd, the highd_trained policie
     None: "99c839de31c5f68a88f823c85f5ebfff41c5e376f23be396b4f6d6a8a1cef52f",  # the shipped default (level0 SUT)
     "nilsson": "25f6ac1b5cfea1deedfaa20547b36bc87ff4c70c65f3a69e4a165423a62bc72e",
     "mobil": "d536a6fa811bed1435f95fa79aa5b78c2f18c374566a3399f3238f1ebfb8cba7",
-    "stackelberg": "bfb8bf3b306b9cec2e835352725c1eae1d71481b7692ca4c0adeb39f5da42123",
+    "stackelberg": "3d8d4cd514231a9b444b1c53fac49494dd04ed02fae43c3c233eb542a2c37c82",
     "mutant": "3601aa7e6fdfde30f925519e415472abdf9b7ee889470f3a6e57b7ad8bcf2c33",  # the default mutant
 }
 

@@ -256,6 +256,28 @@ def _travel(v, a_phase, n, tau):
 
 
 @kernel
+def _players(exists, gap_f, v_f, gap_r, v_r, v_e, duration):
+    """The game's two players: the candidate slots (module docstring) with the two smallest constant-speed
+    gaps at the end of the game, in the tie-break order; -1 where there is none."""
+    pred = np.full(6, np.inf)
+    for l in range(3):
+        if not exists[l]:
+            continue
+        if np.isfinite(gap_f[l]):
+            pred[2 * l] = gap_f[l] + (v_f[l] - v_e) * duration
+        if np.isfinite(gap_r[l]):
+            pred[2 * l + 1] = gap_r[l] + (v_e - v_r[l]) * duration
+    players = np.full(2, -1, dtype=np.int64)
+    for p in range(2):
+        best = np.inf
+        for c in range(6):
+            if c != players[0] and pred[c] < best:
+                best = pred[c]
+                players[p] = c
+    return players
+
+
+@kernel
 def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, follower_speed,
                  lane_start, lane_end, road_length, tau, n, leader_up, leader_down, follower_up, follower_down,
                  d_v, headway, d_min, threshold, d_min_now, ent_gap_f, ent_v_f, ent_gap_r, ent_v_r):
@@ -298,22 +320,7 @@ def _game_kernel(i, lane, s, v_e, len_e, gap_front, leader_speed, gap_rear, foll
                 exists[l] = False  # d_min to the target lane's vehicles now; one alongside has a negative gap
     exists[1] = True  # keeping the lane is always an action
     duration = n * tau
-    # --- the players: the two smallest constant-speed gaps at the end of the game
-    pred = np.full(6, np.inf)
-    for l in range(3):
-        if not exists[l]:
-            continue
-        if np.isfinite(gap_f[l]):
-            pred[2 * l] = gap_f[l] + (v_f[l] - v_e) * duration
-        if np.isfinite(gap_r[l]):
-            pred[2 * l + 1] = gap_r[l] + (v_e - v_r[l]) * duration
-    players = np.full(2, -1, dtype=np.int64)
-    for p in range(2):
-        best = np.inf
-        for c in range(6):
-            if c != players[0] and pred[c] < best:
-                best = pred[c]
-                players[p] = c
+    players = _players(exists, gap_f, v_f, gap_r, v_r, v_e, duration)
     # --- candidates' travel under every response of their own (index 0..2) or keeping speed
     # travel[c, r]: distance, speed[c, r]: final speed of candidate c when it responds with r
     travel = np.zeros((6, 3))
