@@ -20,31 +20,9 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401
-import numpy as np
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
 
 RULES = ("front_ttc", "hard_braking", "rear", "cut_in", "beside", "tailgating")
-
-
-def _seeds(text: str) -> list[int]:
-    try:
-        a, b = (int(x) for x in text.split(":"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected A:B (two whole numbers, A <= B), got {text!r}") from None
-    if a > b or a < 0:
-        raise argparse.ArgumentTypeError(f"expected A:B with 0 <= A <= B, got {text!r}")
-    return list(range(a, b + 1))
-
-
-def mean_ci(x: list[float]) -> str:
-    """``mean ± half-width`` of the 95 % Student-t interval."""
-    from scipy import stats
-
-    a = np.asarray(x, dtype=float)
-    if a.size < 2:
-        return f"{a.mean():.3f}"
-    half = stats.t.ppf(0.975, a.size - 1) * a.std(ddof=1) / np.sqrt(a.size)
-    return f"{a.mean():.3f} ± {half:.3f}"
 
 
 def episode(sut: str, seed: int, steps: int, sets: dict) -> dict:
@@ -65,14 +43,23 @@ def episode(sut: str, seed: int, steps: int, sets: dict) -> dict:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="exposure_rules.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--suts", required=True, help="comma-separated SUT models")
-    ap.add_argument("--seeds", required=True, type=_seeds, help="episodes' seeds A:B (both included)")
-    ap.add_argument("--episode-steps", type=int, default=300, help="steps per episode (default 300)")
+    ap.add_argument("--seeds", required=True, help="episodes' seeds: blocks A:B[,C:D] (both ends included)")
+    ap.add_argument("--episode-steps", default="300", help="steps per episode (default 300)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a scenario key for every run")
     ap.add_argument("--out", type=Path, help="write every episode's figures as JSON here")
     args = ap.parse_args(argv)
-    if args.episode_steps < 1:
-        print(f"error: --episode-steps {args.episode_steps}: expected a whole number >= 1", file=sys.stderr)
+    from evoscen_bringup.experiments import positive_int
+    from evoscen_bringup.replication import parse_seed_blocks
+    from evoscen_bringup.stats import fmt_ci, mean_ci
+    from evoscen_sim.errors import InputError
+
+    try:
+        blocks = parse_seed_blocks(args.seeds, "--seeds")
+        steps = positive_int("--episode-steps", args.episode_steps)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    seeds = [seed for block in blocks for seed in block.seeds]
     sets = {}
     for item in args.set:
         key, eq, value = item.partition("=")
@@ -80,24 +67,26 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: --set {item!r}: expected KEY=VALUE", file=sys.stderr)
             return EXIT_BAD_INPUT
         sets[key] = value
-    from evoscen_sim.errors import InputError
+
+    def ci(values: list[float]) -> str:
+        return fmt_ci(*mean_ci(values), 3)
 
     out: dict[str, dict[int, dict]] = {}
     try:
         for sut in args.suts.split(","):
-            out[sut] = {seed: episode(sut, seed, args.episode_steps, sets) for seed in args.seeds}
+            out[sut] = {seed: episode(sut, seed, steps, sets) for seed in seeds}
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    n = len(args.seeds)
-    print(f"{n} episodes (seeds {args.seeds[0]}..{args.seeds[-1]}) x {args.episode_steps} steps; per episode, "
+    n = len(seeds)
+    print(f"{n} episodes (seed blocks {args.seeds}) x {steps} steps; per episode, "
           "mean ± 95 % interval")
     print("| SUT | exposures | " + " | ".join(RULES) + " | collisions | n |")
     print("|---" * (len(RULES) + 4) + "|")
     for sut, eps in out.items():
-        row = [mean_ci([e["exposures"] for e in eps.values()])]
-        row += [mean_ci([e["by_rule"][r] for e in eps.values()]) for r in RULES]
-        row.append(mean_ci([len(e["collisions"]) for e in eps.values()]))
+        row = [ci([e["exposures"] for e in eps.values()])]
+        row += [ci([e["by_rule"][r] for e in eps.values()]) for r in RULES]
+        row.append(ci([len(e["collisions"]) for e in eps.values()]))
         print(f"| {sut} | " + " | ".join(row) + f" | {n} |")
     for sut, eps in out.items():
         for seed, e in eps.items():

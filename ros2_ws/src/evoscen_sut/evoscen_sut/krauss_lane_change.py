@@ -198,7 +198,7 @@ class KraussLaneChangeDriver:
         u_target = kr.rng.random(n_changing) if n_changing else _NO_DRAWS
         nb = view.neighborhood()
         prm = self._kernel_params(kr, float(view.dt_s))
-        limit = view.speed_limit_mps if self.speed_cap else np.full(view.s.shape[0], np.nan)
+        limit = view.speed_limit_mps if self.speed_cap else self._no_limit(view.s.shape[0])
         return _krauss_kernel(idx, self._factors(kr, idx, prm.desired_speed_mps), u, u_target, view.s, view.v,
                               view.length, lane, target_lane, limit, nb.gap_front_m, nb.leader_speed_mps,
                               view.road.kernel_tables(), prm)
@@ -226,6 +226,13 @@ class KraussLaneChangeDriver:
         out = kr.factors(idx) if own is None else np.asarray(own, dtype=float) / desired_mps
         self._factors_memo = (kr, kr.speed_factors, idx, own, out)
         return out
+
+    def _no_limit(self, n: int) -> np.ndarray:
+        """The speed limits of an uncapped car follower: ``nan`` for all ``n`` vehicles (kept, not made per step)."""
+        c = getattr(self, "_nan_limits", None)
+        if c is None or c.shape[0] != n:
+            c = self._nan_limits = np.full(n, np.nan)
+        return c
 
     def drive_only(self, positions: np.ndarray) -> None:
         """Drive only the vehicles at ``positions`` of :attr:`vehicles` (with their own desired speeds, if

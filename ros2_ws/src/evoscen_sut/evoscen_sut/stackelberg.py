@@ -85,6 +85,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from evoscen_sim.config.scenario_config import integer, number, text
+from evoscen_sim.danger.safety import enters_or_holds_lane
 from evoscen_sim.jit import kernel
 from evoscen_sim.model_registry import ModelSpec
 from evoscen_sim.physics.neighbors import LEFT, OWN, RIGHT
@@ -164,7 +165,7 @@ def _target_lane_neighbours(i, s, v, length, lane, target_lane):
         tgt = lane[i] + off
         away = tgt + off
         for j in range(s.shape[0]):
-            if j == i or not (lane[j] == tgt or target_lane[j] == tgt) or (lane[j] == tgt and target_lane[j] == away):
+            if j == i or not enters_or_holds_lane(lane[j], target_lane[j], tgt, away):
                 continue
             gap = abs(s[j] - s[i]) - 0.5 * (length[j] + length[i])
             if s[j] > s[i]:

@@ -333,6 +333,15 @@ def beside_gap(s: np.ndarray, length: np.ndarray, lane: np.ndarray, target_lane:
 
 
 @kernel
+def enters_or_holds_lane(lane_j, target_lane_j, tgt, away) -> bool:
+    """Whether a vehicle in ``lane_j`` with target ``target_lane_j`` counts as in lane ``tgt`` for a vehicle
+    changing into it: in it or changing into it, except one in it leaving it on the far side (towards
+    ``away``). The candidates of :func:`beside_gap` (docs/evaluation.md §3.7) and of Stackelberg's target
+    lane (:mod:`evoscen_sut.stackelberg`, ``target_gap_rule: d_min_now``)."""
+    return (lane_j == tgt or target_lane_j == tgt) and not (lane_j == tgt and target_lane_j == away)
+
+
+@kernel
 def beside_gap_state(s: np.ndarray, length: np.ndarray, lane: np.ndarray, target_lane: np.ndarray,
                      lane_change: np.ndarray, sut: int) -> tuple[int, float]:
     """:func:`beside_gap` of ONE state (``[V]`` arrays), compiled; bit-identical to it (a test
@@ -343,7 +352,7 @@ def beside_gap_state(s: np.ndarray, length: np.ndarray, lane: np.ndarray, target
     away = tgt + lane_change[sut]
     vehicle, best = -1, np.inf
     for j in range(s.shape[0]):
-        if j == sut or not (lane[j] == tgt or target_lane[j] == tgt) or (lane[j] == tgt and target_lane[j] == away):
+        if j == sut or not enters_or_holds_lane(lane[j], target_lane[j], tgt, away):
             continue
         gap = abs(s[j] - s0) - 0.5 * (length[j] + l0)
         if gap < best:
