@@ -19,7 +19,6 @@ became of the bag and what to do, and status 5.
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 from pathlib import Path
 
@@ -33,6 +32,7 @@ from evoscen_contract.contract import (
     EXIT_OK,
     TOPIC_WORLD,
 )
+from evoscen_bringup.output import prepare_output
 
 MODES = ("graph", "inprocess")
 ABORTED = (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_NODE_DIED)
@@ -60,6 +60,9 @@ def scenario_overrides(args: argparse.Namespace) -> dict[str, str]:
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog="run_scenario.py", description=__doc__.split("\n\n")[0])
+    from evoscen import __version__
+
+    ap.add_argument("--version", action="version", version=f"evoscen {__version__}")
     ap.add_argument("--mode", default="graph", choices=MODES,
                     help="graph (default): one ROS 2 process per node, lockstep; inprocess: all cores in one process, "
                          "no middleware")
@@ -95,28 +98,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="do not start evoscen's SUT node: your own node answers on /evoscen/commands/sut "
                         "(see examples/README.md)")
     return ap.parse_args(argv)
-
-
-def prepare_output(out: Path, bag_dir: Path | None, report_dir: Path | None = None, *, overwrite: bool) -> None:
-    """Create ``out``; make sure ``bag_dir`` and ``report_dir`` are free (removing old ones only with ``overwrite``)."""
-    from evoscen_sim.errors import InputError
-
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        for path, what in ((bag_dir, "a bag"), (report_dir, "a report")):
-            if path is None or not (path.exists() or path.is_symlink()):
-                continue
-            if not path.is_dir() or path.is_symlink():
-                raise InputError(f"--out {out}: {path} exists and is not a directory; remove it or choose another --out")
-            if any(path.iterdir()):
-                if not overwrite:
-                    raise InputError(f"--out {out}: {path} already holds {what}; choose another --out or pass --overwrite")
-                shutil.rmtree(path)
-        probe = out / ".evoscen-write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
-    except OSError as exc:
-        raise InputError(f"--out {out}: cannot write the output directory: {exc.strerror or exc}") from None
 
 
 def print_scores(report_dir: Path) -> None:

@@ -68,7 +68,7 @@ def _run_cli_here(argv: list[str], capsys) -> tuple[int, str, str]:
 
 @pytest.fixture
 def registered():
-    from evoscen_sim.api import ModelSpec, register_model, unregister_model
+    from evoscen import ModelSpec, register_model, unregister_model
 
     register_model(ModelSpec("raising_sut", ("sut",), lambda v, p, c, r: _Raising(v), description="raises"))
     register_model(ModelSpec("unbuildable_sut", ("sut",), _factory_raises, description="cannot be built"))
@@ -147,7 +147,7 @@ def test_list_suts_and_mutants(registered, capsys):
 
 PLUGIN = textwrap.dedent('''
     import numpy as np
-    from evoscen_sim.api import ModelSpec
+    from evoscen import ModelSpec
 
 
     class Diverging:
@@ -222,37 +222,6 @@ def test_act_raising_in_the_graph_ends_within_2_s(tmp_path):
 
 # ------------------------------------------------------------------ the face
 
-FACE = sorted([
-    "InputError", "LANE_OFFSETS", "LEFT", "ModelSpec", "Neighborhood", "OWN", "POLICY_CODES", "PluginFault", "RIGHT",
-    "ROLE_BV", "ROLE_SUT", "RoadModel", "ScenarioConfig", "TrafficView", "VehicleParams", "accel_to_throttle",
-    "checked_answer", "common_shift", "flag", "hand_built_world", "integer", "load_road", "names", "new_trips", "number",
-    "number_range", "register_model", "resolve_map_path", "scenario_rngs", "text", "throttle_to_accel",
-    "time_headway", "time_to_collision", "unregister_model",
-])
-
-
-def test_the_face_is_pinned_and_every_name_resolves():
-    import evoscen_sim.api as api
-
-    assert api.__all__ == FACE, "the plug-in face changed: a deliberate change updates FACE (docs/plugins.md §19)"
-    from evoscen_sim.model_registry import ModelSpec
-    from evoscen_sim.physics.neighbors import OWN
-
-    assert api.ModelSpec is ModelSpec and api.OWN is OWN == 2
-    for name in FACE:
-        assert getattr(api, name) is not None, name
-    with pytest.raises(AttributeError, match="the plug-in face"):
-        api.no_such_name  # noqa: B018
-
-
-def test_the_face_imports_nothing_heavy():
-    code = ("import sys; import evoscen_sim.api; from evoscen_sim.api import ModelSpec, number; "
-            "print(sorted(m for m in ('rclpy', 'numba', 'evoscen_sim.physics.world', 'evoscen_sim.road.road_model') "
-            "if m in sys.modules))")
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=True)
-    assert res.stdout.strip() == "[]", res.stdout
-
-
 def test_examples_import_evoscen_only_from_the_face():
     files = sorted((REPO / "examples").rglob("*.py"))
     assert len(files) >= 4
@@ -264,7 +233,7 @@ def test_examples_import_evoscen_only_from_the_face():
             for name in names:
                 if name.startswith("evoscen"):
                     seen.append((path.name, name))
-    assert seen and all(module == "evoscen_sim.api" for _, module in seen), seen
+    assert seen and all(module == "evoscen" for _, module in seen), seen
     assert {"first_sut.py", "fiss_sut.py", "sumo_sut.py"} <= {f for f, _ in seen}
 
 
@@ -287,7 +256,7 @@ def test_a_04_path_imports_with_a_deprecation_warning():
     assert TTC_BINS is new_bins
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        from evoscen_sim.api import ModelSpec  # the face: no warning
+        from evoscen import ModelSpec  # the face: no warning
 
         assert ModelSpec is old.ModelSpec
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from evoscen_sim.api import LEFT, OWN, ModelSpec, accel_to_throttle, number
+from evoscen import LEFT, OWN, ModelSpec, accel_to_throttle, number
 # --8<-- [end:header]
 
 
@@ -57,7 +57,7 @@ class FirstSut:
         self.p = params
         self.vehicle = vehicle_params  # vehicle limits: throttle scaling
 
-    def act(self, view):  # view: a traffic view (evoscen_sim.api.TrafficView)
+    def act(self, view):  # view: a traffic view (evoscen.TrafficView)
         nb = view.neighborhood()
         accel = np.zeros(len(self.vehicles))
         request = np.zeros(len(self.vehicles), dtype=np.int64)

@@ -39,7 +39,7 @@ from dataclasses import dataclass
 
 import fiss_planner as fp
 import numpy as np
-from evoscen_sim.api import OWN, InputError, ModelSpec, accel_to_throttle, flag, integer, number, number_range, text
+from evoscen import OWN, InputError, ModelSpec, accel_to_throttle, flag, integer, number, number_range, text
 
 PLANNERS = ("fop", "fop_plus", "fiss", "fiss_plus")
 """fiss-planner's planners: FOP (Werling et al. 2010), FOP+, FISS (2022), FISS+ (2023)."""

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from evoscen_sim.api import InputError, ModelSpec, accel_to_throttle, load_road, number, resolve_map_path, text
+from evoscen import InputError, ModelSpec, accel_to_throttle, load_road, number, resolve_map_path, text
 
 NAME = "sumo_sut"
 SUMO_VERSION = "1.28.0"
@@ -320,7 +320,7 @@ class SumoSut:
             veh.setSpeed(vid, speed)
 
     # -- the protocol
-    def act(self, view):  # view: a traffic view (evoscen_sim.api.TrafficView)
+    def act(self, view):  # view: a traffic view (evoscen.TrafficView)
         if self.lost:
             raise SumoInstanceError(f"{NAME}: another SUMO SUT started in this process and took libsumo from this "
                                     "one: libsumo runs one SUMO simulation per process (one SUMO SUT per process)")

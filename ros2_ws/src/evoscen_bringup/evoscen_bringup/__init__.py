@@ -1,4 +1,4 @@
-"""evoscen runners: the in-process runner composing the cores (and, later, the node-graph launcher)."""
+"""evoscen runners: the in-process runner and the node-graph launcher, scenario building, start states, domains and the output directory; campaigns, experiments and statistics (docs/architecture.md §1)."""
 
 from evoscen_sim.moved_paths import install as _install_moved_paths
 

@@ -1,6 +1,10 @@
-"""Everything a driver plug-in needs from evoscen, in one module whose names last (docs/plugins.md §19).
+"""The plug-in face of 0.6, deprecated: import from :mod:`evoscen` (docs/plugins.md §19).
 
-    from evoscen_sim.api import ModelSpec, number, accel_to_throttle, OWN, LEFT
+    from evoscen import ModelSpec, number, accel_to_throttle, OWN, LEFT
+
+Importing this module warns once (DeprecationWarning) and it is removed in 0.8.0; its names are
+those of 0.6, each the object :mod:`evoscen` gives under the same name. What follows is how the face
+was described in 0.6.
 
 [choice] Plug-ins import from here only: the modules behind these names may move (0.5.0 moved
 41 modules, and 13 of the 15 import lines of the example plug-ins changed), this module's names
@@ -32,7 +36,11 @@ The names, by what a plug-in does with them:
 from __future__ import annotations
 
 import importlib
+import warnings
 from typing import Any
+
+warnings.warn("evoscen_sim.api is deprecated (moved in evoscen 0.7.0; removed in 0.8.0): use evoscen",
+              DeprecationWarning, stacklevel=2)
 
 _SOURCES: dict[str, str] = {
     # description and registration

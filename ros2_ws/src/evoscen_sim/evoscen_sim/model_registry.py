@@ -40,7 +40,7 @@ import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 from importlib import metadata
-from typing import Any
+from typing import Any, Protocol
 
 from .errors import InputError, PluginFault
 
@@ -66,6 +66,16 @@ def register_sut_model(name: str) -> None:
     global SUT_MODELS
     if name not in SUT_MODELS:
         SUT_MODELS = (*SUT_MODELS, name)
+
+
+class Driver(Protocol):
+    """What a model's factory returns (see the module's docstring): one answer per step for the
+    vehicles it drives, in the order of its ``vehicles``."""
+
+    def act(self, view: Any) -> tuple[Any, Any]:
+        """``(throttle, lane_change)`` for ``view`` (a traffic view): throttle/brake in [-1, 1] and a
+        lane-change request in {-1, 0, +1}, numpy arrays with one entry per vehicle driven."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -203,7 +213,7 @@ def _load_entry_point(ep: metadata.EntryPoint, role: str, group: str, builtin: s
     except Exception as exc:  # noqa: BLE001 - a broken plug-in must be named, not crash
         return f"{where} failed to load: {_exception_text(exc)}"
     if not isinstance(spec, ModelSpec):
-        return (f"{where} is not an evoscen_sim.api.ModelSpec (got {type(spec).__name__})")
+        return (f"{where} is not an evoscen.ModelSpec (got {type(spec).__name__})")
     taken = ("a built-in model" if spec.name in builtin else
              f"the parameter set models.{spec.name}" if spec.name in _PARAMETER_SETS else None)
     if taken is not None:

@@ -15,7 +15,7 @@ Until 0.7.0 the old paths still import:
 
 each with one :class:`DeprecationWarning` naming the new path. [choice] A warning, not an error,
 for one release: a plug-in written for 0.4 keeps working while its author moves it to
-:mod:`evoscen_sim.api`, the face that lasts (docs/plugins.md §19). Standard library only: every
+the face that lasts, :mod:`evoscen` (docs/plugins.md §19). Standard library only: every
 package imports this module from its ``__init__``.
 
 The simulation's modules moved again into rooms named for what they hold (docs/architecture.md

@@ -168,7 +168,7 @@ def test_bad_plugin_parameter_in_process(plugin: Path, tmp_path: Path, key: str,
 
 
 @pytest.mark.parametrize(("value", "needle", "via_cli"), [
-    pytest.param("my_sut_plugin:NOT_A_SPEC", "is not an evoscen_sim.api.ModelSpec (got dict)", True,
+    pytest.param("my_sut_plugin:NOT_A_SPEC", "is not an evoscen.ModelSpec (got dict)", True,
                  marks=pytest.mark.e2e),  # through the CLI
     ("my_sut_plugin:MISSING", "failed to load: AttributeError: module 'my_sut_plugin' has no attribute 'MISSING'", False),
     ("no_such_module:SPEC", "failed to load: ModuleNotFoundError: No module named 'no_such_module'", False),
