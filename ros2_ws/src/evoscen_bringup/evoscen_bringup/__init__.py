@@ -1,4 +1,5 @@
-"""evoscen runners: the in-process runner and the node-graph launcher, scenario building, start states, domains and the output directory; campaigns, experiments and statistics (docs/architecture.md §1)."""
+"""evoscen's runners (the in-process runner, the node-graph launcher, scenario building, start states,
+domains, the output directory) and its experiments (campaigns, experiments, statistics); docs/architecture.md §1."""
 
 from evoscen_sim.moved_paths import install as _install_moved_paths
 
