@@ -135,3 +135,49 @@ def test_unusable_lock_dir_warns_and_goes_on(tmp_path: Path, monkeypatch: pytest
         assert d == 9
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("warning: ROS_DOMAIN_ID 9 not reserved: the lock directory is not usable")
+
+
+# --------------------------------------------------------------------------- participants one at a time
+
+
+def test_participant_start_lock_is_one_holder_at_a_time_and_released_after_the_block(lock_dir):
+    """While another holder has the participant-start lock, a node waits for it and, past its wait,
+    starts without it; the lock is free again once the block ends (evoscen_contract.host_locks)."""
+    import fcntl
+    import os
+    import time
+
+    from evoscen_contract.host_locks import START_LOCK_FILE, open_lock_file, participant_start_lock
+
+    with participant_start_lock() as held:
+        assert held and (lock_dir / START_LOCK_FILE).is_file()
+        other = open_lock_file(lock_dir / START_LOCK_FILE)  # another open file description: another holder
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)  # released with the block
+    try:
+        start = time.monotonic()
+        with participant_start_lock(wait_s=0.2) as held:
+            waited = time.monotonic() - start
+        assert held is False and 0.2 <= waited < 5.0  # waited its 0.2 s, then went on without it
+    finally:
+        os.close(other)
+    with participant_start_lock(wait_s=0.2) as held:
+        assert held
+
+
+def test_make_node_creates_its_participant_under_the_lock(lock_dir):
+    """``evoscen_contract.graph.make_node`` holds the lock while the participant is created: with the
+    lock held elsewhere it waits (here the lock is freed after 0.5 s and the node is made after it)."""
+    code = ("import fcntl, os, sys, threading, time\n"
+            "from evoscen_contract import graph\n"
+            "from evoscen_contract.host_locks import START_LOCK_FILE, lock_dir, open_lock_file\n"
+            "fd = open_lock_file(lock_dir() / START_LOCK_FILE); fcntl.flock(fd, fcntl.LOCK_EX)\n"
+            "threading.Timer(0.5, os.close, [fd]).start()\n"
+            "graph.init([]); t0 = time.monotonic(); node = graph.make_node('probe')\n"
+            "print(round(time.monotonic() - t0, 1) >= 0.4)\n"
+            "node.destroy_node()\n")
+    env = {**__import__("os").environ, "EVOSCEN_DOMAIN_LOCK_DIR": str(lock_dir), "ROS_DOMAIN_ID": "231",
+           "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=env)
+    assert res.returncode == 0 and res.stdout.strip() == "True", res.stdout + res.stderr

@@ -34,10 +34,10 @@ import fcntl
 import os
 import random
 import sys
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from evoscen_contract.host_locks import lock_dir, open_lock_file
 from evoscen_sim.errors import InputError
 
 AUTO_DOMAINS = range(1, 101)
@@ -52,23 +52,9 @@ def reserved_by_caller_env(domain: int) -> dict[str, str]:
     return {"ROS_DOMAIN_ID": str(domain), RESERVED_ENV: str(domain)}
 
 
-def lock_dir() -> Path:
-    """The directory of the lock files (created, mode 1777, if missing)."""
-    env = os.environ.get("EVOSCEN_DOMAIN_LOCK_DIR")
-    path = Path(env) if env else Path(tempfile.gettempdir()) / "evoscen-domains"
-    if not path.is_dir():
-        path.mkdir(parents=True, exist_ok=True)
-        with contextlib.suppress(PermissionError):
-            path.chmod(0o1777)  # the umask may have taken bits; shared by every user of the host
-    return path
-
-
 def _try_lock(directory: Path, domain: int) -> int | None:
     """An fd holding the exclusive lock of ``domain``, or None if another process holds it."""
-    path = directory / f"domain-{domain}.lock"
-    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
-    with contextlib.suppress(PermissionError):
-        os.fchmod(fd, 0o666)  # our file: let other users lock it too
+    fd = open_lock_file(directory / f"domain-{domain}.lock")
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except OSError as exc:

@@ -31,6 +31,7 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
+from .host_locks import participant_start_lock
 from .topics import TopicSpec
 
 
@@ -64,14 +65,17 @@ def init(args: list[str] | None = None) -> list[str]:
 
 
 def make_node(name: str) -> Node:
-    """A node that accepts every parameter of its parameter file (validated by us)."""
-    return Node(
-        name,
-        allow_undeclared_parameters=True,
-        automatically_declare_parameters_from_overrides=True,
-        start_parameter_services=False,
-        enable_rosout=False,
-    )
+    """A node that accepts every parameter of its parameter file (validated by us). Its DDS participant
+    is created under the host's participant-start lock: one at a time on a host
+    (:func:`evoscen_contract.host_locks.participant_start_lock`, docs/architecture.md §5)."""
+    with participant_start_lock():
+        return Node(
+            name,
+            allow_undeclared_parameters=True,
+            automatically_declare_parameters_from_overrides=True,
+            start_parameter_services=False,
+            enable_rosout=False,
+        )
 
 
 def _plain(value: Any) -> Any:
