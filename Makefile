@@ -23,7 +23,7 @@ RUN         := . $(VENV)/bin/activate && . $(INSTALL)/setup.sh &&
 DEMO_OUT    ?= runs/demo
 PYTEST_ARGS ?=
 
-.PHONY: setup setup-core build demo test test-core test-fast test-repeat lint bench clean
+.PHONY: setup setup-core build demo test test-core test-fast test-repeat lint readme-table bench clean
 
 # the core: what evoscen needs to run scenarios, campaigns and experiments
 setup-core: $(REQ_STAMP) build
@@ -102,6 +102,11 @@ test-repeat: setup
 # ruff (pinned in requirements.txt; rules in ruff.toml); never reformats
 lint: $(REQ_STAMP)
 	$(VENV)/bin/ruff check .
+
+# the README's results table, rewritten from the results file its marker names (results/readme.yaml;
+# scripts/readme_table.py --check exits 1 if the README differs; tests/test_readme.py checks it)
+readme-table: $(REQ_STAMP)
+	$(PY) scripts/readme_table.py
 
 $(BENCH_STAMP): requirements-bench.txt $(REQ_STAMP)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-bench.txt

@@ -1,6 +1,6 @@
 # syntax=docker/dockerfile:1
 # A user's own SUT as a container, built ONLY from examples/ (the build context) and the topic
-# contract in the README: no evoscen package inside. It answers on /evoscen/commands/sut in a
+# contract (docs/topics.md): no evoscen package inside. It answers on /evoscen/commands/sut in a
 # compose graph started with --external-sut (docker/compose-run.sh --user-sut).
 #   docker build -f docker/user-sut.Dockerfile -t evoscen-user-sut examples/
 ARG BASE=docker.io/library/debian:bookworm-slim

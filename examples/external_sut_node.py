@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Your own system under test (SUT) as an external ROS 2 node — written only against
-evoscen's topic contract (README.md, "Topic contract"): rclpy, standard messages and numpy,
+evoscen's topic contract (docs/topics.md): rclpy, standard messages and numpy,
 no evoscen package.
 
     # terminal 1: the evoscen graph, without evoscen's own SUT node, on a known domain

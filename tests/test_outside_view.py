@@ -1,6 +1,6 @@
-"""An outside view of the node graph: a user's own ROS 2 node, written only from the README.
+"""An outside view of the node graph: a user's own ROS 2 node, written only from the topic contract.
 
-The test reads the README's topic contract table (topic, type, QoS) and column table, and
+The test reads the topic contract table of docs/topics.md (topic, type, QoS) and column table, and
 starts a plain rclpy node in a separate process (its source is written to ``tmp_path`` below;
 it imports only rclpy, the standard message packages and numpy: nothing of evoscen, which is
 also taken off its ``PYTHONPATH``). That node subscribes to every topic of the table with the
@@ -26,12 +26,12 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.e2e
-README = REPO / "README.md"
+TOPICS_PAGE = REPO / "docs" / "topics.md"
 STEPS = 200
 N_VEHICLES = 21  # 1 SUT + 20 BVs (the shipped default scenario)
 
 SUBSCRIBER = r'''
-"""A user's observer node: subscribes to the evoscen topics (from the README table), decodes them."""
+"""A user's observer node: subscribes to the evoscen topics (from the table of docs/topics.md), decodes them."""
 import importlib
 import json
 import sys
@@ -187,9 +187,10 @@ if __name__ == "__main__":
 '''
 
 
-def readme_contract() -> tuple[list[dict], dict[str, list[str]]]:
-    """The README's topic table (by its header: topic, type, QoS, publisher, rate, meaning) and table columns."""
-    text = README.read_text(encoding="utf-8")
+def topics_page_contract() -> tuple[list[dict], dict[str, list[str]]]:
+    """The topic table of docs/topics.md (by its header: topic, type, QoS, publisher, rate, meaning) and table
+    columns."""
+    text = TOPICS_PAGE.read_text(encoding="utf-8")
     block = text.split("<!-- contract:begin -->", 1)[1].split("<!-- contract:end -->", 1)[0]
     topics, columns, header = [], {}, None
 
@@ -225,7 +226,7 @@ def _observer_env(domain_id: int) -> dict[str, str]:
 
 
 def test_readme_table_parses():
-    topics, columns = readme_contract()
+    topics, columns = topics_page_contract()
     names = [t["name"] for t in topics]
     for expected in ("/clock", "/evoscen/world", "/evoscen/commands/bv_competitive", "/evoscen/commands/bv_mutual",
                      "/evoscen/commands/bv_cooperative", "/evoscen/commands/sut",
@@ -239,7 +240,7 @@ def test_readme_table_parses():
 def observed(tmp_path_factory):
     """Start the user's observer on a random domain, then a 200-step graph run on that domain."""
     tmp = tmp_path_factory.mktemp("outside")
-    topics, columns = readme_contract()
+    topics, columns = topics_page_contract()
     script = tmp / "user_observer.py"
     script.write_text(SUBSCRIBER, encoding="utf-8")
     summary_path, ready = tmp / "summary.json", tmp / "ready"
@@ -330,7 +331,7 @@ def test_observer_receives_every_step(observed):
     assert events["run_end"]["kind"] == "completed" and int(events["run_end"]["step"]) == STEPS
     assert events["count"] == STEPS + 1, counts  # one per step (empty when nothing happened) + run_end
 
-    # every other topic of the README table was published and received too
+    # every other topic of the table was published and received too
     for t in topics:
         assert s[t["name"]]["count"] >= 1, (t["name"], counts)
 

@@ -70,7 +70,7 @@ def is_bv_command_topic(topic: str) -> bool:
     return topic == TOPIC_COMMANDS_BV or topic.startswith(TOPIC_COMMANDS_BV + "_")
 
 
-#: ROS 2 type name (``pkg/msg/Type``) of every topic, in the contract's (README) order.
+#: ROS 2 type name (``pkg/msg/Type``) of every topic, in the contract's order (docs/topics.md).
 TOPIC_TYPES: dict[str, str] = {
     TOPIC_CLOCK: "rosgraph_msgs/msg/Clock",
     TOPIC_WORLD: "sensor_msgs/msg/PointCloud2",
@@ -123,7 +123,7 @@ COMMAND_FIELDS: tuple[str, ...] = ("id", "throttle", "lane_change")
 #: Columns of ``/evoscen/roster``.
 ROSTER_FIELDS: tuple[str, ...] = ("id", "role", "policy", "length", "width")
 
-#: Meaning and unit of every table column (rendered in the README).
+#: Meaning and unit of every table column (rendered in docs/topics.md).
 FIELD_DOCS: dict[str, str] = {
     "id": "vehicle id (integer valued), unique in a scenario",
     "role": f"{ROLE_BV} = background vehicle (BV), {ROLE_SUT} = system under test (SUT)",

@@ -4,8 +4,8 @@ The contract's facts (topic and type names, table columns, role and policy codes
 names and keys, exit statuses) are defined once, without ROS, in
 :mod:`evoscen_contract.contract`, which the cores import; this module re-exports them and
 binds them to ROS: the message classes, the QoS profiles, the :class:`TopicSpec` rows and
-the message builders. Every node, the recorder, the replayer and the README import it
-(:func:`contract_markdown` renders the README table). Nothing else in evoscen may spell a
+the message builders. Every node, the recorder and the replayer import it
+(:func:`contract_markdown` renders the table of docs/topics.md). Nothing else in evoscen may spell a
 topic name, a table's column list or a QoS profile.
 
 Time: every message is stamped with *simulation* time (integer nanoseconds in the
@@ -203,7 +203,7 @@ MARKERS = _row(TOPIC_MARKERS, MarkerArray, NODE_SIM, (NODE_EVAL,), "every record
 MAP_MARKERS = _row(TOPIC_MAP_MARKERS, MarkerArray, NODE_SIM, (NODE_EVAL,), "once, at start (latched)",
                    "lane lines (broken) and road edges (solid) as LINE_LIST markers; frame 'map'", qos=LATCHED_QOS)
 
-#: The whole contract, in README order.
+#: The whole contract, in the order of docs/topics.md.
 CONTRACT: tuple[TopicSpec, ...] = (CLOCK, WORLD, COMMANDS_BV, COMMANDS_SUT, SUT_ODOM, EVENTS, ROSTER, MARKERS, MAP_MARKERS)
 #: Contract by topic name.
 TOPICS: dict[str, TopicSpec] = {spec.name: spec for spec in CONTRACT}
@@ -243,9 +243,10 @@ def spec_of(topic: str) -> TopicSpec | None:
 
 
 def contract_markdown() -> str:
-    """Render the contract as Markdown for the README.
+    """Render the contract as Markdown for docs/topics.md.
 
-    Returns the topic table (topic | type | publisher | subscribers | QoS | rate | meaning), followed
+    Returns the topic table (topic | type | publisher | subscribers | QoS | rate | meaning; a meaning
+    already given reads "as" the first topic with it), followed
     by the table columns with their meaning/units, the policy codes and the event keys.
     Deterministic (depends only on this module).
     """
@@ -258,11 +259,14 @@ def contract_markdown() -> str:
 
     # the BV nodes' rows: those of the default scenario (bvs.nodes: by_policy, the learned mix)
     rows = contract_for([bv_node_name(p) for p in ("competitive", "mutual", "cooperative")])
+    first_with: dict[str, str] = {}  # a meaning already given (the BV nodes' rows): "as" its first topic
     for spec in rows:
         subs = ", ".join(shown(s) for s in spec.subscribers)
+        meaning = f"as `{first_with[spec.description]}`" if spec.description in first_with else spec.description
+        first_with.setdefault(spec.description, spec.name)
         lines.append(
             f"| `{spec.name}` | `{spec.type_name}` | {shown(spec.publisher)} | {subs} | {spec.qos.short()} "
-            f"| {spec.rate} | {spec.description} |"
+            f"| {spec.rate} | {meaning} |"
         )
     lines += ["", "Table columns (float64, one row per vehicle):", ""]
     lines += ["| table | columns |", "|---|---|"]
