@@ -25,7 +25,7 @@ def _messages(bag: Path) -> list[tuple[str, int, bytes]]:
 
 
 def _events(bag: Path) -> list[dict]:
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scoring.rundata import read_run
 
     return list(read_run(bag).events)
 

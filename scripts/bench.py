@@ -265,8 +265,8 @@ def experiment_throughput(episodes: int, mutants: list[str], jobs: int, steps: i
     the scenario's warm-up before every run) on ``jobs`` Ray workers: simulated steps per second of
     wall time, warm-ups included, beside the core's rate (:func:`core_rate`, before and after)."""
     import ray
-    from evoscen_bringup.campaign import OBJECT_STORE_BYTES
-    from evoscen_bringup.experiments import Round, config_loader, run_rounds
+    from evoscen_experiments.campaign import OBJECT_STORE_BYTES
+    from evoscen_experiments.experiments import Round, config_loader, run_rounds
     from evoscen_sut.mutants import mutant_overrides
 
     load = config_loader(None)

@@ -34,8 +34,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reference", type=int, default=10, help="runs of the single-process reference (default 10)")
     ap.add_argument("--sut", default="mobil", help="SUT model (default mobil)")
     args = ap.parse_args(argv)
-    from evoscen_bringup.campaign import run_campaign
-    from evoscen_bringup.campaign_spec import expand, load_spec
+    from evoscen_experiments.campaign import run_campaign
+    from evoscen_experiments.campaign_spec import expand, load_spec
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_sim.config.scenario_config import load_scenario_config
 

@@ -35,7 +35,7 @@ def synthetic_recording(rng, vehicles: int, frames: int, rows: int):
     """A HighD-sized recording from simple kinematics (see the module docstring)."""
     import numpy as np
 
-    from evoscen_eval.highd_export import build_recording
+    from evoscen_eval.naturalistic.highd_export import build_recording
 
     upper = 8.5 + LANE_WIDTH_M * np.arange(4)
     lower = upper[-1] + 2.0 + LANE_WIDTH_M * np.arange(4)
@@ -100,8 +100,8 @@ def peak_rss_bytes() -> int:
 
 def measure(directory: Path) -> None:
     """Child mode: load + extract recording 01 of ``directory``; print JSON figures."""
-    from evoscen_eval.behaviour import extract_behaviour
-    from evoscen_eval.highd import load_recording
+    from evoscen_eval.naturalistic.behaviour import extract_behaviour
+    from evoscen_eval.naturalistic.highd import load_recording
 
     rss0 = peak_rss_bytes()
     t0 = time.perf_counter()
@@ -110,7 +110,7 @@ def measure(directory: Path) -> None:
     samples = extract_behaviour(rec)
     t2 = time.perf_counter()
     peak = peak_rss_bytes()
-    from evoscen_eval.similarity import compare
+    from evoscen_eval.naturalistic.similarity import compare
 
     t3 = time.perf_counter()
     compare(samples.dhw_speed, samples.dhw_speed[::2])  # both 2-D KDEs of the experiment's size
@@ -142,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     import numpy as np
 
-    from evoscen_eval.highd import write_recording
+    from evoscen_eval.naturalistic.highd import write_recording
 
     with tempfile.TemporaryDirectory(prefix="evoscen_bench_highd_") as tmp:
         out = args.keep if args.keep is not None else Path(tmp)

@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_contract.topics import CONTRACT
-    from evoscen_eval.clips import read_messages
+    from evoscen_eval.scenes.clips import read_messages
     from evoscen_record.recorder import BagRecorder
     from evoscen_sim.config.scenario_config import load_scenario_config
 

@@ -6,10 +6,10 @@
                                  [--cut-in-headway H] [--lane-hold S] [--traffic window|loop]
 
 Runs every (profile, seed) in process (``bvs.driver: learned``, no bag) and prints, per
-profile, the pooled figures of :func:`evoscen_eval.bv_realism.bv_realism`: BV lane changes
+profile, the pooled figures of :func:`evoscen_eval.naturalistic.bv_realism.bv_realism`: BV lane changes
 per vehicle-km, BV-BV collisions per vehicle-hour, SUT collisions, and the BVs' time-headway
 distribution, with highD's published figure beside each one that has one
-(:data:`evoscen_eval.bv_realism.HIGHD_REFERENCE`; lane changes: 0.295 per vehicle-km at 120 km/h).
+(:data:`evoscen_eval.naturalistic.bv_realism.HIGHD_REFERENCE`; lane changes: 0.295 per vehicle-km at 120 km/h).
 ``--traffic`` sets ``traffic.mode`` (window: the traffic moves with the SUT; loop: vehicles
 re-enter at the road's start), so the same seeds compare both. Bad input prints one line
 ``error: ...`` and exits 2.
@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval.bv_realism import bv_realism, combine
+    from evoscen_eval.naturalistic.bv_realism import bv_realism, combine
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
@@ -117,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{profile} seed {seed}: {f['bv_lane_changes']} BV lane changes, {f['bv_bv_collisions']} BV-BV "
                   f"and {f['sut_collisions']} SUT collisions ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
         out[profile] = combine(figures)
-    from evoscen_eval.bv_realism import HIGHD_REFERENCE, HIGHD_SOURCE
+    from evoscen_eval.naturalistic.bv_realism import HIGHD_REFERENCE, HIGHD_SOURCE
 
     width = max(len(label) for _, label, _ in KEYS)
     print(f"traffic.mode: {cfg.traffic.mode}; bvs.makeup: {cfg.bvs.makeup}")
@@ -125,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     for key, label, fmt in KEYS:
         ref = fmt.format(HIGHD_REFERENCE[key]) if key in HIGHD_REFERENCE else "-"
         print(label.ljust(width) + "".join(f"  {fmt.format(out[p][key]):>12}" for p in out) + f"  {ref:>12}")
-    from evoscen_eval.bv_realism import lane_changes_per_km_by_policy
+    from evoscen_eval.naturalistic.bv_realism import lane_changes_per_km_by_policy
 
     for name in ("competitive", "mutual", "cooperative"):
         rates = [lane_changes_per_km_by_policy(out[p]).get(name, float("nan")) for p in out]

@@ -38,10 +38,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.campaign import run_campaign
-    from evoscen_bringup.campaign_spec import expand, load_spec
-    from evoscen_bringup.campaign_summary import write_results
-    from evoscen_bringup.experiments import positive_int
+    from evoscen_experiments.campaign import run_campaign
+    from evoscen_experiments.campaign_spec import expand, load_spec
+    from evoscen_experiments.campaign_summary import write_results
+    from evoscen_experiments.experiments import positive_int
     from evoscen_sim.errors import HostFault, InputError
 
     try:
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    from evoscen_bringup.ray_leftovers import end_leftovers
+    from evoscen_experiments.ray_leftovers import end_leftovers
     from tqdm import tqdm
 
     left = end_leftovers(out)

@@ -44,12 +44,12 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_eval.report import write_stream_report
-    from evoscen_eval.rundata import score_bag
+    from evoscen_eval.scoring.report import write_stream_report
+    from evoscen_eval.scoring.rundata import score_bag
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 
-    from evoscen_eval.animation import ANIMATION_FRAMES
+    from evoscen_eval.scoring.animation import ANIMATION_FRAMES
 
     try:
         frames = ANIMATION_FRAMES if args.animation_frames is None else int(args.animation_frames)
@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    from evoscen_eval.report import score_line
+    from evoscen_eval.scoring.report import score_line
 
     print(f"{report['run']['steps']} steps; {score_line(report)}")
     d = report.get("comparative")

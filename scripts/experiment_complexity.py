@@ -44,7 +44,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import (
+    from evoscen_experiments.experiments import (
         Round,
         distinct_names,
         fmt_ci,
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         set_up,
         write_csv,
     )
-    from evoscen_eval.metrics import complexity_score
+    from evoscen_eval.scoring.metrics import complexity_score
     from evoscen_sim.config.scenario_config import load_scenario_config
 
     def build() -> tuple[list[str], list[Round], int, int]:

@@ -75,10 +75,10 @@ def resolve_bag(run: Path) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_eval.behaviour import BehaviourConfig
-    from evoscen_eval.fidelity import bag_samples, compare_behaviour, highd_samples, markdown_table, plot_rows, write_csv
-    from evoscen_eval.highd import find_recordings, recording_paths
-    from evoscen_eval.similarity import KdeConfig
+    from evoscen_eval.naturalistic.behaviour import BehaviourConfig
+    from evoscen_eval.naturalistic.fidelity import bag_samples, compare_behaviour, highd_samples, markdown_table, plot_rows, write_csv
+    from evoscen_eval.naturalistic.highd import find_recordings, recording_paths
+    from evoscen_eval.naturalistic.similarity import KdeConfig
     from evoscen_sim.errors import InputError
 
     try:

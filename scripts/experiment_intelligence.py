@@ -47,7 +47,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import (
+    from evoscen_experiments.experiments import (
         Round,
         distinct_names,
         fmt_ci,
@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
 
     header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
               "collisions", "exposures", "seeds", "comparative D"]
-    from evoscen_bringup.sensitivity import SSM_RATES, ssm_label, ssm_rate
+    from evoscen_experiments.sensitivity import SSM_RATES, ssm_label, ssm_rate
 
     rows, csv_rows, round_rows, ssm_rows, ssm_csv = [], [], [], [], []
     for sut in suts:
@@ -163,10 +163,10 @@ def paired_comparisons(suts: list[str], rounds, results, section: str = "intelli
     """Every pair of SUTs: the per-seed difference of ``section``'s score (intelligence: the score
     ``evaluation.score_form`` selects, D by default; or a term of the method: efficiency, safety,
     interaction), mean ± 95 % interval (shared seeds)."""
-    from evoscen_bringup.experiments import difference_words, fmt_ci
-    from evoscen_bringup.sensitivity import paired
+    from evoscen_experiments.experiments import difference_words, fmt_ci
+    from evoscen_experiments.sensitivity import paired
 
-    from evoscen_eval.metrics import compared_scores
+    from evoscen_eval.scoring.metrics import compared_scores
 
     def value(report: dict):  # the total as evaluation.score_form selects it (docs/evaluation.md §10); a term: the method's
         return compared_scores(report)[section] if section == "intelligence" else report[section]["score"]
@@ -189,7 +189,7 @@ def plot_distributions(out: Path, suts: list[str], rounds, results) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    from evoscen_bringup.experiments import SPEED_BINS, TTC_BINS
+    from evoscen_experiments.experiments import SPEED_BINS, TTC_BINS
 
     for name, bins, key, xlabel, title in (
             ("ttc.png", TTC_BINS, "ttc_hist", "SUT TTC to the vehicle ahead in its path (s)", "TTC distribution per SUT"),

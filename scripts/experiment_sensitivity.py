@@ -91,14 +91,14 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 
 def resolve_designs(args: argparse.Namespace) -> list:
-    """The designs to run (:class:`evoscen_bringup.sensitivity.Design`): one, or both with ``--compare-designs``.
+    """The designs to run (:class:`evoscen_experiments.sensitivity.Design`): one, or both with ``--compare-designs``.
 
     Raises InputError (one line) on a bad combination or value: ``--design`` with the other
     design's flags, both designs' flags without ``--design``, ``--compare-designs`` with
     ``--design``, ``--long-first-seed`` without ``--compare-designs``, unequal SUT steps.
     """
-    from evoscen_bringup.experiments import positive_int
-    from evoscen_bringup.sensitivity import DESIGNS, Design, blocked_design
+    from evoscen_experiments.experiments import positive_int
+    from evoscen_experiments.sensitivity import DESIGNS, Design, blocked_design
     from evoscen_sim.errors import InputError
 
     ep_flags = [f for f, v in (("--episodes", args.episodes), ("--episode-steps", args.episode_steps)) if v is not None]
@@ -148,13 +148,13 @@ def resolve_designs(args: argparse.Namespace) -> list:
 
 
 def resolve_blocks(args: argparse.Namespace, design: str, first: int) -> list | None:
-    """The seed blocks (:class:`evoscen_bringup.replication.SeedBlock`) of ``--blocks``/``--block-size`` or
+    """The seed blocks (:class:`evoscen_experiments.replication.SeedBlock`) of ``--blocks``/``--block-size`` or
     ``--seed-blocks``; None when neither is given (one block: the design's runs from ``--first-seed``).
 
     InputError (one line): blocks with ``--compare-designs``, with the design's run count (``--episodes``,
     ``--seeds``), ``--seed-blocks`` with ``--first-seed``/``--blocks``/``--block-size``."""
-    from evoscen_bringup.experiments import positive_int
-    from evoscen_bringup.replication import consecutive_blocks, parse_seed_blocks
+    from evoscen_experiments.experiments import positive_int
+    from evoscen_experiments.replication import consecutive_blocks, parse_seed_blocks
     from evoscen_sim.errors import InputError
 
     given = [f for f, v in (("--blocks", args.blocks), ("--block-size", args.block_size),
@@ -181,15 +181,15 @@ def resolve_blocks(args: argparse.Namespace, design: str, first: int) -> list | 
 def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants: list[str],
                  config: Path | None) -> tuple[list, dict[str, tuple[str, str, str, str]]]:
     """The rounds of every design: per scenario, SUT variant (intact, then each mutant that applies to the
-    base, :func:`evoscen_bringup.replication.applicable_split`) and seed of the design, one run of the design's
+    base, :func:`evoscen_experiments.replication.applicable_split`) and seed of the design, one run of the design's
     steps. Returns the rounds and their key -> (design, scenario,
     base, variant); every variant of a scenario runs on the same seeds (paired)."""
-    from evoscen_bringup.experiments import Round, config_loader
+    from evoscen_experiments.experiments import Round, config_loader
     from evoscen_sut.mutants import mutant_overrides
 
     load = config_loader(config)
 
-    from evoscen_bringup.replication import applicable_split
+    from evoscen_experiments.replication import applicable_split
 
     variants: list[tuple[str, str, dict[str, str]]] = []  # (base, mutant or intact, overrides)
     for base in bases:
@@ -219,7 +219,7 @@ def warmup_steps(cfg) -> int:  # a ScenarioConfig
 
 def compute_text(design, cfg, variants: int) -> str:
     """One paragraph: the design's SUT steps (what equal compute equalises) and its warm-up (extra compute)."""
-    from evoscen_bringup.sensitivity import design_compute
+    from evoscen_experiments.sensitivity import design_compute
 
     w = warmup_steps(cfg)
     c = design_compute(design, w)
@@ -238,9 +238,9 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
               scenarios: list[str], mutants: list[str]) -> tuple[dict, str]:
     """One design's tables and files in ``out`` (sensitivity.md/.csv, mutation_scores.csv, rounds.csv,
     sensitivity.png). Returns (scenario, base) -> :class:`DesignSummary` and the score table (Markdown)."""
-    from evoscen_bringup.experiments import difference_words, fmt_ci, markdown_table, mean_ci, write_csv
-    from evoscen_bringup.replication import SeedBlock, applicable_split, block_detection, block_scores
-    from evoscen_bringup.sensitivity import (
+    from evoscen_experiments.experiments import difference_words, fmt_ci, markdown_table, mean_ci, write_csv
+    from evoscen_experiments.replication import SeedBlock, applicable_split, block_detection, block_scores
+    from evoscen_experiments.sensitivity import (
         SCORES,
         SSM_RATES,
         paired,
@@ -478,7 +478,7 @@ def comparison_rows(designs: list, summaries: dict, computes: dict, walls: dict)
     steps per variant, the runs' summed wall time (``walls``: design -> (scenario, base) -> s);
     per mutant both designs' intervals with n and detection.
     """
-    from evoscen_bringup.experiments import fmt_ci
+    from evoscen_experiments.experiments import fmt_ci
 
     def num(x: float, digits: int) -> str:
         return "–" if math.isnan(x) else f"{x:.{digits}f}"
@@ -508,7 +508,7 @@ def comparison_rows(designs: list, summaries: dict, computes: dict, walls: dict)
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import (
+    from evoscen_experiments.experiments import (
         distinct_names,
         markdown_table,
         positive_int,
@@ -516,7 +516,7 @@ def main(argv: list[str] | None = None) -> int:
         set_up,
         write_csv,
     )
-    from evoscen_bringup.sensitivity import design_compute, sharper_design
+    from evoscen_experiments.sensitivity import design_compute, sharper_design
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY
 

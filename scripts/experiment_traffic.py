@@ -89,8 +89,8 @@ def one_run(cfg) -> dict:  # a ScenarioConfig
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import positive_int
-    from evoscen_bringup.stats import fmt_ci, mean_ci
+    from evoscen_experiments.experiments import positive_int
+    from evoscen_experiments.stats import fmt_ci, mean_ci
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 

@@ -34,9 +34,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_eval.fidelity import run_recording
-    from evoscen_eval.highd import write_recording
-    from evoscen_eval.highd_export import ExportOptions
+    from evoscen_eval.naturalistic.fidelity import run_recording
+    from evoscen_eval.naturalistic.highd import write_recording
+    from evoscen_eval.naturalistic.highd_export import ExportOptions
     from evoscen_sim.errors import InputError
 
     try:

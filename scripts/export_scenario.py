@@ -77,7 +77,7 @@ def export_one(bag: Path, t_from, t_to, fmt: str, out: Path, name: str, truck: f
     (``ok``: every check passed)."""
     import time
 
-    from evoscen_eval import scenario_export as X
+    from evoscen_eval.scenes import scenario_export as X
 
     t0 = time.perf_counter()
     ex = X.load_range(bag, t_from, t_to, truck_min_length_m=truck)
@@ -118,7 +118,7 @@ def export_one(bag: Path, t_from, t_to, fmt: str, out: Path, name: str, truck: f
 def compare_start(bag: Path, t_from, truck: float, run_bag: Path) -> bool:
     """Print how the first state of ``run_bag`` compares with the range's first state; True when equal
     within 0.01 m and 0.01 m/s (docs/export.md "Starting evoscen from an exported scenario")."""
-    from evoscen_eval import scenario_export as X
+    from evoscen_eval.scenes import scenario_export as X
     from evoscen_sim.errors import InputError
 
     ex = X.load_range(bag, t_from, None, truck_min_length_m=truck)
@@ -153,7 +153,7 @@ def summary_line(label: str, kind: str, res: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_eval.scenario_export import FORMATS
+    from evoscen_eval.scenes.scenario_export import FORMATS
     from evoscen_sim.errors import InputError
 
     try:

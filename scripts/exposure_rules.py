@@ -48,9 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a scenario key for every run")
     ap.add_argument("--out", type=Path, help="write every episode's figures as JSON here")
     args = ap.parse_args(argv)
-    from evoscen_bringup.experiments import positive_int
-    from evoscen_bringup.replication import parse_seed_blocks
-    from evoscen_bringup.stats import fmt_ci, mean_ci
+    from evoscen_experiments.experiments import positive_int
+    from evoscen_experiments.replication import parse_seed_blocks
+    from evoscen_experiments.stats import fmt_ci, mean_ci
     from evoscen_sim.errors import InputError
 
     try:

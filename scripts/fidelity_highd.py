@@ -79,10 +79,10 @@ def resolve_bag(run: Path) -> Path:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import positive_int
-    from evoscen_eval.fidelity_highd import (Measures, PieceConfig, compare, load_reference, markdown_table,
+    from evoscen_experiments.experiments import positive_int
+    from evoscen_eval.naturalistic.fidelity_highd import (Measures, PieceConfig, compare, load_reference, markdown_table,
                                              plot_histograms, run_measures, to_json)
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scoring.rundata import read_run
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 

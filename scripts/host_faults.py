@@ -183,7 +183,7 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
     must end the killed driver's Ray processes, and every run must be done exactly once."""
     import pyarrow.parquet as pq
 
-    from evoscen_bringup.ray_leftovers import DRIVER_FILE, session_processes, zombie
+    from evoscen_experiments.ray_leftovers import DRIVER_FILE, session_processes, zombie
 
     problems: list[str] = []
     camp = work / f"campaign-{seed}"

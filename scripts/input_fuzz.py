@@ -80,7 +80,7 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
     """``n`` fuzzed inputs over the five input kinds; one dict per input."""
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
-    from evoscen_eval.highd import load_recording
+    from evoscen_eval.naturalistic.highd import load_recording
     from evoscen_sim.config.scenario_config import load_scenario_config, share_path
     from evoscen_sim.errors import InputError
     from evoscen_sim.road.road_model import DEFAULT_MAP_PATH, load_road

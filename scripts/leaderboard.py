@@ -27,7 +27,7 @@ The episodes come in seed blocks (default 2 × 100 from ``--first-seed``; ``--ep
 ``--seed-blocks``: blocks named by their seeds). Beside the ranked table: every term of the comparative
 score (D, S, P, L, X) and of the method's (I, I_s, I_e, I_i), unweighted; every pair of SUTs paired by
 episode with its interval, n and "significantly higher/lower"; the planners' order in each block and
-Kendall's τ-b between blocks (:func:`evoscen_bringup.replication.kendall_tau`). ``--mutant-refs``
+Kendall's τ-b between blocks (:func:`evoscen_experiments.replication.kendall_tau`). ``--mutant-refs``
 mutants of ``--mutant-base`` (default ``timid`` and ``frozen`` of MOBIL) are ranked beside the
 planners as references and left out of τ (docs/experiments.md §4).
 
@@ -97,7 +97,7 @@ def installed_suts() -> list[str]:
 
 def resolve_suts(text: str, reference: str) -> list[str]:
     """The SUTs of ``--suts`` (InputError of one line: unknown, twice, the mutant wrapper, no reference)."""
-    from evoscen_bringup.experiments import distinct_names
+    from evoscen_experiments.experiments import distinct_names
     from evoscen_sim.errors import InputError
 
     installed = installed_suts()
@@ -112,11 +112,11 @@ def resolve_suts(text: str, reference: str) -> list[str]:
 
 
 def resolve_blocks(args: argparse.Namespace) -> list:
-    """The seed blocks (:class:`evoscen_bringup.replication.SeedBlock`): ``--seed-blocks``, or ``--episodes``
+    """The seed blocks (:class:`evoscen_experiments.replication.SeedBlock`): ``--seed-blocks``, or ``--episodes``
     (one block), or ``--blocks`` × ``--block-size`` from ``--first-seed`` (InputError of one line on a bad
     value or a mix)."""
-    from evoscen_bringup.experiments import positive_int
-    from evoscen_bringup.replication import consecutive_blocks, parse_seed_blocks
+    from evoscen_experiments.experiments import positive_int
+    from evoscen_experiments.replication import consecutive_blocks, parse_seed_blocks
     from evoscen_sim.errors import InputError
 
     first = positive_int("--first-seed", args.first_seed, 0)
@@ -139,7 +139,7 @@ def resolve_blocks(args: argparse.Namespace) -> list:
 def resolve_mutant_refs(text: str, base: str, suts: list[str]) -> list[str]:
     """The reference mutants of ``--mutant-refs`` ('none': none); each must be in the library and apply to
     ``base``, which must be among ``suts`` (InputError of one line)."""
-    from evoscen_bringup.experiments import distinct_names
+    from evoscen_experiments.experiments import distinct_names
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY, mutants_for
 
@@ -188,7 +188,7 @@ def block_orders(values: dict[str, dict[int, float]], blocks: list, names: list[
     """Per block the mean score of each of ``names`` (SUT -> seed -> score) and its rank in that block, and
     Kendall's τ-b between every two blocks. Returns (per-block rows [block, sut, mean, rank], τ rows
     [block a, block b, τ, concordant, discordant, n])."""
-    from evoscen_bringup.replication import kendall_tau, restrict
+    from evoscen_experiments.replication import kendall_tau, restrict
 
     means = []
     for b in blocks:
@@ -212,7 +212,7 @@ def block_orders(values: dict[str, dict[int, float]], blocks: list, names: list[
 def term_rows(terms: dict[str, dict[int, dict[str, float]]], order: list[str]) -> tuple[list, list]:
     """Per SUT (in ``order``) every term of both scores (``terms``: SUT -> seed -> term -> value), mean ± 95 %
     interval over the episodes where it is defined, and that n. Returns Markdown rows and CSV rows."""
-    from evoscen_bringup.experiments import fmt_ci, mean_ci
+    from evoscen_experiments.experiments import fmt_ci, mean_ci
 
     names = [n for n, _ in COMPARATIVE_TERMS] + [n for n, _ in METHOD_TERMS]
     md, rows = [], []
@@ -230,10 +230,10 @@ def term_rows(terms: dict[str, dict[int, dict[str, float]]], order: list[str]) -
 
 def pair_rows(values: dict[str, dict[int, float]], order: list[str]) -> tuple[list, list, list]:
     """Every pair of SUTs (a ranked above b): a − b paired by episode, mean ± 95 % interval, n and the words
-    (:func:`evoscen_bringup.replication.pairwise`). Returns Markdown rows, CSV rows and the significant
+    (:func:`evoscen_experiments.replication.pairwise`). Returns Markdown rows, CSV rows and the significant
     pairs as sentences."""
-    from evoscen_bringup.experiments import fmt_ci
-    from evoscen_bringup.replication import pairwise
+    from evoscen_experiments.experiments import fmt_ci
+    from evoscen_experiments.replication import pairwise
 
     md, rows, sig = [], [], []
     for p in pairwise(order, values):
@@ -252,7 +252,7 @@ def ranked(means: dict[str, float]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_bringup.experiments import (
+    from evoscen_experiments.experiments import (
         Round,
         difference_words,
         fmt_ci,
@@ -263,8 +263,8 @@ def main(argv: list[str] | None = None) -> int:
         set_up,
         write_csv,
     )
-    from evoscen_bringup.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
-    from evoscen_bringup.experiments import config_loader
+    from evoscen_experiments.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
+    from evoscen_experiments.experiments import config_loader
     from evoscen_sut.mutants import mutant_overrides
 
     def build():
@@ -307,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
     order = ranked({s: stats[s][0] for s in ok})
     ref = args.reference if args.reference in ok else None
 
-    from evoscen_eval.metrics import compared_weighted
+    from evoscen_eval.scoring.metrics import compared_weighted
 
     def weighted(rep: dict, term: str) -> float:  # the compared score's terms (evaluation.score_form)
         value = compared_weighted(rep).get(term)

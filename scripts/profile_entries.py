@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
         args = ap.parse_args(argv)
     except SystemExit as exc:
         return EXIT_OK if exc.code == 0 else EXIT_BAD_INPUT
-    from evoscen_bringup.experiments import positive_int
+    from evoscen_experiments.experiments import positive_int
     from evoscen_sim.errors import InputError
 
     try:

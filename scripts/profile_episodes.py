@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--mutants", default="all", help="'all' or comma-separated mutants of MOBIL")
     ap.add_argument("--episode-steps", default="300", help="steps per episode (default 300)")
     args = ap.parse_args(argv)
-    from evoscen_bringup.experiments import distinct_names, positive_int
+    from evoscen_experiments.experiments import distinct_names, positive_int
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY
 
@@ -67,7 +67,7 @@ def profile(scenario: str, seeds: int, mutants: list[str], steps: int) -> bool:
     import evoscen_sim.loop.step_loop as step_loop
     from evoscen_bringup import inprocess, starts
     from evoscen_bringup import scenario as scenario_mod
-    from evoscen_bringup.experiments import Round, config_loader
+    from evoscen_experiments.experiments import Round, config_loader
     from evoscen_sim import scenario_builders
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sut.mutants import mutant_overrides

@@ -4,7 +4,7 @@
     python scripts/readme_table.py [--check]
 
 The table sits in README.md between ``<!-- results-table: results/readme.yaml -->`` and
-``<!-- /results-table -->`` (evoscen_eval.results_table; tests/test_readme.py checks it). ``--check``
+``<!-- /results-table -->`` (evoscen_experiments.results_table; tests/test_readme.py checks it). ``--check``
 writes nothing. Exit status: 0 written (or equal), 1 the README differs (``--check``), 2 bad input
 (one ``error:`` line naming the file and the field).
 """
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
-from evoscen_eval.results_table import results_file, rewrite_readme
+from evoscen_experiments.results_table import results_file, rewrite_readme
 from evoscen_sim.errors import InputError
 
 REPO = Path(__file__).resolve().parents[1]

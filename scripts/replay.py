@@ -84,7 +84,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def validate(args: argparse.Namespace):
     """Check every argument and the bag before the middleware starts; InputError otherwise."""
-    from evoscen_eval.replay import (
+    from evoscen_eval.scenes.replay import (
         CDR,
         parse_rate,
         parse_seconds,
@@ -124,7 +124,7 @@ def message_classes(topics, bag: Path) -> dict[str, type]:
     """Import the message class of every topic; InputError naming topic and type if one is missing."""
     import importlib
 
-    from evoscen_eval.replay import message_class_path
+    from evoscen_eval.scenes.replay import message_class_path
     from evoscen_sim.errors import InputError
 
     out = {}
@@ -144,7 +144,7 @@ def message_classes(topics, bag: Path) -> dict[str, type]:
 def check_first_messages(bag: Path, topics, classes: dict[str, type]) -> None:
     """Deserialize the first message of every topic with its class: InputError if one does not
     decode (a bag whose schema does not match its data), before anything is published."""
-    from evoscen_eval.replay import iter_replay
+    from evoscen_eval.scenes.replay import iter_replay
     from evoscen_sim.errors import InputError
     from rclpy.serialization import deserialize_message
 
@@ -233,7 +233,7 @@ def unheard_status(used: list[str], heard: set[str], sent: int) -> int:
 def replay(args: argparse.Namespace, rate: float, start_delay: float, wait_timeout: float, topics) -> int:
     """Publish the bag (see the module docstring); returns the exit status."""
     from evoscen_contract.graph import init, make_node, shutdown
-    from evoscen_eval.replay import Pacer, iter_replay
+    from evoscen_eval.scenes.replay import Pacer, iter_replay
     from rclpy.duration import Duration
 
     classes = message_classes(topics, args.bag)

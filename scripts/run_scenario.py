@@ -109,7 +109,7 @@ def print_scores(report_dir: Path) -> None:
         print(f"error: no report was written ({path} is missing)", file=sys.stderr)
         return
     r = json.loads(path.read_text(encoding="utf-8"))
-    from evoscen_eval.report import score_line
+    from evoscen_eval.scoring.report import score_line
 
     print(score_line(r))
     d = r.get("comparative")
@@ -254,7 +254,7 @@ def main(argv: list[str] | None = None) -> int:
         bag_dir = None if args.no_record or not cfg.recording.enabled else out / "bag"
         if args.start_from is not None:  # docs/export.md "Starting evoscen from an exported scenario"
             from evoscen_bringup.scenario import build_scenario_from_start, load_road_of, start_overrides
-            from evoscen_eval.scenario_export import initial_state_from_xosc
+            from evoscen_eval.scenes.scenario_export import initial_state_from_xosc
 
             start = initial_state_from_xosc(args.start_from, load_road_of(cfg))
             cfg = load_scenario_config(args.config, {**overrides, **start_overrides(start)})

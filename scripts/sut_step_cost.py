@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeats", default="2", help="timed episodes per variant (default 2)")
     ap.add_argument("--episode-steps", default="300", help="steps per episode (default 300)")
     args = ap.parse_args(argv)
-    from evoscen_bringup.experiments import distinct_names, positive_int
+    from evoscen_experiments.experiments import distinct_names, positive_int
     from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import LIBRARY
 
@@ -54,7 +54,7 @@ def measure(mutants: list[str], repeats: int, steps: int) -> list[str]:
     """The report's lines (see the module docstring)."""
     import evoscen_sim.loop.step_loop as step_loop
     from evoscen_bringup import inprocess, starts
-    from evoscen_bringup.experiments import config_loader
+    from evoscen_experiments.experiments import config_loader
     from evoscen_sut.mutants import mutant_overrides
 
     loop_s = [0.0]

@@ -7,10 +7,10 @@
     python scripts/traffic_makeup.py --bags BAG [BAG ...] [--json OUT]
 
 Records one bag per seed in process (``bvs.makeup`` of ``--makeup``), reads each back
-(:func:`evoscen_eval.rundata.read_run`) and prints, pooled over the seeds (``--bags BAG ...``: of
+(:func:`evoscen_eval.scoring.rundata.read_run`) and prints, pooled over the seeds (``--bags BAG ...``: of
 these recorded bags instead, nothing run):
 
-* what highD measures, measured as docs/fidelity.md does (:mod:`evoscen_eval.fidelity_highd`, one
+* what highD measures, measured as docs/fidelity.md does (:mod:`evoscen_eval.naturalistic.fidelity_highd`, one
   definition for both): each BV trip cut into 420-m pieces, the pieces' mean speeds (mean, sd, p5,
   p50, p95), all and per class (truck: longer than 7 m); BV lane changes per vehicle-km, all and
   per class;
@@ -19,13 +19,13 @@ these recorded bags instead, nothing run):
   merges from the merge lane (completed ``evoscen/lane_change`` events from lane 0) and the lane
   changes without them (highD's recordings are mostly without an on-ramp); BV-BV collisions per
   BV slot-hour; trucks' steps in the leftmost lane; the BVs within ±100 m of the SUT, the run
-  report's ``traffic`` section (:func:`evoscen_eval.metrics.evaluate`: per 30-s window, the lowest
+  report's ``traffic`` section (:func:`evoscen_eval.scoring.metrics.evaluate`: per 30-s window, the lowest
   window mean over the seeds);
 * with ``--bench N``: in-process steps/s (recording off; N rounds of 300 steps alternating the two,
   best of each) of this make-up and of ``uniform`` on the first seed, and their ratio.
 
 Beside each, highD's figure at 120 km/h (Krajewski et al., *The highD Dataset*, ITSC 2018), from the
-aggregates shipped with evoscen_eval (:func:`evoscen_eval.fidelity_highd.load_reference`). Bad input:
+aggregates shipped with evoscen_eval (:func:`evoscen_eval.naturalistic.fidelity_highd.load_reference`). Bad input:
 ``error: ...``, exit 2.
 """
 
@@ -48,7 +48,7 @@ CLASSES = ("car", "truck")
 
 def highd_figures(reference: dict | None = None) -> dict:
     """highD's figures beside this script's (120 km/h recordings), from the shipped aggregates."""
-    from evoscen_eval.fidelity_highd import load_reference
+    from evoscen_eval.naturalistic.fidelity_highd import load_reference
 
     r = (reference or load_reference())["speed_limit_120_kmh"]
     out = {"mean_speed_mps": r["per_vehicle_mean_speed_mps"]["mean"],
@@ -65,10 +65,10 @@ def highd_figures(reference: dict | None = None) -> dict:
 
 def figures(run, report: dict | None = None) -> dict:
     """The make-up's figures of one run (a RunData): the fidelity measures (``measures``) and this
-    script's own. ``report``: the run's report (default: scored here, :func:`evoscen_eval.metrics.evaluate`
+    script's own. ``report``: the run's report (default: scored here, :func:`evoscen_eval.scoring.metrics.evaluate`
     with the run's recorded evaluation settings), whose ``traffic`` section gives the BVs near the SUT."""
     from evoscen_contract.contract import EVENT_COLLISION, EVENT_LANE_CHANGE, KIND_COMPLETED, ROLE_BV
-    from evoscen_eval.fidelity_highd import PieceConfig, run_measures
+    from evoscen_eval.naturalistic.fidelity_highd import PieceConfig, run_measures
     from evoscen_sim.road.road_model import MERGE_LANE
 
     truck_length = PieceConfig().truck_length_m
@@ -88,8 +88,8 @@ def figures(run, report: dict | None = None) -> dict:
         if pair and all(x in cls_of for x in pair):
             bvbv += 1
     if report is None:
-        from evoscen_eval.metrics import evaluate
-        from evoscen_eval.rundata import evaluation_settings_of
+        from evoscen_eval.scoring.metrics import evaluate
+        from evoscen_eval.scoring.rundata import evaluation_settings_of
 
         report = evaluate(run, evaluation_settings_of(run.scenario))
     traffic = report["traffic"]
@@ -104,7 +104,7 @@ def figures(run, report: dict | None = None) -> dict:
 
 def pooled(runs: list[dict]) -> dict:
     """The figures of several runs (:func:`figures`), pooled."""
-    from evoscen_eval.fidelity_highd import Measures
+    from evoscen_eval.naturalistic.fidelity_highd import Measures
 
     m = Measures.concat(r["measures"] for r in runs)
 
@@ -183,7 +183,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
 
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scoring.rundata import read_run
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.errors import InputError
 

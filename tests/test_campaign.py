@@ -1,4 +1,4 @@
-"""Campaigns on Ray (evoscen_bringup.campaign, campaign_spec, campaign_summary, scripts/campaign.py; docs/campaigns.md).
+"""Campaigns on Ray (evoscen_experiments.campaign, campaign_spec, campaign_summary, scripts/campaign.py; docs/campaigns.md).
 
 * A bad spec is one line naming the file, the key and what was expected.
 * Expansion: 2 SUT models x 3 seeds = 6 runs with distinct keys; the same spec and code give
@@ -28,9 +28,9 @@ from pathlib import Path
 
 import pytest
 
-from evoscen_bringup.campaign import collect_rows, run_campaign
-from evoscen_bringup.campaign_spec import expand, load_spec
-from evoscen_bringup.campaign_summary import write_results
+from evoscen_experiments.campaign import collect_rows, run_campaign
+from evoscen_experiments.campaign_spec import expand, load_spec
+from evoscen_experiments.campaign_summary import write_results
 from evoscen_sim.errors import InputError
 
 pytestmark = [pytest.mark.e2e, pytest.mark.filterwarnings("ignore::DeprecationWarning")]
@@ -89,7 +89,7 @@ def test_shipped_specs_load_and_expand(name, cells, seeds):
 
 
 def test_summary_gives_complexity_per_cell_by_hand(tmp_path):
-    from evoscen_bringup.campaign_summary import summary_markdown
+    from evoscen_experiments.campaign_summary import summary_markdown
 
     spec = load_spec(write_spec(tmp_path, SMALL))
     runs = expand(spec, version="v1")
@@ -106,7 +106,7 @@ def test_summary_gives_complexity_per_cell_by_hand(tmp_path):
 
 
 def test_traffic_columns_of_a_report():
-    from evoscen_bringup.campaign import traffic_columns
+    from evoscen_experiments.campaign import traffic_columns
 
     cols = traffic_columns({"traffic": {"mean_bvs": 2.0, "min_window_mean_bvs": 1.0, "empty_share": 0.25}})
     assert cols == {"traffic_mean_bvs": 2.0, "traffic_min_window_mean_bvs": 1.0, "traffic_empty_share": 0.25}
@@ -162,7 +162,7 @@ def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
     here_run = run_inprocess(runs[4].cfg, bag_dir=None, evaluate=True, plots=False)
     here, here_plot = here_run.report, here_run.plot
     row = next(row for row in table if row["key"] == runs[4].key)
-    from evoscen_eval.metrics import compared_scores
+    from evoscen_eval.scoring.metrics import compared_scores
 
     assert row["intelligence"] == compared_scores(here)["intelligence"] == here["comparative"]["score"]
     assert row["collisions"] == here["safety"]["collisions"] and row["seed"] == 1 and row["sut.model"] == "level0"
@@ -290,7 +290,7 @@ def test_a_two_node_cluster_runs_tasks_on_both_nodes_with_the_local_results(loca
     import ray
     from ray.cluster_utils import Cluster
 
-    from evoscen_bringup.campaign import OBJECT_STORE_BYTES
+    from evoscen_experiments.campaign import OBJECT_STORE_BYTES
 
     cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False,
                                                            "object_store_memory": OBJECT_STORE_BYTES})
@@ -432,7 +432,7 @@ def test_a_killed_driver_leaves_no_ray_processes_once_the_next_campaign_starts(t
     command names and ends them, then completes the campaign with every run exactly once."""
     import pyarrow.parquet as pq
 
-    from evoscen_bringup.ray_leftovers import DRIVER_FILE, session_processes
+    from evoscen_experiments.ray_leftovers import DRIVER_FILE, session_processes
 
     spec, out = write_spec(tmp_path, LONG), tmp_path / "out"
     proc = _cli(spec, out)
@@ -465,7 +465,7 @@ def test_a_fault_of_the_host_in_a_worker_is_found_behind_rays_error():
     it (and stops the campaign with one line instead of failing every run alike)."""
     import ray
 
-    from evoscen_bringup.campaign import _host_fault_of
+    from evoscen_experiments.campaign import _host_fault_of
     from evoscen_sim.errors import HostFault
 
     def full() -> None:

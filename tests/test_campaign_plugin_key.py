@@ -1,4 +1,4 @@
-"""Campaign run keys cover the plug-in a run uses (evoscen_bringup.campaign_spec.run_key, docs/campaigns.md
+"""Campaign run keys cover the plug-in a run uses (evoscen_experiments.campaign_spec.run_key, docs/campaigns.md
 "Each run once"): a changed plug-in file or version gives new keys, a run without a plug-in keeps
 the key of the configuration and code version alone.
 
@@ -23,7 +23,7 @@ import hashlib, json, sys
 from pathlib import Path
 sys.path.insert(0, sys.argv[1])
 import _bootstrap  # noqa: F401
-from evoscen_bringup import campaign_spec as C
+from evoscen_experiments import campaign_spec as C
 from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.config.config_load import config_to_dict
 

@@ -81,10 +81,10 @@ CORE_MODULES = (
     "evoscen_record.scenario_record",
     "evoscen_record.step_recorder",
     "evoscen_record.bag_writer",
-    "evoscen_eval.rundata",
-    "evoscen_eval.metrics",
-    "evoscen_eval.report",
-    "evoscen_eval.bv_realism",
+    "evoscen_eval.scoring.rundata",
+    "evoscen_eval.scoring.metrics",
+    "evoscen_eval.scoring.report",
+    "evoscen_eval.naturalistic.bv_realism",
     "evoscen_bringup.scenario",
     "evoscen_bringup.inprocess",
 )
@@ -225,7 +225,7 @@ def test_share_lookup_is_defined_once() -> None:
 def test_former_copies_are_the_contract_objects() -> None:
     from evoscen_bringup import graph_runner
     from evoscen_contract import topics as T
-    from evoscen_eval import bv_realism
+    from evoscen_eval.naturalistic import bv_realism
     from evoscen_sim import scenario_builders as scenario
     from evoscen_sim.physics import world
 

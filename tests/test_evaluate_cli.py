@@ -58,9 +58,9 @@ def test_offline_report_equals_the_runs_own(recorded_run, tmp_path):
 def test_the_bag_scored_in_one_pass_equals_the_bag_read_whole(recorded_run):
     """score_bag (one pass, no [K, V] kept: scripts/evaluate.py) and read_run + report_of (the run
     held as arrays) give the same report, to the last bit."""
-    from evoscen_eval.metrics import report_of_stream
-    from evoscen_eval.report import report_of
-    from evoscen_eval.rundata import read_run, score_bag
+    from evoscen_eval.scoring.metrics import report_of_stream
+    from evoscen_eval.scoring.report import report_of
+    from evoscen_eval.scoring.rundata import read_run, score_bag
 
     scored = score_bag(recorded_run.bag_dir)
     assert report_of_stream(scored.stream, scored.info, scored.warnings) == report_of(read_run(recorded_run.bag_dir))
@@ -126,7 +126,7 @@ def test_a_bag_recorded_before_count_normalisation_scores_the_counts_as_counted(
     scaled, they would enter I_s 15 times over)."""
     import math
 
-    from evoscen_eval.metrics import safety_score
+    from evoscen_eval.scoring.metrics import safety_score
 
     live = json.loads((recorded_run.out / "report" / "report.json").read_text())
     s = live["safety"]

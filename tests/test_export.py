@@ -70,7 +70,7 @@ def crash(tmp_path_factory, cli):
 
 
 def test_a_start_from_a_file_has_its_vehicles_classes_positions_and_speeds(crash):
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scoring.rundata import read_run
 
     run = read_run(crash / "bag")
     c = {f: run.columns[f][0] for f in ("id", "role", "s", "d", "lane", "speed", "length", "width")}
@@ -83,7 +83,7 @@ def test_a_start_from_a_file_has_its_vehicles_classes_positions_and_speeds(crash
 
 
 def test_the_independent_collision_check_agrees_with_evoscens_events(crash, tmp_path):
-    from evoscen_eval import scenario_export as X
+    from evoscen_eval.scenes import scenario_export as X
 
     ex = X.load_range(crash / "bag")
     assert [pair for _t, pair in ex.collisions] == [(0, 1)]  # the SUT runs into the truck, once
@@ -102,8 +102,8 @@ def test_the_independent_collision_check_agrees_with_evoscens_events(crash, tmp_
 
 def test_xosc_passes_the_asam_checker_and_holds_the_recorded_motion(recorded_run, tmp_path, capsys):
     from evoscen_contract import contract as C
-    from evoscen_eval import scenario_export as X
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scenes import scenario_export as X
+    from evoscen_eval.scoring.rundata import read_run
 
     t_from, t_to = 2.0, 12.0
     status = _export_main()([str(recorded_run.bag_dir), "--from", str(t_from), "--to", str(t_to), "--format", "xosc",
@@ -136,11 +136,11 @@ def test_xosc_passes_the_asam_checker_and_holds_the_recorded_motion(recorded_run
 def test_commonroad_round_trip_keeps_obstacles_time_steps_and_planning_problem(recorded_run, crash, tmp_path):
     """Written and read back with commonroad-io in a process of its own (it needs protobuf's pure-Python
     implementation, chosen before protobuf is first imported: docs/export.md "Packages")."""
-    from evoscen_eval import scenario_export as X
+    from evoscen_eval.scenes import scenario_export as X
 
     code = """
 import json, sys
-from evoscen_eval import scenario_export as X
+from evoscen_eval.scenes import scenario_export as X
 X.protobuf_runtime()
 from commonroad.common.file_reader import CommonRoadFileReader
 out = {}
@@ -188,8 +188,8 @@ print(json.dumps(out))
 
 
 def test_an_exported_start_restarts_evoscen_in_the_same_state(recorded_run, cli, tmp_path):
-    from evoscen_eval import scenario_export as X
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scenes import scenario_export as X
+    from evoscen_eval.scoring.rundata import read_run
 
     t_from = 5.0
     path = X.write_xosc(X.load_range(recorded_run.bag_dir, t_from, t_from + 1.0), tmp_path / "x")
@@ -245,7 +245,7 @@ def test_bad_input_is_one_error_line_and_status_2(recorded_run, tmp_path, capsys
 
 
 def test_a_start_file_that_is_not_a_scenario_is_one_line(tmp_path):
-    from evoscen_eval.scenario_export import initial_state_from_xosc
+    from evoscen_eval.scenes.scenario_export import initial_state_from_xosc
     from evoscen_sim.errors import InputError
     from evoscen_sim.road.road_model import load_road
 
@@ -265,7 +265,7 @@ def test_a_vehicle_that_jumps_right_after_the_first_state_exports_valid_openscen
     Init places the vehicle, no empty event is written (an Event needs an action), and the box check
     reads its state at t = 0 from Init."""
     from evoscen_contract import contract as C
-    from evoscen_eval import scenario_export as X
+    from evoscen_eval.scenes import scenario_export as X
     from evoscen_sim.config.scenario_config import share_path
 
     def piece(k0, x, y, v=10.0):
@@ -291,7 +291,7 @@ def test_a_campaigns_clips_export_with_a_summary_per_clip_and_a_total(crash, tmp
     (one obstacle per BV piece: the truck and the car), its collision found by the box check."""
     import shutil
 
-    from evoscen_eval import scenario_export as X
+    from evoscen_eval.scenes import scenario_export as X
 
     run = tmp_path / "camp" / "runs" / "k1"
     shutil.copytree(crash / "bag", run / "clips" / "001-collision-7" / "bag")

@@ -157,8 +157,8 @@ def test_answering_the_final_state_too_leaves_one_command_per_step(runs: dict) -
 def test_bag_and_report_name_the_sut_external(external_run: dict) -> None:
     """The configuration's sut.model drove nothing in this run: the bag's metadata says the SUT was
     external, and a report made from the bag names it so rather than the configured model."""
-    from evoscen_eval.metrics import run_info
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scoring.metrics import run_info
+    from evoscen_eval.scoring.rundata import read_run
 
     run = read_run(external_run["bag_dir"])
     assert run.external_sut is True

@@ -83,7 +83,7 @@ def test_the_version_agrees_everywhere():
     version = evoscen.__version__
     assert _released_versions()[0] == version, "the CHANGELOG's newest release is not evoscen.__version__"
     packages = sorted(p for p in (REPO / "ros2_ws" / "src").iterdir() if (p / "setup.cfg").is_file())
-    assert len(packages) == 8 and "evoscen" in {p.name for p in packages}
+    assert len(packages) == 9 and {"evoscen", "evoscen_experiments"} <= {p.name for p in packages}
     for pkg in packages:
         cfg = configparser.ConfigParser(interpolation=None)
         cfg.read(pkg / "setup.cfg", encoding="utf-8")

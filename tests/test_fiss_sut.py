@@ -202,7 +202,7 @@ def test_installed_fiss_writes_the_same_bag_in_both_runners(tmp_path):
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 def test_installed_fiss_runs_in_a_campaign_on_ray(tmp_path):
     import pyarrow.parquet as pq
-    from evoscen_bringup.campaign_spec import expand, load_spec
+    from evoscen_experiments.campaign_spec import expand, load_spec
     from evoscen_bringup.inprocess import run_inprocess
 
     spec = tmp_path / "fiss.yaml"

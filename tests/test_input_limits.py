@@ -194,7 +194,7 @@ def _highd_dir(tmp_path: Path) -> Path:
 
 
 def test_binary_or_device_highd_tracks_are_one_line(tmp_path):
-    from evoscen_eval.highd import TRACK_COLUMNS, load_recording_meta, load_tracks
+    from evoscen_eval.naturalistic.highd import TRACK_COLUMNS, load_recording_meta, load_tracks
     from evoscen_sim.errors import InputError
 
     path = tmp_path / "01_tracks.csv"
@@ -285,8 +285,8 @@ def test_nan_in_the_world_table_is_one_line(short_bag, tmp_path):
 
 
 def test_highd_writer_refuses_non_finite_rows(short_bag, tmp_path):
-    from evoscen_eval.fidelity import run_recording
-    from evoscen_eval.highd import write_recording
+    from evoscen_eval.naturalistic.fidelity import run_recording
+    from evoscen_eval.naturalistic.highd import write_recording
     from evoscen_sim.errors import InputError
 
     rec = run_recording(short_bag)

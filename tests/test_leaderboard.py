@@ -77,7 +77,7 @@ def test_bad_input_is_one_line_and_exit_2_before_anything_is_written(board, tmp_
 
 
 def test_seed_blocks_default_to_two_blocks_of_100_from_20000(board):
-    from evoscen_bringup.replication import SeedBlock
+    from evoscen_experiments.replication import SeedBlock
 
     assert board.resolve_blocks(board.parse_args([])) == [SeedBlock(20000, 20099), SeedBlock(20100, 20199)]
     assert board.resolve_blocks(board.parse_args(["--episodes", "3", "--first-seed", "7"])) == [SeedBlock(7, 9)]
@@ -91,7 +91,7 @@ def test_seed_blocks_default_to_two_blocks_of_100_from_20000(board):
 
 
 def test_terms_pairs_and_block_orders_by_hand(board):
-    from evoscen_bringup.replication import consecutive_blocks
+    from evoscen_experiments.replication import consecutive_blocks
 
     def t(d, s, p, i_i=0.5):
         return {"D": d, "S": s, "P": p, "L": 0.5, "X": 0.5, "I": d, "I_s": s, "I_e": p, "I_i": i_i}

@@ -27,8 +27,8 @@ def _leaves(d, path=""):
 
 @pytest.mark.parametrize("form", ["method", "comparative"])
 def test_a_0_5_1_bag_scored_again_gives_the_0_5_1_report(tmp_path, form):
-    from evoscen_eval.report import write_stream_report
-    from evoscen_eval.rundata import score_bag
+    from evoscen_eval.scoring.report import write_stream_report
+    from evoscen_eval.scoring.rundata import score_bag
     from evoscen_sim.config.scenario_config import load_scenario_config
 
     (tmp_path / "form.yaml").write_text(f"evaluation:\n  score_form: {form}\n")

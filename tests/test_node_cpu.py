@@ -21,7 +21,7 @@ from node_cpu import NodeCpuSampler, node_cpu_seconds, node_key, per_step_us
     (["python", "-m", "evoscen_sut.sut_node"], "evoscen_sut"),
     (["python", "-m", "evoscen_eval.eval_node"], "evoscen_eval"),
     (["python", "-m", "pytest", "-q"], None),
-    (["python", "-m", "evoscen_eval.report"], None),  # a module of ours that is not a node
+    (["python", "-m", "evoscen_eval.scoring.report"], None),  # a module of ours that is not a node
     (["bash", "-c", "sleep 1"], None),
     ([], None)])
 def test_node_key(argv, key):

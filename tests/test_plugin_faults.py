@@ -250,8 +250,8 @@ def test_a_04_path_imports_with_a_deprecation_warning():
 
     assert number is new_number
     with pytest.warns(DeprecationWarning, match=r"evoscen_eval\.streaming\.TTC_BINS .*use evoscen_eval\.plot_inputs\.TTC_BINS"):
-        from evoscen_eval.streaming import TTC_BINS
-    from evoscen_eval.plot_inputs import TTC_BINS as new_bins
+        from evoscen_eval.scoring.streaming import TTC_BINS
+    from evoscen_eval.scoring.plot_inputs import TTC_BINS as new_bins
 
     assert TTC_BINS is new_bins
     with warnings.catch_warnings():

@@ -48,7 +48,7 @@ def test_the_foxglove_layout_shows_contract_topics_and_fields():
 
 
 def test_the_results_table_equals_the_one_generated_from_the_results_file():
-    from evoscen_eval.results_table import load_results, readme_table, results_file, results_markdown
+    from evoscen_experiments.results_table import load_results, readme_table, results_file, results_markdown
 
     text = (REPO / "README.md").read_text(encoding="utf-8")
     name = results_file(text)
@@ -69,7 +69,7 @@ rows:
 
 def test_the_generator_by_hand(tmp_path):
     """Means and half-widths to 3 decimals, 'k of m' or a dash, the one design named under the table."""
-    from evoscen_eval.results_table import load_results, results_markdown, rewrite_readme
+    from evoscen_experiments.results_table import load_results, results_markdown, rewrite_readme
 
     (tmp_path / "r.yaml").write_text(TINY, encoding="utf-8")
     lines = results_markdown(load_results(tmp_path / "r.yaml", "r.yaml")).splitlines()
@@ -89,7 +89,7 @@ def test_the_generator_by_hand(tmp_path):
 
 def test_a_missing_or_malformed_field_is_one_line_naming_the_file_and_the_field(tmp_path):
     import pytest
-    from evoscen_eval.results_table import load_results
+    from evoscen_experiments.results_table import load_results
     from evoscen_sim.errors import InputError
 
     path = tmp_path / "r.yaml"

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from evoscen_bringup.sensitivity import Design, design_compute, summarise_design
+from evoscen_experiments.sensitivity import Design, design_compute, summarise_design
 
 REPO = Path(__file__).resolve().parents[1]
 T975_DF1 = 12.706204736   # Student-t 0.975 quantile, 1 degree of freedom

@@ -294,9 +294,9 @@ def test_installed_runs_in_both_runners_with_the_same_bag(tmp_path):
 def test_a_campaign_runs_it_on_ray_workers_with_the_result_of_the_same_run_here(tmp_path):
     require_installed()
     import pyarrow.parquet as pq
-    from evoscen_bringup.campaign import run_campaign
-    from evoscen_bringup.campaign_spec import expand, load_spec
-    from evoscen_bringup.campaign_summary import write_results
+    from evoscen_experiments.campaign import run_campaign
+    from evoscen_experiments.campaign_spec import expand, load_spec
+    from evoscen_experiments.campaign_summary import write_results
     from evoscen_bringup.inprocess import run_inprocess
 
     spec_path = tmp_path / "spec.yaml"

@@ -1,5 +1,5 @@
 """scripts/traffic_makeup.py: its pooled figures by hand (the pieces and lane changes are
-evoscen_eval.fidelity_highd's, tested by hand in its own tests), bad input."""
+evoscen_eval.naturalistic.fidelity_highd's, tested by hand in its own tests), bad input."""
 
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ def _module():
 
 
 def _measures(truck, speed, trip_truck, trip_km, trip_lcs):
-    from evoscen_eval.fidelity_highd import Measures
+    from evoscen_eval.naturalistic.fidelity_highd import Measures
 
     n, m = len(truck), len(trip_truck)
     nan = np.full(n, np.nan)

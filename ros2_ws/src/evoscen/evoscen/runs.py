@@ -129,8 +129,8 @@ def score_bag(bag: str | Path, *, out: str | Path | None = None, scenario: str |
     """Score the run in ``bag`` (a bag directory or its .mcap file) under its recorded evaluation
     settings, or those of the scenario file ``scenario``; return the report (``report.json``'s content).
     With ``out`` the report's files are written there too (an empty or new directory)."""
-    from evoscen_eval.report import report_of_stream, write_stream_report
-    from evoscen_eval.rundata import score_bag as score_stream
+    from evoscen_eval.scoring.report import report_of_stream, write_stream_report
+    from evoscen_eval.scoring.rundata import score_bag as score_stream
     from evoscen_sim.config.scenario_config import load_scenario_config
 
     path = Path(bag)

@@ -35,7 +35,7 @@ from evoscen_sim.nodes.bv_nodes import bv_node_names
 from evoscen_sim.danger.events import fault_event
 from evoscen_sim.loop.step_loop import Commands, Port, StepLoop
 
-from .scenario import Scenario, build_scenario
+from evoscen_bringup.scenario import Scenario, build_scenario
 
 
 @dataclass
@@ -55,9 +55,9 @@ class RunSummary:
     report: dict | None = None
     """The evaluation report (``report.json``'s content) when the run was evaluated."""
     run: object | None = None
-    """The evaluated run as arrays (:class:`evoscen_eval.rundata.RunData`), with ``keep_run``."""
+    """The evaluated run as arrays (:class:`evoscen_eval.scoring.rundata.RunData`), with ``keep_run``."""
     plot: object | None = None
-    """The evaluated run's :class:`evoscen_eval.plot_inputs.PlotData` (distributions of TTC and speed)."""
+    """The evaluated run's :class:`evoscen_eval.scoring.plot_inputs.PlotData` (distributions of TTC and speed)."""
 
     @property
     def steps_per_s(self) -> float:
@@ -183,7 +183,7 @@ def run_inprocess(
     """Run ``steps`` (default ``cfg.steps``) steps; record to ``bag_dir`` unless it is None.
 
     With ``report_dir`` the run is scored and ``report.json``/``report.md`` (and, with
-    ``plots``, the PNGs) are written there (:mod:`evoscen_eval.report`); with ``evaluate``
+    ``plots``, the PNGs) are written there (:mod:`evoscen_eval.scoring.report`); with ``evaluate``
     alone the report is only returned (``RunSummary.report``). Either way the scores are the
     ones an offline evaluation of the bag gives, computed as the run goes (scoring memory does
     not grow with the run); ``keep_run`` also keeps the run's arrays (``RunSummary.run``).
@@ -214,7 +214,7 @@ def run_inprocess(
     acc = recorded = None
     if report_dir is not None or evaluate:
         import yaml
-        from evoscen_eval.rundata import RunAccumulator, evaluation_settings_of
+        from evoscen_eval.scoring.rundata import RunAccumulator, evaluation_settings_of
         from evoscen_record.scenario_record import SCENARIO_KEY, scenario_metadata
 
         acc = RunAccumulator(expected_states=n_steps + 1, keep_world=keep_run)
@@ -273,8 +273,8 @@ def run_inprocess(
 def _report(acc, scenario: dict, report_dir: Path | None, plots: bool, keep_run: bool):
     """Score the run as it was streamed, exactly as the bag would be scored (``scenario``: the bag's
     scenario record, read back)."""
-    from evoscen_eval.metrics import report_of_stream
-    from evoscen_eval.report import write_stream_report
+    from evoscen_eval.scoring.metrics import report_of_stream
+    from evoscen_eval.scoring.report import write_stream_report
 
     info = acc.stream_info(scenario=scenario)
     run = acc.run_data(scenario=scenario) if keep_run else None

@@ -17,7 +17,7 @@ from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import ModelSpec
 
-from .scenario import Scenario, build_scenario
+from evoscen_bringup.scenario import Scenario, build_scenario
 
 
 def model_scenario(spec: ModelSpec, params: Any, role: str, seed: int = 0) -> Scenario:

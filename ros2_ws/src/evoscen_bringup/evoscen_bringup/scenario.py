@@ -108,7 +108,7 @@ def start_overrides(start) -> dict[str, str]:
 
 def build_scenario_from_start(cfg: ScenarioConfig, start) -> Scenario:
     """A scenario whose world starts in ``start`` (an
-    :class:`evoscen_eval.scenario_export.ImportedStart`: ``run_scenario.py --start-from``,
+    :class:`evoscen_eval.scenes.scenario_export.ImportedStart`: ``run_scenario.py --start-from``,
     docs/export.md "Starting evoscen from an exported scenario") instead of the spawn layout and the
     warm-up: each vehicle at its ``s``, ``d`` and heading in its lane, at its speed, with its length and
     width (a lane change under way is not carried over: the vehicle keeps the lane that holds its centre

@@ -28,11 +28,11 @@ from evoscen_sim.config.scenario_config import ScenarioConfig, config_to_dict
 from evoscen_sim.road.road_model import RoadModel, load_road
 from evoscen_sim.scenario_builders import WARMUP_SUT_MODEL, build_bv_driver, build_sut_driver, build_world, bv_indices
 
-from .scenario import Scenario
+from evoscen_bringup.scenario import Scenario
 
 CACHED_STARTS = 4
 """Starts a :class:`StartCache` keeps (least recently used dropped): a worker runs the variants of
-one start together (:func:`evoscen_bringup.campaign.run_campaign`'s groups), so a few suffice; each
+one start together (:func:`evoscen_experiments.campaign.run_campaign`'s groups), so a few suffice; each
 holds a world and its BV drivers (about 2 MB with the learned policies)."""
 
 

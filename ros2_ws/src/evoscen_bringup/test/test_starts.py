@@ -11,10 +11,10 @@ import json
 from dataclasses import dataclass
 
 import pytest
-from evoscen_bringup import campaign
-from evoscen_bringup.campaign import batches, execute, execute_batch
-from evoscen_bringup.campaign_spec import CampaignRun
-from evoscen_bringup.experiments import config_loader
+from evoscen_experiments import campaign
+from evoscen_experiments.campaign import batches, execute, execute_batch
+from evoscen_experiments.campaign_spec import CampaignRun
+from evoscen_experiments.experiments import config_loader
 from evoscen_bringup.inprocess import run_inprocess
 from evoscen_bringup.scenario import build_scenario
 from evoscen_bringup.starts import StartCache, start_key

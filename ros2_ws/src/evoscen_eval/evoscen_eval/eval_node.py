@@ -27,11 +27,11 @@ refused is counted, logged (at most ``MAX_WARNINGS`` lines) and not recorded; no
 the node with a traceback.
 
 Scoring: the world tables, events and map markers the node writes into the bag also go, in
-the same order, into a :class:`~evoscen_eval.rundata.RunAccumulator`, which scores them as
-they come (:mod:`evoscen_eval.streaming`: nothing of the run is kept, so a long run costs no
+the same order, into a :class:`~evoscen_eval.scoring.rundata.RunAccumulator`, which scores them as
+they come (:mod:`evoscen_eval.scoring.streaming`: nothing of the run is kept, so a long run costs no
 memory); when the run ends the node writes ``report.json``, ``report.md`` and the plots into ``report_dir``
 (not for a run that ended ``aborted``: it is not scored)
-(:mod:`evoscen_eval.report`) — the very numbers ``scripts/evaluate.py`` computes from the bag.
+(:mod:`evoscen_eval.scoring.report`) — the very numbers ``scripts/evaluate.py`` computes from the bag.
 The SUT's exposures go out live as ``evoscen/exposure`` events from the simulation node (same
 definitions, :mod:`evoscen_sim.danger.safety`).
 
@@ -61,7 +61,7 @@ from evoscen_sim.config.config_checks import flag, integer, number, text
 from evoscen_sim.errors import HostFault
 from evoscen_sim.nodes.node_params import own_parameters, run_node, scenario_from_node
 
-from .rundata import RunAccumulator
+from evoscen_eval.scoring.rundata import RunAccumulator
 
 NODE_NAME = T.NODE_EVAL
 # topics only the simulation node publishes, always as canonical CDR (evoscen_contract.cdr)
@@ -114,10 +114,10 @@ class EvaluatorNode:
         self.external_sut = own.external_sut
         self.metadata = scenario_metadata(self.cfg, external_sut=self.external_sut)  # the bag's; the report reads it too
         self.acc = None
-        if self.report_dir:  # scored state by state (evoscen_eval.streaming): memory does not grow with the run
+        if self.report_dir:  # scored state by state (evoscen_eval.scoring.streaming): memory does not grow with the run
             import yaml
 
-            from .rundata import evaluation_settings_of
+            from evoscen_eval.scoring.rundata import evaluation_settings_of
 
             recorded = yaml.safe_load(self.metadata[SCENARIO_KEY])  # as an offline evaluation reads it
             self.acc = RunAccumulator(keep_world=False)
@@ -290,7 +290,7 @@ class EvaluatorNode:
         import yaml
         from evoscen_sim.errors import InputError
 
-        from .report import write_stream_report
+        from evoscen_eval.scoring.report import write_stream_report
 
         try:
             info = self.acc.stream_info(scenario=yaml.safe_load(self.metadata[SCENARIO_KEY]),

@@ -7,9 +7,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from evoscen_eval.metrics import activity_accel, evaluate
-from evoscen_eval.run_fixtures import make_run
-from evoscen_eval.rundata import RunData
+from evoscen_eval.scoring.metrics import activity_accel, evaluate
+from evoscen_eval.scoring.run_fixtures import make_run
+from evoscen_eval.scoring.rundata import RunData
 from evoscen_sim.config.scenario_config import EvaluationConfig
 
 

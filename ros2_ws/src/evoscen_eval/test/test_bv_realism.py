@@ -1,12 +1,12 @@
-"""BV realism figures (evoscen_eval.bv_realism) on a hand-built run."""
+"""BV realism figures (evoscen_eval.naturalistic.bv_realism) on a hand-built run."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from evoscen_contract import topics as T
-from evoscen_eval.bv_realism import bv_realism, combine, time_headways
-from evoscen_eval.rundata import RunData
+from evoscen_eval.naturalistic.bv_realism import bv_realism, combine, time_headways
+from evoscen_eval.scoring.rundata import RunData
 
 
 def _run() -> RunData:
@@ -51,7 +51,7 @@ def test_figures_by_hand():
     # per type: competitive = BVs 11 + 13, (20 + 25) m/s x 1 s = 45 m, one change (BV 11); cooperative = BV 12, 10 m
     assert f["by_policy"] == {"competitive": {"lane_changes": 1, "vehicle_km": pytest.approx(0.045)},
                               "cooperative": {"lane_changes": 0, "vehicle_km": pytest.approx(0.010)}}
-    from evoscen_eval.bv_realism import lane_changes_per_km_by_policy
+    from evoscen_eval.naturalistic.bv_realism import lane_changes_per_km_by_policy
 
     assert lane_changes_per_km_by_policy(f) == {"competitive": pytest.approx(1.0 / 0.045), "cooperative": 0.0}
     assert lane_changes_per_km_by_policy(combine([f, f])) == {"competitive": pytest.approx(1.0 / 0.045),
@@ -181,7 +181,7 @@ def test_window_run_vehicle_km_matches_the_distance_driven():
     (the body's heading and the lateral motion make the two differ a little); and the lane changes are the
     completed events only, fewer than the lane column's changes (entries into other lanes move it too)."""
     from evoscen_bringup.inprocess import run_inprocess
-    from evoscen_eval.highd_export import unshifted_s
+    from evoscen_eval.naturalistic.highd_export import unshifted_s
     from evoscen_sim.config.scenario_config import load_scenario_config
     from evoscen_sim.traffic.window import new_trips
 

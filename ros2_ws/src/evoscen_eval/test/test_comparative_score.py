@@ -1,5 +1,5 @@
 """The comparative score D = P·(i_s·S + i_e·L + i_i·X) (docs/evaluation.md §10), by hand on runs
-written down state by state (:func:`evoscen_eval.run_fixtures.make_run`: the SUT at s = 1000 m, lane
+written down state by state (:func:`evoscen_eval.scoring.run_fixtures.make_run`: the SUT at s = 1000 m, lane
 2, 30 m/s, dt 0.1 s; its distance is dt·Σ speed over the states, as surrogate safety's SUT-km).
 
 A run of 300 steps has 301 states: at 30 m/s the SUT covers 0.1·30·301 = 903 m = 0.903 km."""
@@ -11,9 +11,9 @@ from dataclasses import replace
 
 import pytest
 from evoscen_contract import topics as T
-from evoscen_eval.metrics import compared_scores, comparative_safety_score, evaluate, progress_score
-from evoscen_eval.run_fixtures import make_run, rear_run
-from evoscen_eval.rundata import evaluation_settings_of
+from evoscen_eval.scoring.metrics import compared_scores, comparative_safety_score, evaluate, progress_score
+from evoscen_eval.scoring.run_fixtures import make_run, rear_run
+from evoscen_eval.scoring.rundata import evaluation_settings_of
 from evoscen_sim.config.scenario_config import EvaluationConfig, ScenarioConfig, evaluation_from_dict
 from evoscen_sim.errors import InputError
 

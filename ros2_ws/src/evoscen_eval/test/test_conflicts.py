@@ -13,10 +13,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from evoscen_contract import topics as T
-from evoscen_eval.metrics import evaluate
-from evoscen_eval.report import markdown, report_of
-from evoscen_eval.run_fixtures import drive, rear_run
-from evoscen_eval.rundata import RECORDED_BEFORE_KEYS, RunAccumulator, RunData, evaluation_settings_of
+from evoscen_eval.scoring.metrics import evaluate
+from evoscen_eval.scoring.report import markdown, report_of
+from evoscen_eval.scoring.run_fixtures import drive, rear_run
+from evoscen_eval.scoring.rundata import RECORDED_BEFORE_KEYS, RunAccumulator, RunData, evaluation_settings_of
 from evoscen_sim.config.scenario_config import EvaluationConfig, ScenarioConfig, config_to_dict
 from evoscen_sim.danger.events import ExposureMonitor
 from evoscen_sim.loop.hand_built import hand_built_world

@@ -14,10 +14,10 @@ from dataclasses import replace
 
 import pytest
 from evoscen_contract import topics as T
-from evoscen_eval.metrics import evaluate, safety_score, scored_counts
-from evoscen_eval.report import markdown, report_of
-from evoscen_eval.run_fixtures import make_run
-from evoscen_eval.rundata import RECORDED_BEFORE_KEYS, evaluation_settings_of
+from evoscen_eval.scoring.metrics import evaluate, safety_score, scored_counts
+from evoscen_eval.scoring.report import markdown, report_of
+from evoscen_eval.scoring.run_fixtures import make_run
+from evoscen_eval.scoring.rundata import RECORDED_BEFORE_KEYS, evaluation_settings_of
 from evoscen_sim.config.scenario_config import EvaluationConfig, ScenarioConfig, config_to_dict, evaluation_from_dict
 from evoscen_sim.errors import InputError
 

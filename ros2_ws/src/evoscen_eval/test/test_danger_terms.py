@@ -1,7 +1,7 @@
 """One definition of the SUT's dangerous state (:func:`evoscen_sim.danger.safety.danger_terms`).
 
 The live monitor (:class:`evoscen_sim.danger.events.ExposureMonitor`, one state at a time) and the scorer
-(:class:`evoscen_eval.streaming.ScoreStream`, blocks of states) both call it: shown here by
+(:class:`evoscen_eval.scoring.streaming.ScoreStream`, blocks of states) both call it: shown here by
 watching the calls, and the two paths agree state by state on hand-built runs whose dangerous
 states are derived by hand.
 """
@@ -11,12 +11,12 @@ from __future__ import annotations
 from dataclasses import replace
 from types import SimpleNamespace
 
-import evoscen_eval.streaming as streaming
+import evoscen_eval.scoring.streaming as streaming
 import evoscen_sim.danger.events as events
 import numpy as np
 import pytest
-from evoscen_eval.metrics import evaluate
-from evoscen_eval.run_fixtures import make_run
+from evoscen_eval.scoring.metrics import evaluate
+from evoscen_eval.scoring.run_fixtures import make_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
 from evoscen_sim.danger.safety import danger_terms
 

@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from evoscen_contract import topics as T
-from evoscen_eval.run_fixtures import drive as drive_run
+from evoscen_eval.scoring.run_fixtures import drive as drive_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
 from evoscen_sim.loop.hand_built import hand_built_world
 from evoscen_sim.road.road_model import load_road
@@ -28,7 +28,7 @@ def road():
 
 
 def drive(world, command, steps):
-    """:func:`evoscen_eval.run_fixtures.drive` under ``EV``."""
+    """:func:`evoscen_eval.scoring.run_fixtures.drive` under ``EV``."""
     return drive_run(world, command, steps, EV)
 
 

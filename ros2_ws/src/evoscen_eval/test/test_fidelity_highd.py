@@ -1,4 +1,4 @@
-"""The traffic against highD's aggregates (evoscen_eval.fidelity_highd, docs/fidelity.md), on hand-built
+"""The traffic against highD's aggregates (evoscen_eval.naturalistic.fidelity_highd, docs/fidelity.md), on hand-built
 runs with values derived by hand.
 
 Lanes 3.5 m wide, lane i's centre at d = -(4 - i)*3.5 - 1.75 (the virtual road's laneId = 12 - i);
@@ -14,10 +14,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from evoscen_eval.fidelity_highd import (Measures, PieceConfig, compare, histogram_similarity, lane_change_rates,
+from evoscen_eval.naturalistic.fidelity_highd import (Measures, PieceConfig, compare, histogram_similarity, lane_change_rates,
                                          load_reference, markdown_table, run_density, run_measures)
-from evoscen_eval.highd_export import VirtualRoad
-from evoscen_eval.similarity import js_divergence
+from evoscen_eval.naturalistic.highd_export import VirtualRoad
+from evoscen_eval.naturalistic.similarity import js_divergence
 
 ROAD = VirtualRoad(length_m=20000.0)
 CAR, TRUCK, WIDTH = 4.5, 12.0, 1.9

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from evoscen_eval.behaviour import BehaviourConfig, extract_behaviour, lane_changes
-from evoscen_eval.fidelity import run_recording
-from evoscen_eval.highd import load_recording, write_recording
-from evoscen_eval.highd_export import ExportOptions, VirtualRoad
-from evoscen_eval.rundata import read_run
-from evoscen_eval.similarity import compare
+from evoscen_eval.naturalistic.behaviour import BehaviourConfig, extract_behaviour, lane_changes
+from evoscen_eval.naturalistic.fidelity import run_recording
+from evoscen_eval.naturalistic.highd import load_recording, write_recording
+from evoscen_eval.naturalistic.highd_export import ExportOptions, VirtualRoad
+from evoscen_eval.scoring.rundata import read_run
+from evoscen_eval.naturalistic.similarity import compare
 
 REPO = Path(__file__).resolve().parents[4]
 STEPS = 400

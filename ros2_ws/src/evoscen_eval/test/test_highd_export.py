@@ -1,4 +1,4 @@
-"""Run → HighD conversion (evoscen_eval.highd_export), neighbour relations and lane-change
+"""Run → HighD conversion (evoscen_eval.naturalistic.highd_export), neighbour relations and lane-change
 classification on hand-built traffic.
 
 The hand-built run (dt 0.1 s, 11 states, t = 0 … 1 s; every vehicle 4.8 × 1.9 m, heading
@@ -23,9 +23,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from evoscen_eval.behaviour import BehaviourConfig, extract_behaviour, lane_changes
-from evoscen_eval.highd import TRACK_COLUMNS, find_neighbours, load_recording, write_recording
-from evoscen_eval.highd_export import ExportOptions, VirtualRoad, run_to_highd
+from evoscen_eval.naturalistic.behaviour import BehaviourConfig, extract_behaviour, lane_changes
+from evoscen_eval.naturalistic.highd import TRACK_COLUMNS, find_neighbours, load_recording, write_recording
+from evoscen_eval.naturalistic.highd_export import ExportOptions, VirtualRoad, run_to_highd
 
 DT = 0.1
 T = np.arange(11) * DT
@@ -189,7 +189,7 @@ def test_neighbours_in_both_directions() -> None:
 
 
 def test_unshifted_s_undoes_the_exact_shift_of_the_events() -> None:
-    from evoscen_eval.highd_export import unshifted_s
+    from evoscen_eval.naturalistic.highd_export import unshifted_s
 
     s = np.array([[1990.0, 2000.0, 2100.0], [1993.0, 2002.5 - 1700.0, 2103.0 - 1700.0]])
     s[1, 0] -= 1700.0

@@ -1,4 +1,4 @@
-"""The HighD loader (evoscen_eval.highd) on small HighD-format files written here.
+"""The HighD loader (evoscen_eval.naturalistic.highd) on small HighD-format files written here.
 
 The fixture recording ``07`` is a 2 + 2-lane HighD road (upper markings 8.51, 12.59,
 16.43: upper lanes 2, 3; lower markings 21.00, 24.96, 28.80: lower lanes 5, 6) with four
@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from evoscen_eval.behaviour import BehaviourConfig, car_following, extract_behaviour, lane_changes
-from evoscen_eval.highd import TRACK_COLUMNS, TRACKS_META_COLUMNS, find_recordings, load_recording
+from evoscen_eval.naturalistic.behaviour import BehaviourConfig, car_following, extract_behaviour, lane_changes
+from evoscen_eval.naturalistic.highd import TRACK_COLUMNS, TRACKS_META_COLUMNS, find_recordings, load_recording
 from evoscen_sim.errors import InputError
 
 RECORDING_META = (

@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from evoscen_contract import topics as T
-from evoscen_eval.metrics import (
+from evoscen_eval.scoring.metrics import (
     complexity_score,
     efficiency_score,
     evaluate,
@@ -21,7 +21,7 @@ from evoscen_eval.metrics import (
     max_in_view,
     safety_score,
 )
-from evoscen_eval.run_fixtures import make_run
+from evoscen_eval.scoring.run_fixtures import make_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()
@@ -85,7 +85,7 @@ def test_lane_change_starts_and_intervals(split, monkeypatch):
     it keeps its value; a change open at the end counts. With blocks of 3 states (``split``)
     every change and the complexity window's LC count straddle block boundaries: same result."""
     if split:
-        monkeypatch.setattr("evoscen_eval.streaming.BLOCK_STATES", 3)
+        monkeypatch.setattr("evoscen_eval.scoring.streaming.BLOCK_STATES", 3)
     lc = np.array([0, 1, 1, 0, -1, -1, 1, 0, 0, 1])
     run = make_run(10, 2)
     run.columns["lane_change"][:, 0] = lc
@@ -249,7 +249,7 @@ def test_settings_change_the_scores():
 def test_markdown_tables_are_well_formed():
     import re
 
-    from evoscen_eval.report import markdown
+    from evoscen_eval.scoring.report import markdown
 
     run = make_run(120, 3)
     run.columns["lane_change"][3:8, 0] = 1

@@ -1,4 +1,4 @@
-"""Tests of evoscen_eval.replay, the ROS-free core of ``scripts/replay.py``.
+"""Tests of evoscen_eval.scenes.replay, the ROS-free core of ``scripts/replay.py``.
 
 Bags are written with our recorder (the contract's QoS) and with ``rosbags`` (another
 writer: rosbag2 metadata version 8, QoS policies as enum integers); expectations are the
@@ -24,7 +24,7 @@ from evoscen_contract.topics import (
     clock_message,
 )
 from evoscen_record.recorder import BagRecorder
-from evoscen_eval.replay import (
+from evoscen_eval.scenes.replay import (
     DEFAULT_QOS,
     Pacer,
     iter_replay,

@@ -11,18 +11,18 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from evoscen_eval.animation import FrameSeries, frame_notes, pick, write_animation
-from evoscen_eval.clips import clip_frames, events_of
-from evoscen_eval.exposure_rules import involved, rule_text
-from evoscen_eval.metrics import evaluate
-from evoscen_eval.report import (
+from evoscen_eval.scoring.animation import FrameSeries, frame_notes, pick, write_animation
+from evoscen_eval.scenes.clips import clip_frames, events_of
+from evoscen_eval.scoring.exposure_rules import involved, rule_text
+from evoscen_eval.scoring.metrics import evaluate
+from evoscen_eval.scoring.report import (
     exposure_rows,
     exposure_spans,
     markdown,
     worst_exposure_title,
     write_report,
 )
-from evoscen_eval.run_fixtures import make_run, rear_run
+from evoscen_eval.scoring.run_fixtures import make_run, rear_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()
@@ -174,7 +174,7 @@ def test_no_plots_writes_no_animation_and_zero_frames_none(tmp_path):
 
 
 def test_the_printed_scores_are_weight_times_score():
-    from evoscen_eval.report import score_line
+    from evoscen_eval.scoring.report import score_line
 
     rep = {"intelligence": {"score": 0.6889, "weights": {"safety": 0.6, "efficiency": 0.2, "interaction": 0.2}},
            "safety": {"score": 0.8104, "collisions": 0, "exposures": 1}, "efficiency": {"score": 0.1874},

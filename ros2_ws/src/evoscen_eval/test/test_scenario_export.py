@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from evoscen_eval.scenario_export import XoscTrack, _split, box_collisions, vehicle_class
+from evoscen_eval.scenes.scenario_export import XoscTrack, _split, box_collisions, vehicle_class
 
 
 def test_class_is_by_length_trucks_longer_than_7_m():

@@ -1,4 +1,4 @@
-"""JS divergence and KDE similarity (evoscen_eval.similarity) against known answers."""
+"""JS divergence and KDE similarity (evoscen_eval.naturalistic.similarity) against known answers."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import integrate, stats
 
-from evoscen_eval.similarity import (
+from evoscen_eval.naturalistic.similarity import (
     KdeConfig,
     KdeError,
     bandwidth_factor,

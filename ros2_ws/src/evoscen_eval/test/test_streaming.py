@@ -1,4 +1,4 @@
-"""Scores computed in one pass (evoscen_eval.streaming): the block size changes nothing, and
+"""Scores computed in one pass (evoscen_eval.scoring.streaming): the block size changes nothing, and
 nothing the stream holds grows with the run except its output lists.
 
 * One hand-built run with something at every block boundary — an exposure that continues
@@ -19,9 +19,9 @@ import math
 import numpy as np
 import pytest
 from evoscen_contract import topics as T
-from evoscen_eval import plot_inputs, streaming
-from evoscen_eval.metrics import evaluate, stream_run
-from evoscen_eval.run_fixtures import make_run
+from evoscen_eval.scoring import plot_inputs, streaming
+from evoscen_eval.scoring.metrics import evaluate, stream_run
+from evoscen_eval.scoring.run_fixtures import make_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()

@@ -29,10 +29,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 import pytest
-from evoscen_eval import streaming
-from evoscen_eval.metrics import evaluate
-from evoscen_eval.report import markdown
-from evoscen_eval.run_fixtures import make_run, rear_run
+from evoscen_eval.scoring import streaming
+from evoscen_eval.scoring.metrics import evaluate
+from evoscen_eval.scoring.report import markdown
+from evoscen_eval.scoring.run_fixtures import make_run, rear_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()
@@ -109,7 +109,7 @@ def test_thresholds_are_the_evaluation_keys():
 
 
 def test_lane_change_pet_event_on_the_rear():
-    """evoscen_eval.run_fixtures.rear_run: the SUT (25 m/s) changes into lane 3 ahead of vehicle 1 (30 m/s):
+    """evoscen_eval.scoring.run_fixtures.rear_run: the SUT (25 m/s) changes into lane 3 ahead of vehicle 1 (30 m/s):
     PET 5.2/30 = 0.1733 s < 2 s, one PET event; vehicle 1 is in the SUT's path from state 7 to the
     end (33 states) at TTC 5.2/5 = 1.04 s: one rear TTC episode, TET 3.3 s, TIT 0.1·33·1.96 =
     6.468 s²; DRAC 2.404 m/s²: none. SUT distance 40 · 0.1 · 25 m = 0.1 km."""

@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from evoscen_eval import plot_inputs, streaming
-from evoscen_eval.metrics import evaluate, stream_run
-from evoscen_eval.report import write_report
-from evoscen_eval.run_fixtures import make_run
+from evoscen_eval.scoring import plot_inputs, streaming
+from evoscen_eval.scoring.metrics import evaluate, stream_run
+from evoscen_eval.scoring.report import write_report
+from evoscen_eval.scoring.run_fixtures import make_run
 from evoscen_sim.config.scenario_config import EvaluationConfig
 
 EV = EvaluationConfig()

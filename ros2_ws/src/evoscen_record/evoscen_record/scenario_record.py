@@ -3,7 +3,7 @@
 The resolved scenario configuration travels in the bag as the metadata record
 :data:`SCENARIO_METADATA`, written first, before any message (the recorder's ``metadata``), so a
 bag alone is enough to evaluate a run with the settings it ran with
-(:mod:`evoscen_eval.rundata` reads it).
+(:mod:`evoscen_eval.scoring.rundata` reads it).
 """
 
 from __future__ import annotations

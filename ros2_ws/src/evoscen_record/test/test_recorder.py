@@ -352,8 +352,8 @@ def test_truncated_bag_is_input_error(bag: Path, tmp_path: Path) -> None:
 
 
 def test_external_sut_is_recorded_in_the_metadata_and_named_by_the_report(tmp_path: Path) -> None:
-    from evoscen_eval.metrics import run_info
-    from evoscen_eval.rundata import read_run
+    from evoscen_eval.scoring.metrics import run_info
+    from evoscen_eval.scoring.rundata import read_run
     from evoscen_record.scenario_record import SCENARIO_METADATA, scenario_metadata
     from evoscen_sim.config.scenario_config import load_scenario_config
 

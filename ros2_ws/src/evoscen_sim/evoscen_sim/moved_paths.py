@@ -9,7 +9,7 @@ Until 0.7.0 the old paths still import:
 * a moved module (``import evoscen_sim.models``) is an alias of its new module (the same objects,
   live: ``evoscen_sim.models.SUT_MODELS`` is the registry's current tuple), found by a finder on
   ``sys.meta_path`` that each evoscen package installs when it is imported (:func:`install`);
-* a moved name (``from evoscen_eval.streaming import TTC_BINS``, ``from evoscen_sim.config
+* a moved name (``from evoscen_eval.scoring.streaming import TTC_BINS``, ``from evoscen_sim.config
   import ScenarioConfig``: the old modules ``evoscen_sim.config`` and ``evoscen_sim.road`` are
   packages now) is served by the old module's ``__getattr__`` (:func:`moved_attribute`);
 
@@ -53,7 +53,7 @@ MOVED_MODULES: dict[str, str] = {
     "evoscen_eval.recorder": "evoscen_record.recorder",
     "evoscen_eval.reindex": "evoscen_record.reindex",
     "evoscen_eval.schemas": "evoscen_record.schemas",
-    "evoscen_eval.testing": "evoscen_eval.run_fixtures",
+    "evoscen_eval.testing": "evoscen_eval.scoring.run_fixtures",
     "evoscen_sim.bv_nodes": "evoscen_sim.nodes.bv_nodes",
     "evoscen_sim.car_following": "evoscen_sim.physics.idm",
     "evoscen_sim.collision": "evoscen_sim.physics.collision",
@@ -86,6 +86,35 @@ packages now, are in :data:`PACKAGE_MODULES`). ``evoscen_sim.limits``, moved to
 ``evoscen_sim.config.limits`` in 0.5.0, is the module's own path again (0.7.0): no alias."""
 
 ROOM_MODULES: dict[str, str] = {
+    "evoscen_bringup.campaign": "evoscen_experiments.campaign",
+    "evoscen_bringup.campaign_spec": "evoscen_experiments.campaign_spec",
+    "evoscen_bringup.campaign_summary": "evoscen_experiments.campaign_summary",
+    "evoscen_bringup.experiments": "evoscen_experiments.experiments",
+    "evoscen_bringup.ray_leftovers": "evoscen_experiments.ray_leftovers",
+    "evoscen_bringup.replication": "evoscen_experiments.replication",
+    "evoscen_bringup.sensitivity": "evoscen_experiments.sensitivity",
+    "evoscen_bringup.stats": "evoscen_experiments.stats",
+    "evoscen_eval.animation": "evoscen_eval.scoring.animation",
+    "evoscen_eval.behaviour": "evoscen_eval.naturalistic.behaviour",
+    "evoscen_eval.bv_realism": "evoscen_eval.naturalistic.bv_realism",
+    "evoscen_eval.clips": "evoscen_eval.scenes.clips",
+    "evoscen_eval.exposure_rules": "evoscen_eval.scoring.exposure_rules",
+    "evoscen_eval.fidelity": "evoscen_eval.naturalistic.fidelity",
+    "evoscen_eval.fidelity_highd": "evoscen_eval.naturalistic.fidelity_highd",
+    "evoscen_eval.highd": "evoscen_eval.naturalistic.highd",
+    "evoscen_eval.highd_export": "evoscen_eval.naturalistic.highd_export",
+    "evoscen_eval.metrics": "evoscen_eval.scoring.metrics",
+    "evoscen_eval.plot_inputs": "evoscen_eval.scoring.plot_inputs",
+    "evoscen_eval.replay": "evoscen_eval.scenes.replay",
+    "evoscen_eval.report": "evoscen_eval.scoring.report",
+    "evoscen_eval.run_fixtures": "evoscen_eval.scoring.run_fixtures",
+    "evoscen_eval.rundata": "evoscen_eval.scoring.rundata",
+    "evoscen_eval.scenario_export": "evoscen_eval.scenes.scenario_export",
+    "evoscen_eval.similarity": "evoscen_eval.naturalistic.similarity",
+    "evoscen_eval.streaming": "evoscen_eval.scoring.streaming",
+    "evoscen_eval.sut_collisions": "evoscen_eval.scoring.sut_collisions",
+    "evoscen_eval.sut_lane_changes": "evoscen_eval.scoring.sut_lane_changes",
+    "evoscen_eval.xosc_readback": "evoscen_eval.scenes.xosc_readback",
     "evoscen_sim.config.limits": "evoscen_sim.limits",
     "evoscen_sim.physics.events": "evoscen_sim.danger.events",
     "evoscen_sim.physics.hand_built": "evoscen_sim.loop.hand_built",
@@ -128,43 +157,43 @@ PACKAGE_NAMES: dict[str, frozenset[str]] = {
 """The public names of the 0.4 modules ``evoscen_sim.config``, ``evoscen_sim.road`` and ``evoscen_sim.traffic``."""
 
 MOVED_NAMES: dict[str, dict[str, str]] = {
-    "evoscen_bringup.campaign": {
-        "INTACT": "evoscen_bringup.campaign_spec",
-        "MUTANT_AXIS": "evoscen_bringup.campaign_spec",
-        "PACKAGES": "evoscen_bringup.campaign_spec",
-        "RECORD_MODES": "evoscen_bringup.campaign_spec",
-        "SPEC_KEYS": "evoscen_bringup.campaign_spec",
-        "Spec": "evoscen_bringup.campaign_spec",
-        "bootstrap_ci": "evoscen_bringup.campaign_summary",
-        "cells": "evoscen_bringup.campaign_summary",
-        "code_version": "evoscen_bringup.campaign_spec",
-        "expand": "evoscen_bringup.campaign_spec",
-        "gallery_markdown": "evoscen_bringup.campaign_summary",
-        "load_spec": "evoscen_bringup.campaign_spec",
-        "plugin_fingerprint": "evoscen_bringup.campaign_spec",
-        "plugin_versions": "evoscen_bringup.campaign_spec",
-        "run_key": "evoscen_bringup.campaign_spec",
-        "summary_markdown": "evoscen_bringup.campaign_summary",
-        "summary_plots": "evoscen_bringup.campaign_summary",
-        "write_results": "evoscen_bringup.campaign_summary",
+    "evoscen_experiments.campaign": {
+        "INTACT": "evoscen_experiments.campaign_spec",
+        "MUTANT_AXIS": "evoscen_experiments.campaign_spec",
+        "PACKAGES": "evoscen_experiments.campaign_spec",
+        "RECORD_MODES": "evoscen_experiments.campaign_spec",
+        "SPEC_KEYS": "evoscen_experiments.campaign_spec",
+        "Spec": "evoscen_experiments.campaign_spec",
+        "bootstrap_ci": "evoscen_experiments.campaign_summary",
+        "cells": "evoscen_experiments.campaign_summary",
+        "code_version": "evoscen_experiments.campaign_spec",
+        "expand": "evoscen_experiments.campaign_spec",
+        "gallery_markdown": "evoscen_experiments.campaign_summary",
+        "load_spec": "evoscen_experiments.campaign_spec",
+        "plugin_fingerprint": "evoscen_experiments.campaign_spec",
+        "plugin_versions": "evoscen_experiments.campaign_spec",
+        "run_key": "evoscen_experiments.campaign_spec",
+        "summary_markdown": "evoscen_experiments.campaign_summary",
+        "summary_plots": "evoscen_experiments.campaign_summary",
+        "write_results": "evoscen_experiments.campaign_summary",
     },
     "evoscen_eval.recorder": {
         "METADATA_VERSION": "evoscen_record.metadata_yaml",
         "OrderedBag": "evoscen_record.ordered_bag",
         "ROS_DISTRO": "evoscen_record.metadata_yaml",
     },
-    "evoscen_eval.rundata": {
+    "evoscen_eval.scoring.rundata": {
         "MAP_HASH_KEY": "evoscen_record.scenario_record",
         "portable_map_ref": "evoscen_record.scenario_record",
         "scenario_metadata": "evoscen_record.scenario_record",
     },
-    "evoscen_eval.streaming": {
-        "COLLISION_KINDS": "evoscen_eval.sut_collisions",
-        "COLLISION_LOOKBACK_S": "evoscen_eval.sut_collisions",
-        "MAX_SNAPSHOTS": "evoscen_eval.sut_collisions",
-        "SPEED_BINS": "evoscen_eval.plot_inputs",
-        "TIMELINE_POINTS": "evoscen_eval.plot_inputs",
-        "TTC_BINS": "evoscen_eval.plot_inputs",
+    "evoscen_eval.scoring.streaming": {
+        "COLLISION_KINDS": "evoscen_eval.scoring.sut_collisions",
+        "COLLISION_LOOKBACK_S": "evoscen_eval.scoring.sut_collisions",
+        "MAX_SNAPSHOTS": "evoscen_eval.scoring.sut_collisions",
+        "SPEED_BINS": "evoscen_eval.scoring.plot_inputs",
+        "TIMELINE_POINTS": "evoscen_eval.scoring.plot_inputs",
+        "TTC_BINS": "evoscen_eval.scoring.plot_inputs",
     },
 }
 """Module (0.4 path) -> {name -> the 0.5 module that defines it}, for names no longer in the module

@@ -330,7 +330,7 @@ RECORDED_WHEN_SET = ("score_form", "no_lane_change_value", "safety_rate_scale_pe
 
 @dataclass(frozen=True)
 class EvaluationConfig:
-    """Scoring of the SUT and of the scenario (docs/method.md §5.1-5.2; see :mod:`evoscen_eval.metrics`).
+    """Scoring of the SUT and of the scenario (docs/method.md §5.1-5.2; see :mod:`evoscen_eval.scoring.metrics`).
 
     Every **[choice]** the method leaves open is a key here, defaults as documented in
     docs/evaluation.md (§7: the choices at a glance).

@@ -46,7 +46,7 @@ DRAC (:func:`drac`) is reported, not part of the definition.
 
 :func:`danger_terms` combines the terms: the one place the definition is written, called by
 the live monitor (:class:`evoscen_sim.danger.events.ExposureMonitor`) and by the scorer
-(:class:`evoscen_eval.streaming.ScoreStream`).
+(:class:`evoscen_eval.scoring.streaming.ScoreStream`).
 
 An **exposure** is a maximal run of consecutive dangerous states (events are counted, not
 steps). The simulation node publishes an ``evoscen/exposure`` event when one starts; the
@@ -260,7 +260,7 @@ def cut_in_gap(s: np.ndarray, d: np.ndarray, length: np.ndarray, width: np.ndarr
     overlapping the SUT's laterally (|d_j - d_SUT| < (w_j + w_SUT)/2; so only once the SUT's body
     has entered the target lane); gap = bumper-to-bumper distance (negative if the bodies overlap
     longitudinally). ``-1`` / ``inf`` when the SUT keeps its lane or no such vehicle exists. The
-    lane-change PET's follower is the same vehicle (``evoscen_eval.streaming``).
+    lane-change PET's follower is the same vehicle (``evoscen_eval.scoring.streaming``).
     """
     back = s[..., sut:sut + 1] - s
     half_widths = 0.5 * (width + width[..., sut:sut + 1])
@@ -460,7 +460,7 @@ def danger_terms(evaluation, dt_s: float, *, ttc: np.ndarray | float, sut_accel:
                  headway_run: int = 0) -> tuple[DangerTerms, int]:
     """Whether each state is dangerous for the SUT, term by term: the one definition the live
     monitor (:class:`evoscen_sim.danger.events.ExposureMonitor`, one state at a time) and the scores
-    (:class:`evoscen_eval.streaming.ScoreStream`, a block of states at a time) both apply.
+    (:class:`evoscen_eval.scoring.streaming.ScoreStream`, a block of states at a time) both apply.
 
     ``evaluation``: an :class:`~evoscen_sim.config.scenario_config.EvaluationConfig`; ``dt_s``: the step (the
     tailgating grace in states, :func:`grace_steps`). The per-state quantities, floats for one

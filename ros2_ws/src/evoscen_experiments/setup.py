@@ -1,0 +1,5 @@
+"""The package's metadata and files are declared in setup.cfg."""
+
+from setuptools import setup
+
+setup()
