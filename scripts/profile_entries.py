@@ -5,7 +5,7 @@
                                       [--repeats 3000]
 
 Runs the default scenario (recording off, one BV driver) and prints, per block of ``--block-steps``
-steps, the entry tries per step (:meth:`evoscen_sim.traffic.window.TrafficWindow._enter` calls:
+steps, the entry tries per step (:meth:`evoscen_sim.physics.window.TrafficWindow._enter` calls:
 vehicles that left the window, each trying to enter again) and the block's time per step; then the time
 of one try that finds no place (the first vehicle outside the window at the end, tried ``--repeats``
 times from the same state and random stream, best of three). Figures for docs/performance.md; run it on
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     import numpy as np
     from evoscen_bringup.scenario import build_scenario
     from evoscen_sim.config.scenario_config import load_scenario_config
-    from evoscen_sim.traffic.window import TrafficWindow
+    from evoscen_sim.physics.window import TrafficWindow
 
     steps = args.blocks * args.block_steps + 300
     cfg = load_scenario_config(None, {"seed": args.seed, "bvs.driver": args.driver, "recording.enabled": False,

@@ -58,7 +58,7 @@ CORE_MODULES = (
     "evoscen_sim.physics.idm",
     "evoscen_sim.physics.neighbors",
     "evoscen_sim.traffic.scenario_params",
-    "evoscen_sim.traffic.window",
+    "evoscen_sim.physics.window",
     "evoscen_sim.traffic.makeup",
     "evoscen_sim.errors",
     "evoscen_sim.jit",

@@ -21,7 +21,6 @@ import sys
 import textwrap
 import threading
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -237,45 +236,21 @@ def test_examples_import_evoscen_only_from_the_face():
     assert {"first_sut.py", "fiss_sut.py", "sumo_sut.py"} <= {f for f, _ in seen}
 
 
-def test_a_04_path_imports_with_a_deprecation_warning():
-    sys.modules.pop("evoscen_sim.models", None)
-    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.models is deprecated .*use evoscen_sim\.model_registry"):
-        import evoscen_sim.models as old
-    from evoscen_sim import model_registry
-
-    assert old.ModelSpec is model_registry.ModelSpec and old.SUT_MODELS == model_registry.SUT_MODELS
-    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.config\.number .*use evoscen_sim\.config\.scenario_config\.number"):
-        from evoscen_sim.config import number
-    from evoscen_sim.config.config_checks import number as new_number
-
-    assert number is new_number
-    with pytest.warns(DeprecationWarning, match=r"evoscen_eval\.streaming\.TTC_BINS .*use evoscen_eval\.plot_inputs\.TTC_BINS"):
-        from evoscen_eval.scoring.streaming import TTC_BINS
-    from evoscen_eval.scoring.plot_inputs import TTC_BINS as new_bins
-
-    assert TTC_BINS is new_bins
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        from evoscen import ModelSpec  # the face: no warning
-
-        assert ModelSpec is old.ModelSpec
-
-
 def test_every_moved_path_resolves():
-    from evoscen_sim import moved_paths
-
-    # 41 moved in 0.5.0; evoscen_sim.limits is the module's own path again since 0.7.0
-    assert len(moved_paths.MOVED_MODULES) + len(moved_paths.PACKAGE_MODULES) == 41 - 1
-    assert sum(len(v) for v in moved_paths.MOVED_NAMES.values()) + 2 == 32  # + evoscen_contract.cdr's two
-    import importlib
+    """Every 0.6 path that moved (evoscen_sim.moved_paths) leads to a module that exists, in its own package
+    or the one it moved to; the 0.5 generation of aliases is gone with 0.7.0."""
     import importlib.util
 
-    for new in [*moved_paths.MOVED_MODULES.values(), *moved_paths.PACKAGE_MODULES.values(),
-                *moved_paths.ROOM_MODULES.values()]:
+    from evoscen_sim import moved_paths
+
+    assert moved_paths.ROOMS_MOVED_IN == "0.7.0" and moved_paths.ROOMS_REMOVED_IN == "0.8.0"
+    assert not hasattr(moved_paths, "MOVED_MODULES") and not hasattr(moved_paths, "MOVED_NAMES")
+    for new in moved_paths.ROOM_MODULES.values():
         assert importlib.util.find_spec(new) is not None, new
-    for old, moved in moved_paths.MOVED_NAMES.items():
-        for name, new in moved.items():
-            assert hasattr(importlib.import_module(new), name), (old, name, new)
+    for old in ("evoscen_sim.models", "evoscen_eval.testing", "evoscen_sim.world"):  # 0.4 paths: gone
+        sys.modules.pop(old, None)
+        with pytest.raises(ModuleNotFoundError):
+            importlib.import_module(old)
 
 
 def test_a_controller_fault_line_comes_before_the_abort_and_deaths():

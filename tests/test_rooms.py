@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # the import graph of the cycle test
-from test_import_cycles import SRC, import_graph, project_modules
+from test_import_cycles import SRC, find_cycles, import_graph, project_modules
 
 GROUND_FLOOR = ("evoscen_sim.errors", "evoscen_sim.limits", "evoscen_sim.jit")
 
@@ -37,17 +37,59 @@ def test_the_ground_floor_imports_nothing_else_of_evoscen() -> None:
     assert graph["evoscen_sim"] == {"evoscen_sim.moved_paths"} and graph["evoscen_sim.moved_paths"] == set()
 
 
+PACKAGE_IMPORTS = {
+    "evoscen_contract": (),
+    "evoscen_sim": ("evoscen_contract",),
+    "evoscen_sut": ("evoscen_contract", "evoscen_sim"),
+    "evoscen_bv": ("evoscen_contract", "evoscen_sim", "evoscen_sut"),
+    "evoscen_record": ("evoscen_contract", "evoscen_sim"),
+    "evoscen_eval": ("evoscen_contract", "evoscen_sim", "evoscen_record"),
+    "evoscen_bringup": ("evoscen_contract", "evoscen_sim", "evoscen_sut", "evoscen_bv", "evoscen_record", "evoscen_eval"),
+    "evoscen_experiments": ("evoscen_contract", "evoscen_sim", "evoscen_sut", "evoscen_bv", "evoscen_record",
+                            "evoscen_eval", "evoscen_bringup"),
+    "evoscen": ("evoscen_contract", "evoscen_sim", "evoscen_sut", "evoscen_bv", "evoscen_record", "evoscen_eval",
+                "evoscen_bringup", "evoscen_experiments"),
+}
+"""What each package may import (docs/architecture.md §1), from the bottom: the contract; the simulation;
+the SUT models; the BV drivers (they follow like SUTs); the recording; the evaluation; the runners; the
+experiments; the face, which may import everything."""
+
 _BELOW = ("evoscen_contract", "evoscen_sim.errors", "evoscen_sim.limits", "evoscen_sim.jit", "evoscen_sim.moved_paths",
           "evoscen_sim.config", "evoscen_sim.road")
+_BELOW_EVAL = ("evoscen_contract", "evoscen_sim", "evoscen_record")
 ROOM_IMPORTS = {
-    "evoscen_sim.physics": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.traffic.window"),
+    "evoscen_sim.config": ("evoscen_contract", "evoscen_sim.errors", "evoscen_sim.limits", "evoscen_sim.moved_paths",
+                           "evoscen_sim.model_registry", "evoscen_sim.share", "evoscen_sim.config"),
+    "evoscen_sim.road": ("evoscen_contract", "evoscen_sim.errors", "evoscen_sim.limits", "evoscen_sim.jit",
+                         "evoscen_sim.share", "evoscen_sim.config", "evoscen_sim.road"),
+    "evoscen_sim.physics": (*_BELOW, "evoscen_sim.physics"),
     "evoscen_sim.traffic": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.traffic"),
     "evoscen_sim.danger": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.danger"),
     "evoscen_sim.loop": (*_BELOW, "evoscen_sim.physics", "evoscen_sim.traffic", "evoscen_sim.danger", "evoscen_sim.loop"),
+    "evoscen_sim.nodes": ("evoscen_contract", "evoscen_sim"),
+    "evoscen_eval.scoring": (*_BELOW_EVAL, "evoscen_eval.scoring"),
+    "evoscen_eval.naturalistic": (*_BELOW_EVAL, "evoscen_eval.scoring", "evoscen_eval.naturalistic"),
+    "evoscen_eval.scenes": (*_BELOW_EVAL, "evoscen_eval.scoring", "evoscen_eval.scenes"),
 }
-"""What each room may import (docs/architecture.md §1, module map): the ground floor, the contract, the
-configuration and the road below every room; physics only the traffic window of the traffic room (the
-world's step runs it); danger nothing of the traffic or the loop; the loop any room."""
+"""What each room may import (docs/architecture.md §1, module map). In evoscen_sim: the ground floor, the
+contract, the configuration and the road below every room; physics (the world and the traffic window its
+step runs) nothing above them; traffic and danger physics; the loop any room; the nodes anything of the
+simulation. In evoscen_eval: scoring the packages below evoscen_eval only; naturalistic and scenes the
+scoring room. Every sub-package of every package is a room here."""
+
+
+def _package_of(module: str) -> str:
+    return module.split(".")[0]
+
+
+def test_each_package_imports_only_the_packages_below_it() -> None:
+    graph = import_graph(project_modules())
+    packages = {p.name for p in SRC.iterdir() if (p / p.name / "__init__.py").is_file()}
+    assert packages == set(PACKAGE_IMPORTS), "every package has its place in PACKAGE_IMPORTS"
+    wrong = sorted(f"{name} -> {target}" for name, targets in graph.items() for target in targets
+                   if _package_of(target) != _package_of(name)
+                   and _package_of(target) not in PACKAGE_IMPORTS[_package_of(name)])
+    assert wrong == [], "a package imports from above it: " + "; ".join(wrong)
 
 
 def test_each_room_imports_only_what_lies_below_it() -> None:
@@ -59,6 +101,26 @@ def test_each_room_imports_only_what_lies_below_it() -> None:
         wrong += [f"{name} -> {target}" for name in members for target in sorted(graph[name])
                   if not any(target == a or target.startswith(a + ".") for a in allowed)]
     assert wrong == [], "a room imports from above it: " + "; ".join(wrong)
+
+
+def _room(module: str, rooms: set[str]) -> str:
+    """The room a module lies in: its sub-package, or the module itself beside the rooms."""
+    parts = module.split(".")
+    return ".".join(parts[:2]) if ".".join(parts[:2]) in rooms else module
+
+
+def test_every_room_is_declared_and_no_rooms_import_each_other() -> None:
+    """Every sub-package of every package is a room of ROOM_IMPORTS, and the graph of rooms (each module
+    beside the rooms a node of its own) has no cycle: no two rooms import each other, however indirectly."""
+    modules = project_modules()
+    subpackages = {name for name, path in modules.items() if path.name == "__init__.py" and name.count(".") == 1}
+    assert subpackages == set(ROOM_IMPORTS), "undeclared rooms: " + ", ".join(sorted(subpackages - set(ROOM_IMPORTS)))
+    graph = import_graph(modules)
+    rooms: dict[str, set[str]] = {}
+    for name, targets in graph.items():
+        room = _room(name, subpackages)
+        rooms.setdefault(room, set()).update(t for t in (_room(t, subpackages) for t in targets) if t != room)
+    assert find_cycles(rooms) == [], find_cycles(rooms)
 
 
 def _room_paths() -> list[tuple[str, str]]:
@@ -90,27 +152,6 @@ def test_the_new_paths_import_without_a_warning() -> None:
         warnings.simplefilter("error")
         for _, new in _room_paths():
             importlib.import_module(new)
-
-
-def test_a_04_path_leads_to_the_room_its_module_lives_in_now() -> None:
-    """``evoscen_sim.traffic`` (a module in 0.4) is the traffic room's package: its 0.4 names come from
-    the window module with the 0.5 warning; a 0.4 module path whose 0.5 module moved again is an
-    alias of the module's current path."""
-    from evoscen_sim.traffic import window
-
-    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.traffic\.TrafficWindow is deprecated \(moved in "
-                                                r"evoscen 0\.5\.0; removed in 0\.7\.0\): use evoscen_sim\.traffic\.window\."):
-        from evoscen_sim.traffic import TrafficWindow
-    assert TrafficWindow is window.TrafficWindow
-    with pytest.raises(ImportError):
-        from evoscen_sim.traffic import no_such_name  # noqa: F401
-    sys.modules.pop("evoscen_sim.spawn", None)
-    with pytest.warns(DeprecationWarning, match=r"evoscen_sim\.spawn is deprecated .*use evoscen_sim\.traffic\.spawn$"):
-        import evoscen_sim.spawn as old_spawn
-    from evoscen_sim.traffic import spawn
-
-    assert old_spawn.window_layout is spawn.window_layout
-    sys.modules.pop("evoscen_sim.spawn", None)
 
 
 MAX_FUNCTION_LINES = 120

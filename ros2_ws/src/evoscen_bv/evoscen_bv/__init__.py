@@ -2,4 +2,4 @@
 
 from evoscen_sim.moved_paths import install as _install_moved_paths
 
-_install_moved_paths()  # the import paths 0.5.0 moved keep working until 0.7.0, with a DeprecationWarning
+_install_moved_paths()  # the 0.6 paths of moved modules keep working until 0.8.0, with a DeprecationWarning

@@ -33,7 +33,7 @@ from evoscen_sim.config.scenario_config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
 from evoscen_sim.danger.safety import sut_leader_ttc_state
-from evoscen_sim.traffic.window import NEW_TRIP_MAX_SPEED_MPS, common_shift_kernel, new_trips_kernel
+from evoscen_sim.physics.window import NEW_TRIP_MAX_SPEED_MPS, common_shift_kernel, new_trips_kernel
 from evoscen_sim.physics.vehicle import accel_to_throttle
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
@@ -475,7 +475,7 @@ def _lane_hold_step(vehicles, lane_change, s_all, changing_before, hold_until, l
                     forward_m):
     """One step of the lane hold (compiled: every step): a hosted vehicle whose lane change ended is
     held ``n_hold`` steps (``hold_until`` in place); then one that began a new trip since the last
-    step (:func:`evoscen_sim.traffic.window.new_trips`, ``last_s`` None on the first step) is held
+    step (:func:`evoscen_sim.physics.window.new_trips`, ``last_s`` None on the first step) is held
     (``hold_on_entry``) or freed. Returns (which hosted vehicles change lanes, their ``s``)."""
     m = vehicles.shape[0]
     changing = np.empty(m, dtype=np.bool_)

@@ -295,7 +295,7 @@ def test_cars_by_speed_spawn_sorts_the_lanes_right_to_left() -> None:
 
 
 def test_cars_by_speed_entry_prefers_the_lane_nearest_in_speed() -> None:
-    from evoscen_sim.traffic.window import _by_speed, _lane_mean_speeds
+    from evoscen_sim.physics.window import _by_speed, _lane_mean_speeds
 
     s = np.array([0.0, 50.0, 60.0, 500.0, 70.0, 80.0])
     v = np.array([28.0, 20.0, 24.0, 40.0, 31.0, 33.0])

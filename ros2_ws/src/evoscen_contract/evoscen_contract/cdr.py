@@ -366,17 +366,3 @@ def is_run_end(data: bytes) -> bool:
     from rclpy.serialization import deserialize_message
 
     return any(s.name == EVENT_RUN_END for s in deserialize_message(bytes(data), DiagnosticArray).status)
-
-
-def __getattr__(name: str):
-    """``VehicleMarkersEncoder`` and ``encode_road_markers``, here until 0.5.0, are in
-    :mod:`evoscen_contract.cdr_markers`: served with a DeprecationWarning naming it, until 0.7.0
-    (the other 0.4 paths: :mod:`evoscen_sim.moved_paths`)."""
-    if name in ("VehicleMarkersEncoder", "encode_road_markers"):
-        import importlib
-        import warnings
-
-        warnings.warn(f"evoscen_contract.cdr.{name} is deprecated (moved in evoscen 0.5.0; removed in 0.7.0): "
-                      f"use evoscen_contract.cdr_markers.{name}", DeprecationWarning, stacklevel=2)
-        return getattr(importlib.import_module("evoscen_contract.cdr_markers"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -183,7 +183,7 @@ def test_window_run_vehicle_km_matches_the_distance_driven():
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_eval.naturalistic.highd_export import unshifted_s
     from evoscen_sim.config.scenario_config import load_scenario_config
-    from evoscen_sim.traffic.window import new_trips
+    from evoscen_sim.physics.window import new_trips
 
     cfg = load_scenario_config(None, {"steps": 700, "seed": 7, "bvs.driver": "level0", "traffic.mode": "window",
                                       "bvs.makeup": "uniform"})

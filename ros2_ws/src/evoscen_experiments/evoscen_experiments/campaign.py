@@ -405,11 +405,3 @@ def collect_rows(runs: Sequence[CampaignRun], out_dir: Path) -> list[dict[str, A
         if path.exists():
             rows.append(json.loads(path.read_text(encoding="utf-8")))
     return rows
-
-
-def __getattr__(name: str):
-    """A name this module had in evoscen 0.4 and that moved: served with a DeprecationWarning naming its
-    new path (:mod:`evoscen_sim.moved_paths`), until 0.7.0."""
-    from evoscen_sim.moved_paths import moved_attribute
-
-    return moved_attribute(__name__, name)

@@ -73,8 +73,8 @@ _SOURCES: dict[str, str] = {
     "ROLE_BV": "evoscen_contract.contract",
     "ROLE_SUT": "evoscen_contract.contract",
     "POLICY_CODES": "evoscen_contract.contract",
-    "common_shift": "evoscen_sim.traffic.window",
-    "new_trips": "evoscen_sim.traffic.window",
+    "common_shift": "evoscen_sim.physics.window",
+    "new_trips": "evoscen_sim.physics.window",
     # the road, the throttle, worlds built by hand
     "RoadModel": "evoscen_sim.road.road_model",
     "load_road": "evoscen_sim.road.road_model",

@@ -1,4 +1,4 @@
-"""The traffic window (evoscen_sim.traffic.window; docs/method.md §1): safe insertion, exits and entries,
+"""The traffic window (evoscen_sim.physics.window; docs/method.md §1): safe insertion, exits and entries,
 the shift, the window's spawn, and what a run with it looks like."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from evoscen_sim.config.scenario_config import load_scenario_config
 from evoscen_sim.errors import InputError
-from evoscen_sim.traffic.window import (
+from evoscen_sim.physics.window import (
     TrafficParams,
     check_shift_points,
     common_shift,
@@ -132,7 +132,7 @@ def test_new_trips_and_common_shift() -> None:
 def test_common_shift_median_is_numpys() -> None:
     """The compiled median: numpy's to the bit (a zero's sign aside), for odd and even counts, ties,
     a NaN; by hand: the middle of 5, the mean of the middle two of 4, and the shift it gives."""
-    from evoscen_sim.traffic.window import _median
+    from evoscen_sim.physics.window import _median
 
     assert _median(np.array([5.0, -1.0, 3.0, 9.0, 2.0])) == 3.0
     assert _median(np.array([4.0, 1.0, 3.0, 2.0])) == 2.5

@@ -1,4 +1,4 @@
-"""The traffic window's compiled entry search (evoscen_sim.traffic.window, docs/method.md §1) against
+"""The traffic window's compiled entry search (evoscen_sim.physics.window, docs/method.md §1) against
 a straightforward numpy reference of the same rule (kept here): the same placement, speed and random
 draws on random worlds, step by step over random runs, and cases derived by hand."""
 
@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from evoscen_sim.config.scenario_config import load_scenario_config
-from evoscen_sim.traffic.window import (
+from evoscen_sim.physics.window import (
     MERGE_LANE,
     TrafficParams,
     _lane_counts,

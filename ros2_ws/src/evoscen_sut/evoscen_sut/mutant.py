@@ -70,7 +70,7 @@ from evoscen_sim import model_registry as _models
 from evoscen_sim.config.scenario_config import integer, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import ModelSpec, get_model, model_names
-from evoscen_sim.traffic.window import common_shift
+from evoscen_sim.physics.window import common_shift
 from evoscen_sim.loop.view import WorldView
 
 from .krauss_lane_change import KraussLaneChangeDriver

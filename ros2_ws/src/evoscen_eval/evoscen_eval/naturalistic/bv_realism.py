@@ -32,7 +32,7 @@ in-process run's ``RunSummary.run``) and reports, over the background vehicles (
   where |accel| > 1 m/s² in both and the sign differs: a controller alternating between
   braking and accelerating every step).
 
-Under the traffic window (``traffic.mode: window``, :mod:`evoscen_sim.traffic.window`) the arc length
+Under the traffic window (``traffic.mode: window``, :mod:`evoscen_sim.physics.window`) the arc length
 ``s`` jumps: a shift moves every vehicle back by ``shift_from_m - shift_to_m`` (1,700 m) in one
 step, and an entry moves one vehicle by up to a few hundred metres, often into another lane. None
 of the figures reads a step of ``s`` or of the ``lane`` column: vehicle-km is speed·dt (the

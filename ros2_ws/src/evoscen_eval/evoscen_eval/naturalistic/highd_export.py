@@ -111,7 +111,7 @@ def unshifted_s(s: np.ndarray, shifts: dict[int, float] | None = None) -> np.nda
     """``s`` (states × vehicles) with the traffic window's shifts undone, so the arc length grows
     along a trip as on an endless road. ``shifts``: the ``shift_m`` of each ``evoscen/shift`` event by
     the state it led to (exact); without them a shift is recognised as a fall of the median step
-    of more than 50 m (:func:`evoscen_sim.traffic.window.common_shift`: exact to within the vehicles'
+    of more than 50 m (:func:`evoscen_sim.physics.window.common_shift`: exact to within the vehicles'
     differences of driving in that step)."""
     s = np.asarray(s, dtype=float)
     if s.shape[0] < 2:

@@ -579,11 +579,3 @@ def evaluation_settings_of(scenario: dict | None) -> EvaluationConfig:
     if isinstance(recorded, dict):  # anything else: evaluation_from_dict's one-line error
         recorded = {**RECORDED_BEFORE_KEYS, **recorded}
     return evaluation_from_dict(recorded, "the bag's recorded scenario")
-
-
-def __getattr__(name: str):
-    """A name this module had in evoscen 0.4 and that moved: served with a DeprecationWarning naming its
-    new path (:mod:`evoscen_sim.moved_paths`), until 0.7.0."""
-    from evoscen_sim.moved_paths import moved_attribute
-
-    return moved_attribute(__name__, name)

@@ -549,11 +549,3 @@ def activity_accel(accel: np.ndarray, dt_s: float, form: str, window_s: float) -
 def _finite(x: float) -> float | None:
     """JSON has no infinity: ``None`` for a non-finite number."""
     return float(x) if math.isfinite(x) else None
-
-
-def __getattr__(name: str):
-    """A name this module had in evoscen 0.4 and that moved: served with a DeprecationWarning naming its
-    new path (:mod:`evoscen_sim.moved_paths`), until 0.7.0."""
-    from evoscen_sim.moved_paths import moved_attribute
-
-    return moved_attribute(__name__, name)

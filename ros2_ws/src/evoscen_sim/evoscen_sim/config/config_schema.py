@@ -135,7 +135,7 @@ TRAFFIC_MODES: tuple[str, ...] = ("window", "loop")
 @dataclass(frozen=True)
 class TrafficParams:
     """Where the traffic is during the run (docs/method.md §1 [choice]): the ``traffic`` section, and
-    the parameters the traffic window takes as they are (:class:`evoscen_sim.traffic.window.TrafficWindow`,
+    the parameters the traffic window takes as they are (:class:`evoscen_sim.physics.window.TrafficWindow`,
     built by :func:`evoscen_sim.traffic.scenario_params.traffic_params_from_config`): one declaration,
     one set of defaults and checks."""
 

@@ -14,7 +14,7 @@ import numpy as np
 from evoscen_sim.physics.control import ControlParams
 from evoscen_sim.physics.vehicle import VehicleParams
 from evoscen_sim.physics.world import ROLE_BV, InitialState, ReentryParams, World
-from evoscen_sim.traffic.window import TrafficParams
+from evoscen_sim.physics.window import TrafficParams
 
 
 def hand_built_world(
@@ -33,7 +33,7 @@ def hand_built_world(
     traffic: TrafficParams | None = None,
 ) -> World:
     """A world with vehicle ``i`` (id ``first_id + i``) at arc position ``s[i]`` in ``lane[i]`` at ``speed[i]``
-    (``traffic``: the traffic window around its SUT, :mod:`evoscen_sim.traffic.window`)."""
+    (``traffic``: the traffic window around its SUT, :mod:`evoscen_sim.physics.window`)."""
     n = len(s)
     init = InitialState(
         ids=np.arange(n) + first_id,

@@ -14,7 +14,7 @@ and the in-process bag of one partition are the same bytes.
   a node gets no BV when N exceeds the BVs, and still answers every step with an empty table).
 
 A vehicle's id and its driver type are fixed for the run: an entry at a window edge
-(:mod:`evoscen_sim.traffic.window`) is the same slot, id and policy code, starting a new trip, so it
+(:mod:`evoscen_sim.physics.window`) is the same slot, id and policy code, starting a new trip, so it
 stays with its node. No BVs, no BV node, whatever the mode.
 """
 

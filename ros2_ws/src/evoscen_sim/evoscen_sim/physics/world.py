@@ -43,7 +43,7 @@ from evoscen_contract.contract import ROLE_BV, ROLE_SUT  # noqa: F401  (re-expor
 
 from evoscen_sim.config.config_schema import ReentryConfig
 from evoscen_sim.jit import kernel
-from evoscen_sim.traffic.window import TrafficParams, TrafficWindow
+from evoscen_sim.physics.window import TrafficParams, TrafficWindow
 
 from .collision import overlapping_pairs
 from .control import ControlParams, DualPidController, dual_pid_one
@@ -93,7 +93,7 @@ class StepResult:
     off_road: list[int] = field(default_factory=list)
     shift_m: float = 0.0
     """Distance every vehicle was moved back along the road in this step (the traffic window's
-    shift, :mod:`evoscen_sim.traffic.window`); 0 when none."""
+    shift, :mod:`evoscen_sim.physics.window`); 0 when none."""
 
 
 

@@ -66,7 +66,6 @@ from typing import NamedTuple, Optional, Union
 
 import numpy as np
 
-import evoscen_sim
 from evoscen_sim.errors import InputError
 from evoscen_sim.road.lane_tables import DRIVABLE_LANE_TYPES, check_sections, lane_extents, lane_present, lane_table
 from evoscen_sim.road.opendrive import Lane, LaneSection, OpenDriveMap, Poly3, parse_opendrive  # noqa: F401  (Lane, LaneSection, Poly3: names of the 0.4 evoscen_sim.road)
@@ -80,7 +79,7 @@ def _find_default_map() -> Path:
     """The shipped map: ``<pkg source>/maps/onramp.xodr`` in a source checkout, else the installed
     ``<prefix>/share/evoscen_sim/maps/onramp.xodr`` (colcon/ament layout, installed by setup.py's
     data_files); the source path if neither exists (load_road then reports it as unreadable)."""
-    package_dir = Path(evoscen_sim.__file__).resolve().parent  # the evoscen_sim import package
+    package_dir = Path(__file__).resolve().parents[1]  # the evoscen_sim import package
     source = package_dir.parent / "maps" / "onramp.xodr"
     candidates = [source]
     for parent in package_dir.parents:

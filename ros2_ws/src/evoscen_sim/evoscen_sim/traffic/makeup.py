@@ -172,7 +172,7 @@ def is_truck(length_m: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class WindowMakeup:
-    """What the traffic window's entries need of a make-up (:class:`evoscen_sim.traffic.window.TrafficWindow`),
+    """What the traffic window's entries need of a make-up (:class:`evoscen_sim.physics.window.TrafficWindow`),
     per world index (the SUT, index 0, first: no wish, no truck)."""
 
     wish_mps: np.ndarray

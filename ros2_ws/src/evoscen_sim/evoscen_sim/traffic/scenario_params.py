@@ -2,7 +2,7 @@
 
 The ``vehicle``, ``control`` and ``traffic`` sections *are* the core's
 :class:`~evoscen_sim.physics.vehicle.VehicleParams`, :class:`~evoscen_sim.physics.control.ControlParams` and
-:class:`~evoscen_sim.traffic.window.TrafficParams` (one dataclass each, :mod:`evoscen_sim.config.config_schema`):
+:class:`~evoscen_sim.physics.window.TrafficParams` (one dataclass each, :mod:`evoscen_sim.config.config_schema`):
 they are passed as they are, the traffic section once checked against the road here. The re-entry
 parameters are built here from their section.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 from evoscen_sim.errors import InputError
 from evoscen_sim.physics.world import ReentryParams
 
-from .window import TrafficParams, check_shift_points
+from evoscen_sim.physics.window import TrafficParams, check_shift_points
 
 
 def reentry_params_from_config(cfg) -> ReentryParams:

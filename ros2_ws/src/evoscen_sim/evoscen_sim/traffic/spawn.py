@@ -110,11 +110,11 @@ def window_layout(
     SUT's lane leaving out the slot nearest the SUT; speeds are drawn from the lane's
     distribution (truncated at ±2 sd) and then, front to back in each lane, lowered where needed
     so that every vehicle follows its leader by the safe-insertion rule
-    (:func:`evoscen_sim.traffic.window.insertion_speed`; the SUT's speed is its own, so a BV that the SUT
+    (:func:`evoscen_sim.physics.window.insertion_speed`; the SUT's speed is its own, so a BV that the SUT
     could not follow safely is moved one slot further back). The merge lane starts empty: it is
     fed when its start comes into the window.
     """
-    from .window import insertion_speed, required_gap
+    from evoscen_sim.physics.window import insertion_speed, required_gap
 
     p = params
     n_bv = int(len(bv_policies))
@@ -195,7 +195,7 @@ def window_layout_makeup(
     (``models.highd.car_lanes``) —, and every BV starts at its own desired speed, lowered front to back
     by the safe-insertion rule over the gaps of the actual bodies.
     """
-    from .window import insertion_speed, required_gap
+    from evoscen_sim.physics.window import insertion_speed, required_gap
 
     p = params
     n_bv = int(len(bv_policies))
