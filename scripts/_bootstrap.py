@@ -14,7 +14,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 PACKAGES = ("evoscen_contract", "evoscen_sim", "evoscen_bv", "evoscen_sut", "evoscen_record", "evoscen_eval",
-            "evoscen_bringup")
+            "evoscen_bringup", "evoscen_experiments", "evoscen")
 
 
 def ensure_packages() -> None:
