@@ -14,51 +14,29 @@ every convention. Exit status: 0 done, 2 bad input (one line ``error: ...``).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
+from evoscen import cli
 
 
-def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="export_highd.py", description=__doc__.split("\n\n")[0])
-    ap.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap) or the .mcap file")
-    ap.add_argument("outdir", type=Path, help="directory for the three HighD files")
-    ap.add_argument("--recording-id", default="1", metavar="NN", help="HighD recording id (file prefix NN_, default 01)")
-    ap.add_argument("--frame-rate", default="25", metavar="HZ", help="frames per second of the export (default 25, HighD's)")
-    ap.add_argument("--overwrite", action="store_true", help="replace existing NN_*.csv files in OUTDIR")
-    return ap.parse_args(argv)
+def parse_args(argv: list[str] | None):
+    p = cli.parser("export_highd.py", __doc__)
+    p.add_argument("bag", type=Path, help="bag directory (metadata.yaml + .mcap) or the .mcap file")
+    p.add_argument("outdir", type=Path, help="directory for the three HighD files")
+    p.add_argument("--recording-id", default="1", metavar="NN", help="HighD recording id (file prefix NN_, default 01)")
+    p.add_argument("--frame-rate", default="25", metavar="HZ", help="frames per second of the export (default 25, HighD's)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing NN_*.csv files in OUTDIR")
+    return p.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    from evoscen_eval.naturalistic.fidelity import run_recording
-    from evoscen_eval.naturalistic.highd import write_recording
-    from evoscen_eval.naturalistic.highd_export import ExportOptions
-    from evoscen_sim.errors import InputError
+    from evoscen_eval.naturalistic.fidelity import export_bag
 
-    try:
-        if not args.recording_id.isdigit() or not 1 <= int(args.recording_id) <= 99:
-            raise InputError(f"--recording-id {args.recording_id!r}: expected an integer in [1, 99]")
-        try:
-            rate = float(args.frame_rate)
-        except ValueError:
-            rate = float("nan")
-        if not 0 < rate <= 1000:
-            raise InputError(f"--frame-rate {args.frame_rate!r}: expected a number of frames per second in (0, 1000]")
-        rec = run_recording(args.bag, ExportOptions(frame_rate_hz=rate, recording_id=int(args.recording_id)))
-        for w in rec.warnings:
-            print(f"warning: {w}", file=sys.stderr)
-        paths = write_recording(args.outdir, rec, overwrite=args.overwrite)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    n_sut = int((rec.tracks_meta["evoscenRole"] == 1).sum())
-    print(f"exported {args.bag} -> {paths['tracks'].parent}: {rec.num_rows} rows, {len(rec.tracks_meta['id'])} tracks "
-          f"({n_sut} of the SUT), {int(rec.tracks['frame'].max())} frames at {rec.frame_rate_hz:g} Hz")
-    return EXIT_OK
+    return cli.run(lambda: export_bag(args.bag, args.outdir, recording_id=args.recording_id,
+                                      frame_rate=args.frame_rate, overwrite=args.overwrite))
 
 
 if __name__ == "__main__":

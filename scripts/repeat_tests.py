@@ -23,23 +23,16 @@ import xml.etree.ElementTree as ET
 from collections import defaultdict
 from pathlib import Path
 
+import _bootstrap  # noqa: F401  (makes the workspace packages importable)
+from evoscen import cli
+
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _positive(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
-    return value
-
-
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                usage="%(prog)s [--times N] [--out DIR] [--stop-on-failure] -- PYTEST_ARGS ...")
-    p.add_argument("--times", type=_positive, default=10, help="how many runs (default 10)")
+    p = cli.parser("repeat_tests.py", __doc__)
+    p.usage = "%(prog)s [--times N] [--out DIR] [--stop-on-failure] -- PYTEST_ARGS ..."
+    p.add_argument("--times", default="10", help="how many runs (default 10)")
     p.add_argument("--out", type=Path, default=REPO / "runs" / "repeat_tests",
                    help="where each run's JUnit report and failures go (default runs/repeat_tests/)")
     p.add_argument("--stop-on-failure", action="store_true", help="stop after the first run with a failure")
@@ -49,6 +42,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if not rest:
         p.error("expected the tests to repeat after --, e.g. -- tests/test_graph.py -k killed")
     args.pytest_args = rest
+    args.times = cli.positive_int("--times", args.times)
     return args
 
 
@@ -72,7 +66,11 @@ def outcomes(junit: Path) -> dict[str, tuple[str, str]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
+    return cli.run(lambda: repeat(parse_args(argv)))
+
+
+def repeat(args: argparse.Namespace) -> int:
+    """Run pytest ``args.times`` times and print the table; 0 all passed, 1 any failed, 2 pytest ran nothing."""
     args.out.mkdir(parents=True, exist_ok=True)
     counts: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
     failures: list[str] = []

@@ -54,3 +54,15 @@ def test_run_gives_the_exit_status_of_each_ending(capsys):
     assert capsys.readouterr().err == "error: sut model 'my_sut' raised in act: ValueError: boom\n"
     assert cli.run(raising(KeyboardInterrupt())) == 130
     assert capsys.readouterr().err.endswith("interrupted\n")
+
+
+def test_one_line_errors_make_a_bad_command_line_one_error_line(capsys):
+    p = cli.one_line_errors(cli.parser("x.py", "Doc."))
+    p.add_argument("--steps", type=int, required=True)
+    assert cli.run(lambda: p.parse_args(["--steps", "3", "--frobnicate"])) == 2
+    assert capsys.readouterr().err == "error: unrecognized arguments: --frobnicate\n"
+    assert cli.run(lambda: p.parse_args(["--steps", "x"])) == 2
+    assert capsys.readouterr().err == "error: argument --steps: invalid int value: 'x'\n"
+    assert cli.run(lambda: p.parse_args([])) == 2
+    assert capsys.readouterr().err == "error: the following arguments are required: --steps\n"
+    assert p.parse_args(["--steps", "3"]).steps == 3

@@ -69,7 +69,7 @@ def test_repeat_tests_reads_outcomes_from_junit(tmp_path):
     assert (args.times, args.pytest_args) == (3, ["tests/x.py", "-k", "y"])
 
 
-@pytest.mark.parametrize("args, expected", [(["--times", "0", "--", "x"], "expected a whole number >= 1"),
+@pytest.mark.parametrize("args, expected", [(["--times", "0", "--", "x"], "error: --times = '0': expected an integer >= 1"),
                                             (["--times", "2"], "expected the tests to repeat after --")])
 def test_repeat_tests_bad_arguments(args, expected):
     res = _script("repeat_tests.py", *args)

@@ -12,8 +12,7 @@ sys.path.insert(0, str(REPO / "scripts"))
 
 
 def test_the_contract_table_of_docs_topics_equals_the_code():
-    from contract_table import contract_section
-    from evoscen_contract.topics import contract_markdown
+    from evoscen_contract.topics import contract_markdown, contract_section
 
     section = contract_section((REPO / "docs" / "topics.md").read_text(encoding="utf-8"))
     assert section == contract_markdown().strip(), "run: python scripts/contract_table.py --write"

@@ -1,9 +1,8 @@
-"""scripts/traffic_makeup.py: its pooled figures by hand (the pieces and lane changes are
-evoscen_eval.naturalistic.fidelity_highd's, tested by hand in its own tests), bad input."""
+"""scripts/traffic_makeup.py: its pooled figures by hand (evoscen_eval.naturalistic.makeup; the pieces and lane
+changes are evoscen_eval.naturalistic.fidelity_highd's, tested by hand in its own tests), bad input."""
 
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 from pathlib import Path
@@ -12,14 +11,6 @@ import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def _module():
-    sys.path.insert(0, str(REPO / "scripts"))
-    spec = importlib.util.spec_from_file_location("traffic_makeup", REPO / "scripts" / "traffic_makeup.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def _measures(truck, speed, trip_truck, trip_km, trip_lcs):
@@ -37,7 +28,8 @@ def _measures(truck, speed, trip_truck, trip_km, trip_lcs):
 def test_pooled_figures_by_hand():
     """Pieces, speeds and lane changes come from the fidelity measures; the script adds truck shares,
     merges, collisions per vehicle-hour and the BVs near the SUT."""
-    tm = _module()
+    from evoscen_eval.naturalistic import makeup as tm
+
     a = {"measures": _measures([False, False, True], [30.0, 28.0, 22.0], [False, True], [2.0, 1.0], [3, 0]),
          "merges": {"car": 1, "truck": 0}, "bv_bv_collisions": 1, "vehicle_hours": 2.0, "slots": 4,
          "truck_slots": 1, "truck_steps_leftmost_lane": 0, "min_30s_mean_bvs_within_100m": 7.0,
@@ -67,7 +59,8 @@ def test_run_figures_by_hand():
     leftmost lane; the BVs near the SUT are the given report's."""
     from types import SimpleNamespace
 
-    tm = _module()
+    from evoscen_eval.naturalistic import makeup as tm
+
     k, t = 11, np.arange(11.0)
     # columns: SUT (id 0, lane 4), car (id 1: merge lane 0 for t <= 4, then lane 1), truck (id 2, 12 m:
     # lane 2, then the leftmost lane 4 for t >= 7: 4 states)
@@ -99,7 +92,8 @@ def test_run_figures_by_hand():
 
 
 def test_highd_figures_are_the_shipped_aggregates():
-    tm = _module()
+    from evoscen_eval.naturalistic import makeup as tm
+
     h = tm.highd_figures()
     assert (h["truck_share"], h["car_lane_changes_per_vehicle_km"], h["truck_lane_changes_per_vehicle_km"]) == (
         0.1886, 0.328, 0.151)

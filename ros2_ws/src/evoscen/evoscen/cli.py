@@ -54,6 +54,20 @@ def parser(prog: str, doc: str | None, *, ranks_by: str | None = None) -> argpar
     return argparse.ArgumentParser(prog=prog, description=description, epilog=epilog)
 
 
+def one_line_errors(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """Make ``p`` say a bad command line (an unknown option, a missing or malformed value) as one
+    :class:`~evoscen_sim.errors.InputError` instead of its usage and message: parsed inside :func:`run`,
+    that is one ``error: ...`` line and status 2. Returns ``p``."""
+
+    def error(message: str):
+        from evoscen_sim.errors import InputError
+
+        raise InputError(message)
+
+    p.error = error  # type: ignore[method-assign]
+    return p
+
+
 def add_out(p: argparse.ArgumentParser, default: str, what: str = "output directory") -> None:
     """``--out DIR`` (a Path; default ``default``)."""
     p.add_argument("--out", type=Path, default=Path(default), help=f"{what} (default {default})")

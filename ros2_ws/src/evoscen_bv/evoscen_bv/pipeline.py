@@ -172,6 +172,41 @@ def steps_to_convergence(steps: np.ndarray, returns: np.ndarray, window: int = 1
     return int(steps[k + window - 1])
 
 
+def train(*, stage: str, out: str, steps: str | None = None, seed: str = "1", config: Path | None = None,
+          quiet: bool = False, command: str = "") -> int:
+    """``scripts/train_bv.py``: run ``stage`` (or ``all``: every stage, in order) into ``out`` and print a
+    line per stage and the total wall time. The texts ``out``, ``steps`` and ``seed`` are checked here
+    (one-line InputError); an ``out`` that cannot be written is one too. Ctrl-C prints how to resume and
+    returns :data:`~evoscen_contract.contract.EXIT_INTERRUPTED`."""
+    import sys
+
+    from evoscen_contract.contract import EXIT_INTERRUPTED
+
+    from .training_config import training_seed, training_steps
+
+    if not out.strip():
+        raise InputError(f"argument --out: expected a non-empty path, got {out!r}")
+    steps_n = training_steps("--steps", steps) if steps is not None else None
+    seed_n = training_seed("--seed", seed)
+    out_dir = Path(out)
+    try:
+        if out_dir.exists() and not out_dir.is_dir():
+            raise InputError(f"--out {out_dir}: exists and is not a directory")
+        pipeline = Pipeline(out_dir, seed=seed_n, config_path=config, steps=steps_n, command=command,
+                            progress=not quiet)
+        results = pipeline.run(list(STAGES) if stage == "all" else [stage])
+    except OSError as exc:
+        raise InputError(f"--out {out_dir}: {exc.strerror or exc}") from None
+    except KeyboardInterrupt:
+        print("interrupted: run the same command again to resume from the last checkpoint", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    for r in results:
+        print(f"{r.stage}: {r.policy}.npz, {r.steps} steps in {r.wall_s:.0f} s, "
+              f"converged at step {r.steps_to_convergence}, {r.metrics}")
+    print(f"total training wall time: {sum(r.wall_s for r in results):.0f} s")
+    return 0
+
+
 class Pipeline:
     """Runs stages into ``out`` (see the module docstring)."""
 

@@ -23,6 +23,7 @@ from typing import Any
 from evoscen_sim.config.config_checks import _Bool, _check, _Float, _Int, _Range, _section, _Str
 from evoscen_sim.config.config_schema import MAKEUPS
 from evoscen_sim.config.config_load import Context, build, parse_yaml
+from evoscen_sim.errors import InputError
 from evoscen_sim.limits import MAX_CONFIG_BYTES, MAX_TRAINING_STEPS, read_text_limited
 from evoscen_sim.share import share_candidates
 
@@ -97,6 +98,26 @@ class TrainingConfig:
         out = dataclasses.asdict(self)
         out["env"]["desired_speed_mps"] = list(self.env.desired_speed_mps)
         return out
+
+
+def strict_int(option: str, text: str, lo: int, hi: int, expected: str) -> int:
+    """The integer ``text`` of ``option`` (plain decimal digits only: ``int()`` would also take ``1_000``
+    and spaces) in [``lo``, ``hi``]; else a one-line InputError in argparse's words."""
+    body = text[1:] if text[:1] in "+-" else text
+    if not body.isascii() or not body.isdigit() or len(body) > 30 or not lo <= int(text) <= hi:
+        raise InputError(f"argument {option}: expected {expected}, got {text!r}")
+    return int(text)
+
+
+def training_steps(option: str, text: str) -> int:
+    """A step count of ``option``: 1 .. :data:`~evoscen_sim.limits.MAX_TRAINING_STEPS` (:func:`strict_int`)."""
+    return strict_int(option, text, 1, MAX_TRAINING_STEPS,
+                      f"a positive integer (decimal digits, at most {MAX_TRAINING_STEPS})")
+
+
+def training_seed(option: str, text: str) -> int:
+    """A training seed of ``option``: 0 .. 2^32 - 1 (:func:`strict_int`)."""
+    return strict_int(option, text, 0, 2**32 - 1, "an integer in [0, 2^32)")
 
 
 def default_config_path() -> Path:

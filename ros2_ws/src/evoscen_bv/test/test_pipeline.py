@@ -185,3 +185,20 @@ def test_selection_prefers_a_settled_evaluation_over_a_better_return():
     assert max(evals[:1] + [{"step": 400, "eval_mean_return": -4.5, "settled": False}], key=selection_key)["step"] == 100
     assert max([{"step": 1, "eval_mean_return": -1.0}, {"step": 2, "eval_mean_return": -1.0}],
                key=selection_key)["step"] == 2
+
+
+def test_training_options_are_plain_decimal_integers_in_range():
+    """train_bv.py's --steps and --seed: decimal digits only (int() would take 1_000 and spaces), in range."""
+    from evoscen_bv.training_config import training_seed, training_steps
+    from evoscen_sim.errors import InputError
+    from evoscen_sim.limits import MAX_TRAINING_STEPS
+
+    assert training_steps("--steps", "2000") == 2000 and training_steps("--steps", "+7") == 7
+    assert training_seed("--seed", "0") == 0 and training_seed("--seed", str(2**32 - 1)) == 2**32 - 1
+    for text in ("0", "1_000", " 5", "0x10", "٣", str(MAX_TRAINING_STEPS + 1)):
+        with pytest.raises(InputError) as err:
+            training_steps("--steps", text)
+        assert str(err.value) == (f"argument --steps: expected a positive integer (decimal digits, at most "
+                                  f"{MAX_TRAINING_STEPS}), got {text!r}")
+    with pytest.raises(InputError, match=r"^argument --seed: expected an integer in \[0, 2\^32\), got '4294967296'$"):
+        training_seed("--seed", str(2**32))

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -280,6 +281,28 @@ def contract_markdown() -> str:
     for key, typ in EVENT_KEY_TYPES.items():
         lines.append(f"| `{key}` | {typ} |")
     return "\n".join(lines) + "\n"
+
+
+CONTRACT_BEGIN, CONTRACT_END = "<!-- contract:begin -->", "<!-- contract:end -->"
+"""The markers around the contract section of docs/topics.md (``scripts/contract_table.py --write``)."""
+
+
+def contract_section(text: str) -> str:
+    """The text between the contract markers of ``text`` (stripped); ValueError without them."""
+    if CONTRACT_BEGIN not in text or CONTRACT_END not in text:
+        raise ValueError(f"docs/topics.md: contract markers {CONTRACT_BEGIN} ... {CONTRACT_END} not found")
+    return text.split(CONTRACT_BEGIN, 1)[1].split(CONTRACT_END, 1)[0].strip()
+
+
+def write_contract_section(page: Path) -> bool:
+    """Rewrite the contract section of ``page`` (docs/topics.md) as :func:`contract_markdown`; whether
+    the section changed."""
+    table = contract_markdown().strip()
+    text = page.read_text(encoding="utf-8")
+    old = contract_section(text)
+    head, rest = text.split(CONTRACT_BEGIN, 1)
+    page.write_text(f"{head}{CONTRACT_BEGIN}\n{table}\n{CONTRACT_END}{rest.split(CONTRACT_END, 1)[1]}", encoding="utf-8")
+    return old != table
 
 
 # --------------------------------------------------------------------------- builders

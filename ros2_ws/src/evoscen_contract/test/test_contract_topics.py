@@ -141,3 +141,19 @@ def test_odometry_and_clock() -> None:
     assert odom.twist.twist.linear.x == 30.0 and odom.twist.twist.angular.z == 0.1
     clk = clock_message(2_000_000_001)
     assert (clk.clock.sec, clk.clock.nanosec) == (2, 1)
+
+
+def test_the_contract_section_is_rewritten_between_its_markers(tmp_path) -> None:
+    from evoscen_contract.topics import CONTRACT_BEGIN, CONTRACT_END, contract_markdown, contract_section, \
+        write_contract_section
+
+    page = tmp_path / "topics.md"
+    page.write_text(f"# Topics\n\n{CONTRACT_BEGIN}\n| old |\n{CONTRACT_END}\n\nAfter.\n", encoding="utf-8")
+    assert contract_section(page.read_text(encoding="utf-8")) == "| old |"
+    assert write_contract_section(page) is True
+    table = contract_markdown().strip()
+    assert page.read_text(encoding="utf-8") == f"# Topics\n\n{CONTRACT_BEGIN}\n{table}\n{CONTRACT_END}\n\nAfter.\n"
+    assert write_contract_section(page) is False
+    page.write_text("no markers\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="contract markers"):
+        write_contract_section(page)

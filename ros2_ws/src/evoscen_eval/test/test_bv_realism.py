@@ -202,3 +202,23 @@ def test_window_run_vehicle_km_matches_the_distance_driven():
     moved = (np.diff(c["lane"], axis=0) != 0)[:, bv]
     assert (moved & trips[:, bv]).any()  # some entry put a BV into another lane ...
     assert f["bv_lane_changes"] <= int((moved & ~trips[:, bv]).sum())  # ... and is not counted
+
+
+def test_realism_table_by_hand():
+    """scripts/bv_realism.py's table: a column per profile, highD's figure beside the one row that has one,
+    ``-`` beside the others, the social types' lane-change rates from the pooled ``by_policy``."""
+    from evoscen_eval.naturalistic.bv_realism import HIGHD_REFERENCE, TABLE_ROWS, realism_table
+
+    pooled = {key: 0.0 for key, _, _ in TABLE_ROWS}
+    pooled.update(bv_lane_changes_per_vehicle_km=0.25, bv_bv_collisions=2, sut_collisions=0, thw_median_s=1.5,
+                  by_policy={"mutual": {"lane_changes": 3, "vehicle_km": 12.0}})
+    lines = realism_table({"driver": pooled, "safety_net": {**pooled, "bv_bv_collisions": 0}}).splitlines()
+    width = max(len(label) for _, label, _ in TABLE_ROWS)  # "share braking < -3 m/s2 (main line)"
+    assert width == 35 and lines[0] == " " * 35 + f"  {'driver':>12}  {'safety_net':>12}  {'highD':>12}"
+    assert lines[1].split() == ["BV", "lane", "changes", "/", "veh-km", "0.250", "0.250",
+                                f"{HIGHD_REFERENCE['bv_lane_changes_per_vehicle_km']:.3f}"]
+    assert lines[3] == "BV-BV collisions".ljust(35) + f"  {'2':>12}  {'0':>12}  {'-':>12}"
+    assert lines[5].split()[-3:] == ["1.50", "1.50", "-"]
+    assert lines[len(TABLE_ROWS) + 2].split()[-2:] == ["0.250", "0.250"]  # mutual: 3 / 12 km
+    assert lines[len(TABLE_ROWS) + 1].split()[-2:] == ["nan", "nan"]  # no competitive BV
+    assert lines[-1].startswith("highD: Krajewski") and len(lines) == len(TABLE_ROWS) + 5

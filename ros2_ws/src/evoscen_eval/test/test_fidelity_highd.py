@@ -252,3 +252,21 @@ def test_shipped_reference_is_the_120_kmh_subset():
     assert sum(r["per_vehicle_min_thw_s"]["counts"]) <= r["per_vehicle_min_thw_s"]["n"]
     assert ref["all_recordings"]["lane_changes_per_vehicle_km"]["by_density_veh_per_km_per_lane"]["10-15"] == 0.307
     assert "Krajewski" in ref["citation"]
+
+
+def test_piece_config_from_the_options_text():
+    """scripts/fidelity_highd.py's measurement options: the remainder defaults to the piece length; each
+    bad length is one line naming its option."""
+    from evoscen_eval.naturalistic.fidelity_highd import piece_config
+    from evoscen_sim.errors import InputError
+
+    assert piece_config("300", None, "7.5", True) == PieceConfig(piece_m=300.0, min_piece_m=300.0, truck_length_m=7.5,
+                                                                 include_sut=True)
+    assert piece_config("300", "150").min_piece_m == 150.0
+    for args, message in ((("0",), "--piece-m '0': expected a length > 0 (m)"),
+                          (("420", "inf"), "--min-piece-m 'inf': expected a length > 0 (m)"),
+                          (("420", None, "x"), "--truck-length 'x': expected a length > 0 (m)"),
+                          (("100", "200"), "--min-piece-m '200': expected a length <= --piece-m (100 m)")):
+        with pytest.raises(InputError) as err:
+            piece_config(*args)
+        assert str(err.value) == message

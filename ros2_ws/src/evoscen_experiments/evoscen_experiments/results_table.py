@@ -197,3 +197,26 @@ def rewrite_readme(readme: str, repo: Path) -> str:
     begin = f"<!-- results-table: {name} -->"
     head, rest = readme.split(begin, 1)
     return f"{head}{begin}\n{table}\n{END}{rest.split(END, 1)[1]}"
+
+
+def write_readme_table(readme: Path, repo: Path, *, check: bool = False) -> int:
+    """``scripts/readme_table.py``: rewrite ``readme``'s results table from the results file its marker
+    names (relative to ``repo``); with ``check`` write nothing and return 1 (one line on stderr) if it
+    differs. A malformed results file or an unreadable README is an :class:`InputError`."""
+    import sys
+
+    try:
+        text = readme.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise InputError(f"{readme}: cannot read: {exc.strerror or exc}") from None
+    new = rewrite_readme(text, repo)
+    if check:
+        if new != text:
+            print(f"README.md: the results table differs from {results_file(text)}: run make readme-table",
+                  file=sys.stderr)
+            return 1
+        return 0
+    if new != text:
+        readme.write_text(new, encoding="utf-8")
+    print(f"README.md: results table {'updated' if new != text else 'unchanged'}")
+    return 0

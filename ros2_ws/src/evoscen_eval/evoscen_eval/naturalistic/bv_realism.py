@@ -246,3 +246,36 @@ def _pool_driving(figures: list[dict[str, Any]]) -> dict[str, Any]:
             w = sum(f[weight] for f in figures)
             out[key] = sum(f[key] * f[weight] for f in figures if f[weight]) / w if w else float("nan")
     return out
+
+
+TABLE_ROWS = (("bv_lane_changes_per_vehicle_km", "BV lane changes / veh-km", "{:.3f}"),
+              ("bv_bv_collisions_per_vehicle_hour", "BV-BV collisions / veh-h", "{:.3f}"),
+              ("bv_bv_collisions", "BV-BV collisions", "{}"),
+              ("sut_collisions", "SUT collisions (all runs)", "{}"),
+              ("thw_median_s", "THW median (s)", "{:.2f}"),
+              ("thw_share_below_1s", "share THW < 1 s", "{:.3f}"),
+              ("thw_share_below_0_5s", "share THW < 0.5 s", "{:.3f}"),
+              ("hard_braking_share", "share braking < -3 m/s2 (main line)", "{:.4f}"),
+              ("phantom_braking_share", "  with nobody within 60 m ahead", "{:.4f}"),
+              ("standstill_share_main_line", "share at standstill, main line", "{:.4f}"),
+              ("standstill_share_merge_lane", "share at standstill, merge lane", "{:.4f}"),
+              ("accel_flip_share", "share of accel flips (|a| > 1)", "{:.4f}"),
+              ("bv_vehicle_hours", "BV vehicle-hours", "{:.2f}"),
+              ("bv_vehicle_km", "BV vehicle-km", "{:.1f}"))
+"""The rows of :func:`realism_table`: figure key, label, format."""
+
+
+def realism_table(pooled: dict[str, dict[str, Any]]) -> str:
+    """The pooled figures (:func:`combine`) of each column (a BV profile) as a text table, a row per
+    :data:`TABLE_ROWS` with the highD figure beside it (``-``: none), the lane changes per vehicle-km
+    of each social type, and highD's source (``scripts/bv_realism.py``)."""
+    width = max(len(label) for _, label, _ in TABLE_ROWS)
+    lines = [" " * width + "".join(f"  {p:>12}" for p in pooled) + f"  {'highD':>12}"]
+    for key, label, fmt in TABLE_ROWS:
+        ref = fmt.format(HIGHD_REFERENCE[key]) if key in HIGHD_REFERENCE else "-"
+        lines.append(label.ljust(width) + "".join(f"  {fmt.format(pooled[p][key]):>12}" for p in pooled) + f"  {ref:>12}")
+    for name in ("competitive", "mutual", "cooperative"):
+        rates = [lane_changes_per_km_by_policy(pooled[p]).get(name, float("nan")) for p in pooled]
+        lines.append(f"LC / veh-km, {name}".ljust(width) + "".join(f"  {r:>12.3f}" for r in rates))
+    lines.append(f"highD: {HIGHD_SOURCE}")
+    return "\n".join(lines) + "\n"

@@ -109,6 +109,32 @@ def run_recording(bag_dir: Path | str, options: ExportOptions = ExportOptions(fr
     return rec
 
 
+def export_bag(bag: Path, outdir: Path, *, recording_id: str = "1", frame_rate: str = "25",
+               overwrite: bool = False) -> None:
+    """``scripts/export_highd.py``: write a bag's run as HighD's three files in ``outdir`` (docs/experiments.md
+    §3), at ``frame_rate`` Hz under ``recording_id`` (texts, checked here); prints the readers' warnings
+    (stderr) and one line of what it wrote. Bad input: one :class:`InputError` line."""
+    import sys
+
+    from evoscen_eval.naturalistic.highd import write_recording
+
+    if not recording_id.isdigit() or not 1 <= int(recording_id) <= 99:
+        raise InputError(f"--recording-id {recording_id!r}: expected an integer in [1, 99]")
+    try:
+        rate = float(frame_rate)
+    except ValueError:
+        rate = float("nan")
+    if not 0 < rate <= 1000:
+        raise InputError(f"--frame-rate {frame_rate!r}: expected a number of frames per second in (0, 1000]")
+    rec = run_recording(bag, ExportOptions(frame_rate_hz=rate, recording_id=int(recording_id)))
+    for w in rec.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    paths = write_recording(outdir, rec, overwrite=overwrite)
+    n_sut = int((rec.tracks_meta["evoscenRole"] == 1).sum())
+    print(f"exported {bag} -> {paths['tracks'].parent}: {rec.num_rows} rows, {len(rec.tracks_meta['id'])} tracks "
+          f"({n_sut} of the SUT), {int(rec.tracks['frame'].max())} frames at {rec.frame_rate_hz:g} Hz")
+
+
 def bag_samples(bags: Iterable[Path | str], config: BehaviourConfig = BehaviourConfig()) -> tuple[BehaviourSamples, list[str]]:
     """Behaviour samples of our bags (BVs only unless ``config.include_sut``) and the readers' warnings."""
     parts, warnings = [], []

@@ -388,6 +388,52 @@ def to_json(result: dict[str, Any]) -> str:
     return json.dumps(clean(result), indent=1, allow_nan=False)
 
 
+def _length(option: str, text: str) -> float:
+    """``text`` of ``option`` as a length > 0 (m); else a one-line InputError."""
+    import math
+
+    from evoscen_sim.errors import InputError
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        raise InputError(f"{option} {text!r}: expected a length > 0 (m)")
+    return value
+
+
+def piece_config(piece_m: str = "420", min_piece_m: str | None = None, truck_length: str = "7",
+                 include_sut: bool = False) -> PieceConfig:
+    """The measurement of ``scripts/fidelity_highd.py``'s ``--piece-m``, ``--min-piece-m`` (default:
+    ``piece_m``), ``--truck-length`` and ``--include-sut`` (texts, checked here: one-line InputError)."""
+    from evoscen_sim.errors import InputError
+
+    piece = _length("--piece-m", piece_m)
+    min_piece = _length("--min-piece-m", min_piece_m) if min_piece_m is not None else piece
+    if min_piece > piece:
+        raise InputError(f"--min-piece-m {min_piece_m!r}: expected a length <= --piece-m ({piece:g} m)")
+    return PieceConfig(piece_m=piece, min_piece_m=min_piece, truck_length_m=_length("--truck-length", truck_length),
+                       include_sut=include_sut)
+
+
+def write_results(result: dict[str, Any], out: Path) -> tuple[str, list[Path]]:
+    """Write ``out/fidelity_highd.json``, ``out/fidelity_highd.md`` and the plots (:func:`plot_histograms`);
+    the Markdown table and the plots' paths. A directory that cannot be written is one InputError line."""
+    from evoscen_sim.errors import InputError
+
+    table = markdown_table(result)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "fidelity_highd.json").write_text(to_json(result), encoding="utf-8")
+        (out / "fidelity_highd.md").write_text(f"# Traffic against highD\n\n{table}\nhighD: {result['citation']}\n",
+                                               encoding="utf-8")
+        plots = plot_histograms(result, out)
+    except OSError as exc:
+        raise InputError(f"--out {out}: cannot write: {exc.strerror or exc}") from None
+    return table, plots
+
+
 def _density_bins(labels: Iterable[str]) -> list[tuple[str, float, float]]:
     out = []
     for label in labels:
