@@ -1,5 +1,5 @@
-"""``scripts/node_cpu.py``: which process is which node, its CPU time from /proc, and the per-step
-difference of two runs (``scripts/bench.py --node-cpu``)."""
+"""evoscen_experiments.bench_graph: which process is which node, its CPU time from /proc, and the
+per-step difference of two runs (``scripts/bench.py --node-cpu``)."""
 
 from __future__ import annotations
 
@@ -7,12 +7,9 @@ import os
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-from node_cpu import NodeCpuSampler, node_cpu_seconds, node_key, per_step_us
+from evoscen_experiments.bench_graph import NodeCpuSampler, node_cpu_seconds, node_key, per_step_us
 
 
 @pytest.mark.parametrize("argv, key", [

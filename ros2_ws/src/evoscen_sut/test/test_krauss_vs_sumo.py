@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -51,11 +50,8 @@ FREE_PARAMS = KraussParams(desired_speed_mps=SPEED_LIMIT)  # SUMO defaults, sigm
 
 
 def _sumo_baseline():
-    """The repository's SUMO discovery (scripts/sumo_baseline.py), shared with the benchmark."""
-    scripts = os.path.join(os.path.dirname(__file__), *([os.pardir] * 4), "scripts")
-    if scripts not in sys.path:
-        sys.path.insert(0, os.path.abspath(scripts))
-    import sumo_baseline
+    """The repository's SUMO discovery (evoscen_experiments.sumo_baseline), shared with the benchmark."""
+    from evoscen_experiments import sumo_baseline
 
     return sumo_baseline
 

@@ -1,0 +1,71 @@
+"""The benchmarks' package functions (evoscen_experiments.bench, .bench_fidelity, .bench_run_costs,
+.profiling): their option checks, the shared ``--mutants`` parser, the child processes' import path and
+the synthetic HighD recording's sizes. Nothing here times anything."""
+
+from __future__ import annotations
+
+import os
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from evoscen_experiments import bench, bench_fidelity, bench_run_costs, profiling
+from evoscen_sim.errors import InputError
+from evoscen_sut.mutants import LIBRARY
+
+
+def test_mutant_names_all_or_distinct_known_names():
+    assert profiling.mutant_names("--mutants", " all ") == list(LIBRARY)
+    assert profiling.mutant_names("--mutants", "stale, tailgating") == ["stale", "tailgating"]
+    with pytest.raises(InputError, match=r"^--mutants: unknown mutant 'nosuch': expected 'all' or names from blind_behind, "):
+        profiling.mutant_names("--mutants", "stale,nosuch")
+    with pytest.raises(InputError, match=r"^--mutants 'stale,stale': expected distinct comma-separated names$"):
+        profiling.mutant_names("--mutants", "stale,stale")
+
+
+def _bench_args(**changes) -> SimpleNamespace:
+    base = {"steps": 5000, "repeats": 5, "bag_steps": 10000, "graph_steps": 5000, "graph_repeats": 3,
+            "experiment_episodes": 8, "jobs": 2, "experiment_mutants": "tailgating, stale", "bv_nodes": "single,4"}
+    return SimpleNamespace(**{**base, **changes})
+
+
+def test_bench_options_are_checked_in_order_with_one_line_errors():
+    assert bench.checked_options(_bench_args()) == (["tailgating", "stale"], ["single", "4"])
+    assert bench.checked_options(_bench_args(bag_steps=0, bv_nodes="")) == (["tailgating", "stale"], [])
+    cases = [({"bag_steps": -1}, "--bag-steps = -1: expected an integer >= 0 (0 = skip)"),
+             ({"jobs": 0, "bv_nodes": "33"}, "--jobs = 0: expected a positive integer"),
+             ({"bv_nodes": "by_policy,33"}, "--bv-nodes = 'by_policy,33': expected comma-separated by_policy, "
+                                            "single or numbers in [1, 32]")]
+    for changes, line in cases:
+        with pytest.raises(InputError) as err:
+            bench.checked_options(_bench_args(**changes))
+        assert str(err.value) == line
+    with pytest.raises(InputError, match=r"^--experiment-mutants = 'stale,stale': expected distinct"):
+        bench.checked_options(_bench_args(experiment_mutants="stale,stale"))
+
+
+def test_a_child_process_gets_this_process_import_path(monkeypatch):
+    monkeypatch.setenv("PYTHONPATH", "/elsewhere")
+    monkeypatch.setattr(sys, "path", ["", "/a", "/b"])
+    env = bench.child_env()
+    assert env["PYTHONPATH"] == os.pathsep.join(["/a", "/b", "/elsewhere"])
+    assert env["HOME"] == os.environ["HOME"]
+
+
+def test_synthetic_recording_has_the_asked_sizes():
+    # 4 vehicles, 40 rows: 10 rows (frames) each, starting in frames 1 .. 91 of 100
+    rec = bench_fidelity.synthetic_recording(np.random.default_rng(0), vehicles=4, frames=100, rows=40)
+    assert rec.num_rows == 40 and len(rec.tracks_meta["id"]) == 4
+    frames = np.asarray(rec.tracks["frame"])
+    assert frames.min() >= 1 and frames.max() <= 100
+
+
+def test_impossible_sizes_end_before_anything_is_made(capsys, tmp_path):
+    with pytest.raises(InputError, match=r"^--vehicles, --frames and --rows must be >= 1$"):
+        bench_fidelity.run(0, 100, 100, 0, tmp_path)
+    assert bench_fidelity.run(2, 10, 1000, 0, tmp_path) == 1  # 500 rows a vehicle, 10 frames
+    assert capsys.readouterr().err == "error: --rows 1000: more rows per vehicle (500) than --frames 10\n"
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InputError, match=r"^--repeats = 0: expected a positive integer$"):
+        bench_run_costs.recording(100, 0, "level0")
