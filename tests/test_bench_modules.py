@@ -69,3 +69,26 @@ def test_impossible_sizes_end_before_anything_is_made(capsys, tmp_path):
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(InputError, match=r"^--repeats = 0: expected a positive integer$"):
         bench_run_costs.recording(100, 0, "level0")
+
+
+def test_learned_costs_measure_the_learned_driver_of_the_default_makeup():
+    """Under the highD make-up (the default) the learned driver drives the cars inside the make-up's driver:
+    the bench times that driver, and its compiled forward pass equals numpy's and torch's."""
+    from evoscen_experiments.bench import learned_bv_costs
+
+    out = learned_bv_costs(steps=20, repeats=1)
+    assert out["learned_act_us"] > 0 and out["grid_us"] > 0
+    assert out["max_abs_diff_numpy_kernel"] < 1e-9 and out["max_abs_diff_torch_kernel"] < 1e-5, out
+
+
+def test_the_write_path_rewrites_a_run_with_its_own_topics(tmp_path, capsys):
+    """bench_recording's second figure: the run's messages (a command topic per BV node of the run, e.g.
+    /evoscen/commands/bv_level0) written again three ways give the same bytes."""
+    from evoscen_experiments.bench_run_costs import recorded_ratio, write_path
+    from evoscen_sim.config.scenario_config import load_scenario_config
+
+    cfg = load_scenario_config(None, {"steps": 30, "bvs.driver": "level0"})
+    recorded_ratio(cfg, 30, 1, "level0", tmp_path)
+    write_path(cfg, tmp_path)
+    out = capsys.readouterr().out
+    assert "bags byte-identical: yes" in out and "files byte-identical: yes" in out, out

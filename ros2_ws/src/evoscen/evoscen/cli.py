@@ -35,12 +35,13 @@ from pathlib import Path
 from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAULT, EXIT_INTERRUPTED, EXIT_OK
 
 SCORES = {
-    "D": "D, the comparative score: progress × safety, lane changes and exchange (docs/evaluation.md §10)",
-    "I": "I, the method's intelligence, for reproducing the paper (docs/method.md §5)",
-    "fidelity": "the fidelity measures against highD (docs/fidelity.md); nothing is ranked",
-    "speed": "steps per second against a reference run in the same process (docs/performance.md); nothing is ranked",
+    "D": "Ranks by: D, the comparative score: progress × safety, lane changes and exchange (docs/evaluation.md §10)",
+    "I": "Ranks by: I, the method's intelligence, for reproducing the paper (docs/method.md §5)",
+    "fidelity": "Measures: the traffic against highD (docs/fidelity.md); it ranks nothing",
+    "speed": "Measures: steps per second against a reference run in the same process (docs/performance.md); "
+             "it ranks nothing",
 }
-"""What a door may rank by, in the words its ``--help`` prints (:func:`parser`)."""
+"""What a door ranks or compares by, or what it measures, in the words its ``--help`` ends with (:func:`parser`)."""
 
 
 def parser(prog: str, doc: str | None, *, ranks_by: str | None = None) -> argparse.ArgumentParser:
@@ -50,7 +51,7 @@ def parser(prog: str, doc: str | None, *, ranks_by: str | None = None) -> argpar
     if ranks_by is not None and ranks_by not in SCORES:
         raise ValueError(f"ranks_by {ranks_by!r}: expected one of {', '.join(SCORES)}")
     description = (doc or "").strip().split("\n\n")[0] or None
-    epilog = f"Ranks by: {SCORES[ranks_by]}." if ranks_by is not None else None
+    epilog = f"{SCORES[ranks_by]}." if ranks_by is not None else None
     return argparse.ArgumentParser(prog=prog, description=description, epilog=epilog)
 
 

@@ -112,7 +112,9 @@ def learned_bv_costs(steps: int, repeats: int) -> dict:
         rates, sc = timed_runs(load_scenario_config(None, {"bvs.driver": driver, "bvs.nodes": "single"}),
                                steps, repeats)
         out[f"{driver}_steps_per_s"] = statistics.median(rates)
-    drv = sc.bv_driver
+    # the learned driver itself: under the highD make-up (the default) it drives the cars inside the
+    # make-up's driver (evoscen_bv.truck.MakeupDriver), the trucks keep theirs
+    drv = getattr(sc.bv_driver, "car_driver", sc.bv_driver)
     while sc.world.step_index % drv.config.env.decision_interval_steps:
         sc.step()  # act() below then times a decision step (the world does not advance)
     t0 = time.perf_counter()

@@ -154,9 +154,12 @@ def write_path(cfg, work: Path) -> None:
     message record into the library's chunk builder) and ``fast_writes=False`` (the mcap library's own
     ``Writer.add_message``): microseconds per message of each (best of two, the bag opened and closed), their
     ratio to the library's and whether the files are byte-identical, printed."""
-    from evoscen_contract.topics import CONTRACT
+    from evoscen_contract.topics import contract_for
     from evoscen_eval.scenes.clips import read_messages
     from evoscen_record.recorder import BagRecorder
+    from evoscen_sim.nodes.bv_nodes import bv_nodes
+
+    contract = contract_for([n.name for n in bv_nodes(cfg)])  # the run's topics: one command topic per BV node
 
     messages = read_messages(work / "inline0" / "bag")
     paths = {"chunk": {}, "fast": {"chunk_writes": False}, "library": {"fast_writes": False}}
@@ -166,7 +169,7 @@ def write_path(cfg, work: Path) -> None:
         for path, kwargs in paths.items():
             name = f"{path}{rep}"
             t0 = time.perf_counter()
-            bag = BagRecorder(work / name / "bag", CONTRACT, compression=cfg.recording.compression,
+            bag = BagRecorder(work / name / "bag", contract, compression=cfg.recording.compression,
                               chunk_size=cfg.recording.chunk_size_bytes, **kwargs)
             for topic, t_ns, data in messages:
                 bag.write(topic, data, t_ns, canonical=True)
