@@ -5,7 +5,8 @@ simulation node drives too (:class:`evoscen_sim.loop.step_loop.StepLoop`: state 
 commands in, the world integrates to ``t_{k+1}``, its events out with the next state; after
 the last step the final state and a ``run_end`` event); this runner's port asks the BV
 drivers and the SUT for the commands directly (think ROS 2 composition) and records every
-message.
+message. :func:`run_inprocess` resolves the configuration once into the run's plan
+(:mod:`evoscen_bringup.plan`) and :func:`run_plan` runs it, each room with its part.
 
 With recording on, every message goes to :class:`~evoscen_record.recorder.BagRecorder` — what the
 evaluator node uses — in the canonical order :class:`evoscen_record.ordered_bag.OrderedBag` gives
@@ -27,15 +28,15 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from evoscen_contract.contract import KIND_ABORT, KIND_INTERRUPTED, NODE_BV, NODE_SUT
+from evoscen_contract.contract import KIND_ABORT, KIND_INTERRUPTED, NODE_SUT
 from evoscen_record.step_recorder import StepRecorder
 from evoscen_sim.config.scenario_config import ScenarioConfig
-from evoscen_sim.errors import PluginFault
-from evoscen_sim.nodes.bv_nodes import bv_node_names
 from evoscen_sim.danger.events import fault_event
+from evoscen_sim.errors import PluginFault
 from evoscen_sim.loop.step_loop import Commands, Port, StepLoop
 
-from evoscen_bringup.scenario import Scenario, build_scenario
+from evoscen_bringup.plan import DriverPlan, EvaluationPlan, RunPlan, plan_of
+from evoscen_bringup.scenario import Scenario
 
 
 @dataclass
@@ -102,7 +103,7 @@ class _InProcessPort(Port):
     calls within a step does not show in it.
     """
 
-    def __init__(self, sc: Scenario, rec: StepRecorder | None, acc, summary: RunSummary,
+    def __init__(self, sc: Scenario, drivers: DriverPlan, rec: StepRecorder | None, acc, summary: RunSummary,
                  progress: Callable[[int], None] | None) -> None:
         self.sc, self.rec, self.acc, self.summary, self.progress = sc, rec, acc, summary, progress
         self.bv_ids = sc.world.ids[sc.bv_indices]
@@ -110,8 +111,7 @@ class _InProcessPort(Port):
         self._cols = None  # the columns of the state being sent
         self.ctrl_c: _CtrlC | None = None
         self.fault: PluginFault | None = None  # a driver that raised (the run was aborted)
-        nodes = bv_node_names(sc.config)
-        self.bv_node = nodes[0] if len(nodes) == 1 else NODE_BV  # the BV node named in a BV driver's fault
+        self.bv_node = drivers.fault_node  # the BV node named in a BV driver's fault
 
     def begin_step(self, step: int) -> None:
         """A noted Ctrl-C takes effect here (:class:`_CtrlC`)."""
@@ -180,7 +180,31 @@ def run_inprocess(
     keep_run: bool = False,
     bag_writer: str = "auto",
 ) -> RunSummary:
-    """Run ``steps`` (default ``cfg.steps``) steps; record to ``bag_dir`` unless it is None.
+    """Run ``steps`` (default ``cfg.steps``) steps of ``cfg``; record to ``bag_dir`` unless it is None.
+
+    The configuration is resolved once, here, into the run's plan (:func:`evoscen_bringup.plan.plan_of`;
+    ``scenario``: the built world and drivers to run, default built from ``cfg``), which
+    :func:`run_plan` runs: see there for the other arguments, the report and the errors.
+    """
+    plan = plan_of(cfg, recorded=bag_dir is not None, steps=steps, scenario=scenario)
+    return run_plan(plan, bag_dir=bag_dir, progress=progress, report_dir=report_dir, evaluate=evaluate,
+                    plots=plots, keep_run=keep_run, bag_writer=bag_writer)
+
+
+def run_plan(
+    plan: RunPlan,
+    *,
+    bag_dir: Path | None,
+    progress: Callable[[int], None] | None = None,
+    report_dir: Path | None = None,
+    evaluate: bool = False,
+    plots: bool = True,
+    keep_run: bool = False,
+    bag_writer: str = "auto",
+) -> RunSummary:
+    """Run ``plan.steps`` steps of ``plan``; record to ``bag_dir`` unless it is None (a plan of a
+    recorded run: ``plan.recording``). Each room gets its part of the plan: the recorder the recording
+    part, the step loop and the scorer the evaluation settings.
 
     With ``report_dir`` the run is scored and ``report.json``/``report.md`` (and, with
     ``plots``, the PNGs) are written there (:mod:`evoscen_eval.scoring.report`); with ``evaluate``
@@ -206,20 +230,16 @@ def run_inprocess(
     :class:`~evoscen_sim.errors.PluginFault` is raised (``bag_dir``, ``steps`` set); the run is not
     scored.
     """
-    # without a bag nobody sees the BV nodes' partition: one driver of all BVs, the same world and
-    # scores at a third of the per-call cost (docs/performance.md "Experiments")
-    sc = scenario if scenario is not None else build_scenario(cfg, partitioned=bag_dir is not None)
-    n_steps = cfg.steps if steps is None else steps
+    if bag_dir is not None and plan.recording is None:
+        raise ValueError("bag_dir given for a plan without a recording part (plan_of(..., recorded=False))")
+    sc, n_steps, ev = plan.scenario, plan.steps, plan.evaluation
     world = sc.world
-    acc = recorded = None
+    acc = None
     if report_dir is not None or evaluate:
-        import yaml
-        from evoscen_eval.scoring.rundata import RunAccumulator, evaluation_settings_of
-        from evoscen_record.scenario_record import SCENARIO_KEY, scenario_metadata
+        from evoscen_eval.scoring.rundata import RunAccumulator
 
         acc = RunAccumulator(expected_states=n_steps + 1, keep_world=keep_run)
-        recorded = yaml.safe_load(scenario_metadata(cfg)[SCENARIO_KEY])  # scored as the bag would be
-        acc.start_scoring(evaluation_settings_of(copy.deepcopy(recorded)), float(recorded["dt_s"]))
+        acc.start_scoring(ev.settings, ev.dt_s)  # the settings an evaluation of the bag reads back
         if report_dir is not None:  # the lane lines of the report's snapshots
             acc.add_map(world.road)
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
@@ -228,14 +248,14 @@ def run_inprocess(
         from evoscen_record.bag_writer import ProcessRecorder, resolve_writer
 
         if resolve_writer(bag_writer) == "process":
-            rec = ProcessRecorder(bag_dir, cfg, world, n_bv=len(sc.bv_indices))
+            rec = ProcessRecorder(bag_dir, plan.recording, world)
         else:
-            rec = StepRecorder(bag_dir, cfg, world.road)
+            rec = StepRecorder(bag_dir, plan.recording, world.road)
     with _CtrlC() as ctrl_c:
         try:  # from here on the bag is closed, whatever happens
-            port = _InProcessPort(sc, rec, acc, summary, progress)
+            port = _InProcessPort(sc, plan.drivers, rec, acc, summary, progress)
             port.ctrl_c = ctrl_c
-            loop = StepLoop(world, cfg.evaluation, port, interrupted_text="run interrupted", finish_on_error=True)
+            loop = StepLoop(world, ev.settings, port, interrupted_text="run interrupted", finish_on_error=True)
             outcome = loop.run(n_steps)
         finally:
             t_close = time.perf_counter()
@@ -259,7 +279,7 @@ def run_inprocess(
         from evoscen_sim.errors import HostFault
 
         try:
-            summary.run, summary.report, summary.plot = _report(acc, recorded, report_dir, plots, keep_run)
+            summary.run, summary.report, summary.plot = _report(acc, ev, report_dir, plots, keep_run)
         except HostFault as fault:  # a full disk, a read-only report directory: the bag is finished
             fault.bag_dir, fault.steps = bag_dir, summary.steps + 1
             fault.bag_state = "finished" if bag_dir is not None else None
@@ -270,14 +290,14 @@ def run_inprocess(
     return summary
 
 
-def _report(acc, scenario: dict, report_dir: Path | None, plots: bool, keep_run: bool):
-    """Score the run as it was streamed, exactly as the bag would be scored (``scenario``: the bag's
-    scenario record, read back)."""
+def _report(acc, ev: EvaluationPlan, report_dir: Path | None, plots: bool, keep_run: bool):
+    """Score the run as it was streamed, exactly as the bag would be scored (``ev.scenario``: the
+    scenario as the bag records it)."""
     from evoscen_eval.scoring.metrics import report_of_stream
     from evoscen_eval.scoring.report import write_stream_report
 
-    info = acc.stream_info(scenario=scenario)
-    run = acc.run_data(scenario=scenario) if keep_run else None
+    info = acc.stream_info(scenario=ev.scenario)
+    run = acc.run_data(scenario=copy.deepcopy(ev.scenario)) if keep_run else None
     if report_dir is None:
         report = report_of_stream(acc.stream, info, [])
     else:

@@ -36,6 +36,7 @@ import numpy as np
 from evoscen_sim.errors import HostFault
 from evoscen_sim.physics.world import STATE_FLOATS, STATE_INTS, state_columns
 
+from .recording_plan import RecordingPlan
 from .step_recorder import StepRecorder
 
 WRITERS = ("auto", "inline", "process")
@@ -75,7 +76,8 @@ class ProcessRecorder:
 
     Same calls as :class:`~evoscen_record.step_recorder.StepRecorder` (``world``, ``state``,
     ``commands``, ``events``, ``close``, ``message_count``); ``world`` and ``state`` take the
-    :class:`~evoscen_sim.physics.world.World` itself.
+    :class:`~evoscen_sim.physics.world.World` itself. Opened with the run's recording part
+    (:class:`~evoscen_record.recording_plan.RecordingPlan`) and its world at step 0.
     """
 
     snapshots = True  # world/state read the World, not its columns
@@ -84,7 +86,7 @@ class ProcessRecorder:
     steps_per_slot = 128
     """Steps per batch: a pipe message and a hand-back per this many steps."""
 
-    def __init__(self, bag_dir: Path, cfg, world, *, n_bv: int) -> None:
+    def __init__(self, bag_dir: Path, recording: RecordingPlan, world) -> None:
         from evoscen_contract import topics as T
 
         slots, steps_per_slot = self.slots, self.steps_per_slot
@@ -92,7 +94,7 @@ class ProcessRecorder:
         self.T = T
         self.bag_dir = Path(bag_dir)
         self._topics = (T.COMMANDS_BV.name, T.COMMANDS_SUT.name)
-        n = world.n
+        n, n_bv = world.n, recording.bv_count
         self._k = steps_per_slot
         # +1 row: a batch may hold the final state after its last full step (StepLoop._end)
         self._f = _shared((slots, steps_per_slot + 1, len(STATE_FLOATS), n), np.float64)
@@ -101,14 +103,14 @@ class ProcessRecorder:
                    _shared((slots, steps_per_slot + 1, 2, 1), np.float64))
         self._flag = _shared((1,), np.int8)  # set by the writer when it failed (checked every step)
         self._fault: BaseException | None = None
-        _warm_up(cfg, world, n_bv)
+        _warm_up(recording, world)
         ctx = multiprocessing.get_context("fork")
         to_writer_r, self._to_writer = ctx.Pipe(duplex=False)
         self._from_writer, from_writer_w = ctx.Pipe(duplex=False)
         # daemon: should the run's process end without closing the bag, it does not wait for the writer
         self._proc = ctx.Process(target=_writer_main, name="evoscen-bag-writer", daemon=True,
                                  args=(to_writer_r, from_writer_w, (self._to_writer, self._from_writer),
-                                       self.bag_dir, cfg, world.road, self._f, self._i, self._c, self._topics,
+                                       self.bag_dir, recording, world.road, self._f, self._i, self._c, self._topics,
                                        self._flag))
         self._proc.start()
         to_writer_r.close()
@@ -279,7 +281,7 @@ class ProcessRecorder:
 _warmed = False
 
 
-def _warm_up(cfg, world, n_bv: int) -> None:
+def _warm_up(recording: RecordingPlan, world) -> None:
     """Once per process: record one state inline into a scratch bag, so that what the recorder
     loads or compiles on first use (numba kernels from their cache, the typestore, YAML dumps)
     is in this process before it forks, instead of being loaded again by every writer process."""
@@ -289,12 +291,12 @@ def _warm_up(cfg, world, n_bv: int) -> None:
     import tempfile
 
     with tempfile.TemporaryDirectory(prefix="evoscen-warm-") as tmp:
-        rec = StepRecorder(Path(tmp) / "bag", cfg, world.road)
+        rec = StepRecorder(Path(tmp) / "bag", recording, world.road)
         cols, t_ns = world.columns(), world.time_ns
         rec.world(world, cols, t_ns, roster=True)
         rec.state(world, cols, 0, 0, t_ns)
-        if n_bv:
-            ids = world.ids[1:n_bv + 1]
+        if recording.bv_count:
+            ids = world.ids[1:recording.bv_count + 1]
             rec.bv_commands(ids, np.zeros(len(ids)), np.zeros(len(ids), dtype=np.int64), t_ns)
         rec.events([], t_ns)
         rec.close()
@@ -326,7 +328,7 @@ def _error_of(payload: tuple, bag_dir: Path) -> BaseException:
     return BagWriterError(f"bag {str(bag_dir)!r}: the writer process failed: {text}")
 
 
-def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f, i, c, topics,
+def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, recording: RecordingPlan, road, f, i, c, topics,
                  flag) -> None:
     """The writer process: open the bag, replay batches until ``close`` (or the run's end), close."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the run's to handle (module docstring)
@@ -342,7 +344,7 @@ def _writer_main(conn_in, conn_out, run_ends: tuple, bag_dir: Path, cfg, road, f
 
     rec = None
     try:
-        rec = StepRecorder(bag_dir, cfg, road)
+        rec = StepRecorder(bag_dir, recording, road)
         tell(("ready",))
         ids = [None, None]
         while True:

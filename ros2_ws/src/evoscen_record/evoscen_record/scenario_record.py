@@ -30,6 +30,14 @@ def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # 
     configuration's ``sut.model`` (which then drove nothing); without it the record is only the
     configuration, so a graph run's bag stays equal to the in-process one.
     """
+    return metadata_record(recorded_scenario(cfg), portable_map_ref(cfg.map)[1], external_sut=external_sut)
+
+
+def recorded_scenario(cfg) -> dict:  # a ScenarioConfig
+    """The scenario as its bag records it (a plain dict: what :func:`metadata_record` writes as YAML
+    and a reader of the bag loads back, equal): ``cfg``'s resolved configuration, the map named by its
+    file name (:func:`portable_map_ref`), the keys that hold their defaults and were added after the
+    first bags left out."""
     from evoscen_sim.config.scenario_config import config_to_dict
 
     scenario = _without_unset(config_to_dict(cfg))
@@ -37,9 +45,15 @@ def scenario_metadata(cfg, *, external_sut: bool = False) -> dict[str, str]:  # 
         # [choice] absent = uniform: bags of the traffic before make-ups existed stay byte-identical
         # (docs/bv-profiles.md, "Traffic make-up"); a reader's default fills it in.
         del scenario["bvs"]["makeup"]
-    scenario["map"], digest = portable_map_ref(cfg.map)
+    scenario["map"] = Path(cfg.map).name
+    return scenario
+
+
+def metadata_record(scenario: dict, map_sha256: str, *, external_sut: bool = False) -> dict[str, str]:
+    """The metadata record content of a recorded scenario (:func:`recorded_scenario`) and its map's
+    SHA-256 (hex); with ``external_sut`` it also says that the SUT was a user's node."""
     meta = {SCENARIO_KEY: yaml.safe_dump(scenario, sort_keys=False, default_flow_style=None),
-            MAP_HASH_KEY: digest}
+            MAP_HASH_KEY: map_sha256}
     if external_sut:
         meta[SUT_SOURCE_KEY] = EXTERNAL_SUT
     return meta

@@ -1,15 +1,16 @@
 """The in-process runner's recorder: a run's messages written a step at a time in canonical order.
 
-Used inline by :func:`evoscen_bringup.inprocess.run_inprocess` and, in the writer process, by
+Used inline by :func:`evoscen_bringup.inprocess.run_plan` and, in the writer process, by
 :mod:`evoscen_record.bag_writer` (docs/recording.md, "[choice] the bag written inline or by a
-writer process").
+writer process"). It takes the run's recording part
+(:class:`~evoscen_record.recording_plan.RecordingPlan`), not the scenario's configuration.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from evoscen_sim.config.scenario_config import ScenarioConfig
+from evoscen_record.recording_plan import RecordingPlan
 
 
 class StepRecorder:
@@ -26,33 +27,30 @@ class StepRecorder:
 
     direct: bool = True
 
-    def __init__(self, bag_dir: Path, cfg: ScenarioConfig, road) -> None:
+    def __init__(self, bag_dir: Path, recording: RecordingPlan, road) -> None:
+        """Open the bag ``bag_dir`` for a run of the recording part ``recording`` on ``road`` (the map
+        markers' lines)."""
+        import numpy as np
         from evoscen_contract import topics as T
         from evoscen_contract.messages import WorldMessages
 
         from evoscen_record.ordered_bag import OrderedBag
         from evoscen_record.recorder import BagRecorder
+        from evoscen_record.reindex import finish_bag
+        from evoscen_record.scenario_record import SCENARIO_METADATA
 
         self.T = T
-        self.msgs = WorldMessages(cfg.dt_s)
-        import numpy as np
-        from evoscen_sim.nodes.bv_nodes import bv_nodes
-        from evoscen_sim.scenario_builders import bv_indices
-
-        from evoscen_record.reindex import finish_bag
-        from evoscen_record.scenario_record import SCENARIO_METADATA, scenario_metadata
-
+        self.msgs = WorldMessages(recording.dt_s)
         # the BV nodes of bvs.nodes, each with its command topic (the graph's: docs/architecture.md
         # §5, "BV nodes"); positions: where its BVs are among all BVs
-        nodes = bv_nodes(cfg)
-        contract = T.contract_for([n.name for n in nodes])
-        self.bv_parts = [(n.topic, np.searchsorted(bv_indices(cfg), n.rows)) for n in nodes]
-        bag = BagRecorder(bag_dir, contract, compression=cfg.recording.compression,
-                          chunk_size=cfg.recording.chunk_size_bytes,
-                          metadata={SCENARIO_METADATA: scenario_metadata(cfg)}, finish_after_fault=finish_bag)
+        contract = T.contract_for(recording.bv_nodes)
+        self.bv_parts = [(b.topic, np.asarray(b.positions, dtype=np.intp)) for b in recording.bv_topics]
+        bag = BagRecorder(bag_dir, contract, compression=recording.compression,
+                          chunk_size=recording.chunk_size_bytes,
+                          metadata={SCENARIO_METADATA: dict(recording.scenario_record)}, finish_after_fault=finish_bag)
         self.bag = OrderedBag(bag, contract)
         self.road = road
-        self.markers_every = cfg.recording.markers_every
+        self.markers_every = recording.markers_every
         self._direct = self.direct
         self._rank = {spec.name: k for k, spec in enumerate(contract)}
         self._slots: list[list] = [[] for _ in contract]  # the open step's (topic, pieces), by topic rank
