@@ -149,6 +149,20 @@ def distinct_names(option: str, text: str, what: str = "names") -> list[str]:
     return names
 
 
+def key_values(option: str, items: Sequence[str]) -> dict[str, str]:
+    """The ``KEY=VALUE`` items of a repeated option (``--set``) as a dict, key and value stripped (a one-line
+    InputError naming the option on an item without ``=`` or key)."""
+    from evoscen_sim.errors import InputError
+
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise InputError(f"{option} {item!r}: expected KEY=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
 def set_up(out_dir: Path, build: Callable[[], T]) -> T | None:
     """An experiment's set-up: ``build()`` (argument checks, the rounds), then ``out_dir`` created.
 
