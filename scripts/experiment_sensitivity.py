@@ -533,8 +533,10 @@ def main(argv: list[str] | None = None) -> int:
         rounds, meta = build_rounds(designs, bases, scenarios, mutants, args.config)
         return designs, bases, scenarios, mutants, rounds, meta, jobs
 
-    built = set_up(args.out, build)
-    if built is None:
+    try:
+        built = set_up(args.out, build)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     designs, bases, scenarios, mutants, rounds, meta, jobs = built
 

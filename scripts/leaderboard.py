@@ -265,6 +265,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     from evoscen_experiments.sensitivity import SSM_RATES, paired, score_of, ssm_label, ssm_rate
     from evoscen_experiments.experiments import config_loader
+    from evoscen_sim.errors import InputError
     from evoscen_sut.mutants import mutant_overrides
 
     def build():
@@ -283,8 +284,10 @@ def main(argv: list[str] | None = None) -> int:
                    for m in refs for seed in seeds]
         return planners, [ref_label(m, args.mutant_base) for m in refs], rounds, blocks, steps, jobs
 
-    built = set_up(args.out, build)
-    if built is None:
+    try:
+        built = set_up(args.out, build)
+    except InputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
     planners, ref_names, rounds, blocks, steps, jobs = built
     suts = planners + ref_names

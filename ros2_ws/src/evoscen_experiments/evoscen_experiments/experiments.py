@@ -163,25 +163,19 @@ def key_values(option: str, items: Sequence[str]) -> dict[str, str]:
     return out
 
 
-def set_up(out_dir: Path, build: Callable[[], T]) -> T | None:
+def set_up(out_dir: Path, build: Callable[[], T]) -> T:
     """An experiment's set-up: ``build()`` (argument checks, the rounds), then ``out_dir`` created.
 
-    None after a one-line error on stderr (the caller exits with ``EXIT_BAD_INPUT``): an
-    :class:`evoscen_sim.errors.InputError`, or an ``OSError`` (``out_dir`` cannot be created).
+    A one-line :class:`evoscen_sim.errors.InputError` before anything is written: ``build()``'s own, or
+    ``out_dir`` cannot be created (the script says it and exits with ``EXIT_BAD_INPUT``).
     """
-    import sys
-
     from evoscen_sim.errors import InputError
 
+    built = build()
     try:
-        built = build()
         out_dir.mkdir(parents=True, exist_ok=True)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return None
     except OSError as exc:
-        print(f"error: --out {out_dir}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return None
+        raise InputError(f"--out {out_dir}: cannot create: {exc.strerror or exc}") from None
     return built
 
 
