@@ -1,8 +1,8 @@
 """The method's experiments as lists of in-process rounds, run on the campaign engine, summarised with 95 % intervals.
 
 A *round* is one in-process run of a scenario configuration (no bag), scored like every run
-(:mod:`evoscen_eval.scoring.metrics`). The experiments (``scripts/experiment_intelligence.py``,
-``experiment_complexity.py``, ``experiment_sensitivity.py``) are lists of rounds run by
+(:mod:`evoscen_eval.scoring.metrics`). The experiments (:mod:`evoscen_experiments.intelligence_experiment`,
+``complexity_experiment``, ``sensitivity_experiment``, ``leaderboard``) are lists of rounds run by
 :func:`run_rounds` on the one execution path of many runs, :mod:`evoscen_experiments.campaign`
 (docs/campaigns.md):
 
