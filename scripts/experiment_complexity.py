@@ -19,137 +19,31 @@ into ``--out`` and prints the table. Exit status: 0 done, 2 bad input, 130 inter
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
+from evoscen import cli
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="experiment_complexity.py", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=Path("runs/experiment_complexity"), help="output directory")
-    ap.add_argument("--config", type=Path, help="base scenario YAML (default: the shipped default)")
+    ap = cli.parser("experiment_complexity.py", __doc__)  # compares scenarios by complexity C: no SUT score
+    cli.add_out(ap, "runs/experiment_complexity")
+    cli.add_config(ap)
     ap.add_argument("--sut", default="stackelberg", help="SUT model (default stackelberg)")
     ap.add_argument("--scenarios", default="evolving,nilsson,mobil",
                     help="comma-separated: evolving (the config's BV driver) and/or BV driver names")
     ap.add_argument("--rounds", default="20", help="rounds per scenario (default 20)")
-    ap.add_argument("--steps", default="10000", help="steps per round (default 10000)")
+    cli.add_steps(ap, 10000)
     ap.add_argument("--first-seed", default="0", help="seed of the first round (default 0)")
     ap.add_argument("--mix", default=None, help="BV policy mix of the evolving scenario (default: the config's)")
-    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
+    cli.add_jobs(ap)
     return ap.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
-    from evoscen_experiments.experiments import (
-        Round,
-        distinct_names,
-        fmt_ci,
-        markdown_table,
-        mean_ci,
-        positive_int,
-        run_rounds_with_bar,
-        set_up,
-        write_csv,
-    )
-    from evoscen_eval.scoring.metrics import complexity_score
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_experiments import complexity_experiment
 
-    def build() -> tuple[list[str], list[Round], int, int]:
-        n_rounds = positive_int("--rounds", args.rounds)
-        first = positive_int("--first-seed", args.first_seed, 0)
-        jobs = positive_int("--jobs", args.jobs)
-        scenarios = distinct_names("--scenarios", args.scenarios)
-        rounds = []
-        for name in scenarios:
-            for seed in range(first, first + n_rounds):
-                overrides = {"sut.model": args.sut, "seed": str(seed), "steps": args.steps, "recording.enabled": "false"}
-                if name != "evolving":
-                    overrides["bvs.driver"] = name
-                if args.mix is not None:
-                    overrides["bvs.mix"] = args.mix
-                rounds.append(Round(name, load_scenario_config(args.config, overrides)))
-        return scenarios, rounds, jobs, n_rounds
-
-    built = set_up(args.out, build)
-    if built is None:
-        return EXIT_BAD_INPUT
-    scenarios, rounds, jobs, n_rounds = built
-
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="complexity")
-    if results is None:
-        return EXIT_INTERRUPTED
-
-    ev = rounds[0].cfg.evaluation
-    header = ["scenario", "BV driver", f"LC / {ev.window_steps}", f"AD / {ev.window_steps}", f"E / {ev.window_steps}",
-              "C", "C (rounds)", "rounds"]
-    rows, csv_rows, round_rows, bars = [], [], [], []
-    for name in scenarios:
-        rs = [results[r.key] for r in rounds if r.label == name]
-        driver = next(r.cfg.bvs.driver for r in rounds if r.label == name)
-        cx = [r["report"]["complexity"] for r in rs]
-        if any(c["score"] is None for c in cx):
-            print(f"error: --steps {args.steps}: shorter than one complexity window ({ev.window_steps} states)",
-                  file=sys.stderr)
-            return EXIT_BAD_INPUT
-        # averaged over all windows of all rounds (every round has the same number of windows)
-        lc, ad, e = (mean_ci([c[k] for c in cx]) for k in ("lane_changes", "accel_decel", "exposures"))
-        score = complexity_score(e[0], lc[0], ad[0], ev.k_exposure, ev.k_lane_change, ev.k_accel)
-        per_round = mean_ci([c["score"] for c in cx])
-        rows.append([name, driver, fmt_ci(*lc, 2), fmt_ci(*ad, 1), fmt_ci(*e, 3), f"{score:.4f}", fmt_ci(*per_round),
-                     str(len(rs))])
-        csv_rows.append([name, driver, *lc, *ad, *e, score, *per_round, len(rs)])
-        bars.append((name, lc, ad, e, score))
-        for r, c in zip(rs, cx):
-            run = r["report"]["run"]
-            round_rows.append([name, r["seed"], r["steps"], c["lane_changes"], c["accel_decel"], c["exposures"],
-                               c["score"], c["windows"], r["wall_time_s"], run.get("makeup"), run.get("bv_trucks")])
-    write_csv(args.out / "complexity.csv", ["scenario", "bv_driver", "lc_mean", "lc_ci95", "ad_mean", "ad_ci95",
-                                            "e_mean", "e_ci95", "complexity", "complexity_rounds_mean",
-                                            "complexity_rounds_ci95", "rounds"], csv_rows)
-    write_csv(args.out / "rounds.csv", ["scenario", "seed", "steps", "lc", "ad", "e", "complexity", "windows",
-                                        "wall_time_s", "makeup", "bv_trucks"], round_rows)
-    table = markdown_table(header, rows)
-    cfg0 = rounds[0].cfg
-    wall = sum(r["wall_time_s"] for r in results.values())
-    simulated = sum(r["report"]["run"]["duration_s"] for r in results.values())
-    (args.out / "complexity.md").write_text(
-        f"# Complexity experiment\n\nSUT {args.sut}; {len(scenarios)} scenarios x {n_rounds} rounds x {cfg0.steps} "
-        f"steps, {cfg0.bvs.count} BVs; windows of {ev.window_steps} states; mean ± 95 % interval over rounds; "
-        f"C from the averaged LC, AD, E (k = {ev.k_exposure:g}, {ev.k_lane_change:g}, {ev.k_accel:g}); "
-        f"{simulated:,.0f} s simulated (scored states of all rounds), {wall:,.0f} s wall time in all.\n\n{table}\n"
-        "![complexity](complexity.png)\n", encoding="utf-8")
-    plot(args.out / "complexity.png", bars, ev.window_steps)
-    print(table, end="")
-    print(f"written: {args.out / 'complexity.md'}, complexity.csv, rounds.csv, complexity.png")
-    return EXIT_OK
-
-
-def plot(path: Path, bars, window: int) -> None:
-    """LC, AD, E per window and C per scenario, with 95 % intervals."""
-    import math
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 4, figsize=(13, 3.5))
-    names = [b[0] for b in bars]
-    for ax, idx, title in zip(axes, (1, 2, 3), (f"LC per {window} states", f"AD per {window} states",
-                                                  f"E per {window} states")):
-        means = [b[idx][0] for b in bars]
-        errs = [0.0 if math.isnan(b[idx][1]) else b[idx][1] for b in bars]
-        ax.bar(names, means, yerr=errs, capsize=4, color="tab:blue")
-        ax.set_title(title)
-    axes[3].bar(names, [b[4] for b in bars], color="tab:red")
-    axes[3].set_title("complexity C")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return cli.run(lambda: complexity_experiment.main(parse_args(argv)))
 
 
 if __name__ == "__main__":

@@ -26,19 +26,15 @@ import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_OK
-
-HIGHD_MISSING = ("--highd DIR is required: HighD data cannot be redistributed, so evoscen ships none; obtain the "
-                 "dataset from https://www.highd-dataset.com (free for non-commercial research) and pass the directory "
-                 "holding its NN_recordingMeta.csv, NN_tracksMeta.csv and NN_tracks.csv files")
+from evoscen import cli
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="experiment_fidelity.py", description=__doc__.split("\n\n")[0])
+    ap = cli.parser("experiment_fidelity.py", __doc__, ranks_by="fidelity")
     ap.add_argument("--highd", type=Path, help="directory of HighD recordings (required; obtain HighD yourself)")
     ap.add_argument("--recordings", help="comma-separated recording ids, e.g. 01,02 (default: all in --highd)")
     ap.add_argument("--bags", type=Path, nargs="+", metavar="RUN", help="bags (or run directories) of our runs")
-    ap.add_argument("--out", type=Path, default=Path("runs/fidelity"), help="output directory (default runs/fidelity)")
+    cli.add_out(ap, "runs/fidelity")
     ap.add_argument("--overwrite", action="store_true", help="replace an earlier result in --out")
     g = ap.add_argument_group("behaviour extraction (the same for both sources)")
     g.add_argument("--leader-range", default="100", metavar="M", help="a preceding vehicle counts within this DHW (default 100 m)")
@@ -52,85 +48,10 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return ap.parse_args(argv)
 
 
-def _number(flag: str, text: str, *, integer: bool = False, lo: float = 0.0, inclusive: bool = False) -> float:
-    """``text`` as a number > ``lo`` (>= with ``inclusive``); InputError naming the flag otherwise."""
-    from evoscen_sim.errors import InputError
-
-    try:
-        value = int(text) if integer else float(text)
-    except ValueError:
-        value = None
-    if value is None or value != value or value == float("inf") or not (value >= lo if inclusive else value > lo):
-        kind = "an integer" if integer else "a number"
-        raise InputError(f"{flag} {text!r}: expected {kind} {'>=' if inclusive else '>'} {lo:g}")
-    return value
-
-
-def resolve_bag(run: Path) -> Path:
-    """A bag path from RUN: the bag itself, or a run directory's ``bag/``."""
-    from evoscen_record.bag_reader import bag_or_run_dir
-
-    return bag_or_run_dir(run, "--bags ")
-
-
 def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
-    from evoscen_eval.naturalistic.behaviour import BehaviourConfig
-    from evoscen_eval.naturalistic.fidelity import bag_samples, compare_behaviour, highd_samples, markdown_table, plot_rows, write_csv
-    from evoscen_eval.naturalistic.highd import find_recordings, recording_paths
-    from evoscen_eval.naturalistic.similarity import KdeConfig
-    from evoscen_sim.errors import InputError
+    from evoscen_experiments import fidelity_experiment
 
-    try:
-        if args.highd is None:
-            raise InputError(HIGHD_MISSING)
-        if not args.bags:
-            raise InputError("--bags RUN [RUN ...] is required: the bags (or run directories) of our runs to compare")
-        behaviour = BehaviourConfig(leader_range_m=_number("--leader-range", args.leader_range),
-                                    min_speed_mps=_number("--min-speed", args.min_speed, inclusive=True),
-                                    max_ttc_s=_number("--max-ttc", args.max_ttc),
-                                    include_sut=args.include_sut)
-        bandwidth = args.bandwidth if args.bandwidth in ("scott", "silverman") else _number("--bandwidth", args.bandwidth)
-        kde = KdeConfig(bandwidth=bandwidth, grid_points_1d=int(_number("--grid-1d", args.grid_1d, integer=True, lo=2)),
-                        grid_points_2d=int(_number("--grid-2d", args.grid_2d, integer=True, lo=2)))
-        available = find_recordings(args.highd)
-        if args.recordings:
-            wanted = [r.strip() for r in args.recordings.split(",") if r.strip()]
-            for r in wanted:
-                if not r.isdigit():
-                    raise InputError(f"--recordings {args.recordings!r}: {r!r} is not a recording number (e.g. 01,02)")
-                if not recording_paths(args.highd, r)["tracks"].exists():
-                    raise InputError(f"--recordings: {recording_paths(args.highd, r)['tracks']}: file not found "
-                                     f"(available: {', '.join(available) or 'none'})")
-        else:
-            wanted = available
-            if not wanted:
-                raise InputError(f"--highd {args.highd}: no HighD recording (NN_tracks.csv) in this directory")
-        bags = [resolve_bag(b) for b in args.bags]
-        csv_path = args.out / "fidelity.csv"
-        if csv_path.exists() and not args.overwrite:
-            raise InputError(f"--out {args.out}: holds an earlier result (fidelity.csv); choose another --out or pass --overwrite")
-        print(f"HighD: {len(wanted)} recording{'s' if len(wanted) != 1 else ''} from {args.highd}", file=sys.stderr)
-        natural = highd_samples(args.highd, wanted, behaviour)
-        print(f"simulation: {len(bags)} bag{'s' if len(bags) != 1 else ''}", file=sys.stderr)
-        simulated, warnings = bag_samples(bags, behaviour)
-        for w in warnings:
-            print(f"warning: {w}", file=sys.stderr)
-        rows = compare_behaviour(natural, simulated, kde)
-        try:
-            args.out.mkdir(parents=True, exist_ok=True)
-            write_csv(rows, csv_path)
-            table = markdown_table(rows, natural, simulated)
-            (args.out / "fidelity.md").write_text("# Fidelity against HighD\n\n" + table, encoding="utf-8")
-            plots = plot_rows(rows, args.out)
-        except OSError as exc:
-            raise InputError(f"--out {args.out}: cannot write: {exc.strerror or exc}") from None
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    print(table, end="")
-    print(f"results: {csv_path}, {args.out / 'fidelity.md'}, {len(plots)} plots in {args.out}")
-    return EXIT_OK
+    return cli.run(lambda: fidelity_experiment.main(parse_args(argv)))
 
 
 if __name__ == "__main__":

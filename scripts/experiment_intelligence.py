@@ -23,188 +23,29 @@ its surrogate-safety rates per SUT-km, docs/evaluation.md), ``surrogate_safety.c
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-from evoscen_contract.contract import EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_OK
+from evoscen import cli
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="experiment_intelligence.py", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=Path("runs/experiment_intelligence"), help="output directory")
-    ap.add_argument("--config", type=Path, help="base scenario YAML (default: the shipped default)")
+    ap = cli.parser("experiment_intelligence.py", __doc__, ranks_by="D")
+    cli.add_out(ap, "runs/experiment_intelligence")
+    cli.add_config(ap)
     ap.add_argument("--suts", default="nilsson,mobil,stackelberg", help="comma-separated SUT models")
-    ap.add_argument("--seeds", default="5", help="number of seeds per SUT (default 5)")
-    ap.add_argument("--first-seed", default="0", help="first seed (default 0)")
-    ap.add_argument("--steps", default="3000", help="steps per round (default 3000)")
+    cli.add_seeds(ap, count=5, what="seeds per SUT")
+    cli.add_steps(ap, 3000)
     ap.add_argument("--mix", default="4:3:3", help="BV policy mix competitive:mutual:cooperative (default 4:3:3)")
     ap.add_argument("--bvs", default="20", help="number of BVs (default 20)")
-    ap.add_argument("--jobs", default=str(os.cpu_count() or 1), help="Ray workers (default: CPU count)")
+    cli.add_jobs(ap)
     return ap.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
-    from evoscen_experiments.experiments import (
-        Round,
-        distinct_names,
-        fmt_ci,
-        markdown_table,
-        mean_ci,
-        positive_int,
-        run_rounds_with_bar,
-        set_up,
-        write_csv,
-    )
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_experiments import intelligence_experiment
 
-    def build() -> tuple[list[str], list[Round], int, int, int]:
-        seeds = positive_int("--seeds", args.seeds)
-        first = positive_int("--first-seed", args.first_seed, 0)
-        jobs = positive_int("--jobs", args.jobs)
-        suts = distinct_names("--suts", args.suts, "SUT model names")
-        rounds = []
-        for sut in suts:  # every override gets the config's validation (one-line errors)
-            for seed in range(first, first + seeds):
-                cfg = load_scenario_config(args.config, {"sut.model": sut, "seed": str(seed), "steps": args.steps,
-                                                         "bvs.mix": args.mix, "bvs.count": args.bvs,
-                                                         "recording.enabled": "false"})
-                rounds.append(Round(sut, cfg))
-        return suts, rounds, jobs, seeds, first
-
-    built = set_up(args.out, build)
-    if built is None:
-        return EXIT_BAD_INPUT
-    suts, rounds, jobs, seeds, first = built
-
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="intelligence")
-    if results is None:
-        return EXIT_INTERRUPTED
-
-    header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
-              "collisions", "exposures", "seeds", "comparative D"]
-    from evoscen_experiments.sensitivity import SSM_RATES, ssm_label, ssm_rate
-
-    rows, csv_rows, round_rows, ssm_rows, ssm_csv = [], [], [], [], []
-    for sut in suts:
-        rs = [results[r.key] for r in rounds if r.label == sut]
-        reps = [r["report"] for r in rs]
-        cols = [mean_ci([x["intelligence"]["weighted"][k] for x in reps]) for k in ("safety", "efficiency", "interaction")]
-        total = mean_ci([x["intelligence"]["score"] for x in reps])
-        col = mean_ci([x["safety"]["collisions"] for x in reps])
-        exp = mean_ci([x["safety"]["exposures"] for x in reps])
-        comp = mean_ci([x["comparative"]["score"] for x in reps])  # docs/evaluation.md §10
-        rows.append([sut, *(fmt_ci(*c) for c in cols), fmt_ci(*total), fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps)),
-                     fmt_ci(*comp)])
-        csv_rows.append([sut, *(v for c in (*cols, total, col, exp) for v in c), len(reps), *comp])
-        rates = [mean_ci([v for v in (ssm_rate(x, side, m) for x in reps) if v == v]) for side, m in SSM_RATES]  # v == v: not nan
-        ssm_rows.append([sut, *(fmt_ci(*c, 2) for c in rates), str(len(reps))])
-        ssm_csv.append([sut, *(v for c in rates for v in c), len(reps)])
-        for r in rs:
-            x = r["report"]
-            round_rows.append([sut, r["seed"], r["steps"], x["safety"]["score"], x["efficiency"]["score"],
-                               x["interaction"]["score"], x["intelligence"]["score"], x["safety"]["collisions"],
-                               x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"], r["wall_time_s"],
-                               *(ssm_rate(x, side, m) for side, m in SSM_RATES), x["comparative"]["score"]])
-    write_csv(args.out / "intelligence.csv",
-              ["sut", *(f"{k}_{s}" for k in ("safety_weighted", "efficiency_weighted", "interaction_weighted",
-                                             "intelligence", "collisions", "exposures") for s in ("mean", "ci95")),
-               "seeds", "comparative_mean", "comparative_ci95"], csv_rows)
-    write_csv(args.out / "rounds.csv", ["sut", "seed", "steps", "safety", "efficiency", "interaction", "intelligence",
-                                        "collisions", "exposures", "mean_speed_mps", "wall_time_s",
-                                        *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES), "comparative"], round_rows)
-    write_csv(args.out / "surrogate_safety.csv",
-              ["sut", *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "seeds"], ssm_csv)
-    pair_rows, pair_csv = paired_comparisons(suts, rounds, results)
-    eff_rows, eff_csv = paired_comparisons(suts, rounds, results, "efficiency")
-    if pair_csv:
-        write_csv(args.out / "paired.csv", ["sut_a", "sut_b", "d_intelligence_mean", "d_intelligence_ci95", "seeds",
-                                            "significant"], pair_csv)
-        write_csv(args.out / "paired_efficiency.csv", ["sut_a", "sut_b", "d_efficiency_mean", "d_efficiency_ci95",
-                                                       "seeds", "significant"], eff_csv)
-    any_cfg = rounds[0].cfg
-    table = markdown_table(header, rows)
-    first_report = results[rounds[0].key]["report"]
-    ssm_table = markdown_table(["SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "seeds"], ssm_rows)
-    compared = ("D" if (first_report.get("settings") or {}).get("score_form") == "comparative" and "comparative"
-                in first_report else "I")  # evaluation.score_form: the score SUTs are compared with
-    pair_table = (markdown_table(["A", "B", f"{compared}(A) − {compared}(B), paired by seed", "seeds",
-                                  "A vs B (95 %)"], pair_rows)
-                  if pair_rows else "")
-    eff_table = (markdown_table(["A", "B", "I_e(A) − I_e(B), paired by seed", "seeds", "A vs B (95 %)"], eff_rows)
-                 if eff_rows else "")
-    text = (f"# Intelligence experiment\n\n{len(suts)} SUTs x {seeds} seeds ({first}..{first + seeds - 1}), "
-            f"{any_cfg.steps} steps, {any_cfg.bvs.count} BVs ({any_cfg.bvs.driver}, mix {args.mix}); weights "
-            f"{any_cfg.evaluation.weight_safety:g}/{any_cfg.evaluation.weight_efficiency:g}/"
-            f"{any_cfg.evaluation.weight_interaction:g}; mean ± 95 % interval over seeds.\n\n{table}\n"
-            + (f"Paired comparisons (the same seeds: same traffic and random streams; mean ± 95 % interval of "
-               f"the per-seed difference):\n\n{pair_table}\nThe efficiency term I_e alone, paired the same way:\n\n"
-               f"{eff_table}\n" if pair_table else "") +
-            "Surrogate safety of each SUT per SUT-km (docs/evaluation.md; front: the SUT behind its leader, rear: its "
-            f"follower behind it), mean ± 95 % interval over seeds:\n\n{ssm_table}\n"
-            "![TTC](ttc.png)\n\n![speed](speed.png)\n")
-    (args.out / "intelligence.md").write_text(text, encoding="utf-8")
-    plot_distributions(args.out, suts, rounds, results)
-    print(table, end="")
-    if pair_table:
-        print("\n" + pair_table, end="")
-        print("\n" + eff_table, end="")
-    print("\n" + ssm_table, end="")
-    print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, surrogate_safety.csv, rounds.csv, ttc.png, "
-          "speed.png"
-          + (", paired.csv, paired_efficiency.csv" if pair_csv else ""))
-    return EXIT_OK
-
-
-def paired_comparisons(suts: list[str], rounds, results, section: str = "intelligence"
-                       ) -> tuple[list[list[str]], list[list]]:
-    """Every pair of SUTs: the per-seed difference of ``section``'s score (intelligence: the score
-    ``evaluation.score_form`` selects, D by default; or a term of the method: efficiency, safety,
-    interaction), mean ± 95 % interval (shared seeds)."""
-    from evoscen_experiments.experiments import difference_words, fmt_ci
-    from evoscen_experiments.sensitivity import paired
-
-    from evoscen_eval.scoring.metrics import compared_scores
-
-    def value(report: dict):  # the total as evaluation.score_form selects it (docs/evaluation.md §10); a term: the method's
-        return compared_scores(report)[section] if section == "intelligence" else report[section]["score"]
-
-    scores = {sut: {r.cfg.seed: value(results[r.key]["report"]) for r in rounds if r.label == sut} for sut in suts}
-    rows, csv_rows = [], []
-    for i, a in enumerate(suts):
-        for b in suts[i + 1:]:
-            d = paired(scores[a], scores[b])
-            sig = d.n >= 2 and abs(d.mean) > d.half
-            rows.append([a, b, fmt_ci(d.mean, d.half), str(d.n), difference_words(d.mean, d.half, d.n)])
-            csv_rows.append([a, b, d.mean, d.half, d.n, int(sig)])
-    return rows, csv_rows
-
-
-def plot_distributions(out: Path, suts: list[str], rounds, results) -> None:
-    """TTC and speed distributions of the SUTs, overlaid (density, pooled over seeds)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-    from evoscen_experiments.experiments import SPEED_BINS, TTC_BINS
-
-    for name, bins, key, xlabel, title in (
-            ("ttc.png", TTC_BINS, "ttc_hist", "SUT TTC to the vehicle ahead in its path (s)", "TTC distribution per SUT"),
-            ("speed.png", SPEED_BINS, "speed_hist", "SUT speed (m/s)", "Speed distribution per SUT")):
-        fig, ax = plt.subplots(figsize=(7, 4))
-        for sut in suts:
-            counts = np.sum([results[r.key][key] for r in rounds if r.label == sut], axis=0).astype(float)
-            if counts.sum() > 0:
-                density = counts / (counts.sum() * np.diff(bins))
-                ax.stairs(density, bins, label=f"{sut} ({int(counts.sum())} states)", lw=1.5)
-        ax.set(xlabel=xlabel, ylabel="density", title=title)
-        ax.legend()
-        fig.tight_layout()
-        fig.savefig(out / name, dpi=100)
-        plt.close(fig)
+    return cli.run(lambda: intelligence_experiment.main(parse_args(argv)))
 
 
 if __name__ == "__main__":

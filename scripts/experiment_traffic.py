@@ -25,143 +25,29 @@ Exit status: 0 done, 2 bad input.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
-import numpy as np
-from evoscen_contract.contract import EVENT_COLLISION, EVENT_REENTRY, EVENT_SHIFT, EXIT_BAD_INPUT, EXIT_OK
+from evoscen import cli
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = argparse.ArgumentParser(prog="experiment_traffic.py", description=__doc__.split("\n\n")[0])
+    ap = cli.parser("experiment_traffic.py", __doc__)  # measures the traffic of one SUT's runs: ranks nothing
     ap.add_argument("--sut", default="mobil", help="SUT model (default mobil)")
-    ap.add_argument("--seeds", default="6", help="number of seeds (default 6)")
-    ap.add_argument("--first-seed", default="60000", help="first seed (default 60000)")
-    ap.add_argument("--steps", default="3000", help="steps per run (default 3000)")
-    ap.add_argument("--config", type=Path, help="scenario YAML (default: the shipped default)")
+    cli.add_seeds(ap, count=6, first=60000)
+    cli.add_steps(ap, 3000)
+    cli.add_config(ap)
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="override a scenario key")
     ap.add_argument("--compare-steps", default=None, metavar="N", help="also run N steps per seed, paired")
     ap.add_argument("--json", type=Path, default=None, help="also write the figures as JSON here")
     return ap.parse_args(argv)
 
 
-def sut_jumps(s: np.ndarray, lane: np.ndarray, target: np.ndarray, sut: int, dt_s: float,
-              max_speed_mps: float, shifts: dict[int, float]) -> int:
-    """States in which the SUT moved other than by driving (module docstring); ``s``, ``lane``,
-    ``target`` are (states × vehicles); ``shifts``: the ``shift_m`` of each ``evoscen/shift`` event
-    by its step (the state it led to)."""
-    jumps = 0
-    for k in range(1, s.shape[0]):
-        ds = s[k, sut] - s[k - 1, sut] + shifts.get(k, 0.0)
-        moved = not (-1e-6 <= ds <= max_speed_mps * dt_s + 1e-6)
-        lane_ok = lane[k, sut] in (lane[k - 1, sut], target[k - 1, sut])
-        jumps += bool(moved or not lane_ok)
-    return jumps
-
-
-def one_run(cfg) -> dict:  # a ScenarioConfig
-    from evoscen_bringup.inprocess import run_inprocess
-
-    summary = run_inprocess(cfg, bag_dir=None, evaluate=True, keep_run=True)
-    rep, run = summary.report, summary.run
-    cols = run.columns
-    sut = int(run.sut_index)
-    ids = np.asarray(run.ids)
-    n_bv = ids.size - 1
-    steps = int(rep["safety"]["steps"])
-    bv_bv = [e for e in run.events_named(EVENT_COLLISION) if int(ids[sut]) not in e["ids"]]
-    starts = [int(x["start_state"]) for x in rep["safety"]["exposure_list"]]
-    return {
-        "seed": cfg.seed, "steps": steps,
-        "per_window": rep["traffic"]["per_window_mean_bvs"], "mean_bvs": rep["traffic"]["mean_bvs"],
-        "jumps": sut_jumps(np.asarray(cols["s"]), np.asarray(cols["lane"]), np.asarray(cols["target_lane"]), sut,
-                           float(run.dt_s), cfg.vehicle.max_speed_mps,
-                           {int(e["step"]): float(e["shift_m"]) for e in run.events_named(EVENT_SHIFT)}),
-        "exposures": len(starts), "exposures_first_10pct": sum(1 for k in starts if k < 0.1 * steps),
-        "bv_bv_collisions": len(bv_bv), "bv_hours": n_bv * steps * float(run.dt_s) / 3600.0,
-        "entries": len(run.events_named(EVENT_REENTRY)), "shifts": len(run.events_named(EVENT_SHIFT)),
-        "intelligence": rep["intelligence"]["score"],
-        "efficiency": rep["intelligence"]["weighted"]["efficiency"],
-    }
-
-
 def main(argv: list[str] | None = None) -> int:
-    args = parse_args(argv)
-    from evoscen_experiments.experiments import positive_int
-    from evoscen_experiments.stats import fmt_ci, mean_ci
-    from evoscen_sim.config.scenario_config import load_scenario_config
-    from evoscen_sim.errors import InputError
+    from evoscen_experiments import traffic_experiment
 
-    try:
-        seeds = positive_int("--seeds", args.seeds)
-        first = positive_int("--first-seed", args.first_seed, 0)
-        steps = positive_int("--steps", args.steps)
-        other = positive_int("--compare-steps", args.compare_steps) if args.compare_steps is not None else None
-        overrides: dict[str, str] = {}
-        for item in args.set:
-            key, sep, value = item.partition("=")
-            if not sep or not key:
-                raise InputError(f"--set {item!r}: expected KEY=VALUE")
-            overrides[key.strip()] = value.strip()
-
-        def cfg_for(seed: int, n: int):
-            return load_scenario_config(args.config, {**overrides, "sut.model": args.sut, "seed": str(seed),
-                                                      "steps": str(n), "recording.enabled": "false"})
-
-        cfg_for(first, steps)  # validated before anything runs
-        runs = []
-        for seed in range(first, first + seeds):
-            runs.append(one_run(cfg_for(seed, steps)))
-            print(f"seed {seed}: BVs within 100 m {runs[-1]['mean_bvs']:.1f}, exposures {runs[-1]['exposures']}, "
-                  f"jumps {runs[-1]['jumps']}", file=sys.stderr)
-        longer = [one_run(cfg_for(seed, other)) for seed in range(first, first + seeds)] if other else None
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-
-    width = min(len(r["per_window"]) for r in runs)
-    per_window = [float(np.mean([r["per_window"][w] for r in runs])) for w in range(width)]
-    exposures = sum(r["exposures"] for r in runs)
-    early = sum(r["exposures_first_10pct"] for r in runs)
-    bv_hours = sum(r["bv_hours"] for r in runs)
-    out = {
-        "sut": args.sut, "seeds": [r["seed"] for r in runs], "steps": steps, "overrides": overrides,
-        "per_window_mean_bvs": per_window, "min_window_mean_bvs": min(per_window) if per_window else None,
-        "mean_window_mean_bvs": float(np.mean(per_window)) if per_window else None,
-        "min_window_any_run_bvs": min(min(r["per_window"]) for r in runs if r["per_window"]) if width else None,
-        "sut_jumps": sum(r["jumps"] for r in runs),
-        "exposures": exposures, "exposures_first_10pct_share": early / exposures if exposures else None,
-        "bv_bv_collisions": sum(r["bv_bv_collisions"] for r in runs),
-        "bv_bv_collisions_per_bv_hour": sum(r["bv_bv_collisions"] for r in runs) / bv_hours if bv_hours else None,
-        "entries_per_run": float(np.mean([r["entries"] for r in runs])),
-        "shifts_per_run": float(np.mean([r["shifts"] for r in runs])),
-        "intelligence": mean_ci([r["intelligence"] for r in runs]),
-        "runs": runs,
-    }
-    print(f"SUT {args.sut}, {seeds} seeds from {first}, {steps} steps" + (f", {overrides}" if overrides else ""))
-    print("BVs within ±100 m per 30-s window (mean over seeds): " + ", ".join(f"{x:.1f}" for x in per_window))
-    print(f"lowest window mean: {out['min_window_mean_bvs']:.1f}; mean of the window means: "
-          f"{out['mean_window_mean_bvs']:.1f}; lowest window of any single run: {out['min_window_any_run_bvs']:.1f}")
-    print(f"SUT jumps: {out['sut_jumps']}")
-    share = out["exposures_first_10pct_share"]
-    print(f"SUT exposures: {exposures}, in the first 10 % of the run: {early}"
-          + (f" ({100 * share:.0f} %)" if share is not None else ""))
-    print(f"BV-BV collisions: {out['bv_bv_collisions']} in {bv_hours:.1f} BV-hours"
-          + (f" ({out['bv_bv_collisions_per_bv_hour']:.3f} per BV-hour)" if bv_hours else ""))
-    print(f"window entries per run: {out['entries_per_run']:.1f}, shifts per run: {out['shifts_per_run']:.1f}")
-    print(f"intelligence: {fmt_ci(*out['intelligence'])} (n = {seeds})")
-    if longer is not None:
-        diff = [b["intelligence"] - a["intelligence"] for a, b in zip(runs, longer)]
-        out["compare_steps"] = other
-        out["intelligence_longer"] = mean_ci([r["intelligence"] for r in longer])
-        out["intelligence_difference"] = mean_ci(diff)
-        print(f"intelligence over {other} steps: {fmt_ci(*out['intelligence_longer'])}; paired difference "
-              f"({other} − {steps}): {fmt_ci(*out['intelligence_difference'])} (n = {seeds})")
-    if args.json is not None:
-        args.json.write_text(json.dumps(out, indent=1, default=float))
-    return EXIT_OK
+    return cli.run(lambda: traffic_experiment.main(parse_args(argv)))
 
 
 if __name__ == "__main__":

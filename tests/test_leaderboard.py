@@ -1,5 +1,6 @@
-"""The planner leaderboard (scripts/leaderboard.py): which SUTs it ranks, the ranking, the paired
-interval against the reference (by hand from the per-episode CSV), a failing plug-in, bad input."""
+"""The planner leaderboard (scripts/leaderboard.py, its logic in evoscen_experiments.leaderboard): which SUTs
+it ranks, the ranking, the paired interval against the reference (by hand from the per-episode CSV), a
+failing plug-in, bad input."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from evoscen_experiments import leaderboard as lb
 
 REPO = Path(__file__).resolve().parents[1]
 T975_DF2 = 4.302652730  # Student-t 0.975 quantile, 2 degrees of freedom
@@ -37,15 +40,15 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 
 
 def test_every_installed_sut_model_but_the_mutant_wrapper_is_ranked(board):
-    suts = board.installed_suts()
+    suts = lb.installed_suts()
     assert suts[:4] == ["level0", "nilsson", "mobil", "stackelberg"]  # the built-ins, in registration order
     assert "mutant" not in suts
-    assert board.resolve_suts("all", "mobil") == suts
+    assert lb.resolve_suts("all", "mobil") == suts
 
 
 def test_ranked_by_mean_intelligence_ties_by_name_undefined_last(board):
     means = {"b": 0.5, "a": 0.5, "c": 0.7, "d": math.nan, "e": 0.1}
-    assert board.ranked(means) == ["c", "a", "b", "e", "d"]
+    assert lb.ranked(means) == ["c", "a", "b", "e", "d"]
 
 
 @pytest.mark.parametrize("args, expected", [
@@ -79,15 +82,15 @@ def test_bad_input_is_one_line_and_exit_2_before_anything_is_written(board, tmp_
 def test_seed_blocks_default_to_two_blocks_of_100_from_20000(board):
     from evoscen_experiments.replication import SeedBlock
 
-    assert board.resolve_blocks(board.parse_args([])) == [SeedBlock(20000, 20099), SeedBlock(20100, 20199)]
-    assert board.resolve_blocks(board.parse_args(["--episodes", "3", "--first-seed", "7"])) == [SeedBlock(7, 9)]
-    assert board.resolve_blocks(board.parse_args(["--blocks", "3", "--block-size", "2", "--first-seed", "0"])) == [
+    assert lb.resolve_blocks(board.parse_args([])) == [SeedBlock(20000, 20099), SeedBlock(20100, 20199)]
+    assert lb.resolve_blocks(board.parse_args(["--episodes", "3", "--first-seed", "7"])) == [SeedBlock(7, 9)]
+    assert lb.resolve_blocks(board.parse_args(["--blocks", "3", "--block-size", "2", "--first-seed", "0"])) == [
         SeedBlock(0, 1), SeedBlock(2, 3), SeedBlock(4, 5)]
-    assert board.resolve_blocks(board.parse_args(["--seed-blocks", "10:11,30:32"])) == [SeedBlock(10, 11),
+    assert lb.resolve_blocks(board.parse_args(["--seed-blocks", "10:11,30:32"])) == [SeedBlock(10, 11),
                                                                                       SeedBlock(30, 32)]
-    assert board.resolve_mutant_refs("timid,frozen", "mobil", ["mobil", "nilsson"]) == ["timid", "frozen"]
-    assert board.resolve_mutant_refs("none", "fiss", ["mobil"]) == []
-    assert board.ref_label("timid", "mobil") == "timid(mobil)"
+    assert lb.resolve_mutant_refs("timid,frozen", "mobil", ["mobil", "nilsson"]) == ["timid", "frozen"]
+    assert lb.resolve_mutant_refs("none", "fiss", ["mobil"]) == []
+    assert lb.ref_label("timid", "mobil") == "timid(mobil)"
 
 
 def test_terms_pairs_and_block_orders_by_hand(board):
@@ -97,19 +100,19 @@ def test_terms_pairs_and_block_orders_by_hand(board):
         return {"D": d, "S": s, "P": p, "L": 0.5, "X": 0.5, "I": d, "I_s": s, "I_e": p, "I_i": i_i}
 
     terms = {"a": {0: t(0.8, 1.0, 1.0), 1: t(0.6, 0.5, 1.0, math.nan)}, "b": {0: t(0.4, 1.0, 0.5), 1: t(0.2, 0.5, 0.5)}}
-    md, rows = board.term_rows(terms, ["a", "b"])
+    md, rows = lb.term_rows(terms, ["a", "b"])
     # a's D: 0.7 ± t(0.975, 1)·0.1414/√2 = 0.7 ± 12.706·0.1 = 0.7 ± 1.271; a's I_i defined in 1 of 2 episodes
     assert md[0][0] == "a" and md[0][1] == "0.700 ± 1.271" and md[0][9].endswith("(n 1)") and md[0][-1] == "2"
     assert rows[1][1:4] == [pytest.approx(0.3), pytest.approx(12.706204736 * 0.1), 2]
     # pairs: a − b = 0.4, 0.4 -> 0.4 ± 0 over 2 episodes: significantly higher
     values = {"a": {0: 0.8, 1: 0.6}, "b": {0: 0.4, 1: 0.2}, "c": {0: 0.5, 1: 0.7}}
-    p_md, p_rows, sig = board.pair_rows(values, ["a", "c", "b"])
+    p_md, p_rows, sig = lb.pair_rows(values, ["a", "c", "b"])
     assert p_md[0] == ["a", "c", "0.1000 ± 2.5412", "2", "no significant difference"]
     assert p_md[1] == ["a", "b", "0.4000 ± 0.0000", "2", "significantly higher"]
     assert sig == ["a significantly higher than b (0.4000 ± 0.0000, n 2)"]
     # orders per block: block 0..0 ranks a (0.8), c (0.5), b (0.4); block 1..1 c (0.7), a (0.6), b (0.2):
     # one discordant pair (a, c) of 3 -> τ = (2 − 1) / 3
-    b_rows, taus = board.block_orders(values, consecutive_blocks(0, 2, 1), ["a", "b", "c"])
+    b_rows, taus = lb.block_orders(values, consecutive_blocks(0, 2, 1), ["a", "b", "c"])
     assert [(r[1], r[3]) for r in b_rows if r[0] == "1–1"] == [("a", 2), ("b", 3), ("c", 1)]
     assert taus == [["0–0", "1–1", pytest.approx(1 / 3), 2, 1, 3]]
 

@@ -1,5 +1,6 @@
-"""The sensitivity experiment's test designs (scripts/experiment_sensitivity.py), in-process: argument
-validation, the rounds a design builds, equal compute, the design comparison table (values by hand)."""
+"""The sensitivity experiment's test designs (scripts/experiment_sensitivity.py, its logic in
+evoscen_experiments.sensitivity_experiment and sensitivity_tables), in-process: argument validation, the
+rounds a design builds, equal compute, the design comparison table (values by hand)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from evoscen_experiments import sensitivity_experiment as se
+from evoscen_experiments import sensitivity_tables as st
 from evoscen_experiments.sensitivity import Design, design_compute, summarise_design
 
 REPO = Path(__file__).resolve().parents[1]
@@ -69,15 +72,15 @@ def test_bad_design_arguments_are_one_line(exp, tmp_path, capsys, args, expected
 
 def test_compare_designs_accepts_equal_compute_other_than_the_default(exp):
     # 100 x 600 = 20 x 3000 = 60,000: equal, accepted (the case above is 100 x 600 against 10 x 3000)
-    ep, lg = exp.resolve_designs(exp.parse_args(["--compare-designs", "--seeds", "20", "--episode-steps", "600"]))
+    ep, lg = se.resolve_designs(exp.parse_args(["--compare-designs", "--seeds", "20", "--episode-steps", "600"]))
     assert (ep.runs * ep.steps, lg.runs * lg.steps) == (60_000, 60_000)
 
 
 def test_which_design_runs(exp):
     def designs(*args: str) -> list[tuple]:
-        return [(d.name, d.runs, d.steps, d.first_seed) for d in exp.resolve_designs(exp.parse_args(list(args)))]
+        return [(d.name, d.runs, d.steps, d.first_seed) for d in se.resolve_designs(exp.parse_args(list(args)))]
 
-    default = {"episodes": ("episodes", 100, 300, 0), "long": ("long", 10, 3000, 0)}[exp.DEFAULT_DESIGN]
+    default = {"episodes": ("episodes", 100, 300, 0), "long": ("long", 10, 3000, 0)}[se.DEFAULT_DESIGN]
     assert designs() == [default]
     assert designs("--seeds", "3", "--steps", "300") == [("long", 3, 300, 0)]          # the old flags: long
     assert designs("--steps", "500", "--first-seed", "4") == [("long", 10, 500, 4)]
@@ -94,9 +97,9 @@ def test_which_design_runs(exp):
 
 
 def test_episodes_design_builds_n_x_variants_paired_rounds(exp):
-    (design,) = exp.resolve_designs(exp.parse_args(["--design", "episodes", "--episodes", "3", "--episode-steps",
+    (design,) = se.resolve_designs(exp.parse_args(["--design", "episodes", "--episodes", "3", "--episode-steps",
                                                     "20", "--first-seed", "7"]))
-    rounds, meta = exp.build_rounds([design], ["mobil"], ["level0", "evolving", "nilsson", "mobil"],
+    rounds, meta = se.build_rounds([design], ["mobil"], ["level0", "evolving", "nilsson", "mobil"],
                                     ["stale", "tailgating"], None)
     assert len(rounds) == 3 * 3 * 4  # episodes x (intact + 2 mutants) x scenarios
     # the default scenarios run on the default make-up (highD's cars and trucks), the baselines too: a
@@ -133,32 +136,32 @@ def _sumo_sut_installed() -> bool:
 
 @pytest.mark.skipif("not _sumo_sut_installed()", reason="the SUMO SUT example plug-in is not installed (make setup)")
 def test_seed_blocks_build_every_block_and_only_applicable_mutants(exp):
-    (design,) = exp.resolve_designs(exp.parse_args(["--blocks", "2", "--block-size", "2", "--first-seed", "10",
+    (design,) = se.resolve_designs(exp.parse_args(["--blocks", "2", "--block-size", "2", "--first-seed", "10",
                                                     "--episode-steps", "20"]))
     assert (design.name, design.runs, design.steps, design.block_bounds) == ("episodes", 4, 20, ((10, 11), (12, 13)))
-    (explicit,) = exp.resolve_designs(exp.parse_args(["--seed-blocks", "5:6,90:90", "--design", "long"]))
+    (explicit,) = se.resolve_designs(exp.parse_args(["--seed-blocks", "5:6,90:90", "--design", "long"]))
     assert (explicit.name, explicit.runs, explicit.steps, list(explicit.seeds)) == ("long", 3, 3000, [5, 6, 90])
-    rounds, meta = exp.build_rounds([explicit], ["mobil", "sumo_sut"], ["level0"], ["tailgating", "frozen"], None)
+    rounds, meta = se.build_rounds([explicit], ["mobil", "sumo_sut"], ["level0"], ["tailgating", "frozen"], None)
     variants = sorted({meta[r.key][2:] for r in rounds})
     # sumo_sut: tailgating needs two driver instances, not applicable, so not run
     assert variants == [("mobil", "frozen"), ("mobil", "intact"), ("mobil", "tailgating"), ("sumo_sut", "frozen"),
                         ("sumo_sut", "intact")]
     assert sorted(r.cfg.seed for r in rounds if meta[r.key][2:] == ("sumo_sut", "frozen")) == [5, 6, 90]
-    assert exp.compute_text(explicit, rounds[0].cfg, 5).startswith(
+    assert st.compute_text(explicit, rounds[0].cfg, 5).startswith(
         "Design long: 3 seeds (seed blocks 5..6, 90..90) x 3,000 steps = 9,000 SUT steps")
 
 
 def test_compare_designs_builds_both_on_disjoint_seeds(exp):
-    designs = exp.resolve_designs(exp.parse_args(["--compare-designs", "--episodes", "4", "--episode-steps", "30",
+    designs = se.resolve_designs(exp.parse_args(["--compare-designs", "--episodes", "4", "--episode-steps", "30",
                                                   "--seeds", "2", "--steps", "60"]))
-    rounds, meta = exp.build_rounds(designs, ["mobil"], ["level0"], ["stale"], None)
+    rounds, meta = se.build_rounds(designs, ["mobil"], ["level0"], ["stale"], None)
     seeds = {name: {r.cfg.seed for r in rounds if meta[r.key][0] == name} for name in ("episodes", "long")}
     steps = {name: {r.cfg.steps for r in rounds if meta[r.key][0] == name} for name in ("episodes", "long")}
     assert seeds == {"episodes": {0, 1, 2, 3}, "long": {4, 5}} and steps == {"episodes": {30}, "long": {60}}
     assert len(rounds) == (4 + 2) * 2
     cfg = rounds[0].cfg
-    assert exp.warmup_steps(cfg) == 200  # 20 s at 0.1 s
-    text = exp.compute_text(designs[0], cfg, 2)
+    assert st.warmup_steps(cfg) == 200  # 20 s at 0.1 s
+    text = st.compute_text(designs[0], cfg, 2)
     assert text == ("Design episodes: 4 episodes (seeds 0..3) x 30 steps = 120 SUT steps per variant and scenario; "
                     "the warm-up (traffic.warmup_s = 20 s, 200 steps) runs before every run and is extra compute, "
                     "the same per run in either design: 4 x 200 = 800 steps; 920 simulated steps per variant and "
@@ -180,7 +183,7 @@ def test_comparison_table_by_hand(exp):
     }
     computes = {"episodes": design_compute(episodes, 200), "long": design_compute(long, 200)}
     walls = {"episodes": {("evolving", "mobil"): 12.4}, "long": {("evolving", "mobil"): 7.6}}
-    md, rows, md_m, rows_m = exp.comparison_rows([episodes, long], summaries, computes, walls)
+    md, rows, md_m, rows_m = se.comparison_rows([episodes, long], summaries, computes, walls)
     h3 = T975_DF3 / math.sqrt(3)
     ep_row, lg_row = rows
     assert ep_row[:8] == ["evolving", "mobil", "episodes", 4, 300, 1, 2, 0.5]

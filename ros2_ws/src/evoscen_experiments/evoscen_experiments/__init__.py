@@ -1,8 +1,11 @@
 """evoscen's experiments: many runs and what they say (docs/architecture.md §1).
 
-Holds campaigns on Ray (``campaign``, ``campaign_spec``, ``campaign_summary``, ``ray_leftovers``), the
-method's experiments and their rounds (``experiments``), sensitivity and replication (``sensitivity``,
-``replication``), statistics (``stats``) and the README's results table (``results_table``). May import
+Holds campaigns on Ray (``campaign``, ``campaign_spec``, ``campaign_summary``, ``ray_leftovers``,
+``campaign_driver``), the method's experiments and their rounds (``experiments``, ``intelligence_experiment``,
+``complexity_experiment``, ``traffic_experiment``, ``fidelity_experiment``, ``exposures_by_rule``), sensitivity
+and replication (``sensitivity``, ``sensitivity_experiment``, ``sensitivity_tables``, ``replication``), the
+planner leaderboard (``leaderboard``), statistics (``stats``) and the README's results table
+(``results_table``): the work of the scripts' doors (``scripts/``). May import
 every package below it — the runners (:mod:`evoscen_bringup`), the evaluation, the recording, the
 drivers, the simulation and the contract — and nothing above it (the face, :mod:`evoscen`).
 """

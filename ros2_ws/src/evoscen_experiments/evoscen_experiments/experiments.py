@@ -1,8 +1,8 @@
 """The method's experiments as lists of in-process rounds, run on the campaign engine, summarised with 95 % intervals.
 
 A *round* is one in-process run of a scenario configuration (no bag), scored like every run
-(:mod:`evoscen_eval.scoring.metrics`). The experiments (``scripts/experiment_intelligence.py``,
-``experiment_complexity.py``, ``experiment_sensitivity.py``) are lists of rounds run by
+(:mod:`evoscen_eval.scoring.metrics`). The experiments (:mod:`evoscen_experiments.intelligence_experiment`,
+``complexity_experiment``, ``sensitivity_experiment``, ``leaderboard``) are lists of rounds run by
 :func:`run_rounds` on the one execution path of many runs, :mod:`evoscen_experiments.campaign`
 (docs/campaigns.md):
 
@@ -149,25 +149,33 @@ def distinct_names(option: str, text: str, what: str = "names") -> list[str]:
     return names
 
 
-def set_up(out_dir: Path, build: Callable[[], T]) -> T | None:
-    """An experiment's set-up: ``build()`` (argument checks, the rounds), then ``out_dir`` created.
-
-    None after a one-line error on stderr (the caller exits with ``EXIT_BAD_INPUT``): an
-    :class:`evoscen_sim.errors.InputError`, or an ``OSError`` (``out_dir`` cannot be created).
-    """
-    import sys
-
+def key_values(option: str, items: Sequence[str]) -> dict[str, str]:
+    """The ``KEY=VALUE`` items of a repeated option (``--set``) as a dict, key and value stripped (a one-line
+    InputError naming the option on an item without ``=`` or key)."""
     from evoscen_sim.errors import InputError
 
+    out: dict[str, str] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise InputError(f"{option} {item!r}: expected KEY=VALUE")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def set_up(out_dir: Path, build: Callable[[], T]) -> T:
+    """An experiment's set-up: ``build()`` (argument checks, the rounds), then ``out_dir`` created.
+
+    A one-line :class:`evoscen_sim.errors.InputError` before anything is written: ``build()``'s own, or
+    ``out_dir`` cannot be created (the script says it and exits with ``EXIT_BAD_INPUT``).
+    """
+    from evoscen_sim.errors import InputError
+
+    built = build()
     try:
-        built = build()
         out_dir.mkdir(parents=True, exist_ok=True)
-    except InputError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return None
     except OSError as exc:
-        print(f"error: --out {out_dir}: cannot create: {exc.strerror or exc}", file=sys.stderr)
-        return None
+        raise InputError(f"--out {out_dir}: cannot create: {exc.strerror or exc}") from None
     return built
 
 

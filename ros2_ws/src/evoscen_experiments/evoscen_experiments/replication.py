@@ -1,7 +1,7 @@
 """Statistics that replicate: seed blocks, detection per block, applicability, pairwise verdicts, Kendall τ.
 
-Pure functions over per-seed values (no simulation here), used by ``scripts/experiment_sensitivity.py``
-and ``scripts/leaderboard.py`` (docs/sensitivity.md "Seed blocks", docs/experiments.md §4).
+Pure functions over per-seed values (no simulation here), used by :mod:`evoscen_experiments.sensitivity_tables`
+and :mod:`evoscen_experiments.leaderboard` (docs/sensitivity.md "Seed blocks", docs/experiments.md §4).
 
 * **seed blocks** — an experiment's seeds in disjoint, contiguous blocks (:func:`parse_seed_blocks`,
   :func:`consecutive_blocks`); every figure is computed per block as well, so a reader sees whether

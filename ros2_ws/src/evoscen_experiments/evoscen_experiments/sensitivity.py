@@ -25,7 +25,7 @@ same SUT steps per variant), :func:`summarise_design` a scenario's detection und
 :func:`sharper_design` the comparison's verdict.
 
 Pure functions over per-seed values (no simulation here); the experiment is
-``scripts/experiment_sensitivity.py``.
+:mod:`evoscen_experiments.sensitivity_experiment`.
 """
 
 from __future__ import annotations

@@ -1,0 +1,484 @@
+"""The planner leaderboard (docs/experiments.md §4): every installed SUT in the default test, ranked.
+
+``scripts/leaderboard.py`` parses the command line and calls :func:`main`: the SUTs (:func:`resolve_suts`),
+the seed blocks (:func:`resolve_blocks`) and the reference mutants (:func:`resolve_mutant_refs`) checked,
+one round per SUT and episode run on the campaign engine, then the ranked table (:func:`ranked_rows`), every
+term (:func:`term_rows`), every pair (:func:`pair_rows`), the order per seed block with Kendall's τ
+(:func:`block_orders`), the surrogate-safety table and the plot, written into ``--out`` and printed. The
+score ranked by is the one ``evaluation.score_form`` selects (the comparative score D by default,
+docs/evaluation.md §10); SUTs whose runs fail are listed as failed, not ranked.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+from evoscen_sim.errors import InputError
+
+from evoscen_experiments.experiments import distinct_names, positive_int
+from evoscen_experiments.sensitivity import SSM_RATES, score_of, ssm_label, ssm_rate
+from evoscen_experiments.stats import fmt_ci, markdown_table, mean_ci
+
+BLOCKS, BLOCK_SIZE, EPISODE_STEPS, FIRST_SEED = "2", "100", "300", "20000"
+"""The defaults: 2 blocks of 100 episodes of 300 steps per SUT on seeds 20000..20199 (docs/experiments.md §4: the
+built-ins and both example plug-ins, 1,200 runs, took 7 min 36 s on 2 cores; the budget is 20 minutes); two
+blocks so that the order's agreement between disjoint seeds (Kendall τ) is measured."""
+REFERENCE = "mobil"
+MUTANT_REFS = "timid,frozen"
+"""The reference mutants ranked beside the SUTs (docs/experiments.md §4 "References"): a planner that gives away
+progress and one that never changes lanes by choice, both of ``--mutant-base``."""
+TERMS = ("safety", "efficiency", "interaction")
+METHOD_TERMS = (("I", "intelligence"), ("I_s", "safety"), ("I_e", "efficiency"), ("I_i", "interaction"))
+"""The method's score and its sub-scores (the report's sections' ``score``; docs/evaluation.md §1)."""
+COMPARATIVE_TERMS = (("D", ("score",)), ("S", ("safety", "score")), ("P", ("progress", "score")),
+                     ("L", ("lane_change_time", "score")), ("X", ("interaction", "score")))
+"""The comparative score and its terms (the report's ``comparative`` section; docs/evaluation.md §10)."""
+TERM_NAMES = [n for n, _ in COMPARATIVE_TERMS] + [n for n, _ in METHOD_TERMS]
+
+
+def installed_suts() -> list[str]:
+    """Every SUT model installed, in registration order (built-ins, then plug-ins), without the mutant wrapper."""
+    from evoscen_sim import model_registry as models
+    from evoscen_sut.mutant import NAME as MUTANT
+
+    models.discover()
+    return [name for name in models.SUT_MODELS if name != MUTANT]
+
+
+def resolve_suts(text: str, reference: str) -> list[str]:
+    """The SUTs of ``--suts`` (InputError of one line: unknown, twice, the mutant wrapper, no reference)."""
+    installed = installed_suts()
+    suts = installed if text.strip() == "all" else distinct_names("--suts", text, "SUT model names")
+    for name in suts:
+        if name not in installed:
+            raise InputError(f"--suts: {name!r} is no installed SUT model to rank: expected 'all' or names from "
+                             f"{', '.join(installed)}")
+    if reference not in suts:
+        raise InputError(f"--reference {reference!r} is not among the SUTs ranked ({', '.join(suts)})")
+    return suts
+
+
+def resolve_blocks(args) -> list:
+    """The seed blocks (:class:`evoscen_experiments.replication.SeedBlock`) of the parsed options (text values):
+    ``--seed-blocks``, or ``--episodes`` (one block), or ``--blocks`` × ``--block-size`` from ``--first-seed``
+    (InputError of one line on a bad value or a mix)."""
+    from evoscen_experiments.replication import consecutive_blocks, parse_seed_blocks
+
+    first = positive_int("--first-seed", args.first_seed, 0)
+    if args.seed_blocks is not None:
+        other = [f for f, v in (("--episodes", args.episodes), ("--blocks", args.blocks),
+                                ("--block-size", args.block_size)) if v is not None]
+        if other or args.first_seed != FIRST_SEED:
+            raise InputError(f"--seed-blocks and {other[0] if other else '--first-seed'} together: the blocks "
+                             f"name their seeds")
+        return parse_seed_blocks(args.seed_blocks)
+    if args.episodes is not None:
+        if args.blocks is not None or args.block_size is not None:
+            raise InputError(f"--episodes and {'--blocks' if args.blocks is not None else '--block-size'} together: "
+                             f"--episodes is one block")
+        return consecutive_blocks(first, 1, positive_int("--episodes", args.episodes))
+    return consecutive_blocks(first, positive_int("--blocks", args.blocks or BLOCKS),
+                              positive_int("--block-size", args.block_size or BLOCK_SIZE))
+
+
+def resolve_mutant_refs(text: str, base: str, suts: list[str]) -> list[str]:
+    """The reference mutants of ``--mutant-refs`` ('none': none); each must be in the library and apply to
+    ``base``, which must be among ``suts`` (InputError of one line)."""
+    from evoscen_sut.mutants import LIBRARY, mutants_for
+
+    if text.strip() == "none":
+        return []
+    names = distinct_names("--mutant-refs", text, "mutant names")
+    if base not in suts:
+        raise InputError(f"--mutant-base {base!r} is not among the SUTs ranked ({', '.join(suts)})")
+    for name in names:
+        if name not in LIBRARY:
+            raise InputError(f"--mutant-refs: unknown mutant {name!r}: expected 'none' or names from "
+                             f"{', '.join(LIBRARY)}")
+        if name not in mutants_for(base):
+            raise InputError(f"--mutant-refs: {name!r} does not apply to --mutant-base {base!r} (docs/mutants.md)")
+    return names
+
+
+def ref_label(mutant: str, base: str) -> str:
+    """The leaderboard's name of a reference mutant: ``timid(mobil)``."""
+    return f"{mutant}({base})"
+
+
+def term_values(report: dict) -> dict[str, float]:
+    """Every term of both scores of one ``report.json`` dict (``nan`` where undefined or absent)."""
+    out = {}
+    comp = report.get("comparative") or {}
+    for name, path in COMPARATIVE_TERMS:
+        v = comp
+        for k in path:
+            v = (v or {}).get(k) if isinstance(v, dict) else None
+        out[name] = math.nan if v is None else float(v)
+    for name, section in METHOD_TERMS:
+        v = (report.get(section) or {}).get("score")
+        out[name] = math.nan if v is None else float(v)
+    return out
+
+
+def ranked(means: dict[str, float]) -> list[str]:
+    """SUT names by mean intelligence, highest first; ties (and nan, last) by name."""
+    return sorted(means, key=lambda s: (math.isnan(means[s]), -means[s] if not math.isnan(means[s]) else 0.0, s))
+
+
+def block_orders(values: dict[str, dict[int, float]], blocks: list, names: list[str]) -> tuple[list, list]:
+    """Per block the mean score of each of ``names`` (SUT -> seed -> score) and its rank in that block, and
+    Kendall's τ-b between every two blocks. Returns (per-block rows [block, sut, mean, rank], τ rows
+    [block a, block b, τ, concordant, discordant, n])."""
+    from evoscen_experiments.replication import kendall_tau, restrict
+
+    means = []
+    for b in blocks:
+        m = {}
+        for name in names:
+            vals = [v for v in restrict(values[name], b).values() if not math.isnan(v)]
+            m[name] = sum(vals) / len(vals) if vals else math.nan
+        means.append(m)
+    rows = []
+    for b, m in zip(blocks, means):
+        order = ranked(m)
+        rows += [[b.label, name, m[name], order.index(name) + 1] for name in names]
+    taus = []
+    for i in range(len(blocks)):
+        for j in range(i + 1, len(blocks)):
+            tau, c, d, n = kendall_tau(means[i], means[j])
+            taus.append([blocks[i].label, blocks[j].label, tau, c, d, n])
+    return rows, taus
+
+
+def term_rows(terms: dict[str, dict[int, dict[str, float]]], order: list[str]) -> tuple[list, list]:
+    """Per SUT (in ``order``) every term of both scores (``terms``: SUT -> seed -> term -> value), mean ± 95 %
+    interval over the episodes where it is defined, and that n. Returns Markdown rows and CSV rows."""
+    md, rows = [], []
+    for sut in order:
+        cells, values = [], []
+        for name in TERM_NAMES:
+            vals = [t[name] for t in terms[sut].values() if not math.isnan(t[name])]
+            mean, half = mean_ci(vals)
+            cells.append(f"{fmt_ci(mean, half, 3)}" + ("" if len(vals) == len(terms[sut]) else f" (n {len(vals)})"))
+            values += [mean, half, len(vals)]
+        md.append([sut, *cells, str(len(terms[sut]))])
+        rows.append([sut, *values])
+    return md, rows
+
+
+def pair_rows(values: dict[str, dict[int, float]], order: list[str]) -> tuple[list, list, list]:
+    """Every pair of SUTs (a ranked above b): a − b paired by episode, mean ± 95 % interval, n and the words
+    (:func:`evoscen_experiments.replication.pairwise`). Returns Markdown rows, CSV rows and the significant
+    pairs as sentences."""
+    from evoscen_experiments.replication import pairwise
+
+    md, rows, sig = [], [], []
+    for p in pairwise(order, values):
+        d = p.diff
+        md.append([p.a, p.b, fmt_ci(d.mean, d.half), str(d.n), p.words])
+        rows.append([p.a, p.b, d.mean, d.half, d.n, p.words])
+        if p.significant:
+            sig.append(f"{p.a} {p.words} than {p.b} ({fmt_ci(d.mean, d.half)}, n {d.n})")
+    return md, rows, sig
+
+
+def _build(args):
+    """The planners, the reference mutants' names, the rounds (one per SUT and episode), the seed blocks, the
+    steps per episode and the workers of the parsed options."""
+    from evoscen_experiments.experiments import Round, config_loader
+    from evoscen_sut.mutants import mutant_overrides
+
+    blocks = resolve_blocks(args)
+    steps = positive_int("--episode-steps", args.episode_steps)
+    jobs = positive_int("--jobs", args.jobs)
+    planners = resolve_suts(args.suts, args.reference)
+    refs = resolve_mutant_refs(args.mutant_refs, args.mutant_base, planners)
+    load = config_loader(args.config)
+    seeds = [s for b in blocks for s in b.seeds]
+    common = {"steps": str(steps), "recording.enabled": "false"}
+    rounds = [Round(sut, load({"sut.model": sut, "seed": str(seed), **common}))
+              for sut in planners for seed in seeds]
+    rounds += [Round(ref_label(m, args.mutant_base),
+                     load({**mutant_overrides(args.mutant_base, m), "seed": str(seed), **common}))
+               for m in refs for seed in seeds]
+    return planners, [ref_label(m, args.mutant_base) for m in refs], rounds, blocks, steps, jobs
+
+
+@dataclass
+class Board:
+    """A finished leaderboard's rounds and what is ranked: the SUTs that ran (``ok``), their reports and
+    intelligence per episode seed, its mean ± 95 % interval, the order, and the failed SUTs."""
+
+    args: object
+    planners: list
+    ref_names: list
+    rounds: list
+    blocks: list
+    steps: int
+    results: dict
+    failed: dict
+    """SUT -> (failed episodes, first error)."""
+
+    def __post_init__(self) -> None:
+        self.suts = self.planners + self.ref_names
+        self.episodes = sum(b.size for b in self.blocks)
+        self.ok = [s for s in self.suts if s not in self.failed]
+        self.reports = {s: {r.cfg.seed: self.results[r.key]["report"] for r in self.rounds if r.label == s}
+                        for s in self.ok}
+        self.intel = {s: {seed: score_of(rep, "intelligence") for seed, rep in self.reports[s].items()}
+                      for s in self.ok}
+        self.stats = {s: mean_ci([v for v in self.intel[s].values() if not math.isnan(v)]) for s in self.ok}
+        self.order = ranked({s: self.stats[s][0] for s in self.ok})
+        self.ref = self.args.reference if self.args.reference in self.ok else None
+
+
+def failed_suts(rounds: list, failures: dict[str, str]) -> dict[str, tuple[int, str]]:
+    """SUT -> (failed episodes, first error) from the failed rounds' errors by key."""
+    failed: dict[str, tuple[int, str]] = {}
+    for rnd in rounds:
+        if rnd.key in failures:
+            count, first_error = failed.get(rnd.label, (0, failures[rnd.key]))
+            failed[rnd.label] = (count + 1, first_error)
+    return failed
+
+
+def main(args, argv: list[str]) -> int:
+    """The leaderboard of the parsed options (``scripts/leaderboard.py``; text values, checked here; ``argv``:
+    the command line, quoted in ``leaderboard.md``): the rounds run (or read back), the tables written into
+    ``args.out`` and printed. Returns the exit status; InputError (one line) on bad input, before anything is
+    written."""
+    from evoscen_experiments.experiments import run_rounds_with_bar, set_up
+
+    planners, ref_names, rounds, blocks, steps, jobs = set_up(args.out, lambda: _build(args))
+    failures: dict[str, str] = {}
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="leaderboard", failures=failures)
+    if results is None:
+        return EXIT_INTERRUPTED
+    board = Board(args, planners, ref_names, rounds, blocks, steps, results, failed_suts(rounds, failures))
+    table, ssm_table, plot_rows = ranked_tables(board)
+    write_episodes(board)
+    verdict, terms_table, significant, tau_text = replication_tables(board)
+    text = markdown_text(board, table, verdict, ssm_table, argv)
+    (args.out / "leaderboard.md").write_text(text, encoding="utf-8")
+    if plot_rows:
+        plot(args.out / "leaderboard.png", plot_rows, args.reference if board.ref else None)
+    print(table, end="")
+    print("\n" + terms_table, end="")
+    print("\nsignificant pairs: " + ("; ".join(significant) if significant else "none"))
+    print(f"order between blocks: {tau_text}")
+    if ssm_table:
+        print("\n" + ssm_table, end="")
+    for sut, (count, error) in board.failed.items():
+        print(f"failed: {sut}: {count}/{board.episodes} episodes: {error}", file=sys.stderr)
+    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv, terms.csv, pairs.csv, blocks.csv, "
+          f"kendall.csv"
+          + (", leaderboard.png" if plot_rows else ""))
+    return EXIT_OK
+
+
+def _weighted(rep: dict, term: str) -> float:
+    """A weighted term of the compared score (``evaluation.score_form``; nan where undefined)."""
+    from evoscen_eval.scoring.metrics import compared_weighted
+
+    value = compared_weighted(rep).get(term)
+    return math.nan if value is None else float(value)
+
+
+def _ci(values) -> tuple[float, float]:
+    return mean_ci([v for v in values if not math.isnan(v)])
+
+
+def _against_reference(board: Board, sut: str):
+    """The paired difference of ``sut`` against the reference: None without a reference, the word for the
+    reference itself, else a :class:`~evoscen_experiments.sensitivity.Paired`."""
+    from evoscen_experiments.sensitivity import paired
+
+    if board.ref is None:
+        return None
+    if sut == board.ref:
+        return "reference"
+    return paired(board.intel[sut], board.intel[board.ref])
+
+
+def ranked_rows(board: Board) -> tuple[list, list, list, list]:
+    """The ranked SUTs' rows, then the failed ones': Markdown rows and CSV rows of the leaderboard, the
+    surrogate-safety rows and the plot's rows."""
+    from evoscen_experiments.stats import difference_words
+
+    rows, csv_rows, ssm_rows, plot_rows = [], [], [], []
+    for rank, sut in enumerate(board.order, 1):
+        reps = list(board.reports[sut].values())
+        terms = [_ci(_weighted(x, t) for x in reps) for t in TERMS]
+        col = _ci(float(x["safety"]["collisions"]) for x in reps)
+        exp = _ci(float(x["safety"]["exposures"]) for x in reps)
+        rates = [_ci(ssm_rate(x, side, m) for x in reps) for side, m in SSM_RATES]
+        d = _against_reference(board, sut)
+        if isinstance(d, str) or d is None:
+            d_text, sig_text, d_csv, sig = ("reference" if d else "–"), "–", [math.nan, math.nan, 0], ""
+        else:
+            sig = d.n >= 2 and math.isfinite(d.half) and abs(d.mean) > d.half
+            d_text = fmt_ci(d.mean, d.half)
+            sig_text = difference_words(d.mean, d.half, d.n)
+            d_csv, sig = [d.mean, d.half, d.n], int(sig)
+        rows.append([str(rank), sut, fmt_ci(*board.stats[sut]), *(fmt_ci(*t) for t in terms), d_text, sig_text,
+                     fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
+        csv_rows.append([rank, sut, "ok", *board.stats[sut], *(v for t in terms for v in t), *d_csv, sig,
+                         *col, *exp, len(reps), *(v for r in rates for v in r), ""])
+        ssm_rows.append([str(rank), sut, *(fmt_ci(*r, 2) for r in rates), str(len(reps))])
+        plot_rows.append((sut, board.stats[sut], None if isinstance(d, str) or d is None else d))
+    width = len(csv_header(board.args.reference))
+    for sut in board.suts:
+        if sut in board.failed:
+            count, error = board.failed[sut]
+            rows.append(["–", sut, f"failed ({count}/{board.episodes} episodes): {error}", *["–"] * 3, "–", "–", "–",
+                         "–", "–"])
+            csv_rows.append(["", sut, "failed", *[""] * (width - 4), f"{count}/{board.episodes} episodes: {error}"])
+    return rows, csv_rows, ssm_rows, plot_rows
+
+
+def csv_header(reference: str) -> list[str]:
+    """The columns of ``leaderboard.csv``."""
+    return ["rank", "sut", "status", "intelligence_mean", "intelligence_ci95",
+            *(f"{t}_weighted_{s}" for t in TERMS for s in ("mean", "ci95")),
+            f"d_intelligence_vs_{reference}_mean", f"d_intelligence_vs_{reference}_ci95", "paired_n",
+            "significant", "collisions_mean", "collisions_ci95", "exposures_mean", "exposures_ci95", "episodes",
+            *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "error"]
+
+
+def ranked_tables(board: Board) -> tuple[str, str, list]:
+    """``leaderboard.csv`` written; the ranked table and the surrogate-safety table (Markdown; the latter empty
+    when no SUT ran) and the plot's rows."""
+    from evoscen_experiments.experiments import write_csv
+
+    reference = board.args.reference
+    rows, csv_rows, ssm_rows, plot_rows = ranked_rows(board)
+    write_csv(board.args.out / "leaderboard.csv", csv_header(reference), csv_rows)
+    header = ["rank", "SUT", "intelligence", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)",
+              f"ΔI = SUT − {reference} (paired)", f"SUT vs {reference} (95 %)", "collisions / episode",
+              "exposures / episode", "n"]
+    first_report = next((board.results[r.key]["report"] for r in board.rounds if r.label in board.ok), None)
+    ssm_table = markdown_table(["rank", "SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "n"],
+                               ssm_rows) if ssm_rows else ""
+    return markdown_table(header, rows), ssm_table, plot_rows
+
+
+def write_episodes(board: Board) -> None:
+    """``episodes.csv``: every episode of every SUT that ran."""
+    from evoscen_experiments.experiments import write_csv
+
+    episode_rows = []
+    for rnd in board.rounds:
+        if rnd.label in board.failed:
+            continue
+        r = board.results[rnd.key]
+        x = r["report"]
+        episode_rows.append([rnd.label, r["seed"], r["steps"], score_of(x, "intelligence"),
+                             *(_weighted(x, t) for t in TERMS), *(score_of(x, t) for t in TERMS),
+                             x["safety"]["collisions"], x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"],
+                             r["wall_time_s"], *(ssm_rate(x, side, m) for side, m in SSM_RATES)])
+    write_csv(board.args.out / "episodes.csv",
+              ["sut", "seed", "steps", "intelligence", *(f"{t}_weighted" for t in TERMS), *TERMS, "collisions",
+               "exposures", "mean_speed_mps", "wall_time_s", *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES)],
+              episode_rows)
+
+
+def replication_tables(board: Board) -> tuple[str, str, list[str], str]:
+    """Every term, every pair and the order per block (docs/experiments.md §4): ``terms.csv``, ``pairs.csv``,
+    ``blocks.csv``, ``kendall.csv`` written; returns their section of ``leaderboard.md``, the terms table, the
+    significant pairs and the agreement between blocks in words."""
+    from evoscen_experiments.experiments import write_csv
+
+    out, blocks = board.args.out, board.blocks
+    terms = {s: {seed: term_values(rep) for seed, rep in board.reports[s].items()} for s in board.ok}
+    t_md, t_rows = term_rows(terms, board.order)
+    write_csv(out / "terms.csv", ["sut", *(f"{n}_{k}" for n in TERM_NAMES for k in ("mean", "ci95", "n"))], t_rows)
+    p_md, p_rows, significant = pair_rows(board.intel, board.order)
+    write_csv(out / "pairs.csv", ["a", "b", "d_intelligence_mean", "d_intelligence_ci95", "n", "a_vs_b"], p_rows)
+    ranked_planners = [s for s in board.order if s in board.planners]
+    b_rows, taus = block_orders(board.intel, blocks, ranked_planners)
+    write_csv(out / "blocks.csv", ["block", "sut", "intelligence_mean", "rank"], b_rows)
+    write_csv(out / "kendall.csv", ["block_a", "block_b", "tau_b", "concordant", "discordant", "n"], taus)
+    terms_table = markdown_table(["SUT", *TERM_NAMES, "episodes"], t_md)
+    pairs_table = markdown_table(["a", "b", "ΔI = a − b (paired, 95 %)", "n", "a vs b"], p_md)
+    block_table = markdown_table(["SUT", *(f"block {b.label}: I (rank)" for b in blocks)],
+                                 [[sut, *(f"{r[2]:.3f} ({r[3]})" for b in blocks for r in b_rows
+                                          if r[0] == b.label and r[1] == sut)] for sut in ranked_planners])
+    tau_text = ("; ".join(f"blocks {a} and {b}: τ = {t:.2f} ({c} concordant, {d} discordant pairs of {n} SUTs)"
+                          for a, b, t, c, d, n in taus) if taus else
+                "one block: no agreement between blocks measured (give --blocks 2 or more)")
+    verdict = (f"## Every term\n\nThe comparative score D and its terms S, P, L, X (docs/evaluation.md §10) and the "
+               f"method's I, I_s, I_e, I_i (§1), unweighted, mean ± 95 % interval over the episodes (n where a term "
+               f"is undefined in some):\n\n{terms_table}\n## Pairs\n\nEvery pair, a ranked above b: ΔI = a − b "
+               f"paired by episode over all blocks, 95 % Student-t interval, n episodes. Significant: "
+               + ("; ".join(significant) if significant else "none") + f".\n\n{pairs_table}\n"
+               f"## Does the order replicate?\n\nThe planners' mean intelligence and rank per seed block; Kendall's "
+               f"τ-b between the blocks' orders (1: the same order, −1: reversed): {tau_text}.\n\n{block_table}\n")
+    return verdict, terms_table, significant, tau_text
+
+
+def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: list[str]) -> str:
+    """``leaderboard.md``: the set-up in words, the ranked table, the replication sections, the surrogate-safety
+    table, the plot and the command that made it."""
+    args, results, rounds = board.args, board.results, board.rounds
+    cfg0 = rounds[0].cfg
+    wall = sum(results[r.key]["wall_time_s"] for r in rounds if r.key in results)
+    simulated = sum(results[r.key]["report"]["run"]["duration_s"] for r in rounds if r.key in results)
+    ref_note = (f"ΔI = SUT − {args.reference}: the SUT's intelligence minus {args.reference}'s on the same episodes, "
+                "mean ± 95 % interval of the per-episode difference; 'significantly higher' ('lower') when the whole "
+                "interval lies above (below) 0, else 'no significant difference'. The safety, efficiency and "
+                "interaction columns are the weighted terms (weight × score), which sum to the intelligence."
+                if board.ref else f"The reference {args.reference} failed: no paired differences.")
+    refs_text = (f" References: {', '.join(board.ref_names)}, mutants of {args.mutant_base} (docs/mutants.md), ranked "
+                 f"beside the planners and left out of the agreement between blocks." if board.ref_names else "")
+    blocks_text = ", ".join(b.label for b in board.blocks)
+    return (f"# Planner leaderboard\n\n{len(board.suts)} SUTs x {board.episodes} episodes (seed blocks {blocks_text}) "
+            f"x {board.steps} steps, after a warm-up of {cfg0.traffic.warmup_s:g} s, among {cfg0.bvs.count} BVs "
+            f"({cfg0.bvs.driver}); weights {cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
+            f"{cfg0.evaluation.weight_interaction:g}; mean ± 95 % interval over the episodes; ranked by mean "
+            f"intelligence.{refs_text} {ref_note} {simulated:,.0f} s simulated (scored states of all episodes), "
+            f"{wall:,.0f} s wall time in all.\n\n{table}\n{verdict}\n"
+            + (f"Surrogate safety per SUT-km (docs/evaluation.md §9; front: the SUT behind its leader, rear: its "
+               f"follower behind it), mean ± 95 % interval over the episodes:\n\n{ssm_table}\n" if ssm_table else "")
+            + "![leaderboard](leaderboard.png)\n\nMade by:\n\n    python scripts/leaderboard.py "
+            + " ".join(argv) + "\n")
+
+
+def plot(path: Path, rows, reference: str | None) -> None:
+    """Per SUT (ranked, top first): intelligence with its 95 % interval; beside it the paired
+    difference against the reference with its interval (green/red: significantly higher/lower)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = 2 if reference else 1
+    fig, axes = plt.subplots(1, panels, figsize=(5.0 * panels, 0.45 * len(rows) + 1.6), sharey=True, squeeze=False)
+    ys = range(len(rows))
+    ax = axes[0][0]
+    for y, (_sut, (mean, half), _d) in zip(ys, rows):
+        h = 0.0 if math.isnan(half) else half
+        ax.errorbar([mean], [y], xerr=[[h], [h]], fmt="o", color="tab:blue", capsize=3)
+    ax.set_yticks(list(ys), [r[0] for r in rows])
+    ax.invert_yaxis()
+    ax.set_xlabel("intelligence (mean, 95 % CI)")
+    ax.set_title("Leaderboard", fontsize=10)
+    if reference:
+        ax = axes[0][1]
+        for y, (_sut, _s, d) in zip(ys, rows):
+            if d is None:
+                ax.plot([0.0], [y], "D", color="k")
+                continue
+            h = 0.0 if math.isnan(d.half) else d.half
+            sig = d.n >= 2 and math.isfinite(d.half) and abs(d.mean) > d.half
+            color = ("tab:green" if d.mean > 0 else "tab:red") if sig else "tab:gray"
+            ax.errorbar([d.mean], [y], xerr=[[h], [h]], fmt="o", color=color, capsize=3)
+        ax.axvline(0.0, color="k", lw=0.8)
+        ax.set_xlabel(f"ΔI = SUT − {reference}, paired by episode (95 % CI)")
+        ax.set_title(f"Against {reference}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
