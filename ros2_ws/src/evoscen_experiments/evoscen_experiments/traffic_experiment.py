@@ -112,8 +112,11 @@ def main(args) -> int:
     out, early, bv_hours = figures(args.sut, runs, steps, overrides)
     print(f"SUT {args.sut}, {seeds} seeds from {first}, {steps} steps" + (f", {overrides}" if overrides else ""))
     print("BVs within ±100 m per 30-s window (mean over seeds): " + ", ".join(f"{x:.1f}" for x in out["per_window_mean_bvs"]))
-    print(f"lowest window mean: {out['min_window_mean_bvs']:.1f}; mean of the window means: "
-          f"{out['mean_window_mean_bvs']:.1f}; lowest window of any single run: {out['min_window_any_run_bvs']:.1f}")
+    if out["min_window_mean_bvs"] is None:  # a run shorter than one window has no window figures
+        print(f"no complete 30-s window: a run of {steps} steps is shorter than one")
+    else:
+        print(f"lowest window mean: {out['min_window_mean_bvs']:.1f}; mean of the window means: "
+              f"{out['mean_window_mean_bvs']:.1f}; lowest window of any single run: {out['min_window_any_run_bvs']:.1f}")
     print(f"SUT jumps: {out['sut_jumps']}")
     share = out["exposures_first_10pct_share"]
     print(f"SUT exposures: {out['exposures']}, in the first 10 % of the run: {early}"

@@ -111,3 +111,18 @@ def test_exposures_by_rule_table() -> None:
     assert cells[2 + RULES.index("cut_in")] == f"2.000 ± {half:.3f}"
     assert cells[2 + RULES.index("rear")] == "0.000 ± 0.000"
     assert cells[-2] == f"0.500 ± {T975_DF1 * 0.5:.3f}"
+
+
+def test_traffic_experiment_shorter_than_one_window_says_so(capsys):
+    """A run shorter than one 30-s window has no window figures: the experiment says so in one line
+    instead of failing on the missing figures."""
+    import argparse
+
+    from evoscen_experiments import traffic_experiment
+
+    args = argparse.Namespace(sut="mobil", seeds="1", first_seed="60000", steps="50", config=None, set=[],
+                              compare_steps=None, json=None)
+    assert traffic_experiment.main(args) in (0, None)
+    out = capsys.readouterr().out
+    assert "no complete 30-s window: a run of 50 steps is shorter than one" in out
+    assert "lowest window mean" not in out
