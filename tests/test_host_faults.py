@@ -450,8 +450,7 @@ def ext4_fs(tmp_path: Path):
     fault campaign's own helpers make it and, later, make it read-only."""
     if not _can_mount() or shutil.which("mkfs.ext4") is None:
         pytest.skip("needs root and mkfs.ext4 to mount an ext4 image")
-    sys.path.insert(0, str(REPO / "scripts"))
-    from host_faults import mount_ext4
+    from evoscen_experiments.host_faults import mount_ext4
 
     mnt = tmp_path / "ext4"
     why = mount_ext4(mnt, tmp_path / "ext4.img")
@@ -470,7 +469,7 @@ def test_cli_output_made_read_only_mid_run(tmp_path: Path, ext4_fs: Path, refere
     as on an I/O error; root cannot write either): status 5, one line naming the bag file and EROFS,
     the bag, which cannot be finished there, rebuilt from a copy by reindex.py holds exactly the
     world states the line names, the undisturbed run's first N byte for byte."""
-    from host_faults import make_read_only
+    from evoscen_experiments.host_faults import make_read_only
 
     out = ext4_fs / "run"
     bag = out / "bag"

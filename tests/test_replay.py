@@ -370,15 +370,8 @@ def test_a_replay_nobody_received_is_status_1(error_runs, recorded) -> None:
 
 def test_topics_nobody_received_are_a_warning(capsys) -> None:
     """Some topics without a subscriber (a viewer that reads a few): one warning naming them, status 0."""
-    import importlib.util
+    from evoscen_eval.scenes import replay_wire as module
 
-    sys.path.insert(0, str(REPO / "scripts"))
-    try:
-        spec = importlib.util.spec_from_file_location("evoscen_replay_cli_status", REPO / REPLAY)
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(REPO / "scripts"))
     assert module.unheard_status(["/clock", "/evoscen/events", "/evoscen/world"], {"/evoscen/world"}, 30) == 0
     assert capsys.readouterr().err == ("warning: no subscriber matched /clock, /evoscen/events while they were "
                                        "replayed: their messages reached nobody\n")

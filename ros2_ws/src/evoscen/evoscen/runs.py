@@ -2,8 +2,9 @@
 
 :func:`run_scenario` is ``scripts/run_scenario.py`` without the command line: the same checks (the
 whole scenario validated before the output directory is touched, a bag replaced only with
-``overwrite``), the same runners, the same bytes. :func:`score_bag` is ``scripts/evaluate.py``'s
-scoring: the report a run's evaluator writes, from its bag alone.
+``overwrite``), the same runners and output directory (:mod:`evoscen_bringup.runs`), the same bytes.
+:func:`score_bag` is ``scripts/evaluate.py``'s scoring: the report a run's evaluator writes, from its
+bag alone.
 
 Errors are the project's: :class:`~evoscen_sim.errors.InputError` for bad input (one line naming the
 key, file or argument), :class:`~evoscen_sim.errors.PluginFault` for a plug-in that raised,
@@ -71,27 +72,16 @@ def run_scenario(scenario: str | Path | None = None, overrides: Mapping[str, obj
     return _inprocess(cfg, out, evaluate=evaluate, plots=plots, overwrite=overwrite)
 
 
-def _written(cfg: Any, out: Path, bag_dir: Path | None, report_dir: Path | None, overwrite: bool) -> None:
-    from evoscen_bringup.output import prepare_output
-    from evoscen_sim.config.scenario_config import dump_config
-    from evoscen_sim.errors import HostFault
-
-    prepare_output(out, bag_dir, report_dir, overwrite=overwrite)
-    try:
-        dump_config(cfg, out / "scenario.yaml")
-    except OSError as exc:
-        raise HostFault.of(exc, out / "scenario.yaml") from None
-
-
 def _inprocess(cfg: Any, out: Path | None, *, evaluate: bool, plots: bool, overwrite: bool = False) -> RunResult:
     from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_bringup.runs import write_output
     from evoscen_bringup.scenario import build_scenario
 
     bag_dir = out / "bag" if out is not None and cfg.recording.enabled else None
     report_dir = out / "report" if out is not None and evaluate else None
     scenario = build_scenario(cfg, partitioned=bag_dir is not None)  # as run_scenario.py builds it
     if out is not None:
-        _written(cfg, out, bag_dir, report_dir, overwrite)
+        write_output(cfg, out, bag_dir, report_dir, overwrite=overwrite)
     summary = run_inprocess(cfg, bag_dir=bag_dir, scenario=scenario, report_dir=report_dir,
                             evaluate=evaluate, plots=plots)
     return RunResult(status=0, runner="inprocess", steps=summary.steps, wall_time_s=summary.wall_time_s,
@@ -99,24 +89,16 @@ def _inprocess(cfg: Any, out: Path | None, *, evaluate: bool, plots: bool, overw
 
 
 def _graph(cfg: Any, out: Path, *, overwrite: bool, evaluate: bool, plots: bool, domain_id: int | None) -> RunResult:
-    from evoscen_bringup.domains import reserve_domain
-    from evoscen_bringup.graph_runner import GraphOptions, run_graph
-    from evoscen_record.bag_reader import open_bag_reader
+    from evoscen_bringup.runs import run_graph_into, steps_of, topic_counts
 
     if not cfg.recording.enabled:
         raise InputError("runner 'graph' always records (its evaluator node is part of the graph): "
                          "drop recording.enabled: false, or use runner='inprocess'")
     bag_dir = out / "bag"
     report_dir = out / "report" if evaluate else None
-    with reserve_domain(domain_id) as domain:
-        _written(cfg, out, bag_dir, report_dir, overwrite)
-        result = run_graph(cfg, out, bag_dir, GraphOptions(domain_id=domain, report_dir=report_dir,
-                                                          report_plots=plots))
-    steps = 0
-    if any(bag_dir.glob("*.mcap")):
-        from evoscen_contract.contract import TOPIC_WORLD
-
-        steps = max(sum(1 for topic, *_ in open_bag_reader(bag_dir) if topic == TOPIC_WORLD) - 1, 0)
+    result = run_graph_into(cfg, out, bag_dir, report_dir, domain_id=domain_id, overwrite=overwrite,
+                            report_plots=plots)
+    steps = steps_of(topic_counts(bag_dir)) if any(bag_dir.glob("*.mcap")) else 0
     report = None
     if report_dir is not None and result.status == 0 and (report_dir / "report.json").is_file():
         report = json.loads((report_dir / "report.json").read_text(encoding="utf-8"))

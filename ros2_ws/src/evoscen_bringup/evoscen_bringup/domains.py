@@ -45,6 +45,8 @@ AUTO_DOMAINS = range(1, 101)
 
 RESERVED_ENV = "EVOSCEN_DOMAIN_RESERVED"
 """Environment variable: the domain the launcher's caller has reserved for it (see module doc)."""
+DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
+"""The ROS_AUTOMATIC_DISCOVERY_RANGE a graph may run with (LOCALHOST unless asked: the domain is per host)."""
 
 
 def reserved_by_caller_env(domain: int) -> dict[str, str]:

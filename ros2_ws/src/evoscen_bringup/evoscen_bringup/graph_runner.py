@@ -61,7 +61,6 @@ NODES = (
 )
 BV_MODULE = "evoscen_bv.bv_node"
 """The program of every BV node; the launcher names each one (``-r __node:=evoscen_bv_<part>``)."""
-DISCOVERY_RANGES = ("LOCALHOST", "SUBNET", "SYSTEM_DEFAULT")
 STOP_GRACE_S = 5.0
 """How long nodes get to end by themselves when the run ended before step 0 or the simulation died."""
 SIM_STOP_ESCALATE_S = 3.0

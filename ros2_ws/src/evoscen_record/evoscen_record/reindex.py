@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from evoscen_contract import topics as T
+from evoscen_contract.contract import EXIT_OK
 from evoscen_sim.errors import InputError
 
 from .recorder import DEFAULT_CHUNK_SIZE, BagRecorder
@@ -193,6 +194,27 @@ def reindex_bag(bag: Path | str, *, keep_original: bool = True) -> ReindexResult
     result = _result(path, contents)
     _rewrite(path, contents, result, keep_original=keep_original)
     return result
+
+
+def recovered_lines(r: ReindexResult) -> list[str]:
+    """What a reindex recovered, as ``scripts/reindex.py`` prints it: messages, world states, chunks and
+    where reading stopped; the messages per topic; the bag (and the damaged file kept)."""
+    last = "-" if r.last_step_ns is None else f"{r.last_step_ns / 1e9:.1f} s"
+    return ([f"recovered {r.messages} messages, {r.steps} world states (last at {last}) from {r.chunks} chunks "
+             + ("(the file was complete)" if not r.stopped else f"(read stopped at: {r.stopped})")]
+            + [f"  {topic}: {n}" for topic, n in r.topic_counts.items()]
+            + [f"bag: {r.mcap_path.parent}" + (f"  (damaged file kept as {r.original.name})" if r.original else "")])
+
+
+def reindex_and_report(bag: Path, *, keep_original: bool = True) -> int:
+    """``scripts/reindex.py``: :func:`reindex_bag`, then print :func:`recovered_lines`; returns :data:`EXIT_OK`. A file
+    that cannot be read or written is a one-line InputError naming the bag too."""
+    try:
+        r = reindex_bag(bag, keep_original=keep_original)
+    except OSError as exc:
+        raise InputError(f"bag {str(bag)!r}: {exc.strerror or exc}") from None
+    print("\n".join(recovered_lines(r)))
+    return EXIT_OK
 
 
 def _compression_of(path: Path) -> str:

@@ -1,3 +1,4 @@
 """Scenes room of evoscen_eval: a run shown and exchanged — OpenSCENARIO and CommonRoad export and its
-read-back (``scenario_export``, ``xosc_readback``), critical-event clips (``clips``), the replay of a bag
-on the wire (``replay``). May import the scoring room, the recording, the simulation and the contract."""
+read-back (``scenario_export``, ``xosc_readback``; ``exports``: ranges and clips exported and checked),
+critical-event clips (``clips``), the replay of a bag on the wire (``replay``, its rclpy side
+``replay_wire``). May import the scoring room, the recording, the simulation and the contract."""

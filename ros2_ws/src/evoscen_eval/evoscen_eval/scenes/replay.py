@@ -17,7 +17,7 @@ without rclpy, so it can be validated before the middleware starts and tested al
   0 = as fast as possible).
 
 Everything that touches rclpy (message classes, publishers, matching, acks) lives in
-``scripts/replay.py``.
+:mod:`evoscen_eval.scenes.replay_wire`.
 """
 
 from __future__ import annotations

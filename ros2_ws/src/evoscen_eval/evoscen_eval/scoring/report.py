@@ -108,6 +108,15 @@ def score_line(report: dict[str, Any]) -> str:
             + f"  SUT collisions: {report['safety']['collisions']}  exposures: {report['safety']['exposures']}")
 
 
+def comparative_line(report: dict[str, Any]) -> str | None:
+    """The comparative score D and its terms in one line (docs/evaluation.md §10); None without one."""
+    d = report.get("comparative")
+    if not d:
+        return None
+    return (f"comparative: {d['score']:.4f} (progress {d['progress']['score']:.4f}, safety {d['safety']['score']:.4f}, "
+            f"lane-change time {d['lane_change_time']['score']:.4f}, interaction {d['interaction']['score']:.4f})")
+
+
 ANIMATION_FILE = "run.gif"
 """The report's bird's-eye animation (:mod:`evoscen_eval.scoring.animation`)."""
 

@@ -1,6 +1,7 @@
-"""Fuzzed inputs for the fault campaign (``fault_campaign.py``): the shipped scenario YAML, OpenDRIVE
-map, a bag, HighD recordings and CLI values, mutated by a seeded generator, each loaded in this
-process with a 20 s alarm; what each ended with (loaded, a one-line error, a traceback, a hang)."""
+"""Fuzzed inputs for the fault campaign (:mod:`evoscen_experiments.faults`): the shipped scenario YAML,
+OpenDRIVE map, a bag, HighD recordings and CLI values, mutated by a seeded generator, each loaded in
+this process with a 20 s alarm; what each ended with (loaded, a one-line error, a traceback, a hang).
+The command lines fuzzed are the scripts' ``main(argv)`` (:data:`CLIS`), handed in by the caller."""
 
 from __future__ import annotations
 
@@ -10,11 +11,13 @@ import os
 import re
 import shutil
 import signal
-import sys
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
-from fault_runs import SCRIPTS
+
+CLIS = ("run_scenario", "evaluate", "replay", "export_highd")
+"""The scripts whose ``main(argv)`` :func:`fuzz` calls with hostile values, in the order it draws them."""
 
 
 class _Alarm(Exception):
@@ -76,8 +79,9 @@ def _one_line_error(exc: BaseException) -> bool:
     return "\n" not in str(exc).strip() and bool(str(exc).strip())
 
 
-def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
-    """``n`` fuzzed inputs over the five input kinds; one dict per input."""
+def fuzz(n: int, rng: np.random.Generator, work: Path, clis: Mapping[str, Callable[[list[str]], int]]) -> list[dict]:
+    """``n`` fuzzed inputs over the five input kinds; one dict per input. ``clis``: the ``main(argv)`` of
+    each script of :data:`CLIS`, by name."""
     from evoscen_bringup.inprocess import run_inprocess
     from evoscen_bringup.scenario import build_scenario
     from evoscen_eval.naturalistic.highd import load_recording
@@ -91,14 +95,9 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
     base_bag = work / "fuzz-base" / "bag"
     run_inprocess(load_scenario_config(None, {"steps": 60, "seed": 1}), bag_dir=base_bag, evaluate=False)
     highd_dir = work / "fuzz-base" / "highd"
-    sys.path.insert(0, str(SCRIPTS))
-    import evaluate as evaluate_cli
-    import export_highd as export_cli
-    import replay as replay_cli
-    import run_scenario as run_cli
-
+    run_cli, evaluate_cli, replay_cli, export_cli = (clis[name] for name in CLIS)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        export_cli.main([str(base_bag), str(highd_dir), "--recording-id", "1"])
+        export_cli([str(base_bag), str(highd_dir), "--recording-id", "1"])
     highd_files = sorted(highd_dir.glob("*.csv"))
     hostile = ["0x10", "1e300", "-1", "nan", "", " ", "１２", "1_000", "9" * 30, "--", "-0", "inf", "\x00", "3.5"]
     kinds = ("config", "map", "bag", "highd", "cli")
@@ -135,7 +134,7 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
                             for _ in range(int(rng.integers(1, 16))):
                                 data[int(rng.integers(0, len(data)))] = int(rng.integers(0, 256))
                         target.write_bytes(bytes(data))
-                        code = evaluate_cli.main([str(bag), "--out", str(case / "report"), "--no-plots"])
+                        code = evaluate_cli([str(bag), "--out", str(case / "report"), "--no-plots"])
                         if code not in (0, 2):
                             outcome, detail = "bad-exit", f"evaluate.py exit {code}"
                     elif kind == "highd":
@@ -148,22 +147,22 @@ def fuzz(n: int, rng: np.random.Generator, work: Path) -> list[dict]:
                     else:
                         tool = int(rng.integers(0, 4))
                         tok = hostile[int(rng.integers(0, len(hostile)))]
-                        detail = f"tool {('run_scenario', 'evaluate', 'replay', 'export_highd')[tool]} value {tok!r}"
+                        detail = f"tool {CLIS[tool]} value {tok!r}"
                         if tool == 0:
                             flag = str(rng.choice(["--steps", "--seed", "--bvs", "--mix", "--sut", "--out"]))
                             argv = ["--mode", "inprocess", "--no-record", "--quiet", "--steps", "3",
                                     "--out", str(case / "o"), flag, tok]
-                            code = run_cli.main(argv)
+                            code = run_cli(argv)
                         elif tool == 1:
-                            code = evaluate_cli.main([str(base_bag), "--out", tok or str(case / "r"), "--no-plots"])
+                            code = evaluate_cli([str(base_bag), "--out", tok or str(case / "r"), "--no-plots"])
                         elif tool == 2:
                             flag = str(rng.choice(["--rate", "--start-delay", "--wait-timeout", "--wait-subscribers"]))
                             if flag in ("--start-delay", "--wait-timeout") and _finite_at_least(tok, 10.0):
                                 flag = "--rate"  # a long delay or wait that is asked for is no hang
-                            code = replay_cli.main([str(base_bag), flag, tok, "--rate", "0", "--wait-timeout", "0.1"])
+                            code = replay_cli([str(base_bag), flag, tok, "--rate", "0", "--wait-timeout", "0.1"])
                         else:
                             flag = str(rng.choice(["--frame-rate", "--recording-id"]))
-                            code = export_cli.main([str(base_bag), str(case / "h"), flag, tok])
+                            code = export_cli([str(base_bag), str(case / "h"), flag, tok])
                         if code not in (0, 1, 2):
                             outcome, detail = "bad-exit", f"exit {code}"
             except InputError as exc:

@@ -1,6 +1,7 @@
-"""Faults of the host for the fault campaign (``fault_campaign.py``; docs/recording.md, "Faults of
-the host"): the run's output on a tmpfs that fills up, on an ext4 file system made read-only, or
-removed while the bag is written, and a campaign whose driver is killed."""
+"""Faults of the host for the fault campaign (:mod:`evoscen_experiments.faults`; docs/recording.md,
+"Faults of the host"): the run's output on a tmpfs that fills up, on an ext4 file system made
+read-only, or removed while the bag is written, and a campaign whose driver is killed. The runs are
+the scripts of the checkout ``repo`` (``scripts/run_scenario.py``, ``scripts/campaign.py``)."""
 
 from __future__ import annotations
 
@@ -16,9 +17,9 @@ import sys
 import time
 from pathlib import Path
 
-from fault_runs import END_LIMIT_S, HANG_S, REPO, SCRIPTS, GraphResult, stderr_tail, world_steps
+from evoscen_contract.contract import EXIT_HOST_FAULT as HOST_FAULT_STATUS
 
-HOST_FAULT_STATUS = 5  # evoscen_contract.contract.EXIT_HOST_FAULT
+from evoscen_experiments.fault_runs import END_LIMIT_S, HANG_S, GraphResult, kill_leftovers, stderr_tail, world_steps
 
 
 def _mount_tmpfs(path: Path, size_kib: int) -> str | None:
@@ -71,7 +72,7 @@ def _check_host_fault_end(stderr: str, status: int | None, problems: list[str]) 
     return errors[0] if errors else None
 
 
-def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path) -> GraphResult:
+def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path, repo: Path) -> GraphResult:
     """One run with a fault of the host (module docstring): a full disk, the output removed, the
     campaign driver killed."""
     kind = fault[0]
@@ -79,7 +80,7 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
     status, hang, stderr, end_s = None, False, "", None
     readable, reindexed, lost, orphans = None, False, None, 0
     if kind == "driver-kill":
-        return _driver_kill(fault, seed, steps, rng, work)
+        return _driver_kill(fault, seed, steps, rng, work, repo)
     out_root = work / f"host-{seed}"
     mounted = False
     if kind == "enospc":
@@ -98,11 +99,11 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
         mounted = True
     out = out_root / "run"
     runner = fault[1]
-    args = [sys.executable, str(SCRIPTS / "run_scenario.py"), "--steps", str(steps), "--seed", str(seed),
+    args = [sys.executable, str(repo / "scripts" / "run_scenario.py"), "--steps", str(steps), "--seed", str(seed),
             "--out", str(out), "--no-plots"]
     args += ["--mode", "graph"] if runner == "graph" else ["--mode", "inprocess", "--quiet", "--bag-writer", runner]
     try:
-        proc = subprocess.Popen(args, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        proc = subprocess.Popen(args, cwd=repo, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         if kind == "vanish":
             mcap, at = out / "bag" / "bag_0.mcap", rng.randint(20_000, 400_000)
             end = time.monotonic() + 60
@@ -131,44 +132,10 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
             end_s = time.monotonic() - t_fault
         status = None if hang else proc.returncode
         line = _check_host_fault_end(stderr, status, problems)
-        bag = out / "bag"
-        if kind == "readonly" and status == HOST_FAULT_STATUS and line is not None and not (
-                line.startswith(f"error: {'evoscen_eval: ' if runner == 'graph' else ''}cannot write "
-                                f"{bag / 'bag_0.mcap'}: Read-only file system (EROFS)")):
-            problems.append("the line does not name the bag file and EROFS")
-        if kind == "readonly" and status != HOST_FAULT_STATUS:
-            problems.append(f"exit status {status}, expected {HOST_FAULT_STATUS}")
-        if kind == "readonly" and end_s is not None and end_s > END_LIMIT_S:
-            problems.append(f"ended {end_s:.1f} s after the fault")
-        if kind in ("enospc", "readonly") and bag.is_dir():
-            copy = work / f"host-{seed}-bag"
-            shutil.copytree(bag, copy)
-            world = world_steps(copy)
-            if world is None:
-                from evoscen_record.reindex import reindex_bag
-
-                with contextlib.suppress(Exception):
-                    reindex_bag(copy, keep_original=False)
-                    reindexed = True
-                world = world_steps(copy)
-            shutil.rmtree(copy, ignore_errors=True)
-            readable = world is not None
-            if world is not None:
-                gaps = (world[-1] + 1 - len(world)) if world else 0
-                m = re.search(r"the (\d+) world states", line or "")
-                stated = int(m.group(1)) if m else None
-                if status == HOST_FAULT_STATUS and stated is None:
-                    problems.append("the error line does not say how many world states the bag holds")
-                lost = gaps + (abs(stated - len(world)) if stated is not None else 0)
-                if line and "reindex.py" in line and not reindexed:
-                    problems.append("the line asks for reindex.py, but the bag was finished")
-        elif kind == "vanish" and status == HOST_FAULT_STATUS and line and "is gone" not in line:
-            problems.append("the line does not say the bag is gone")
+        readable, reindexed, lost = _bag_after(kind, runner, out / "bag", work / f"host-{seed}-bag", status, line,
+                                               end_s, problems)
     finally:
-        for pid in subprocess.run(["pgrep", "-f", str(out)], capture_output=True, text=True).stdout.split():
-            orphans += 1
-            with contextlib.suppress(OSError):
-                os.kill(int(pid), signal.SIGKILL)
+        orphans += kill_leftovers(str(out))
         if mounted:
             subprocess.run(["umount", "-l", str(out_root)], check=False)  # a loop device is freed with it
         shutil.rmtree(out_root, ignore_errors=True)
@@ -178,7 +145,47 @@ def host_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path
                    "{} processes of the run left running")
 
 
-def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path) -> GraphResult:
+def _bag_after(kind: str, runner: str, bag: Path, copy: Path, status: int | None, line: str | None,
+               end_s: float | None, problems: list[str]) -> tuple[bool | None, bool, int | None]:
+    """What a host-fault run left, checked (problems noted): its error line, and its bag (a copy, after
+    ``reindex`` if it has to) holding exactly the world states the line names. Returns whether the bag
+    is readable (None: not looked at), whether it needed reindex, and the steps lost."""
+    readable, reindexed, lost = None, False, None
+    if kind == "readonly" and status == HOST_FAULT_STATUS and line is not None and not (
+            line.startswith(f"error: {'evoscen_eval: ' if runner == 'graph' else ''}cannot write "
+                            f"{bag / 'bag_0.mcap'}: Read-only file system (EROFS)")):
+        problems.append("the line does not name the bag file and EROFS")
+    if kind == "readonly" and status != HOST_FAULT_STATUS:
+        problems.append(f"exit status {status}, expected {HOST_FAULT_STATUS}")
+    if kind == "readonly" and end_s is not None and end_s > END_LIMIT_S:
+        problems.append(f"ended {end_s:.1f} s after the fault")
+    if kind in ("enospc", "readonly") and bag.is_dir():
+        shutil.copytree(bag, copy)
+        world = world_steps(copy)
+        if world is None:
+            from evoscen_record.reindex import reindex_bag
+
+            with contextlib.suppress(Exception):
+                reindex_bag(copy, keep_original=False)
+                reindexed = True
+            world = world_steps(copy)
+        shutil.rmtree(copy, ignore_errors=True)
+        readable = world is not None
+        if world is not None:
+            gaps = (world[-1] + 1 - len(world)) if world else 0
+            m = re.search(r"the (\d+) world states", line or "")
+            stated = int(m.group(1)) if m else None
+            if status == HOST_FAULT_STATUS and stated is None:
+                problems.append("the error line does not say how many world states the bag holds")
+            lost = gaps + (abs(stated - len(world)) if stated is not None else 0)
+            if line and "reindex.py" in line and not reindexed:
+                problems.append("the line asks for reindex.py, but the bag was finished")
+    elif kind == "vanish" and status == HOST_FAULT_STATUS and line and "is gone" not in line:
+        problems.append("the line does not say the bag is gone")
+    return readable, reindexed, lost
+
+
+def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: Path, repo: Path) -> GraphResult:
     """A campaign whose driver is SIGKILLed mid-run (its process alone), then the same command: it
     must end the killed driver's Ray processes, and every run must be done exactly once."""
     import pyarrow.parquet as pq
@@ -193,8 +200,8 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
     spec.write_text(f"name: faults\nsteps: {min(steps, 600)}\nseeds: {{first: {seed}, count: {n_seeds}}}\n"
                     "grid:\n  sut.model: [mobil, level0]\n", encoding="utf-8")
     out = camp / "out"
-    cmd = [sys.executable, str(SCRIPTS / "campaign.py"), str(spec), "--out", str(out), "--cpus", "2"]
-    first = subprocess.Popen(cmd, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    cmd = [sys.executable, str(repo / "scripts" / "campaign.py"), str(spec), "--out", str(out), "--cpus", "2"]
+    first = subprocess.Popen(cmd, cwd=repo, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                              start_new_session=True)
     session, hang, status, stderr, orphans, lost = None, False, None, "", 0, None
     try:
@@ -208,7 +215,7 @@ def _driver_kill(fault: tuple, seed: int, steps: int, rng: random.Random, work: 
         if first.poll() is None:
             os.kill(first.pid, signal.SIGKILL)  # the driver only
         first.communicate(timeout=30)
-        again = subprocess.Popen(cmd, cwd=REPO, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        again = subprocess.Popen(cmd, cwd=repo, text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                  start_new_session=True)
         try:
             _stdout, stderr = again.communicate(timeout=HANG_S * 2)
