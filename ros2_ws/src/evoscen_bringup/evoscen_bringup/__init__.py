@@ -1,7 +1,8 @@
-"""evoscen's runners (the in-process runner, the node-graph launcher, scenario building, start states,
-domains, the output directory, a run into it from a command line or the face (``runs``), one node of the
-graph in a container (``one_node``), the model listings (``model_lists``)) and its experiments
-(campaigns, experiments, statistics); docs/architecture.md §1."""
+"""evoscen's runners: the in-process runner (``inprocess``) and the run's plan (``plan``), the node-graph
+launcher (``graph_runner``), scenario building and start states (``scenario``, ``starts``), ROS domains
+(``domains``), the output directory (``output``), a run into it from a command line or the face (``runs``),
+one node of the graph in a container (``one_node``), the model listings (``model_lists``) and the models'
+test helpers (``model_testing``); docs/architecture.md §1. Experiments are :mod:`evoscen_experiments`."""
 
 from evoscen_sim.moved_paths import install as _install_moved_paths
 
