@@ -27,19 +27,11 @@ import sys
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen import cli
+from evoscen.experiment_runs import intelligence_parser
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
-    ap = cli.parser("experiment_intelligence.py", __doc__, ranks_by="D")
-    cli.add_out(ap, "runs/experiment_intelligence")
-    cli.add_config(ap)
-    ap.add_argument("--suts", default="nilsson,mobil,stackelberg", help="comma-separated SUT models")
-    cli.add_seeds(ap, count=5, what="seeds per SUT")
-    cli.add_steps(ap, 3000)
-    ap.add_argument("--mix", default="4:3:3", help="BV policy mix competitive:mutual:cooperative (default 4:3:3)")
-    ap.add_argument("--bvs", default="20", help="number of BVs (default 20)")
-    cli.add_jobs(ap)
-    return ap.parse_args(argv)
+    return intelligence_parser(__doc__).parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> int:

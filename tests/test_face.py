@@ -28,7 +28,7 @@ FACE = sorted([
     "RoadModel", "load_road", "accel_to_throttle", "throttle_to_accel", "krauss_for", "KraussCarFollowing",
     "KraussParams", "hand_built_world",
     # running and scoring
-    "run_scenario", "score_bag", "RunResult",
+    "run_scenario", "score_bag", "RunResult", "run_experiment", "ExperimentResult",
     "__version__",
 ])
 """The face's names: a deliberate change updates this list (and docs/plugins.md §19)."""
@@ -128,3 +128,26 @@ def test_run_scenario_and_score_bag_agree_with_each_other(tmp_path):
         evoscen.run_scenario(runner="ros")
     with pytest.raises(evoscen.InputError, match="no such bag directory"):
         evoscen.score_bag(tmp_path / "nowhere")
+
+
+def test_run_experiment_returns_the_tables_it_wrote(tmp_path):
+    """``evoscen.run_experiment("intelligence", ...)``: the door's options as keywords, its tables as rows;
+    the paired difference is the mean over seeds of the per-seed differences of the rounds' D."""
+    import evoscen
+
+    result = evoscen.run_experiment("intelligence", out=tmp_path / "exp", suts=["mobil", "level0"], seeds=2,
+                                    first_seed=5, steps=40, jobs=1)
+    assert (result.status, result.kind) == (0, "intelligence")
+    assert {"intelligence", "paired", "rounds"} <= set(result.tables)
+    d = {(r["sut"], int(r["seed"])): float(r["comparative"]) for r in result.tables["rounds"]}
+    assert sorted(d) == [("level0", 5), ("level0", 6), ("mobil", 5), ("mobil", 6)]
+    (pair,) = result.tables["paired"]
+    assert (pair["sut_a"], pair["sut_b"], pair["seeds"]) == ("mobil", "level0", "2")
+    by_hand = ((d["mobil", 5] - d["level0", 5]) + (d["mobil", 6] - d["level0", 6])) / 2
+    assert float(pair["d_intelligence_mean"]) == pytest.approx(by_hand, abs=1e-12)
+    with pytest.raises(evoscen.InputError, match="--seeds = '0': expected an integer >= 1"):
+        evoscen.run_experiment("intelligence", out=tmp_path / "bad", seeds=0)
+    with pytest.raises(evoscen.InputError, match="unrecognized arguments: --no-such 1"):
+        evoscen.run_experiment("intelligence", out=tmp_path / "bad", no_such=1)
+    with pytest.raises(evoscen.InputError, match=r"^experiment 'nope': expected one of intelligence, sensitivity$"):
+        evoscen.run_experiment("nope", out=tmp_path / "bad")

@@ -29,8 +29,9 @@ world or rclpy). The names, by what they are for:
   :func:`throttle_to_accel`; Krauss car following (the SUTs' follower): :func:`krauss_for`,
   :class:`KraussCarFollowing`, :class:`KraussParams`; trying a driver without a run:
   :func:`hand_built_world`;
-* running and scoring: :func:`run_scenario` (either runner) -> :class:`RunResult`,
-  :func:`score_bag` -> the report as a dict (``report.json``'s content).
+* running, scoring and experiments: :func:`run_scenario` (either runner) -> :class:`RunResult`,
+  :func:`score_bag` -> the report as a dict (``report.json``'s content), :func:`run_experiment` (the
+  intelligence or the sensitivity experiment) -> :class:`ExperimentResult` with the tables it wrote.
 """
 
 from __future__ import annotations
@@ -88,6 +89,8 @@ _SOURCES: dict[str, str] = {
     "run_scenario": "evoscen.runs",
     "score_bag": "evoscen.runs",
     "RunResult": "evoscen.runs",
+    "run_experiment": "evoscen.experiment_runs",
+    "ExperimentResult": "evoscen.experiment_runs",
 }
 """Each name of the face -> the module that defines it (loaded on first use)."""
 
