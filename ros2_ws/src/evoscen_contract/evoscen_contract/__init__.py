@@ -1,4 +1,5 @@
-"""evoscen_contract: the topic contract and table <-> numpy conversions.
+"""evoscen_contract: the topic contract and table <-> numpy conversions. The ground of every package: it
+imports nothing of evoscen.
 
 Submodules:
 

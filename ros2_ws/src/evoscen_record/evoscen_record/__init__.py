@@ -1,4 +1,5 @@
-"""evoscen_record: the run's rosbag2 (MCAP storage) bag, written, read and reindexed.
+"""evoscen_record: the run's rosbag2 (MCAP storage) bag, written, read and reindexed. May import the
+simulation and the contract (the evaluation and the runners import it, never the reverse).
 
 Submodules:
 

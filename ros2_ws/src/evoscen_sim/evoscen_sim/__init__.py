@@ -1,4 +1,6 @@
-"""evoscen simulation core: OpenDRIVE road, vehicle dynamics, low-level PID control, collision, re-entry and the world step."""
+"""evoscen simulation core: OpenDRIVE road, vehicle dynamics, low-level PID control, collision, the
+traffic window and the world step, in rooms (docs/architecture.md §1: config, road, physics, traffic,
+danger, loop, nodes). Imports only the contract among the other packages."""
 
 from .moved_paths import install as _install_moved_paths
 

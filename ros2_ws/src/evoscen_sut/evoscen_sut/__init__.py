@@ -1,4 +1,5 @@
-"""evoscen systems under test: rule-based SUT models (registered with evoscen_sim.model_registry)."""
+"""evoscen systems under test: rule-based SUT models and their mutants (registered with
+evoscen_sim.model_registry), the SUT node. May import the simulation and the contract."""
 
 from evoscen_sim.moved_paths import install as _install_moved_paths
 
