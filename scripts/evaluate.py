@@ -12,8 +12,9 @@ evaluated up to the damage, with one warning saying how many steps were read and
 command that rebuilds such a bag (``scripts/reindex.py BAG``); ``--reindex`` runs it first.
 
 ``--out`` defaults to ``<the bag's directory>/../report_offline``; an existing non-empty
-directory is replaced only with ``--overwrite``. ``--animation-frames N`` sets the frames of the
-bird's-eye animation ``run.gif`` (default 120; 0: none; ``--no-plots`` writes none). Exit status:
+directory is replaced only with ``--overwrite``. ``--animation-frames N`` caps the frames of the
+bird's-eye animation ``run.gif`` (one a second of driving, at most 600 by default; 0: none;
+``--no-plots`` writes none). Exit status:
 0 done, 2 bad input, 5 the report could not be written (a full disk, a read-only file system: one
 line naming the file). The work is :func:`evoscen_eval.scoring.bag_report.evaluate_bag`.
 """
@@ -36,7 +37,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--overwrite", action="store_true", help="replace an existing report in --out")
     ap.add_argument("--no-plots", action="store_true", help="report.json and report.md only")
     ap.add_argument("--animation-frames", default=None, metavar="N",
-                    help="frames of the bird's-eye animation run.gif (default 120; 0: none)")
+                    help="most frames of the bird's-eye animation run.gif, one a second of driving (default 600; 0: none)")
     ap.add_argument("--reindex", action="store_true",
                     help="first rebuild the bag's summary and metadata.yaml (scripts/reindex.py), e.g. after a killed recorder")
     return ap.parse_args(argv)

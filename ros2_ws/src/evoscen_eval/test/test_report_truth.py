@@ -148,9 +148,13 @@ def test_the_animation_has_the_frames_asked_for(tmp_path):
     rep = evaluate(run, EV)
     series = clip_frames(run, 100)
     assert len(series.frames) == 40 and [f.lane_change for f in series.frames[4:11]] == [0, 1, 1, 1, 1, 1, 0]
-    assert write_animation(series, None, rep, tmp_path / "a.gif", frames=7) == 7
-    with Image.open(tmp_path / "a.gif") as im:
-        assert im.n_frames == 7 and im.size[0] == 640
+    # one frame a second of driving (every 10th state of 0.1 s): 4 of the 4-s run; at most ``frames``,
+    # more spread evenly
+    assert write_animation(series, None, rep, tmp_path / "a.gif") == 4
+    assert [n.state for n in frame_notes(series, rep, 600, frame_s=1.0)] == [0, 10, 20, 30]
+    assert write_animation(series, None, rep, tmp_path / "b.gif", frames=7, frame_s=None) == 7
+    with Image.open(tmp_path / "b.gif") as im:
+        assert im.n_frames == 7 and im.size[0] == 1280
     assert pick(40, 7) == [0, 6, 13, 20, 26, 32, 39]  # round(i * 39 / 6): 32.5 rounds to even
     assert pick(5, 7) == [0, 1, 2, 3, 4] and pick(5, 0) == []
 

@@ -6,9 +6,10 @@ run's messages stamped from ``t_k - clip_s`` to ``t_k + clip_s`` (clamped to the
 latched topics' last message before that (the map and the roster: a player that opens the
 clip sees the road and who is who) and the run's scenario record, in a rosbag2 bag of its
 own (``scripts/replay.py``, Foxglove, ``ros2 bag play``). Beside it: a bird's-eye PNG of state
-k (the report's snapshot, the vehicles involved outlined red), an animation of the clip
-(``clip.gif``, :mod:`evoscen_eval.scoring.animation`) and the command that runs the same configuration to
-the clip's end in-process — deterministic, so its bag holds the very same world states.
+k (the report's snapshot, the vehicles involved outlined red), an animation of the clip in real
+time with the event mid-animation (``clip.gif``, :func:`write_clip_animation`) and the command that
+runs the same configuration to the clip's end in-process — deterministic, so its bag holds the very
+same world states.
 
 Involved vehicles (``clips.json`` ``ids``): a collision's pair; an exposure's counterparts, the
 vehicles its rules name (:func:`evoscen_eval.scoring.exposure_rules.involved`: the leader, the follower,
@@ -114,14 +115,49 @@ def bag_metadata(bag_dir: Path, name: str) -> dict[str, dict[str, str]]:
     return {}
 
 
-def clip_frames(clip, keep: int) -> FrameSeries:
-    """The animation frames of a clip's :class:`~evoscen_eval.scoring.rundata.RunData` (every state up to ``keep``)."""
+def clip_frames(clip, keep: int, k_from: int = 0, k_to: int | None = None) -> FrameSeries:
+    """The animation frames of states ``k_from..k_to`` of a :class:`~evoscen_eval.scoring.rundata.RunData`
+    (a clip's: all of them; every state up to ``keep``), counted from ``k_from``."""
     series = FrameSeries(keep=max(1, keep))
-    if clip.states:
-        tables = np.stack([np.asarray(clip.columns[f], dtype=np.float64) for f in C.WORLD_FIELDS], axis=-1)
-        series.add_block(np.arange(clip.states), np.asarray(clip.time_s, dtype=np.float64), tables,
+    stop = clip.states if k_to is None else min(clip.states, k_to + 1)
+    if stop > k_from:
+        tables = np.stack([np.asarray(clip.columns[f][k_from:stop], dtype=np.float64) for f in C.WORLD_FIELDS],
+                          axis=-1)
+        series.add_block(np.arange(stop - k_from), np.asarray(clip.time_s[k_from:stop], dtype=np.float64), tables,
                          np.asarray(clip.ids), clip.sut_index)
     return series
+
+
+def write_clip_animation(clip, report: dict[str, Any], centre: int, path: Path, *, frames: int = ANIMATION_FRAMES,
+                         title: str | None = None, k_from: int = 0, k_to: int | None = None) -> int:
+    """The animation of a clip (or of states ``k_from..k_to`` of a run; ``report``'s states counted
+    from ``k_from``) in real time, a frame a state, the frame of state ``centre`` (from ``k_from``)
+    shown in the middle of it (:func:`~evoscen_eval.scoring.animation.frame_notes`); returns the frames written."""
+    return write_animation(clip_frames(clip, 4 * max(frames, 1), k_from, k_to), clip.lane_segments, report, path,
+                           frames=frames, frame_s=float(clip.dt_s), centre_state=centre, title=title)
+
+
+def window_report(report: dict[str, Any], k_from: int) -> dict[str, Any]:
+    """``report``'s exposures and collisions, their states counted from ``k_from``."""
+    safety = report["safety"]
+    return {"safety": {
+        "exposure_list": [{**x, "start_state": x["start_state"] - k_from, "end_state": x["end_state"] - k_from}
+                          for x in safety["exposure_list"]],
+        "collision_list": [{**c, "state": int(c["state"]) - k_from} for c in safety["collision_list"]]}}
+
+
+def window_gif(bag_dir: Path, state: int, path: Path, *, clip_s: float = CLIP_S, title: str | None = None) -> int:
+    """The animation of a recorded run's states ``state`` ± ``clip_s`` seconds (clamped to the run), in
+    real time, centred on ``state``, every exposure and collision of the run marked (the README's
+    picture: docs/evaluation.md §7.1); returns the frames written."""
+    from evoscen_eval.scoring.report import report_of
+    from evoscen_eval.scoring.rundata import read_run
+
+    run = read_run(bag_dir)
+    pad = int(round(clip_s / float(run.dt_s)))
+    k_from, k_to = max(0, state - pad), min(run.states - 1, state + pad)
+    return write_clip_animation(run, window_report(report_of(run), k_from), state - k_from, path, k_from=k_from,
+                                k_to=k_to, title=title)
 
 
 def clip_report(event: dict[str, Any], k_from: int, dt: float) -> dict[str, Any]:
@@ -181,9 +217,9 @@ def mine_run(bag_dir: Path, report: dict[str, Any], run_dir: Path, *, clip_s: fl
                 title = f"exposure at its most severe state, t = {k * dt:.1f} s: " + exposure_caption(event)
             png = _snapshot(plt, scene, clip.lane_segments, set(event["ids"]), title, clip_dir, "scene.png")
         gif = None
-        if animation_frames > 0 and write_animation(clip_frames(clip, 4 * animation_frames), clip.lane_segments,
-                                                    clip_report(event, k_from, dt), clip_dir / "clip.gif",
-                                                    frames=animation_frames, title=f"{event['kind']} {n}"):
+        if animation_frames > 0 and write_clip_animation(clip, clip_report(event, k_from, dt), k - k_from,
+                                                         clip_dir / "clip.gif", frames=animation_frames,
+                                                         title=f"{event['kind']} {n}"):
             gif = "clip.gif"
         command = None
         if scenario_file is not None:
