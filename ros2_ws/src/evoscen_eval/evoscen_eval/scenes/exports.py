@@ -2,15 +2,19 @@
 summary: ``scripts/export_scenario.py``'s work (docs/export.md; the files themselves are written by
 :mod:`evoscen_eval.scenes.scenario_export`).
 
-:func:`export_command` exports one bag's range (and compares a run started from it, ``--compare-start``)
-or each clip listed under a campaign run or output (``clips.json``), printing what was written and
-checked and, for a campaign, a summary line per clip and a total. It returns 0, or 1 when a check
-failed; bad input is a one-line :class:`~evoscen_sim.errors.InputError`.
+:func:`export_command` exports one bag's range (given, or around a collision or exposure: ``--event``,
+:mod:`evoscen_eval.scenes.event_ranges`; and compares a run started from it, ``--compare-start``) or each
+clip listed under a campaign run or output (``clips.json``), printing what was written and checked and,
+for a campaign, a summary line per clip and a total; a damaged bag and a range holding the traffic
+window's shift are ``warning:`` lines on stderr. It returns 0, or 1 when a check failed; bad input is a
+one-line :class:`~evoscen_sim.errors.InputError`. Nothing is left beside the export but its files.
 """
 
 from __future__ import annotations
 
 import json
+import sys
+import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -48,12 +52,21 @@ def clip_bags(path: Path) -> list[tuple[Path, str]] | None:
     return bags
 
 
-def _check(ex, path: Path, fmt: str, out: Path, name: str, res: dict) -> None:
+def _check(ex, path: Path, fmt: str, name: str, res: dict) -> None:
     """``--check`` of one export: the ASAM checker (xosc) or commonroad-io's read-back, then the
     independent collision check; the figures go into ``res``."""
     from evoscen_eval.scenes import scenario_export as X
 
-    xosc_path = path if fmt == "xosc" else X.write_xosc(ex, out / ".check", name)
+    if fmt != "xosc":  # the box check reads an OpenSCENARIO file: one written where nothing is left behind
+        with tempfile.TemporaryDirectory(prefix="evoscen-check-") as tmp:
+            return _check_files(ex, path, X.write_xosc(ex, tmp, name), fmt, res)
+    return _check_files(ex, path, path, fmt, res)
+
+
+def _check_files(ex, path: Path, xosc_path: Path, fmt: str, res: dict) -> None:
+    """:func:`_check` on the written ``path`` and an OpenSCENARIO file of the same range, ``xosc_path``."""
+    from evoscen_eval.scenes import scenario_export as X
+
     if fmt == "xosc":
         errors = X.check_xosc(path)
         print(f"ASAM quality checker: {len(errors)} error(s)")
@@ -78,12 +91,20 @@ def _check(ex, path: Path, fmt: str, out: Path, name: str, res: dict) -> None:
 
 
 def export_one(bag: Path, t_from, t_to, fmt: str, out: Path, name: str, truck: float, check: bool) -> dict:
-    """Export one range; print what was written (and checked). Returns the figures of the summary
-    (``ok``: every check passed)."""
+    """Export one range; print what was written (and checked), and as warnings what the bag reader
+    found damaged (:func:`~evoscen_eval.scoring.bag_report.bag_warnings`, as ``evaluate.py``) and the
+    shifts the range holds. Returns the figures of the summary (``ok``: every check passed)."""
     from evoscen_eval.scenes import scenario_export as X
+    from evoscen_eval.scenes.event_ranges import shift_warning
+    from evoscen_eval.scoring.bag_report import bag_warnings
 
     t0 = time.perf_counter()
     ex = X.load_range(bag, t_from, t_to, truck_min_length_m=truck)
+    # a clip holds no run_end event: that is no damage (its range is printed below)
+    bag_warnings(bag, [w for w in ex.warnings if "has no run_end event" not in w], option=None)
+    shifted = shift_warning(ex.t_from_s, ex.t_from_s + ex.duration_s, ex.shifts)
+    if shifted:
+        print(f"warning: {shifted}", file=sys.stderr)
     path = X.write_xosc(ex, out, name) if fmt == "xosc" else X.write_commonroad(ex, out, name)
     pieces = sum(len(t.pieces) for t in ex.tracks)
     trucks = sum(t.klass == "truck" for t in ex.tracks)
@@ -92,7 +113,7 @@ def export_one(bag: Path, t_from, t_to, fmt: str, out: Path, name: str, truck: f
     res = {"path": path, "vehicles": len(ex.tracks), "states": ex.states, "ok": True, "asam_errors": None,
            "read_back": None, "collisions": None}
     if check:
-        _check(ex, path, fmt, out, name, res)
+        _check(ex, path, fmt, name, res)
     res["seconds"] = time.perf_counter() - t0
     return res
 
@@ -157,9 +178,31 @@ def export_clips(root: Path, clips: list[tuple[Path, str]], fmt: str, name: str,
     return all(r["ok"] for r in results)
 
 
+def event_window(bag: Path, event: str, around: str | None) -> tuple[float, float]:
+    """``--event``/``--around``: the range around the run's collision or exposure ``event``, on the side of
+    every shift that holds it (:func:`~evoscen_eval.scenes.event_ranges.event_range`); prints which event
+    and range, and a line when the range was moved off a shift."""
+    from evoscen_eval.scenes import event_ranges as R
+    from evoscen_eval.scoring.rundata import read_run
+
+    half = R.AROUND_S if around is None else number("--around", around)
+    if half <= 0:
+        raise InputError(f"--around: {around}: expected seconds > 0")
+    run = read_run(bag)
+    picked = R.pick_event(R.critical_events(run), event)
+    lo, hi, note = R.event_range(picked, half, (float(run.time_s[0]), float(run.time_s[-1])), R.shifts_of(run),
+                                 float(run.dt_s))
+    print(f"event {picked.number}: {picked.label}; range {lo:.1f} .. {hi:.1f} s"
+          + ("" if note else f" ({half:g} s either side, within the bag)"))
+    if note:
+        print(note)
+    return lo, hi
+
+
 def export_command(bag: str, *, fmt: str = "xosc", t_from: str | None = None, t_to: str | None = None,
                    out: str | None = None, name: str = "scenario", truck_length_m: str = "7.0",
-                   compare_start_bag: str | None = None, check: bool = False) -> int:
+                   compare_start_bag: str | None = None, check: bool = False, event: str | None = None,
+                   around: str | None = None) -> int:
     """``scripts/export_scenario.py`` (its docstring): the arguments as the command line gives them
     (text); returns 0, or 1 when a check failed. An export that cannot be written is a one-line
     InputError naming the file."""
@@ -168,6 +211,10 @@ def export_command(bag: str, *, fmt: str = "xosc", t_from: str | None = None, t_
     try:
         if fmt not in FORMATS:
             raise InputError(f"--format: {fmt!r}: expected one of {', '.join(FORMATS)}")
+        if event is not None and (t_from is not None or t_to is not None):
+            raise InputError("--event: not with --from/--to (the range is the event's, --around seconds either side)")
+        if around is not None and event is None:
+            raise InputError("--around: needs --event N (the seconds kept on either side of that event)")
         start, end = number("--from", t_from), number("--to", t_to)
         truck = number("--truck-length-m", truck_length_m)
         if truck <= 0:
@@ -179,11 +226,13 @@ def export_command(bag: str, *, fmt: str = "xosc", t_from: str | None = None, t_
         if clips is not None:
             if compare_start_bag is not None:
                 raise InputError(f"{path}: --compare-start: expected a bag, not a campaign directory")
-            if start is not None or end is not None or out is not None:
-                raise InputError(f"{path}: --from/--to/--out: not for a campaign directory (each clip is exported "
-                                 "whole into <clip>/export/)")
+            if start is not None or end is not None or out is not None or event is not None:
+                raise InputError(f"{path}: --from/--to/--event/--out: not for a campaign directory (each clip is "
+                                 "exported whole into <clip>/export/)")
             ok = export_clips(path, clips, fmt, name, truck, check)
         else:
+            if event is not None:
+                start, end = event_window(path, event, around)
             where = Path(out) if out else (path if path.is_dir() else path.parent).parent / "export"
             ok = export_one(path, start, end, fmt, where, name, truck, check)["ok"]
             if compare_start_bag is not None:

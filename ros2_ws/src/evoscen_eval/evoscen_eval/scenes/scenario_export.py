@@ -30,6 +30,8 @@ from evoscen_contract import contract as C
 from evoscen_contract.contract import TRUCK_MIN_LENGTH_M  # longer: exported as a truck (docs/export.md)
 from evoscen_sim.errors import InputError
 
+from evoscen_eval.scenes.event_ranges import shifts_of
+from evoscen_eval.scenes.export_vehicles import limits_of, policy_code, truck_driven, xosc_vehicle
 from evoscen_eval.scenes.xosc_readback import (  # noqa: F401  (the read-back's names, served here too)
     COLLISION_TIME_TOLERANCE_S, EPS_T, XoscTrack, box_collisions, compare_collisions, read_xosc_tracks)
 
@@ -103,6 +105,10 @@ class RangeExport:
     """evoscen's collision events in ``(t_from, t_to]``: (run time, sorted id pair)."""
     map_path: Path
     scenario: dict | None
+    shifts: list[tuple[float, float]] = field(default_factory=list)
+    """The traffic window's shifts of the whole bag: (time of the state each led to, metres moved back)."""
+    warnings: list[str] = field(default_factory=list)
+    """The bag reader's warnings (a truncated or corrupt bag: the readable prefix was read)."""
 
     @property
     def duration_s(self) -> float:
@@ -184,7 +190,8 @@ def load_range(bag: Path | str, t_from_s: float | None = None, t_to_s: float | N
         if map_path is None or not Path(map_path).is_file():
             raise InputError(f"bag {str(bag)!r}: map {map_name!r}: not found (expected a shipped map of "
                              "evoscen_sim's maps/ or an existing file)")
-    return RangeExport(Path(bag), t_lo, dt, k_to - k_from + 1, tracks, collisions, Path(map_path), run.scenario)
+    return RangeExport(Path(bag), t_lo, dt, k_to - k_from + 1, tracks, collisions, Path(map_path), run.scenario,
+                       shifts_of(run), list(run.warnings))
 
 
 # ---------------------------------------------------------------------------------------------- OpenSCENARIO
@@ -200,7 +207,8 @@ def write_xosc(ex: RangeExport, out_dir: Path | str, name: str = "scenario") -> 
     """``out_dir/<name>.xosc`` (OpenSCENARIO 1.2) with the map copied beside it; returns the file.
 
     Every vehicle is an entity (``sut``, ``bv<id>``) of category car or truck with its bounding box
-    centred on its reference point (evoscen's ``x``, ``y`` are the box centre); ``Init`` places it and
+    centred on its reference point (evoscen's ``x``, ``y`` are the box centre) and the run's limits
+    (:func:`~evoscen_eval.scenes.export_vehicles.xosc_vehicle`); ``Init`` places it and
     sets its speed; each piece of its motion is one event at the piece's start time: a teleport to
     the piece's first pose (pieces after the first), then a FollowTrajectoryAction along a timed
     polyline of the recorded poses (absolute timing, following mode ``position``). The SUT's events
@@ -220,17 +228,9 @@ def write_xosc(ex: RangeExport, out_dir: Path | str, name: str = "scenario") -> 
                                                                xosc.SimulationTimeCondition(0, xosc.Rule.greaterOrEqual)))
     sut_act = xosc.Act("sut_recorded", xosc.ValueTrigger("start", 0, xosc.ConditionEdge.none,
                                                           xosc.SimulationTimeCondition(0, xosc.Rule.greaterOrEqual)))
+    limits = limits_of(ex.scenario)
     for tr in ex.tracks:
-        cat = xosc.VehicleCategory.truck if tr.klass == "truck" else xosc.VehicleCategory.car
-        h = VEHICLE_HEIGHT_M[tr.klass]
-        bb = xosc.BoundingBox(tr.width_m, tr.length_m, h, 0.0, 0.0, 0.5 * h)
-        axle = 0.3 * tr.length_m
-        veh = xosc.Vehicle(tr.name, cat, bb, xosc.Axle(0.5, 0.8, 0.6 * tr.width_m, axle, 0.4),
-                           xosc.Axle(0.0, 0.8, 0.6 * tr.width_m, -axle, 0.4), 70.0, 10.0, 10.0)
-        veh.add_property("evoscen:id", str(tr.vid))
-        veh.add_property("evoscen:role", "sut" if tr.role == C.ROLE_SUT else "bv")
-        veh.add_property("evoscen:policy", str(tr.policy))
-        veh.add_property("evoscen:class", tr.klass)
+        veh = xosc_vehicle(tr, limits["truck" if truck_driven(tr, ex.scenario) else "car"], VEHICLE_HEIGHT_M[tr.klass])
         if tr.role == C.ROLE_SUT:
             props = xosc.Properties()
             props.add_property("evoscen:default", "the recorded trajectory (story sut_recorded)")
@@ -371,14 +371,27 @@ PLANNING_PROBLEM_ID = 999
 
 
 def protobuf_runtime() -> None:
-    """Make commonroad-io importable beside a protobuf newer than the one its generated modules were
-    made for (it pins 3.20.2; ray needs a newer one: docs/export.md "Packages"): protobuf's pure-Python
-    implementation, chosen through its environment variable before protobuf is first imported."""
+    """Make commonroad-io importable beside a newer protobuf than its generated modules were made for (it
+    pins 3.20.2, ray needs a newer one: docs/export.md "Packages"): protobuf's pure-Python implementation,
+    chosen by its environment variable before protobuf picks one; RuntimeError if it picked another."""
+    import importlib
     import os
     import sys
 
-    if "google.protobuf" not in sys.modules:
-        os.environ.setdefault("PROTOCOL_BUFFERS_PYTHON_IMPLEMENTATION", "python")
+    if "google.protobuf.internal.api_implementation" not in sys.modules:  # it reads the variable when imported
+        os.environ["PROTOCOL_BUFFERS_PYTHON_IMPLEMENTATION"] = "python"
+    if (kind := importlib.import_module("google.protobuf.internal.api_implementation").Type()) != "python":
+        raise RuntimeError(f"protobuf was imported with its {kind!r} implementation before commonroad-io; start "
+                           "Python with PROTOCOL_BUFFERS_PYTHON_IMPLEMENTATION=python (docs/export.md \"Packages\")")
+
+
+def read_commonroad(path: Path | str):
+    """``(scenario, planning problem set)`` of a CommonRoad file read by commonroad-io's
+    ``CommonRoadFileReader``, protobuf's implementation chosen first (:func:`protobuf_runtime`)."""
+    protobuf_runtime()
+    from commonroad.common.file_reader import CommonRoadFileReader
+
+    return CommonRoadFileReader(str(path)).open()
 
 
 def _orientation(h: float) -> float:
@@ -462,10 +475,7 @@ def check_commonroad(ex: RangeExport, path: Path | str) -> tuple[int, int, list[
     last time steps), the scenario's time steps (its last = ``ex.states - 1``), ``dt``, and the SUT's
     planning problem starting at time step 0. Returns ``(obstacles, time steps, problems)``: the
     counts read back and one line per difference (empty: the file holds what was exported)."""
-    protobuf_runtime()
-    from commonroad.common.file_reader import CommonRoadFileReader
-
-    scenario, problems = CommonRoadFileReader(str(path)).open()
+    scenario, problems = read_commonroad(path)
     want = {obstacle_id(t.vid, n): (p.k0, p.k0 + p.steps - 1)
             for t in ex.tracks if t.role != C.ROLE_SUT for n, p in enumerate(t.pieces)}
     got = {o.obstacle_id: (o.initial_state.time_step,
@@ -547,7 +557,7 @@ def initial_state_from_xosc(path: Path | str, road) -> ImportedStart:
         raise InputError(f"--start-from {path}: entities: duplicated vehicle ids {ids.tolist()}")
     return ImportedStart(
         ids=ids, roles=np.array([C.ROLE_SUT if r[3] else C.ROLE_BV for r in rows], dtype=np.int64),
-        policies=np.array([int(r[2].properties.get("evoscen:policy", -1)) for r in rows], dtype=np.int64),
+        policies=np.array([policy_code(r[2].properties.get("evoscen:policy")) for r in rows], dtype=np.int64),
         s_m=s, d_m=d, heading_rel=np.angle(np.exp(1j * (np.array([r[2].init_pose[2] for r in rows])
                                                            - road.frenet_to_cartesian(s, d)[2]))),
         lane=lane.astype(np.int64), speed_mps=np.array([r[2].init_speed for r in rows]),

@@ -44,15 +44,29 @@ def finished(bag_path: Path) -> bool:
     return True
 
 
-def _note_unfinished(bag_path: Path, warnings: list[str]) -> None:
-    """Name the command that rebuilds an unfinished bag in its warning (a new one if the reader had none)."""
-    hint = f"; to rebuild its summary and metadata.yaml: python scripts/reindex.py {bag_path} (or --reindex)"
+def _note_unfinished(bag_path: Path, warnings: list[str], option: str | None = "--reindex") -> None:
+    """Name the command that rebuilds an unfinished bag in its warning (a new one if the reader had none);
+    ``option``: the caller's own option that runs it (None: none)."""
+    hint = (f"; to rebuild its summary and metadata.yaml: python scripts/reindex.py {bag_path}"
+            + (f" (or {option})" if option else ""))
     damaged = [k for k, w in enumerate(warnings) if "truncated or corrupt" in w]
     if damaged:
         warnings[damaged[0]] += hint
     else:
         warnings.append(f"bag {str(bag_path)!r} is not finished (no summary section or no "
                         f"metadata.yaml: the recorder was killed?)" + hint)
+
+
+def bag_warnings(bag_path: Path, warnings: list[str], *, reindexed: bool = False,
+                 option: str | None = "--reindex") -> list[str]:
+    """The warnings a reader gave on ``bag_path``, an unfinished bag's naming the command that rebuilds it
+    (``option``: the caller's option that runs it), as ``evaluate.py`` prints them (``warning: ...`` on
+    stderr, one line each). Returns ``warnings`` (completed in place)."""
+    if not reindexed and not finished(bag_path):
+        _note_unfinished(bag_path, warnings, option)
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    return warnings
 
 
 def evaluate_bag(bag_path: Path, *, out: Path | None = None, config: Path | None = None, overwrite: bool = False,
@@ -76,16 +90,13 @@ def evaluate_bag(bag_path: Path, *, out: Path | None = None, config: Path | None
         r = reindex_bag(bag_path)
         print(f"reindexed: {r.messages} messages, {r.steps} world states recovered", file=sys.stderr)
     run = score_bag(bag_path, override)  # one pass: memory independent of the run's length
-    if not reindex and not finished(bag_path):
-        _note_unfinished(bag_path, run.warnings)
     bag_dir = bag_path if bag_path.is_dir() else bag_path.parent
     out = out if out is not None else bag_dir.resolve().parent / "report_offline"
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         if not overwrite or not out.is_dir():
             raise InputError(f"--out {out}: exists and is not empty; choose another --out or pass --overwrite")
         shutil.rmtree(out)
-    for warning in run.warnings:
-        print(f"warning: {warning}", file=sys.stderr)
+    bag_warnings(bag_path, run.warnings, reindexed=reindex)
     report = write_stream_report(run.stream, run.info, run.warnings, out, plots=plots, source=str(bag_path),
                                  lane_segments=run.lane_segments, animation_frames=n_frames)
     print(f"{report['run']['steps']} steps; {score_line(report)}")
