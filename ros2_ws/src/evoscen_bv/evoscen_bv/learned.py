@@ -354,6 +354,7 @@ class LearnedDriver:
         """Whether the desired speed is capped by the lane's speed limit (False: ``bvs.makeup: highd``,
         whose drawn desired speeds are the drivers' own; docs/bv-profiles.md, "Traffic make-up")."""
         self._nan_limits: np.ndarray | None = None
+        self._merge_seek_ready = False  # the merge kernel run once (_merge_seek_bound)
         self.hard_brake: HardBrakeState | None = None
         if hard_brake is not None:
             child = np.random.default_rng(int(rng.integers(0, 2**63 - 1)))
@@ -414,7 +415,17 @@ class LearnedDriver:
         hosted vehicles that must merge (few: those on a lane that ends)."""
         targets = forced_merge_targets(view, self.vehicles, self.forced_merge_m)
         if not targets.any():
+            if not self._merge_seek_ready:
+                # The first act runs the merge's kernel on no vehicle (nothing changes): compiled, or
+                # loaded from numba's cache, here rather than at the first merge. A controller node
+                # warms up with one act on the start state (controller_node._warm_up), so the kernel
+                # is never first compiled mid-run, where a cold compile took ~1.8 s and missed the
+                # lockstep's deadline (docs/recording.md, "Compiled kernels before the first step").
+                merge_seek_accel(view, self.vehicles[:0], targets[:0], self.desired_speed_mps[:0],
+                                 self.profile.cut_in_closing_headway_s, self.profile.cut_in_closing_decel_mps2)
+                self._merge_seek_ready = True
             return throttle
+        self._merge_seek_ready = True
         bound = merge_seek_accel(view, self.vehicles, targets, self.desired_speed_mps,
                                  self.profile.cut_in_closing_headway_s, self.profile.cut_in_closing_decel_mps2)
         limited = np.isfinite(bound)
