@@ -311,7 +311,8 @@ def test_a_bad_answer_in_the_node_graph_is_one_error_line_naming_the_model(bad_p
                   "--out", tmp_path / "out", env=env_with_path(bad_package))
     errors = [line for line in res.stderr.splitlines() if line.startswith("error: ")]
     assert res.returncode == 2 and "Traceback" not in res.stderr, (res.returncode, res.stderr)
-    assert errors == [f"error: evoscen_sut: sut model 'bad_sut': {BAD['nan']}"], res.stderr
+    # the in-process runner's line, naming the graph's node logs
+    assert errors == [f"error: sut model 'bad_sut': {BAD['nan']} (node logs: {tmp_path / 'out' / 'logs'}/)"], res.stderr
 
 
 def test_a_bad_bv_answer_is_one_line_before_anything_is_written(tmp_path, capsys):

@@ -5,6 +5,8 @@ real rclpy + Fast DDS, no mocks.
 * the graph's bag is byte-identical to the in-process bag of the same config and seed;
 * a controller killed mid-run is a clean abort at the step it owes (status 4, one error line naming it, a finished bag
   holding every step up to the fault);
+* the terminal holds the launcher's lines only: each node's output (rclpy's log lines too) is in ``OUT/logs/<node>.log``,
+  and the one error line of a failed run names that folder;
 * Ctrl-C (SIGINT to the launcher) leaves a finished bag (status 130, run_end ``interrupted``);
 * the recorder killed mid-run is reported as one line, not a traceback;
 * a node started with a bad parameter exits 2 with one line naming the parameter;
@@ -173,6 +175,27 @@ def _error_lines(stderr: str) -> list[str]:
     return [line for line in stderr.splitlines() if line.startswith("error:")]
 
 
+RAW_LOG_LINE = re.compile(r"^\[(WARN|ERROR|INFO|DEBUG|FATAL)\] \[\d+\.\d+\]", re.M)
+"""A line of rclpy's console logger: it belongs in a node's log file, not on the launcher's terminal."""
+
+
+def _node_logs(out: Path) -> dict[str, str]:
+    """The log files of a graph run (``OUT/logs/<name>.log``: each node's output, the launcher's events), by name."""
+    return {p.stem: p.read_text(encoding="utf-8", errors="replace") for p in sorted((out / "logs").glob("*.log"))}
+
+
+def _assert_clean_terminal(stdout: str, stderr: str, out: Path) -> dict[str, str]:
+    """No node's line on the terminal (no rclpy log line, no line a node prints with its name) and no traceback
+    anywhere, the node logs included; returns the logs."""
+    logs = _node_logs(out)
+    assert set(NODES) <= set(logs) and "launcher" in logs, sorted(logs)
+    terminal = stdout + stderr
+    assert not RAW_LOG_LINE.search(terminal), terminal
+    assert not re.search(r"^evoscen_\w+: ", terminal, re.M), terminal
+    assert "Traceback" not in terminal and not any("Traceback" in text for text in logs.values()), logs
+    return logs
+
+
 # --------------------------------------------------------------------------- 200-step run
 
 
@@ -192,6 +215,9 @@ def test_graph_run_completes(graph_200):
     res, bag_dir = graph_200["res"], graph_200["out"] / "bag"
     assert res.returncode == 0, f"graph run failed ({res.returncode}):\n{res.stdout}\n{res.stderr}"
     assert not _error_lines(res.stderr) and "Traceback" not in res.stderr, res.stderr
+    logs = _assert_clean_terminal(res.stdout, res.stderr, graph_200["out"])
+    assert res.stderr.splitlines() == [line for line in res.stderr.splitlines() if line.startswith("graph: ")], res.stderr
+    assert re.search(r"^evoscen_sim: lockstep: 200 steps in ", logs["evoscen_sim"], re.M), logs["evoscen_sim"]
     assert re.search(r"^steps: 200\b", res.stdout, re.MULTILINE), res.stdout
     assert NODES_LINE + "0" in res.stdout, res.stdout
     bag = _read_bag(bag_dir)
@@ -300,13 +326,16 @@ def test_killed_controller_aborts_cleanly(killed_bv):
     assert killed_bv["after_kill"] < 8.0, f"the graph took {killed_bv['after_kill']:.1f} s to end after the kill"
     # a death (4), not the simulation's controller fault (3) that follows it (docs/recording.md)
     assert rc == 4, f"exit status {rc}, expected 4 (a node died)\n{stderr}"
-    assert "Traceback" not in stderr, stderr
+    logs = _assert_clean_terminal(killed_bv["stdout"], stderr, killed_bv["out"])
     errors = _error_lines(stderr)
     assert errors == [f"error: graph: node {name} ended early (killed by SIGKILL (signal 9)); the run ended early "
-                      "(exit status 4)"], f"expected the launcher's one 'error:' line naming {name}\n{stderr}"
-    # the simulation's abort, said as the consequence it is (no 'error:')
+                      f"(exit status 4) (node logs: {killed_bv['out'] / 'logs'}/)"], \
+        f"expected the launcher's one 'error:' line naming {name}\n{stderr}"
+    # the simulation's abort, said as the consequence it is (no 'error:'), in its log; the launcher's log names the death
     assert re.search(rf"^evoscen_sim: controller '{name}' ended before answering step \d+; "
-                     r"run aborted \(its process had ended: the launcher names it\)$", stderr, re.M), stderr
+                     r"run aborted \(its process had ended: the launcher names it\)$", logs["evoscen_sim"], re.M), logs
+    assert re.search(rf"^ +\d+\.\d s  {name} ended early \(killed by SIGKILL \(signal 9\)\)$", logs["launcher"], re.M), \
+        logs["launcher"]
     assert f"{name}=-9" in killed_bv["stdout"], killed_bv["stdout"]  # the launcher reports the dead node
     assert "aborted: the run ended at step" in killed_bv["stdout"] and "intelligence" not in killed_bv["stdout"]
 
@@ -370,11 +399,12 @@ def test_stalled_controller_is_a_controller_fault(tmp_path):
         os.kill(bv[0], signal.SIGCONT)  # the run is over: it sees the world's publisher gone and ends
         stdout, stderr = launcher.communicate(timeout=90)
     assert launcher.returncode == 3, f"exit status {launcher.returncode}, expected 3\n{stdout}\n{stderr}"
-    assert "Traceback" not in stderr, stderr
+    logs = _assert_clean_terminal(stdout, stderr, out)
     errors = _error_lines(stderr)
     assert len(errors) == 1 and re.fullmatch(
         rf"error: evoscen_sim: controller '{name}' missed 3 consecutive deadline\(s\) of 0.5 s at step \d+; "
-        r"run aborted", errors[0]), errors
+        rf"run aborted \(node logs: {re.escape(str(out / 'logs'))}/\)", errors[0]), errors
+    assert errors[0].removeprefix("error: ").split(" (node logs")[0] in logs["evoscen_sim"], logs["evoscen_sim"]
     assert "ended early" not in stderr, stderr
     faults = [ev for _, ev in _events(_read_bag(out / "bag")) if ev["name"] == "evoscen/fault"]
     assert faults[-1]["kind"] == "abort" and faults[-1]["controller"] == name, faults
@@ -416,7 +446,9 @@ def test_sigint_to_launcher_leaves_finished_bag(tmp_path):
         stdout, stderr = launcher.communicate(timeout=90)
     assert launcher.returncode == 130, f"exit status {launcher.returncode}\n{stdout}\n{stderr}"
     assert "Traceback" not in stderr and not _error_lines(stderr), stderr
+    _assert_clean_terminal(stdout, stderr, out)
     bag_dir = out / "bag"
+    assert f"interrupted: the bag {bag_dir} is finished" in stderr.splitlines(), stderr
     assert (bag_dir / "metadata.yaml").is_file()
     bag = _read_bag(bag_dir)
     assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())
@@ -443,9 +475,12 @@ def test_killed_recorder_is_one_error_line(tmp_path):
         os.kill(ev[0], signal.SIGKILL)
         _stdout, stderr = launcher.communicate(timeout=90)
     assert launcher.returncode not in (0, 1), f"exit status {launcher.returncode}\n{stderr}"
-    assert "Traceback" not in stderr, stderr
+    _assert_clean_terminal(_stdout, stderr, out)
     errors = _error_lines(stderr)
-    assert any("bag" in line for line in errors), errors
+    assert len(errors) == 1 and errors[0].startswith("error: graph: node evoscen_eval ended early (killed by SIGKILL"), errors
+    # what to do about the bag, on a line of its own (not a second error)
+    assert re.search(rf"^the bag is not readable .*python scripts/reindex.py {re.escape(str(out / 'bag'))}$", stderr,
+                     re.M), stderr
 
 
 # --------------------------------------------------------------------------- bad parameters

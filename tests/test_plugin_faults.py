@@ -4,7 +4,8 @@
   plug-in's file:line, exit status 3, no traceback, a finished bag ending ``aborted``, no score — in
   process (a model registered in this process) and in the node graph (an entry point in a directory on
   PYTHONPATH: a ``*.dist-info`` with ``entry_points.txt`` is all ``importlib.metadata`` needs), where
-  the run ends within 2 s of the failed step although the deadline is 10 s.
+  the run ends within 2 s of the failed step although the deadline is 10 s; the graph's terminal holds
+  the same line, naming the node logs (the nodes' own lines are there), and no node's log line.
 * A factory that raises: the same line and status before anything runs.
 * ``run_scenario.py --list-suts`` / ``--list-mutants``.
 * The face: its names pinned; the examples import evoscen from it alone; a 0.4 import path works with a
@@ -19,8 +20,6 @@ import re
 import subprocess
 import sys
 import textwrap
-import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -164,59 +163,84 @@ PLUGIN = textwrap.dedent('''
 PLUGIN_LINE = next(i for i, line in enumerate(PLUGIN.splitlines(), 1) if "raise RuntimeError" in line)
 
 
-@pytest.mark.e2e
-def test_act_raising_in_the_graph_ends_within_2_s(tmp_path):
+def _plugin_site(tmp_path: Path) -> dict[str, str]:
+    """The environment of a process that sees the plug-in PLUGIN through an entry point (a ``*.dist-info``
+    with ``entry_points.txt`` in a directory on PYTHONPATH)."""
     site = tmp_path / "site"
     (site / "diverging_sut-0.1.dist-info").mkdir(parents=True)
     (site / "diverging_sut.py").write_text(PLUGIN)
     (site / "diverging_sut-0.1.dist-info" / "METADATA").write_text("Metadata-Version: 2.1\nName: diverging-sut\nVersion: 0.1\n")
     (site / "diverging_sut-0.1.dist-info" / "entry_points.txt").write_text("[evoscen.sut]\ndiverging_sut = diverging_sut:SPEC\n")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), *(p for p in sys.path if p)]))
-    out = tmp_path / "run"
-    # deadline 10 s, 5 misses: waiting out the deadlines would take 50 s
-    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--sut", "diverging_sut", "--steps", "60", "--bvs", "3",
-                             "--deadline", "10", "--out", str(out), "--no-plots"], cwd=REPO, env=env, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    lines: list[str] = []
-    failed_at: list[float] = []
-    ended_at: list[float] = []  # the launcher's first line after the graph has ended (its summary)
+    return dict(os.environ, PYTHONPATH=os.pathsep.join([str(site), *(p for p in sys.path if p)]))
 
-    def read_stderr():
-        for line in proc.stderr:
-            if line.startswith("error: evoscen_sut:") and not failed_at:
-                failed_at.append(time.monotonic())
-            lines.append(line.rstrip("\n"))
 
-    reader = threading.Thread(target=read_stderr)
-    reader.start()
-    out_lines = []
-    try:
-        for line in proc.stdout:
-            if line.startswith("steps:") and not ended_at:
-                ended_at.append(time.monotonic())
-            out_lines.append(line)
-        proc.wait(timeout=120)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-    reader.join(10)
-    stdout, stderr = "".join(out_lines), "\n".join(lines)
-    ended = ended_at[0]
-    assert proc.returncode == 3, stderr
-    assert "Traceback" not in stderr
-    errors = [line for line in lines if line.startswith("error:")]
-    assert len(errors) == 1 and re.fullmatch(
-        r"error: evoscen_sut: sut model 'diverging_sut' \(entry point diverging_sut:SPEC\): act\(\) at step 30 raised "
-        rf"RuntimeError: planner diverged \(.*diverging_sut\.py:{PLUGIN_LINE}\)", errors[0]), errors
-    print(f"\nthe graph ended {ended - failed_at[0]:.2f} s after the plug-in's error line (os.getloadavg: "
-          f"{os.getloadavg()[0]:.1f})")
-    assert ended - failed_at[0] < 2.0, f"ended {ended - failed_at[0]:.2f} s after the failed step\n{stderr}"
-    assert "intelligence" not in stdout and "aborted: the run ended at step 30 of 60 (exit status 3)" in stdout, stdout
+RAW_LOG_LINE = re.compile(r"^\[(WARN|ERROR|INFO|DEBUG|FATAL)\] \[\d+\.\d+\]", re.M)
+"""A line of rclpy's console logger (a node's, for its log file)."""
+PLUGIN_ERROR = (r"sut model 'diverging_sut' \(entry point diverging_sut:SPEC\): act\(\) at step 30 raised "
+                rf"RuntimeError: planner diverged \(.*diverging_sut\.py:{PLUGIN_LINE}\)")
+
+
+@pytest.fixture(scope="module")
+def raising_in_the_graph(tmp_path_factory):
+    """``--mode graph`` with the plug-in that raises at step 30 (deadline 10 s, 5 misses: waiting out the
+    deadlines would take 50 s), as a person runs it: its terminal (stdout, stderr) and its output."""
+    tmp = tmp_path_factory.mktemp("graph_fault")
+    env = _plugin_site(tmp)
+    out = tmp / "run"
+    res = subprocess.run([sys.executable, str(SCRIPT), "--sut", "diverging_sut", "--steps", "60", "--bvs", "3",
+                          "--deadline", "10", "--out", str(out), "--no-plots"], cwd=REPO, env=env, text=True,
+                         capture_output=True, timeout=240, check=False)
+    return {"res": res, "out": out, "env": env, "tmp": tmp}
+
+
+@pytest.mark.e2e
+def test_act_raising_in_the_graph_is_one_line_naming_the_node_logs(raising_in_the_graph):
+    res, out = raising_in_the_graph["res"], raising_in_the_graph["out"]
+    terminal = res.stdout + res.stderr
+    assert res.returncode == 3, terminal
+    errors = [line for line in terminal.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and re.fullmatch(rf"error: {PLUGIN_ERROR} \(node logs: {re.escape(str(out / 'logs'))}/\)",
+                                             errors[0]), terminal
+    assert not RAW_LOG_LINE.search(terminal) and "Traceback" not in terminal, terminal
+    # the launcher's lines only: where things are, then the summary (stdout)
+    assert [line for line in res.stderr.splitlines() if not line.startswith(("graph: ", "error: "))] == [], res.stderr
+    assert "intelligence" not in res.stdout and "aborted: the run ended at step 30 of 60 (exit status 3)" in res.stdout
+    # the nodes' own lines are in their log files: the SUT node's error, the simulation's rclpy warning
+    sut = (out / "logs" / "evoscen_sut.log").read_text()
+    assert re.fullmatch(rf"error: {PLUGIN_ERROR}\n", sut), sut
+    sim = (out / "logs" / "evoscen_sim.log").read_text()
+    assert re.search(r"^\[WARN\] \[\d+\.\d+\] \[evoscen_sim\]: controller 'evoscen_sut' ended before answering "
+                     "step 30", sim, re.M), sim
     assert not (out / "report" / "report.json").exists()
     events = _bag_events(out / "bag")
     fault, end = events[-2:]
     assert (fault["name"], fault["kind"], fault["controller"], fault["step"]) == ("evoscen/fault", "abort", "evoscen_sut", 30)
     assert (end["name"], end["kind"]) == ("evoscen/run_end", "aborted")
+
+
+@pytest.mark.e2e
+def test_act_raising_in_the_graph_ends_within_2_s(raising_in_the_graph):
+    """The launcher tells the simulation at once: the graph ends within 2 s of the SUT node's end (the
+    launcher's log: when it saw the node end, when the graph had ended), not after 5 deadlines of 10 s."""
+    log = (raising_in_the_graph["out"] / "logs" / "launcher.log").read_text()
+    failed = re.search(r"^ *(\d+\.\d) s  evoscen_sut ended with a controller fault \(exit status 3\)$", log, re.M)
+    ended = re.search(r"^ *(\d+\.\d) s  ended: exit status 3; ", log, re.M)
+    assert failed and ended, log
+    took = float(ended.group(1)) - float(failed.group(1))
+    print(f"\nthe graph ended {took:.1f} s after the SUT node's fault (os.getloadavg: {os.getloadavg()[0]:.1f})")
+    assert took < 2.0, log
+
+
+@pytest.mark.e2e
+def test_act_raising_is_the_same_line_in_both_runners(raising_in_the_graph):
+    """The in-process runner's one line for the same plug-in and step is the graph's, less where its node logs are."""
+    tmp = raising_in_the_graph["tmp"]
+    res = subprocess.run([sys.executable, str(SCRIPT), "--mode", "inprocess", "--sut", "diverging_sut", "--steps", "60",
+                          "--bvs", "3", "--out", str(tmp / "inprocess"), "--no-plots", "--quiet"], cwd=REPO,
+                         env=raising_in_the_graph["env"], text=True, capture_output=True, timeout=240, check=False)
+    assert res.returncode == 3, res.stderr
+    graph = [line for line in raising_in_the_graph["res"].stderr.splitlines() if line.startswith("error:")]
+    assert res.stderr.splitlines() == [graph[0].split(" (node logs: ")[0]], (res.stderr, graph)
 
 
 # ------------------------------------------------------------------ the face

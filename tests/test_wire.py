@@ -99,6 +99,8 @@ def test_attacked_run_completes_without_traceback(attacked):
     res = attacked["graph"]
     assert res.returncode == 0, f"exit {res.returncode}:\n{res.stdout}\n{res.stderr}"
     assert "Traceback" not in res.stderr, res.stderr
+    for log in sorted((attacked["out"] / "logs").glob("*.log")):  # the nodes' own output
+        assert "Traceback" not in log.read_text(errors="replace"), log
     assert ("nodes: evoscen_eval=0, evoscen_bv_competitive=0, evoscen_bv_mutual=0, evoscen_bv_cooperative=0, "
             "evoscen_sut=0, evoscen_sim=0") in res.stdout, res.stdout
     assert "intruder: sent" in attacked["intruder"], attacked["intruder"]

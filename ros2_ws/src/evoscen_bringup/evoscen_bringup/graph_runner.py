@@ -10,7 +10,7 @@ processes (``python -m <pkg>.<node> --ros-args --params-file ...``), and supervi
   controllers exit on ``run_end`` too (or are stopped the same way);
 * Ctrl-C (SIGINT/SIGTERM to the launcher) is forwarded to the simulation node only, which
   ends the run after the current step, so the bag is finished in every case;
-* a node that dies is named on stderr with how it ended (``graph: evoscen_eval ended early
+* a node that dies is named in the launcher's log with how it ended (``evoscen_eval ended early
   (killed by SIGKILL (signal 9))``), and the graph ends within seconds: the evaluator's death or
   any death during start-up (before the simulation node's ``ready_file`` exists) stops the
   simulation node at once (SIGINT); a controller whose process ended in the lockstep (killed, or
@@ -20,6 +20,10 @@ processes (``python -m <pkg>.<node> --ros-args --params-file ...``), and supervi
   consequence (no second ``error:`` line), with a SIGINT after ``deadline_s`` · ``max_misses`` + 5 s
   as a backstop; the simulation node's death sends SIGTERM to the evaluator (which
   finishes the bag) and SIGINT to the controllers, SIGKILL after 5 s;
+* each node's output (its lines, rclpy's log lines, a traceback) goes to ``OUT/logs/<node>.log``
+  (:mod:`evoscen_bringup.node_logs`), the launcher's own events to ``OUT/logs/launcher.log``; the
+  terminal gets one ``error:`` line for a run that failed: the launcher's for a death (4), else the line
+  of the node whose status decided (the in-process runner's words), ending ``(node logs: OUT/logs/)``;
 * the exit status is one of :data:`EXIT_OK` 0, :data:`EXIT_BAD_INPUT` 2, :data:`EXIT_FAULT` 3,
   :data:`EXIT_NODE_DIED` 4, :data:`EXIT_HOST_FAULT` 5, :data:`EXIT_INTERRUPTED` 130 (:func:`graph_status`), never a raw
   signal number.
@@ -52,6 +56,7 @@ from evoscen_sim.nodes.bv_nodes import bv_node_names
 from evoscen_sim.nodes.node_params import scenario_parameters
 
 from evoscen_bringup.domains import reserve_domain
+from evoscen_bringup.node_logs import LAUNCHER_LOG, LOG_DIR, Errors, LauncherLog, NodeLog, the_error_line
 
 NODES = (
     (NODE_EVAL, "evoscen_eval.eval_node"),
@@ -113,6 +118,10 @@ class GraphResult:
     """Nodes that died or ended before the run did, with how (``killed by SIGKILL (signal 9)``)."""
     deaths: list[str] = field(default_factory=list)
     """The nodes of ``died`` that died (killed by a signal, or ended non-zero on their own), in order."""
+    error: str | None = None
+    """The run's one ``error:`` line as printed (None: none), naming the node logs where they are whole."""
+    log_dir: Path | None = None
+    """The nodes' log files (``<node>.log``) and the launcher's ``launcher.log``."""
 
 
 def write_parameter_files(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOptions) -> dict[str, Path]:
@@ -198,7 +207,7 @@ def _wanted_nodes(cfg: ScenarioConfig, opts: GraphOptions) -> list[tuple[str, st
 
 
 def _node_ended(name: str, returncode: int, ready_file: Path, died: dict[str, str], note, tell_simulation,
-                stop_sim_at: float | None, fault_wait_s: float, t0: float) -> float | None:
+                stop_sim_at: float | None, fault_wait_s: float, log: LauncherLog) -> float | None:
     """Node ``name`` (not the simulation) ended before the run with ``returncode`` (not 0): how is noted
     in ``died`` (``note``: a death; ``tell_simulation``: the simulation is told in the lockstep), and
     the answer is when to stop the simulation (``stop_sim_at``, updated)."""
@@ -219,7 +228,7 @@ def _node_ended(name: str, returncode: int, ready_file: Path, died: dict[str, st
         # start-up timed out): not a death. In the lockstep the simulation, told at once,
         # aborts the run at the step it waits for (no deadline waits); in start-up: stop it
         died[name] = "ended with a controller fault (exit status 3)"
-        print(f"graph: {name} {died[name]} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
+        log(f"{name} {died[name]}")
         if started:
             tell_simulation(name)
             return time.monotonic() + fault_wait_s if stop_sim_at is None else stop_sim_at
@@ -276,6 +285,27 @@ def _death_line(node_status: dict[str, int | None], died: dict[str, str], deaths
                      if s not in (0, None))
 
 
+def _error_line(status: int, node_status: dict[str, int | None], died: dict[str, str], deaths: list[str],
+                errors: Errors, logs: list[NodeLog], log: LauncherLog) -> str | None:
+    """The run's one ``error:`` line, printed on stderr (None: the run has none): the launcher's for a death,
+    else the deciding node's (:func:`~evoscen_bringup.node_logs.the_error_line`), naming the log folder
+    where every log is whole."""
+    end = time.monotonic() + 2.0  # the output of a node's own child processes, if any outlived it: 2 s in all
+    for node_log in logs:
+        node_log.join(max(end - time.monotonic(), 0.0))
+    log(f"ended: exit status {status}; " + ", ".join(f"{n} {describe_status(s)}" for n, s in node_status.items()))
+    if status == EXIT_NODE_DIED:
+        line = f"graph: {_death_line(node_status, died, deaths)} (exit status {EXIT_NODE_DIED})"
+    else:
+        line = the_error_line(status, node_status, errors.lines())
+    if line is None:
+        return None
+    whole = log.complete and all(node_log.complete for node_log in logs)
+    line = f"error: {line}" + (f" (node logs: {log.path.parent}/)" if whole else "")
+    print(line, file=sys.stderr)
+    return line
+
+
 def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOptions | None = None) -> GraphResult:
     """Run the scenario as a node graph (see the module docstring)."""
     opts = opts or GraphOptions()
@@ -291,10 +321,17 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     params = write_parameter_files(cfg, out_dir, bag_dir, opts)
     ready_file.unlink(missing_ok=True)
     deaths_file.unlink(missing_ok=True)
+    log_dir = out_dir / LOG_DIR
+    log_dir.mkdir(exist_ok=True)
+    for old_log in log_dir.glob("*.log"):  # a previous run's, in this output directory
+        old_log.unlink()
     env = node_environment(domain_id, opts.discovery_range)
     wanted = _wanted_nodes(cfg, opts)
     procs: dict[str, subprocess.Popen] = {}
+    logs: list[NodeLog] = []
+    errors = Errors()
     t0 = time.monotonic()
+    log = LauncherLog(log_dir / LAUNCHER_LOG, t0)
     interrupted = False
     died: dict[str, str] = {}  # node -> how it ended, for nodes that ended before the run did
     deaths: list[str] = []  # the nodes of died that died (killed, or non-zero on their own): exit status 4
@@ -310,7 +347,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
     def note(name: str, why: str) -> None:
         died[name] = why
         deaths.append(name)
-        print(f"graph: {name} {why} {time.monotonic() - t0:.1f} s after launch", file=sys.stderr)
+        log(f"{name} {why}")
 
     ended: list[str] = []  # controllers whose process ended in the lockstep, named in deaths_file
 
@@ -333,7 +370,10 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
             procs[name] = subprocess.Popen(
                 [sys.executable, "-m", module, "--ros-args", "--params-file", str(params[name]), *rename],
                 env=env, start_new_session=True,  # Ctrl-C reaches the launcher only; it decides
+                stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,  # to its log file
             )
+            logs.append(NodeLog(name, procs[name].stdout, log_dir / f"{name}.log", errors))
+            log(f"{name} started (pid {procs[name].pid})")
         sim = procs[NODE_SIM]
         fault_wait_s = opts.deadline_s * opts.max_misses + 5.0
         stop_sim_at: float | None = None
@@ -343,7 +383,7 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 if name == NODE_SIM or name in died or p.poll() in (None, 0):
                     continue  # 0: a controller answered the final state, the recorder got run_end
                 stop_sim_at = _node_ended(name, p.returncode, ready_file, died, note, tell_simulation, stop_sim_at,
-                                          fault_wait_s, t0)
+                                          fault_wait_s, log)
             if stop_sim_at is not None and time.monotonic() >= stop_sim_at:
                 # SIGTERM before step 0: a node still importing its modules would print a
                 # KeyboardInterrupt traceback on SIGINT (the simulation handles both alike)
@@ -373,10 +413,9 @@ def run_graph(cfg: ScenarioConfig, out_dir: Path, bag_dir: Path, opts: GraphOpti
                 pass
     node_status = {name: p.returncode for name, p in procs.items()}
     status = graph_status(node_status, died, interrupted, deaths)
-    if status == EXIT_NODE_DIED:
-        print(f"error: graph: {_death_line(node_status, died, deaths)} (exit status {EXIT_NODE_DIED})", file=sys.stderr)
+    line = _error_line(status, node_status, died, deaths, errors, logs, log)
     return GraphResult(status=status, node_status=node_status, domain_id=domain_id,
-                       wall_time_s=time.monotonic() - t0, died=died, deaths=deaths)
+                       wall_time_s=time.monotonic() - t0, died=died, deaths=deaths, error=line, log_dir=log_dir)
 
 
 def graph_status(node_status: dict[str, int | None], died: dict[str, str], interrupted: bool,

@@ -27,6 +27,8 @@ from evoscen_contract.contract import (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_HOST_FAU
                                        EXIT_OK, TOPIC_WORLD)
 from evoscen_sim.errors import HostFault, InputError, PluginFault
 
+from evoscen_bringup.node_logs import LOG_DIR
+
 MODES = ("graph", "inprocess")
 """``run_scenario.py --mode``: one ROS 2 process per node (lockstep), or every core in one process."""
 ABORTED = (EXIT_BAD_INPUT, EXIT_FAULT, EXIT_NODE_DIED)
@@ -138,9 +140,9 @@ def graph_outcome(result, cfg, out: Path, bag_dir: Path, report_dir: Path) -> in
         return result.status or EXIT_FAULT
     try:
         counts = topic_counts(bag_dir)
-    except InputError as exc:
-        print(f"error: the bag is not readable ({exc}); if the recorder was killed, recover what it wrote with: "
-              f"python scripts/reindex.py {bag_dir}", file=sys.stderr)
+    except InputError as exc:  # an error line only when the run has not said one (the recorder's death)
+        print(f"{'error: ' if result.error is None else ''}the bag is not readable ({exc}); if the recorder was "
+              f"killed, recover what it wrote with: python scripts/reindex.py {bag_dir}", file=sys.stderr)
         return result.status or EXIT_FAULT
     steps = steps_of(counts)
     print(f"steps: {steps}  domain: {result.domain_id}  wall: {result.wall_time_s:.2f} s  "
@@ -154,6 +156,10 @@ def graph_outcome(result, cfg, out: Path, bag_dir: Path, report_dir: Path) -> in
         print(f"aborted: the run ended at step {steps} of {cfg.steps} (exit status {result.status}); "
               "the run is not scored")
         return result.status
+    if result.status == EXIT_INTERRUPTED:  # the in-process runner's line; scored if the recorder saw run_end
+        print(f"interrupted: the bag {bag_dir} is finished", file=sys.stderr)
+        if not (report_dir / "report.json").is_file():
+            return result.status
     print_scores(report_dir)
     return result.status
 
@@ -163,7 +169,7 @@ def _graph_command(cfg, out: Path, bag_dir: Path, report_dir: Path, *, domain_id
     """``--mode graph``: the graph run, announced on stderr, and its outcome (:func:`graph_outcome`)."""
     def announce(opts) -> None:
         print(f"graph: ROS_DOMAIN_ID={opts.domain_id}, discovery {opts.discovery_range}; parameter files in "
-              f"{out / 'params'}", file=sys.stderr)
+              f"{out / 'params'}, node logs in {out / LOG_DIR}", file=sys.stderr)
         if external_sut:
             print(f"graph: waiting up to {opts.startup_timeout_s:g} s for your SUT node on /evoscen/commands/sut "
                   f"(ROS_DOMAIN_ID={opts.domain_id})", file=sys.stderr)

@@ -268,7 +268,7 @@ class EvaluatorNode:
             except HostFault as exc:
                 fault = fault or exc
         if fault is not None:  # one line, once the bag's state is known; no report
-            print(f"error: {NODE_NAME}: {fault.line()}", file=sys.stderr)
+            print(f"error: {fault.line()}", file=sys.stderr)  # the in-process runner's line
             return EXIT_HOST_FAULT
         if self.refused:
             print(f"warning: {NODE_NAME}: {self.refused} message(s) not recorded (untrusted or unreadable)",
@@ -303,7 +303,7 @@ class EvaluatorNode:
         except (HostFault, OSError) as exc:  # the bag is finished; the report could not be written
             fault = exc if isinstance(exc, HostFault) else HostFault.of(exc, exc.filename or self.report_dir)
             fault.bag_dir, fault.bag_state = self.bag.bag.bag_dir, "finished"
-            print(f"error: {NODE_NAME}: {fault.line()}", file=sys.stderr)
+            print(f"error: {fault.line()}", file=sys.stderr)  # the in-process runner's line
             return EXIT_HOST_FAULT
         return status
 

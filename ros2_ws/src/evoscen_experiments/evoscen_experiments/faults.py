@@ -234,10 +234,10 @@ def _end_intruder(intruder: subprocess.Popen, steps: int, problems: list[str]) -
         problems.append(f"the intruder attacked {m.group(1)} world messages of {steps + 1} (expected at least half)")
 
 
-def _bag_figures(fault: tuple, bag: Path, stderr: str, seed: int, steps: int, work: Path, clean_world: dict) -> tuple:
+def _bag_figures(fault: tuple, bag: Path, node_logs: str, seed: int, steps: int, work: Path, clean_world: dict) -> tuple:
     """What a graph run's bag holds (after reindex if it has to): readable (None: no bag), reindexed, steps
-    lost (gaps and the published states missing at its end), the world identical to a clean in-process
-    run's (inject only; else None) and its ``fault`` events."""
+    lost (gaps and the published states missing at its end: the simulation's count in ``node_logs``), the
+    world identical to a clean in-process run's (inject only; else None) and its ``fault`` events."""
     readable, reindexed, lost, identical, fault_events = None, False, None, None, None
     if not bag.exists():
         return readable, reindexed, lost, identical, fault_events
@@ -255,7 +255,7 @@ def _bag_figures(fault: tuple, bag: Path, stderr: str, seed: int, steps: int, wo
     if readable:
         fault_events = _fault_events(bag)
     if world:
-        m = re.search(r"evoscen_sim: lockstep: (\d+) steps", stderr)
+        m = re.search(r"evoscen_sim: lockstep: (\d+) steps", node_logs)
         published = int(m.group(1)) + 1 if m else None  # states 0..K
         gaps = (world[-1] + 1) - len(world)
         tail = max(published - len(world) - gaps, 0) if published is not None else 0
@@ -338,8 +338,10 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
         if intruder is not None:
             _end_intruder(intruder, steps, problems)
     status = launcher.returncode if not hang else None
-    traceback = "Traceback" in stderr
-    readable, reindexed, lost, identical, fault_events = _bag_figures(fault, out / "bag", stderr, seed, steps, work,
+    # the nodes' own output is in their log files (OUT/logs/<node>.log), the terminal holds the launcher's
+    node_logs = "\n".join(p.read_text(encoding="utf-8", errors="replace") for p in sorted((out / "logs").glob("*.log")))
+    traceback = "Traceback" in stderr or "Traceback" in node_logs
+    readable, reindexed, lost, identical, fault_events = _bag_figures(fault, out / "bag", node_logs, seed, steps, work,
                                                                       clean_world)
     allowed_loss = 0
     if kind == "kill" and fault[2] == "eval" and fault[3] == "lockstep":

@@ -152,7 +152,7 @@ def _bag_after(kind: str, runner: str, bag: Path, copy: Path, status: int | None
     is readable (None: not looked at), whether it needed reindex, and the steps lost."""
     readable, reindexed, lost = None, False, None
     if kind == "readonly" and status == HOST_FAULT_STATUS and line is not None and not (
-            line.startswith(f"error: {'evoscen_eval: ' if runner == 'graph' else ''}cannot write "
+            line.startswith("error: cannot write "
                             f"{bag / 'bag_0.mcap'}: Read-only file system (EROFS)")):
         problems.append("the line does not name the bag file and EROFS")
     if kind == "readonly" and status != HOST_FAULT_STATUS:

@@ -74,7 +74,7 @@ class PluginFault(RuntimeError):
     The message is one line naming the model, its role, what it was doing (``act() at step 12``,
     ``its factory``), the exception's type and message and the file and line in the model's code
     where it was raised. The run ends there: in-process the bag is finished (``run_end`` of kind
-    ``aborted``), in the graph the controller prints ``error: <node>: <message>`` and exits, and the
+    ``aborted``), in the graph the controller prints the same ``error: <message>`` and exits, and the
     simulation aborts the run at once. Command-line tools print ``error: <message>`` and exit with
     status 3 (:data:`evoscen_contract.contract.EXIT_FAULT`, a controller fault), no traceback.
 

@@ -223,11 +223,11 @@ class ControllerNode:
                 self.pump.wait(0.1)
         except KeyboardInterrupt:
             return EXIT_INTERRUPTED
-        except InputError as exc:  # the driver's answer is malformed (checked_answer): one line, no traceback
-            print(f"error: {self.name}: {exc}", file=sys.stderr)
+        except InputError as exc:  # the driver's answer is malformed (checked_answer): one line, no traceback,
+            print(f"error: {exc}", file=sys.stderr)  # the in-process runner's (it names the model)
             return EXIT_BAD_INPUT
-        except PluginFault as exc:  # the driver raised: one line, a controller fault; the launcher
-            print(f"error: {self.name}: {exc}", file=sys.stderr)  # tells the simulation, which aborts at once
+        except PluginFault as exc:  # the driver raised: one line, a controller fault, the in-process runner's;
+            print(f"error: {exc}", file=sys.stderr)  # the launcher tells the simulation, which aborts at once
             return EXIT_FAULT
 
 
