@@ -7,7 +7,7 @@ returned as rows::
 
     result = evoscen.run_experiment("intelligence", out="runs/compare", suts=["mobil", "nilsson"],
                                     seeds=10, first_seed=882000, jobs=2)
-    for row in result.tables["paired"]: print(row["sut_a"], row["sut_b"], row["d_intelligence_mean"])
+    for row in result.tables["paired"]: print(row["sut_a"], row["sut_b"], row["delta_d_mean"])
 
 A bad option is one :class:`~evoscen_sim.errors.InputError` line naming it, before anything runs.
 """
