@@ -257,12 +257,53 @@ def test_sensitivity_compare_designs(tmp_path):
     assert "sharper design: " in res.stdout
 
 
+def test_sensitivity_sequential_verdicts_and_resumption(tmp_path):
+    """--sequential through the script: rounds of 4 paired episodes up to 8; each comparison's verdict, interval
+    and episodes follow from rounds.csv; a rerun computes nothing."""
+    from evoscen_experiments.sequential import verdict
+
+    out = tmp_path / "seq"
+    args = ("--out", out, "--sequential", "--budget", 8, "--round-size", 4, "--episode-steps", 20, "--first-seed", 5,
+            "--mutants", "stale,frozen", "--scenarios", "level0", "--jobs", 2)
+    res = script("experiment_sensitivity.py", *args)
+    assert res.returncode == 0, res.stderr
+    rounds = read_csv(out / "rounds.csv")
+    d = {(r["variant"], int(r["seed"])): float(r["d"]) for r in rounds}
+    rows = {r["mutant"]: r for r in read_csv(out / "verdicts.csv")}
+    assert [(r["role"], r["budget"]) for r in rows.values()] == [("defect", "8"), ("profile", "8")]
+    for m, row in rows.items():
+        seeds = sorted(s for v, s in d if v == m)
+        n = int(row["episodes"])
+        assert seeds == list(range(5, 5 + n)) and n in (4, 8)  # the first n seeds, in order; only looks' sizes
+        diffs = [d[("intact", s)] - d[(m, s)] for s in seeds]
+        assert float(row["delta_d_mean"]) == pytest.approx(sum(diffs) / n)
+        v = verdict(diffs, round_size=4, budget=8, delta=0.005)
+        assert (v.episodes, v.looks) == (n, int(row["looks"])) and v.low == pytest.approx(float(row["delta_d_low"]))
+        word = row["verdict"]
+        assert word == {"a_higher": "worse", "b_higher": "better"}.get(v.verdict, v.verdict)
+        assert (word == "worse") == (float(row["delta_d_low"]) > 0) and (word != "unresolved" or n == 8)
+    # the intact seeds run while any mutant needs them, once
+    assert sorted(s for v, s in d if v == "intact") == list(range(5, 5 + max(int(r["episodes"]) for r in rows.values())))
+    (count,) = read_csv(out / "verdict_counts.csv")
+    assert (count["defects"], count["profiles"], count["runs"]) == ("1", "1", str(len(rounds)))
+    assert count["worse"] == str(int(rows["stale"]["verdict"] == "worse"))  # frozen never counted
+    assert "## Sequential verdicts" in (out / "sensitivity.md").read_text()
+    files = sorted((out / "runs").glob("*/result.json"))
+    stamps = {f: f.stat().st_mtime_ns for f in files}
+    res = script("experiment_sensitivity.py", *args)  # resumable: the same looks read back, nothing recomputed
+    assert res.returncode == 0 and "rounds already done" in res.stderr
+    assert {f: f.stat().st_mtime_ns for f in sorted((out / "runs").glob("*/result.json"))} == stamps
+    assert {r["mutant"]: r["verdict"] for r in read_csv(out / "verdicts.csv")} == {
+        m: r["verdict"] for m, r in rows.items()}
+
+
 @pytest.mark.parametrize("name, args, expected", [
     ("experiment_sensitivity.py", ["--design", "long", "--episodes", "5"],
      "error: --episodes does not apply to --design long"),
     ("experiment_sensitivity.py", ["--compare-designs", "--seeds", "5"],
      "error: --compare-designs needs equal compute: episodes 100 x 300 = 30000 SUT steps per variant, long 5 x 3000"),
     ("experiment_sensitivity.py", ["--mutants", "stale,bogus"], "error: --mutants: unknown mutant 'bogus'"),
+    ("experiment_sensitivity.py", ["--sequential", "--seeds", "5"], "error: --sequential and --seeds together"),
     ("experiment_sensitivity.py", ["--base", "mobil,mobil"], "error: --base 'mobil,mobil': expected distinct"),
     ("experiment_sensitivity.py", ["--seeds", "-1"], "error: --seeds = '-1': expected an integer >= 1"),
     ("experiment_sensitivity.py", ["--scenarios", "evolving,nope"], "error: command line: key 'bvs.driver' = 'nope'"),

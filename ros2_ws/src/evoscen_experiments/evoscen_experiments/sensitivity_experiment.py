@@ -179,9 +179,14 @@ def _build(args):
 def main(args) -> int:
     """The experiment of the parsed options (``scripts/experiment_sensitivity.py``; text values, checked here):
     the rounds run (or read back), then one design's files in ``args.out``, or both designs' and their
-    comparison. Returns the exit status; InputError (one line) on bad input, before anything is written."""
+    comparison, or with ``--sequential`` the sequential verdicts (:mod:`evoscen_experiments.sensitivity_sequential`).
+    Returns the exit status; InputError (one line) on bad input, before anything is written."""
+    from evoscen_experiments import sensitivity_sequential
     from evoscen_experiments.experiments import run_rounds_with_bar, set_up
 
+    plan = sensitivity_sequential.resolve_plan(args, EPISODE_STEPS)
+    if plan is not None:
+        return sensitivity_sequential.main(args, plan, lambda: variant_names(args))
     designs, bases, scenarios, mutants, rounds, meta, jobs = set_up(args.out, lambda: _build(args))
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity")
     if results is None:
