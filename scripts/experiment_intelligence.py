@@ -9,7 +9,7 @@ Every SUT runs the same seeds (same BV layout and draws) for ``--steps`` steps i
 rounds run on ``--jobs`` Ray workers (the campaign engine) and are saved as they finish, so an interrupted experiment
 continues where it stopped (a finished round is not recomputed). Writes into ``--out``:
 ``intelligence.csv`` / ``intelligence.md`` (per SUT: the weighted safety, efficiency and
-interaction terms and the intelligence score, mean ± 95 % interval over seeds, with the
+interaction terms and the method's intelligence I, mean ± 95 % interval over seeds, with the
 collisions and exposures, and the comparative score D (docs/evaluation.md §10); below it every pair of
 SUTs compared on the same seeds: the mean per-seed difference of the score ``evaluation.score_form``
 selects (D by default, the method's I with ``method``) with its 95 % interval, and of the method's

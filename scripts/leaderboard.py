@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The planner leaderboard: every installed SUT in the default test, ranked by intelligence.
+"""The planner leaderboard: every installed SUT in the default test, ranked by D, the comparative score.
 
     python scripts/leaderboard.py [--out DIR] [--config FILE] [--suts all|NAME,...] [--reference mobil]
                                   [--blocks 2] [--block-size 100] [--first-seed 20000] | [--episodes N]
@@ -12,15 +12,15 @@ the default test (docs/sensitivity.md, the episodes design): ``--episodes`` shor
 runs of ``--episode-steps`` steps among the configuration's BVs (the shipped default: learned
 social drivers), each episode its own seed from ``--first-seed`` on. Every SUT gets the same
 seeds (the same initial traffic after the warm-up and the same random streams) and the same
-SUT steps, so the SUTs are compared paired, episode by episode. "Intelligence" is the score
+SUT steps, so the SUTs are compared paired, episode by episode. The score is the one
 ``evaluation.score_form`` selects (docs/evaluation.md §10): the comparative score D by default, its
 weighted terms P·i_s·S (safety), P·i_e·L (efficiency: the lane-change time term) and P·i_i·X
 (interaction); with ``method`` the method's I and its terms. Per SUT: that score
 and its three weighted terms (safety, efficiency, interaction), mean ± 95 % Student-t interval
 over the episodes, n, the collisions and exposures per episode, the surrogate-safety rates per
-SUT-km (docs/evaluation.md §9), and the paired difference of intelligence against
+SUT-km (docs/evaluation.md §9), and the paired difference of D against
 ``--reference`` (SUT − reference, mean ± 95 % interval over the shared episodes; significant
-when the interval excludes 0). SUTs are ranked by mean intelligence (ties: by name). A SUT whose
+when the interval excludes 0). SUTs are ranked by mean D (ties: by name). A SUT whose
 runs fail is listed as failed with the first error, not ranked; the others are still ranked.
 
 The episodes come in seed blocks (default 2 × 100 from ``--first-seed``; ``--episodes N``: one block;
@@ -36,7 +36,7 @@ as they finish: an interrupted leaderboard continues where it stopped. Writes in
 ``leaderboard.md`` (the ranked table, the terms, the pairs, the orders per block, the surrogate-safety
 table, the command), ``leaderboard.csv`` (one row per SUT, ranked, failed SUTs last), ``episodes.csv``
 (every episode of every SUT), ``terms.csv``, ``pairs.csv``, ``blocks.csv``, ``kendall.csv`` and
-``leaderboard.png`` (intelligence with its interval and the paired difference against the
+``leaderboard.png`` (D with its interval and the paired difference against the
 reference, per SUT); prints the tables. Exit status: 0 done (failed SUTs included), 2 bad
 input, 130 interrupted.
 """

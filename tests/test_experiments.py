@@ -43,15 +43,15 @@ def test_intelligence_table_and_files(intelligence):
     rounds = read_csv(out / "rounds.csv")
     assert len(rounds) == 6 and {r["steps"] for r in rounds} == {"200"}
     for row in table:
-        vals = [float(r["intelligence"]) for r in rounds if r["sut"] == row["sut"]]
+        vals = [float(r["i"]) for r in rounds if r["sut"] == row["sut"]]
         mean = sum(vals) / 2
         half = stats.t.ppf(0.975, 1) * abs(vals[0] - vals[1]) / math.sqrt(2) / math.sqrt(2)
-        assert float(row["intelligence_mean"]) == pytest.approx(mean)
-        assert float(row["intelligence_ci95"]) == pytest.approx(half)
-        # the intelligence score is the sum of the three weighted terms (each averaged over seeds)
+        assert float(row["i_mean"]) == pytest.approx(mean)
+        assert float(row["i_ci95"]) == pytest.approx(half)
+        # the method's I is the sum of its three weighted terms (each averaged over seeds)
         total = sum(float(row[f"{k}_weighted_mean"]) for k in ("safety", "efficiency", "interaction"))
         assert total == pytest.approx(mean)
-    assert "| mobil |" in res.stdout and "| SUT | safety (weighted)" in res.stdout
+    assert "| mobil |" in res.stdout and "| SUT | I_s (weighted)" in res.stdout
     # surrogate-safety rates per SUT-km: each SUT's mean ± interval of its rounds' rates
     ssm = read_csv(out / "surrogate_safety.csv")
     assert [r["sut"] for r in ssm] == ["nilsson", "mobil", "stackelberg"]
@@ -68,19 +68,19 @@ def test_intelligence_paired_comparisons(intelligence):
     out, res = intelligence
     assert res.returncode == 0, res.stderr
     rounds = read_csv(out / "rounds.csv")
-    score = {(r["sut"], int(r["seed"])): float(r["comparative"]) for r in rounds}  # evaluation.score_form's default
+    score = {(r["sut"], int(r["seed"])): float(r["d"]) for r in rounds}  # evaluation.score_form's default
     pairs = read_csv(out / "paired.csv")
     assert [(p["sut_a"], p["sut_b"]) for p in pairs] == [("nilsson", "mobil"), ("nilsson", "stackelberg"),
                                                          ("mobil", "stackelberg")]
     for p in pairs:
         d = [score[(p["sut_a"], s)] - score[(p["sut_b"], s)] for s in (0, 1)]
         half = stats.t.ppf(0.975, 1) * abs(d[0] - d[1]) / math.sqrt(2) / math.sqrt(2)
-        assert float(p["d_intelligence_mean"]) == pytest.approx(sum(d) / 2)
-        assert float(p["d_intelligence_ci95"]) == pytest.approx(half)
+        assert float(p["delta_d_mean"]) == pytest.approx(sum(d) / 2)
+        assert float(p["delta_d_ci95"]) == pytest.approx(half)
         assert p["seeds"] == "2" and p["significant"] == str(int(abs(sum(d) / 2) > half))
     assert "paired by seed" in (out / "intelligence.md").read_text()
     # the efficiency term, paired the same way (rounds.csv holds the unweighted I_e)
-    eff = {(r["sut"], int(r["seed"])): float(r["efficiency"]) for r in rounds}
+    eff = {(r["sut"], int(r["seed"])): float(r["i_e"]) for r in rounds}
     for p in read_csv(out / "paired_efficiency.csv"):
         d = [eff[(p["sut_a"], s)] - eff[(p["sut_b"], s)] for s in (0, 1)]
         assert float(p["d_efficiency_mean"]) == pytest.approx(sum(d) / 2)
@@ -136,7 +136,7 @@ def test_sensitivity_paired_by_seed_tables_and_resumption(tmp_path):
         assert (out / name).stat().st_size > 0, name
     rounds = read_csv(out / "rounds.csv")
     assert len(rounds) == 2 * 3 * 3  # scenarios x (intact + 2 mutants) x seeds
-    val = {(r["scenario"], r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+    val = {(r["scenario"], r["variant"], int(r["seed"])): float(r["d"]) for r in rounds}
     t2 = stats.t.ppf(0.975, 2)
     rows = read_csv(out / "sensitivity.csv")
     assert [(r["scenario"], r["mutant"]) for r in rows] == [("evolving", "stale"), ("evolving", "weak_braking"),
@@ -146,8 +146,8 @@ def test_sensitivity_paired_by_seed_tables_and_resumption(tmp_path):
         mean = sum(d) / 3
         sd = math.sqrt(sum((x - mean) ** 2 for x in d) / 2)
         half = t2 * sd / math.sqrt(3)
-        assert float(r["d_intelligence_mean"]) == pytest.approx(mean)
-        assert float(r["d_intelligence_ci95"]) == pytest.approx(half)
+        assert float(r["delta_d_mean"]) == pytest.approx(mean)
+        assert float(r["delta_d_ci95"]) == pytest.approx(half)
         assert r["detected"] == str(int(mean - half > 0)) and r["seeds"] == "3"
         assert r["class"] == {"stale": "perception", "weak_braking": "control"}[r["mutant"]]
         a = [val[(r["scenario"], "intact", s)] for s in (0, 1, 2)]
@@ -181,11 +181,11 @@ def test_sensitivity_episodes_design(tmp_path):
     assert sorted((r["variant"], int(r["seed"])) for r in rounds) == [("intact", 5), ("intact", 6), ("stale", 5),
                                                                      ("stale", 6)]
     assert {(r["design"], r["steps"]) for r in rounds} == {("episodes", "20")}
-    val = {(r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+    val = {(r["variant"], int(r["seed"])): float(r["d"]) for r in rounds}
     (row,) = read_csv(out / "sensitivity.csv")
     mean, half = _paired_by_hand(val, "stale", [5, 6])
-    assert float(row["d_intelligence_mean"]) == pytest.approx(mean)
-    assert float(row["d_intelligence_ci95"]) == pytest.approx(half) and row["seeds"] == "2"
+    assert float(row["delta_d_mean"]) == pytest.approx(mean)
+    assert float(row["delta_d_ci95"]) == pytest.approx(half) and row["seeds"] == "2"
     assert ("Design episodes: 2 episodes (seeds 5..6) x 20 steps = 40 SUT steps per variant and scenario; the "
             "warm-up (traffic.warmup_s = 20 s, 200 steps) runs before every run and is extra compute") in res.stdout
     assert "paired by episode" in (out / "sensitivity.md").read_text()
@@ -208,26 +208,28 @@ def test_sensitivity_seed_blocks_and_a_base_a_mutant_does_not_apply_to(tmp_path)
     # frozen does not apply to level0 (it changes no lane by choice): not run there
     assert sorted({(r["base"], r["variant"]) for r in rounds}) == [("level0", "intact"), ("mobil", "frozen"),
                                                                    ("mobil", "intact")]
-    val = {(r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds if r["base"] == "mobil"}
+    val = {(r["variant"], int(r["seed"])): float(r["d"]) for r in rounds if r["base"] == "mobil"}
     blocks = read_csv(out / "blocks.csv")
     assert [(b["base"], b["mutant"], b["block_first_seed"], b["block_last_seed"]) for b in blocks] == [
         ("mobil", "frozen", "5", "6"), ("mobil", "frozen", "9", "10")]
     for b, seeds in zip(blocks, ([5, 6], [9, 10])):
         mean, half = _paired_by_hand(val, "frozen", seeds)
-        assert float(b["d_intelligence_mean"]) == pytest.approx(mean) and b["n"] == "2"
-        assert float(b["d_intelligence_ci95"]) == pytest.approx(half)
+        assert float(b["delta_d_mean"]) == pytest.approx(mean) and b["n"] == "2"
+        assert float(b["delta_d_ci95"]) == pytest.approx(half)
         assert b["detected"] == str(int(mean - half > 0))
     scores = {r["base"]: r for r in read_csv(out / "mutation_scores.csv")}
     assert (scores["level0"]["mutants"], scores["level0"]["not_applicable"]) == ("0", "1")
-    per_block = [int(b["detected"]) for b in blocks]
-    assert scores["mobil"]["detected_per_block"] == ";".join(map(str, per_block))
-    assert scores["mobil"]["min_detected_over_blocks"] == str(min(per_block))
+    # frozen is a profile, not a defect: its blocks are reported, never counted
+    assert (scores["mobil"]["mutants"], scores["mobil"]["detected"]) == ("0", "0")
+    assert scores["mobil"]["detected_per_block"] == "0;0" and scores["mobil"]["min_detected_over_blocks"] == "0"
+    assert [r["role"] for r in read_csv(out / "sensitivity.csv")] == ["profile"]
     assert [(r["base"], r["mutant"]) for r in read_csv(out / "not_applicable.csv")] == [("level0", "frozen")]
     (sp,) = read_csv(out / "speeds.csv")  # mutant − intact speeds, paired over all 4 episodes
     assert (sp["base"], sp["mutant"], sp["n"]) == ("mobil", "frozen", "4")
     text = (out / "sensitivity.md").read_text()
-    assert "| frozen | decision | not applicable to level0 |" in text and "ΔI block 9–10" in text
-    assert "detected 0/1 applicable (base, mutant) pairs" in text or "detected 1/1 applicable" in text
+    assert "| frozen | decision | not applicable to level0 |" in text and "ΔD block 9–10" in text
+    assert "| frozen | decision, profile |" in text and "not counted: frozen (a profile, not a defect)" in text
+    assert "detected 0/0 applicable (base, mutant) pairs" in text
 
 
 def test_sensitivity_compare_designs(tmp_path):
@@ -242,10 +244,10 @@ def test_sensitivity_compare_designs(tmp_path):
     for design, seeds, steps in (("episodes", [0, 1, 2, 3], 20), ("long", [4, 5], 40)):  # disjoint seeds
         rounds = read_csv(out / design / "rounds.csv")
         assert sorted({int(r["seed"]) for r in rounds}) == seeds and {r["steps"] for r in rounds} == {str(steps)}
-        val = {(r["variant"], int(r["seed"])): float(r["intelligence"]) for r in rounds}
+        val = {(r["variant"], int(r["seed"])): float(r["d"]) for r in rounds}
         mean, half = _paired_by_hand(val, "stale", seeds)
-        assert float(mrow[f"{design}_d_intelligence_mean"]) == pytest.approx(mean)
-        assert float(mrow[f"{design}_d_intelligence_ci95"]) == pytest.approx(half)
+        assert float(mrow[f"{design}_delta_d_mean"]) == pytest.approx(mean)
+        assert float(mrow[f"{design}_delta_d_ci95"]) == pytest.approx(half)
         assert mrow[f"{design}_n"] == str(len(seeds)) and mrow[f"{design}_detected"] == str(int(mean - half > 0))
         row = rows[design]
         assert float(row["median_ci95"]) == pytest.approx(half)  # one mutant: its half-width
@@ -255,12 +257,53 @@ def test_sensitivity_compare_designs(tmp_path):
     assert "sharper design: " in res.stdout
 
 
+def test_sensitivity_sequential_verdicts_and_resumption(tmp_path):
+    """--sequential through the script: rounds of 4 paired episodes up to 8; each comparison's verdict, interval
+    and episodes follow from rounds.csv; a rerun computes nothing."""
+    from evoscen_experiments.sequential import verdict
+
+    out = tmp_path / "seq"
+    args = ("--out", out, "--sequential", "--budget", 8, "--round-size", 4, "--episode-steps", 20, "--first-seed", 5,
+            "--mutants", "stale,frozen", "--scenarios", "level0", "--jobs", 2)
+    res = script("experiment_sensitivity.py", *args)
+    assert res.returncode == 0, res.stderr
+    rounds = read_csv(out / "rounds.csv")
+    d = {(r["variant"], int(r["seed"])): float(r["d"]) for r in rounds}
+    rows = {r["mutant"]: r for r in read_csv(out / "verdicts.csv")}
+    assert [(r["role"], r["budget"]) for r in rows.values()] == [("defect", "8"), ("profile", "8")]
+    for m, row in rows.items():
+        seeds = sorted(s for v, s in d if v == m)
+        n = int(row["episodes"])
+        assert seeds == list(range(5, 5 + n)) and n in (4, 8)  # the first n seeds, in order; only looks' sizes
+        diffs = [d[("intact", s)] - d[(m, s)] for s in seeds]
+        assert float(row["delta_d_mean"]) == pytest.approx(sum(diffs) / n)
+        v = verdict(diffs, round_size=4, budget=8, delta=0.005)
+        assert (v.episodes, v.looks) == (n, int(row["looks"])) and v.low == pytest.approx(float(row["delta_d_low"]))
+        word = row["verdict"]
+        assert word == {"a_higher": "worse", "b_higher": "better"}.get(v.verdict, v.verdict)
+        assert (word == "worse") == (float(row["delta_d_low"]) > 0) and (word != "unresolved" or n == 8)
+    # the intact seeds run while any mutant needs them, once
+    assert sorted(s for v, s in d if v == "intact") == list(range(5, 5 + max(int(r["episodes"]) for r in rows.values())))
+    (count,) = read_csv(out / "verdict_counts.csv")
+    assert (count["defects"], count["profiles"], count["runs"]) == ("1", "1", str(len(rounds)))
+    assert count["worse"] == str(int(rows["stale"]["verdict"] == "worse"))  # frozen never counted
+    assert "## Sequential verdicts" in (out / "sensitivity.md").read_text()
+    files = sorted((out / "runs").glob("*/result.json"))
+    stamps = {f: f.stat().st_mtime_ns for f in files}
+    res = script("experiment_sensitivity.py", *args)  # resumable: the same looks read back, nothing recomputed
+    assert res.returncode == 0 and "rounds already done" in res.stderr
+    assert {f: f.stat().st_mtime_ns for f in sorted((out / "runs").glob("*/result.json"))} == stamps
+    assert {r["mutant"]: r["verdict"] for r in read_csv(out / "verdicts.csv")} == {
+        m: r["verdict"] for m, r in rows.items()}
+
+
 @pytest.mark.parametrize("name, args, expected", [
     ("experiment_sensitivity.py", ["--design", "long", "--episodes", "5"],
      "error: --episodes does not apply to --design long"),
     ("experiment_sensitivity.py", ["--compare-designs", "--seeds", "5"],
      "error: --compare-designs needs equal compute: episodes 100 x 300 = 30000 SUT steps per variant, long 5 x 3000"),
     ("experiment_sensitivity.py", ["--mutants", "stale,bogus"], "error: --mutants: unknown mutant 'bogus'"),
+    ("experiment_sensitivity.py", ["--sequential", "--seeds", "5"], "error: --sequential and --seeds together"),
     ("experiment_sensitivity.py", ["--base", "mobil,mobil"], "error: --base 'mobil,mobil': expected distinct"),
     ("experiment_sensitivity.py", ["--seeds", "-1"], "error: --seeds = '-1': expected an integer >= 1"),
     ("experiment_sensitivity.py", ["--scenarios", "evolving,nope"], "error: command line: key 'bvs.driver' = 'nope'"),

@@ -139,12 +139,12 @@ def test_run_experiment_returns_the_tables_it_wrote(tmp_path):
                                     first_seed=5, steps=40, jobs=1)
     assert (result.status, result.kind) == (0, "intelligence")
     assert {"intelligence", "paired", "rounds"} <= set(result.tables)
-    d = {(r["sut"], int(r["seed"])): float(r["comparative"]) for r in result.tables["rounds"]}
+    d = {(r["sut"], int(r["seed"])): float(r["d"]) for r in result.tables["rounds"]}
     assert sorted(d) == [("level0", 5), ("level0", 6), ("mobil", 5), ("mobil", 6)]
     (pair,) = result.tables["paired"]
     assert (pair["sut_a"], pair["sut_b"], pair["seeds"]) == ("mobil", "level0", "2")
     by_hand = ((d["mobil", 5] - d["level0", 5]) + (d["mobil", 6] - d["level0", 6])) / 2
-    assert float(pair["d_intelligence_mean"]) == pytest.approx(by_hand, abs=1e-12)
+    assert float(pair["delta_d_mean"]) == pytest.approx(by_hand, abs=1e-12)
     with pytest.raises(evoscen.InputError, match="--seeds = '0': expected an integer >= 1"):
         evoscen.run_experiment("intelligence", out=tmp_path / "bad", seeds=0)
     with pytest.raises(evoscen.InputError, match="unrecognized arguments: --no-such 1"):

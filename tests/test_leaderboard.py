@@ -154,15 +154,15 @@ def test_ranked_table_and_paired_interval_by_hand(small):
     episodes = read_csv(out / "episodes.csv")
     assert sorted((e["sut"], e["seed"], e["steps"]) for e in episodes) == [
         (s, str(seed), "50") for s in ("frozen(mobil)", "mobil", "nilsson") for seed in (7, 8, 9)]
-    intel = {(e["sut"], int(e["seed"])): float(e["intelligence"]) for e in episodes}
+    intel = {(e["sut"], int(e["seed"])): float(e["d"]) for e in episodes}
     mean = {s: sum(intel[(s, k)] for k in (7, 8, 9)) / 3 for s in ("frozen(mobil)", "mobil", "nilsson")}
     board = read_csv(out / "leaderboard.csv")
     ok = [r for r in board if r["status"] == "ok"]
-    # ranked by mean intelligence, highest first
+    # ranked by mean D, highest first
     expected = sorted(mean, key=lambda s: -mean[s])
     assert [r["sut"] for r in ok] == expected and [r["rank"] for r in ok] == ["1", "2", "3"]
     for row in ok:
-        assert float(row["intelligence_mean"]) == pytest.approx(mean[row["sut"]])
+        assert float(row["d_mean"]) == pytest.approx(mean[row["sut"]])
         assert row["episodes"] == "3"
         terms = sum(float(row[f"{t}_weighted_mean"]) for t in ("safety", "efficiency", "interaction"))
         assert terms == pytest.approx(mean[row["sut"]])
@@ -172,11 +172,11 @@ def test_ranked_table_and_paired_interval_by_hand(small):
     sd = math.sqrt(sum((x - d_mean) ** 2 for x in d) / 2)
     half = T975_DF2 * sd / math.sqrt(3)
     nilsson = next(r for r in ok if r["sut"] == "nilsson")
-    assert float(nilsson["d_intelligence_vs_mobil_mean"]) == pytest.approx(d_mean)
-    assert float(nilsson["d_intelligence_vs_mobil_ci95"]) == pytest.approx(half)
+    assert float(nilsson["delta_d_vs_mobil_mean"]) == pytest.approx(d_mean)
+    assert float(nilsson["delta_d_vs_mobil_ci95"]) == pytest.approx(half)
     assert nilsson["paired_n"] == "3" and nilsson["significant"] == str(int(abs(d_mean) > half))
     mobil = next(r for r in ok if r["sut"] == "mobil")
-    assert mobil["d_intelligence_vs_mobil_mean"] == "nan" and mobil["paired_n"] == "0"
+    assert mobil["delta_d_vs_mobil_mean"] == "nan" and mobil["paired_n"] == "0"
     text = (out / "leaderboard.md").read_text(encoding="utf-8")
     assert f"| 1 | {expected[0]} |" in text and "| reference |" in text and "TTC<3 s front /km" in text
     assert f"| 1 | {expected[0]} |" in res.stdout

@@ -7,7 +7,7 @@ returned as rows::
 
     result = evoscen.run_experiment("intelligence", out="runs/compare", suts=["mobil", "nilsson"],
                                     seeds=10, first_seed=882000, jobs=2)
-    for row in result.tables["paired"]: print(row["sut_a"], row["sut_b"], row["d_intelligence_mean"])
+    for row in result.tables["paired"]: print(row["sut_a"], row["sut_b"], row["delta_d_mean"])
 
 A bad option is one :class:`~evoscen_sim.errors.InputError` line naming it, before anything runs.
 """
@@ -43,6 +43,7 @@ def intelligence_parser(doc: str | None = None) -> argparse.ArgumentParser:
 def sensitivity_parser(doc: str | None = None) -> argparse.ArgumentParser:
     """The options of the sensitivity experiment (``scripts/experiment_sensitivity.py``)."""
     from evoscen_experiments.sensitivity_experiment import DEFAULT_DESIGN, EPISODE_STEPS, EPISODES, SEEDS, STEPS
+    from evoscen_experiments.sensitivity_sequential import BUDGET, DELTA, ROUND_SIZE, SPENDING_DEFAULT
 
     ap = cli.parser("experiment_sensitivity.py", doc, ranks_by="D")
     cli.add_out(ap, "runs/experiment_sensitivity")
@@ -69,6 +70,15 @@ def sensitivity_parser(doc: str | None = None) -> argparse.ArgumentParser:
                                           "disjoint); replaces --first-seed, --blocks, --block-size")
     ap.add_argument("--compare-designs", action="store_true",
                     help="run both designs at equal SUT steps and compare their detection")
+    ap.add_argument("--sequential", action="store_true",
+                    help="sequential verdicts: rounds of --round-size paired episodes (seeds from --first-seed on), "
+                         "each (base, mutant) comparison stopped at its verdict (worse, better, equivalent on D, "
+                         "the comparative score) or unresolved at --budget")
+    ap.add_argument("--budget", help=f"with --sequential: most paired episodes per comparison (default {BUDGET})")
+    ap.add_argument("--round-size", help=f"with --sequential: paired episodes between looks (default {ROUND_SIZE})")
+    ap.add_argument("--delta", help=f"with --sequential: equivalence margin on D (default {DELTA})")
+    ap.add_argument("--spending", help=f"with --sequential: alpha spending, obrien_fleming or pocock "
+                                       f"(default {SPENDING_DEFAULT})")
     cli.add_jobs(ap)
     return ap
 

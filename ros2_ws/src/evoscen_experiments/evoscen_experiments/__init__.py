@@ -4,7 +4,7 @@ Holds campaigns on Ray (``campaign``, ``campaign_spec``, ``campaign_summary``, `
 ``campaign_driver``), the method's experiments and their rounds (``experiments``, ``intelligence_experiment``,
 ``complexity_experiment``, ``traffic_experiment``, ``fidelity_experiment``, ``exposures_by_rule``,
 ``traffic_runs``), sensitivity and replication (``sensitivity``, ``sensitivity_experiment``,
-``sensitivity_tables``, ``replication``, ``sequential``), the planner leaderboard (``leaderboard``),
+``sensitivity_tables``, ``sensitivity_sequential``, ``replication``, ``sequential``), the planner leaderboard (``leaderboard``),
 statistics (``stats``), benchmarks (``bench``, ``bench_graph``, ``bench_fidelity``, ``bench_run_costs``,
 ``profiling``, ``sumo_baseline``), the fault campaign (``faults``, ``fault_runs``, ``host_faults``,
 ``input_fuzz``) and the README's results table (``results_table``): the work of the scripts' doors

@@ -2,7 +2,7 @@
 
 ``scripts/experiment_intelligence.py`` parses the command line and calls :func:`main`: one round per SUT
 and seed (the same BV layout and draws for every SUT), run on the campaign engine; per SUT the weighted
-terms and the intelligence score with 95 % intervals, every pair of SUTs paired by seed on the score
+terms and the method's intelligence I and the comparative score D with 95 % intervals, every pair of SUTs paired by seed on the score
 ``evaluation.score_form`` selects (:func:`paired_comparisons`; D by default, docs/evaluation.md §10) and on
 the method's efficiency term, the surrogate-safety rates, and the SUTs' TTC and speed distributions
 (:func:`plot_distributions`).
@@ -51,7 +51,7 @@ def main(args) -> int:
     pair_rows, pair_csv = paired_comparisons(suts, rounds, results)
     eff_rows, eff_csv = paired_comparisons(suts, rounds, results, "efficiency")
     if pair_csv:
-        write_csv(args.out / "paired.csv", ["sut_a", "sut_b", "d_intelligence_mean", "d_intelligence_ci95", "seeds",
+        write_csv(args.out / "paired.csv", ["sut_a", "sut_b", "delta_d_mean", "delta_d_ci95", "seeds",
                                             "significant"], pair_csv)
         write_csv(args.out / "paired_efficiency.csv", ["sut_a", "sut_b", "d_efficiency_mean", "d_efficiency_ci95",
                                                        "seeds", "significant"], eff_csv)
@@ -88,11 +88,11 @@ def main(args) -> int:
 
 
 def per_sut_tables(out: Path, suts: list[str], rounds, results) -> tuple[str, str]:
-    """Per SUT the weighted terms, the intelligence score, collisions, exposures and the comparative D, and its
+    """Per SUT the method's weighted terms and its I, collisions, exposures and D, the comparative score, and its
     surrogate-safety rates, mean ± 95 % interval over seeds: ``intelligence.csv``, ``rounds.csv`` (every round)
     and ``surrogate_safety.csv`` written; returns the two Markdown tables."""
-    header = ["SUT", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)", "intelligence",
-              "collisions", "exposures", "seeds", "comparative D"]
+    header = ["SUT", "I_s (weighted)", "I_e (weighted)", "I_i (weighted)", "I (the method's)",
+              "collisions", "exposures", "seeds", "D (the comparative score)"]
     rows, csv_rows, round_rows, ssm_rows, ssm_csv = [], [], [], [], []
     for sut in suts:
         rs = [results[r.key] for r in rounds if r.label == sut]
@@ -116,11 +116,11 @@ def per_sut_tables(out: Path, suts: list[str], rounds, results) -> tuple[str, st
                                *(ssm_rate(x, side, m) for side, m in SSM_RATES), x["comparative"]["score"]])
     write_csv(out / "intelligence.csv",
               ["sut", *(f"{k}_{s}" for k in ("safety_weighted", "efficiency_weighted", "interaction_weighted",
-                                             "intelligence", "collisions", "exposures") for s in ("mean", "ci95")),
-               "seeds", "comparative_mean", "comparative_ci95"], csv_rows)
-    write_csv(out / "rounds.csv", ["sut", "seed", "steps", "safety", "efficiency", "interaction", "intelligence",
+                                             "i", "collisions", "exposures") for s in ("mean", "ci95")),
+               "seeds", "d_mean", "d_ci95"], csv_rows)
+    write_csv(out / "rounds.csv", ["sut", "seed", "steps", "i_s", "i_e", "i_i", "i",
                                    "collisions", "exposures", "mean_speed_mps", "wall_time_s",
-                                   *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES), "comparative"], round_rows)
+                                   *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES), "d"], round_rows)
     write_csv(out / "surrogate_safety.csv",
               ["sut", *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "seeds"], ssm_csv)
     first_report = results[rounds[0].key]["report"]

@@ -20,7 +20,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.experiments import distinct_names, positive_int
-from evoscen_experiments.sensitivity import SSM_RATES, score_of, ssm_label, ssm_rate
+from evoscen_experiments.sensitivity import SSM_RATES, score_of, ssm_label, ssm_rate, symbols
 from evoscen_experiments.stats import fmt_ci, markdown_table, mean_ci
 
 BLOCKS, BLOCK_SIZE, EPISODE_STEPS, FIRST_SEED = "2", "100", "300", "20000"
@@ -125,7 +125,7 @@ def term_values(report: dict) -> dict[str, float]:
 
 
 def ranked(means: dict[str, float]) -> list[str]:
-    """SUT names by mean intelligence, highest first; ties (and nan, last) by name."""
+    """SUT names by mean score, highest first; ties (and nan, last) by name."""
     return sorted(means, key=lambda s: (math.isnan(means[s]), -means[s] if not math.isnan(means[s]) else 0.0, s))
 
 
@@ -211,7 +211,7 @@ def _build(args):
 @dataclass
 class Board:
     """A finished leaderboard's rounds and what is ranked: the SUTs that ran (``ok``), their reports and
-    intelligence per episode seed, its mean ± 95 % interval, the order, and the failed SUTs."""
+    score per episode seed (D by default: ``sym``), its mean ± 95 % interval, the order, and the failed SUTs."""
 
     args: object
     planners: list
@@ -234,6 +234,9 @@ class Board:
         self.stats = {s: mean_ci([v for v in self.intel[s].values() if not math.isnan(v)]) for s in self.ok}
         self.order = ranked({s: self.stats[s][0] for s in self.ok})
         self.ref = self.args.reference if self.args.reference in self.ok else None
+        first = next((rep for s in self.ok for rep in self.reports[s].values()), None)
+        self.sym = symbols(first)["intelligence"] if first is not None else "D"
+        """The ranked score's symbol: D (``evaluation.score_form: comparative``, the default) or the method's I."""
 
 
 def failed_suts(rounds: list, failures: dict[str, str]) -> dict[str, tuple[int, str]]:
@@ -265,7 +268,7 @@ def main(args, argv: list[str]) -> int:
     text = markdown_text(board, table, verdict, ssm_table, argv)
     (args.out / "leaderboard.md").write_text(text, encoding="utf-8")
     if plot_rows:
-        plot(args.out / "leaderboard.png", plot_rows, args.reference if board.ref else None)
+        plot(args.out / "leaderboard.png", plot_rows, args.reference if board.ref else None, board.sym)
     print(table, end="")
     print("\n" + terms_table, end="")
     print("\nsignificant pairs: " + ("; ".join(significant) if significant else "none"))
@@ -342,9 +345,9 @@ def ranked_rows(board: Board) -> tuple[list, list, list, list]:
 
 def csv_header(reference: str) -> list[str]:
     """The columns of ``leaderboard.csv``."""
-    return ["rank", "sut", "status", "intelligence_mean", "intelligence_ci95",
+    return ["rank", "sut", "status", "d_mean", "d_ci95",
             *(f"{t}_weighted_{s}" for t in TERMS for s in ("mean", "ci95")),
-            f"d_intelligence_vs_{reference}_mean", f"d_intelligence_vs_{reference}_ci95", "paired_n",
+            f"delta_d_vs_{reference}_mean", f"delta_d_vs_{reference}_ci95", "paired_n",
             "significant", "collisions_mean", "collisions_ci95", "exposures_mean", "exposures_ci95", "episodes",
             *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "error"]
 
@@ -357,8 +360,9 @@ def ranked_tables(board: Board) -> tuple[str, str, list]:
     reference = board.args.reference
     rows, csv_rows, ssm_rows, plot_rows = ranked_rows(board)
     write_csv(board.args.out / "leaderboard.csv", csv_header(reference), csv_rows)
-    header = ["rank", "SUT", "intelligence", "safety (weighted)", "efficiency (weighted)", "interaction (weighted)",
-              f"ΔI = SUT − {reference} (paired)", f"SUT vs {reference} (95 %)", "collisions / episode",
+    d = board.sym
+    header = ["rank", "SUT", d, "safety (weighted)", "efficiency (weighted)", "interaction (weighted)",
+              f"Δ{d} = SUT − {reference} (paired)", f"SUT vs {reference} (95 %)", "collisions / episode",
               "exposures / episode", "n"]
     first_report = next((board.results[r.key]["report"] for r in board.rounds if r.label in board.ok), None)
     ssm_table = markdown_table(["rank", "SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "n"],
@@ -381,7 +385,7 @@ def write_episodes(board: Board) -> None:
                              x["safety"]["collisions"], x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"],
                              r["wall_time_s"], *(ssm_rate(x, side, m) for side, m in SSM_RATES)])
     write_csv(board.args.out / "episodes.csv",
-              ["sut", "seed", "steps", "intelligence", *(f"{t}_weighted" for t in TERMS), *TERMS, "collisions",
+              ["sut", "seed", "steps", "d", *(f"{t}_weighted" for t in TERMS), *TERMS, "collisions",
                "exposures", "mean_speed_mps", "wall_time_s", *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES)],
               episode_rows)
 
@@ -397,14 +401,15 @@ def replication_tables(board: Board) -> tuple[str, str, list[str], str]:
     t_md, t_rows = term_rows(terms, board.order)
     write_csv(out / "terms.csv", ["sut", *(f"{n}_{k}" for n in TERM_NAMES for k in ("mean", "ci95", "n"))], t_rows)
     p_md, p_rows, significant = pair_rows(board.intel, board.order)
-    write_csv(out / "pairs.csv", ["a", "b", "d_intelligence_mean", "d_intelligence_ci95", "n", "a_vs_b"], p_rows)
+    write_csv(out / "pairs.csv", ["a", "b", "delta_d_mean", "delta_d_ci95", "n", "a_vs_b"], p_rows)
     ranked_planners = [s for s in board.order if s in board.planners]
     b_rows, taus = block_orders(board.intel, blocks, ranked_planners)
-    write_csv(out / "blocks.csv", ["block", "sut", "intelligence_mean", "rank"], b_rows)
+    write_csv(out / "blocks.csv", ["block", "sut", "d_mean", "rank"], b_rows)
     write_csv(out / "kendall.csv", ["block_a", "block_b", "tau_b", "concordant", "discordant", "n"], taus)
     terms_table = markdown_table(["SUT", *TERM_NAMES, "episodes"], t_md)
-    pairs_table = markdown_table(["a", "b", "ΔI = a − b (paired, 95 %)", "n", "a vs b"], p_md)
-    block_table = markdown_table(["SUT", *(f"block {b.label}: I (rank)" for b in blocks)],
+    d = board.sym
+    pairs_table = markdown_table(["a", "b", f"Δ{d} = a − b (paired, 95 %)", "n", "a vs b"], p_md)
+    block_table = markdown_table(["SUT", *(f"block {b.label}: {d} (rank)" for b in blocks)],
                                  [[sut, *(f"{r[2]:.3f} ({r[3]})" for b in blocks for r in b_rows
                                           if r[0] == b.label and r[1] == sut)] for sut in ranked_planners])
     tau_text = ("; ".join(f"blocks {a} and {b}: τ = {t:.2f} ({c} concordant, {d} discordant pairs of {n} SUTs)"
@@ -412,10 +417,10 @@ def replication_tables(board: Board) -> tuple[str, str, list[str], str]:
                 "one block: no agreement between blocks measured (give --blocks 2 or more)")
     verdict = (f"## Every term\n\nThe comparative score D and its terms S, P, L, X (docs/evaluation.md §10) and the "
                f"method's I, I_s, I_e, I_i (§1), unweighted, mean ± 95 % interval over the episodes (n where a term "
-               f"is undefined in some):\n\n{terms_table}\n## Pairs\n\nEvery pair, a ranked above b: ΔI = a − b "
+               f"is undefined in some):\n\n{terms_table}\n## Pairs\n\nEvery pair, a ranked above b: Δ{d} = a − b "
                f"paired by episode over all blocks, 95 % Student-t interval, n episodes. Significant: "
                + ("; ".join(significant) if significant else "none") + f".\n\n{pairs_table}\n"
-               f"## Does the order replicate?\n\nThe planners' mean intelligence and rank per seed block; Kendall's "
+               f"## Does the order replicate?\n\nThe planners' mean {d} and rank per seed block; Kendall's "
                f"τ-b between the blocks' orders (1: the same order, −1: reversed): {tau_text}.\n\n{block_table}\n")
     return verdict, terms_table, significant, tau_text
 
@@ -427,10 +432,12 @@ def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: 
     cfg0 = rounds[0].cfg
     wall = sum(results[r.key]["wall_time_s"] for r in rounds if r.key in results)
     simulated = sum(results[r.key]["report"]["run"]["duration_s"] for r in rounds if r.key in results)
-    ref_note = (f"ΔI = SUT − {args.reference}: the SUT's intelligence minus {args.reference}'s on the same episodes, "
+    d = board.sym
+    score = "D, the comparative score" if d == "D" else "I, the method's intelligence"
+    ref_note = (f"Δ{d} = SUT − {args.reference}: the SUT's {d} minus {args.reference}'s on the same episodes, "
                 "mean ± 95 % interval of the per-episode difference; 'significantly higher' ('lower') when the whole "
                 "interval lies above (below) 0, else 'no significant difference'. The safety, efficiency and "
-                "interaction columns are the weighted terms (weight × score), which sum to the intelligence."
+                f"interaction columns are the weighted terms (for D: P × each weighted term of S, L, X), which sum to {d}."
                 if board.ref else f"The reference {args.reference} failed: no paired differences.")
     refs_text = (f" References: {', '.join(board.ref_names)}, mutants of {args.mutant_base} (docs/mutants.md), ranked "
                  f"beside the planners and left out of the agreement between blocks." if board.ref_names else "")
@@ -439,7 +446,7 @@ def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: 
             f"x {board.steps} steps, after a warm-up of {cfg0.traffic.warmup_s:g} s, among {cfg0.bvs.count} BVs "
             f"({cfg0.bvs.driver}); weights {cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
             f"{cfg0.evaluation.weight_interaction:g}; mean ± 95 % interval over the episodes; ranked by mean "
-            f"intelligence.{refs_text} {ref_note} {simulated:,.0f} s simulated (scored states of all episodes), "
+            f"{score}.{refs_text} {ref_note} {simulated:,.0f} s simulated (scored states of all episodes), "
             f"{wall:,.0f} s wall time in all.\n\n{table}\n{verdict}\n"
             + (f"Surrogate safety per SUT-km (docs/evaluation.md §9; front: the SUT behind its leader, rear: its "
                f"follower behind it), mean ± 95 % interval over the episodes:\n\n{ssm_table}\n" if ssm_table else "")
@@ -447,8 +454,8 @@ def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: 
             + " ".join(argv) + "\n")
 
 
-def plot(path: Path, rows, reference: str | None) -> None:
-    """Per SUT (ranked, top first): intelligence with its 95 % interval; beside it the paired
+def plot(path: Path, rows, reference: str | None, d: str = "D") -> None:
+    """Per SUT (ranked, top first): the score (symbol ``d``: D by default) with its 95 % interval; beside it the paired
     difference against the reference with its interval (green/red: significantly higher/lower)."""
     import matplotlib
 
@@ -464,7 +471,7 @@ def plot(path: Path, rows, reference: str | None) -> None:
         ax.errorbar([mean], [y], xerr=[[h], [h]], fmt="o", color="tab:blue", capsize=3)
     ax.set_yticks(list(ys), [r[0] for r in rows])
     ax.invert_yaxis()
-    ax.set_xlabel("intelligence (mean, 95 % CI)")
+    ax.set_xlabel(f"{d} (mean, 95 % CI)")
     ax.set_title("Leaderboard", fontsize=10)
     if reference:
         ax = axes[0][1]
@@ -477,7 +484,7 @@ def plot(path: Path, rows, reference: str | None) -> None:
             color = ("tab:green" if d.mean > 0 else "tab:red") if sig else "tab:gray"
             ax.errorbar([d.mean], [y], xerr=[[h], [h]], fmt="o", color=color, capsize=3)
         ax.axvline(0.0, color="k", lw=0.8)
-        ax.set_xlabel(f"ΔI = SUT − {reference}, paired by episode (95 % CI)")
+        ax.set_xlabel(f"Δ{d} = SUT − {reference}, paired by episode (95 % CI)")
         ax.set_title(f"Against {reference}", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

@@ -5,14 +5,15 @@ degraded SUT, :mod:`evoscen_sut.mutants`) runs on the **same seeds** as its inta
 common random numbers: the same initial traffic and the same random streams — and the
 paired differences ``intact − mutant`` of every score are summarised per seed.
 
-* **detected** — the 95 % Student-t interval of the paired intelligence difference lies
+* **detected** — the 95 % Student-t interval of the paired difference of the compared score (D by default) lies
   above zero (the intact model scores higher, beyond noise);
 * **seeds needed** — the smallest ``n`` from which on the interval over the first ``n``
   seeds (in seed order) lies above zero *for every larger prefix too* (a detection that
   comes and goes with the next seed is not counted before it settles); ``None`` when the
   mutant is not detected with all seeds;
-* **mutation score** of a scenario — detected mutants / all mutants;
-* **pairing** — the correlation over seeds of the intact and the mutant intelligence: how
+* **mutation score** of a scenario — detected mutants / all mutants, the *profiles* (:data:`PROFILES`:
+  a reference way of driving, not a defect) left out of both;
+* **pairing** — the correlation over seeds of the intact and the mutant score: how
   much the two runs of a seed share (1: the seed moves both alike, so the paired difference
   cancels the seed's luck; 0: pairing buys nothing over two independent samples). Reported
   per mutant and as the median per scenario (docs/sensitivity.md).
@@ -37,11 +38,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
+PROFILES = ("frozen",)
+"""Mutants of the library that are reference profiles, not defects (docs/sensitivity.md "Profiles"): run and
+reported like the others, never counted among detected mutants, in a mutation score or a verdict count."""
+
 SCORES = ("intelligence", "safety", "efficiency", "interaction")
 """The report's scores compared intact − mutant, as ``evaluation.score_form`` selects them
 (:func:`evoscen_eval.scoring.metrics.compared_scores`): the comparative score D, its safety S, progress P
 and interaction X [default], or the method's I, I_s, I_e, I_i (each the unweighted ``score`` of
 its section, ``intelligence`` the total)."""
+
+COLUMNS = {"intelligence": "d", "safety": "s", "efficiency": "p", "interaction": "x"}
+"""Each of :data:`SCORES` in the experiment's CSV columns, named by the comparative score's letters (D, S, P,
+X; under ``evaluation.score_form: method`` the same columns hold I, I_s, I_e, I_i)."""
+
+
+def symbols(report: Mapping | None) -> dict[str, str]:
+    """Each of :data:`SCORES` as the tables write it: D, S, P, X (``evaluation.score_form: comparative``, the
+    default) or the method's I, I_s, I_e, I_i (``method``), after the report's settings."""
+    form = ((report or {}).get("settings") or {}).get("score_form", "method")
+    letters = ("D", "S", "P", "X") if form == "comparative" else ("I", "I_s", "I_e", "I_i")
+    return dict(zip(SCORES, letters))
 
 
 @dataclass(frozen=True)
@@ -227,41 +244,48 @@ def _median(values: Sequence[float]) -> float:
 
 @dataclass(frozen=True)
 class DesignSummary:
-    """One scenario's detection under one design (the intelligence score, paired per seed)."""
+    """One scenario's detection under one design (the compared score, D by default, paired per seed)."""
 
     per_mutant: dict[str, Paired]
-    """``intact − mutant`` intelligence per mutant: mean, 95 % half-width, n."""
+    """``intact − mutant`` of the compared score (D by default) per mutant, profiles too: mean, 95 %
+    half-width, n."""
     pairing_r: dict[str, float]
     """Pairing r per mutant (:func:`pairing`)."""
 
     @property
+    def defects(self) -> dict[str, Paired]:
+        """:attr:`per_mutant` without the profiles (:data:`PROFILES`): what the counts below count."""
+        return {m: p for m, p in self.per_mutant.items() if m not in PROFILES}
+
+    @property
     def detected(self) -> int:
-        """Mutants whose interval lies above zero."""
-        return sum(p.above_zero for p in self.per_mutant.values())
+        """Defects (profiles left out) whose interval lies above zero."""
+        return sum(p.above_zero for p in self.defects.values())
 
     @property
     def mutants(self) -> int:
-        return len(self.per_mutant)
+        """Defects (profiles left out)."""
+        return len(self.defects)
 
     @property
     def score(self) -> float:
-        """The mutation score, detected / all."""
-        return mutation_score([p.above_zero for p in self.per_mutant.values()])
+        """The mutation score, detected / all defects."""
+        return mutation_score([p.above_zero for p in self.defects.values()])
 
     @property
     def median_half(self) -> float:
-        """Median over the mutants of the 95 % half-width (undefined ones left out; ``nan`` if none)."""
-        return _median([p.half for p in self.per_mutant.values()])
+        """Median over the defects of the 95 % half-width (undefined ones left out; ``nan`` if none)."""
+        return _median([p.half for p in self.defects.values()])
 
     @property
     def median_r(self) -> float:
-        """Median over the mutants of the pairing r (undefined ones left out; ``nan`` if none)."""
-        return _median(list(self.pairing_r.values()))
+        """Median over the defects of the pairing r (undefined ones left out; ``nan`` if none)."""
+        return _median([r for m, r in self.pairing_r.items() if m not in PROFILES])
 
 
 def summarise_design(intact: Mapping[int, float], mutants: Mapping[str, Mapping[int, float]]) -> DesignSummary:
-    """A scenario's detection from per-seed intelligence scores: ``intact`` (seed → I) and each
-    mutant's (name → seed → I), paired per seed (:func:`paired`, :func:`pairing`)."""
+    """A scenario's detection from per-seed compared scores: ``intact`` (seed → D) and each
+    mutant's (name → seed → D), paired per seed (:func:`paired`, :func:`pairing`)."""
     return DesignSummary({m: paired(intact, v) for m, v in mutants.items()},
                          {m: pairing(intact, v) for m, v in mutants.items()})
 
@@ -275,7 +299,7 @@ def sharper_design(summaries: Mapping[str, Sequence[DesignSummary]]) -> str | No
     leaders = [name for name, k in detected.items() if k == best]
     if len(leaders) == 1:
         return leaders[0]
-    halves = {name: _median([p.half for s in summaries[name] for p in s.per_mutant.values()]) for name in leaders}
+    halves = {name: _median([p.half for s in summaries[name] for p in s.defects.values()]) for name in leaders}
     if any(math.isnan(h) for h in halves.values()):
         return None
     narrowest = min(halves.values())

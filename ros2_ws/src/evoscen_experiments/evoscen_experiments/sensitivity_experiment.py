@@ -152,12 +152,11 @@ def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants:
     return rounds, meta
 
 
-def _build(args):
-    """The designs, bases, scenarios, mutants, rounds (with their meta) and workers of the options."""
+def variant_names(args) -> tuple[list[str], list[str], list[str], int]:
+    """The bases, scenarios, mutants and workers of the options (InputError, one line, on a bad one)."""
     from evoscen_experiments.experiments import distinct_names
     from evoscen_sut.mutants import LIBRARY
 
-    designs = resolve_designs(args)
     jobs = positive_int("--jobs", args.jobs)
     bases = distinct_names("--base", args.base)
     scenarios = distinct_names("--scenarios", args.scenarios)
@@ -166,6 +165,13 @@ def _build(args):
     if unknown:
         raise InputError(f"--mutants: unknown mutant {unknown[0]!r}: expected 'all' or names from "
                          f"{', '.join(LIBRARY)}")
+    return bases, scenarios, mutants, jobs
+
+
+def _build(args):
+    """The designs, bases, scenarios, mutants, rounds (with their meta) and workers of the options."""
+    designs = resolve_designs(args)
+    bases, scenarios, mutants, jobs = variant_names(args)
     rounds, meta = build_rounds(designs, bases, scenarios, mutants, args.config)
     return designs, bases, scenarios, mutants, rounds, meta, jobs
 
@@ -173,9 +179,14 @@ def _build(args):
 def main(args) -> int:
     """The experiment of the parsed options (``scripts/experiment_sensitivity.py``; text values, checked here):
     the rounds run (or read back), then one design's files in ``args.out``, or both designs' and their
-    comparison. Returns the exit status; InputError (one line) on bad input, before anything is written."""
+    comparison, or with ``--sequential`` the sequential verdicts (:mod:`evoscen_experiments.sensitivity_sequential`).
+    Returns the exit status; InputError (one line) on bad input, before anything is written."""
+    from evoscen_experiments import sensitivity_sequential
     from evoscen_experiments.experiments import run_rounds_with_bar, set_up
 
+    plan = sensitivity_sequential.resolve_plan(args, EPISODE_STEPS)
+    if plan is not None:
+        return sensitivity_sequential.main(args, plan, lambda: variant_names(args))
     designs, bases, scenarios, mutants, rounds, meta, jobs = set_up(args.out, lambda: _build(args))
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity")
     if results is None:
@@ -200,7 +211,7 @@ def compare_designs(out: Path, designs: list, summaries: dict, rounds: list, res
     """The design comparison (``--compare-designs``): ``designs.md``, ``designs.csv``, ``designs_mutants.csv``
     in ``out`` from each design's summaries, printed."""
     from evoscen_experiments.experiments import markdown_table, write_csv
-    from evoscen_experiments.sensitivity import design_compute, sharper_design
+    from evoscen_experiments.sensitivity import PROFILES, design_compute, sharper_design
 
     cfg0 = rounds[0].cfg
     variants = len({meta[r.key][1:] for r in rounds})
@@ -221,13 +232,13 @@ def compare_designs(out: Path, designs: list, summaries: dict, rounds: list, res
                             "simulated steps / variant", "run time (s, summed)"], md)
     mut_header = ["scenario", "SUT", "mutant"]
     for d in designs:
-        mut_header += [f"{d.name}: ΔI (95 % CI, n)", f"{d.name}: detected"]
+        mut_header += [f"{d.name}: ΔD (95 % CI, n)", f"{d.name}: detected"]
     write_csv(out / "designs.csv", ["scenario", "base", "design", "runs", "steps", "detected", "mutants",
                                     "mutation_score", "median_ci95", "median_pairing_r", "sut_steps",
                                     "warmup_steps", "simulated_steps", "run_time_s"], rows)
     write_csv(out / "designs_mutants.csv",
               ["scenario", "base", "mutant", *(f"{d.name}_{k}" for d in designs
-                                               for k in ("d_intelligence_mean", "d_intelligence_ci95", "n",
+                                               for k in ("delta_d_mean", "delta_d_ci95", "n",
                                                          "detected"))], rows_m)
     totals = ", ".join(f"{d.name} {detected[d.name]}" for d in designs)
     sharper = ("neither (tie on detections and median half-width)" if verdict is None else
@@ -235,8 +246,9 @@ def compare_designs(out: Path, designs: list, summaries: dict, rounds: list, res
     compute = "\n".join(f"- {compute_text(d, cfg0, variants)}" for d in designs)
     text = (f"# Test designs compared: episodes vs long runs at equal compute\n\nBoth designs give every SUT "
             f"variant the same SUT steps; intact and mutants are paired per seed (an episode, or a long run), "
-            f"95 % Student-t intervals of intact − mutant intelligence over the n runs; detected: the interval "
-            f"lies above 0; median half-width and median pairing r over the mutants of a scenario. The designs' "
+            f"95 % Student-t intervals of intact − mutant D (the compared score: evaluation.score_form's, D by default) "
+            f"over the n runs; detected: the interval lies above 0; detected, median half-width and median pairing "
+            f"r over the defects of a scenario (profiles, {', '.join(PROFILES)}, not counted). The designs' "
             f"seeds are {designs[0].seeds[0]}..{designs[0].seeds[-1]} and "
             f"{designs[1].seeds[0]}..{designs[1].seeds[-1]}.\n\n{compute}\n\nSharper design: {sharper}.\n\n"
             f"{table}\n## Per mutant\n\n{markdown_table(mut_header, md_m)}\nEach design's own tables: "
@@ -254,7 +266,7 @@ def comparison_rows(designs: list, summaries: dict, computes: dict, walls: dict)
 
     Returns the per-scenario rows (Markdown, CSV) and the per-mutant rows (Markdown, CSV): per
     scenario and design the detected mutants, the mutation score, the median 95 % half-width of
-    intact − mutant intelligence, the median pairing r, n (runs per variant), SUT and simulated
+    intact − mutant D, the median pairing r, n (runs per variant), SUT and simulated
     steps per variant, the runs' summed wall time (``walls``: design -> (scenario, base) -> s);
     per mutant both designs' intervals with n and detection.
     """

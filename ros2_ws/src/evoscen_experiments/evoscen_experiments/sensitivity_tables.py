@@ -14,27 +14,33 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from evoscen_experiments.sensitivity import SCORES, SSM_RATES, paired, score_of, ssm_rate
+from evoscen_experiments.sensitivity import COLUMNS, PROFILES, SCORES, SSM_RATES, paired, score_of, ssm_rate, symbols
 from evoscen_experiments.stats import difference_words, fmt_ci, markdown_table, mean_ci
 
 INTACT = "intact"
 """The variant name of the intact SUT model (every other variant is a mutant of the library)."""
 
-SENSITIVITY_CSV = ["design", "scenario", "bv_driver", "base", "mutant", "class",
-                   *(f"d_{n}_{s}" for n in SCORES for s in ("mean", "ci95")),
+
+def role(mutant: str) -> str:
+    """``profile`` for a reference profile (:data:`~evoscen_experiments.sensitivity.PROFILES`: reported, not counted
+    in detection), else ``defect``."""
+    return "profile" if mutant in PROFILES else "defect"
+
+SENSITIVITY_CSV = ["design", "scenario", "bv_driver", "base", "mutant", "class", "role",
+                   *(f"delta_{COLUMNS[n]}_{s}" for n in SCORES for s in ("mean", "ci95")),
                    "d_collisions_mean", "d_collisions_ci95", "d_exposures_mean", "d_exposures_ci95", "d_min_pet_mean",
                    "d_min_pet_ci95", "detected",
                    "seeds_needed", "seeds", "pairing_r",
                    *(f"d_ssm_{side}_{ms}_per_km_{s}" for side, ms in SSM_RATES for s in ("mean", "ci95")), "ssm_n"]
-SCORES_CSV = ["scenario", "bv_driver", "base", "detected", "mutants", "mutation_score", "intact_intelligence_mean",
-              "intact_intelligence_ci95", "median_pairing_r", "not_applicable", "detected_per_block",
+SCORES_CSV = ["scenario", "bv_driver", "base", "detected", "mutants", "mutation_score", "d_intact_mean",
+              "d_intact_ci95", "median_pairing_r", "not_applicable", "detected_per_block",
               "min_detected_over_blocks", "min_block", "detected_every_block"]
 BLOCKS_CSV = ["design", "scenario", "bv_driver", "base", "mutant", "class", "block_first_seed", "block_last_seed",
-              "d_intelligence_mean", "d_intelligence_ci95", "n", "detected", "needed"]
+              "delta_d_mean", "delta_d_ci95", "n", "detected", "needed"]
 SPEEDS_CSV = ["design", "scenario", "bv_driver", "base", "mutant", "d_sut_speed_mean", "d_sut_speed_ci95",
               "d_reference_speed_mean", "d_reference_speed_ci95", "n"]
 NOT_APPLICABLE_CSV = ["scenario", "bv_driver", "base", "mutant", "class", "applies_to"]
-ROUNDS_CSV = ["design", "scenario", "base", "variant", "seed", "steps", *SCORES, "collisions", "exposures",
+ROUNDS_CSV = ["design", "scenario", "base", "variant", "seed", "steps", *(COLUMNS[n] for n in SCORES), "collisions", "exposures",
               "wall_time_s", *(f"ssm_{side}_{ms}_per_km" for side, ms in SSM_RATES)]
 
 
@@ -96,6 +102,8 @@ class Cell:
     driver: str
     base: str
     unit: str
+    sym: dict = field(default_factory=dict)
+    """Each score's symbol (:func:`~evoscen_experiments.sensitivity.symbols`: D, S, P, X by default)."""
 
 
 def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases: list[str],
@@ -117,15 +125,15 @@ def summarise(design, rounds: list, results: dict, meta: dict, out: Path, bases:
     for scenario in scenarios:
         driver = next(r.cfg.bvs.driver for r in rounds if meta[r.key][1] == scenario)
         for base in bases:
-            cell = Cell(design.name, scenario, driver, base, design.unit)
+            cell = Cell(design.name, scenario, driver, base, design.unit, symbols(first_report))
             summaries[(scenario, base)] = scenario_base(tables, seeds, cell, mutants, blocks, first_report)
     write_files(out, tables, round_rows(design, rounds, results, meta))
-    score_table = scores_table(tables.score_rows, scenarios, design.unit)
+    score_table = scores_table(tables.score_rows, scenarios, design.unit, symbols(first_report)["intelligence"])
     text = (f"# Sensitivity experiment (SUT mutation analysis)\n\nScores: {form_text(first_report)}.\n\n"
             f"{overview(design, rounds, results, meta, bases, mutants, scenarios, blocks)}\n\n"
             f"{score_table}\n" + "\n".join(tables.md_parts) + "\n![sensitivity](sensitivity.png)\n")
     (out / "sensitivity.md").write_text(text, encoding="utf-8")
-    plot(out / "sensitivity.png", tables.plot_data)
+    plot(out / "sensitivity.png", tables.plot_data, symbols(first_report)["intelligence"])
     return summaries, score_table
 
 
@@ -155,7 +163,8 @@ def scenario_base(tables: Tables, seeds: SeedReports, cell: Cell, mutants: list[
         speed_rows.append(speed_row)
         points.append(point)
     for m in not_applicable:
-        rows.append([m, LIBRARY[m].klass, f"not applicable to {cell.base}", *["–"] * (len(mutant_header(cell.unit)) - 3)])
+        rows.append([m, LIBRARY[m].klass, f"not applicable to {cell.base}",
+                     *["–"] * (len(mutant_header(cell.unit, cell.sym)) - 3)])
         tables.csv_na.append([cell.scenario, cell.driver, cell.base, m, LIBRARY[m].klass, LIBRARY[m].applies])
     intact_i = mean_ci(list(seeds.score(intact_key, "intelligence").values()))
     low = b_scores.min_block
@@ -171,7 +180,7 @@ def scenario_base(tables: Tables, seeds: SeedReports, cell: Cell, mutants: list[
 
 
 def block_part(tables: Tables, seeds: SeedReports, cell: Cell, applicable: list[str], blocks: list):
-    """Per applicable mutant and seed block the paired intelligence interval, detection and runs needed
+    """Per applicable mutant and seed block the paired interval of the compared score (D), detection and runs needed
     (:func:`evoscen_experiments.replication.block_detection`): its Markdown rows (into ``blocks.csv`` too)
     and the mutation score per block."""
     from evoscen_experiments.replication import block_detection, block_scores
@@ -181,7 +190,7 @@ def block_part(tables: Tables, seeds: SeedReports, cell: Cell, applicable: list[
     per_block = {m: block_detection(seeds.score(intact_key, "intelligence"),
                                     seeds.score((cell.scenario, cell.base, m), "intelligence"), blocks)
                  for m in applicable}
-    rows = [[m, *(c for b in per_block[m].per_block for c in (
+    rows = [[m if m not in PROFILES else f"{m} (profile)", *(c for b in per_block[m].per_block for c in (
         f"{fmt_ci(b.diff.mean, b.diff.half)} (n {b.diff.n})", "yes" if b.detected else "no",
         "–" if b.needed is None else str(b.needed))), f"{per_block[m].detected_blocks}/{len(blocks)}"]
         for m in applicable]
@@ -190,7 +199,7 @@ def block_part(tables: Tables, seeds: SeedReports, cell: Cell, applicable: list[
             tables.block_csv.append([cell.design, cell.scenario, cell.driver, cell.base, m, LIBRARY[m].klass,
                                      b.block.first, b.block.last, b.diff.mean, b.diff.half, b.diff.n, int(b.detected),
                                      "" if b.needed is None else b.needed])
-    return rows, block_scores(per_block, blocks)
+    return rows, block_scores({m: v for m, v in per_block.items() if m not in PROFILES}, blocks)
 
 
 def mutant_rows(tables: Tables, seeds: SeedReports, cell: Cell, m: str, r_pair: float):
@@ -218,10 +227,11 @@ def mutant_rows(tables: Tables, seeds: SeedReports, cell: Cell, m: str, r_pair: 
     hit = di.above_zero
     cells = [fmt_ci(diffs[n].mean, diffs[n].half) for n in SCORES]
     # in words the mutant against the intact model: mutant − intact, the negative of the column's
-    row = [m, LIBRARY[m].klass, cells[0], difference_words(-di.mean, di.half, di.n), *cells[1:],
+    klass = LIBRARY[m].klass if m not in PROFILES else f"{LIBRARY[m].klass}, profile"
+    row = [m, klass, cells[0], difference_words(-di.mean, di.half, di.n), *cells[1:],
            fmt_ci(d_col.mean, d_col.half, 2), fmt_ci(d_exp.mean, d_exp.half, 2), fmt_ci(d_pet.mean, d_pet.half, 2),
            "yes" if hit else "no", "–" if need is None else str(need), "–" if math.isnan(r_pair) else f"{r_pair:.2f}"]
-    tables.csv_rows.append([cell.design, cell.scenario, cell.driver, cell.base, m, LIBRARY[m].klass,
+    tables.csv_rows.append([cell.design, cell.scenario, cell.driver, cell.base, m, LIBRARY[m].klass, role(m),
                             *(v for n in SCORES for v in (diffs[n].mean, diffs[n].half)),
                             d_col.mean, d_col.half, d_exp.mean, d_exp.half, d_pet.mean, d_pet.half, int(hit),
                             "" if need is None else need, di.n, r_pair,
@@ -229,9 +239,11 @@ def mutant_rows(tables: Tables, seeds: SeedReports, cell: Cell, m: str, r_pair: 
     return row, ssm_row, speed_row, (m, di)
 
 
-def mutant_header(unit: str) -> list[str]:
-    """The columns of a scenario's main table (``unit``: episode or seed)."""
-    return ["mutant", "class", "ΔI (intact − mutant)", "mutant's I vs intact (95 %)", "ΔI_s", "ΔI_e", "ΔI_i",
+def mutant_header(unit: str, sym: dict | None = None) -> list[str]:
+    """The columns of a scenario's main table (``unit``: episode or seed; ``sym``: the scores' symbols, D, S, P, X
+    by default)."""
+    d, s, p, x = (sym or symbols({"settings": {"score_form": "comparative"}})).values()
+    return ["mutant", "class", f"Δ{d} (intact − mutant)", f"mutant's {d} vs intact (95 %)", f"Δ{s}", f"Δ{p}", f"Δ{x}",
             "Δ collisions (mutant − intact)", "Δ exposures (mutant − intact)", "Δ min PET (s, intact − mutant)",
             "detected", f"{unit}s needed", "pairing r"]
 
@@ -249,19 +261,20 @@ def section(cell: Cell, summary, intact_i, not_applicable: list[str], b_scores, 
     table per seed block, the surrogate-safety table and the speeds."""
     unit, base, score, low = cell.unit, cell.base, summary.score, b_scores.min_block
     (v_i, ref_i) = speeds
-    block_header = ["mutant", *(h for b in blocks for h in (f"ΔI block {b.label}", f"detected {b.label}",
+    d = cell.sym.get("intelligence", "D")
+    block_header = ["mutant", *(h for b in blocks for h in (f"Δ{d} block {b.label}", f"detected {b.label}",
                                                            f"{unit}s needed {b.label}")), "detected in blocks"]
     per_block_text = ", ".join(f"{k}/{summary.mutants} in block {b.label}" for k, b in zip(b_scores.detected, blocks))
-    return (f"## {cell.scenario} (BVs: {cell.driver}), SUT {base}\n\nIntact intelligence "
+    return (f"## {cell.scenario} (BVs: {cell.driver}), SUT {base}\n\nIntact {d} "
             f"{fmt_ci(*intact_i)}; mutation score over all {unit}s {summary.detected}/{summary.mutants}"
-            f"{'' if math.isnan(score) else f' = {score:.2f}'} (applicable mutants; "
+            f"{'' if math.isnan(score) else f' = {score:.2f}'} (applicable defects; "
             f"{len(not_applicable)} not applicable to {base}"
             f"{': ' + ', '.join(not_applicable) if not_applicable else ''}); per block: "
             f"{per_block_text}; minimum over blocks {b_scores.min_detected}/{summary.mutants}"
             f"{'' if low is None else f' (block {low.label})'}; detected in every block "
-            f"{b_scores.every_block}/{summary.mutants}.\n\n"
-            + markdown_table(mutant_header(unit), rows)
-            + f"\nPer seed block: ΔI = intact − mutant over the block's {unit}s (95 % interval, n), "
+            f"{b_scores.every_block}/{summary.mutants}{profile_note(summary)}.\n\n"
+            + markdown_table(mutant_header(unit, cell.sym), rows)
+            + f"\nPer seed block: Δ{d} = intact − mutant over the block's {unit}s (95 % interval, n), "
             f"detected, {unit}s needed (the smallest n from which every prefix of the block's {unit}s "
             f"detects).\n\n" + markdown_table(block_header, block_rows)
             + f"\nSurrogate safety of the SUT per SUT-km (docs/evaluation.md): the intact model's mean "
@@ -299,9 +312,16 @@ def write_files(out: Path, tables: Tables, rounds_rows: list) -> None:
     write_csv(out / "rounds.csv", ROUNDS_CSV, rounds_rows)
 
 
-def scores_table(score_rows: list, scenarios: list[str], unit: str) -> str:
-    """The mutation scores per scenario and base (Markdown) and the pooled mutation score per scenario."""
-    table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", "intact I",
+def profile_note(summary) -> str:
+    """The profiles run beside the defects, named as not counted ("" without any)."""
+    names = [m for m in summary.per_mutant if m in PROFILES]
+    return f"; not counted: {', '.join(names)} (a profile, not a defect)" if names else ""
+
+
+def scores_table(score_rows: list, scenarios: list[str], unit: str, d: str = "D") -> str:
+    """The mutation scores per scenario and base (Markdown; ``d``: the score's symbol) and the pooled mutation
+    score per scenario (profiles not counted)."""
+    table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", f"intact {d}",
                             "median pairing r", "not applicable", "detected per block",
                             "min over blocks (block)", "detected in every block"],
                            [[s, d, b, f"{k}/{n}", "–" if math.isnan(x) else f"{x:.2f}", fmt_ci(m, h),
@@ -315,15 +335,16 @@ def scores_table(score_rows: list, scenarios: list[str], unit: str) -> str:
         every = sum(row[13] for row in own)
         pooled.append(f"{scenario}: detected {k}/{n} applicable (base, mutant) pairs over all {unit}s, "
                       f"{every}/{n} in every block; {sum(row[9] for row in own)} pairs not applicable")
-    return table + "\nMutation score over the applicable (base, mutant) pairs: " + "; ".join(pooled) + ".\n"
+    return (table + "\nMutation score over the applicable (base, mutant) pairs, profiles (" + ", ".join(PROFILES)
+            + ") not counted: " + "; ".join(pooled) + ".\n")
 
 
 def form_text(first_report: dict) -> str:
     """The scores compared, in words (``evaluation.score_form`` of the runs)."""
     form = (first_report.get("settings") or {}).get("score_form", "method")
-    return ("the comparative score (evaluation.score_form: comparative, docs/evaluation.md §10): I = D, I_s = its "
-            "safety S, I_e = its progress P, I_i = its interaction X" if form == "comparative" else
-            "the method's intelligence (evaluation.score_form: method)")
+    return ("D, the comparative score (evaluation.score_form: comparative, docs/evaluation.md §10), its safety S, "
+            "progress P and interaction X" if form == "comparative" else
+            "the method's intelligence I (evaluation.score_form: method)")
 
 
 def overview(design, rounds: list, results: dict, meta: dict, bases: list[str], mutants: list[str],
@@ -342,9 +363,9 @@ def overview(design, rounds: list, results: dict, meta: dict, bases: list[str], 
             f"initial state after the warm-up and every random stream); differences intact − mutant of the "
             f"unweighted scores (Δ collisions/exposures: mutant − intact; Δ min PET: intact − mutant of the run's "
             f"smallest lane-change PET, > 0 when the mutant cuts in closer), mean ± 95 % interval over {unit}s; "
-            f"the mutant's I in words: 'significantly lower' (= detected: the intact − mutant interval lies above 0), "
+            f"the mutant's score in words: 'significantly lower' (= detected: the intact − mutant interval lies above 0), "
             f"'significantly higher' or 'no significant difference'; pairing r: correlation over {unit}s of intact and "
-            f"mutant intelligence; {simulated:,.0f} s simulated (scored states of all runs), {wall:,.0f} s wall "
+            f"mutant score; {simulated:,.0f} s simulated (scored states of all runs), {wall:,.0f} s wall "
             f"time in all.\n\n{compute_text(design, cfg0, variants)}")
 
 
@@ -370,8 +391,9 @@ def compute_text(design, cfg, variants: int) -> str:
             f"({variants} variant-scenario pairs, {design.runs * variants:,} runs).")
 
 
-def plot(path: Path, panels) -> None:
-    """Paired intelligence difference (intact − mutant) of every mutant with its 95 % interval, one panel per scenario."""
+def plot(path: Path, panels, d: str = "D") -> None:
+    """Paired difference (intact − mutant) of the compared score (symbol ``d``: D by default) of every mutant with
+    its 95 % interval, one panel per scenario."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -387,7 +409,7 @@ def plot(path: Path, panels) -> None:
         ax.axvline(0.0, color="k", lw=0.8)
         ax.set_yticks(range(len(points)), [p[0] for p in points])
         ax.set_title(title, fontsize=9)
-        ax.set_xlabel("ΔI intact − mutant (95 % CI)")
+        ax.set_xlabel(f"Δ{d} intact − mutant (95 % CI)")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -1,0 +1,251 @@
+"""The sensitivity experiment's sequential design (``--sequential``, docs/sensitivity.md "Sequential verdicts").
+
+Every (scenario, base, mutant) comparison runs paired episodes in rounds of ``--round-size`` seeds (S, S+1, …
+from ``--first-seed``, in order) and is looked at after each round (:func:`evoscen_experiments.sequential.verdict`
+on intact − mutant of D): a comparison with its verdict gets no further seeds; one still ``continue`` gets the
+next round's, up to ``--budget``. The intact episodes of a seed are shared by all mutants of its base and run
+while any of them still needs the seed. The rounds run on the experiment's engine
+(:func:`evoscen_experiments.experiments.run_rounds_with_bar`), which saves every run under ``OUT/runs/``: a rerun
+into the same ``--out`` reads the saved runs back, reaches the same verdicts at the same looks and computes only
+what is missing. :func:`run_looks` is the loop, its run function injectable; :func:`main` the experiment's door.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import SimpleNamespace
+
+from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+from evoscen_sim.errors import InputError
+
+from evoscen_experiments.sensitivity import PROFILES, score_of
+from evoscen_experiments.sensitivity_tables import INTACT, role
+from evoscen_experiments.sequential import SPENDING, Verdict, looks_of, verdict
+
+BUDGET, ROUND_SIZE, DELTA, SPENDING_DEFAULT = "2000", "100", "0.005", "obrien_fleming"
+"""The defaults: at most 2,000 paired episodes per comparison, looks every 100 episodes ([choice]: the first look
+is the fixed episodes design's 100, 20 looks in all, and the standard deviation of ≥ 100 differences makes the
+normal-scale boundaries of :mod:`~evoscen_experiments.sequential` close to Student-t's), margin δ = 0.005 of D,
+O'Brien–Fleming spending."""
+WORDS = {"a_higher": "worse", "b_higher": "better", "equivalent": "equivalent", "unresolved": "unresolved",
+         "continue": "unresolved"}
+"""A verdict on intact − mutant in the user's words about the mutant (``a_higher``: the intact SUT scores higher,
+so the mutant is *worse*)."""
+VERDICTS_CSV = ["scenario", "bv_driver", "base", "mutant", "class", "role", "verdict", "delta_d_mean",
+                "delta_d_low", "delta_d_high", "episodes", "looks", "budget"]
+COUNTS_CSV = ["scenario", "bv_driver", "base", "worse", "better", "equivalent", "unresolved", "defects",
+              "profiles", "not_applicable", "runs"]
+CONFLICTS = ("--design long", "--compare-designs", "--episodes", "--seeds", "--steps", "--long-first-seed",
+             "--blocks", "--block-size", "--seed-blocks")
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A sequential design: looks every ``round_size`` paired episodes of ``steps`` steps up to ``budget``, seeds
+    ``first_seed`` on, margin ``delta``, ``spending`` shape, error rate ``alpha`` over all looks."""
+
+    round_size: int
+    budget: int
+    delta: float
+    spending: str
+    steps: int
+    first_seed: int
+    alpha: float = 0.05
+
+    @property
+    def looks(self) -> tuple[int, ...]:
+        """The episodes at each look (:func:`~evoscen_experiments.sequential.looks_of`)."""
+        return looks_of(self.round_size, self.budget)
+
+    def judge(self, diffs: Sequence[float]) -> Verdict:
+        """The verdict on the paired differences so far (episode order)."""
+        return verdict(diffs, round_size=self.round_size, budget=self.budget, delta=self.delta, alpha=self.alpha,
+                       spending=self.spending)
+
+
+def resolve_plan(args, episode_steps: str = "300") -> Plan | None:
+    """The sequential design of the parsed options (``episode_steps``: ``--episode-steps``' default), None without
+    ``--sequential``; InputError (one line) on a bad value or on another design's flags with it, or its flags
+    without it."""
+    from evoscen_experiments.experiments import positive_int
+
+    own = [f for f, v in (("--budget", args.budget), ("--round-size", args.round_size), ("--delta", args.delta),
+                          ("--spending", args.spending)) if v is not None]
+    if not getattr(args, "sequential", False):
+        if own:
+            raise InputError(f"{own[0]} applies with --sequential only")
+        return None
+    given = {"--design long": args.design == "long", "--compare-designs": args.compare_designs,
+             "--episodes": args.episodes, "--seeds": args.seeds, "--steps": args.steps,
+             "--long-first-seed": args.long_first_seed, "--blocks": args.blocks, "--block-size": args.block_size,
+             "--seed-blocks": args.seed_blocks}
+    bad = [f for f in CONFLICTS if given[f] not in (None, False)]
+    if bad:
+        raise InputError(f"--sequential and {bad[0]} together: the sequential design runs rounds of --round-size "
+                         f"episodes from --first-seed up to --budget")
+    budget = positive_int("--budget", args.budget or BUDGET, 2)
+    size = positive_int("--round-size", args.round_size or ROUND_SIZE, 2)
+    if size > budget:
+        raise InputError(f"--round-size {size} exceeds --budget {budget}")
+    try:
+        delta = float(args.delta or DELTA)
+    except ValueError:
+        delta = math.nan
+    if not (delta > 0 and math.isfinite(delta)):
+        raise InputError(f"--delta = {args.delta!r}: expected a number > 0")
+    spending = args.spending or SPENDING_DEFAULT
+    if spending not in SPENDING:
+        raise InputError(f"--spending {spending!r}: expected one of {', '.join(SPENDING)}")
+    steps = positive_int("--episode-steps", args.episode_steps or episode_steps)
+    return Plan(size, budget, delta, spending, steps, positive_int("--first-seed", args.first_seed, 0))
+
+
+Comparison = tuple[str, str, str]
+"""(scenario, base, mutant)."""
+
+
+def comparisons(bases: Sequence[str], scenarios: Sequence[str], mutants: Sequence[str]) -> list[Comparison]:
+    """Every applicable (scenario, base, mutant), in that order (:func:`~evoscen_experiments.replication.applicable_split`)."""
+    from evoscen_experiments.replication import applicable_split
+
+    return [(s, b, m) for s in scenarios for b in bases for m in applicable_split(b, mutants)[0]]
+
+
+def look_rounds(plan: Plan, open_: Sequence[Comparison], k: int, load: Callable) -> tuple[list, dict]:
+    """The rounds of look ``k`` (0-based) for the comparisons still open: the seeds after look k − 1 up to look
+    k, intact once per (scenario, base) with an open mutant, each open mutant; and their key -> (design,
+    scenario, base, variant)."""
+    from evoscen_experiments.experiments import Round
+    from evoscen_sut.mutants import mutant_overrides
+
+    lo = plan.looks[k - 1] if k else 0
+    seeds = range(plan.first_seed + lo, plan.first_seed + plan.looks[k])
+    variants: dict[tuple[str, str, str], dict] = {}
+    for scenario, base, mutant in open_:
+        variants.setdefault((scenario, base, INTACT), {"sut.model": base})
+        variants[(scenario, base, mutant)] = mutant_overrides(base, mutant)
+    rounds, meta = [], {}
+    for (scenario, base, variant), sut in variants.items():
+        for seed in seeds:
+            overrides = {**sut, "seed": str(seed), "steps": str(plan.steps), "recording.enabled": "false"}
+            if scenario != "evolving":
+                overrides["bvs.driver"] = scenario
+            rnd = Round(f"{scenario}--{base}--{variant}", load(overrides))
+            rounds.append(rnd)
+            meta[rnd.key] = ("sequential", scenario, base, variant)
+    return rounds, meta
+
+
+def verdicts_of(plan: Plan, comps: Sequence[Comparison], d: dict, n: int) -> dict[Comparison, Verdict]:
+    """Each comparison's verdict on its first ``n`` episodes (``d``: (scenario, base, variant) -> seed -> D)."""
+    seeds = range(plan.first_seed, plan.first_seed + n)
+    out = {}
+    for scenario, base, m in comps:
+        intact, mutant = d.get((scenario, base, INTACT), {}), d.get((scenario, base, m), {})
+        out[(scenario, base, m)] = plan.judge([intact[s] - mutant[s] for s in seeds if s in intact and s in mutant])
+    return out
+
+
+def run_looks(plan: Plan, comps: Sequence[Comparison], load: Callable,
+              run: Callable[[list], dict | None]) -> tuple[dict, list, dict, dict] | None:
+    """Run the looks: before each, the comparisons still ``continue`` get its seeds (:func:`look_rounds`),
+    ``run(rounds)`` gives their results by key (the saved ones read back) or None when interrupted. Returns
+    the verdicts, every round run, the results and the rounds' meta; None when interrupted."""
+    d: dict[tuple[str, str, str], dict[int, float]] = {}
+    all_rounds, results, meta = [], {}, {}
+    verdicts = verdicts_of(plan, comps, d, 0)
+    for k in range(len(plan.looks)):
+        open_ = [c for c in comps if verdicts[c].verdict == "continue"]
+        if not open_:
+            break
+        rounds, look_meta = look_rounds(plan, open_, k, load)
+        got = run(rounds)
+        if got is None:
+            return None
+        for rnd in rounds:
+            results[rnd.key] = got[rnd.key]
+            d.setdefault(look_meta[rnd.key][1:], {})[rnd.cfg.seed] = score_of(got[rnd.key]["report"], "intelligence")
+        all_rounds += rounds
+        meta.update(look_meta)
+        new = verdicts_of(plan, open_, d, plan.looks[k])
+        verdicts.update(new)
+    return verdicts, all_rounds, results, meta
+
+
+def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
+    """The sequential design of the parsed options (``names()``: their bases, scenarios, mutants and workers,
+    checked): looks run (or read back), then ``verdicts.csv``, ``verdict_counts.csv``, ``rounds.csv`` and
+    ``sensitivity.md`` in ``args.out``, the table printed."""
+    from evoscen_experiments.experiments import config_loader, run_rounds_with_bar, set_up
+
+    bases, scenarios, mutants, jobs = set_up(args.out, names)
+    comps = comparisons(bases, scenarios, mutants)
+    if not comps:
+        raise InputError("--sequential: no mutant applies to the bases given")
+    load = config_loader(args.config)
+    looks = [0]
+
+    def run(rounds: list) -> dict | None:
+        looks[0] += 1
+        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"sensitivity, look {looks[0]}")
+
+    done = run_looks(plan, comps, load, run)
+    if done is None:
+        return EXIT_INTERRUPTED
+    table = write_tables(args.out, plan, bases, scenarios, mutants, *done)
+    print(table, end="")
+    print(f"written: {args.out / 'sensitivity.md'}, verdicts.csv, verdict_counts.csv, rounds.csv")
+    return EXIT_OK
+
+
+def write_tables(out: Path, plan: Plan, bases: Sequence[str], scenarios: Sequence[str], mutants: Sequence[str],
+                 verdicts: dict, rounds: list, results: dict, meta: dict) -> str:
+    """``verdicts.csv`` (per comparison), ``verdict_counts.csv`` (per scenario and base: worse / applicable
+    defects), ``rounds.csv`` and ``sensitivity.md``; returns the Markdown tables."""
+    from evoscen_experiments.experiments import write_csv
+    from evoscen_experiments.replication import applicable_split
+    from evoscen_experiments.sensitivity_tables import ROUNDS_CSV, round_rows
+    from evoscen_experiments.stats import markdown_table
+    from evoscen_sut.mutants import LIBRARY
+
+    drivers = {meta[r.key][1]: r.cfg.bvs.driver for r in rounds}
+    rows, md, counts, md_counts = [], [], [], []
+    for scenario in scenarios:
+        for base in bases:
+            applicable, not_applicable = applicable_split(base, mutants)
+            words = {}
+            for m in applicable:
+                v = verdicts[(scenario, base, m)]
+                words[m] = WORDS[v.verdict]
+                rows.append([scenario, drivers[scenario], base, m, LIBRARY[m].klass, role(m), words[m], v.mean,
+                             v.low, v.high, v.episodes, v.looks, plan.budget])
+                md.append([scenario, base, m if m not in PROFILES else f"{m} (profile)", words[m],
+                           f"{v.mean:+.4f} [{v.low:+.4f}, {v.high:+.4f}]", str(v.episodes), str(v.looks)])
+            defects = [m for m in applicable if m not in PROFILES]
+            tally = {w: sum(words[m] == w for m in defects) for w in ("worse", "better", "equivalent", "unresolved")}
+            runs = sum(1 for r in rounds if meta[r.key][1:3] == (scenario, base))
+            counts.append([scenario, drivers[scenario], base, *tally.values(), len(defects),
+                           len(applicable) - len(defects), len(not_applicable), runs])
+            md_counts.append([scenario, base, f"{tally['worse']}/{len(defects)}", str(tally["better"]),
+                              str(tally["equivalent"]), str(tally["unresolved"]), f"{runs:,}"])
+    write_csv(out / "verdicts.csv", VERDICTS_CSV, rows)
+    write_csv(out / "verdict_counts.csv", COUNTS_CSV, counts)
+    write_csv(out / "rounds.csv", ROUNDS_CSV, round_rows(SimpleNamespace(name="sequential"), rounds, results, meta))
+    table = (markdown_table(["scenario", "SUT", "mutant", "mutant vs intact", "ΔD intact − mutant [RCI]",
+                             "episodes", "looks"], md)
+             + "\n" + markdown_table(["scenario", "SUT", "worse / applicable defects", "better", "equivalent",
+                                      "unresolved", "runs"], md_counts))
+    text = (f"# Sensitivity experiment: sequential verdicts\n\n## Sequential verdicts\n\nPer (base, mutant): D of "
+            f"the intact SUT minus D of the mutant, paired by episode (seeds {plan.first_seed} on, in order, "
+            f"{plan.steps} steps each), looked at every {plan.round_size} episodes up to {plan.budget} "
+            f"(docs/sensitivity.md \"Sequential verdicts\"); a comparison stops at its verdict: **worse** (the "
+            f"repeated confidence interval, RCI, of ΔD lies above 0: the mutant scores lower), **better** (below "
+            f"0), **equivalent** (inside ±{plan.delta:g}) or **unresolved** at the budget; {plan.spending} "
+            f"spending, each verdict wrong with probability at most {plan.alpha:g} over all looks. Profiles ("
+            f"{', '.join(PROFILES)}) are reported, not counted. Runs: intact and mutant episodes run, an intact "
+            f"episode shared by the mutants of its base; {len(rounds):,} in all.\n\n{table}")
+    (out / "sensitivity.md").write_text(text, encoding="utf-8")
+    return table
