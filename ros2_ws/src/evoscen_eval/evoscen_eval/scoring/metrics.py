@@ -222,15 +222,16 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
     comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
     warnings = list(warnings) + warnings_extra
     complexity = _complexity_of_stream(st, warnings)
+    # a reader meets D first, then the method's I, then their inputs (docs/evaluation.md, "Symbols")
     return {
         "run": info,
-        "settings": asdict(ev),
         "warnings": warnings,
+        "comparative": comparative,
+        "intelligence": intelligence,
+        "settings": asdict(ev),
         "safety": safety,
         "efficiency": efficiency,
         "interaction": interaction,
-        "intelligence": intelligence,
-        "comparative": comparative,
         "complexity": complexity,
         "traffic": traffic_of_stream(st),
         "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
@@ -483,6 +484,9 @@ def comparative_of_stream(st: ScoreStream, collisions: int, exposures: int, dura
                "interaction": ev.weight_interaction}
     terms = {"safety": s, "lane_change_time": lct, "interaction": x}
     return {
+        "name": D_NAME,
+        "formula": (f"D = P·({weights['safety']:g}·S + {weights['lane_change_time']:g}·L + "
+                    f"{weights['interaction']:g}·X)"),
         "score": comparative_score(p, s, lct, x, (weights["safety"], weights["lane_change_time"],
                                                   weights["interaction"])),
         "score_form": ev.score_form,
@@ -500,6 +504,9 @@ def comparative_of_stream(st: ScoreStream, collisions: int, exposures: int, dura
         "weighted": {k: p * weights[k] * terms[k] for k in weights},
     }
 
+
+D_NAME = "D, the comparative score"
+"""What D is called wherever it is shown (report.json's ``comparative.name``, report.md, the printed lines)."""
 
 #: The scores an experiment compares, by the names of the method's sections (:func:`compared_scores`).
 COMPARED_SCORES = ("intelligence", "safety", "efficiency", "interaction")
