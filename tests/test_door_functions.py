@@ -46,13 +46,16 @@ def test_the_run_summary_says_whose_each_count_is_and_times_each_span_once():
     from evoscen_bringup.inprocess import RunSummary
     from evoscen_bringup.runs import summary_lines
 
-    s = RunSummary(steps=600, sim_time_s=60.0, wall_time_s=0.6, bag_dir=None, steps_wall_s=0.5, report_wall_s=1.25,
-                   collisions=1, lane_changes=24, reentries=97, off_road=0, sut_lane_changes=1)
+    s = RunSummary(steps=600, sim_time_s=60.0, wall_time_s=0.6, bag_dir=Path("bag"), steps_wall_s=0.5,
+                   report_wall_s=1.25, collisions=1, lane_changes=24, reentries=97, off_road=0, sut_lane_changes=1)
     assert summary_lines(s) == [
         "steps: 600  simulated: 60.0 s  stepping: 0.50 s (1200 steps/s, the progress bar's rate)  then closing the "
         "bag: 0.10 s, scoring and the report: 1.25 s",
         "all vehicles: collisions: 1  lane changes: 24  re-entries: 97  off-road: 0; the SUT: lane changes: 1 "
         "(completed)"]
+    s.bag_dir, s.wall_time_s = None, 0.5  # no bag: none closed
+    assert summary_lines(s)[0] == ("steps: 600  simulated: 60.0 s  stepping: 0.50 s (1200 steps/s, the progress "
+                                   "bar's rate)  then scoring and the report: 1.25 s")
 
 
 def test_the_progress_bar_times_the_steps_as_the_summary_does():

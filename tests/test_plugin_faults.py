@@ -211,7 +211,8 @@ def test_act_raising_in_the_graph_ends_within_2_s(tmp_path):
     print(f"\nthe graph ended {ended - failed_at[0]:.2f} s after the plug-in's error line (os.getloadavg: "
           f"{os.getloadavg()[0]:.1f})")
     assert ended - failed_at[0] < 2.0, f"ended {ended - failed_at[0]:.2f} s after the failed step\n{stderr}"
-    assert "intelligence" not in stdout and "aborted: the run ended at step 30 of 60 (exit status 3)" in stdout, stdout
+    assert "comparative score" not in stdout and "intelligence" not in stdout, stdout
+    assert "aborted: the run ended at step 30 of 60 (exit status 3)" in stdout, stdout
     assert not (out / "report" / "report.json").exists()
     events = _bag_events(out / "bag")
     fault, end = events[-2:]

@@ -233,10 +233,11 @@ def step_bar(bar, steps: int) -> Callable[[int], None]:
 def summary_lines(summary) -> list[str]:
     """What an in-process run did (:class:`~evoscen_bringup.inprocess.RunSummary`), in words: its times, each
     measured once, and its events, each count saying whose it is."""
-    close_s = summary.wall_time_s - summary.steps_wall_s
+    close = (f"closing the bag: {summary.wall_time_s - summary.steps_wall_s:.2f} s, "
+             if summary.bag_dir is not None else "")
     return [f"steps: {summary.steps}  simulated: {summary.sim_time_s:.1f} s  stepping: {summary.steps_wall_s:.2f} s "
-            f"({summary.stepping_steps_per_s:.0f} steps/s, the progress bar's rate)  then closing the bag: "
-            f"{close_s:.2f} s, scoring and the report: {summary.report_wall_s:.2f} s",
+            f"({summary.stepping_steps_per_s:.0f} steps/s, the progress bar's rate)  then {close}scoring and the "
+            f"report: {summary.report_wall_s:.2f} s",
             f"all vehicles: collisions: {summary.collisions}  lane changes: {summary.lane_changes}  "
             f"re-entries: {summary.reentries}  off-road: {summary.off_road}; "
             f"the SUT: lane changes: {summary.sut_lane_changes} (completed)"]

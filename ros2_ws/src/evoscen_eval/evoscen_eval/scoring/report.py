@@ -14,6 +14,7 @@ marked (``timeline.png``); the BVs within 100 m of the SUT over time with each 3
 (``worst_exposure.png``); and a bird's-eye animation around the SUT (``run.gif``,
 :mod:`evoscen_eval.scoring.animation`).
 
+The words of ``report.md`` and of the printed score lines are :mod:`evoscen_eval.scoring.report_text`'s.
 Each exposure is listed with the rules that made it one, their values and the vehicles involved
 (:mod:`evoscen_eval.scoring.exposure_rules`); the worst-exposure snapshot's title and the exposure table
 print the same entry of ``safety.exposure_list`` (:func:`exposure_caption`).
