@@ -167,7 +167,7 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
         axes[1].legend(loc="upper right", fontsize=7)
     every = "" if plot.timeline_stride == 1 else f"; one point per {plot.timeline_stride} states, lowest TTC"
     axes[0].set_title(f"SUT timeline: {report['safety']['exposures']} exposures (shaded, ▼; at least "
-                      f"{100 * MIN_SPAN_SHARE:g} % of the axis wide), {len(starts)} SUT lane changes (▲ left, ▼ right), "
+                      f"{100 * MIN_SPAN_SHARE:g} % of the axis wide), {len(starts)} SUT lane changes started (▲ left, ▼ right), "
                       f"{report['safety']['collisions']} collisions (red){every}", fontsize=9)
     names.append(_save(fig, out, "timeline.png"))
 
