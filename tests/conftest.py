@@ -88,11 +88,11 @@ def parse_summary(stdout: str) -> dict[str, int | float | str]:
     if m:
         out["steps"] = int(m.group(1))
         out["sim_time_s"] = float(m.group(2))
-    m = re.search(
-        r"^collisions: (\d+)\s+lane changes: (\d+)\s+re-entries: (\d+)\s+off-road: (\d+)", stdout, re.M
-    )
+    m = re.search(r"^all vehicles: collisions: (\d+)\s+lane changes: (\d+)\s+re-entries: (\d+)\s+off-road: (\d+); "
+                  r"the SUT: lane changes: (\d+) \(completed\)", stdout, re.M)
     if m:
-        out["collisions"], out["lane_changes"], out["reentries"], out["off_road"] = map(int, m.groups())
+        (out["collisions"], out["lane_changes"], out["reentries"], out["off_road"],
+         out["sut_lane_changes"]) = map(int, m.groups())
     m = re.search(r"^bag: (.+?)\s+\((\d+) messages", stdout, re.M)
     if m:
         out["bag"] = m.group(1)

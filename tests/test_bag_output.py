@@ -5,6 +5,7 @@ file) and its content matches the topic contract and the physics of the run.
 
 from __future__ import annotations
 
+import json
 from collections import Counter, defaultdict
 from pathlib import Path
 
@@ -172,6 +173,11 @@ def test_rosbags_events(recorded_run, rosbags_messages):
     assert names[T.EVENT_COLLISION] == s["collisions"]
     assert names[T.EVENT_REENTRY] == s["reentries"]
     assert names[T.EVENT_OFF_ROAD] == s["off_road"]
+    # the summary's SUT count is the SUT's completed lane changes, the report's
+    report = json.loads((recorded_run.out / "report" / "report.json").read_text())
+    sut_id = report["run"]["sut_id"]
+    assert s["sut_lane_changes"] == report["efficiency"]["lane_changes"] == sum(
+        1 for e in events if e["name"] == T.EVENT_LANE_CHANGE and e["ids"] == [sut_id] and e.get("kind") == "completed")
     assert names[T.EVENT_RUN_END] == 1  # the last message, kind completed
     last = T.parse_events(messages["/evoscen/events"][-1][2])
     assert [(e["name"], e["kind"], e["steps"]) for e in last] == [(T.EVENT_RUN_END, "completed", recorded_run.steps)]

@@ -95,12 +95,16 @@ def test_summary_gives_complexity_per_cell_by_hand(tmp_path):
     runs = expand(spec, version="v1")
     rows = []
     for i, r in enumerate(runs):  # mobil: C 0.1, 0.2, 0.3; level0: undefined (a run shorter than a window)
-        rows.append({"key": r.key, "seed": r.seed, "sut.model": dict(r.cell)["sut.model"], "intelligence": 0.5,
-                     "safety": 0.5, "efficiency": 0.5, "interaction": 0.5,
+        rows.append({"key": r.key, "seed": r.seed, "sut.model": dict(r.cell)["sut.model"], "comparative": 0.5,
+                     "comparative_safety": 0.5, "comparative_progress": 0.5, "comparative_lane_change_time": 0.5,
+                     "comparative_interaction": 0.5, "intelligence": 0.5,
                      "complexity": [0.1, 0.2, 0.3][i] if i < 3 else None, "collisions": 0, "exposures": 0})
     text = summary_markdown(spec, runs, rows)
+    # D first with its terms, the method's I, then K; no heading names D "intelligence"
+    assert ("| sut.model | n (count) | D (ratio) | S (ratio) | P (ratio) | L (ratio) | X (ratio) | "
+            "I, the method's (ratio) | K, the scenario's (ratio) | SUT collisions (count) |") in text
     # mean 0.2, sd 0.1, t(0.975, 2) = 4.3027: half-width 4.3027 * 0.1 / sqrt(3) = 0.2484
-    same = "0.5000 ± 0.0000 | " * 4
+    same = "0.5000 ± 0.0000 | " * 6
     assert f"| mobil | 3 | {same}0.2000 ± 0.2484 |" in text
     assert f"| level0 | 3 | {same}– |" in text
 
@@ -164,14 +168,16 @@ def test_every_run_once_and_equal_to_the_same_run_here(local_campaign):
     row = next(row for row in table if row["key"] == runs[4].key)
     from evoscen_eval.scoring.metrics import compared_scores
 
-    assert row["intelligence"] == compared_scores(here)["intelligence"] == here["comparative"]["score"]
+    assert row["comparative"] == compared_scores(here)["intelligence"] == here["comparative"]["score"]
+    assert row["intelligence"] == here["intelligence"]["score"]  # always the method's I
+    assert row["comparative_progress"] == here["comparative"]["progress"]["score"] and row["score_form"] == "comparative"
     assert row["collisions"] == here["safety"]["collisions"] and row["seed"] == 1 and row["sut.model"] == "level0"
     assert row["traffic_mean_bvs"] == here["traffic"]["mean_bvs"]
     assert row["traffic_empty_share"] == here["traffic"]["empty_share"]
     report = json.loads((out / "runs" / runs[4].key / "report.json").read_text())
     assert report["intelligence"]["score"] == here["intelligence"]["score"]
     summary = (out / "summary.md").read_text()
-    assert "## Paired by seed: each other sut.model − mobil (intelligence)" in summary
+    assert "## Paired by seed: each other sut.model − mobil (D, the comparative score)" in summary
     assert "| level0 | 3 |" in summary  # the paired row: 3 shared seeds
     for name in ("summary.png", "distributions.png"):
         assert (out / name).stat().st_size > 0 and f"]({name})" in summary

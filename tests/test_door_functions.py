@@ -34,9 +34,60 @@ def test_the_comparative_line_names_each_term():
 
     d = {"score": 0.5, "progress": {"score": 0.75}, "safety": {"score": 1.0}, "lane_change_time": {"score": 0.25},
          "interaction": {"score": 0.125}}
-    assert comparative_line({"comparative": d}) == ("comparative: 0.5000 (progress 0.7500, safety 1.0000, "
-                                                    "lane-change time 0.2500, interaction 0.1250)")
+    d["weights"] = {"safety": 0.6, "lane_change_time": 0.2, "interaction": 0.2}
+    assert comparative_line({"comparative": d}) == (
+        "D, the comparative score: 0.5000 = P·(0.6·S + 0.2·L + 0.2·X): progress P 0.7500, safety per SUT-km S "
+        "1.0000, lane-change time L 0.2500, interaction X 0.1250")
     assert comparative_line({}) is None and comparative_line({"comparative": None}) is None
+
+
+def test_the_run_summary_says_whose_each_count_is_and_times_each_span_once():
+    """600 steps in 0.5 s of stepping (1200 steps/s, the bar's rate), the bag closed 0.1 s later, scored in 1.25 s."""
+    from evoscen_bringup.inprocess import RunSummary
+    from evoscen_bringup.runs import summary_lines
+
+    s = RunSummary(steps=600, sim_time_s=60.0, wall_time_s=0.6, bag_dir=Path("bag"), steps_wall_s=0.5,
+                   report_wall_s=1.25, collisions=1, lane_changes=24, reentries=97, off_road=0, sut_lane_changes=1)
+    assert summary_lines(s) == [
+        "steps: 600  simulated: 60.0 s  stepping: 0.50 s (1200 steps/s, the progress bar's rate)  then closing the "
+        "bag: 0.10 s, scoring and the report: 1.25 s",
+        "all vehicles: collisions: 1  lane changes: 24  re-entries: 97  off-road: 0; the SUT: lane changes: 1 "
+        "(completed)"]
+    s.bag_dir, s.wall_time_s = None, 0.5  # no bag: none closed
+    assert summary_lines(s)[0] == ("steps: 600  simulated: 60.0 s  stepping: 0.50 s (1200 steps/s, the progress "
+                                   "bar's rate)  then scoring and the report: 1.25 s")
+
+
+def test_the_progress_bar_times_the_steps_as_the_summary_does():
+    """The bar's clock starts as step 0 begins (progress(0)) and stops as the last step ends: 3 steps between
+    t = 10 s and t = 10.5 s show 6.00 steps/s, what the summary prints for 3 steps in 0.5 s of stepping."""
+    import io
+
+    from evoscen_bringup.runs import step_bar
+    from tqdm import tqdm
+
+    now = [0.0]
+    out = io.StringIO()
+    bar = tqdm(total=3, unit="step", file=out, smoothing=0, mininterval=0)
+    bar._time = lambda: now[0]  # tqdm's clock
+    tick = step_bar(bar, 3)
+    now[0] = 10.0
+    tick(0)  # step 0 begins: time spent before it (building the run) is not the steps'
+    for k in (1, 2, 3):
+        now[0] = 10.0 + k * 0.5 / 3
+        tick(k)
+    assert out.getvalue().rstrip().endswith("6.00step/s]")
+
+
+def test_an_in_process_run_says_when_step_0_begins():
+    from evoscen_bringup.inprocess import run_inprocess
+    from evoscen_sim.config.scenario_config import load_scenario_config
+
+    seen: list[int] = []
+    cfg = load_scenario_config(None, {"steps": 5, "bvs.count": 2, "spawn.ramp_vehicles": 0})
+    summary = run_inprocess(cfg, bag_dir=None, progress=seen.append)
+    assert seen == [0, 1, 2, 3, 4, 5]
+    assert 0 < summary.steps_wall_s <= summary.wall_time_s and summary.stepping_steps_per_s == 5 / summary.steps_wall_s
 
 
 def test_graph_args_from_the_environment_are_shell_words():

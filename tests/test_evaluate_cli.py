@@ -45,7 +45,8 @@ def test_offline_report_equals_the_runs_own(recorded_run, tmp_path):
     for name in ("report.md", "ttc.png", "speed.png", "timeline.png", "traffic.png"):
         assert (tmp_path / "off" / name).stat().st_size > 0
     md = (tmp_path / "off" / "report.md").read_text()
-    assert "| **intelligence I** |" in md and "![timeline](timeline.png)" in md
+    assert md.index("## D, the comparative score") < md.index("## The method's intelligence I")
+    assert "| **I** |" in md and "![timeline](timeline.png)" in md
     assert "## Traffic around the SUT" in md and "![traffic](traffic.png)" in md
     assert md == (recorded_run.out / "report" / "report.md").read_text()  # report.md: live = offline too
     # 201 states: under one 300-state window but at least half of one, so one partial window

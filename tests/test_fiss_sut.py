@@ -216,9 +216,8 @@ def test_installed_fiss_runs_in_a_campaign_on_ray(tmp_path):
     assert run.cfg.sut.model == "fiss"
     here = run_inprocess(run.cfg, bag_dir=None, evaluate=True, plots=False).report
     row = next(row for row in rows if row["key"] == run.key)
-    # the Ray worker ran the same planner; a campaign's intelligence column is the compared score
-    # (evaluation.score_form, default comparative: D; docs/evaluation.md §10)
-    assert row["intelligence"] == here["comparative"]["score"]
+    # the Ray worker ran the same planner; a campaign's comparative column is D (docs/evaluation.md §10)
+    assert row["comparative"] == here["comparative"]["score"]
 
 
 # ------------------------------------------------------------------ a driver's answer is checked

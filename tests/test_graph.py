@@ -267,7 +267,8 @@ def test_live_report_equals_offline_and_inprocess(graph_200, tmp_path):
     assert (s["collisions_used"], s["exposures_used"]) == (15 * s["collisions"], 15 * s["exposures"])
     for name in ("report.md", "ttc.png", "speed.png", "timeline.png", "traffic.png"):
         assert (graph_200["out"] / "report" / name).stat().st_size > 0, name
-    assert "intelligence:" in graph_200["res"].stdout
+    out = graph_200["res"].stdout
+    assert out.index("D, the comparative score: ") < out.index("the method's intelligence I (for reproducing the paper): ")
 
 
 def test_parameter_files_written_and_load_back(graph_200):
@@ -337,7 +338,7 @@ def test_killed_controller_aborts_cleanly(killed_bv):
     assert re.search(rf"^ +\d+\.\d s  {name} ended early \(killed by SIGKILL \(signal 9\)\)$", logs["launcher"], re.M), \
         logs["launcher"]
     assert f"{name}=-9" in killed_bv["stdout"], killed_bv["stdout"]  # the launcher reports the dead node
-    assert "aborted: the run ended at step" in killed_bv["stdout"] and "intelligence" not in killed_bv["stdout"]
+    assert "aborted: the run ended at step" in killed_bv["stdout"] and "comparative score" not in killed_bv["stdout"]
 
     bag = _read_bag(bag_dir)
     assert _mcap_summary_count(bag_dir) == sum(len(v) for v in bag.values())

@@ -208,9 +208,16 @@ def test_successful_run_outputs(recorded_run):
     assert ("worst_exposure.png" in extra) == bool(report["safety"]["exposures"]), extra
     assert all(re.fullmatch(r"collision_\d+\.png", n) for n in extra - {"worst_exposure.png"}), extra
     # weight × score per term (the effective weights: 0.75/0.25 when interaction is undefined, evaluation.md §4)
-    assert re.search(r"^intelligence: [0-9.]+ = [0-9.]+ × safety [0-9.]+ \+ [0-9.]+ × efficiency [0-9.]+ \+ "
-                     r"([0-9.]+ × interaction [0-9.]+|interaction undefined \(left out\))"
-                     r"  complexity: [0-9.]+  SUT collisions: \d+  exposures: \d+$", res.stdout, re.M), res.stdout
+    # D first, then the method's I (weight × score per term), then the scenario's K and the SUT's counts
+    lines = res.stdout.splitlines()
+    at = next(n for n, line in enumerate(lines) if line.startswith("D, the comparative score: "))
+    assert re.fullmatch(r"D, the comparative score: [0-9.]+ = P·\(0\.6·S \+ 0\.2·L \+ 0\.2·X\): progress P [0-9.]+, "
+                        r"safety per SUT-km S [0-9.]+, lane-change time L [0-9.]+, interaction X [0-9.]+", lines[at])
+    assert re.fullmatch(r"the method's intelligence I \(for reproducing the paper\): [0-9.]+ = [0-9.]+ × safety I_s "
+                        r"[0-9.]+ \+ [0-9.]+ × efficiency I_e [0-9.]+ \+ "
+                        r"([0-9.]+ × interaction I_i [0-9.]+|interaction I_i undefined \(left out\))", lines[at + 1])
+    assert re.fullmatch(r"complexity K \(the scenario's\): [0-9.]+  SUT collisions: \d+  SUT exposures: \d+",
+                        lines[at + 2]), res.stdout
     assert f"report: {out / 'report' / 'report.md'}" in res.stdout
     assert sorted(p.name for p in (out / "bag").iterdir()) == ["bag_0.mcap", "metadata.yaml"]
     assert (out / "bag" / "bag_0.mcap").stat().st_size > 0

@@ -309,6 +309,6 @@ def test_a_campaign_runs_it_on_ray_workers_with_the_result_of_the_same_run_here(
     assert (done.runs, done.computed, done.failed) == (2, 2, [])
     table = {row["key"]: row for row in pq.read_table(tmp_path / "out" / "results.parquet").to_pylist()}
     here = run_inprocess(runs[1].cfg, bag_dir=None, evaluate=True, plots=False).report
-    # a campaign's intelligence column is the compared score (evaluation.score_form, default D)
-    assert table[runs[1].key]["intelligence"] == here["comparative"]["score"]
+    # a campaign's comparative column is D (docs/evaluation.md §10)
+    assert table[runs[1].key]["comparative"] == here["comparative"]["score"]
     assert table[runs[1].key]["seed"] == 1

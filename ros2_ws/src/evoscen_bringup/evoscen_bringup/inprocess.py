@@ -46,9 +46,17 @@ class RunSummary:
     steps: int
     sim_time_s: float
     wall_time_s: float
+    """From step 0 until the bag is closed (s)."""
     bag_dir: Path | None
+    steps_wall_s: float = 0.0
+    """From step 0 to the end of the last step (s): what ``steps_per_s`` and a progress bar measure."""
+    report_wall_s: float = 0.0
+    """Scoring's end and the report's writing after the last step (s)."""
     collisions: int = 0
+    """Of all vehicles, as ``lane_changes``, ``reentries`` and ``off_road``."""
     lane_changes: int = 0
+    sut_lane_changes: int = 0
+    """Lane changes the SUT completed."""
     reentries: int = 0
     off_road: int = 0
     message_count: int = 0
@@ -62,8 +70,13 @@ class RunSummary:
 
     @property
     def steps_per_s(self) -> float:
-        """Simulation steps per wall-clock second."""
+        """Simulation steps per wall-clock second, the bag's closing included (``wall_time_s``)."""
         return self.steps / self.wall_time_s if self.wall_time_s > 0 else math.inf
+
+    @property
+    def stepping_steps_per_s(self) -> float:
+        """Simulation steps per wall-clock second of stepping (``steps_wall_s``): a progress bar's rate."""
+        return self.steps / self.steps_wall_s if self.steps_wall_s > 0 else math.inf
 
 
 class _CtrlC:
@@ -113,6 +126,11 @@ class _InProcessPort(Port):
         self.fault: PluginFault | None = None  # a driver that raised (the run was aborted)
         self.bv_node = drivers.fault_node  # the BV node named in a BV driver's fault
 
+    def start(self) -> None:
+        """``progress(0)``: step 0 begins (a progress bar's clock starts here, as ``steps_wall_s``)."""
+        if self.progress is not None:
+            self.progress(0)
+
     def begin_step(self, step: int) -> None:
         """A noted Ctrl-C takes effect here (:class:`_CtrlC`)."""
         if self.ctrl_c is not None and self.ctrl_c.pending:
@@ -161,6 +179,7 @@ class _InProcessPort(Port):
         s = self.summary
         s.collisions += len(result.collisions)
         s.lane_changes += len(result.lane_changes_completed)
+        s.sut_lane_changes += sum(1 for c in result.lane_changes_completed if c[0] == self.sc.sut_index)
         s.reentries += len(result.reentries)
         s.off_road += len(result.off_road)
         if self.progress is not None:
@@ -206,7 +225,8 @@ def run_plan(
     recorded run: ``plan.recording``). Each room gets its part of the plan: the recorder the recording
     part, the step loop and the scorer the evaluation settings.
 
-    With ``report_dir`` the run is scored and ``report.json``/``report.md`` (and, with
+    ``progress(k)`` is told ``0`` as step 0 begins and ``k`` as step k − 1 ends (a progress bar's clock
+    and ``RunSummary.steps_wall_s`` measure the same span). With ``report_dir`` the run is scored and ``report.json``/``report.md`` (and, with
     ``plots``, the PNGs) are written there (:mod:`evoscen_eval.scoring.report`); with ``evaluate``
     alone the report is only returned (``RunSummary.report``). Either way the scores are the
     ones an offline evaluation of the bag gives, computed as the run goes (scoring memory does
@@ -265,6 +285,7 @@ def run_plan(
     if ctrl_c.pending:  # noted after the last step began: the run completed, the user asked to stop
         raise KeyboardInterrupt
     summary.wall_time_s = outcome.wall_s + t_close if outcome.wall_s is not None else outcome.wall_s
+    summary.steps_wall_s = outcome.wall_s if outcome.wall_s is not None else 0.0
     summary.steps = world.step_index
     summary.sim_time_s = world.time_s
     if rec is not None:
@@ -279,7 +300,9 @@ def run_plan(
         from evoscen_sim.errors import HostFault
 
         try:
+            t_report = time.perf_counter()
             summary.run, summary.report, summary.plot = _report(acc, ev, report_dir, plots, keep_run)
+            summary.report_wall_s = time.perf_counter() - t_report
         except HostFault as fault:  # a full disk, a read-only report directory: the bag is finished
             fault.bag_dir, fault.steps = bag_dir, summary.steps + 1
             fault.bag_state = "finished" if bag_dir is not None else None

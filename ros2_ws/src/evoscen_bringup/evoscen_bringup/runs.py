@@ -110,19 +110,17 @@ def steps_of(counts: Mapping[str, int]) -> int:
 
 
 def print_scores(report_dir: Path) -> None:
-    """One line of scores from ``report_dir/report.json`` (and the comparative score's, docs/evaluation.md
-    §10), the report's warnings on stderr, and where the report is."""
-    from evoscen_eval.scoring.report import comparative_line, score_line
+    """The scores from ``report_dir/report.json``, D first (:func:`~evoscen_eval.scoring.report_text.score_lines`,
+    docs/evaluation.md §10), the report's warnings on stderr, and where the report is."""
+    from evoscen_eval.scoring.report_text import score_lines
 
     path = report_dir / "report.json"
     if not path.is_file():
         print(f"error: no report was written ({path} is missing)", file=sys.stderr)
         return
     r = json.loads(path.read_text(encoding="utf-8"))
-    print(score_line(r))
-    comparative = comparative_line(r)
-    if comparative:
-        print(comparative)
+    for line in score_lines(r):
+        print(line)
     for warning in r["warnings"]:
         print(f"warning: {warning}", file=sys.stderr)
     print(f"report: {report_dir / 'report.md'}")
@@ -145,7 +143,8 @@ def graph_outcome(result, cfg, out: Path, bag_dir: Path, report_dir: Path) -> in
               f"killed, recover what it wrote with: python scripts/reindex.py {bag_dir}", file=sys.stderr)
         return result.status or EXIT_FAULT
     steps = steps_of(counts)
-    print(f"steps: {steps}  domain: {result.domain_id}  wall: {result.wall_time_s:.2f} s  "
+    print(f"steps: {steps}  domain: {result.domain_id}  wall: {result.wall_time_s:.2f} s (the graph's start-up to "
+          f"shut-down; its stepping: the lockstep line)  "
           f"nodes: " + ", ".join(f"{n}={s}" for n, s in result.node_status.items()))
     try:
         size = sum(f.stat().st_size for f in bag_dir.iterdir())
@@ -191,10 +190,12 @@ def _inprocess_command(cfg, scenario, out: Path, bag_dir: Path | None, report_di
     if not quiet:
         from tqdm import tqdm
 
-        bar = tqdm(total=cfg.steps, unit="step", desc=f"{cfg.name} (inprocess)", file=sys.stderr, mininterval=0.5)
+        # smoothing 0: the bar's rate is steps over its time, the summary's steps/s (step_bar)
+        bar = tqdm(total=cfg.steps, unit="step", desc=f"{cfg.name} (inprocess)", file=sys.stderr, mininterval=0.5,
+                   smoothing=0)
     try:
         summary = run_inprocess(cfg, bag_dir=bag_dir, scenario=scenario, report_dir=report_dir, plots=plots,
-                                progress=(lambda k: bar.update(1)) if bar else None, bag_writer=bag_writer)
+                                progress=step_bar(bar, cfg.steps) if bar else None, bag_writer=bag_writer)
     except KeyboardInterrupt:  # the run finished its bag first (run_end of kind interrupted)
         if bar is not None:
             bar.close()
@@ -213,14 +214,39 @@ def _inprocess_command(cfg, scenario, out: Path, bag_dir: Path | None, report_di
     finally:
         if bar is not None:
             bar.close()
-    print(f"steps: {summary.steps}  simulated: {summary.sim_time_s:.1f} s  wall: {summary.wall_time_s:.2f} s  "
-          f"({summary.steps_per_s:.0f} steps/s)")
-    print(f"collisions: {summary.collisions}  lane changes: {summary.lane_changes}  re-entries: {summary.reentries}  "
-          f"off-road: {summary.off_road}")
+    for line in summary_lines(summary):
+        print(line)
     if summary.bag_dir is not None:
         print(f"bag: {summary.bag_dir}  ({summary.message_count} messages, {summary.bag_bytes / 1e6:.2f} MB)")
     print_scores(report_dir)
     return EXIT_OK
+
+
+def step_bar(bar, steps: int) -> Callable[[int], None]:
+    """The in-process run's ``progress``: the bar's clock starts as step 0 begins (``progress(0)``) and the
+    bar closes as the last step ends, so its rate is the summary's steps/s (``RunSummary.steps_wall_s``);
+    scoring and the report come after it."""
+    def tick(k: int) -> None:
+        if k == 0:
+            bar.reset(total=steps)
+            return
+        bar.update(1)
+        if k == steps:
+            bar.close()
+    return tick
+
+
+def summary_lines(summary) -> list[str]:
+    """What an in-process run did (:class:`~evoscen_bringup.inprocess.RunSummary`), in words: its times, each
+    measured once, and its events, each count saying whose it is."""
+    close = (f"closing the bag: {summary.wall_time_s - summary.steps_wall_s:.2f} s, "
+             if summary.bag_dir is not None else "")
+    return [f"steps: {summary.steps}  simulated: {summary.sim_time_s:.1f} s  stepping: {summary.steps_wall_s:.2f} s "
+            f"({summary.stepping_steps_per_s:.0f} steps/s, the progress bar's rate)  then {close}scoring and the "
+            f"report: {summary.report_wall_s:.2f} s",
+            f"all vehicles: collisions: {summary.collisions}  lane changes: {summary.lane_changes}  "
+            f"re-entries: {summary.reentries}  off-road: {summary.off_road}; "
+            f"the SUT: lane changes: {summary.sut_lane_changes} (completed)"]
 
 
 def _checked_options(mode: str, out: str, domain_id: str | None, max_misses: str, deadline: float,

@@ -128,12 +128,13 @@ def test_a_single_state_run_scores_its_counts_as_counted_with_a_warning():
 def test_the_report_shows_the_raw_counts_the_length_and_the_counts_used():
     md = markdown(evaluate(counted_run(1500), EV), [])
     assert "C' = C·N_ref/N, E' = E·N_ref/N" in md
-    for row in ("| C | 1 |", "| E | 2 |", "| count normalisation | method_length |", "| N | 1500 |",
-                "| N_ref | 3000 |", "| C' | 2 | C as it enters I_s (C·2) |", "| E' | 4 | E as it enters I_s (E·2) |"):
+    for row in ("| C | 1 | count |", "| E | 2 | count |", "| count normalisation | method_length | – |",
+                "| N | 1500 | steps |", "| N_ref | 3000 | steps |", "| C' | 2 | count | C as it enters I_s (C·2) |",
+                "| E' | 4 | count | E as it enters I_s (E·2) |"):
         assert row in md, row
     lit = markdown(evaluate(counted_run(1500), LITERAL), [])
     assert "I_s = 0.7·(1 − min(C, C_max)/C_max) + 0.3·e^(−E)\n" in lit
-    assert "| N_ref | 3000 | reference length (steps), unused |" in lit and "| C' | 1 | C as it enters I_s |" in lit
+    assert "| N_ref | 3000 | steps | reference length, unused |" in lit and "| C' | 1 | count | C as it enters I_s |" in lit
 
 
 def test_keys_are_validated():

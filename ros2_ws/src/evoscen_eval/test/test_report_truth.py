@@ -184,8 +184,8 @@ def test_the_printed_scores_are_weight_times_score():
            "safety": {"score": 0.8104, "collisions": 0, "exposures": 1}, "efficiency": {"score": 0.1874},
            "interaction": {"score": None}, "complexity": {"score": None}}
     rep["intelligence"]["effective_weights"] = {"safety": 0.75, "efficiency": 0.25, "interaction": 0.0}
-    assert score_line(rep) == ("intelligence: 0.6889 = 0.75 × safety 0.8104 + 0.25 × efficiency 0.1874 + interaction "
-                               "undefined (left out)  complexity: -  SUT collisions: 0  exposures: 1")
+    assert score_line(rep) == ("the method's intelligence I (for reproducing the paper): 0.6889 = 0.75 × safety I_s "
+                               "0.8104 + 0.25 × efficiency I_e 0.1874 + interaction I_i undefined (left out)")
 
 
 def test_each_drawn_frame_marks_the_lane_change_and_exposure_of_its_states():

@@ -133,5 +133,5 @@ def test_the_profile_is_beside_the_score():
     assert a["intelligence"] == b["intelligence"] and a["safety"] == b["safety"]
     text = markdown(a, [])
     assert "## Surrogate safety" in text
-    assert "| TTC < 3 s episodes | 4 | 2 | 33.33 | 16.67 | episodes |" in text
-    assert "| PET < 2 s lane changes | – | 0 | – | 0 | lane changes |" in text
+    assert "| TTC < 3 s episodes | 4 | 2 | 33.33 | 16.67 | count (episodes) |" in text
+    assert "| PET < 2 s lane changes | – | 0 | – | 0 | count (lane changes) |" in text

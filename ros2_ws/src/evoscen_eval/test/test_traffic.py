@@ -106,8 +106,8 @@ def test_report_md_and_plot(tmp_path):
     report = write_report(three_then_one(750), tmp_path)
     md = (tmp_path / "report.md").read_text()
     assert "## Traffic around the SUT" in md
-    assert "| mean BVs | 1.6 |" in md  # 1200 / 750
-    assert "| lowest window mean | 0 |" in md and "| states with none | 150 (20.0 %) |" in md
+    assert "| mean BVs | 1.6 | count |" in md  # 1200 / 750
+    assert "| lowest window mean | 0 | count |" in md and "| states with none | 150 (20.0 %) | count (share) |" in md
     assert "| 1 | 0.0 | 300 | 3 |" in md and "| 2 | 30.0 | 300 | 1 |" in md and "| 3 | 60.0 | 150 (partial) | 0 |" in md
     assert "![traffic](traffic.png)" in md and (tmp_path / "traffic.png").stat().st_size > 0
     assert report["traffic"]["windows"][-1]["partial"] is True

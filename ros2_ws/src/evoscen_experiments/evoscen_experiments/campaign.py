@@ -35,7 +35,12 @@ from evoscen_sim.config.scenario_config import config_to_dict
 from evoscen_experiments.campaign_spec import CampaignRun
 from evoscen_experiments.ray_leftovers import DRIVER_FILE, end_leftovers, start_time
 
-SCORE_COLUMNS = ("intelligence", "safety", "efficiency", "interaction", "complexity")
+SCORE_COLUMNS = {"comparative": "D", "comparative_safety": "S", "comparative_progress": "P",
+                 "comparative_lane_change_time": "L", "comparative_interaction": "X",
+                 "intelligence": "I", "intelligence_safety": "I_s", "intelligence_efficiency": "I_e",
+                 "intelligence_interaction": "I_i", "complexity": "K"}
+"""A run's scores, column -> symbol (docs/evaluation.md, "Symbols"): D, the comparative score, and its terms;
+the method's I and its terms (``intelligence`` is always the method's I); the scenario's complexity K."""
 COUNT_COLUMNS = ("collisions", "exposures")
 KIND_COLUMNS = tuple(f"collisions_{k}" for k in (*COLLISION_KINDS, "unknown"))
 """SUT collisions by what they were (docs/evaluation.md §3.4)."""
@@ -66,6 +71,17 @@ class CampaignResult:
 # ---------------------------------------------------------------------- one run (a Ray task)
 
 
+def score_columns(report: dict[str, Any]) -> dict[str, float | None]:
+    """A report's :data:`SCORE_COLUMNS` (None where a score is undefined or the report has no D)."""
+    d = report.get("comparative") or {}
+    term = lambda k: (d.get(k) or {}).get("score")  # noqa: E731
+    return {"comparative": d.get("score"), "comparative_safety": term("safety"), "comparative_progress": term("progress"),
+            "comparative_lane_change_time": term("lane_change_time"), "comparative_interaction": term("interaction"),
+            "intelligence": report["intelligence"]["score"], "intelligence_safety": report["safety"]["score"],
+            "intelligence_efficiency": report["efficiency"]["score"],
+            "intelligence_interaction": report["interaction"]["score"], "complexity": report["complexity"]["score"]}
+
+
 def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) -> dict[str, Any]:
     """Simulate and score one run (in the worker); returns its result row, report, plot data and,
     when recording, its files (``{path relative to the run's directory: bytes}``: the critical-event
@@ -82,12 +98,9 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
         raise HostFault.of(exc, exc.filename or tempfile.gettempdir()) from None
     report = summary.report
     row: dict[str, Any] = {"key": run.key, **dict(run.cell), "seed": run.seed, "steps": summary.steps}
-    from evoscen_eval.scoring.metrics import compared_scores
-
-    compared = compared_scores(report)  # evaluation.score_form: D and its terms [default], or the method's
-    for name in SCORE_COLUMNS:
-        value = compared[name] if name in compared else report[name]["score"]
+    for name, value in score_columns(report).items():
         row[name] = math.nan if value is None else float(value)
+    row["score_form"] = (report.get("settings") or {}).get("score_form", "method")  # the score a summary compares
     row["collisions"] = int(report["safety"]["collisions"])
     for kind, count in report["safety"]["collisions_by_kind"].items():
         row[f"collisions_{kind}"] = int(count)

@@ -37,7 +37,7 @@ def _write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> li
 
     rows = collect_rows(runs, out_dir)
     axes = list(spec.grid)
-    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, *COUNT_COLUMNS, *KIND_COLUMNS, *TRAFFIC_COLUMNS, "clips",
+    columns = ["key", *axes, "seed", "steps", *SCORE_COLUMNS, "score_form", *COUNT_COLUMNS, *KIND_COLUMNS, *TRAFFIC_COLUMNS, "clips",
                "wall_time_s",
                "node", "pid"]
     table = pa.table({c: [row.get(c) for row in rows] for c in columns}) if rows else pa.table(
@@ -55,8 +55,9 @@ def _write_results(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> li
 
 def summary_plots(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Mapping[str, Any]],
                   out_dir: Path) -> list[str]:
-    """``summary.png`` (per cell: mean I with its 95 % interval) and ``distributions.png`` (per cell:
-    the SUT's TTC and speed distributions over all its runs, as fractions of states)."""
+    """``summary.png`` (per cell: the compared score's mean, :func:`compared_column`, with its 95 % interval) and
+    ``distributions.png`` (per cell: the SUT's TTC and speed distributions over all its runs, as fractions of
+    states)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -68,14 +69,14 @@ def summary_plots(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Mappin
 
     grouped = cells(spec, rows)
     labels = [", ".join(cell) or spec.name for cell in grouped]
-    stats = [mean_ci([m["intelligence"] for m in members if not math.isnan(m["intelligence"])])
-             for members in grouped.values()]
+    column, name = compared_column(rows)
+    stats = [mean_ci([m[column] for m in members if not _missing(m.get(column))]) for members in grouped.values()]
     fig, ax = plt.subplots(figsize=(max(6.0, 0.6 * len(labels) + 2), 4))
     x = np.arange(len(labels))
     ax.bar(x, [m for m, _ in stats], yerr=[0.0 if math.isnan(h) else h for _, h in stats], capsize=3,
            color="tab:blue")
     ax.set_xticks(x, labels, rotation=45, ha="right", fontsize=8)
-    ax.set(ylabel="intelligence I (mean, 95 % interval)", title=f"campaign {spec.name}: {len(rows)} runs")
+    ax.set(ylabel=f"{name} (mean, 95 % interval)", title=f"campaign {spec.name}: {len(rows)} runs")
     fig.tight_layout()
     fig.savefig(out_dir / "summary.png", dpi=100)
     plt.close(fig)
@@ -140,6 +141,10 @@ def gallery_markdown(spec: Spec, runs: Sequence[CampaignRun], out_dir: Path) -> 
 
 # ---------------------------------------------------------------------- statistics
 
+SUMMARY_SCORES = ("comparative", "comparative_safety", "comparative_progress", "comparative_lane_change_time",
+                  "comparative_interaction", "intelligence", "complexity")
+"""The scores summary.md gives per cell, D first (symbols: :data:`~evoscen_experiments.campaign.SCORE_COLUMNS`)."""
+
 
 def bootstrap_ci(values: Sequence[float], rng: np.random.Generator, draws: int = 2000) -> tuple[float, float, float]:
     """Mean and its 95 % percentile-bootstrap interval ``(mean, low, high)`` (for skewed counts
@@ -152,6 +157,23 @@ def bootstrap_ci(values: Sequence[float], rng: np.random.Generator, draws: int =
     means = x[rng.integers(0, x.size, size=(draws, x.size))].mean(axis=1)
     low, high = np.percentile(means, [2.5, 97.5])
     return float(x.mean()), float(low), float(high)
+
+
+def compared_column(rows: Sequence[Mapping[str, Any]]) -> tuple[str, str]:
+    """The column a campaign's summary compares cells by, and its name: D, the comparative score, unless every
+    run was scored with ``evaluation.score_form: method`` (then the method's I)."""
+    if rows and all(row.get("score_form") == "method" for row in rows):
+        return "intelligence", "I, the method's intelligence"
+    return "comparative", "D, the comparative score"
+
+
+def _label(column: str) -> str:
+    """A score column's heading in summary.md: its symbol, the method's I and the scenario's K said so."""
+    return {"intelligence": "I, the method's", "complexity": "K, the scenario's"}.get(column, SCORE_COLUMNS[column])
+
+
+def _missing(value: Any) -> bool:
+    return value is None or (isinstance(value, float) and math.isnan(value))
 
 
 def cells(spec: Spec, rows: Sequence[Mapping[str, Any]]) -> dict[tuple[str, ...], list[Mapping[str, Any]]]:
@@ -169,18 +191,20 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
     from evoscen_experiments.stats import difference_words, fmt_ci, markdown_table, mean_ci
 
     axes = list(spec.grid)
+    column, compared = compared_column(rows)
     lines = [f"# Campaign {spec.name}\n",
              f"{len(rows)} of {len(runs)} runs finished; {len(spec.seeds)} seeds per cell; spec `{spec.path.name}`. "
-             "Scores (I_s, I_e, I_i unweighted, each in [0, 1]): mean ± 95 % Student-t interval over seeds "
-             "(C: the scenario's complexity per run, – for a "
-             "run shorter than one window); counts: mean [95 % bootstrap interval].\n"]
+             "Scores, each a ratio in [0, 1]: D, the comparative score (D = P·(0.6·S + 0.2·L + 0.2·X), "
+             "docs/evaluation.md §10), with its terms; the method's intelligence I (for reproducing the paper); K, "
+             "the scenario's complexity (– for a run shorter than one window): mean ± 95 % Student-t interval over "
+             f"seeds. Counts, the SUT's: mean [95 % bootstrap interval]. Cells are compared by {compared}.\n"]
     rng = np.random.default_rng(0)  # the bootstrap's draws: fixed, so the summary is reproducible
     body = []
     grouped = cells(spec, rows)
     for cell, members in grouped.items():
         entry = [*cell, str(len(members))]
-        for name in ("intelligence", "safety", "efficiency", "interaction", "complexity"):
-            vals = [m[name] for m in members if m[name] is not None and not math.isnan(m[name])]
+        for score in SUMMARY_SCORES:
+            vals = [m[score] for m in members if not _missing(m.get(score))]
             entry.append(fmt_ci(*mean_ci(vals)) if vals else "–")
         for name in COUNT_COLUMNS:
             mean, low, high = bootstrap_ci([m[name] for m in members], rng)
@@ -188,8 +212,9 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
         kinds = {c[len("collisions_"):]: sum(m.get(c) or 0 for m in members) for c in KIND_COLUMNS}
         entry.append(", ".join(f"{k} {n}" for k, n in kinds.items() if n) or "–")
         body.append(entry)
-    lines.append(markdown_table([*axes, "n", "I", "I_s", "I_e", "I_i", "C", "collisions", "exposures",
-                                 "collisions by kind (all seeds)"], body))
+    lines.append(markdown_table([*axes, "n (count)", *(f"{_label(s)} (ratio)" for s in SUMMARY_SCORES),
+                                 "SUT collisions (count)", "SUT exposures (count)",
+                                 "SUT collisions by kind (all seeds, count)"], body))
     if spec.compare is not None and rows:
         axis, ref = spec.compare
         i = axes.index(axis)
@@ -198,12 +223,13 @@ def summary_markdown(spec: Spec, runs: Sequence[CampaignRun], rows: Sequence[Map
             if cell[i] == ref:
                 continue
             ref_cell = cell[:i] + (ref,) + cell[i + 1:]
-            base = {m["seed"]: m["intelligence"] for m in grouped.get(ref_cell, [])}
-            other = {m["seed"]: m["intelligence"] for m in members}
+            base = {m["seed"]: math.nan if _missing(m.get(column)) else m[column] for m in grouped.get(ref_cell, [])}
+            other = {m["seed"]: math.nan if _missing(m.get(column)) else m[column] for m in members}
             p = paired(other, base)  # this cell − the reference (the leaderboard's SUT − reference)
             comp.append([*cell, str(p.n), fmt_ci(p.mean, p.half), difference_words(p.mean, p.half, p.n)])
-        lines.append(f"\n## Paired by seed: each other {axis} − {ref} (intelligence)\n")
-        lines.append(f"ΔI = the cell's intelligence − {ref}'s on the same seed, mean ± 95 % Student-t interval; "
+        sym = SCORE_COLUMNS[column]
+        lines.append(f"\n## Paired by seed: each other {axis} − {ref} ({compared})\n")
+        lines.append(f"Δ{sym} = the cell's {sym} − {ref}'s on the same seed, mean ± 95 % Student-t interval; "
                      "'significantly higher' ('lower'): the whole interval above (below) 0.\n")
-        lines.append(markdown_table([*axes, "seeds", f"ΔI (− {ref})", f"vs {ref} (95 %)"], comp))
+        lines.append(markdown_table([*axes, "seeds (count)", f"Δ{sym} (− {ref}, ratio)", f"vs {ref} (95 %)"], comp))
     return "\n".join(lines) + "\n"

@@ -51,7 +51,7 @@ def main(args) -> int:
         return EXIT_INTERRUPTED
     ev = rounds[0].cfg.evaluation
     header = ["scenario", "BV driver", f"LC / {ev.window_steps}", f"AD / {ev.window_steps}", f"E / {ev.window_steps}",
-              "C", "C (rounds)", "rounds"]
+              "K", "K (rounds)", "rounds"]
     rows, csv_rows, round_rows, bars = [], [], [], []
     for name in scenarios:
         rs = [results[r.key] for r in rounds if r.label == name]
@@ -93,7 +93,7 @@ def main(args) -> int:
 
 
 def plot(path: Path, bars, window: int) -> None:
-    """LC, AD, E per window and C per scenario, with 95 % intervals."""
+    """LC, AD, E per window and K per scenario, with 95 % intervals."""
     import math
 
     import matplotlib
@@ -110,7 +110,7 @@ def plot(path: Path, bars, window: int) -> None:
         ax.bar(names, means, yerr=errs, capsize=4, color="tab:blue")
         ax.set_title(title)
     axes[3].bar(names, [b[4] for b in bars], color="tab:red")
-    axes[3].set_title("complexity C")
+    axes[3].set_title("complexity K")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -76,7 +76,8 @@ def evaluate_bag(bag_path: Path, *, out: Path | None = None, config: Path | None
     ``overwrite``), with the ``evaluation`` section of the scenario file ``config`` if given; with
     ``reindex`` the bag is rebuilt first (:func:`evoscen_record.reindex.reindex_bag`). Prints the scores
     and where the report is; returns :data:`EXIT_OK`."""
-    from evoscen_eval.scoring.report import comparative_line, score_line, write_stream_report
+    from evoscen_eval.scoring.report import write_stream_report
+    from evoscen_eval.scoring.report_text import score_lines
     from evoscen_eval.scoring.rundata import score_bag
     from evoscen_sim.config.scenario_config import load_scenario_config
 
@@ -99,9 +100,8 @@ def evaluate_bag(bag_path: Path, *, out: Path | None = None, config: Path | None
     bag_warnings(bag_path, run.warnings, reindexed=reindex)
     report = write_stream_report(run.stream, run.info, run.warnings, out, plots=plots, source=str(bag_path),
                                  lane_segments=run.lane_segments, animation_frames=n_frames)
-    print(f"{report['run']['steps']} steps; {score_line(report)}")
-    comparative = comparative_line(report)
-    if comparative:  # docs/evaluation.md §10
-        print(comparative)
+    print(f"{report['run']['steps']} steps scored")
+    for line in score_lines(report):  # D first (docs/evaluation.md §10)
+        print(line)
     print(f"report: {out / 'report.md'}")
     return EXIT_OK

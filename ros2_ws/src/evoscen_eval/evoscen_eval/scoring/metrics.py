@@ -222,15 +222,15 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
     comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
     warnings = list(warnings) + warnings_extra
     complexity = _complexity_of_stream(st, warnings)
-    return {
+    return {  # a reader meets D first, then the method's I, then their inputs (docs/evaluation.md, "Symbols")
         "run": info,
-        "settings": asdict(ev),
         "warnings": warnings,
+        "comparative": comparative,
+        "intelligence": intelligence,
+        "settings": asdict(ev),
         "safety": safety,
         "efficiency": efficiency,
         "interaction": interaction,
-        "intelligence": intelligence,
-        "comparative": comparative,
         "complexity": complexity,
         "traffic": traffic_of_stream(st),
         "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
@@ -362,7 +362,6 @@ def _efficiency_of_stream(st: ScoreStream) -> tuple[dict[str, Any], float, list[
         "lane_change_term": term2,
         "lane_change_term_used": lc_term_used,
     }
-
     return efficiency, i_e, durations
 
 
@@ -401,7 +400,6 @@ def _interaction_of_stream(st: ScoreStream) -> tuple[dict[str, Any], float | Non
                      "accel_fluctuation_mps2": p[1], "bv_lane_changes": p[2], "bvs_in_view": p[3]}
                     for (k0, k1), p in zip(intervals, per_change)],
     }
-
     return interaction, i_i, per_change
 
 
@@ -483,6 +481,7 @@ def comparative_of_stream(st: ScoreStream, collisions: int, exposures: int, dura
                "interaction": ev.weight_interaction}
     terms = {"safety": s, "lane_change_time": lct, "interaction": x}
     return {
+        "name": D_NAME, "formula": "D = P·({:g}·S + {:g}·L + {:g}·X)".format(*weights.values()),
         "score": comparative_score(p, s, lct, x, (weights["safety"], weights["lane_change_time"],
                                                   weights["interaction"])),
         "score_form": ev.score_form,
@@ -501,6 +500,7 @@ def comparative_of_stream(st: ScoreStream, collisions: int, exposures: int, dura
     }
 
 
+D_NAME = "D, the comparative score"  # what D is called wherever it is shown (report.json, report.md, lines)
 #: The scores an experiment compares, by the names of the method's sections (:func:`compared_scores`).
 COMPARED_SCORES = ("intelligence", "safety", "efficiency", "interaction")
 
