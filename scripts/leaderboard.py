@@ -14,22 +14,28 @@ social drivers), each episode its own seed from ``--first-seed`` on. Every SUT g
 seeds (the same initial traffic after the warm-up and the same random streams) and the same
 SUT steps, so the SUTs are compared paired, episode by episode. The score is the one
 ``evaluation.score_form`` selects (docs/evaluation.md §10): the comparative score D by default, its
-weighted terms P·i_s·S (safety), P·i_e·L (efficiency: the lane-change time term) and P·i_i·X
-(interaction); with ``method`` the method's I and its terms. Per SUT: that score
-and its three weighted terms (safety, efficiency, interaction), mean ± 95 % Student-t interval
+weighted terms P·i_s·S (safety), P·i_e·L (lane-change time) and P·i_i·X (interaction), which sum
+to D; with ``method`` the method's I and its weighted terms w_s·I_s, w_e·I_e, w_i·I_i. Per SUT:
+its rank range and letters (below), D and its three weighted terms, mean ± 95 % Student-t interval
 over the episodes, n, the collisions and exposures per episode, the surrogate-safety rates per
 SUT-km (docs/evaluation.md §9), and the paired difference of D against
 ``--reference`` (SUT − reference, mean ± 95 % interval over the shared episodes; significant
 when the interval excludes 0). SUTs are ranked by mean D (ties: by name). A SUT whose
 runs fail is listed as failed with the first error, not ranked; the others are still ranked.
 
+Every pair of SUTs gets a verdict on ΔD paired by episode (95 % interval, z = 1.96): a > b or a < b
+when the interval excludes 0, a ≈ b inside ±0.005, else unresolved with the episodes it would need.
+Rank range: the best and worst rank the resolved pairs leave a SUT; letters: SUTs that share one are
+not told apart (compact letter display, Piepho 2004).
+
 The episodes come in seed blocks (default 2 × 100 from ``--first-seed``; ``--episodes N``: one block;
 ``--seed-blocks``: blocks named by their seeds). Beside the ranked table: every term of the comparative
-score (D, S, P, L, X) and of the method's (I, I_s, I_e, I_i), unweighted; every pair of SUTs paired by
-episode with its interval, n and "significantly higher/lower"; the planners' order in each block and
-Kendall's τ-b between blocks (:func:`evoscen_experiments.replication.kendall_tau`). ``--mutant-refs``
-mutants of ``--mutant-base`` (default ``timid`` and ``frozen`` of MOBIL) are ranked beside the
-planners as references and left out of τ (docs/experiments.md §4).
+score (D, S, P, L, X) and of the method's (I, I_s, I_e, I_i), unweighted; every pair's verdict over all
+episodes and in each block side by side (a contradiction, a > b in one block and a < b in another,
+flagged and counted); the planners' order in each block and Kendall's τ-b between blocks
+(:func:`evoscen_experiments.replication.kendall_tau`). ``--mutant-refs`` mutants of ``--mutant-base``
+(default ``timid`` and ``frozen`` of MOBIL) are ranked beside the planners as references and left out
+of τ (docs/experiments.md §4).
 
 Runs go on ``--jobs`` Ray workers (the campaign engine, one run per worker process) and are saved
 as they finish: an interrupted leaderboard continues where it stopped. Writes into ``--out``:
@@ -56,7 +62,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     cli.add_out(ap, "runs/leaderboard")
     cli.add_config(ap)
     ap.add_argument("--suts", default="all", help="'all' (every installed SUT model) or comma-separated SUT models")
-    ap.add_argument("--reference", default=REFERENCE, help=f"the SUT the others are compared with (default {REFERENCE})")
+    ap.add_argument("--reference", default=REFERENCE,
+                    help=f"the SUT whose D the others are compared with, paired by episode (ΔD; default {REFERENCE})")
     ap.add_argument("--episodes", help="episodes (seeds) per SUT in one block (default: --blocks blocks of "
                                        "--block-size)")
     ap.add_argument("--blocks", help=f"seed blocks, one after the other from --first-seed (default {BLOCKS})")

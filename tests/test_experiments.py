@@ -216,8 +216,9 @@ def test_sensitivity_seed_blocks_and_a_base_a_mutant_does_not_apply_to(tmp_path)
         mean, half = _paired_by_hand(val, "frozen", seeds)
         assert float(b["delta_d_mean"]) == pytest.approx(mean) and b["n"] == "2"
         assert float(b["delta_d_ci95"]) == pytest.approx(half)
-        assert b["detected"] == str(int(mean - half > 0))
+        assert b["detected"] == str(int(mean - half > 0)) and b["better"] == str(int(mean + half < 0))
     scores = {r["base"]: r for r in read_csv(out / "mutation_scores.csv")}
+    assert scores["mobil"]["contradictions"] == "0"  # profiles are not counted
     assert (scores["level0"]["mutants"], scores["level0"]["not_applicable"]) == ("0", "1")
     # frozen is a profile, not a defect: its blocks are reported, never counted
     assert (scores["mobil"]["mutants"], scores["mobil"]["detected"]) == ("0", "0")
@@ -230,6 +231,7 @@ def test_sensitivity_seed_blocks_and_a_base_a_mutant_does_not_apply_to(tmp_path)
     assert "| frozen | decision | not applicable to level0 |" in text and "ΔD block 9–10" in text
     assert "| frozen | decision, profile |" in text and "not counted: frozen (a profile, not a defect)" in text
     assert "detected 0/0 applicable (base, mutant) pairs" in text
+    assert "contradictions (worse in one block, better in another) 0" in text
 
 
 def test_sensitivity_compare_designs(tmp_path):

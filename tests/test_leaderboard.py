@@ -16,8 +16,10 @@ import pytest
 from evoscen_experiments import leaderboard as lb
 
 REPO = Path(__file__).resolve().parents[1]
-T975_DF2 = 4.302652730  # Student-t 0.975 quantile, 2 degrees of freedom
-BAD_LINE = ("failed: bad_sut: 3/3 episodes: InputError: sut model 'bad_sut': act() returned throttle nan "
+T975_DF3 = 3.182446305  # Student-t 0.975 quantile, 3 degrees of freedom
+Z975 = 1.959963985
+SEEDS = (7, 8, 9, 10)
+BAD_LINE = ("failed: bad_sut: 4/4 episodes: InputError: sut model 'bad_sut': act() returned throttle nan "
             "(entry 0); expected a finite number in [-1, 1]")
 
 
@@ -104,12 +106,7 @@ def test_terms_pairs_and_block_orders_by_hand(board):
     # a's D: 0.7 ± t(0.975, 1)·0.1414/√2 = 0.7 ± 12.706·0.1 = 0.7 ± 1.271; a's I_i defined in 1 of 2 episodes
     assert md[0][0] == "a" and md[0][1] == "0.700 ± 1.271" and md[0][9].endswith("(n 1)") and md[0][-1] == "2"
     assert rows[1][1:4] == [pytest.approx(0.3), pytest.approx(12.706204736 * 0.1), 2]
-    # pairs: a − b = 0.4, 0.4 -> 0.4 ± 0 over 2 episodes: significantly higher
     values = {"a": {0: 0.8, 1: 0.6}, "b": {0: 0.4, 1: 0.2}, "c": {0: 0.5, 1: 0.7}}
-    p_md, p_rows, sig = lb.pair_rows(values, ["a", "c", "b"])
-    assert p_md[0] == ["a", "c", "0.1000 ± 2.5412", "2", "no significant difference"]
-    assert p_md[1] == ["a", "b", "0.4000 ± 0.0000", "2", "significantly higher"]
-    assert sig == ["a significantly higher than b (0.4000 ± 0.0000, n 2)"]
     # orders per block: block 0..0 ranks a (0.8), c (0.5), b (0.4); block 1..1 c (0.7), a (0.6), b (0.2):
     # one discordant pair (a, c) of 3 -> τ = (2 − 1) / 3
     b_rows, taus = lb.block_orders(values, consecutive_blocks(0, 2, 1), ["a", "b", "c"])
@@ -136,11 +133,12 @@ def bad_plugin(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def small(tmp_path_factory, bad_plugin, env_with_path):
-    """Two built-in SUTs, the failing plug-in and MOBIL's ``frozen`` as a reference, 3 episodes of 50 steps."""
+    """Two built-in SUTs, the failing plug-in and MOBIL's ``frozen`` as a reference, 2 blocks of 2 episodes of 50
+    steps."""
     out = tmp_path_factory.mktemp("board") / "lb"
     env = env_with_path(bad_plugin)
-    res = subprocess.run([sys.executable, "scripts/leaderboard.py", "--suts", "nilsson,mobil,bad_sut", "--episodes", "3",
-                          "--episode-steps", "50", "--first-seed", "7", "--mutant-refs", "frozen", "--jobs", "2", "--out", str(out)],
+    res = subprocess.run([sys.executable, "scripts/leaderboard.py", "--suts", "nilsson,mobil,bad_sut", "--seed-blocks", "7:8,9:10",
+                          "--episode-steps", "50", "--mutant-refs", "frozen", "--jobs", "2", "--out", str(out)],
                          cwd=REPO, capture_output=True, text=True, timeout=300, check=False, env=env)
     return out, res
 
@@ -152,10 +150,10 @@ def test_ranked_table_and_paired_interval_by_hand(small):
     for name in ("leaderboard.md", "leaderboard.csv", "episodes.csv", "leaderboard.png"):
         assert (out / name).stat().st_size > 0, name
     episodes = read_csv(out / "episodes.csv")
-    assert sorted((e["sut"], e["seed"], e["steps"]) for e in episodes) == [
-        (s, str(seed), "50") for s in ("frozen(mobil)", "mobil", "nilsson") for seed in (7, 8, 9)]
+    assert sorted((e["sut"], int(e["seed"]), e["steps"]) for e in episodes) == [
+        (s, seed, "50") for s in ("frozen(mobil)", "mobil", "nilsson") for seed in SEEDS]
     intel = {(e["sut"], int(e["seed"])): float(e["d"]) for e in episodes}
-    mean = {s: sum(intel[(s, k)] for k in (7, 8, 9)) / 3 for s in ("frozen(mobil)", "mobil", "nilsson")}
+    mean = {s: sum(intel[(s, k)] for k in SEEDS) / 4 for s in ("frozen(mobil)", "mobil", "nilsson")}
     board = read_csv(out / "leaderboard.csv")
     ok = [r for r in board if r["status"] == "ok"]
     # ranked by mean D, highest first
@@ -163,26 +161,63 @@ def test_ranked_table_and_paired_interval_by_hand(small):
     assert [r["sut"] for r in ok] == expected and [r["rank"] for r in ok] == ["1", "2", "3"]
     for row in ok:
         assert float(row["d_mean"]) == pytest.approx(mean[row["sut"]])
-        assert row["episodes"] == "3"
-        terms = sum(float(row[f"{t}_weighted_mean"]) for t in ("safety", "efficiency", "interaction"))
+        assert row["episodes"] == "4"
+        terms = sum(float(row[f"{t}_mean"]) for t in ("p_is_s", "p_ie_l", "p_ii_x"))
         assert terms == pytest.approx(mean[row["sut"]])
-    # the paired difference nilsson − mobil per episode: mean ± t(0.975, 2)·sd/√3
-    d = [intel[("nilsson", k)] - intel[("mobil", k)] for k in (7, 8, 9)]
-    d_mean = sum(d) / 3
-    sd = math.sqrt(sum((x - d_mean) ** 2 for x in d) / 2)
-    half = T975_DF2 * sd / math.sqrt(3)
+    # the paired difference nilsson − mobil per episode: mean ± t(0.975, 3)·sd/√4
+    d = [intel[("nilsson", k)] - intel[("mobil", k)] for k in SEEDS]
+    d_mean = sum(d) / 4
+    sd = math.sqrt(sum((x - d_mean) ** 2 for x in d) / 3)
+    half = T975_DF3 * sd / math.sqrt(4)
     nilsson = next(r for r in ok if r["sut"] == "nilsson")
     assert float(nilsson["delta_d_vs_mobil_mean"]) == pytest.approx(d_mean)
     assert float(nilsson["delta_d_vs_mobil_ci95"]) == pytest.approx(half)
-    assert nilsson["paired_n"] == "3" and nilsson["significant"] == str(int(abs(d_mean) > half))
+    assert nilsson["paired_n"] == "4" and nilsson["significant"] == str(int(abs(d_mean) > half))
     mobil = next(r for r in ok if r["sut"] == "mobil")
     assert mobil["delta_d_vs_mobil_mean"] == "nan" and mobil["paired_n"] == "0"
     text = (out / "leaderboard.md").read_text(encoding="utf-8")
     assert f"| 1 | {expected[0]} |" in text and "| reference |" in text and "TTC<3 s front /km" in text
     assert f"| 1 | {expected[0]} |" in res.stdout
-    assert "one block: no agreement between blocks measured" in text and "## Every term" in text
+    assert "blocks 7–8 and 9–10: τ = " in text and "## Every term" in text
+    assert "| rank | rank range | letters | SUT | D ± 95 % | P·i_s·S (safety) | P·i_e·L (lane-change time) |" in text
+    assert "this command's wall time" in text
     pairs = read_csv(out / "pairs.csv")
     assert [(r["a"], r["b"]) for r in pairs] == [(a, b) for i, a in enumerate(expected) for b in expected[i + 1:]]
+
+
+@pytest.mark.e2e
+def test_rank_ranges_letters_and_verdicts_agree_with_pairs_csv(small):
+    out, res = small
+    assert res.returncode == 0, res.stderr
+    intel = {(e["sut"], int(e["seed"])): float(e["d"]) for e in read_csv(out / "episodes.csv")}
+    pairs = read_csv(out / "pairs.csv")
+    above = set()
+    for p in pairs:
+        # the verdict's interval by hand: mean ± z(0.975)·sd/√n over the 4 paired episodes
+        d = [intel[(p["a"], k)] - intel[(p["b"], k)] for k in SEEDS]
+        mean = sum(d) / 4
+        half = Z975 * math.sqrt(sum((x - mean) ** 2 for x in d) / 3) / 2
+        low, high = float(p["delta_d_low"]), float(p["delta_d_high"])
+        assert (float(p["delta_d_mean"]), low, high) == pytest.approx((mean, mean - half, mean + half), abs=1e-9)
+        expected = ("a_higher" if low > 0 else "b_higher" if high < 0 else
+                    "equivalent" if -0.005 < low and high < 0.005 else "unresolved")
+        assert p["verdict"] == expected and p["n"] == "4"
+        assert (p["episodes_needed"] != "") == (expected == "unresolved" and mean != 0)
+        blocks = (p["verdict_block_7_8"], p["verdict_block_9_10"])
+        assert p["contradiction"] == str(int({"a_higher", "b_higher"} <= set(blocks)))
+        if expected == "a_higher":
+            above.add((p["a"], p["b"]))
+        elif expected == "b_higher":
+            above.add((p["b"], p["a"]))
+    ok = [r for r in read_csv(out / "leaderboard.csv") if r["status"] == "ok"]
+    for r in ok:
+        s = r["sut"]
+        assert int(r["rank_best"]) == 1 + sum(lo == s for _, lo in above)
+        assert int(r["rank_worst"]) == len(ok) - sum(hi == s for hi, _ in above)
+    letters = {r["sut"]: set(r["letters"]) for r in ok}
+    for p in pairs:
+        assert bool(letters[p["a"]] & letters[p["b"]]) == ((p["a"], p["b"]) not in above and (p["b"], p["a"]) not in above)
+    assert "pairs: " in res.stdout and "contradictions" in res.stdout
 
 
 @pytest.mark.e2e
@@ -193,6 +228,6 @@ def test_a_failing_sut_is_reported_as_failed_not_dropped(small):
     row = read_csv(out / "leaderboard.csv")[-1]
     assert (row["rank"], row["sut"], row["status"]) == ("", "bad_sut", "failed")
     assert row["error"] == BAD_LINE.removeprefix("failed: bad_sut: ")
-    assert "| – | bad_sut | failed (3/3 episodes): InputError: sut model 'bad_sut'" in (out / "leaderboard.md").read_text(
+    assert "| – | – | – | bad_sut | failed (4/4 episodes): InputError: sut model 'bad_sut'" in (out / "leaderboard.md").read_text(
         encoding="utf-8")
     assert "bad_sut" not in {e["sut"] for e in read_csv(out / "episodes.csv")}

@@ -2,8 +2,9 @@
 
 ``scripts/leaderboard.py`` parses the command line and calls :func:`main`: the SUTs (:func:`resolve_suts`),
 the seed blocks (:func:`resolve_blocks`) and the reference mutants (:func:`resolve_mutant_refs`) checked,
-one round per SUT and episode run on the campaign engine, then the ranked table (:func:`ranked_rows`), every
-term (:func:`term_rows`), every pair (:func:`pair_rows`), the order per seed block with Kendall's τ
+one round per SUT and episode run on the campaign engine, then the ranked table (:func:`ranked_rows`) with each
+SUT's rank range and letters, every term (:func:`term_rows`), every pair's verdict
+(:mod:`evoscen_experiments.leaderboard_tiers`), the order per seed block with Kendall's τ
 (:func:`block_orders`), the surrogate-safety table and the plot, written into ``--out`` and printed. The
 score ranked by is the one ``evaluation.score_form`` selects (the comparative score D by default,
 docs/evaluation.md §10); SUTs whose runs fail are listed as failed, not ranked.
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -20,6 +22,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.experiments import distinct_names, positive_int
+from evoscen_experiments.leaderboard_tiers import DELTA, pair_tables, pairs_csv_header, range_text, tiers
 from evoscen_experiments.sensitivity import SSM_RATES, score_of, ssm_label, ssm_rate, symbols
 from evoscen_experiments.stats import fmt_ci, markdown_table, mean_ci
 
@@ -32,6 +35,10 @@ MUTANT_REFS = "timid,frozen"
 """The reference mutants ranked beside the SUTs (docs/experiments.md §4 "References"): a planner that gives away
 progress and one that never changes lanes by choice, both of ``--mutant-base``."""
 TERMS = ("safety", "efficiency", "interaction")
+WEIGHTED = {"D": ("P·i_s·S", "P·i_e·L", "P·i_i·X"), "I": ("w_s·I_s", "w_e·I_e", "w_i·I_i")}
+"""The weighted terms of :data:`TERMS` as the tables write them (they sum to the score): D's safety, lane-change
+time and interaction terms (docs/evaluation.md §10), or the method's weighted sub-scores (§1)."""
+WEIGHTED_CSV = ("p_is_s", "p_ie_l", "p_ii_x")
 METHOD_TERMS = (("I", "intelligence"), ("I_s", "safety"), ("I_e", "efficiency"), ("I_i", "interaction"))
 """The method's score and its sub-scores (the report's sections' ``score``; docs/evaluation.md §1)."""
 COMPARATIVE_TERMS = (("D", ("score",)), ("S", ("safety", "score")), ("P", ("progress", "score")),
@@ -170,22 +177,6 @@ def term_rows(terms: dict[str, dict[int, dict[str, float]]], order: list[str]) -
     return md, rows
 
 
-def pair_rows(values: dict[str, dict[int, float]], order: list[str]) -> tuple[list, list, list]:
-    """Every pair of SUTs (a ranked above b): a − b paired by episode, mean ± 95 % interval, n and the words
-    (:func:`evoscen_experiments.replication.pairwise`). Returns Markdown rows, CSV rows and the significant
-    pairs as sentences."""
-    from evoscen_experiments.replication import pairwise
-
-    md, rows, sig = [], [], []
-    for p in pairwise(order, values):
-        d = p.diff
-        md.append([p.a, p.b, fmt_ci(d.mean, d.half), str(d.n), p.words])
-        rows.append([p.a, p.b, d.mean, d.half, d.n, p.words])
-        if p.significant:
-            sig.append(f"{p.a} {p.words} than {p.b} ({fmt_ci(d.mean, d.half)}, n {d.n})")
-    return md, rows, sig
-
-
 def _build(args):
     """The planners, the reference mutants' names, the rounds (one per SUT and episode), the seed blocks, the
     steps per episode and the workers of the parsed options."""
@@ -237,6 +228,8 @@ class Board:
         first = next((rep for s in self.ok for rep in self.reports[s].values()), None)
         self.sym = symbols(first)["intelligence"] if first is not None else "D"
         """The ranked score's symbol: D (``evaluation.score_form: comparative``, the default) or the method's I."""
+        self.pairs, self.ranges, self.letters = tiers(self.intel, self.order, self.blocks)
+        """Every pair's verdict, each SUT's rank range and letters (:mod:`evoscen_experiments.leaderboard_tiers`)."""
 
 
 def failed_suts(rounds: list, failures: dict[str, str]) -> dict[str, tuple[int, str]]:
@@ -256,6 +249,7 @@ def main(args, argv: list[str]) -> int:
     written."""
     from evoscen_experiments.experiments import run_rounds_with_bar, set_up
 
+    started = time.monotonic()
     planners, ref_names, rounds, blocks, steps, jobs = set_up(args.out, lambda: _build(args))
     failures: dict[str, str] = {}
     results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="leaderboard", failures=failures)
@@ -264,14 +258,16 @@ def main(args, argv: list[str]) -> int:
     board = Board(args, planners, ref_names, rounds, blocks, steps, results, failed_suts(rounds, failures))
     table, ssm_table, plot_rows = ranked_tables(board)
     write_episodes(board)
-    verdict, terms_table, significant, tau_text = replication_tables(board)
-    text = markdown_text(board, table, verdict, ssm_table, argv)
-    (args.out / "leaderboard.md").write_text(text, encoding="utf-8")
+    verdict, terms_table, pairs_text, tau_text = replication_tables(board)
     if plot_rows:
         plot(args.out / "leaderboard.png", plot_rows, args.reference if board.ref else None, board.sym)
+    text = markdown_text(board, table, verdict, ssm_table, argv, time.monotonic() - started)
+    (args.out / "leaderboard.md").write_text(text, encoding="utf-8")
     print(table, end="")
     print("\n" + terms_table, end="")
-    print("\nsignificant pairs: " + ("; ".join(significant) if significant else "none"))
+    resolved = [f"{p.a} > {p.b}" if p.verdict.verdict == "a_higher" else f"{p.b} > {p.a}" for p in board.pairs
+                if p.verdict.verdict in ("a_higher", "b_higher")]
+    print(f"\npairs: {pairs_text}" + (f"; resolved: {'; '.join(resolved)}" if resolved else ""))
     print(f"order between blocks: {tau_text}")
     if ssm_table:
         print("\n" + ssm_table, end="")
@@ -327,26 +323,30 @@ def ranked_rows(board: Board) -> tuple[list, list, list, list]:
             d_text = fmt_ci(d.mean, d.half)
             sig_text = difference_words(d.mean, d.half, d.n)
             d_csv, sig = [d.mean, d.half, d.n], int(sig)
-        rows.append([str(rank), sut, fmt_ci(*board.stats[sut]), *(fmt_ci(*t) for t in terms), d_text, sig_text,
-                     fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
-        csv_rows.append([rank, sut, "ok", *board.stats[sut], *(v for t in terms for v in t), *d_csv, sig,
-                         *col, *exp, len(reps), *(v for r in rates for v in r), ""])
+        best, worst = board.ranges[sut]
+        rows.append([str(rank), range_text(best, worst), board.letters[sut], sut, fmt_ci(*board.stats[sut]),
+                     *(fmt_ci(*t) for t in terms), d_text, sig_text, fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps))])
+        csv_rows.append([rank, best, worst, board.letters[sut], sut, "ok", *board.stats[sut],
+                         *(v for t in terms for v in t), *d_csv, sig, *col, *exp, len(reps),
+                         *(v for r in rates for v in r), ""])
         ssm_rows.append([str(rank), sut, *(fmt_ci(*r, 2) for r in rates), str(len(reps))])
-        plot_rows.append((sut, board.stats[sut], None if isinstance(d, str) or d is None else d))
+        plot_rows.append((f"{sut} [{board.letters[sut]}]", board.stats[sut],
+                          None if isinstance(d, str) or d is None else d))
     width = len(csv_header(board.args.reference))
     for sut in board.suts:
         if sut in board.failed:
             count, error = board.failed[sut]
-            rows.append(["–", sut, f"failed ({count}/{board.episodes} episodes): {error}", *["–"] * 3, "–", "–", "–",
-                         "–", "–"])
-            csv_rows.append(["", sut, "failed", *[""] * (width - 4), f"{count}/{board.episodes} episodes: {error}"])
+            rows.append(["–", "–", "–", sut, f"failed ({count}/{board.episodes} episodes): {error}", *["–"] * 3, "–",
+                         "–", "–", "–", "–"])
+            csv_rows.append(["", "", "", "", sut, "failed", *[""] * (width - 7),
+                             f"{count}/{board.episodes} episodes: {error}"])
     return rows, csv_rows, ssm_rows, plot_rows
 
 
 def csv_header(reference: str) -> list[str]:
     """The columns of ``leaderboard.csv``."""
-    return ["rank", "sut", "status", "d_mean", "d_ci95",
-            *(f"{t}_weighted_{s}" for t in TERMS for s in ("mean", "ci95")),
+    return ["rank", "rank_best", "rank_worst", "letters", "sut", "status", "d_mean", "d_ci95",
+            *(f"{t}_{s}" for t in WEIGHTED_CSV for s in ("mean", "ci95")),
             f"delta_d_vs_{reference}_mean", f"delta_d_vs_{reference}_ci95", "paired_n",
             "significant", "collisions_mean", "collisions_ci95", "exposures_mean", "exposures_ci95", "episodes",
             *(f"{side}_{m}_per_km_{s}" for side, m in SSM_RATES for s in ("mean", "ci95")), "error"]
@@ -361,7 +361,9 @@ def ranked_tables(board: Board) -> tuple[str, str, list]:
     rows, csv_rows, ssm_rows, plot_rows = ranked_rows(board)
     write_csv(board.args.out / "leaderboard.csv", csv_header(reference), csv_rows)
     d = board.sym
-    header = ["rank", "SUT", d, "safety (weighted)", "efficiency (weighted)", "interaction (weighted)",
+    weighted = WEIGHTED.get(d, WEIGHTED["D"])
+    header = ["rank", "rank range", "letters", "SUT", f"{d} ± 95 %", *(f"{w} ({t})" for w, t in zip(weighted, (
+                  "safety", "lane-change time" if d == "D" else "efficiency", "interaction"))),
               f"Δ{d} = SUT − {reference} (paired)", f"SUT vs {reference} (95 %)", "collisions / episode",
               "exposures / episode", "n"]
     first_report = next((board.results[r.key]["report"] for r in board.rounds if r.label in board.ok), None)
@@ -385,30 +387,30 @@ def write_episodes(board: Board) -> None:
                              x["safety"]["collisions"], x["safety"]["exposures"], x["efficiency"]["mean_speed_mps"],
                              r["wall_time_s"], *(ssm_rate(x, side, m) for side, m in SSM_RATES)])
     write_csv(board.args.out / "episodes.csv",
-              ["sut", "seed", "steps", "d", *(f"{t}_weighted" for t in TERMS), *TERMS, "collisions",
+              ["sut", "seed", "steps", "d", *WEIGHTED_CSV, "s", "p", "x", "collisions",
                "exposures", "mean_speed_mps", "wall_time_s", *(f"ssm_{side}_{m}_per_km" for side, m in SSM_RATES)],
               episode_rows)
 
 
-def replication_tables(board: Board) -> tuple[str, str, list[str], str]:
-    """Every term, every pair and the order per block (docs/experiments.md §4): ``terms.csv``, ``pairs.csv``,
-    ``blocks.csv``, ``kendall.csv`` written; returns their section of ``leaderboard.md``, the terms table, the
-    significant pairs and the agreement between blocks in words."""
+def replication_tables(board: Board) -> tuple[str, str, str, str]:
+    """Every term, every pair's verdict and the order per block (docs/experiments.md §4): ``terms.csv``,
+    ``pairs.csv``, ``blocks.csv``, ``kendall.csv`` written; returns their section of ``leaderboard.md``, the
+    terms table, the pairs' summary and the agreement between blocks in words."""
     from evoscen_experiments.experiments import write_csv
 
     out, blocks = board.args.out, board.blocks
     terms = {s: {seed: term_values(rep) for seed, rep in board.reports[s].items()} for s in board.ok}
     t_md, t_rows = term_rows(terms, board.order)
     write_csv(out / "terms.csv", ["sut", *(f"{n}_{k}" for n in TERM_NAMES for k in ("mean", "ci95", "n"))], t_rows)
-    p_md, p_rows, significant = pair_rows(board.intel, board.order)
-    write_csv(out / "pairs.csv", ["a", "b", "delta_d_mean", "delta_d_ci95", "n", "a_vs_b"], p_rows)
+    p_head, p_md, p_rows, pairs_text = pair_tables(board.pairs, blocks, board.sym)
+    write_csv(out / "pairs.csv", pairs_csv_header(blocks), p_rows)
     ranked_planners = [s for s in board.order if s in board.planners]
     b_rows, taus = block_orders(board.intel, blocks, ranked_planners)
     write_csv(out / "blocks.csv", ["block", "sut", "d_mean", "rank"], b_rows)
     write_csv(out / "kendall.csv", ["block_a", "block_b", "tau_b", "concordant", "discordant", "n"], taus)
     terms_table = markdown_table(["SUT", *TERM_NAMES, "episodes"], t_md)
     d = board.sym
-    pairs_table = markdown_table(["a", "b", f"Δ{d} = a − b (paired, 95 %)", "n", "a vs b"], p_md)
+    pairs_table = markdown_table(p_head, p_md)
     block_table = markdown_table(["SUT", *(f"block {b.label}: {d} (rank)" for b in blocks)],
                                  [[sut, *(f"{r[2]:.3f} ({r[3]})" for b in blocks for r in b_rows
                                           if r[0] == b.label and r[1] == sut)] for sut in ranked_planners])
@@ -418,26 +420,29 @@ def replication_tables(board: Board) -> tuple[str, str, list[str], str]:
     verdict = (f"## Every term\n\nThe comparative score D and its terms S, P, L, X (docs/evaluation.md §10) and the "
                f"method's I, I_s, I_e, I_i (§1), unweighted, mean ± 95 % interval over the episodes (n where a term "
                f"is undefined in some):\n\n{terms_table}\n## Pairs\n\nEvery pair, a ranked above b: Δ{d} = a − b "
-               f"paired by episode over all blocks, 95 % Student-t interval, n episodes. Significant: "
-               + ("; ".join(significant) if significant else "none") + f".\n\n{pairs_table}\n"
+               f"paired by episode over all blocks, 95 % interval (z = 1.96), n episodes; verdict a > b or a < b "
+               f"where the interval excludes 0, a ≈ b inside ±{DELTA:g}, else unresolved, with the episodes needed "
+               f"(80 % power at the observed mean and sd)"
+               + (", and the verdict in each seed block" if len(blocks) > 1 else "")
+               + f": {pairs_text}.\n\n{pairs_table}\n"
                f"## Does the order replicate?\n\nThe planners' mean {d} and rank per seed block; Kendall's "
                f"τ-b between the blocks' orders (1: the same order, −1: reversed): {tau_text}.\n\n{block_table}\n")
-    return verdict, terms_table, significant, tau_text
+    return verdict, terms_table, pairs_text, tau_text
 
 
-def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: list[str]) -> str:
+def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: list[str], wall: float) -> str:
     """``leaderboard.md``: the set-up in words, the ranked table, the replication sections, the surrogate-safety
-    table, the plot and the command that made it."""
+    table, the plot and the command that made it (``wall``: the command's measured wall time so far, s)."""
     args, results, rounds = board.args, board.results, board.rounds
     cfg0 = rounds[0].cfg
-    wall = sum(results[r.key]["wall_time_s"] for r in rounds if r.key in results)
+    run_time = sum(results[r.key]["wall_time_s"] for r in rounds if r.key in results)
     simulated = sum(results[r.key]["report"]["run"]["duration_s"] for r in rounds if r.key in results)
     d = board.sym
     score = "D, the comparative score" if d == "D" else "I, the method's intelligence"
     ref_note = (f"Δ{d} = SUT − {args.reference}: the SUT's {d} minus {args.reference}'s on the same episodes, "
                 "mean ± 95 % interval of the per-episode difference; 'significantly higher' ('lower') when the whole "
-                "interval lies above (below) 0, else 'no significant difference'. The safety, efficiency and "
-                f"interaction columns are the weighted terms (for D: P × each weighted term of S, L, X), which sum to {d}."
+                "interval lies above (below) 0, else 'no significant difference'. The three weighted terms sum to "
+                f"{d}."
                 if board.ref else f"The reference {args.reference} failed: no paired differences.")
     refs_text = (f" References: {', '.join(board.ref_names)}, mutants of {args.mutant_base} (docs/mutants.md), ranked "
                  f"beside the planners and left out of the agreement between blocks." if board.ref_names else "")
@@ -446,8 +451,11 @@ def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: 
             f"x {board.steps} steps, after a warm-up of {cfg0.traffic.warmup_s:g} s, among {cfg0.bvs.count} BVs "
             f"({cfg0.bvs.driver}); weights {cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
             f"{cfg0.evaluation.weight_interaction:g}; mean ± 95 % interval over the episodes; ranked by mean "
-            f"{score}.{refs_text} {ref_note} {simulated:,.0f} s simulated (scored states of all episodes), "
-            f"{wall:,.0f} s wall time in all.\n\n{table}\n{verdict}\n"
+            f"{score}.{refs_text} {ref_note} Rank range: the best and worst rank the resolved pairs (## Pairs) "
+            f"leave a SUT; SUTs sharing a letter are not told apart (compact letter display, Piepho 2004). "
+            f"{simulated:,.0f} s simulated (scored states of all episodes); this command's wall time "
+            f"{wall:,.0f} s (runs read back from an earlier command take none), the runs' own {run_time:,.0f} s "
+            f"summed over workers.\n\n{table}\n{verdict}\n"
             + (f"Surrogate safety per SUT-km (docs/evaluation.md §9; front: the SUT behind its leader, rear: its "
                f"follower behind it), mean ± 95 % interval over the episodes:\n\n{ssm_table}\n" if ssm_table else "")
             + "![leaderboard](leaderboard.png)\n\nMade by:\n\n    python scripts/leaderboard.py "
@@ -455,8 +463,9 @@ def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: 
 
 
 def plot(path: Path, rows, reference: str | None, d: str = "D") -> None:
-    """Per SUT (ranked, top first): the score (symbol ``d``: D by default) with its 95 % interval; beside it the paired
-    difference against the reference with its interval (green/red: significantly higher/lower)."""
+    """Per SUT (ranked, top first, its letters in brackets): the score (symbol ``d``: D by default) with its 95 %
+    interval; beside it the paired difference against the reference with its interval (green/red: significantly
+    higher/lower)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -475,14 +484,14 @@ def plot(path: Path, rows, reference: str | None, d: str = "D") -> None:
     ax.set_title("Leaderboard", fontsize=10)
     if reference:
         ax = axes[0][1]
-        for y, (_sut, _s, d) in zip(ys, rows):
-            if d is None:
+        for y, (_sut, _s, diff) in zip(ys, rows):
+            if diff is None:
                 ax.plot([0.0], [y], "D", color="k")
                 continue
-            h = 0.0 if math.isnan(d.half) else d.half
-            sig = d.n >= 2 and math.isfinite(d.half) and abs(d.mean) > d.half
-            color = ("tab:green" if d.mean > 0 else "tab:red") if sig else "tab:gray"
-            ax.errorbar([d.mean], [y], xerr=[[h], [h]], fmt="o", color=color, capsize=3)
+            h = 0.0 if math.isnan(diff.half) else diff.half
+            sig = diff.n >= 2 and math.isfinite(diff.half) and abs(diff.mean) > diff.half
+            color = ("tab:green" if diff.mean > 0 else "tab:red") if sig else "tab:gray"
+            ax.errorbar([diff.mean], [y], xerr=[[h], [h]], fmt="o", color=color, capsize=3)
         ax.axvline(0.0, color="k", lw=0.8)
         ax.set_xlabel(f"Δ{d} = SUT − {reference}, paired by episode (95 % CI)")
         ax.set_title(f"Against {reference}", fontsize=10)

@@ -108,6 +108,12 @@ class BlockResult:
     def detected(self) -> bool:
         return self.diff.above_zero
 
+    @property
+    def better(self) -> bool:
+        """The whole 95 % interval of intact − mutant lies below zero: the mutant scores higher."""
+        d = self.diff
+        return d.n >= 2 and math.isfinite(d.half) and d.mean + d.half < 0.0
+
 
 @dataclass(frozen=True)
 class MutantBlocks:
@@ -122,6 +128,11 @@ class MutantBlocks:
     @property
     def detected_blocks(self) -> int:
         return sum(b.detected for b in self.per_block)
+
+    @property
+    def contradiction(self) -> bool:
+        """Worse (detected) in one block, better in another."""
+        return any(b.detected for b in self.per_block) and any(b.better for b in self.per_block)
 
 
 def block_detection(intact: Mapping[int, float], mutant: Mapping[int, float],
@@ -145,6 +156,8 @@ class BlockScores:
     applicable: int
     every_block: int
     """Mutants detected in every block."""
+    contradictions: int = 0
+    """Mutants worse in one block and better in another."""
 
     @property
     def scores(self) -> tuple[float, ...]:
@@ -167,7 +180,8 @@ def block_scores(results: Mapping[str, MutantBlocks], blocks: Sequence[SeedBlock
     """The mutation score per block of the (applicable) mutants in ``results`` (name -> :class:`MutantBlocks`)."""
     detected = tuple(sum(r.per_block[k].detected for r in results.values()) for k in range(len(blocks)))
     return BlockScores(tuple(blocks), detected, len(results),
-                       sum(r.detected_in_every_block for r in results.values()))
+                       sum(r.detected_in_every_block for r in results.values()),
+                       sum(r.contradiction for r in results.values()))
 
 
 def applicable_split(base: str, mutants: Sequence[str]) -> tuple[list[str], list[str]]:

@@ -34,9 +34,9 @@ SENSITIVITY_CSV = ["design", "scenario", "bv_driver", "base", "mutant", "class",
                    *(f"d_ssm_{side}_{ms}_per_km_{s}" for side, ms in SSM_RATES for s in ("mean", "ci95")), "ssm_n"]
 SCORES_CSV = ["scenario", "bv_driver", "base", "detected", "mutants", "mutation_score", "d_intact_mean",
               "d_intact_ci95", "median_pairing_r", "not_applicable", "detected_per_block",
-              "min_detected_over_blocks", "min_block", "detected_every_block"]
+              "min_detected_over_blocks", "min_block", "detected_every_block", "contradictions"]
 BLOCKS_CSV = ["design", "scenario", "bv_driver", "base", "mutant", "class", "block_first_seed", "block_last_seed",
-              "delta_d_mean", "delta_d_ci95", "n", "detected", "needed"]
+              "delta_d_mean", "delta_d_ci95", "n", "detected", "needed", "better"]
 SPEEDS_CSV = ["design", "scenario", "bv_driver", "base", "mutant", "d_sut_speed_mean", "d_sut_speed_ci95",
               "d_reference_speed_mean", "d_reference_speed_ci95", "n"]
 NOT_APPLICABLE_CSV = ["scenario", "bv_driver", "base", "mutant", "class", "applies_to"]
@@ -170,7 +170,8 @@ def scenario_base(tables: Tables, seeds: SeedReports, cell: Cell, mutants: list[
     low = b_scores.min_block
     tables.score_rows.append([cell.scenario, cell.driver, cell.base, summary.detected, summary.mutants, summary.score,
                               *intact_i, summary.median_r, len(not_applicable), ";".join(map(str, b_scores.detected)),
-                              b_scores.min_detected, "" if low is None else low.label, b_scores.every_block])
+                              b_scores.min_detected, "" if low is None else low.label, b_scores.every_block,
+                              b_scores.contradictions])
     speeds = (mean_ci([v for v in seeds.speeds(intact_key, "sut").values() if not math.isnan(v)]),
               mean_ci([v for v in seeds.speeds(intact_key, "reference").values() if not math.isnan(v)]))
     tables.md_parts.append(section(cell, summary, intact_i, not_applicable, b_scores, blocks, rows, block_rows,
@@ -191,14 +192,15 @@ def block_part(tables: Tables, seeds: SeedReports, cell: Cell, applicable: list[
                                     seeds.score((cell.scenario, cell.base, m), "intelligence"), blocks)
                  for m in applicable}
     rows = [[m if m not in PROFILES else f"{m} (profile)", *(c for b in per_block[m].per_block for c in (
-        f"{fmt_ci(b.diff.mean, b.diff.half)} (n {b.diff.n})", "yes" if b.detected else "no",
-        "–" if b.needed is None else str(b.needed))), f"{per_block[m].detected_blocks}/{len(blocks)}"]
+        f"{fmt_ci(b.diff.mean, b.diff.half)} (n {b.diff.n})", "yes" if b.detected else "no (better)" if b.better
+        else "no", "–" if b.needed is None else str(b.needed))),
+        f"{per_block[m].detected_blocks}/{len(blocks)}" + (", **contradiction**" if per_block[m].contradiction else "")]
         for m in applicable]
     for m in applicable:
         for b in per_block[m].per_block:
             tables.block_csv.append([cell.design, cell.scenario, cell.driver, cell.base, m, LIBRARY[m].klass,
                                      b.block.first, b.block.last, b.diff.mean, b.diff.half, b.diff.n, int(b.detected),
-                                     "" if b.needed is None else b.needed])
+                                     "" if b.needed is None else b.needed, int(b.better)])
     return rows, block_scores({m: v for m, v in per_block.items() if m not in PROFILES}, blocks)
 
 
@@ -272,10 +274,11 @@ def section(cell: Cell, summary, intact_i, not_applicable: list[str], b_scores, 
             f"{': ' + ', '.join(not_applicable) if not_applicable else ''}); per block: "
             f"{per_block_text}; minimum over blocks {b_scores.min_detected}/{summary.mutants}"
             f"{'' if low is None else f' (block {low.label})'}; detected in every block "
-            f"{b_scores.every_block}/{summary.mutants}{profile_note(summary)}.\n\n"
+            f"{b_scores.every_block}/{summary.mutants}; contradictions (worse in one block, better in another) "
+            f"{b_scores.contradictions}{profile_note(summary)}.\n\n"
             + markdown_table(mutant_header(unit, cell.sym), rows)
             + f"\nPer seed block: Δ{d} = intact − mutant over the block's {unit}s (95 % interval, n), "
-            f"detected, {unit}s needed (the smallest n from which every prefix of the block's {unit}s "
+            f"detected (no (better): the mutant scores higher), {unit}s needed (the smallest n from which every prefix of the block's {unit}s "
             f"detects).\n\n" + markdown_table(block_header, block_rows)
             + f"\nSurrogate safety of the SUT per SUT-km (docs/evaluation.md): the intact model's mean "
             f"± 95 % interval over {unit}s, then each mutant's paired difference mutant − intact "
@@ -323,11 +326,11 @@ def scores_table(score_rows: list, scenarios: list[str], unit: str, d: str = "D"
     score per scenario (profiles not counted)."""
     table = markdown_table(["scenario", "BV driver", "SUT", "detected", "mutation score", f"intact {d}",
                             "median pairing r", "not applicable", "detected per block",
-                            "min over blocks (block)", "detected in every block"],
+                            "min over blocks (block)", "detected in every block", "contradictions"],
                            [[s, d, b, f"{k}/{n}", "–" if math.isnan(x) else f"{x:.2f}", fmt_ci(m, h),
                              "–" if math.isnan(r) else f"{r:.2f}", str(na), per.replace(";", ", "),
-                             f"{lo}/{n} ({lo_b})", f"{ev}/{n}"]
-                            for s, d, b, k, n, x, m, h, r, na, per, lo, lo_b, ev in score_rows])
+                             f"{lo}/{n} ({lo_b})", f"{ev}/{n}", str(con)]
+                            for s, d, b, k, n, x, m, h, r, na, per, lo, lo_b, ev, con in score_rows])
     pooled = []
     for scenario in scenarios:
         own = [row for row in score_rows if row[0] == scenario]
