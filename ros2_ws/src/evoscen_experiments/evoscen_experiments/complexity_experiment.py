@@ -11,6 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+
+from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv
@@ -89,6 +91,7 @@ def main(args) -> int:
     plot(args.out / "complexity.png", bars, ev.window_steps)
     print(table, end="")
     print(f"written: {args.out / 'complexity.md'}, complexity.csv, rounds.csv, complexity.png")
+    finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 

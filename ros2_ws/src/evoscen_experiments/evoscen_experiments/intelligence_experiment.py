@@ -14,6 +14,8 @@ from pathlib import Path
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 
+from evoscen_experiments.timing import finish
+
 from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv
 from evoscen_experiments.sensitivity import SSM_RATES, ssm_label, ssm_rate
 
@@ -84,6 +86,7 @@ def main(args) -> int:
     print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, surrogate_safety.csv, rounds.csv, ttc.png, "
           "speed.png"
           + (", paired.csv, paired_efficiency.csv" if pair_csv else ""))
+    finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 
