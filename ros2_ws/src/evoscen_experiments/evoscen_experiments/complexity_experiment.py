@@ -20,14 +20,14 @@ from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, pos
 
 def _build(args):
     """The scenarios, the rounds (every scenario on every seed), the workers and the rounds per scenario."""
-    from evoscen_experiments.experiments import Round, distinct_names
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_experiments.experiments import Round, config_loader, distinct_names
 
     n_rounds = positive_int("--rounds", args.rounds)
     first = positive_int("--first-seed", args.first_seed, 0)
     jobs = positive_int("--jobs", args.jobs)
     scenarios = distinct_names("--scenarios", args.scenarios)
     rounds = []
+    load = config_loader(args.config)  # the file parsed once
     for name in scenarios:
         for seed in range(first, first + n_rounds):
             overrides = {"sut.model": args.sut, "seed": str(seed), "steps": args.steps, "recording.enabled": "false"}
@@ -35,7 +35,7 @@ def _build(args):
                 overrides["bvs.driver"] = name
             if args.mix is not None:
                 overrides["bvs.mix"] = args.mix
-            rounds.append(Round(name, load_scenario_config(args.config, overrides)))
+            rounds.append(Round(name, load(overrides)))
     return scenarios, rounds, jobs, n_rounds
 
 

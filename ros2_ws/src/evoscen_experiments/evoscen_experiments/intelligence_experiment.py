@@ -22,17 +22,17 @@ from evoscen_experiments.sensitivity import SSM_RATES, ssm_label, ssm_rate
 
 def _build(args):
     """The SUTs, the rounds (every SUT on every seed), the workers, the seed count and the first seed."""
-    from evoscen_experiments.experiments import Round, distinct_names
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_experiments.experiments import Round, config_loader, distinct_names
 
     seeds = positive_int("--seeds", args.seeds)
     first = positive_int("--first-seed", args.first_seed, 0)
     jobs = positive_int("--jobs", args.jobs)
     suts = distinct_names("--suts", args.suts, "SUT model names")
     rounds = []
+    load = config_loader(args.config)  # the file parsed once
     for sut in suts:  # every override gets the config's validation (one-line errors)
         for seed in range(first, first + seeds):
-            cfg = load_scenario_config(args.config, {"sut.model": sut, "seed": str(seed), "steps": args.steps,
+            cfg = load({"sut.model": sut, "seed": str(seed), "steps": args.steps,
                                                      "bvs.mix": args.mix, "bvs.count": args.bvs,
                                                      "recording.enabled": "false"})
             rounds.append(Round(sut, cfg))
