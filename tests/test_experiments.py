@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -62,6 +64,21 @@ def test_intelligence_table_and_files(intelligence):
             assert float(row[f"{col}_ci95"]) == pytest.approx(stats.t.ppf(0.975, 1) * abs(vals[0] - vals[1]) / 2,
                                                               abs=1e-12)
     assert "| SUT | TTC<3 s front /km" in res.stdout
+
+
+def test_intelligence_ends_with_its_start_up_and_throughput(intelligence):
+    out, res = intelligence
+    assert res.returncode == 0, res.stderr
+    last = res.stdout.strip().splitlines()[-1]
+    timing = json.loads((out / "timing.json").read_text())
+    assert last == timing["line"]
+    assert re.fullmatch(r"wall [\d.,]+ s: start-up [\d.,]+ s \(set-up [\d.,]+ s, Ray [\d.,]+ s, workers' first task "
+                        r"[\d.,]+ s\), 6 runs × 200 SUT steps = [\d,]+ SUT-steps/s", last), last
+    parts = timing["setup_s"] + timing["ray_s"] + timing["first_task_s"]
+    assert timing["startup_s"] == pytest.approx(parts) and 0 < parts <= timing["wall_s"]
+    assert timing["ray_s"] > 0 and timing["first_task_s"] > 0 and (timing["runs"], timing["sut_steps"]) == (6, 1200)
+    assert timing["sut_steps_per_s"] == pytest.approx(1200 / timing["wall_s"])
+    assert "SUT-steps/s" in res.stderr  # the progress bar: the same measure as it goes
 
 
 def test_intelligence_paired_comparisons(intelligence):

@@ -66,6 +66,10 @@ class CampaignResult:
     host_fault: str | None = None
     """Why the campaign stopped for a fault of the host (a full disk, an unwritable output): one
     line naming the file and the run; the run was not marked done, the same command resumes."""
+    ray_s: float = 0.0
+    """``ray.init`` (0 when Ray was running already)."""
+    first_task_s: float = 0.0
+    """The workers' first-task overhead, mean over workers (:func:`evoscen_experiments.timing.first_task_overheads`)."""
 
 
 # ---------------------------------------------------------------------- one run (a Ray task)
@@ -122,16 +126,24 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
 
 
 def execute_batch(runs: Sequence[CampaignRun], out_dir: str, record: str,
-                  clip_s: float = 5.0) -> list[dict[str, Any]]:
+                  clip_s: float = 5.0, sent: float | None = None) -> list[dict[str, Any]]:
     """:func:`execute` for each run of a batch (one Ray task), in order; a run that fails gives
     ``{"error": one line, "host_fault": (path, cause) or None}`` in its place and the others go on.
-    The runs of a batch share their start when they can (:mod:`evoscen_bringup.starts`)."""
+    The runs of a batch share their start when they can (:mod:`evoscen_bringup.starts`). A run's answer
+    notes for the start-up figures (:mod:`evoscen_experiments.timing`) whether it was this worker's first,
+    the task's wait since ``sent`` (its submission, :func:`time.time`) and whether it built its start."""
+    global _RUNS_DONE
+    wait_s = 0.0 if sent is None else time.time() - sent
     out = []
     for run in runs:
+        built = 0 if _STARTS is None else _STARTS.built
         try:
-            out.append(execute(run, out_dir, record, clip_s))
+            done = execute(run, out_dir, record, clip_s)
+            done["worker"] = {"first": _RUNS_DONE == 0, "wait_s": wait_s, "built": _STARTS.built > built}
+            out.append(done)
         except Exception as exc:  # noqa: BLE001 - reported per run by the driver, as a failed task is
             out.append(_failure(exc))
+        _RUNS_DONE += 1
     return out
 
 
@@ -143,6 +155,7 @@ def _failure(exc: BaseException) -> dict[str, Any]:
 
 
 _STARTS = None  # this worker's StartCache (evoscen_bringup.starts), made on first use
+_RUNS_DONE = 0  # runs this worker process was given (its first one carries the worker's once-only costs)
 
 
 def _starts():
@@ -269,11 +282,12 @@ def batches(runs: Sequence[CampaignRun], group: Callable[[CampaignRun], Any] | N
 
 def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "none", clip_s: float = 5.0,
                  address: str | None = None, cpus: int | None = None, retries: int = 3,
-                 progress: Callable[[int, int, float], None] | None = None,
+                 progress: Callable[[int, int, float, float], None] | None = None,
                  group: Callable[[CampaignRun], Any] | None = None, batch_runs: int = BATCH_RUNS) -> CampaignResult:
     """Run every run of ``runs`` without a result in ``out_dir`` on Ray (see the module docstring).
 
-    ``progress(done, total, runs_per_s)`` after each finished run. Ctrl-C cancels what is left
+    ``progress(done, total, runs_per_s, sut_steps_per_s)`` after each finished run, the rates over the
+    command's wall so far (:data:`evoscen_experiments.timing.COMMAND`). Ctrl-C cancels what is left
     (finished runs are kept; ``interrupted`` is set). :func:`~evoscen_experiments.campaign_summary.write_results` writes the table.
     ``group`` (e.g. :func:`evoscen_bringup.starts.start_key` of the run's configuration): the runs of
     one value go to one task, up to ``batch_runs`` at a time (:func:`batches`); the results are the same.
@@ -285,7 +299,7 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
     t0 = time.monotonic()
     if todo:
         with _ctrl_c_interrupts() as arm:
-            _run_todo(batches(todo, group, batch_runs), out_dir, result, len(runs), t0, record=record,
+            _run_todo(batches(todo, group, batch_runs), out_dir, result, len(runs), record=record,
                       clip_s=clip_s, address=address, cpus=cpus, retries=retries, progress=progress, arm=arm)
     result.wall_s = time.monotonic() - t0
     return result
@@ -316,25 +330,32 @@ def _ctrl_c_interrupts():
             signal.signal(sig, handler)
 
 
-def _run_todo(todo: Sequence[Sequence[CampaignRun]], out_dir: Path, result: CampaignResult, total: int, t0: float, *,
+def _run_todo(todo: Sequence[Sequence[CampaignRun]], out_dir: Path, result: CampaignResult, total: int, *,
               record: str, clip_s: float, address: str | None, cpus: int | None, retries: int,
-              progress: Callable[[int, int, float], None] | None, arm: Callable[[], None]) -> None:
+              progress: Callable[[int, int, float, float], None] | None, arm: Callable[[], None]) -> None:
     """Submit ``todo`` (batches of runs, one task each) to Ray and write each result as it comes (see
     :func:`run_campaign`)."""
     import ray
 
+    from evoscen_experiments.timing import COMMAND, first_task_overheads
+
     started = not ray.is_initialized()
     if started:
         local = {} if address else {"num_cpus": cpus, "object_store_memory": OBJECT_STORE_BYTES}
+        t_ray = time.monotonic()
+        COMMAND.ray_at = t_ray if COMMAND.ray_at is None else COMMAND.ray_at
         ctx = ray.init(address=address, include_dashboard=False, log_to_driver=False, configure_logging=False,
                        **local)
+        result.ray_s = time.monotonic() - t_ray
+        COMMAND.ray_s += result.ray_s
         if not address:  # this driver's own Ray: noted, so that the next driver can end what a kill leaves
             session = (getattr(ctx, "address_info", None) or {}).get("session_dir")
             if session:
                 _note_driver(out_dir, session)
     arm()
     task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute_batch)
-    pending = {task.remote(batch, str(out_dir), record, clip_s): batch for batch in todo}
+    pending = {task.remote(batch, str(out_dir), record, clip_s, time.time()): batch for batch in todo}
+    notes: list[dict[str, Any]] = []  # the computed runs' worker notes (execute_batch)
     try:
         while pending:
             ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
@@ -345,7 +366,11 @@ def _run_todo(todo: Sequence[Sequence[CampaignRun]], out_dir: Path, result: Camp
                 except Exception as exc:  # noqa: BLE001 - the task failed after its retries: all its runs
                     answers = [_failure(exc)] * len(batch)
                 for run, done in zip(batch, answers):
-                    _take(run, done, out_dir, result, total, t0, progress)
+                    if "worker" in done:
+                        row = done["row"]
+                        notes.append({**done["worker"], "worker": f"{row['node']}:{row['pid']}",
+                                      "wall_s": row["wall_time_s"], "steps": row["steps"]})
+                    _take(run, done, out_dir, result, total, progress)
     except (KeyboardInterrupt, _HostFaultStop) as exc:
         result.interrupted = isinstance(exc, KeyboardInterrupt)
         if not started:  # a cluster's workers outlive this driver: ask them to drop our tasks
@@ -355,6 +380,9 @@ def _run_todo(todo: Sequence[Sequence[CampaignRun]], out_dir: Path, result: Camp
         # (a local Ray goes down with its workers below; a forced cancel racing a task that
         # is just completing aborted the driver inside Ray, seen once on this machine)
     finally:
+        overheads = first_task_overheads(notes)
+        result.first_task_s = sum(overheads.values()) / len(overheads) if overheads else 0.0
+        COMMAND.first_task_s += result.first_task_s
         if started:
             ray.shutdown()
             with contextlib.suppress(OSError):
@@ -367,8 +395,8 @@ def _note_driver(out_dir: Path, session_dir: str) -> None:
                                                           "session_dir": session_dir}) + "\n")
 
 
-def _take(run: CampaignRun, done: dict[str, Any], out_dir: Path, result: CampaignResult, total: int, t0: float,
-          progress: Callable[[int, int, float], None] | None) -> None:
+def _take(run: CampaignRun, done: dict[str, Any], out_dir: Path, result: CampaignResult, total: int,
+          progress: Callable[[int, int, float, float], None] | None) -> None:
     """One run's answer from its task: its files written (the run then counts as done), or its failure
     noted; a fault of the host stops the campaign (:class:`_HostFaultStop`)."""
     if "error" in done:
@@ -393,9 +421,11 @@ def _take(run: CampaignRun, done: dict[str, Any], out_dir: Path, result: Campaig
         raise _HostFaultStop from None
     result.computed += 1
     result.nodes.add(done["row"]["node"])
+    from evoscen_experiments.timing import COMMAND
+
+    COMMAND.ran(done["row"]["steps"])
     if progress is not None:
-        rate = result.computed / max(time.monotonic() - t0, 1e-9)
-        progress(result.already_done + result.computed, total, rate)
+        progress(result.already_done + result.computed, total, *COMMAND.rates())
 
 
 class _HostFaultStop(Exception):

@@ -54,9 +54,9 @@ def main(args) -> int:
           f"{done_before} already done; results in {out}", file=sys.stderr)
     bar = tqdm(total=len(runs), initial=done_before, unit="run", desc=spec.name, file=sys.stderr)
 
-    def progress(done: int, total: int, rate: float) -> None:
+    def progress(done: int, total: int, rate: float, steps_per_s: float) -> None:  # over the command's wall
         bar.n = done
-        bar.set_postfix_str(f"{rate:.2f} runs/s")
+        bar.set_postfix_str(f"{rate:.2f} runs/s, {steps_per_s:,.0f} SUT-steps/s")
         bar.refresh()
 
     try:
@@ -79,6 +79,9 @@ def main(args) -> int:
         return EXIT_HOST_FAULT
     print(f"{result.computed} runs computed in {result.wall_s:.1f} s on {len(result.nodes) or 0} node(s), "
           f"{result.already_done} already done; {out / 'results.parquet'}, {out / 'summary.md'}")
+    from evoscen_experiments.timing import finish
+
+    finish(out)  # the command's start-up and throughput (docs/performance.md "Start-up")
     for line in result.failed:
         print(f"error: run failed: {line}", file=sys.stderr)
     if result.interrupted:

@@ -11,6 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+
+from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv
@@ -18,14 +20,14 @@ from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, pos
 
 def _build(args):
     """The scenarios, the rounds (every scenario on every seed), the workers and the rounds per scenario."""
-    from evoscen_experiments.experiments import Round, distinct_names
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_experiments.experiments import Round, config_loader, distinct_names
 
     n_rounds = positive_int("--rounds", args.rounds)
     first = positive_int("--first-seed", args.first_seed, 0)
     jobs = positive_int("--jobs", args.jobs)
     scenarios = distinct_names("--scenarios", args.scenarios)
     rounds = []
+    load = config_loader(args.config)  # the file parsed once
     for name in scenarios:
         for seed in range(first, first + n_rounds):
             overrides = {"sut.model": args.sut, "seed": str(seed), "steps": args.steps, "recording.enabled": "false"}
@@ -33,7 +35,7 @@ def _build(args):
                 overrides["bvs.driver"] = name
             if args.mix is not None:
                 overrides["bvs.mix"] = args.mix
-            rounds.append(Round(name, load_scenario_config(args.config, overrides)))
+            rounds.append(Round(name, load(overrides)))
     return scenarios, rounds, jobs, n_rounds
 
 
@@ -89,6 +91,7 @@ def main(args) -> int:
     plot(args.out / "complexity.png", bars, ev.window_steps)
     print(table, end="")
     print(f"written: {args.out / 'complexity.md'}, complexity.csv, rounds.csv, complexity.png")
+    finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 

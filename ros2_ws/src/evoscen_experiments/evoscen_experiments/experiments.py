@@ -72,9 +72,9 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     if progress is not None:
         progress(done, total, f"{done} rounds already done")
 
-    def tick(n: int, _total: int, rate: float) -> None:
+    def tick(n: int, _total: int, rate: float, steps_per_s: float) -> None:  # over the command's wall
         if progress is not None:
-            progress(n, total, f"{rate:.2f} rounds/s")
+            progress(n, total, f"{rate:.2f} rounds/s, {steps_per_s:,.0f} SUT-steps/s")
 
     # rounds record no bag: their BVs are driven by one driver (partitioned=False, as campaign._simulate)
     result = (run_campaign(runs, out_dir, cpus=jobs, progress=tick,

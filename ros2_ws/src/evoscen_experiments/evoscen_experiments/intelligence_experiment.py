@@ -14,23 +14,25 @@ from pathlib import Path
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 
+from evoscen_experiments.timing import finish
+
 from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv
 from evoscen_experiments.sensitivity import SSM_RATES, ssm_label, ssm_rate
 
 
 def _build(args):
     """The SUTs, the rounds (every SUT on every seed), the workers, the seed count and the first seed."""
-    from evoscen_experiments.experiments import Round, distinct_names
-    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_experiments.experiments import Round, config_loader, distinct_names
 
     seeds = positive_int("--seeds", args.seeds)
     first = positive_int("--first-seed", args.first_seed, 0)
     jobs = positive_int("--jobs", args.jobs)
     suts = distinct_names("--suts", args.suts, "SUT model names")
     rounds = []
+    load = config_loader(args.config)  # the file parsed once
     for sut in suts:  # every override gets the config's validation (one-line errors)
         for seed in range(first, first + seeds):
-            cfg = load_scenario_config(args.config, {"sut.model": sut, "seed": str(seed), "steps": args.steps,
+            cfg = load({"sut.model": sut, "seed": str(seed), "steps": args.steps,
                                                      "bvs.mix": args.mix, "bvs.count": args.bvs,
                                                      "recording.enabled": "false"})
             rounds.append(Round(sut, cfg))
@@ -84,6 +86,7 @@ def main(args) -> int:
     print(f"written: {args.out / 'intelligence.md'}, intelligence.csv, surrogate_safety.csv, rounds.csv, ttc.png, "
           "speed.png"
           + (", paired.csv, paired_efficiency.csv" if pair_csv else ""))
+    finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+
+from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.experiments import distinct_names, positive_int
@@ -276,6 +278,7 @@ def main(args, argv: list[str]) -> int:
     print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv, terms.csv, pairs.csv, blocks.csv, "
           f"kendall.csv"
           + (", leaderboard.png" if plot_rows else ""))
+    finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 

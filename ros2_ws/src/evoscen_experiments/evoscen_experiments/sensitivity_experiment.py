@@ -14,6 +14,8 @@ import math
 from pathlib import Path
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+
+from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.experiments import positive_int
@@ -200,10 +202,12 @@ def main(args) -> int:
         print(score_table, end="")
         print(f"written: {args.out / 'sensitivity.md'}, sensitivity.csv, mutation_scores.csv, blocks.csv, "
               f"not_applicable.csv, speeds.csv, rounds.csv, sensitivity.png")
+        finish(args.out)  # the command's start-up and throughput (timing.json)
         return EXIT_OK
     summaries = {d.name: summarise(d, rounds, results, meta, args.out / d.name, bases, scenarios, mutants)[0]
                  for d in designs}
     compare_designs(args.out, designs, summaries, rounds, results, meta)
+    finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 

@@ -19,6 +19,8 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+
+from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.sensitivity import PROFILES, score_of
@@ -198,6 +200,7 @@ def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
     table = write_tables(args.out, plan, bases, scenarios, mutants, *done)
     print(table, end="")
     print(f"written: {args.out / 'sensitivity.md'}, verdicts.csv, verdict_counts.csv, rounds.csv")
+    finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 
