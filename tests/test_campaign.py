@@ -313,7 +313,8 @@ def test_a_two_node_cluster_runs_tasks_on_both_nodes_with_the_local_results(loca
     assert len(result.nodes) == 2, result.nodes
     here = {row["key"]: row for row in collect_rows(runs, local_campaign["out"])}
     for row in collect_rows(runs, tmp_path / "out"):
-        for name in ("intelligence", "safety", "efficiency", "collisions", "exposures"):
+        for name in ("comparative", "intelligence", "intelligence_safety", "intelligence_efficiency", "collisions",
+                     "exposures"):
             assert row[name] == here[row["key"]][name] or (row[name] != row[name] and here[row["key"]][name] != here[row["key"]][name]), name
 
 
