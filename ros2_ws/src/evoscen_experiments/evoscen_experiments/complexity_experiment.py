@@ -85,8 +85,9 @@ def main(args) -> int:
     (args.out / "complexity.md").write_text(
         f"# Complexity experiment\n\nSUT {args.sut}; {len(scenarios)} scenarios x {n_rounds} rounds x {cfg0.steps} "
         f"steps, {cfg0.bvs.count} BVs; windows of {ev.window_steps} states; mean ± 95 % interval over rounds; "
-        f"C from the averaged LC, AD, E (k = {ev.k_exposure:g}, {ev.k_lane_change:g}, {ev.k_accel:g}); "
-        f"{simulated:,.0f} s simulated (scored states of all rounds), {wall:,.0f} s wall time in all.\n\n{table}\n"
+        f"K from the averaged LC, AD, E (k = {ev.k_exposure:g}, {ev.k_lane_change:g}, {ev.k_accel:g}); "
+        f"{simulated:,.0f} s simulated (scored states of all rounds), {wall:,.0f} s of the rounds' own times "
+        f"summed over the workers (the command's wall time: timing.json).\n\n{table}\n"
         "![complexity](complexity.png)\n", encoding="utf-8")
     plot(args.out / "complexity.png", bars, ev.window_steps)
     print(table, end="")

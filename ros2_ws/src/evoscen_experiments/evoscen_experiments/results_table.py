@@ -170,7 +170,8 @@ def results_markdown(results: Results) -> str:
         over = f"the seeds of each row ({results.name})"
     lines += ["", f"Score: D (comparative score, D = P·(0.6·S + 0.2·L + 0.2·X), [docs/evaluation.md](docs/evaluation.md) "
               f"§10), mean ± half-width of the 95 % interval over {over}, every SUT on the same seeds (paired by "
-              f"seed); defects detected: mutants whose paired interval of ΔD = intact − mutant lies above zero, "
+              f"seed); defects detected: library defects (`frozen`, a profile, not counted) whose paired interval "
+              f"of ΔD = intact − mutant lies above zero, "
               f"n = {results.defects_n} paired episodes ({_seeds(results.defects_seeds)}); the commands: "
               f"[{results.name}]({results.name})."]
     return "\n".join(lines)

@@ -368,8 +368,8 @@ def overview(design, rounds: list, results: dict, meta: dict, bases: list[str], 
             f"smallest lane-change PET, > 0 when the mutant cuts in closer), mean ± 95 % interval over {unit}s; "
             f"the mutant's score in words: 'significantly lower' (= detected: the intact − mutant interval lies above 0), "
             f"'significantly higher' or 'no significant difference'; pairing r: correlation over {unit}s of intact and "
-            f"mutant score; {simulated:,.0f} s simulated (scored states of all runs), {wall:,.0f} s wall "
-            f"time in all.\n\n{compute_text(design, cfg0, variants)}")
+            f"mutant score; {simulated:,.0f} s simulated (scored states of all runs), {wall:,.0f} s of the runs' own "
+            f"times summed over the workers (the command's wall time: timing.json).\n\n{compute_text(design, cfg0, variants)}")
 
 
 def warmup_steps(cfg) -> int:  # a ScenarioConfig
