@@ -119,8 +119,10 @@ def test_a_failed_run_of_a_batch_is_reported_and_the_others_go_on(tmp_path, monk
         return {"row": {"key": run.key}}
 
     monkeypatch.setattr(campaign, "execute", fake)
+    monkeypatch.setattr(campaign, "_RUNS_DONE", 0)  # this worker's first run, no start cache made
+    monkeypatch.setattr(campaign, "_STARTS", None)
     assert execute_batch(runs, str(tmp_path), "none") == [
-        {"row": {"key": runs[0].key}},
+        {"row": {"key": runs[0].key}, "worker": {"first": True, "wait_s": 0.0, "built": False}},
         {"error": "ValueError: bad plug-in answer", "host_fault": None},
         {"error": "HostFault: cannot write /x: full", "host_fault": ("/x", "No space left on device (ENOSPC)")}]
 
@@ -133,10 +135,10 @@ def test_a_failed_answer_is_noted_as_a_failed_task_was(tmp_path, answer, failed,
     run = CampaignRun("k", (("cell", "cell"),), 3, _cfg(3, VARIANTS[0]))
     result = campaign.CampaignResult(runs=1, already_done=0)
     if fault is None:
-        campaign._take(run, answer, tmp_path, result, 1, 0.0, None)
+        campaign._take(run, answer, tmp_path, result, 1, None)
     else:
         with pytest.raises(campaign._HostFaultStop):
-            campaign._take(run, answer, tmp_path, result, 1, 0.0, None)
+            campaign._take(run, answer, tmp_path, result, 1, None)
     assert result.failed == failed
     assert result.host_fault == fault
     assert not (tmp_path / "runs").exists()

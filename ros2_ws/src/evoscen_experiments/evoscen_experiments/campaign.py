@@ -139,7 +139,8 @@ def execute_batch(runs: Sequence[CampaignRun], out_dir: str, record: str,
         built = 0 if _STARTS is None else _STARTS.built
         try:
             done = execute(run, out_dir, record, clip_s)
-            done["worker"] = {"first": _RUNS_DONE == 0, "wait_s": wait_s, "built": _STARTS.built > built}
+            built_now = _STARTS is not None and _STARTS.built > built  # no start cache: the run built none
+            done["worker"] = {"first": _RUNS_DONE == 0, "wait_s": wait_s, "built": built_now}
             out.append(done)
         except Exception as exc:  # noqa: BLE001 - reported per run by the driver, as a failed task is
             out.append(_failure(exc))
