@@ -174,7 +174,14 @@ def _learned(vehicles, params: LearnedParams, config, rng):
                          into_ending_lane=params.into_ending_lane, forced_merge_m=params.forced_merge_m,
                          merge_seek=params.merge_seek, hold_on_entry=params.hold_on_entry,
                          compete_with_sut=params.competitive_cut_in == "compete",
-                         hard_brake=hard_brake_params(params))
+                         hard_brake=None if _challenge_layer(config) else hard_brake_params(params))
+
+
+def _challenge_layer(config) -> bool:
+    """Whether the simulation's challenge layer runs the leader's hard braking (``challenge.mode`` other than
+    ``none``, docs/challenges.md): then the learned BVs' own rule is off."""
+    challenge = getattr(config, "challenge", None)
+    return challenge is not None and challenge.mode != "none"
 
 
 def hard_brake_params(params: LearnedParams):

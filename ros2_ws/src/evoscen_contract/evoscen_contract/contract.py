@@ -190,10 +190,11 @@ EVENT_OFF_ROAD: str = "evoscen/off_road"
 EVENT_RUN_END: str = "evoscen/run_end"
 EVENT_EXPOSURE: str = "evoscen/exposure"
 EVENT_SHIFT: str = "evoscen/shift"
+EVENT_CHALLENGE: str = "evoscen/challenge"
 #: All event names allowed on ``/evoscen/events``.
 EVENT_NAMES: tuple[str, ...] = (
     EVENT_COLLISION, EVENT_LANE_CHANGE, EVENT_REENTRY, EVENT_OFF_ROAD, EVENT_FAULT, EVENT_RUN_END,
-    EVENT_EXPOSURE, EVENT_SHIFT,
+    EVENT_EXPOSURE, EVENT_SHIFT, EVENT_CHALLENGE,
 )
 
 #: Values of the ``kind`` key (see :data:`EVENT_KINDS`).
@@ -207,12 +208,14 @@ KIND_END: str = "end"
 #: The ``kind`` values of each event that has one: a fault is a missed ``deadline`` (command
 #: held) or the ``abort`` of the run; a lane change ``completed`` or ``aborted`` (its target
 #: lane ended); a run ``completed``, ``aborted`` (a fault) or ``interrupted`` (SIGINT); an
-#: exposure ``start`` or ``end``.
+#: exposure ``start`` or ``end``; a challenge ``start`` (a tilted draw happened: the SUT's leader
+#: brakes hard) or ``end`` (the run's likelihood ratio, once, before ``run_end``).
 EVENT_KINDS: dict[str, tuple[str, ...]] = {
     EVENT_FAULT: (KIND_DEADLINE, KIND_ABORT),
     EVENT_LANE_CHANGE: (KIND_COMPLETED, KIND_ABORTED),
     EVENT_RUN_END: (KIND_COMPLETED, KIND_ABORTED, KIND_INTERRUPTED),
     EVENT_EXPOSURE: (KIND_START, KIND_END),
+    EVENT_CHALLENGE: (KIND_START, KIND_END),
 }
 
 #: ``diagnostic_msgs/DiagnosticStatus`` levels (OK, WARN, ERROR, STALE).
@@ -227,6 +230,7 @@ DEFAULT_EVENT_LEVELS: dict[str, int] = {
     EVENT_RUN_END: LEVEL_OK,
     EVENT_EXPOSURE: LEVEL_WARN,
     EVENT_SHIFT: LEVEL_OK,
+    EVENT_CHALLENGE: LEVEL_OK,
 }
 #: ``hardware_id`` of every event status.
 EVENT_HARDWARE_ID: str = "evoscen"
@@ -251,6 +255,9 @@ EVENT_KEY_TYPES: dict[str, str] = {
     "ttc_s": "float",  # the SUT's time to collision with the vehicle ahead in its path (exposure start; inf if none)
     "accel_mps2": "float",  # the SUT's acceleration (exposure start)
     "shift_m": "float",  # distance every vehicle was moved back along the road (shift; docs/method.md §1)
+    "multiplier": "float",  # challenge start: q/p, how much likelier the tilted draw made the onset there
+    "log_weight": "float",  # challenge: log of the likelihood ratio p/q (start: this onset's; end: the run's)
+    "distance_m": "float",  # challenge end: distance the SUT's leaders drove under the onset process (m)
 }
 
 # --------------------------------------------------------------------------- exit statuses

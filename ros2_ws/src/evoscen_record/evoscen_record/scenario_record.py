@@ -45,6 +45,9 @@ def recorded_scenario(cfg) -> dict:  # a ScenarioConfig
         # [choice] absent = uniform: bags of the traffic before make-ups existed stay byte-identical
         # (docs/bv-profiles.md, "Traffic make-up"); a reader's default fills it in.
         del scenario["bvs"]["makeup"]
+    if scenario.get("challenge", {}).get("mode") == "none":
+        # [choice] absent = none: bags without the challenge layer stay byte-identical (docs/challenges.md)
+        del scenario["challenge"]
     scenario["map"] = Path(cfg.map).name
     return scenario
 

@@ -16,6 +16,7 @@ from .config.scenario_config import ScenarioConfig, mix_counts
 from .model_registry import checked_answer, create_driver, makeup_driver_factory, rehosted
 from .physics.world import World
 from .road.road_model import RoadModel, load_road
+from .traffic.challenge import build_challenge
 from .traffic.makeup import HIGHD, HighdMakeupParams, Makeup, draw_makeup, window_makeup
 from .traffic.scenario_params import reentry_params_from_config, traffic_params_from_config
 from .traffic.spawn import spawn_layout, window_layout, window_layout_makeup
@@ -41,7 +42,7 @@ def bv_policy_codes(cfg: ScenarioConfig, rng: np.random.Generator) -> np.ndarray
 
 def scenario_rngs(seed: int) -> dict[str, np.random.Generator]:
     """The scenario's independent random streams (the same in every runner and node)."""
-    names = ("spawn", "world", "bv", "sut", "warmup_bv", "warmup_sut", "makeup")  # (a new name goes last:
+    names = ("spawn", "world", "bv", "sut", "warmup_bv", "warmup_sut", "makeup", "challenge")  # (a new name goes last:
     # each child's seed depends on its position only, so the streams before it keep their draws)
     return {name: np.random.default_rng(s) for name, s in zip(names, np.random.SeedSequence(seed).spawn(len(names)))}
 
@@ -60,7 +61,14 @@ def bv_makeup(cfg: ScenarioConfig) -> Makeup | None:
 
 
 def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
-    """Road, spawn layout and world for ``cfg`` (what the simulation node owns)."""
+    """Road, spawn layout and world for ``cfg`` (what the simulation node owns), after the warm-up; with
+    ``challenge.mode`` other than ``none`` its challenge layer set from then on (docs/challenges.md)."""
+    world = _build_world(cfg, road)
+    world.challenge = build_challenge(cfg, world, scenario_rngs(cfg.seed)["challenge"])
+    return world
+
+
+def _build_world(cfg: ScenarioConfig, road: RoadModel | None) -> World:
     road = load_road(cfg.map) if road is None else road
     rngs = scenario_rngs(cfg.seed)
     vehicle = cfg.vehicle

@@ -222,7 +222,7 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
     comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
     warnings = list(warnings) + warnings_extra
     complexity = _complexity_of_stream(st, warnings)
-    return {  # a reader meets D first, then the method's I, then their inputs (docs/evaluation.md, "Symbols")
+    report = {  # a reader meets D first, then the method's I, then their inputs (docs/evaluation.md, "Symbols")
         "run": info,
         "warnings": warnings,
         "comparative": comparative,
@@ -235,6 +235,26 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "traffic": traffic_of_stream(st),
         "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
     }
+    if st.challenges:  # only a run with the challenge layer has the section (earlier reports stay as they were)
+        report["challenge"] = challenge_of_events(st.challenges)
+    return report
+
+
+def challenge_of_events(events: list[dict]) -> dict[str, Any]:
+    """The report's ``challenge`` section from the ``evoscen/challenge`` events (docs/challenges.md): every
+    onset (step, time, the braking vehicle, its deceleration and duration, q/p) and the run's likelihood
+    ratio p/q (``weight``; its log, exact) with the distance its SUT's leaders drove under the process; a run
+    cut short before its summary event is weighted by its onsets alone and says so (``complete`` false)."""
+    onsets = [{"step": int(e["step"]), "time_s": float(e["time_s"]), "vehicle": int(e["ids"][0]),
+               "decel_mps2": -float(e["accel_mps2"]), "duration_s": float(e["duration_s"]),
+               "multiplier": float(e["multiplier"])} for e in events if e.get("kind") == C.KIND_START]
+    end = next((e for e in events if e.get("kind") == C.KIND_END), None)
+    if end is not None:
+        log_w, distance = float(end["log_weight"]), float(end["distance_m"])
+    else:
+        log_w, distance = -sum(math.log(o["multiplier"]) for o in onsets), None
+    return {"onsets": onsets, "count": len(onsets), "log_weight": log_w, "weight": math.exp(log_w),
+            "distance_m": distance, "complete": end is not None}
 
 
 def _safety_of_stream(st: ScoreStream, warnings_extra: list[str]) -> tuple[dict[str, Any], float, list, int]:

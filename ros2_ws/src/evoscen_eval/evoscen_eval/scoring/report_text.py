@@ -72,10 +72,35 @@ def counts_line(report: dict[str, Any]) -> str:
             + f"  SUT collisions: {s['collisions']}  SUT exposures: {s['exposures']}")
 
 
+def challenge_line(report: dict[str, Any]) -> str | None:
+    """The challenge layer in one line (None for a run without it), e.g. ``challenges (the SUT's leader
+    braking hard): 1 onset; the run's weight p/q = 0.0245``."""
+    ch = report.get("challenge")
+    if ch is None:
+        return None
+    return (f"challenges (the SUT's leader braking hard): {plural(ch['count'], 'onset')}; the run's weight p/q = "
+            f"{ch['weight']:.4g}" + ("" if ch["complete"] else " (run cut short: its onsets' factors only)"))
+
+
 def score_lines(report: dict[str, Any]) -> list[str]:
-    """What a run prints of its scores, D first: D's line, I's line, K and the SUT's counts."""
-    first = comparative_line(report)
-    return [*([first] if first else []), score_line(report), counts_line(report)]
+    """What a run prints of its scores, D first: D's line, I's line, K and the SUT's counts; the challenges
+    where the run had the layer."""
+    first, challenge = comparative_line(report), challenge_line(report)
+    return [*([first] if first else []), score_line(report), counts_line(report), *([challenge] if challenge else [])]
+
+
+def challenge_markdown(ch: dict[str, Any]) -> list[str]:
+    """The report's challenge section: each onset, the run's weight (docs/challenges.md)."""
+    out = ["\n## Challenges\n", f"{plural(ch['count'], 'onset')} of the SUT's leader's hard braking, drawn "
+           f"from the tilted distribution; the run's likelihood ratio p/q = {ch['weight']:.6g} (log "
+           f"{ch['log_weight']:.6g}){'' if ch['complete'] else ', the run cut short: its onsets only'}; "
+           "naturalistic rates weight each run by it (docs/challenges.md).\n"]
+    if ch["onsets"]:
+        out += ["| step | time (s) | vehicle | deceleration (m/s²) | duration (s) | q/p |", "|---|---|---|---|---|---|"]
+        out += [f"| {o['step']} | {o['time_s']:.1f} | {o['vehicle']} | {o['decel_mps2']:.2f} | {o['duration_s']:.2f} | "
+                f"{o['multiplier']:.4g} |" for o in ch["onsets"]]
+        out.append("")
+    return out
 
 
 # ---------------------------------------------------------------------- markdown
@@ -297,6 +322,8 @@ def markdown(report: dict[str, Any], images: list[str], ev: EvaluationConfig | N
     out += efficiency_markdown(report) + interaction_markdown(report) + complexity_markdown(report["complexity"])
     if "traffic" in report:
         out += traffic_markdown(report["traffic"])
+    if "challenge" in report:
+        out += challenge_markdown(report["challenge"])
     if images:
         out.append("\n## Plots\n")
         out += [f"![{name.rsplit('.', 1)[0]}]({name})\n" for name in images]

@@ -125,6 +125,8 @@ class ScoreStream:
         self.collisions_all = 0
         self.sut_collisions: list[dict] = []
         self.sut_lane_changes: list[dict] = []
+        self.challenges: list[dict] = []
+        """The challenge layer's events (``evoscen/challenge``: onsets, then the run's weight; docs/challenges.md)."""
         # carried between blocks
         self._prev_lc: np.ndarray | None = None
         self._accel_tail: np.ndarray | None = None
@@ -211,6 +213,9 @@ class ScoreStream:
         """Event dicts (``/evoscen/events``); the scores read collisions and the SUT's lane changes."""
         for event in events:
             name = event.get("name")
+            if name == C.EVENT_CHALLENGE:
+                self.challenges.append(dict(event))
+                continue
             if name not in (C.EVENT_COLLISION, C.EVENT_LANE_CHANGE):
                 continue
             if self.ids is None:

@@ -288,6 +288,11 @@ def _cross_check(cfg: ScenarioConfig, ctx: Context, explicit: set[str]) -> None:
             ctx.fail("bvs.makeup", cfg.bvs.makeup, f"expected uniform with bvs.driver = {cfg.bvs.driver} "
                      f"(the highd make-up's cars are {', '.join(MAKEUP_CAR_DRIVERS)} drivers; set bvs.makeup: "
                      "uniform)", is_default=default)
+    ch = cfg.challenge
+    if ch.headway_full_s >= ch.headway_none_s:
+        ctx.fail("challenge.headway_full_s", ch.headway_full_s,
+                 f"expected a number below challenge.headway_none_s = {ch.headway_none_s:g}",
+                 is_default="challenge.headway_full_s" not in explicit)
     ev = cfg.evaluation
     if ev.weight_safety + ev.weight_efficiency + ev.weight_interaction == 0:
         ctx.fail("evaluation.weight_safety", ev.weight_safety,

@@ -463,6 +463,33 @@ class EvaluationConfig:
     (docs/evaluation.md §10)."""
 
 
+#: Values of ``challenge.mode`` (docs/challenges.md).
+CHALLENGE_MODES: tuple[str, ...] = ("none", "naturalistic", "nade")
+
+
+@dataclass(frozen=True)
+class ChallengeConfig:
+    """The challenge layer (docs/challenges.md): the hard braking of the SUT's leader as a process of the
+    simulation, for every BV driver, its onsets drawn from a distribution tilted towards the states where
+    they are critical, each run weighted by its likelihood ratio."""
+
+    mode: str = field(default="none", metadata=_check(_Str(lambda: CHALLENGE_MODES)))
+    """``none`` (default): no layer; the learned BVs brake hard by their own rule (``models.learned.hard_brake``).
+    ``naturalistic``: the layer with the naturalistic onset rate (every BV driver, trucks and rule-based
+    drivers included; weight 1). ``nade``: the layer with the tilted rate (weights p/q in the report and the
+    bag). Under both the learned BVs' own rule is off; the process's rate, decelerations and durations are
+    ``models.learned.hard_brake_*``'s."""
+    max_multiplier: float = field(default=300.0, metadata=_check(_Float(1.0, 1.0e4)))
+    """``nade``: how many times likelier an onset is at the shortest headways (q/p = M). [choice] 300:
+    about one onset in a 30-s episode whose SUT follows within 1 s for 10 s (docs/challenges.md, "The tilt")"""
+    headway_full_s: float = field(default=1.0, metadata=_check(_Float(0.0)))
+    """``nade``: at the SUT's time headway to its leader at or below this (s), the onset rate is M times the
+    naturalistic one. [choice] 1.0 s."""
+    headway_none_s: float = field(default=2.0, metadata=_check(_Float(0.0, lo_open=True)))
+    """``nade``: at this time headway (s) or above, the naturalistic rate (q/p = 1); linear in between.
+    [choice] 2.0 s, the two-second rule."""
+
+
 @dataclass(frozen=True)
 class ScenarioConfig:
     """One scenario: map, timing, population, models, control and recording."""
@@ -500,6 +527,8 @@ class ScenarioConfig:
     """Bag recording."""
     evaluation: EvaluationConfig = _section(EvaluationConfig)
     """Scoring (intelligence, complexity)."""
+    challenge: ChallengeConfig = _section(ChallengeConfig)
+    """The challenge layer (``challenge.mode``; docs/challenges.md)."""
     models: dict[str, Any] = field(default_factory=dict, metadata={"models": True})
     """Parameters of driver models by model name (``models.mobil.politeness: 0.5``), each
     validated against the model's parameter dataclass (:mod:`evoscen_sim.model_registry`); a model

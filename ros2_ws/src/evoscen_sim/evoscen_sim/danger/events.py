@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from evoscen_contract.contract import (EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FAULT, EVENT_LANE_CHANGE, EVENT_OFF_ROAD,
+from evoscen_contract.contract import (EVENT_CHALLENGE, EVENT_COLLISION, EVENT_EXPOSURE, EVENT_FAULT, EVENT_LANE_CHANGE, EVENT_OFF_ROAD,
                                        EVENT_REENTRY, EVENT_RUN_END, EVENT_SHIFT, KIND_ABORTED, KIND_COMPLETED, KIND_DEADLINE,
                                        KIND_END, KIND_START, ROLE_SUT)
 
@@ -48,13 +48,31 @@ def step_events(world, result) -> list[dict]:
     if result.shift_m:
         events.append({"name": EVENT_SHIFT, "message": f"every vehicle moved back by {result.shift_m:.1f} m "
                        "(the traffic window; relative positions kept)", **common, "shift_m": float(result.shift_m)})
+    sut = ids[int(np.flatnonzero(world.role == ROLE_SUT)[0])] if result.challenges else 0
+    for o in result.challenges:  # the step's onsets: stamped with the state they acted on (step - 1)
+        events.append({"name": EVENT_CHALLENGE, "message": f"vehicle {ids[o.vehicle]}, the SUT's leader at "
+                       f"{o.headway_s:.2f} s, brakes at {o.decel_mps2:.1f} m/s² for {o.duration_s:.1f} s "
+                       f"(q/p {o.multiplier:g})", **common, "ids": [int(ids[o.vehicle]), int(sut)],
+                       "accel_mps2": -o.decel_mps2, "duration_s": o.duration_s, "multiplier": o.multiplier,
+                       "log_weight": -math.log(o.multiplier), "kind": KIND_START})
     return events
+
+
+def challenge_end_event(world) -> dict | None:
+    """The challenge layer's summary before ``run_end`` (None without a layer): the run's log likelihood
+    ratio p/q and the distance its SUT's leaders drove under the onset process."""
+    ch = getattr(world, "challenge", None)
+    if ch is None:
+        return None
+    return {"name": EVENT_CHALLENGE, "message": f"{len(ch.onsets)} challenge(s); the run's weight p/q = "
+            f"{ch.weight:.6g}", "step": world.step_index, "time_s": world.time_s, "log_weight": ch.log_weight,
+            "distance_m": ch.distance_m, "steps": len(ch.onsets), "kind": KIND_END}
 
 
 def has_events(result) -> bool:
     """Whether a step result produces any event."""
     return bool(result.collisions or result.lane_changes_completed or result.lane_changes_aborted
-                or result.reentries or result.off_road or result.shift_m)
+                or result.reentries or result.off_road or result.shift_m or result.challenges)
 
 
 def run_end_event(world, kind: str, message: str) -> dict:

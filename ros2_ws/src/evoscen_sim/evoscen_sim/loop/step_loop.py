@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from evoscen_contract.contract import KIND_ABORTED, KIND_COMPLETED, KIND_INTERRUPTED
-from evoscen_sim.danger.events import ExposureMonitor, run_end_event, step_events
+from evoscen_sim.danger.events import ExposureMonitor, challenge_end_event, run_end_event, step_events
 
 
 class RunAborted(RuntimeError):
@@ -180,4 +180,6 @@ class StepLoop:
         w = self.world
         if w.time_ns != self._state_ns:
             self._send_state(roster=(w.step_index == 0))
-        self.port.send_events([run_end_event(w, kind, text)], w.time_ns)
+        challenge = challenge_end_event(w)
+        self.port.send_events(([challenge] if challenge is not None else []) + [run_end_event(w, kind, text)],
+                              w.time_ns)

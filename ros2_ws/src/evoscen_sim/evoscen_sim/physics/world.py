@@ -94,6 +94,8 @@ class StepResult:
     shift_m: float = 0.0
     """Distance every vehicle was moved back along the road in this step (the traffic window's
     shift, :mod:`evoscen_sim.physics.window`); 0 when none."""
+    challenges: list = field(default_factory=list)
+    """The challenge layer's onsets of this step (:class:`evoscen_sim.traffic.challenge.Onset`)."""
 
 
 
@@ -150,6 +152,9 @@ class World:
         self.reentry = reentry
         self.dt_s = float(dt_s)
         self.rng = rng
+        self.challenge = None
+        """The challenge layer (:class:`evoscen_sim.traffic.challenge.LeaderBraking`), set after the warm-up
+        when ``challenge.mode`` is not ``none``: it brakes the SUT's leader in the step's commands."""
         n = int(initial.s_m.shape[0])
         self.n = n
         self.ids = np.asarray(initial.ids, dtype=np.int64).copy()
@@ -259,6 +264,9 @@ class World:
         n = self.n
         if throttle.shape != (n,) or lane_change_request.shape != (n,):
             raise ValueError(f"step: expected commands of shape ({n},), got {throttle.shape} and {lane_change_request.shape}")
+        onsets = None
+        if self.challenge is not None:
+            throttle, onsets = self.challenge.apply(self, throttle)
         lanes = self._lanes
         c = self.controller
         cp = c.params
@@ -278,6 +286,8 @@ class World:
         self.step_index += 1
         self._neighborhood = None
         result = StepResult(step=self.step_index, time_s=self.time_s, executed_lane_change=executed)
+        if onsets:
+            result.challenges = onsets
 
         # 3. lanes, lane-change completion and abortion, leaving the road
         self._refresh_road_lookups()
