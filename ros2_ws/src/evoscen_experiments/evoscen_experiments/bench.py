@@ -165,8 +165,8 @@ def _forward_costs(drv, world, grid) -> dict:
         net = build_actor(a.state_dim, 1, a.max_action, a.W1.shape[1])
         with torch.no_grad():
             for layer, w, b in ((net.l1, a.W1, a.b1), (net.l2, a.W2, a.b2), (net.l3, a.W3, a.b3)):
-                layer.weight.copy_(torch.as_tensor(w.T))
-                layer.bias.copy_(torch.as_tensor(b))
+                layer.weight.copy_(torch.as_tensor(np.array(w.T)))  # a copy: the actor's arrays are read-only
+                layer.bias.copy_(torch.as_tensor(np.array(b)))
         nets.append(net)
     x = torch.as_tensor(grid, dtype=torch.float32)
     with torch.no_grad():
