@@ -7,7 +7,10 @@ lockstep's deadlines count. A kernel first needed mid-run is compiled there inst
 Checked in a fresh process (the suite's own process has compiled most kernels already): every compile
 request of a kernel made while the drivers answer a step after step 0 is listed; there must be none.
 The runs are short ones that reach a forced merge of a learned BV after step 100 (seeds found by
-running: 7 under `highd`, 8 under `uniform`)."""
+running: 7 under `highd`, 8 under `uniform`).
+
+Also the warm step of ``make build`` (scripts/warm_kernels.py, :mod:`evoscen.warm_kernels`): which kernels
+it finds and counts, and its one-line error for a bad step count."""
 
 from __future__ import annotations
 
