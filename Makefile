@@ -62,6 +62,8 @@ $(EXPORT_STAMP): $(REQ_STAMP) requirements-export.txt
 # drops numba's compiled-kernel caches (__pycache__/*.nbi, *.nbc, evoscen_sim/jit.py): a cached kernel
 # names the modules of the kernels it calls, and numba loads it without checking that they still exist,
 # so a moved or renamed module would fail every run with ModuleNotFoundError until they are deleted.
+# After a rebuild scripts/warm_kernels.py compiles the kernels into that cache again (~40 s on the 2-core
+# VM), once, rather than every Ray worker of the first experiment in parallel (docs/performance.md "Start-up").
 BUILD_STAMP := $(INSTALL)/.evoscen-build-inputs
 build: $(REQ_STAMP)
 	@new=$$(cd $(WS)/src && { find . \( -name __pycache__ -o -name '*.egg-info' \) -prune -o -type f -print | LC_ALL=C sort; \
@@ -72,6 +74,7 @@ build: $(REQ_STAMP)
 	    find $(WS)/src -path '*/__pycache__/*' \( -name '*.nbi' -o -name '*.nbc' \) -delete; \
 	    ( . $(VENV)/bin/activate && cd $(WS) && colcon --log-base log build --symlink-install --base-paths src \
 	        --build-base build --install-base install --event-handlers console_cohesion- summary- ) \
+	    && ( $(RUN) python scripts/warm_kernels.py ) \
 	    && printf '%s\n' "$$new" > $(BUILD_STAMP); \
 	fi
 

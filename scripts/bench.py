@@ -3,12 +3,14 @@
 
     python scripts/bench.py [--mode inprocess|graph] [--steps 5000] [--repeats 5] [--bag-steps 10000] [--no-sumo]
                             [--bv-driver level0|learned] [--bv-nodes single,by_policy] [--node-cpu]
-                            [--sut-models] [--learned] [--experiment] [--json]
+                            [--sut-models] [--learned] [--experiment] [--makeups highd,uniform] [--json]
 
 For the shipped default scenario (1 SUT + 20 BVs, dt 0.1 s) with the BV drivers of ``--bv-driver``
 (default ``level0``, the rule-based drivers SUMO is compared with): in-process steps/s with recording
 off (best and median of ``--repeats`` timed runs of ``--steps`` steps after a warm-up); a
-``--bag-steps`` recorded run (steps/s and the bag's size); with the optional ``libsumo``
+``--bag-steps`` recorded run (steps/s and the bag's size); one world under each traffic make-up of
+``--makeups`` (``bvs.makeup``: level-0 BVs, with ``--learned`` learned BVs too; one BV driver) beside
+SUMO, timed repeats alternated, in steps/s and vehicle-steps/s with their ratios; with the optional ``libsumo``
 (requirements-bench.txt) SUMO's rate on the same road and traffic volume in this same process and the
 ratio evoscen / SUMO. ``--mode graph`` adds the node graph's lockstep rate beside in-process runs, the
 BV-node partitions of ``--bv-nodes`` and, with ``--node-cpu``, each node's CPU time per step;
@@ -57,6 +59,10 @@ def parse_args(argv: list[str] | None):
                     help="--experiment: Ray workers (default: CPU count)")
     ap.add_argument("--bv-driver", choices=("level0", "learned"), default="level0",
                     help="the BVs' drivers in every figure but --learned's (default level0)")
+    ap.add_argument("--makeups", default="highd,uniform",
+                    help="one world's rate under each of these bvs.makeup, comma-separated (level-0 BVs, with "
+                         "--learned also learned BVs; one BV driver), alternated with SUMO's, in steps/s and "
+                         "vehicle-steps/s, and their ratios (default highd,uniform; empty: skip)")
     ap.add_argument("--json", action="store_true", help="also print the figures as one JSON line")
     return ap.parse_args(argv)
 

@@ -60,6 +60,16 @@ def test_bad_experiment_mutants_are_refused(value):
     assert "steps/s" not in res.stdout
 
 
+@pytest.mark.parametrize("value", ["highd,highd", "rush_hour"])
+def test_bad_makeups_are_refused(value):
+    res = bench("--makeups", value)
+    assert res.returncode == 2, res.stdout + res.stderr
+    lines = [line for line in res.stderr.splitlines() if line.strip()]
+    assert lines == [f"error: --makeups = {value!r}: expected distinct comma-separated make-ups from uniform, "
+                     "highd"], res.stderr
+    assert "steps/s" not in res.stdout
+
+
 @pytest.mark.parametrize("flag, value", [("--experiment-episodes", 0)])
 def test_out_of_range_experiment_counts_are_refused(flag, value):
     res = bench("--experiment", flag, value)

@@ -92,3 +92,29 @@ def test_the_write_path_rewrites_a_run_with_its_own_topics(tmp_path, capsys):
     write_path(cfg, tmp_path)
     out = capsys.readouterr().out
     assert "bags byte-identical: yes" in out and "files byte-identical: yes" in out, out
+
+
+def test_makeups_option_distinct_known_names_or_empty():
+    from evoscen_experiments.bench_makeups import parse_makeups
+
+    assert parse_makeups("highd,uniform") == ["highd", "uniform"]
+    assert parse_makeups(" uniform ") == ["uniform"]
+    assert parse_makeups("") == []
+    for bad in ("highd,highd", "highd,nosuch", "highd,"):
+        with pytest.raises(InputError) as err:
+            parse_makeups(bad)
+        assert str(err.value) == f"--makeups = {bad!r}: expected distinct comma-separated make-ups from uniform, highd"
+
+
+def test_vehicle_steps_and_the_makeup_ratios_by_hand():
+    from evoscen_experiments.bench_makeups import ratios, vehicle_steps_per_s
+
+    assert vehicle_steps_per_s(1000.0, [21.0, 21.0]) == 21000.0
+    assert vehicle_steps_per_s(2000.0, [20.0, 21.0, 22.0]) == 42000.0  # 2000 x mean 21
+    rates = {"highd/level0": 4000.0, "highd/learned": 3200.0, "uniform/level0": 5000.0, "uniform/learned": 4000.0}
+    got = ratios(rates, 8000.0)
+    assert got == pytest.approx({
+        "evoscen_over_sumo/highd": 0.5, "evoscen_over_sumo/uniform": 0.625,  # 4000/8000, 5000/8000
+        "highd_over_uniform/level0": 0.8, "highd_over_uniform/learned": 0.8,  # 4000/5000, 3200/4000
+        "learned_added_percent/highd": 25.0, "learned_added_percent/uniform": 25.0})  # 100 (4000/3200 - 1)
+    assert ratios({"uniform/level0": 5000.0}, None) == {}  # no SUMO, one make-up, no learned: nothing to compare

@@ -7,7 +7,10 @@ lockstep's deadlines count. A kernel first needed mid-run is compiled there inst
 Checked in a fresh process (the suite's own process has compiled most kernels already): every compile
 request of a kernel made while the drivers answer a step after step 0 is listed; there must be none.
 The runs are short ones that reach a forced merge of a learned BV after step 100 (seeds found by
-running: 7 under `highd`, 8 under `uniform`)."""
+running: 7 under `highd`, 8 under `uniform`).
+
+Also the warm step of ``make build`` (scripts/warm_kernels.py, :mod:`evoscen.warm_kernels`): which kernels
+it finds and counts, and its one-line error for a bad step count."""
 
 from __future__ import annotations
 
@@ -64,3 +67,34 @@ def test_no_kernel_is_first_compiled_after_step_0(seed, sut, makeup):
     assert res.returncode == 0, res.stderr[-3000:]
     late = [line for line in res.stdout.splitlines() if line.startswith("late ")]
     assert late == [], f"kernels first compiled after step 0 (step, kernel): {late}"
+
+
+def test_kernels_lists_the_dispatchers_defined_in_evoscen_modules_and_counts_their_signatures():
+    import types
+
+    import numba
+    from evoscen.warm_kernels import KernelCount, count, kernels
+
+    def twice(x):
+        return 2 * x
+
+    twice.__module__ = "evoscen_sim.warm_probe"
+    mod = types.ModuleType("evoscen_sim.warm_probe")
+    mod.twice = numba.njit(twice)
+    mod.plain = lambda x: x
+    other = types.ModuleType("elsewhere")  # not an evoscen package: not listed
+    other.twice = mod.twice
+    reexported = types.ModuleType("evoscen_bv.warm_probe")  # imported from another module: listed there only
+    reexported.twice = mod.twice
+    found = kernels({mod.__name__: mod, other.__name__: other, reexported.__name__: reexported})
+    assert list(found) == ["evoscen_sim.warm_probe.twice"]
+    assert count(found) == KernelCount((), ("evoscen_sim.warm_probe.twice",), 0)
+    assert mod.twice(3) == 6 and mod.twice(1.5) == 3.0  # two argument types: two signatures
+    assert count(found) == KernelCount(("evoscen_sim.warm_probe.twice",), (), 2)
+
+
+def test_warm_kernels_script_says_a_bad_step_count_in_one_line():
+    res = subprocess.run([sys.executable, "scripts/warm_kernels.py", "--steps", "0"], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 2 and res.stdout == ""
+    assert res.stderr.strip().splitlines() == [res.stderr.strip()] and "--steps" in res.stderr

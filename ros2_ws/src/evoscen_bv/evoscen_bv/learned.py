@@ -504,22 +504,56 @@ def _lane_hold_step(vehicles, lane_change, s_all, changing_before, hold_until, l
     return changing, s
 
 
+_POLICY_CACHE: dict[Path, tuple[tuple, tuple[NumpyActor, dict[int, NumpyActor], TrainingConfig]]] = {}
+"""Per process: resolved policy directory -> (stat signature of the files read, what they gave)."""
+
+
+def _policy_signature(directory: Path) -> tuple | None:
+    """(inode, size, mtime_ns) of ``training.yaml`` and every weight file :func:`load_policies` reads;
+    None when one cannot be read (the load then fails as without a cache, and nothing is kept)."""
+    out = []
+    for name in ("training.yaml", CONTROLLER_FILE, *POLICY_FILES.values()):
+        try:
+            st = (directory / name).stat()
+        except OSError:
+            return None
+        out.append((name, st.st_ino, st.st_size, st.st_mtime_ns))
+    return tuple(out)
+
+
 def load_policies(directory: Path | str) -> tuple[NumpyActor, dict[int, NumpyActor], TrainingConfig]:
-    """Controller, decision actors by policy code, and training config from a policy directory."""
+    """Controller, decision actors by policy code, and training config from a policy directory.
+
+    Loaded once per process and directory: a later call with ``training.yaml`` and the weight files
+    unchanged (same inode, size and modification time) returns the same actors and config, shared (the
+    config is frozen, the actors' arrays read-only; the dict is new); a changed file is read anew. Failures are not kept.
+    """
     directory = Path(directory)
     if not directory.is_dir():
         raise InputError(f"{directory} is not a directory")
     cfg_path = directory / "training.yaml"
     if not cfg_path.is_file():
         raise InputError(f"{directory}: no training.yaml (the training config the policies were trained with)")
+    key = directory.resolve()
+    before = _policy_signature(directory)
+    cached = _POLICY_CACHE.get(key)
+    if before is not None and cached is not None and cached[0] == before:
+        controller, decisions, config = cached[1]
+        return controller, dict(decisions), config
     config = load_training_config(cfg_path)
 
     def _load(name: str, dim: int) -> NumpyActor:
         try:
-            return load_actor(directory, name, dim)
+            actor = load_actor(directory, name, dim)
         except ValueError as exc:
             raise InputError(str(exc)) from None
+        for a in (actor.W1, actor.b1, actor.W2, actor.b2, actor.W3, actor.b3):
+            a.flags.writeable = False  # shared by every driver built from this directory
+        return actor
 
     controller = _load(CONTROLLER_FILE, 4)
     decisions = {POLICY_CODE[p]: _load(f, OBS_DIM) for p, f in POLICY_FILES.items()}
-    return controller, decisions, config
+    loaded = controller, decisions, config
+    if before is not None and _policy_signature(directory) == before:  # unchanged while read
+        _POLICY_CACHE[key] = (before, loaded)
+    return controller, dict(decisions), config

@@ -165,8 +165,8 @@ def _forward_costs(drv, world, grid) -> dict:
         net = build_actor(a.state_dim, 1, a.max_action, a.W1.shape[1])
         with torch.no_grad():
             for layer, w, b in ((net.l1, a.W1, a.b1), (net.l2, a.W2, a.b2), (net.l3, a.W3, a.b3)):
-                layer.weight.copy_(torch.as_tensor(w.T))
-                layer.bias.copy_(torch.as_tensor(b))
+                layer.weight.copy_(torch.as_tensor(np.array(w.T)))  # a copy: the actor's arrays are read-only
+                layer.bias.copy_(torch.as_tensor(np.array(b)))
         nets.append(net)
     x = torch.as_tensor(grid, dtype=torch.float32)
     with torch.no_grad():
@@ -253,9 +253,10 @@ def checked_options(args) -> tuple[list[str], list[str]]:
 def run(args) -> None:
     """The benchmark of ``scripts/bench.py`` with its options ``args`` (an argparse namespace): the figures
     its options ask for, printed (and with ``args.json`` one JSON line of them all)."""
-    from evoscen_experiments import bench_graph
+    from evoscen_experiments import bench_graph, bench_makeups
 
     mutants, partitions = checked_options(args)
+    makeups = bench_makeups.parse_makeups(args.makeups)
     drv = args.bv_driver
     out: dict = {"python": sys.version.split()[0], "bv_driver": drv}
     rates = time_inprocess(args.steps, args.repeats, drv)
@@ -264,6 +265,9 @@ def run(args) -> None:
     print(f"evoscen in-process, 1 SUT + 20 BVs ({drv}), recording off, {args.steps} steps x {args.repeats}:")
     print(f"  best {max(rates):8.0f} steps/s   median {statistics.median(rates):8.0f} steps/s   "
           f"(target >= 5000)")
+    if makeups:
+        out["makeups"] = bench_makeups.report(makeups, bench_makeups.DRIVERS if args.learned else ("level0",),
+                                              args.steps, args.repeats, not args.no_sumo)
     if args.bag_steps:
         rec = recorded_run(args.bag_steps, drv)
         out["recorded"] = rec
