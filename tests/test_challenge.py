@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from evoscen_sim.errors import InputError
 from evoscen_sim.physics.vehicle import VehicleParams
-from evoscen_sim.traffic.challenge import LeaderBraking, OnsetProcess, Tilt
+from evoscen_sim.danger.challenge import LeaderBraking, OnsetProcess, Tilt
 
 
 def test_tilt_by_hand():

@@ -16,8 +16,7 @@ import tempfile
 import time
 from pathlib import Path
 
-INPROCESS_WARMUP = 300
-"""Untimed steps before each timed in-process run (the compiled kernels loaded, the traffic settled)."""
+from evoscen_experiments.bench_runs import INPROCESS_WARMUP, timed_runs  # the step-rate loop (bench_makeups uses it too)
 
 EXPERIMENT_SEED = 95000
 """First seed of the benchmark's experiment designs (any: the throughput does not depend on it)."""
@@ -31,23 +30,6 @@ def child_env() -> dict[str, str]:
     child imports the packages as this process does (``scripts/_bootstrap.py`` puts them on ``sys.path``)."""
     paths = [p for p in sys.path if p] + [os.environ.get("PYTHONPATH", "")]
     return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in paths if p)}
-
-
-def timed_runs(cfg, steps: int, repeats: int, warmup: int = INPROCESS_WARMUP):
-    """``repeats`` timed runs of ``cfg`` (a fresh scenario each, ``warmup`` untimed steps first): their
-    steps/s and the last run's scenario. The benchmark's one step-rate loop."""
-    from evoscen_bringup.scenario import build_scenario
-
-    rates, sc = [], None
-    for _ in range(repeats):
-        sc = build_scenario(cfg)
-        for _ in range(warmup):
-            sc.step()
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            sc.step()
-        rates.append(steps / (time.perf_counter() - t0))
-    return rates, sc
 
 
 def time_inprocess(steps: int, repeats: int, driver: str, warmup: int = INPROCESS_WARMUP) -> list[float]:

@@ -59,7 +59,7 @@ def measure(makeups: list[str], drivers: tuple[str, ...], steps: int, repeats: i
     vehicle count), ``repeats`` timed runs each, alternated; with the vehicles, vehicle-steps/s and :func:`ratios`."""
     from evoscen_sim.config.scenario_config import load_scenario_config
 
-    from evoscen_experiments.bench import timed_runs
+    from evoscen_experiments.bench_runs import timed_runs
 
     cfgs = {f"{m}/{d}": load_scenario_config(None, {"bvs.makeup": m, "bvs.driver": d, "bvs.nodes": "single"})
             for m in makeups for d in drivers}

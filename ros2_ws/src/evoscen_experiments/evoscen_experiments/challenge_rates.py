@@ -102,7 +102,7 @@ def main(args) -> int:
     if results is None:
         return EXIT_INTERRUPTED
     per_set = {}
-    for name, mode, seeds in sets:
+    for name, mode, _seeds in sets:
         vals = [episode_values(results[r.key]["report"]) for r in rounds if r.label == f"{name}:{mode}"]
         per_set[name] = {k: weighted_rate([v[k] for v in vals], [v["km"] for v in vals], [v["weight"] for v in vals])
                          for k, _ in RATES}

@@ -15,8 +15,8 @@ from evoscen_contract.contract import POLICY_CODES
 from .config.scenario_config import ScenarioConfig, mix_counts
 from .model_registry import checked_answer, create_driver, makeup_driver_factory, rehosted
 from .physics.world import World
+from .danger.challenge import OnsetProcess, Tilt, build_challenge
 from .road.road_model import RoadModel, load_road
-from .traffic.challenge import build_challenge
 from .traffic.makeup import HIGHD, HighdMakeupParams, Makeup, draw_makeup, window_makeup
 from .traffic.scenario_params import reentry_params_from_config, traffic_params_from_config
 from .traffic.spawn import spawn_layout, window_layout, window_layout_makeup
@@ -64,8 +64,25 @@ def build_world(cfg: ScenarioConfig, road: RoadModel | None = None) -> World:
     """Road, spawn layout and world for ``cfg`` (what the simulation node owns), after the warm-up; with
     ``challenge.mode`` other than ``none`` its challenge layer set from then on (docs/challenges.md)."""
     world = _build_world(cfg, road)
-    world.challenge = build_challenge(cfg, world, scenario_rngs(cfg.seed)["challenge"])
+    ch = cfg.challenge
+    if ch.mode != "none":
+        learned, truck = _params(cfg, "learned"), _params(cfg, "truck")
+        process = OnsetProcess(float(learned.hard_brake_per_1000km),
+                               (float(learned.hard_brake_decel_min_mps2), float(learned.hard_brake_decel_max_mps2)),
+                               (float(learned.hard_brake_duration_min_s), float(learned.hard_brake_duration_max_s)),
+                               float(learned.hard_brake_min_speed_mps))
+        world.challenge = build_challenge(ch.mode, Tilt(ch.max_multiplier, ch.headway_full_s, ch.headway_none_s),
+                                          process, world, scenario_rngs(cfg.seed)["challenge"],
+                                          float(truck.max_decel_mps2))
     return world
+
+
+def _params(cfg: ScenarioConfig, name: str):
+    """The ``models.<name>`` parameter set of ``cfg`` (absent: the model's defaults)."""
+    from .model_registry import params_type_of
+
+    params = cfg.models.get(name)
+    return params if params is not None else params_type_of(name)()
 
 
 def _build_world(cfg: ScenarioConfig, road: RoadModel | None) -> World:

@@ -70,10 +70,8 @@ The **[choice]** points the method leaves open, as implemented (all configurable
   LC, AD, E are averaged over the windows (and over rounds by the experiment) before C is
   computed. A run shorter than one window has no complexity (``null`` and a warning).
 
-Reported beside the scores, read by none (:func:`traffic_of_stream`, docs/evaluation.md §8):
-the **traffic around the SUT** — per state the BVs with |s_BV − s_SUT| ≤ 100 m (any lane),
-averaged per 30-s window, with the run's mean, the lowest window mean and the share of states
-with no BV that near.
+Beside the scores, read by none: the **traffic around the SUT** (:func:`traffic_of_stream`, docs/evaluation.md
+§8: BVs within 100 m, any lane, per 30-s window); a challenge run's **challenge** section (docs/challenges.md).
 """
 
 from __future__ import annotations
@@ -86,6 +84,7 @@ import numpy as np
 from evoscen_contract import contract as C
 from evoscen_sim.danger.safety import attribution_steps
 
+from evoscen_eval.scoring.challenge_section import challenge_of_events
 from evoscen_eval.scoring.rundata import RunData, run_info_of
 from evoscen_eval.scoring.streaming import SSM_SIDES, TRAFFIC_RANGE_M, TRAFFIC_WINDOW_S, ScoreStream, activity_accel, traffic_window_states  # noqa: F401 - activity_accel: AD's definition, here with the scores
 from evoscen_eval.scoring.sut_collisions import COLLISION_KINDS
@@ -222,7 +221,7 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
     comparative = comparative_of_stream(st, len(sut_collisions), n_exp, durations, per_change)
     warnings = list(warnings) + warnings_extra
     complexity = _complexity_of_stream(st, warnings)
-    report = {  # a reader meets D first, then the method's I, then their inputs (docs/evaluation.md, "Symbols")
+    return {  # a reader meets D first, then the method's I, then their inputs (docs/evaluation.md, "Symbols")
         "run": info,
         "warnings": warnings,
         "comparative": comparative,
@@ -234,27 +233,8 @@ def report_of_stream(st: ScoreStream, info: dict[str, Any], warnings: list[str])
         "complexity": complexity,
         "traffic": traffic_of_stream(st),
         "surrogate_safety": surrogate_safety_of_stream(st, [p["pet_s"] for p in pets]),
+        **({"challenge": challenge_of_events(st.challenges)} if st.challenges else {}),  # a run with the layer only
     }
-    if st.challenges:  # only a run with the challenge layer has the section (earlier reports stay as they were)
-        report["challenge"] = challenge_of_events(st.challenges)
-    return report
-
-
-def challenge_of_events(events: list[dict]) -> dict[str, Any]:
-    """The report's ``challenge`` section from the ``evoscen/challenge`` events (docs/challenges.md): every
-    onset (step, time, the braking vehicle, its deceleration and duration, q/p) and the run's likelihood
-    ratio p/q (``weight``; its log, exact) with the distance its SUT's leaders drove under the process; a run
-    cut short before its summary event is weighted by its onsets alone and says so (``complete`` false)."""
-    onsets = [{"step": int(e["step"]), "time_s": float(e["time_s"]), "vehicle": int(e["ids"][0]),
-               "decel_mps2": -float(e["accel_mps2"]), "duration_s": float(e["duration_s"]),
-               "multiplier": float(e["multiplier"])} for e in events if e.get("kind") == C.KIND_START]
-    end = next((e for e in events if e.get("kind") == C.KIND_END), None)
-    if end is not None:
-        log_w, distance = float(end["log_weight"]), float(end["distance_m"])
-    else:
-        log_w, distance = -sum(math.log(o["multiplier"]) for o in onsets), None
-    return {"onsets": onsets, "count": len(onsets), "log_weight": log_w, "weight": math.exp(log_w),
-            "distance_m": distance, "complete": end is not None}
 
 
 def _safety_of_stream(st: ScoreStream, warnings_extra: list[str]) -> tuple[dict[str, Any], float, list, int]:

@@ -95,7 +95,7 @@ class StepResult:
     """Distance every vehicle was moved back along the road in this step (the traffic window's
     shift, :mod:`evoscen_sim.physics.window`); 0 when none."""
     challenges: list = field(default_factory=list)
-    """The challenge layer's onsets of this step (:class:`evoscen_sim.traffic.challenge.Onset`)."""
+    """The challenge layer's onsets of this step (:class:`evoscen_sim.danger.challenge.Onset`)."""
 
 
 
@@ -153,7 +153,7 @@ class World:
         self.dt_s = float(dt_s)
         self.rng = rng
         self.challenge = None
-        """The challenge layer (:class:`evoscen_sim.traffic.challenge.LeaderBraking`), set after the warm-up
+        """The challenge layer (:class:`evoscen_sim.danger.challenge.LeaderBraking`), set after the warm-up
         when ``challenge.mode`` is not ``none``: it brakes the SUT's leader in the step's commands."""
         n = int(initial.s_m.shape[0])
         self.n = n

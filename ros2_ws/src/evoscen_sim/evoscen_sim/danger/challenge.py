@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from evoscen_contract.contract import ROLE_SUT
-from evoscen_sim.danger.safety import sut_leader_ttc_state
+from .safety import sut_leader_ttc_state
 from evoscen_sim.physics.vehicle import accel_to_throttle
 
 VIEW_M = 100.0
@@ -167,41 +167,14 @@ class LeaderBraking:
         return math.exp(self.log_weight)
 
 
-def onset_process_of(cfg) -> OnsetProcess:  # a ScenarioConfig
-    """The naturalistic process of ``cfg``: its ``models.learned`` hard-braking keys (their defaults when
-    the section is absent)."""
-    from evoscen_sim.model_registry import params_type_of
-
-    params = cfg.models.get("learned")
-    if params is None:
-        params_type = params_type_of("learned")
-        params = params_type() if params_type is not None else None
-    if params is None:
-        return OnsetProcess()
-    return OnsetProcess(float(params.hard_brake_per_1000km),
-                        (float(params.hard_brake_decel_min_mps2), float(params.hard_brake_decel_max_mps2)),
-                        (float(params.hard_brake_duration_min_s), float(params.hard_brake_duration_max_s)),
-                        float(params.hard_brake_min_speed_mps))
-
-
-def build_challenge(cfg, world, rng: np.random.Generator) -> LeaderBraking | None:
-    """The layer of ``cfg.challenge`` for ``world`` (None under ``none``); trucks of a ``highd`` world brake
-    at most at ``models.truck.max_decel_mps2``."""
-    ch = cfg.challenge
-    if ch.mode == "none":
+def build_challenge(mode: str, tilt: Tilt, process: OnsetProcess, world, rng: np.random.Generator,
+                    truck_max_decel_mps2: float = math.inf) -> LeaderBraking | None:
+    """The layer of ``challenge.mode`` ``mode`` for ``world`` (None under ``none``; ``tilt`` used under ``nade``);
+    the trucks of a ``highd`` world brake at most at ``truck_max_decel_mps2``."""
+    if mode == "none":
         return None
-    tilt = Tilt(ch.max_multiplier, ch.headway_full_s, ch.headway_none_s) if ch.mode == "nade" else None
     cap = np.full(world.n, np.inf)
     makeup = getattr(getattr(world, "window", None), "makeup", None)
     if makeup is not None:
-        truck = cfg.models.get("truck")
-        truck_max = float(truck.max_decel_mps2) if truck is not None else _truck_default_max_decel()
-        cap[np.asarray(makeup.truck, dtype=bool)] = truck_max
-    return LeaderBraking(world.n, onset_process_of(cfg), tilt, rng, cap)
-
-
-def _truck_default_max_decel() -> float:
-    from evoscen_sim.model_registry import params_type_of
-
-    params_type = params_type_of("truck")
-    return float(params_type().max_decel_mps2) if params_type is not None else math.inf
+        cap[np.asarray(makeup.truck, dtype=bool)] = truck_max_decel_mps2
+    return LeaderBraking(world.n, process, tilt if mode == "nade" else None, rng, cap)
