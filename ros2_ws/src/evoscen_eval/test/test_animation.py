@@ -126,3 +126,24 @@ def test_a_clips_animation_is_centred_on_its_event(tmp_path):
         assert before == after
         assert [n for n, d in enumerate(durations) if d != 100] == [held]
     assert durations[0] == 100 + (32 - 7) * 100
+
+
+def test_challenges_are_ticks_on_the_run_bar_and_a_section_of_the_report(tmp_path):
+    """A 30-s run whose SUT's leader (vehicle 2) starts braking hard at step 150 (docs/challenges.md): the run
+    bar (8 px margins, states 0..300 over 1,280 - 16 px) has a blue tick at 8 + 150 / 300 x 1,264 = 640 px in
+    its upper half, and the report lists the onset and the run's weight from the end event."""
+    run = make_run(300, 3)
+    run.columns["x"][:] = run.columns["s"] + 3.0 * np.arange(300)[:, None]
+    run.events += [{"name": C.EVENT_CHALLENGE, "step": 150, "time_s": 15.0, "ids": [2, 1], "accel_mps2": -5.0,
+                    "duration_s": 2.0, "multiplier": 250.0, "log_weight": -math.log(250.0), "kind": C.KIND_START},
+                   {"name": C.EVENT_CHALLENGE, "step": 300, "time_s": 30.0, "log_weight": -4.5, "distance_m": 800.0,
+                    "steps": 1, "kind": C.KIND_END}]
+    report = write_report(run, tmp_path, override=EV)
+    ch = report["challenge"]
+    assert ch["count"] == 1 and ch["onsets"][0]["decel_mps2"] == 5.0 and ch["onsets"][0]["vehicle"] == 2
+    assert ch["log_weight"] == -4.5 and ch["weight"] == pytest.approx(math.exp(-4.5)) and ch["complete"]
+    _, _, images = gif_frames(tmp_path / "run.gif")
+    bar = np.asarray(images[0])[56:60]
+    _, cols = np.nonzero(np.all(bar == (31, 119, 180), axis=-1))
+    assert cols.size and abs((cols.min() + cols.max()) / 2 - 640) <= 2
+    assert "## Challenges" in (tmp_path / "report.md").read_text(encoding="utf-8")

@@ -241,7 +241,7 @@ def legend_items(frame_s: float | None, frame_ms: int = FRAME_MS, clip: bool = F
                                                    ("nilsson", "Nilsson"), ("mobil", "MOBIL"))),
             ("truck", f"truck (longer than {TRUCK_LENGTH_M:g} m)"), ("newline", ""),
             ("bar", ("top bar: the clip, the triangle its event" if clip else "top bar: the whole run")
-             + "; exposures magenta, collisions red, now black"),
+             + "; exposures magenta, collisions red, challenges blue, now black"),
             ("", f"View: {2 * WINDOW_M:g} m of road around the SUT."
                  + (f" Each frame {frame_s:g} s of driving, played at {speed}." if speed else ""))]
 
@@ -320,6 +320,9 @@ def _run_bar(draw, notes: list[FrameNote], report: dict[str, Any], series: Frame
     for c in report["safety"]["collision_list"]:
         a = at(int(c["state"]))
         draw.rectangle([a - 1, top, a + 2, top + h], fill=_INDEX["red"])
+    for o in (report.get("challenge") or {}).get("onsets", ()):  # the SUT's leader starts braking hard
+        a = at(int(o["step"]))
+        draw.rectangle([a - 1, top, a + 2, top + h // 2], fill=_INDEX["tab:blue"])
     return at
 
 

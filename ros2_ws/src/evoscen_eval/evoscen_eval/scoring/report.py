@@ -157,6 +157,10 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
     for col in report["safety"]["collision_list"]:
         for ax in axes:
             ax.axvline(col["time_s"], color="tab:red", lw=1.2)
+    onsets = (report.get("challenge") or {}).get("onsets", [])  # docs/challenges.md
+    for o in onsets:
+        for ax in axes:
+            ax.axvline(o["time_s"], color="tab:blue", ls=":", lw=1.2)
     starts = lane_change_marks(report, t0, t, plot.timeline_lane)
     for direction, marker, colour in ((1, "^", "tab:green"), (-1, "v", "tab:purple")):
         pts = [(tm, lane) for tm, lane, d in starts if d == direction]
@@ -168,7 +172,9 @@ def draw_plots(plot: PlotData, ev: EvaluationConfig, report: dict[str, Any], out
     every = "" if plot.timeline_stride == 1 else f"; one point per {plot.timeline_stride} states, lowest TTC"
     axes[0].set_title(f"SUT timeline: {report['safety']['exposures']} exposures (shaded, ▼; at least "
                       f"{100 * MIN_SPAN_SHARE:g} % of the axis wide), {len(starts)} SUT lane changes started (▲ left, ▼ right), "
-                      f"{report['safety']['collisions']} collisions (red){every}", fontsize=9)
+                      f"{report['safety']['collisions']} collisions (red)"
+                      f"{every}" + (f"\n{len(onsets)} challenges: the SUT's leader braking hard (blue, dotted)"
+                                    if onsets else ""), fontsize=9)
     names.append(_save(fig, out, "timeline.png"))
 
     if "traffic" in report:
