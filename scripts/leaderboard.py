@@ -61,6 +61,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap = cli.parser("leaderboard.py", __doc__, ranks_by="D")
     cli.add_out(ap, "runs/leaderboard")
     cli.add_config(ap)
+    ap.add_argument("--challenge", default="nade", help="challenge.mode of every run, over the config's: nade "
+                    "(default: the challenge scenario, docs/challenges.md), naturalistic or none")
     ap.add_argument("--suts", default="all", help="'all' (every installed SUT model) or comma-separated SUT models")
     ap.add_argument("--reference", default=REFERENCE,
                     help=f"the SUT whose D the others are compared with, paired by episode (ΔD; default {REFERENCE})")

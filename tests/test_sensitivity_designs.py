@@ -165,7 +165,10 @@ def test_compare_designs_builds_both_on_disjoint_seeds(exp):
     assert text == ("Design episodes: 4 episodes (seeds 0..3) x 30 steps = 120 SUT steps per variant and scenario; "
                     "the warm-up (traffic.warmup_s = 20 s, 200 steps) runs before every run and is extra compute, "
                     "the same per run in either design: 4 x 200 = 800 steps; 920 simulated steps per variant and "
-                    "scenario, 1,840 in all (2 variant-scenario pairs, 8 runs).")
+                    "scenario, 1,840 in all (2 variant-scenario pairs, 8 runs); challenge.mode none "
+                    "(docs/challenges.md).")
+    nade, _ = se.build_rounds(designs[:1], ["mobil"], ["level0"], ["stale"], None, "nade")
+    assert {r.cfg.challenge.mode for r in nade} == {"nade"} and len(nade) == 4 * 2
 
 
 def test_comparison_table_by_hand(exp):

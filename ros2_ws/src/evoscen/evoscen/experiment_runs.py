@@ -49,6 +49,8 @@ def sensitivity_parser(doc: str | None = None) -> argparse.ArgumentParser:
     cli.add_out(ap, "runs/experiment_sensitivity")
     cli.add_config(ap)
     ap.add_argument("--base", default="mobil", help="comma-separated intact SUT models (default mobil)")
+    ap.add_argument("--challenge", default="nade", help="challenge.mode of every run, over the config's: nade "
+                    "(default: the challenge scenario, docs/challenges.md), naturalistic or none")
     ap.add_argument("--mutants", default="all", help="'all' or comma-separated mutant names of the library")
     ap.add_argument("--scenarios", default="evolving,level0,nilsson,mobil",
                     help="comma-separated: evolving (the config's BV driver) and/or BV driver names")

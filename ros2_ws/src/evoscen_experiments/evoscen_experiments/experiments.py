@@ -98,10 +98,27 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     return out
 
 
-def config_loader(path: Path | None) -> Callable[[Mapping[str, object]], ScenarioConfig]:
+COMPARATIVE_CHALLENGE = "nade"
+"""The ``challenge.mode`` of the comparative experiments' runs (sensitivity, leaderboard; their ``--challenge``):
+[choice] the challenge scenario, a harder test the same for both members of a pair (docs/challenges.md)."""
+
+
+def challenge_mode(text: str | None) -> str:
+    """The ``--challenge`` option's mode (None: :data:`COMPARATIVE_CHALLENGE`); else a one-line InputError."""
+    from evoscen_sim.config.config_schema import CHALLENGE_MODES
+    from evoscen_sim.errors import InputError
+
+    mode = COMPARATIVE_CHALLENGE if text is None else str(text).strip()
+    if mode not in CHALLENGE_MODES:
+        raise InputError(f"--challenge: expected one of {', '.join(CHALLENGE_MODES)}, got {text!r}")
+    return mode
+
+
+def config_loader(path: Path | None, challenge: str | None = None) -> Callable[[Mapping[str, object]], ScenarioConfig]:
     """``load(overrides)``: :func:`~evoscen_sim.config.scenario_config.load_scenario_config` of ``path`` (None:
-    the shipped default) with ``overrides``, the file read and parsed once for all the rounds of an
-    experiment (parsing is ~50-80 ms a round; the validation, which every round still gets, ~1 ms)."""
+    the shipped default) with ``overrides`` (and, with ``challenge``, ``challenge.mode`` set to it), the file
+    read and parsed once for all the rounds of an experiment (parsing is ~50-80 ms a round; the validation,
+    which every round still gets, ~1 ms)."""
     from evoscen_sim.config.config_load import _DEFAULT_CONFIG, config_from_dict, parse_yaml
     from evoscen_sim.limits import MAX_CONFIG_BYTES, read_text_limited
     from evoscen_sim.config.scenario_config import load_scenario_config
@@ -110,6 +127,8 @@ def config_loader(path: Path | None) -> Callable[[Mapping[str, object]], Scenari
     parsed: list = []
 
     def load(overrides: Mapping[str, object]) -> ScenarioConfig:
+        if challenge is not None:
+            overrides = {**overrides, "challenge.mode": challenge}
         if not parsed:  # the first round as the one-call loader does it (every error alike), then parsed once
             cfg = load_scenario_config(path, overrides)
             file_path = share_path(_DEFAULT_CONFIG) if path is None else Path(path)

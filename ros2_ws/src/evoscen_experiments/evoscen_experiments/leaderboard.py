@@ -182,7 +182,7 @@ def term_rows(terms: dict[str, dict[int, dict[str, float]]], order: list[str]) -
 def _build(args):
     """The planners, the reference mutants' names, the rounds (one per SUT and episode), the seed blocks, the
     steps per episode and the workers of the parsed options."""
-    from evoscen_experiments.experiments import Round, config_loader
+    from evoscen_experiments.experiments import Round, challenge_mode, config_loader
     from evoscen_sut.mutants import mutant_overrides
 
     blocks = resolve_blocks(args)
@@ -190,7 +190,7 @@ def _build(args):
     jobs = positive_int("--jobs", args.jobs)
     planners = resolve_suts(args.suts, args.reference)
     refs = resolve_mutant_refs(args.mutant_refs, args.mutant_base, planners)
-    load = config_loader(args.config)
+    load = config_loader(args.config, challenge_mode(getattr(args, "challenge", None)))
     seeds = [s for b in blocks for s in b.seeds]
     common = {"steps": str(steps), "recording.enabled": "false"}
     rounds = [Round(sut, load({"sut.model": sut, "seed": str(seed), **common}))
@@ -452,7 +452,8 @@ def markdown_text(board: Board, table: str, verdict: str, ssm_table: str, argv: 
     blocks_text = ", ".join(b.label for b in board.blocks)
     return (f"# Planner leaderboard\n\n{len(board.suts)} SUTs x {board.episodes} episodes (seed blocks {blocks_text}) "
             f"x {board.steps} steps, after a warm-up of {cfg0.traffic.warmup_s:g} s, among {cfg0.bvs.count} BVs "
-            f"({cfg0.bvs.driver}); weights {cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
+            f"({cfg0.bvs.driver}), challenge.mode {cfg0.challenge.mode}; weights "
+            f"{cfg0.evaluation.weight_safety:g}/{cfg0.evaluation.weight_efficiency:g}/"
             f"{cfg0.evaluation.weight_interaction:g}; mean ± 95 % interval over the episodes; ranked by mean "
             f"{score}.{refs_text} {ref_note} Rank range: the best and worst rank the resolved pairs (## Pairs) "
             f"leave a SUT; SUTs sharing a letter are not told apart (compact letter display, Piepho 2004). "

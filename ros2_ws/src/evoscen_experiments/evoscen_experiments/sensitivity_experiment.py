@@ -18,7 +18,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
-from evoscen_experiments.experiments import positive_int
+from evoscen_experiments.experiments import challenge_mode, positive_int
 from evoscen_experiments.sensitivity_tables import INTACT, compute_text, summarise, warmup_steps
 
 DEFAULT_DESIGN = "episodes"
@@ -123,7 +123,7 @@ def resolve_blocks(args, design: str, first: int) -> list | None:
 
 
 def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants: list[str],
-                 config: Path | None) -> tuple[list, dict[str, tuple[str, str, str, str]]]:
+                 config: Path | None, challenge: str | None = None) -> tuple[list, dict[str, tuple[str, str, str, str]]]:
     """The rounds of every design: per scenario, SUT variant (intact, then each mutant that applies to the
     base, :func:`evoscen_experiments.replication.applicable_split`) and seed of the design, one run of the design's
     steps. Returns the rounds and their key -> (design, scenario,
@@ -132,7 +132,7 @@ def build_rounds(designs: list, bases: list[str], scenarios: list[str], mutants:
     from evoscen_experiments.replication import applicable_split
     from evoscen_sut.mutants import mutant_overrides
 
-    load = config_loader(config)
+    load = config_loader(config, challenge)
     variants: list[tuple[str, str, dict[str, str]]] = []  # (base, mutant or intact, overrides)
     for base in bases:
         variants.append((base, INTACT, {"sut.model": base}))
@@ -174,7 +174,8 @@ def _build(args):
     """The designs, bases, scenarios, mutants, rounds (with their meta) and workers of the options."""
     designs = resolve_designs(args)
     bases, scenarios, mutants, jobs = variant_names(args)
-    rounds, meta = build_rounds(designs, bases, scenarios, mutants, args.config)
+    rounds, meta = build_rounds(designs, bases, scenarios, mutants, args.config,
+                                challenge_mode(getattr(args, "challenge", None)))
     return designs, bases, scenarios, mutants, rounds, meta, jobs
 
 

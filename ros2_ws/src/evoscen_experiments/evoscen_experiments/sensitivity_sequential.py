@@ -181,13 +181,13 @@ def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
     """The sequential design of the parsed options (``names()``: their bases, scenarios, mutants and workers,
     checked): looks run (or read back), then ``verdicts.csv``, ``verdict_counts.csv``, ``rounds.csv`` and
     ``sensitivity.md`` in ``args.out``, the table printed."""
-    from evoscen_experiments.experiments import config_loader, run_rounds_with_bar, set_up
+    from evoscen_experiments.experiments import challenge_mode, config_loader, run_rounds_with_bar, set_up
 
     bases, scenarios, mutants, jobs = set_up(args.out, names)
     comps = comparisons(bases, scenarios, mutants)
     if not comps:
         raise InputError("--sequential: no mutant applies to the bases given")
-    load = config_loader(args.config)
+    load = config_loader(args.config, challenge_mode(getattr(args, "challenge", None)))
     looks = [0]
 
     def run(rounds: list) -> dict | None:

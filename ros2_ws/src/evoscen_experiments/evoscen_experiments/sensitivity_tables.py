@@ -391,7 +391,8 @@ def compute_text(design, cfg, variants: int) -> str:
     return (f"Design {design.name}: {design.runs} {design.unit}s ({seeds}) x "
             f"{design.steps:,} steps = {c.sut_steps:,} SUT steps per variant and scenario; {warm}; "
             f"{c.total:,} simulated steps per variant and scenario, {c.total * variants:,} in all "
-            f"({variants} variant-scenario pairs, {design.runs * variants:,} runs).")
+            f"({variants} variant-scenario pairs, {design.runs * variants:,} runs); challenge.mode "
+            f"{cfg.challenge.mode} (docs/challenges.md).")
 
 
 def plot(path: Path, panels, d: str = "D") -> None:
