@@ -43,7 +43,6 @@ def intelligence_parser(doc: str | None = None) -> argparse.ArgumentParser:
 def sensitivity_parser(doc: str | None = None) -> argparse.ArgumentParser:
     """The options of the sensitivity experiment (``scripts/experiment_sensitivity.py``)."""
     from evoscen_experiments.sensitivity_experiment import DEFAULT_DESIGN, EPISODE_STEPS, EPISODES, SEEDS, STEPS
-    from evoscen_experiments.sensitivity_sequential import BUDGET, DELTA, ROUND_SIZE, SPENDING_DEFAULT
 
     ap = cli.parser("experiment_sensitivity.py", doc, ranks_by="D")
     cli.add_out(ap, "runs/experiment_sensitivity")
@@ -72,17 +71,24 @@ def sensitivity_parser(doc: str | None = None) -> argparse.ArgumentParser:
                                           "disjoint); replaces --first-seed, --blocks, --block-size")
     ap.add_argument("--compare-designs", action="store_true",
                     help="run both designs at equal SUT steps and compare their detection")
-    ap.add_argument("--sequential", action="store_true",
-                    help="sequential verdicts: rounds of --round-size paired episodes (seeds from --first-seed on), "
-                         "each (base, mutant) comparison stopped at its verdict (worse, better, equivalent on D, "
-                         "the comparative score) or unresolved at --budget")
+    add_sequential(ap, "sequential verdicts: rounds of --round-size paired episodes (seeds from --first-seed on), "
+                       "each (base, mutant) comparison stopped at its verdict (worse, better, equivalent on D, "
+                       "the comparative score) or unresolved at --budget")
+    cli.add_jobs(ap)
+    return ap
+
+
+def add_sequential(ap: argparse.ArgumentParser, what: str) -> None:
+    """The sequential design's options (``--sequential``, its help ``what``, and ``--budget``, ``--round-size``,
+    ``--delta``, ``--spending``), shared by the sensitivity experiment and the leaderboard."""
+    from evoscen_experiments.sensitivity_sequential import BUDGET, DELTA, ROUND_SIZE, SPENDING_DEFAULT
+
+    ap.add_argument("--sequential", action="store_true", help=what)
     ap.add_argument("--budget", help=f"with --sequential: most paired episodes per comparison (default {BUDGET})")
     ap.add_argument("--round-size", help=f"with --sequential: paired episodes between looks (default {ROUND_SIZE})")
     ap.add_argument("--delta", help=f"with --sequential: equivalence margin on D (default {DELTA})")
     ap.add_argument("--spending", help=f"with --sequential: alpha spending, obrien_fleming or pocock "
                                        f"(default {SPENDING_DEFAULT})")
-    cli.add_jobs(ap)
-    return ap
 
 
 def _mains() -> dict[str, tuple[Callable[[], argparse.ArgumentParser], Callable[[argparse.Namespace], int]]]:

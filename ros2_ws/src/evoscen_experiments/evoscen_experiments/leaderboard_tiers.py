@@ -149,8 +149,14 @@ def tiers(values: Mapping[str, Mapping[int, float]], order: Sequence[str], block
           delta: float = DELTA) -> tuple[list[PairResult], dict[str, tuple[int, int]], dict[str, str]]:
     """The pairs with their verdicts, the rank ranges and the letters of the SUTs in ``order``."""
     pairs = pair_results(values, order, blocks, delta)
+    return (pairs, *tiers_of(order, pairs))
+
+
+def tiers_of(order: Sequence[str], pairs: Sequence[PairResult]) -> tuple[dict[str, tuple[int, int]], dict[str, str]]:
+    """The rank ranges and the letters of the SUTs in ``order`` given their pairs' verdicts, from one look
+    (:func:`pair_results`) or from the sequential looks (:mod:`evoscen_experiments.leaderboard_sequential`)."""
     above = above_of(pairs)
-    return pairs, rank_ranges(order, above), letters(order, above)
+    return rank_ranges(order, above), letters(order, above)
 
 
 def pair_tables(pairs: Sequence[PairResult], blocks: Sequence, d: str = "D") -> tuple[list, list, list, str]:

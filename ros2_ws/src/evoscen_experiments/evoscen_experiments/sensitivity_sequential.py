@@ -72,6 +72,19 @@ def resolve_plan(args, episode_steps: str = "300") -> Plan | None:
     """The sequential design of the parsed options (``episode_steps``: ``--episode-steps``' default), None without
     ``--sequential``; InputError (one line) on a bad value or on another design's flags with it, or its flags
     without it."""
+    given = {"--design long": args.design == "long", "--compare-designs": args.compare_designs,
+             "--episodes": args.episodes, "--seeds": args.seeds, "--steps": args.steps,
+             "--long-first-seed": args.long_first_seed, "--blocks": args.blocks, "--block-size": args.block_size,
+             "--seed-blocks": args.seed_blocks}
+    return plan_of(args, {f: given[f] for f in CONFLICTS}, episode_steps)
+
+
+def plan_of(args, conflicts: dict[str, object], episode_steps: str = "300") -> Plan | None:
+    """The sequential design of parsed options with ``--sequential``, ``--budget``, ``--round-size``, ``--delta``,
+    ``--spending``, ``--episode-steps`` and ``--first-seed`` (the sensitivity experiment's and the leaderboard's),
+    None without ``--sequential``. ``conflicts``: the fixed designs' flags (in the order to name them) -> their
+    values, None or False where not given. InputError (one line) on a bad value, on a conflicting flag with
+    ``--sequential``, or on the sequential flags without it."""
     from evoscen_experiments.experiments import positive_int
 
     own = [f for f, v in (("--budget", args.budget), ("--round-size", args.round_size), ("--delta", args.delta),
@@ -80,11 +93,7 @@ def resolve_plan(args, episode_steps: str = "300") -> Plan | None:
         if own:
             raise InputError(f"{own[0]} applies with --sequential only")
         return None
-    given = {"--design long": args.design == "long", "--compare-designs": args.compare_designs,
-             "--episodes": args.episodes, "--seeds": args.seeds, "--steps": args.steps,
-             "--long-first-seed": args.long_first_seed, "--blocks": args.blocks, "--block-size": args.block_size,
-             "--seed-blocks": args.seed_blocks}
-    bad = [f for f in CONFLICTS if given[f] not in (None, False)]
+    bad = [f for f, v in conflicts.items() if v not in (None, False)]
     if bad:
         raise InputError(f"--sequential and {bad[0]} together: the sequential design runs rounds of --round-size "
                          f"episodes from --first-seed up to --budget")
