@@ -5,6 +5,8 @@
                                   [--blocks 2] [--block-size 100] [--first-seed 20000] | [--episodes N]
                                   | [--seed-blocks A:B,C:D] [--episode-steps 300]
                                   [--mutant-refs timid,frozen|none] [--mutant-base mobil] [--jobs N]
+    python scripts/leaderboard.py --sequential [--budget 2000] [--round-size 100] [--delta 0.005]
+                                  [--spending obrien_fleming|pocock] [--first-seed 20000] ...
 
 Every SUT model installed — the built-ins and the ``evoscen.sut`` plug-ins (docs/plugins.md);
 not the sensitivity experiment's ``mutant`` wrapper, which is a defect of another model — runs
@@ -45,6 +47,14 @@ table, the command), ``leaderboard.csv`` (one row per SUT, ranked, failed SUTs l
 ``leaderboard.png`` (D with its interval and the paired difference against the
 reference, per SUT); prints the tables. Exit status: 0 done (failed SUTs included), 2 bad
 input, 130 interrupted.
+
+``--sequential`` replaces the seed blocks by sequential pair verdicts (docs/sensitivity.md "Sequential
+verdicts"): the episodes run in looks of ``--round-size`` seeds from ``--first-seed``, the same seeds for
+every SUT; after each look every open pair is judged on ΔD so far and closed at a > b, a < b or a ≈ b
+(±``--delta``), else unresolved at ``--budget`` episodes; a SUT runs a look while one of its pairs is open.
+Writes ``leaderboard.md`` (the SUTs ranked by mean D over the episodes each ran, with rank range and
+letters; every pair's verdict, interval, episodes and looks), ``leaderboard.csv`` and ``pairs.csv``
+(sut_a, sut_b, verdict, mean, low, high, episodes, looks); prints both tables.
 """
 
 from __future__ import annotations
@@ -54,6 +64,7 @@ import sys
 
 import _bootstrap  # noqa: F401  (makes the workspace packages importable)
 from evoscen import cli
+from evoscen.experiment_runs import add_sequential
 from evoscen_experiments.leaderboard import BLOCK_SIZE, BLOCKS, EPISODE_STEPS, FIRST_SEED, MUTANT_REFS, REFERENCE
 
 
@@ -79,15 +90,18 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                          f"(default {MUTANT_REFS})")
     ap.add_argument("--mutant-base", default=REFERENCE,
                     help=f"the SUT whose mutants are the references (default {REFERENCE}; one of the SUTs ranked)")
+    add_sequential(ap, "sequential pair verdicts: looks of --round-size paired episodes (seeds from --first-seed "
+                       "on), each pair of SUTs stopped at its verdict (a > b, a < b, a ≈ b on D) or unresolved at "
+                       "--budget; replaces --episodes, --blocks, --block-size, --seed-blocks")
     cli.add_jobs(ap)
     return ap.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> int:
-    from evoscen_experiments import leaderboard
+    from evoscen_experiments import leaderboard_sequential
 
     command = list(argv if argv is not None else sys.argv[1:])  # quoted in leaderboard.md
-    return cli.run(lambda: leaderboard.main(parse_args(argv), command))
+    return cli.run(lambda: leaderboard_sequential.main(parse_args(argv), command))
 
 
 if __name__ == "__main__":

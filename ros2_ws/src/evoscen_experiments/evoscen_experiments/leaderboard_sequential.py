@@ -1,0 +1,210 @@
+"""The planner leaderboard with sequential pair verdicts (``scripts/leaderboard.py --sequential``,
+docs/experiments.md §4).
+
+Every pair (A, B) of the SUTs ranked (planners and reference mutants) is a sequential comparison of D paired by
+episode (:func:`evoscen_experiments.sequential.verdict`, the sensitivity experiment's design,
+:class:`~evoscen_experiments.sensitivity_sequential.Plan`): the episodes run in looks of ``--round-size`` seeds
+from ``--first-seed``, the same seeds for every SUT; a SUT runs a look's seeds while at least one of its pairs is
+still open (:func:`needing`); after the look each open pair is judged on its A − B so far (:func:`judge_open`) and
+closed at its verdict (A higher, B higher, equivalent) or unresolved at ``--budget``. The looks stop when no pair
+is open. The resolved pairs give each SUT its rank range and letters
+(:func:`evoscen_experiments.leaderboard_tiers.tiers_of`); SUTs are ranked by mean D over the episodes each ran.
+The rounds run on the experiment's engine, saved under ``OUT/runs/``: a rerun reads them back and reaches the same
+verdicts. :func:`run_looks` is the loop, its run function injectable; :func:`main` the door's function.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
+
+from evoscen_experiments.timing import finish
+
+from evoscen_experiments.leaderboard_tiers import WORDS, PairResult, range_text, tiers_of
+from evoscen_experiments.sensitivity import score_of
+from evoscen_experiments.sensitivity_sequential import Plan, plan_of
+from evoscen_experiments.sequential import Verdict
+from evoscen_experiments.stats import fmt_ci, markdown_table, mean_ci
+
+Pair = tuple[str, str]
+PAIRS_CSV = ["sut_a", "sut_b", "verdict", "mean", "low", "high", "episodes", "looks"]
+SUTS_CSV = ["rank", "rank_best", "rank_worst", "letters", "sut", "d_mean", "d_ci95", "episodes"]
+FLIP = {"a_higher": "b_higher", "b_higher": "a_higher"}
+
+
+def all_pairs(names: Sequence[str]) -> list[Pair]:
+    """Every pair of ``names``, in their order."""
+    return [(a, b) for i, a in enumerate(names) for b in names[i + 1:]]
+
+
+def judge_open(plan: Plan, verdicts: Mapping[Pair, Verdict], d: Mapping[str, Mapping[int, float]],
+               n: int) -> dict[Pair, Verdict]:
+    """The verdicts after the look at ``n`` episodes: each pair still ``continue`` judged on A − B of D over the
+    seeds ``first_seed`` .. ``first_seed + n − 1`` both ran (``d``: SUT -> seed -> D; finite differences only);
+    the closed pairs keep theirs."""
+    seeds = range(plan.first_seed, plan.first_seed + n)
+    out = dict(verdicts)
+    for (a, b), v in verdicts.items():
+        if v.verdict != "continue":
+            continue
+        va, vb = d.get(a, {}), d.get(b, {})
+        diffs = [va[s] - vb[s] for s in seeds if s in va and s in vb]
+        out[(a, b)] = plan.judge([x for x in diffs if math.isfinite(x)])
+    return out
+
+
+def needing(names: Sequence[str], verdicts: Mapping[Pair, Verdict]) -> list[str]:
+    """The SUTs of ``names`` (in order) in at least one pair still open (``continue``): they run the next look."""
+    busy = {s for pair, v in verdicts.items() if v.verdict == "continue" for s in pair}
+    return [s for s in names if s in busy]
+
+
+def look_rounds(plan: Plan, names: Sequence[str], k: int, load: Callable, overrides: Mapping[str, dict]) -> list:
+    """The rounds of look ``k`` (0-based): each of ``names`` on the seeds after look k − 1 up to look k
+    (``overrides``: SUT -> its configuration overrides)."""
+    from evoscen_experiments.experiments import Round
+
+    lo = plan.looks[k - 1] if k else 0
+    common = {"steps": str(plan.steps), "recording.enabled": "false"}
+    return [Round(s, load({**overrides[s], "seed": str(seed), **common})) for s in names
+            for seed in range(plan.first_seed + lo, plan.first_seed + plan.looks[k])]
+
+
+def run_looks(plan: Plan, names: Sequence[str], overrides: Mapping[str, dict], load: Callable,
+              run: Callable[[list], dict | None]) -> tuple[dict, dict, list, dict] | None:
+    """Run the looks: before each, the SUTs with an open pair get its seeds (:func:`look_rounds`); ``run(rounds)``
+    gives their results by key (the saved ones read back) or None when interrupted. Returns the pairs'
+    verdicts, D per SUT and seed, every round run and the results; None when interrupted."""
+    d: dict[str, dict[int, float]] = {s: {} for s in names}
+    verdicts = {p: plan.judge([]) for p in all_pairs(names)}
+    rounds, results = [], {}
+    for k, n in enumerate(plan.looks):
+        todo = needing(names, verdicts)
+        if not todo:
+            break
+        look = look_rounds(plan, todo, k, load, overrides)
+        got = run(look)
+        if got is None:
+            return None
+        for rnd in look:
+            results[rnd.key] = got[rnd.key]
+            d[rnd.label][rnd.cfg.seed] = score_of(got[rnd.key]["report"], "intelligence")
+        rounds += look
+        verdicts = judge_open(plan, verdicts, d, n)
+    return verdicts, d, rounds, results
+
+
+def oriented(verdicts: Mapping[Pair, Verdict], order: Sequence[str]) -> list[PairResult]:
+    """The pairs with a ranked above b (the verdict, A − B and its interval turned round where needed; a pair
+    left ``continue`` is unresolved), in the order of ``order``."""
+    rank = {s: i for i, s in enumerate(order)}
+    out = []
+    for (a, b), v in verdicts.items():
+        v = dataclasses.replace(v, verdict="unresolved") if v.verdict == "continue" else v
+        if rank[a] > rank[b]:
+            a, b = b, a
+            v = dataclasses.replace(v, verdict=FLIP.get(v.verdict, v.verdict), mean=-v.mean, low=-v.high,
+                                    high=-v.low)
+        out.append(PairResult(a, b, v, None))
+    return sorted(out, key=lambda p: (rank[p.a], rank[p.b]))
+
+
+def tables(d: Mapping[str, Mapping[int, float]], verdicts: Mapping[Pair, Verdict]) -> tuple[list, list, list, list]:
+    """The SUTs ranked by mean D over the episodes each ran, with rank range and letters, and the pairs (a ranked
+    above b): Markdown rows and CSV rows of each."""
+    from evoscen_experiments.leaderboard import ranked
+
+    stats = {s: mean_ci([v for v in d[s].values() if math.isfinite(v)]) for s in d}
+    order = ranked({s: stats[s][0] for s in d})
+    pairs = oriented(verdicts, order)
+    ranges, letters = tiers_of(order, pairs)
+    suts_md, suts_csv = [], []
+    for rank, s in enumerate(order, 1):
+        best, worst = ranges[s]
+        suts_md.append([str(rank), range_text(best, worst), letters[s], s, fmt_ci(*stats[s]), str(len(d[s]))])
+        suts_csv.append([rank, best, worst, letters[s], s, *stats[s], len(d[s])])
+    pairs_md, pairs_csv = [], []
+    for p in pairs:
+        v = p.verdict
+        pairs_md.append([p.a, p.b, WORDS[v.verdict], f"{v.mean:+.4f} [{v.low:+.4f}, {v.high:+.4f}]", str(v.episodes),
+                         str(v.looks)])
+        pairs_csv.append([p.a, p.b, v.verdict, v.mean, v.low, v.high, v.episodes, v.looks])
+    return suts_md, suts_csv, pairs_md, pairs_csv
+
+
+def _names(args) -> tuple[list[str], dict[str, dict], int]:
+    """The SUTs ranked (planners, then reference mutants), their configuration overrides and the workers."""
+    from evoscen_experiments.experiments import positive_int
+    from evoscen_experiments.leaderboard import ref_label, resolve_mutant_refs, resolve_suts
+    from evoscen_sut.mutants import mutant_overrides
+
+    jobs = positive_int("--jobs", args.jobs)
+    planners = resolve_suts(args.suts, args.reference)
+    refs = resolve_mutant_refs(args.mutant_refs, args.mutant_base, planners)
+    overrides = {s: {"sut.model": s} for s in planners}
+    overrides.update({ref_label(m, args.mutant_base): mutant_overrides(args.mutant_base, m) for m in refs})
+    return list(overrides), overrides, jobs
+
+
+def main(args, argv: list[str]) -> int:
+    """The leaderboard of the parsed options (``scripts/leaderboard.py``): with ``--sequential`` the sequential
+    pair verdicts (looks run or read back, ``pairs.csv``, ``leaderboard.csv`` and ``leaderboard.md`` written
+    into ``args.out``, the tables printed), else :func:`evoscen_experiments.leaderboard.main`. InputError (one
+    line) on bad input, before anything is written."""
+    from evoscen_experiments import leaderboard
+    from evoscen_experiments.experiments import challenge_mode, config_loader, run_rounds_with_bar, set_up
+
+    plan = plan_of(args, {"--episodes": args.episodes, "--blocks": args.blocks, "--block-size": args.block_size,
+                          "--seed-blocks": args.seed_blocks}, leaderboard.EPISODE_STEPS)
+    if plan is None:
+        return leaderboard.main(args, argv)
+    started = time.monotonic()
+    names, overrides, jobs = set_up(args.out, lambda: _names(args))
+    load = config_loader(args.config, challenge_mode(getattr(args, "challenge", None)))
+    looks = [0]
+
+    def run(rounds: list) -> dict | None:
+        looks[0] += 1
+        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"leaderboard, look {looks[0]}")
+
+    done = run_looks(plan, names, overrides, load, run)
+    if done is None:
+        return EXIT_INTERRUPTED
+    verdicts, d, rounds, results = done
+    text, printed = write_tables(args.out, plan, d, verdicts, rounds, argv, time.monotonic() - started)
+    print(printed, end="")
+    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, pairs.csv")
+    finish(args.out)  # the command's start-up and throughput (timing.json)
+    return EXIT_OK
+
+
+def write_tables(out: Path, plan: Plan, d: Mapping[str, Mapping[int, float]], verdicts: Mapping[Pair, Verdict],
+                 rounds: list, argv: Sequence[str], wall: float) -> tuple[str, str]:
+    """``leaderboard.csv``, ``pairs.csv`` and ``leaderboard.md``; returns the Markdown text and the tables."""
+    from evoscen_experiments.experiments import write_csv
+
+    suts_md, suts_csv, pairs_md, pairs_csv = tables(d, verdicts)
+    write_csv(out / "leaderboard.csv", SUTS_CSV, suts_csv)
+    write_csv(out / "pairs.csv", PAIRS_CSV, pairs_csv)
+    printed = (markdown_table(["rank", "rank range", "letters", "SUT", "D ± 95 %", "episodes"], suts_md) + "\n"
+               + markdown_table(["a", "b", "verdict", "ΔD = a − b [RCI]", "episodes", "looks"], pairs_md))
+    cfg0 = rounds[0].cfg if rounds else None
+    setting = (f", {cfg0.bvs.count} BVs ({cfg0.bvs.driver}), challenge.mode {cfg0.challenge.mode}"
+               if cfg0 is not None else "")
+    text = (f"# Planner leaderboard: sequential verdicts\n\n{len(d)} SUTs{setting}; episodes of {plan.steps} steps "
+            f"on seeds {plan.first_seed} on, the same for every SUT. Every pair a, b (a ranked above b): D of a "
+            f"minus D of b paired by episode, looked at every {plan.round_size} episodes up to {plan.budget}; a "
+            f"SUT runs a look while one of its pairs is open, a pair stops at its verdict: a > b (the repeated "
+            f"confidence interval, RCI, above 0), a < b (below 0), a ≈ b (inside ±{plan.delta:g}) or unresolved "
+            f"at the budget; {plan.spending} spending, each verdict wrong with probability at most {plan.alpha:g} "
+            f"over all looks (docs/sensitivity.md \"Sequential verdicts\"). SUTs ranked by mean D ± 95 % interval "
+            f"over the episodes each ran; rank range: the best and worst rank the resolved pairs leave a SUT; "
+            f"SUTs sharing a letter are not told apart (Piepho 2004). {len(rounds):,} runs; this command's wall "
+            f"time {wall:,.0f} s.\n\n{printed}\nMade by:\n\n    python scripts/leaderboard.py {' '.join(argv)}\n")
+    (out / "leaderboard.md").write_text(text, encoding="utf-8")
+    return text, printed

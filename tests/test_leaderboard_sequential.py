@@ -1,0 +1,183 @@
+"""The leaderboard's sequential pair verdicts (``scripts/leaderboard.py --sequential``,
+evoscen_experiments.leaderboard_sequential): the option errors, the looks on synthetic D values (which SUTs run
+a look, which pairs close, values by hand), the tables turned to the ranking, and one small real run."""
+
+from __future__ import annotations
+
+import csv
+import importlib.util
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from evoscen_experiments import leaderboard_sequential as ls
+from evoscen_experiments.experiments import config_loader
+from evoscen_experiments.sensitivity_sequential import Plan
+from evoscen_experiments.sequential import boundaries
+
+REPO = Path(__file__).resolve().parents[1]
+FIRST = 700
+PLAN = Plan(round_size=4, budget=8, delta=0.05, spending="obrien_fleming", steps=20, first_seed=FIRST)
+W = [0.1, -0.1] * 4
+D = {
+    # a − b = [0.5, 0.502, 0.498, 0.5]: mean 0.5, sd 0.001633, half <= 3 x 0.001633 / 2 -> above 0 at look 1
+    "a": [1.0, 1.002, 0.998, 1.0, 1.0, 1.0, 1.0, 1.0],
+    "b": [0.5] * 8,
+    # b − c = 0.05 − w: look 1 mean 0.05, sd 0.1155, half > 2.5 x 0.1155 / 2 = 0.144 -> holds 0, not within
+    # ±0.05: open; look 2 sd 0.1069, half > 1.9 x 0.1069 / √8 = 0.0718 -> holds 0: unresolved at the budget.
+    # a − c = [0.45, 0.652, 0.448, 0.65]: mean 0.55, sd 0.1160, half < 3 x 0.1160 / 2 = 0.174 -> above 0 at look 1
+    "c": [0.45 + w for w in W],
+}
+NAMES = ["c", "b", "a"]  # the pairs (c, b), (c, a), (b, a) are judged as c − b, c − a, b − a
+SEEDS = range(FIRST, FIRST + 8)
+
+
+def d_of(n: int, names=NAMES) -> dict[str, dict[int, float]]:
+    return {s: {seed: D[s][seed - FIRST] for seed in SEEDS[:n]} for s in names}
+
+
+def test_boundaries_the_hand_values_assume():
+    c1, c2 = boundaries((0.5, 1.0), 0.05, "obrien_fleming")
+    assert 2.5 < c1 < 3.0 and 1.9 < c2 < 2.1
+
+
+def test_a_look_closes_the_resolved_pairs_and_only_suts_with_an_open_pair_run_the_next():
+    start = {p: PLAN.judge([]) for p in ls.all_pairs(NAMES)}
+    assert list(start) == [("c", "b"), ("c", "a"), ("b", "a")]
+    assert ls.needing(NAMES, start) == NAMES
+    first = ls.judge_open(PLAN, start, d_of(4), 4)
+    assert {p: (v.verdict, v.episodes, v.looks) for p, v in first.items()} == {
+        ("c", "b"): ("continue", 4, 1), ("c", "a"): ("b_higher", 4, 1), ("b", "a"): ("b_higher", 4, 1)}
+    c1, c2 = boundaries((0.5, 1.0), 0.05, "obrien_fleming")
+    b_a = [-0.5, -0.502, -0.498, -0.5]
+    sd = math.sqrt(sum((x + 0.5) ** 2 for x in b_a) / 3)
+    v = first[("b", "a")]
+    assert (v.mean, v.low, v.high) == pytest.approx((-0.5, -0.5 - c1 * sd / 2, -0.5 + c1 * sd / 2))
+    assert ls.needing(NAMES, first) == ["c", "b"]  # a's pairs are closed: a runs no more
+    # the closed pairs keep their verdict at look 1; the open one is judged on all 8 episodes
+    second = ls.judge_open(PLAN, first, d_of(8), 8)
+    assert second[("b", "a")] == first[("b", "a")] and second[("c", "a")] == first[("c", "a")]
+    c_b = [D["c"][i] - 0.5 for i in range(8)]
+    mean = sum(c_b) / 8
+    half = c2 * math.sqrt(sum((x - mean) ** 2 for x in c_b) / 7) / math.sqrt(8)
+    v = second[("c", "b")]
+    assert (v.verdict, v.episodes, v.looks) == ("unresolved", 8, 2)
+    assert (v.mean, v.low, v.high) == pytest.approx((-0.05, -0.05 - half, -0.05 + half))
+    assert ls.needing(NAMES, second) == []
+
+
+class Engine:
+    """A stand-in for the run engine: D of :data:`D` per SUT (the round's label) and seed, each run computed once."""
+
+    def __init__(self) -> None:
+        self.saved: dict[str, dict] = {}
+        self.computed: list[tuple[str, int]] = []
+
+    def __call__(self, rounds: list) -> dict:
+        for rnd in rounds:
+            if rnd.key not in self.saved:
+                d = D[rnd.label][rnd.cfg.seed - FIRST]
+                self.saved[rnd.key] = {"seed": rnd.cfg.seed, "report": {
+                    "settings": {"score_form": "comparative"}, "comparative": {
+                    "score": d, "safety": {"score": 1.0}, "progress": {"score": d}, "interaction": {"score": 1.0}}}}
+                self.computed.append((rnd.label, rnd.cfg.seed))
+        return {r.key: self.saved[r.key] for r in rounds}
+
+
+def test_the_looks_run_each_sut_while_it_has_an_open_pair_and_the_tables_rank_and_turn_the_pairs(tmp_path):
+    engine = Engine()
+    load = config_loader(None)
+    overrides = {"c": {"sut.model": "level0"}, "b": {"sut.model": "nilsson"}, "a": {"sut.model": "mobil"}}
+    verdicts, d, rounds, _ = ls.run_looks(PLAN, NAMES, overrides, load, engine)
+    look1 = [(s, seed) for s in NAMES for seed in range(700, 704)]
+    look2 = [(s, seed) for s in ("c", "b") for seed in range(704, 708)]
+    assert engine.computed == look1 + look2 and len(rounds) == 20
+    assert {s: sorted(v) for s, v in d.items()} == {"c": list(SEEDS), "b": list(SEEDS), "a": list(SEEDS[:4])}
+    assert {p: v.verdict for p, v in verdicts.items()} == {("c", "b"): "unresolved", ("c", "a"): "b_higher",
+                                                            ("b", "a"): "b_higher"}
+
+    text, printed = ls.write_tables(tmp_path, PLAN, d, verdicts, rounds, ["--sequential"], 1.0)
+    with (tmp_path / "leaderboard.csv").open(newline="") as f:
+        suts = list(csv.DictReader(f))
+    # ranked by mean D over each SUT's own episodes: a 1.0 (4), b 0.5 (8), c 0.45 (8); a above both (resolved),
+    # b and c not told apart: ranks 1, 2–3, 2–3, letters a, b, b
+    assert [(r["sut"], r["rank_best"], r["rank_worst"], r["letters"], r["episodes"]) for r in suts] == [
+        ("a", "1", "1", "a", "4"), ("b", "2", "3", "b", "8"), ("c", "2", "3", "b", "8")]
+    assert [float(r["d_mean"]) for r in suts] == pytest.approx([1.0, 0.5, 0.45])
+    with (tmp_path / "pairs.csv").open(newline="") as f:
+        pairs = list(csv.DictReader(f))
+    assert [(p["sut_a"], p["sut_b"], p["verdict"], p["episodes"], p["looks"]) for p in pairs] == [
+        ("a", "b", "a_higher", "4", "1"), ("a", "c", "a_higher", "4", "1"), ("b", "c", "unresolved", "8", "2")]
+    # turned round: a − b is −(b − a), its interval [−high, −low]
+    ba = verdicts[("b", "a")]
+    assert [float(pairs[0][k]) for k in ("mean", "low", "high")] == pytest.approx([-ba.mean, -ba.high, -ba.low])
+    assert float(pairs[1]["mean"]) == pytest.approx(0.55) and float(pairs[2]["mean"]) == pytest.approx(0.05)
+    assert "| a | b | a > b | +0.5000 [" in printed and "| b | c | unresolved | +0.0500 [" in printed
+    assert "| 2 | 2–3 | b | b |" in printed and text.endswith("python scripts/leaderboard.py --sequential\n")
+
+
+@pytest.fixture(scope="module")
+def door():
+    """The script as a module (scripts/ on sys.path for its _bootstrap import)."""
+    sys.path.insert(0, str(REPO / "scripts"))
+    try:
+        spec = importlib.util.spec_from_file_location("leaderboard", REPO / "scripts" / "leaderboard.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(REPO / "scripts"))
+    return module
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["--sequential", "--episodes", "3"], "error: --sequential and --episodes together: the sequential design "
+                                          "runs rounds of --round-size episodes from --first-seed up to --budget"),
+    (["--sequential", "--blocks", "2"], "error: --sequential and --blocks together"),
+    (["--sequential", "--block-size", "5"], "error: --sequential and --block-size together"),
+    (["--sequential", "--seed-blocks", "1:4"], "error: --sequential and --seed-blocks together"),
+    (["--budget", "8"], "error: --budget applies with --sequential only"),
+    (["--spending", "pocock"], "error: --spending applies with --sequential only"),
+    (["--sequential", "--round-size", "9", "--budget", "8"], "error: --round-size 9 exceeds --budget 8"),
+    (["--sequential", "--round-size", "1"], "error: --round-size = '1': expected an integer >= 2"),
+    (["--sequential", "--delta", "0"], "error: --delta = '0': expected a number > 0"),
+    (["--sequential", "--spending", "linear"], "error: --spending 'linear': expected one of obrien_fleming, pocock"),
+    (["--sequential", "--suts", "mobil,warp"], "error: --suts: 'warp' is no installed SUT model to rank"),
+    (["--sequential", "--mutant-refs", "nosuch"], "error: --mutant-refs: unknown mutant 'nosuch'"),
+])
+def test_bad_input_is_one_line_and_exit_2_before_anything_is_written(door, tmp_path, capsys, args, expected):
+    out = tmp_path / "out"
+    assert door.main([*args, "--out", str(out)]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    assert len(err) == 1 and err[0].startswith(expected), err
+    assert not out.exists()
+
+
+@pytest.mark.e2e
+def test_a_small_real_run_uses_whole_rounds_within_the_budget(tmp_path):
+    out = tmp_path / "lb"
+    res = subprocess.run([sys.executable, "scripts/leaderboard.py", "--suts", "mobil,level0", "--reference", "level0",
+                          "--mutant-refs", "none", "--sequential", "--round-size", "2", "--budget", "4",
+                          "--episode-steps", "30", "--jobs", "1", "--challenge", "none", "--out", str(out)],
+                         cwd=REPO, capture_output=True, text=True, timeout=300, check=False)
+    assert res.returncode == 0, res.stderr
+    with (out / "pairs.csv").open(newline="") as f:
+        (pair,) = csv.DictReader(f)
+    with (out / "leaderboard.csv").open(newline="") as f:
+        suts = list(csv.DictReader(f))
+    n = int(pair["episodes"])
+    assert n in (2, 4) and int(pair["looks"]) == n // 2  # whole rounds of 2, at most the budget of 4
+    assert {pair["sut_a"], pair["sut_b"]} == {"mobil", "level0"} and pair["sut_a"] == suts[0]["sut"]
+    assert [r["episodes"] for r in suts] == [str(n), str(n)]  # the pair's episodes, run by both
+    # both ran the same seeds: the pair's mean difference is the difference of the SUTs' means
+    assert float(pair["mean"]) == pytest.approx(float(suts[0]["d_mean"]) - float(suts[1]["d_mean"]), abs=1e-12)
+    low, high = float(pair["low"]), float(pair["high"])
+    assert low < float(pair["mean"]) < high
+    expected = ("a_higher" if low > 0 else "b_higher" if high < 0 else
+                "equivalent" if -0.005 < low and high < 0.005 else "unresolved" if n == 4 else None)
+    assert pair["verdict"] == expected
+    text = (out / "leaderboard.md").read_text(encoding="utf-8")
+    assert "# Planner leaderboard: sequential verdicts" in text and "| a | b | verdict | ΔD = a − b [RCI] |" in text
+    assert f"| {pair['sut_a']} | {pair['sut_b']} |" in res.stdout and (out / "timing.json").is_file()
