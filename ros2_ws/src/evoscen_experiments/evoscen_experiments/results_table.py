@@ -172,7 +172,8 @@ def results_markdown(results: Results) -> str:
               f"§10), mean ± half-width of the 95 % interval over {over}, every SUT on the same seeds (paired by "
               f"seed); defects detected: library defects (`frozen`, a profile, not counted) whose paired interval "
               f"of ΔD = intact − mutant lies above zero, "
-              f"n = {results.defects_n} paired episodes ({_seeds(results.defects_seeds)}); the commands: "
+              f"n = {results.defects_n} paired episodes ({_seeds(results.defects_seeds)}) of the sensitivity "
+              f"experiment's scenario (the challenge scenario by default, docs/challenges.md); the commands: "
               f"[{results.name}]({results.name})."]
     return "\n".join(lines)
 
