@@ -194,3 +194,33 @@ def test_comparative_experiments_default_to_the_challenge_scenario():
     assert config_loader(None)({"seed": "3"}).challenge.mode == "none"
     with pytest.raises(InputError, match=r"^--challenge: expected one of none, naturalistic, nade, got 'x'$"):
         challenge_mode("x")
+
+
+def test_a_challenge_bag_scores_again_and_exports_like_any_other(tmp_path):
+    """A recorded `nade` run: its bag scored alone gives the report's challenge section and D; it exports as
+    OpenSCENARIO across an onset."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    cfg_file = tmp_path / "nade.yaml"
+    cfg_file.write_text("challenge:\n  mode: nade\n", encoding="utf-8")
+    run = [sys.executable, str(repo / "scripts" / "run_scenario.py"), "--mode", "inprocess", "--config", str(cfg_file),
+           "--sut", "mobil", "--steps", "300", "--seed", "990004", "--no-plots", "--out", str(tmp_path / "run")]
+    assert subprocess.run(run, capture_output=True, text=True, timeout=300).returncode == 0
+    report = json.loads((tmp_path / "run" / "report" / "report.json").read_text(encoding="utf-8"))
+    assert report["challenge"]["count"] >= 1 and report["challenge"]["complete"]
+    again = [sys.executable, str(repo / "scripts" / "evaluate.py"), str(tmp_path / "run" / "bag"), "--no-plots",
+             "--out", str(tmp_path / "again")]
+    assert subprocess.run(again, capture_output=True, text=True, timeout=300).returncode == 0
+    rescored = json.loads((tmp_path / "again" / "report.json").read_text(encoding="utf-8"))
+    assert rescored["challenge"] == report["challenge"] and rescored["comparative"] == report["comparative"]
+    t = report["challenge"]["onsets"][0]["time_s"]
+    export = [sys.executable, str(repo / "scripts" / "export_scenario.py"), str(tmp_path / "run" / "bag"),
+              "--from", f"{max(0.0, t - 3):.1f}", "--to", f"{min(30.0, t + 3):.1f}", "--format", "xosc",
+              "--out", str(tmp_path / "xosc")]
+    p = subprocess.run(export, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "xosc" / "scenario.xosc").stat().st_size > 1000
