@@ -54,3 +54,22 @@ def test_bad_input_one_line(args, text, tmp_path):
     p = subprocess.run([sys.executable, str(REPO / "scripts" / "challenge_rates.py"), *args, "--out", str(tmp_path)],
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and p.stderr.count("\n") == 1 and text in p.stderr and p.stderr.startswith("error: ")
+
+
+def test_weighted_mean_by_hand():
+    """(1·2 + 3·0.5) / 2.5 = 1.4; z = w (x − m) = (−0.8, 0.8); var = 2/1 · 1.28 / 2.5² (None left out)."""
+    from evoscen_experiments.stats import mean_ci_weighted
+
+    m, half = mean_ci_weighted([1.0, None, 3.0], [2.0, 7.0, 0.5])
+    assert m == pytest.approx(1.4)
+    assert half == pytest.approx(Z95 * math.sqrt(2.0 * (0.8**2 + 0.8**2) / 2.5**2))
+    assert mean_ci_weighted([1.0, 3.0], [1.0, 1.0])[0] == 2.0
+
+
+def test_intelligence_means_are_weighted_only_for_challenge_runs():
+    from evoscen_experiments.intelligence_experiment import _estimator
+
+    plain = _estimator([{"x": 1}, {"x": 2}])
+    assert plain([1.0, 3.0])[0] == 2.0
+    weighted = _estimator([{"challenge": {"weight": 3.0}}, {"challenge": {"weight": 1.0}}])
+    assert weighted([1.0, 3.0])[0] == pytest.approx((3.0 + 3.0) / 4.0)

@@ -69,7 +69,10 @@ def main(args) -> int:
     text = (f"# Intelligence experiment\n\n{len(suts)} SUTs x {seeds} seeds ({first}..{first + seeds - 1}), "
             f"{any_cfg.steps} steps, {any_cfg.bvs.count} BVs ({any_cfg.bvs.driver}, mix {args.mix}); weights "
             f"{any_cfg.evaluation.weight_safety:g}/{any_cfg.evaluation.weight_efficiency:g}/"
-            f"{any_cfg.evaluation.weight_interaction:g}; mean ± 95 % interval over seeds.\n\n{table}\n"
+            f"{any_cfg.evaluation.weight_interaction:g}; mean ± 95 % interval over seeds"
+            + (f"; challenge.mode {any_cfg.challenge.mode}: every mean weighted by its runs' likelihood ratios p/q "
+               "(the naturalistic means; interval by linearisation, docs/challenges.md), the paired comparisons "
+               "raw (the same challenges for both)" if any_cfg.challenge.mode == "nade" else "") + f".\n\n{table}\n"
             + (f"Paired comparisons (the same seeds: same traffic and random streams; mean ± 95 % interval of "
                f"the per-seed difference):\n\n{pair_table}\nThe efficiency term I_e alone, paired the same way:\n\n"
                f"{eff_table}\n" if pair_table else "") +
@@ -100,15 +103,16 @@ def per_sut_tables(out: Path, suts: list[str], rounds, results) -> tuple[str, st
     for sut in suts:
         rs = [results[r.key] for r in rounds if r.label == sut]
         reps = [r["report"] for r in rs]
-        cols = [mean_ci([x["intelligence"]["weighted"][k] for x in reps]) for k in ("safety", "efficiency", "interaction")]
-        total = mean_ci([x["intelligence"]["score"] for x in reps])
-        col = mean_ci([x["safety"]["collisions"] for x in reps])
-        exp = mean_ci([x["safety"]["exposures"] for x in reps])
-        comp = mean_ci([x["comparative"]["score"] for x in reps])  # docs/evaluation.md §10
+        ci = _estimator(reps)
+        cols = [ci([x["intelligence"]["weighted"][k] for x in reps]) for k in ("safety", "efficiency", "interaction")]
+        total = ci([x["intelligence"]["score"] for x in reps])
+        col = ci([x["safety"]["collisions"] for x in reps])
+        exp = ci([x["safety"]["exposures"] for x in reps])
+        comp = ci([x["comparative"]["score"] for x in reps])  # docs/evaluation.md §10
         rows.append([sut, *(fmt_ci(*c) for c in cols), fmt_ci(*total), fmt_ci(*col, 2), fmt_ci(*exp, 2), str(len(reps)),
                      fmt_ci(*comp)])
         csv_rows.append([sut, *(v for c in (*cols, total, col, exp) for v in c), len(reps), *comp])
-        rates = [mean_ci([v for v in (ssm_rate(x, side, m) for x in reps) if v == v]) for side, m in SSM_RATES]  # v == v: not nan
+        rates = [ci([v if v == v else None for v in (ssm_rate(x, side, m) for x in reps)]) for side, m in SSM_RATES]
         ssm_rows.append([sut, *(fmt_ci(*c, 2) for c in rates), str(len(reps))])
         ssm_csv.append([sut, *(v for c in rates for v in c), len(reps)])
         for r in rs:
@@ -129,6 +133,18 @@ def per_sut_tables(out: Path, suts: list[str], rounds, results) -> tuple[str, st
     first_report = results[rounds[0].key]["report"]
     ssm_table = markdown_table(["SUT", *(ssm_label(side, m, first_report) for side, m in SSM_RATES), "seeds"], ssm_rows)
     return markdown_table(header, rows), ssm_table
+
+
+def _estimator(reports: list[dict]):
+    """How a SUT's means are taken over its runs: ``mean_ci`` (Student-t interval); for runs of the challenge
+    scenario, weighted by their likelihood ratios p/q (``mean_ci_weighted``: the naturalistic means,
+    docs/challenges.md). A value None (undefined) or nan is left out."""
+    from evoscen_experiments.stats import mean_ci_weighted
+
+    weights = [(x.get("challenge") or {}).get("weight", 1.0) for x in reports]
+    if not any("challenge" in x for x in reports):
+        return lambda values: mean_ci([v for v in values if v is not None and v == v])
+    return lambda values: mean_ci_weighted([v if v is not None and v == v else None for v in values], weights)
 
 
 def paired_comparisons(suts: list[str], rounds, results, section: str = "intelligence"

@@ -21,6 +21,21 @@ def mean_ci(values: Sequence[float]) -> tuple[float, float]:
     return float(x.mean()), half
 
 
+def mean_ci_weighted(values: Sequence[float | None], weights: Sequence[float]) -> tuple[float, float]:
+    """The weighted mean Σ w·x / Σ w of the values that are not None (a run of the challenge scenario weighted
+    by its likelihood ratio p/q: the naturalistic mean, docs/challenges.md) and the half-width of its 95 %
+    interval by linearisation, 1.96 · √(n/(n−1) · Σ (w (x − m))² / (Σ w)²) (``nan`` with fewer than 2 values)."""
+    pairs = [(float(v), float(w)) for v, w in zip(values, weights) if v is not None]
+    if not pairs:
+        return math.nan, math.nan
+    x, w = (np.array(c) for c in zip(*pairs))
+    m = float((w * x).sum() / w.sum())
+    if x.size < 2:
+        return m, math.nan
+    z = w * (x - m)
+    return m, 1.959963984540054 * math.sqrt(x.size / (x.size - 1) * float((z * z).sum()) / float(w.sum()) ** 2)
+
+
 def fmt_ci(mean: float, half: float, digits: int = 4) -> str:
     """``mean ± half`` (just the mean when the interval is undefined; – without a mean)."""
     if math.isnan(mean):
