@@ -224,3 +224,20 @@ def test_a_challenge_bag_scores_again_and_exports_like_any_other(tmp_path):
     p = subprocess.run(export, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert (tmp_path / "xosc" / "scenario.xosc").stat().st_size > 1000
+
+
+def test_a_paired_campaign_spec_runs_the_challenge_scenario(tmp_path):
+    from evoscen_experiments.campaign_spec import load_spec
+
+    def spec(text: str):
+        p = tmp_path / "spec.yaml"
+        p.write_text(text, encoding="utf-8")
+        return load_spec(p)
+
+    grid = "grid:\n  mutant: [intact, stale]\n"
+    assert spec(grid + "compare: {axis: mutant, reference: intact}\n").fixed["challenge.mode"] == "nade"
+    assert "challenge.mode" not in spec(grid).fixed  # no pair: the config's scenario
+    kept = spec("set:\n  challenge.mode: none\n" + grid + "compare: {axis: mutant, reference: intact}\n")
+    assert kept.fixed["challenge.mode"] == "none"
+    axis = spec("grid:\n  challenge.mode: [none, nade]\ncompare: {axis: challenge.mode, reference: none}\n")
+    assert "challenge.mode" not in axis.fixed and axis.grid["challenge.mode"] == ("none", "nade")

@@ -27,6 +27,12 @@ import yaml
 from evoscen_sim.config.scenario_config import ScenarioConfig, config_to_dict, load_scenario_config
 from evoscen_sim.errors import InputError
 
+CHALLENGE_KEY = "challenge.mode"
+COMPARED_CHALLENGE = "nade"
+"""[choice] A spec with ``compare`` (a paired design) runs the challenge scenario unless ``set`` or ``grid`` names
+``challenge.mode``: a harder test, the same for both members of a pair, as the sensitivity experiment and the
+leaderboard (docs/challenges.md)."""
+
 SPEC_KEYS = ("name", "config", "steps", "seeds", "set", "grid", "record", "clip_s", "compare")
 RECORD_MODES = ("none", "events", "all")
 MUTANT_AXIS = "mutant"
@@ -122,8 +128,10 @@ def load_spec(path: Path | str) -> Spec:
                 or compare["axis"] not in axes or _text(compare["reference"]) not in axes[compare["axis"]]):
             raise _err(path, "compare", compare, "{axis: <a grid axis>, reference: <one of its values>}")
         compare = (str(compare["axis"]), _text(compare["reference"]))
-    return Spec(path, name.strip(), config, steps, seeds, {str(k): _text(v) for k, v in fixed.items()}, axes,
-                record, compare, float(clip_s))
+    fixed = {str(k): _text(v) for k, v in fixed.items()}
+    if compare is not None and CHALLENGE_KEY not in fixed and CHALLENGE_KEY not in axes:
+        fixed[CHALLENGE_KEY] = COMPARED_CHALLENGE  # a paired design: the challenge scenario (docs/challenges.md)
+    return Spec(path, name.strip(), config, steps, seeds, fixed, axes, record, compare, float(clip_s))
 
 
 def _text(value: Any) -> str:
