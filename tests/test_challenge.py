@@ -241,3 +241,12 @@ def test_a_paired_campaign_spec_runs_the_challenge_scenario(tmp_path):
     assert kept.fixed["challenge.mode"] == "none"
     axis = spec("grid:\n  challenge.mode: [none, nade]\ncompare: {axis: challenge.mode, reference: none}\n")
     assert "challenge.mode" not in axis.fixed and axis.grid["challenge.mode"] == ("none", "nade")
+
+
+def test_an_entering_vehicle_brings_no_braking_with_it():
+    layer = LeaderBraking(2, OnsetProcess(per_1000km=1.0e6), None, np.random.default_rng(4))
+    _, onsets = layer.apply(_world(20.0, 25.0, 30.0, 0), np.zeros(2))
+    assert onsets and layer.until_step[1] > 1
+    layer.entered([1])
+    thr, _ = layer.apply(_world(120.0, 25.0, 30.0, 1), np.full(2, 0.3))  # beyond the view: no new onset
+    assert layer.until_step[1] == -1 and thr[1] == 0.3

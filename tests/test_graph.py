@@ -641,3 +641,20 @@ def test_no_bvs_graph_bag_equals_inprocess_bag(tmp_path):
     assert _steps(_stamps(i, "/evoscen/commands/sut")) == list(range(30))
     assert (g_dir / "metadata.yaml").read_bytes() == (i_dir / "metadata.yaml").read_bytes(), "metadata.yaml differs"
     assert (g_dir / "bag_0.mcap").read_bytes() == (i_dir / "bag_0.mcap").read_bytes(), "bag_0.mcap differs"
+
+
+def test_challenge_graph_bag_equals_inprocess_bag(tmp_path):
+    """``challenge.mode: nade`` (docs/challenges.md): the layer runs in the simulation, so the graph and the
+    in-process runner record the same bytes, its onsets and the run's weight included (seed 990004 has two
+    onsets in 300 steps; 150 steps hold the first)."""
+    config = tmp_path / "nade.yaml"
+    config.write_text("challenge: {mode: nade}\n")
+    args = ("--config", config, "--sut", "mobil", "--steps", 150, "--seed", 990004)
+    graph = _run_cli("--mode", "graph", *args, "--out", tmp_path / "graph")
+    assert graph.returncode == 0, graph.stderr
+    inproc = _run_cli("--mode", "inprocess", *args, "--out", tmp_path / "inproc", "--quiet", "--no-plots")
+    assert inproc.returncode == 0, inproc.stderr
+    g_dir, i_dir = tmp_path / "graph" / "bag", tmp_path / "inproc" / "bag"
+    assert (g_dir / "bag_0.mcap").read_bytes() == (i_dir / "bag_0.mcap").read_bytes(), "bag_0.mcap differs"
+    report = json.loads((tmp_path / "graph" / "report" / "report.json").read_text(encoding="utf-8"))
+    assert report["challenge"]["count"] >= 1 and report["challenge"]["complete"]

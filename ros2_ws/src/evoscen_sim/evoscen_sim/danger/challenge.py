@@ -161,6 +161,10 @@ class LeaderBraking:
         self.onsets.append((step, onset))
         return onset
 
+    def entered(self, vehicles) -> None:
+        """``vehicles`` entered the traffic window anew (their slots reused): an episode in progress ends."""
+        self.until_step[np.asarray(vehicles, dtype=np.int64)] = -1
+
     @property
     def weight(self) -> float:
         """The likelihood ratio p/q of the run so far."""

@@ -49,7 +49,7 @@ def step_events(world, result) -> list[dict]:
         events.append({"name": EVENT_SHIFT, "message": f"every vehicle moved back by {result.shift_m:.1f} m "
                        "(the traffic window; relative positions kept)", **common, "shift_m": float(result.shift_m)})
     sut = ids[int(np.flatnonzero(world.role == ROLE_SUT)[0])] if result.challenges else 0
-    for o in result.challenges:  # the step's onsets: stamped with the state they acted on (step - 1)
+    for o in result.challenges:  # the step's onsets, stamped as its other events (the state after it)
         events.append({"name": EVENT_CHALLENGE, "message": f"vehicle {ids[o.vehicle]}, the SUT's leader at "
                        f"{o.headway_s:.2f} s, brakes at {o.decel_mps2:.1f} m/s² for {o.duration_s:.1f} s "
                        f"(q/p {o.multiplier:g})", **common, "ids": [int(ids[o.vehicle]), int(sut)],

@@ -321,6 +321,9 @@ class World:
                     result.reentries.append(self._reenter(int(i)))
                 self._refresh_road_lookups()
 
+        if self.challenge is not None and result.reentries:  # an entering vehicle brings no braking with it
+            self.challenge.entered([i for i, _, _ in result.reentries])
+
         # 5. collisions (rising edge of each overlapping pair)
         pairs = overlapping_pairs(self.s, self.d, self.psi, self.length, self.width)
         contacts = {(int(i), int(j)) for i, j in pairs}
