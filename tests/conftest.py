@@ -158,6 +158,24 @@ def summary_of():
     return parse_summary
 
 
+def load_door_module(name: str):
+    """``scripts/<name>.py`` as a module (scripts/ on sys.path while it loads, for its _bootstrap import)."""
+    sys.path.insert(0, str(REPO / "scripts"))
+    try:
+        spec = importlib.util.spec_from_file_location(name, REPO / "scripts" / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(REPO / "scripts"))
+    return module
+
+
+@pytest.fixture(scope="session")
+def load_door():
+    """:func:`load_door_module`: a script of scripts/ as a module (test modules cannot import each other)."""
+    return load_door_module
+
+
 # ---------------------------------------------------------------------- plug-in packages
 
 EXAMPLES = REPO / "examples"

@@ -169,26 +169,14 @@ def test_recorded_scenario_keeps_the_section_only_when_set():
     assert recorded_scenario(_config(**{"challenge.mode": "nade"}))["challenge"]["mode"] == "nade"
 
 
-def test_comparative_experiments_default_to_the_challenge_scenario():
+def test_comparative_experiments_default_to_the_challenge_scenario(load_door):
     """Sensitivity and leaderboard runs take ``--challenge`` [nade] as every run's challenge.mode, over the
     config's; a bad value is one line."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
     from evoscen.experiment_runs import sensitivity_parser
     from evoscen_experiments.experiments import challenge_mode, config_loader
 
     assert sensitivity_parser().parse_args([]).challenge == "nade"
-    scripts = str(Path(__file__).resolve().parents[1] / "scripts")
-    sys.path.insert(0, scripts)  # the door's _bootstrap import
-    try:
-        spec = importlib.util.spec_from_file_location("leaderboard_door", f"{scripts}/leaderboard.py")
-        door = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(door)
-    finally:
-        sys.path.remove(scripts)
-    assert door.parse_args([]).challenge == "nade"
+    assert load_door("leaderboard").parse_args([]).challenge == "nade"
     assert challenge_mode(None) == "nade" and challenge_mode("none") == "none"
     assert config_loader(None, "nade")({"seed": "3"}).challenge.mode == "nade"
     assert config_loader(None)({"seed": "3"}).challenge.mode == "none"

@@ -5,7 +5,6 @@ a look, which pairs close, values by hand), the tables turned to the ranking, an
 from __future__ import annotations
 
 import csv
-import importlib.util
 import math
 import subprocess
 import sys
@@ -120,16 +119,9 @@ def test_the_looks_run_each_sut_while_it_has_an_open_pair_and_the_tables_rank_an
 
 
 @pytest.fixture(scope="module")
-def door():
-    """The script as a module (scripts/ on sys.path for its _bootstrap import)."""
-    sys.path.insert(0, str(REPO / "scripts"))
-    try:
-        spec = importlib.util.spec_from_file_location("leaderboard", REPO / "scripts" / "leaderboard.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    finally:
-        sys.path.remove(str(REPO / "scripts"))
-    return module
+def door(load_door):
+    """The script as a module."""
+    return load_door("leaderboard")
 
 
 @pytest.mark.parametrize("args, expected", [
