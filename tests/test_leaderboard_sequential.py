@@ -108,13 +108,17 @@ def test_the_looks_run_each_sut_while_it_has_an_open_pair_and_the_tables_rank_an
     assert [float(r["d_mean"]) for r in suts] == pytest.approx([1.0, 0.5, 0.45])
     with (tmp_path / "pairs.csv").open(newline="") as f:
         pairs = list(csv.DictReader(f))
-    assert [(p["sut_a"], p["sut_b"], p["verdict"], p["episodes"], p["looks"]) for p in pairs] == [
+    assert [(p["a"], p["b"], p["verdict"], p["episodes"], p["looks"]) for p in pairs] == [
         ("a", "b", "a_higher", "4", "1"), ("a", "c", "a_higher", "4", "1"), ("b", "c", "unresolved", "8", "2")]
+    # b − c = 0.05 ∓ 0.1 over 8 episodes: sd 0.1069, ((1.95996 + 0.84162) x 0.1069 / 0.05)² = 35.88 -> 36 needed
+    # by a fixed design; the resolved pairs state none
+    assert [p["episodes_needed"] for p in pairs] == ["", "", "36"]
     # turned round: a − b is −(b − a), its interval [−high, −low]
     ba = verdicts[("b", "a")]
-    assert [float(pairs[0][k]) for k in ("mean", "low", "high")] == pytest.approx([-ba.mean, -ba.high, -ba.low])
-    assert float(pairs[1]["mean"]) == pytest.approx(0.55) and float(pairs[2]["mean"]) == pytest.approx(0.05)
-    assert "| a | b | a > b | +0.5000 [" in printed and "| b | c | unresolved | +0.0500 [" in printed
+    assert [float(pairs[0][f"delta_d_{k}"]) for k in ("mean", "low", "high")] == pytest.approx(
+        [-ba.mean, -ba.high, -ba.low])
+    assert float(pairs[1]["delta_d_mean"]) == pytest.approx(0.55) and float(pairs[2]["delta_d_mean"]) == pytest.approx(0.05)
+    assert "| a | b | a > b | +0.5000 [" in printed and "| b | c | unresolved | +0.0500 [" in printed and "| 8 | 2 | 36 |" in printed
     assert "| 2 | 2–3 | b | b |" in printed and text.endswith("python scripts/leaderboard.py --sequential\n")
 
 
@@ -161,15 +165,15 @@ def test_a_small_real_run_uses_whole_rounds_within_the_budget(tmp_path):
         suts = list(csv.DictReader(f))
     n = int(pair["episodes"])
     assert n in (2, 4) and int(pair["looks"]) == n // 2  # whole rounds of 2, at most the budget of 4
-    assert {pair["sut_a"], pair["sut_b"]} == {"mobil", "level0"} and pair["sut_a"] == suts[0]["sut"]
+    assert {pair["a"], pair["b"]} == {"mobil", "level0"} and pair["a"] == suts[0]["sut"]
     assert [r["episodes"] for r in suts] == [str(n), str(n)]  # the pair's episodes, run by both
     # both ran the same seeds: the pair's mean difference is the difference of the SUTs' means
-    assert float(pair["mean"]) == pytest.approx(float(suts[0]["d_mean"]) - float(suts[1]["d_mean"]), abs=1e-12)
-    low, high = float(pair["low"]), float(pair["high"])
-    assert low < float(pair["mean"]) < high
+    assert float(pair["delta_d_mean"]) == pytest.approx(float(suts[0]["d_mean"]) - float(suts[1]["d_mean"]), abs=1e-12)
+    low, high = float(pair["delta_d_low"]), float(pair["delta_d_high"])
+    assert low < float(pair["delta_d_mean"]) < high
     expected = ("a_higher" if low > 0 else "b_higher" if high < 0 else
                 "equivalent" if -0.005 < low and high < 0.005 else "unresolved" if n == 4 else None)
     assert pair["verdict"] == expected
     text = (out / "leaderboard.md").read_text(encoding="utf-8")
     assert "# Planner leaderboard: sequential verdicts" in text and "| a | b | verdict | ΔD = a − b [RCI] |" in text
-    assert f"| {pair['sut_a']} | {pair['sut_b']} |" in res.stdout and (out / "timing.json").is_file()
+    assert f"| {pair['a']} | {pair['b']} |" in res.stdout and (out / "timing.json").is_file()

@@ -97,6 +97,8 @@ def test_rounds_go_only_to_unresolved_comparisons_and_each_stops_at_its_verdict(
     assert rows["frozen"]["role"] == "profile" and rows["stale"]["role"] == "defect"
     assert (rows["late_braking"]["episodes"], rows["late_braking"]["looks"]) == ("8", "2")
     assert float(rows["stale"]["delta_d_mean"]) == pytest.approx(1.0)
+    # weak_braking unresolved at mean 0: no episodes would resolve it; resolved ones state none
+    assert {m: rows[m]["episodes_needed"] for m in DIFFS} == {m: "" for m in DIFFS}
     with (tmp_path / "verdict_counts.csv").open(newline="") as f:
         (count,) = csv.DictReader(f)
     # frozen's "worse" is not counted: 1 of the 4 defects
@@ -171,3 +173,22 @@ def test_column_names_name_d():
     assert {"d_intact_mean", "d_intact_ci95"} <= set(st.SCORES_CSV)
     assert {"delta_d_mean", "delta_d_ci95"} <= set(st.BLOCKS_CSV) and "d" in st.ROUNDS_CSV
     assert {"d_mean", "d_ci95", "delta_d_vs_mobil_mean"} <= set(leaderboard.csv_header("mobil"))
+
+
+def test_an_unresolved_comparison_states_the_episodes_a_fixed_design_would_need():
+    # intact − mutant 1, −0.5, 1, −0.5: mean 0.25, sd sqrt(4 x 0.75² / 3) = 0.8660; (1.95996 + 0.84162) x 0.8660
+    # / 0.25 = 9.705, squared 94.19 -> 95 episodes; a resolved comparison states none
+    diffs = [1.0, -0.5, 1.0, -0.5]
+    rounds, results, meta = [], {}, {}
+    for k, x in enumerate(diffs):
+        for variant, d in (("intact", INTACT_D), ("stale", INTACT_D - x)):
+            key = f"{variant}-{k}"
+            rounds.append(SimpleNamespace(key=key, cfg=SimpleNamespace(seed=FIRST + k)))
+            results[key] = {"report": report(d)}
+            meta[key] = ("sequential", "level0", "mobil", variant)
+    comp = ("level0", "mobil", "stale")
+    for words, expected in (("continue", 95), ("unresolved", 95), ("a_higher", None), ("equivalent", None)):
+        v = sq.Verdict(words, 4, 0.25, -1.0, 1.5, 1)
+        assert sq.needed_of(PLAN, comp, v, rounds, results, meta) == expected
+    # only the comparison's own episodes count: the first two give mean 0.25, sd 1.0607 -> (2.8016 x 4.243)² = 141.3
+    assert sq.needed_of(PLAN, comp, sq.Verdict("unresolved", 2, 0.25, -9, 9, 1), rounds, results, meta) == 142

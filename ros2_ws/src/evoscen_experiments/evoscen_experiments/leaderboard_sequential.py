@@ -25,14 +25,15 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 
 from evoscen_experiments.timing import finish
 
-from evoscen_experiments.leaderboard_tiers import WORDS, PairResult, range_text, tiers_of
+from evoscen_experiments.leaderboard_tiers import WORDS, PairResult, episodes_needed, range_text, tiers_of
 from evoscen_experiments.sensitivity import score_of
 from evoscen_experiments.sensitivity_sequential import Plan, plan_of
 from evoscen_experiments.sequential import Verdict
 from evoscen_experiments.stats import fmt_ci, markdown_table, mean_ci
 
 Pair = tuple[str, str]
-PAIRS_CSV = ["sut_a", "sut_b", "verdict", "mean", "low", "high", "episodes", "looks"]
+PAIRS_CSV = ["a", "b", "verdict", "delta_d_mean", "delta_d_low", "delta_d_high", "episodes", "looks",
+             "episodes_needed"]
 SUTS_CSV = ["rank", "rank_best", "rank_worst", "letters", "sut", "d_mean", "d_ci95", "episodes"]
 FLIP = {"a_higher": "b_higher", "b_higher": "a_higher"}
 
@@ -114,6 +115,21 @@ def oriented(verdicts: Mapping[Pair, Verdict], order: Sequence[str]) -> list[Pai
     return sorted(out, key=lambda p: (rank[p.a], rank[p.b]))
 
 
+def with_needed(pairs: Sequence[PairResult], d: Mapping[str, Mapping[int, float]]) -> list[PairResult]:
+    """``pairs`` with, for each unresolved one, the paired episodes a fixed design would need for its observed
+    ΔD (:func:`~evoscen_experiments.leaderboard_tiers.episodes_needed`) over the pair's episodes: the first
+    ``episodes`` seeds both SUTs ran."""
+    out = []
+    for p in pairs:
+        needed = None
+        if p.verdict.verdict == "unresolved":
+            da, db = d.get(p.a, {}), d.get(p.b, {})
+            seeds = sorted(set(da) & set(db))[: p.verdict.episodes]
+            needed = episodes_needed([x for x in (da[s] - db[s] for s in seeds) if math.isfinite(x)])
+        out.append(dataclasses.replace(p, needed=needed))
+    return out
+
+
 def tables(d: Mapping[str, Mapping[int, float]], verdicts: Mapping[Pair, Verdict]) -> tuple[list, list, list, list]:
     """The SUTs ranked by mean D over the episodes each ran, with rank range and letters, and the pairs (a ranked
     above b): Markdown rows and CSV rows of each."""
@@ -121,7 +137,7 @@ def tables(d: Mapping[str, Mapping[int, float]], verdicts: Mapping[Pair, Verdict
 
     stats = {s: mean_ci([v for v in d[s].values() if math.isfinite(v)]) for s in d}
     order = ranked({s: stats[s][0] for s in d})
-    pairs = oriented(verdicts, order)
+    pairs = with_needed(oriented(verdicts, order), d)
     ranges, letters = tiers_of(order, pairs)
     suts_md, suts_csv = [], []
     for rank, s in enumerate(order, 1):
@@ -132,8 +148,9 @@ def tables(d: Mapping[str, Mapping[int, float]], verdicts: Mapping[Pair, Verdict
     for p in pairs:
         v = p.verdict
         pairs_md.append([p.a, p.b, WORDS[v.verdict], f"{v.mean:+.4f} [{v.low:+.4f}, {v.high:+.4f}]", str(v.episodes),
-                         str(v.looks)])
-        pairs_csv.append([p.a, p.b, v.verdict, v.mean, v.low, v.high, v.episodes, v.looks])
+                         str(v.looks), "–" if p.needed is None else f"{p.needed:,}"])
+        pairs_csv.append([p.a, p.b, v.verdict, v.mean, v.low, v.high, v.episodes, v.looks,
+                          "" if p.needed is None else p.needed])
     return suts_md, suts_csv, pairs_md, pairs_csv
 
 
@@ -192,7 +209,8 @@ def write_tables(out: Path, plan: Plan, d: Mapping[str, Mapping[int, float]], ve
     write_csv(out / "leaderboard.csv", SUTS_CSV, suts_csv)
     write_csv(out / "pairs.csv", PAIRS_CSV, pairs_csv)
     printed = (markdown_table(["rank", "rank range", "letters", "SUT", "D ± 95 %", "episodes"], suts_md) + "\n"
-               + markdown_table(["a", "b", "verdict", "ΔD = a − b [RCI]", "episodes", "looks"], pairs_md))
+               + markdown_table(["a", "b", "verdict", "ΔD = a − b [RCI]", "episodes", "looks", "episodes needed"],
+                                pairs_md))
     cfg0 = rounds[0].cfg if rounds else None
     setting = (f", {cfg0.bvs.count} BVs ({cfg0.bvs.driver}), challenge.mode {cfg0.challenge.mode}"
                if cfg0 is not None else "")
@@ -201,8 +219,9 @@ def write_tables(out: Path, plan: Plan, d: Mapping[str, Mapping[int, float]], ve
             f"minus D of b paired by episode, looked at every {plan.round_size} episodes up to {plan.budget}; a "
             f"SUT runs a look while one of its pairs is open, a pair stops at its verdict: a > b (the repeated "
             f"confidence interval, RCI, above 0), a < b (below 0), a ≈ b (inside ±{plan.delta:g}) or unresolved "
-            f"at the budget; {plan.spending} spending, each verdict wrong with probability at most {plan.alpha:g} "
-            f"over all looks (docs/sensitivity.md \"Sequential verdicts\"). SUTs ranked by mean D ± 95 % interval "
+            f"at the budget (with the paired episodes a fixed design would need for its observed ΔD at 80 % "
+            f"power); {plan.spending} spending, each verdict wrong with probability at most {plan.alpha:g} over all looks "
+            f"(docs/sensitivity.md \"Sequential verdicts\"). SUTs ranked by mean D ± 95 % interval "
             f"over the episodes each ran; rank range: the best and worst rank the resolved pairs leave a SUT; "
             f"SUTs sharing a letter are not told apart (Piepho 2004). {len(rounds):,} runs; this command's wall "
             f"time {wall:,.0f} s.\n\n{printed}\nMade by:\n\n    python scripts/leaderboard.py {' '.join(argv)}\n")

@@ -37,7 +37,7 @@ WORDS = {"a_higher": "worse", "b_higher": "better", "equivalent": "equivalent", 
 """A verdict on intact − mutant in the user's words about the mutant (``a_higher``: the intact SUT scores higher,
 so the mutant is *worse*)."""
 VERDICTS_CSV = ["scenario", "bv_driver", "base", "mutant", "class", "role", "verdict", "delta_d_mean",
-                "delta_d_low", "delta_d_high", "episodes", "looks", "budget"]
+                "delta_d_low", "delta_d_high", "episodes", "looks", "budget", "episodes_needed"]
 COUNTS_CSV = ["scenario", "bv_driver", "base", "worse", "better", "equivalent", "unresolved", "defects",
               "profiles", "not_applicable", "runs"]
 CONFLICTS = ("--design long", "--compare-designs", "--episodes", "--seeds", "--steps", "--long-first-seed",
@@ -160,6 +160,25 @@ def verdicts_of(plan: Plan, comps: Sequence[Comparison], d: dict, n: int) -> dic
     return out
 
 
+def needed_of(plan: Plan, comp: Comparison, v: Verdict, rounds: Sequence, results: dict, meta: dict) -> int | None:
+    """For a comparison left unresolved, the paired episodes a fixed design would need to resolve a true ΔD equal to
+    the one observed over its ``v.episodes`` (:func:`evoscen_experiments.leaderboard_tiers.episodes_needed`: 80 %
+    power, two-sided 5 %; the sequential boundaries ask a few per cent more); None for a resolved one."""
+    from evoscen_experiments.leaderboard_tiers import episodes_needed
+
+    if WORDS[v.verdict] != "unresolved":
+        return None
+    scenario, base, mutant = comp
+    d: dict[str, dict[int, float]] = {INTACT: {}, mutant: {}}
+    for r in rounds:
+        design, sc, b, variant = meta[r.key]
+        if (sc, b) == (scenario, base) and variant in d:
+            d[variant][r.cfg.seed] = score_of(results[r.key]["report"], "intelligence")
+    seeds = range(plan.first_seed, plan.first_seed + v.episodes)
+    diffs = [d[INTACT][s] - d[mutant][s] for s in seeds if s in d[INTACT] and s in d[mutant]]
+    return episodes_needed([x for x in diffs if math.isfinite(x)])
+
+
 def run_looks(plan: Plan, comps: Sequence[Comparison], load: Callable,
               run: Callable[[list], dict | None]) -> tuple[dict, list, dict, dict] | None:
     """Run the looks: before each, the comparisons still ``continue`` get its seeds (:func:`look_rounds`),
@@ -232,10 +251,12 @@ def write_tables(out: Path, plan: Plan, bases: Sequence[str], scenarios: Sequenc
             for m in applicable:
                 v = verdicts[(scenario, base, m)]
                 words[m] = WORDS[v.verdict]
+                needed = needed_of(plan, (scenario, base, m), v, rounds, results, meta)
                 rows.append([scenario, drivers[scenario], base, m, LIBRARY[m].klass, role(m), words[m], v.mean,
-                             v.low, v.high, v.episodes, v.looks, plan.budget])
+                             v.low, v.high, v.episodes, v.looks, plan.budget, "" if needed is None else needed])
                 md.append([scenario, base, m if m not in PROFILES else f"{m} (profile)", words[m],
-                           f"{v.mean:+.4f} [{v.low:+.4f}, {v.high:+.4f}]", str(v.episodes), str(v.looks)])
+                           f"{v.mean:+.4f} [{v.low:+.4f}, {v.high:+.4f}]", str(v.episodes), str(v.looks),
+                           "–" if needed is None else f"{needed:,}"])
             defects = [m for m in applicable if m not in PROFILES]
             tally = {w: sum(words[m] == w for m in defects) for w in ("worse", "better", "equivalent", "unresolved")}
             runs = sum(1 for r in rounds if meta[r.key][1:3] == (scenario, base))
@@ -247,7 +268,7 @@ def write_tables(out: Path, plan: Plan, bases: Sequence[str], scenarios: Sequenc
     write_csv(out / "verdict_counts.csv", COUNTS_CSV, counts)
     write_csv(out / "rounds.csv", ROUNDS_CSV, round_rows(SimpleNamespace(name="sequential"), rounds, results, meta))
     table = (markdown_table(["scenario", "SUT", "mutant", "mutant vs intact", "ΔD intact − mutant [RCI]",
-                             "episodes", "looks"], md)
+                             "episodes", "looks", "episodes needed"], md)
              + "\n" + markdown_table(["scenario", "SUT", "worse / applicable defects", "better", "equivalent",
                                       "unresolved", "runs"], md_counts))
     text = (f"# Sensitivity experiment: sequential verdicts\n\n## Sequential verdicts\n\nPer (base, mutant): D of "
@@ -255,7 +276,8 @@ def write_tables(out: Path, plan: Plan, bases: Sequence[str], scenarios: Sequenc
             f"{plan.steps} steps each), looked at every {plan.round_size} episodes up to {plan.budget} "
             f"(docs/sensitivity.md \"Sequential verdicts\"); a comparison stops at its verdict: **worse** (the "
             f"repeated confidence interval, RCI, of ΔD lies above 0: the mutant scores lower), **better** (below "
-            f"0), **equivalent** (inside ±{plan.delta:g}) or **unresolved** at the budget; {plan.spending} "
+            f"0), **equivalent** (inside ±{plan.delta:g}) or **unresolved** at the budget (with the paired episodes a "
+            f"fixed design would need for its observed ΔD at 80 % power); {plan.spending} "
             f"spending, each verdict wrong with probability at most {plan.alpha:g} over all looks. Profiles ("
             f"{', '.join(PROFILES)}) are reported, not counted. Runs: intact and mutant episodes run, an intact "
             f"episode shared by the mutants of its base; {len(rounds):,} in all.\n\n{table}")
