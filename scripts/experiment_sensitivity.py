@@ -8,7 +8,8 @@
                                             [--blocks K] [--block-size N] [--seed-blocks A:B,C:D]
     python scripts/experiment_sensitivity.py --compare-designs [--first-seed S] [--long-first-seed S] ...
     python scripts/experiment_sensitivity.py --sequential [--budget 2000] [--round-size 100] [--delta 0.005]
-                                            [--spending obrien_fleming|pocock] [--episode-steps 300] ...
+                                            [--spending obrien_fleming|pocock] [--episode-steps 300]
+                                            [--first-seed S | --seed-blocks A:B,C:D] ...
 
 For every base SUT model (``--base``) and every scenario (``evolving``: the configuration's BVs; a BV
 driver name: every BV driven by it), the intact model and each mutant that applies to it
@@ -24,7 +25,9 @@ Ray workers and are saved as they finish (an interrupted experiment continues). 
 designs at equal SUT steps into ``--out/episodes`` and ``--out/long`` and compares them in
 ``designs.md``, ``designs.csv`` and ``designs_mutants.csv``; ``--sequential`` runs rounds of paired episodes
 until each (base, mutant) has its verdict (worse, better, equivalent, or unresolved at the budget) into
-``verdicts.csv``, ``verdict_counts.csv``, ``rounds.csv`` and ``sensitivity.md``. ``frozen`` is a profile,
+``verdicts.csv``, ``verdict_counts.csv``, ``rounds.csv`` and ``sensitivity.md``; with ``--seed-blocks`` one
+such design per block (its budget at most the block's seeds) and ``replication.csv``: every verdict per block
+side by side, contradictions (worse in one, better in another) flagged. ``frozen`` is a profile,
 not a defect: reported, not counted in detection. Exit status: 0 done, 2 bad input, 130
 interrupted.
 """

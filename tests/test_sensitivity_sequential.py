@@ -143,7 +143,10 @@ def test_plan_defaults_and_bad_options():
     from evoscen_sim.errors import InputError
 
     for kw, msg in ((dict(sequential=False, budget="8"), "--budget applies with --sequential only"),
-                    (dict(seed_blocks="1:4"), "--sequential and --seed-blocks together"),
+                    (dict(seed_blocks="1:4", first_seed="5"), "--seed-blocks and --first-seed together"),
+                    (dict(seed_blocks="1:400,500:550"), "--seed-blocks: block 500–550 holds 51 seeds, fewer than "
+                                                        "--round-size 100"),
+                    (dict(seed_blocks="1:400,300:800"), "--seed-blocks: blocks 1:400 and 300:800 overlap"),
                     (dict(design="long"), "--sequential and --design long together"),
                     (dict(round_size="9", budget="8"), "--round-size 9 exceeds --budget 8"),
                     (dict(delta="0"), "--delta = '0': expected a number > 0"),
@@ -192,3 +195,48 @@ def test_an_unresolved_comparison_states_the_episodes_a_fixed_design_would_need(
         assert sq.needed_of(PLAN, comp, v, rounds, results, meta) == expected
     # only the comparison's own episodes count: the first two give mean 0.25, sd 1.0607 -> (2.8016 x 4.243)² = 141.3
     assert sq.needed_of(PLAN, comp, sq.Verdict("unresolved", 2, 0.25, -9, 9, 1), rounds, results, meta) == 142
+
+
+def test_seed_blocks_make_one_design_each_and_their_verdicts_stand_side_by_side(load, tmp_path):
+    plan = sq.resolve_plan(args_of(seed_blocks="700:707,800:805", round_size="4", budget="8", delta="0.05",
+                                   episode_steps="20"))
+    # each block from its first seed, its budget at most the block's size (6 seeds: looks at 4 and 6)
+    assert [(p.first_seed, p.budget, p.looks, p.label) for p in plan.parts] == [
+        (700, 8, (4, 8), "700–707"), (800, 6, (4, 6), "800–805")]
+    assert sq.resolve_plan(args_of()).parts[0].label == "0–1999"
+    plan = sq.resolve_plan(args_of(seed_blocks="700:707,800:807", round_size="4", budget="8", delta="0.05",
+                                   episode_steps="20"))
+
+    # block 800: the same differences as block 700, late_braking's turned round (worse there: a contradiction)
+    class Blocks(Engine):
+        def __call__(self, rounds):
+            for rnd in rounds:
+                seed = rnd.cfg.seed
+                if seed >= 800 and rnd.key not in self.saved:
+                    variant = rnd.label.split("--")[2]
+                    x = DIFFS[variant][seed - 800] if variant != "intact" else 0.0
+                    d = INTACT_D - (-x if variant == "late_braking" else x)
+                    self.saved[rnd.key] = {"seed": seed, "steps": 20, "wall_time_s": 0.1, "report": report(d)}
+                    self.computed.append((variant, seed))
+            return super().__call__(rounds)
+
+    engine = Blocks()
+    parts = [(p, *sq.run_looks(p, COMPS, load, engine)) for p in plan.parts]
+    # block 800 mirrors block 700 but for late_braking: the hand values of DIFFS with its sign turned
+    assert {m: v.verdict for (_, _, m), v in parts[1][1].items()} == {
+        "stale": "a_higher", "timid": "equivalent", "late_braking": "a_higher", "weak_braking": "unresolved",
+        "frozen": "a_higher"}
+    table = sq.write_blocks(tmp_path, plan, ["mobil"], ["level0"], list(DIFFS), parts)
+    with (tmp_path / "replication.csv").open(newline="") as f:
+        rep = {r["mutant"]: r for r in csv.DictReader(f)}
+    assert [rep[m]["verdict_block_700_707"] for m in DIFFS] == ["worse", "equivalent", "better", "unresolved",
+                                                                 "worse"]
+    assert [rep[m]["verdict_block_800_807"] for m in DIFFS] == ["worse", "equivalent", "worse", "unresolved",
+                                                                 "worse"]
+    assert [rep[m]["contradiction"] for m in DIFFS] == ["", "", "yes", "", ""]
+    with (tmp_path / "verdict_counts.csv").open(newline="") as f:
+        assert [(r["block"], r["worse"], r["better"]) for r in csv.DictReader(f)] == [("700–707", "1", "1"),
+                                                                                     ("800–807", "2", "0")]
+    assert "| 700–707 | level0 | mobil | 1/4 |" in table and "| 800–807 | level0 | mobil | 2/4 |" in table
+    assert "Contradictions (worse in one block, better in another): level0/mobil/late_braking." in table
+    assert "seed blocks 700–707, 800–807, each a design of its own" in (tmp_path / "sensitivity.md").read_text()

@@ -68,10 +68,12 @@ def sensitivity_parser(doc: str | None = None) -> argparse.ArgumentParser:
     ap.add_argument("--block-size", help="seeds (episodes, or long runs) per block (default: the design's "
                                          f"--episodes {EPISODES} or --seeds {SEEDS})")
     ap.add_argument("--seed-blocks", help="explicit seed blocks 'A:B,C:D' (seeds A..B and C..D, both ends included, "
-                                          "disjoint); replaces --first-seed, --blocks, --block-size")
+                                          "disjoint); replaces --first-seed, --blocks, --block-size; with "
+                                          "--sequential one design per block, its budget at most the block's seeds")
     ap.add_argument("--compare-designs", action="store_true",
                     help="run both designs at equal SUT steps and compare their detection")
-    add_sequential(ap, "sequential verdicts: rounds of --round-size paired episodes (seeds from --first-seed on), "
+    add_sequential(ap, "sequential verdicts: rounds of --round-size paired episodes (seeds from --first-seed on, "
+                       "or from each --seed-blocks block's first), "
                        "each (base, mutant) comparison stopped at its verdict (worse, better, equivalent on D, "
                        "the comparative score) or unresolved at --budget")
     cli.add_jobs(ap)

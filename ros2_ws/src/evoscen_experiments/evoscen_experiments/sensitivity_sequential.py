@@ -12,6 +12,7 @@ what is missing. :func:`run_looks` is the loop, its run function injectable; :fu
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -37,11 +38,11 @@ WORDS = {"a_higher": "worse", "b_higher": "better", "equivalent": "equivalent", 
 """A verdict on intact − mutant in the user's words about the mutant (``a_higher``: the intact SUT scores higher,
 so the mutant is *worse*)."""
 VERDICTS_CSV = ["scenario", "bv_driver", "base", "mutant", "class", "role", "verdict", "delta_d_mean",
-                "delta_d_low", "delta_d_high", "episodes", "looks", "budget", "episodes_needed"]
+                "delta_d_low", "delta_d_high", "episodes", "looks", "budget", "episodes_needed", "block"]
 COUNTS_CSV = ["scenario", "bv_driver", "base", "worse", "better", "equivalent", "unresolved", "defects",
-              "profiles", "not_applicable", "runs"]
+              "profiles", "not_applicable", "runs", "block"]
 CONFLICTS = ("--design long", "--compare-designs", "--episodes", "--seeds", "--steps", "--long-first-seed",
-             "--blocks", "--block-size", "--seed-blocks")
+             "--blocks", "--block-size")
 
 
 @dataclass(frozen=True)
@@ -56,6 +57,23 @@ class Plan:
     steps: int
     first_seed: int
     alpha: float = 0.05
+    blocks: tuple = ()
+    """``--seed-blocks``: the :class:`~evoscen_experiments.replication.SeedBlock` s, each a design of its own
+    (:attr:`parts`); empty: one design from ``first_seed``."""
+
+    @property
+    def parts(self) -> list[Plan]:
+        """One design per seed block: from its first seed, its budget at most the block's size; without blocks,
+        this design."""
+        if not self.blocks:
+            return [self]
+        return [dataclasses.replace(self, first_seed=b.first, budget=min(self.budget, b.size), blocks=())
+                for b in self.blocks]
+
+    @property
+    def label(self) -> str:
+        """The seeds this design may use, ``first–last``."""
+        return f"{self.first_seed}–{self.first_seed + self.budget - 1}"
 
     @property
     def looks(self) -> tuple[int, ...]:
@@ -74,15 +92,15 @@ def resolve_plan(args, episode_steps: str = "300") -> Plan | None:
     without it."""
     given = {"--design long": args.design == "long", "--compare-designs": args.compare_designs,
              "--episodes": args.episodes, "--seeds": args.seeds, "--steps": args.steps,
-             "--long-first-seed": args.long_first_seed, "--blocks": args.blocks, "--block-size": args.block_size,
-             "--seed-blocks": args.seed_blocks}
+             "--long-first-seed": args.long_first_seed, "--blocks": args.blocks, "--block-size": args.block_size}
     return plan_of(args, {f: given[f] for f in CONFLICTS}, episode_steps)
 
 
 def plan_of(args, conflicts: dict[str, object], episode_steps: str = "300") -> Plan | None:
     """The sequential design of parsed options with ``--sequential``, ``--budget``, ``--round-size``, ``--delta``,
     ``--spending``, ``--episode-steps`` and ``--first-seed`` (the sensitivity experiment's and the leaderboard's),
-    None without ``--sequential``. ``conflicts``: the fixed designs' flags (in the order to name them) -> their
+    None without ``--sequential``; with ``--seed-blocks`` one design per block (:attr:`Plan.parts`, the
+    replication of the verdicts). ``conflicts``: the fixed designs' flags (in the order to name them) -> their
     values, None or False where not given. InputError (one line) on a bad value, on a conflicting flag with
     ``--sequential``, or on the sequential flags without it."""
     from evoscen_experiments.experiments import positive_int
@@ -111,7 +129,26 @@ def plan_of(args, conflicts: dict[str, object], episode_steps: str = "300") -> P
     if spending not in SPENDING:
         raise InputError(f"--spending {spending!r}: expected one of {', '.join(SPENDING)}")
     steps = positive_int("--episode-steps", args.episode_steps or episode_steps)
-    return Plan(size, budget, delta, spending, steps, positive_int("--first-seed", args.first_seed, 0))
+    first = positive_int("--first-seed", args.first_seed, 0)
+    return Plan(size, budget, delta, spending, steps, first, blocks=_blocks(args, size))
+
+
+def _blocks(args, round_size: int) -> tuple:
+    """The ``--seed-blocks`` of a sequential design (empty without); InputError (one line) with ``--first-seed``
+    or a block smaller than a round."""
+    from evoscen_experiments.replication import parse_seed_blocks
+
+    text = getattr(args, "seed_blocks", None)
+    if text is None:
+        return ()
+    if args.first_seed not in (None, "0"):
+        raise InputError("--seed-blocks and --first-seed together: the blocks name their seeds")
+    blocks = parse_seed_blocks(text)
+    for b in blocks:
+        if b.size < round_size:
+            raise InputError(f"--seed-blocks: block {b.label} holds {b.size} seeds, fewer than --round-size "
+                             f"{round_size}")
+    return tuple(blocks)
 
 
 Comparison = tuple[str, str, str]
@@ -222,57 +259,116 @@ def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
         looks[0] += 1
         return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"sensitivity, look {looks[0]}")
 
-    done = run_looks(plan, comps, load, run)
-    if done is None:
-        return EXIT_INTERRUPTED
-    table = write_tables(args.out, plan, bases, scenarios, mutants, *done)
+    parts = []
+    for part in plan.parts:
+        done = run_looks(part, comps, load, run)
+        if done is None:
+            return EXIT_INTERRUPTED
+        parts.append((part, *done))
+    table = write_blocks(args.out, plan, bases, scenarios, mutants, parts)
     print(table, end="")
-    print(f"written: {args.out / 'sensitivity.md'}, verdicts.csv, verdict_counts.csv, rounds.csv")
+    print(f"written: {args.out / 'sensitivity.md'}, verdicts.csv, verdict_counts.csv, rounds.csv"
+          + (", replication.csv" if len(parts) > 1 else ""))
     finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 
 def write_tables(out: Path, plan: Plan, bases: Sequence[str], scenarios: Sequence[str], mutants: Sequence[str],
                  verdicts: dict, rounds: list, results: dict, meta: dict) -> str:
-    """``verdicts.csv`` (per comparison), ``verdict_counts.csv`` (per scenario and base: worse / applicable
-    defects), ``rounds.csv`` and ``sensitivity.md``; returns the Markdown tables."""
-    from evoscen_experiments.experiments import write_csv
+    """The tables of one design (:func:`write_blocks`)."""
+    return write_blocks(out, plan, bases, scenarios, mutants, [(plan, verdicts, rounds, results, meta)])
+
+
+def _block_rows(part: Plan, bases: Sequence[str], scenarios: Sequence[str], mutants: Sequence[str], verdicts: dict,
+                rounds: list, results: dict, meta: dict) -> tuple[list, list, list, list, dict]:
+    """One block's rows: ``verdicts.csv``'s, the verdicts' Markdown, ``verdict_counts.csv``'s, the counts'
+    Markdown, and the verdict word per comparison."""
     from evoscen_experiments.replication import applicable_split
-    from evoscen_experiments.sensitivity_tables import ROUNDS_CSV, round_rows
-    from evoscen_experiments.stats import markdown_table
     from evoscen_sut.mutants import LIBRARY
 
     drivers = {meta[r.key][1]: r.cfg.bvs.driver for r in rounds}
-    rows, md, counts, md_counts = [], [], [], []
+    rows, md, counts, md_counts, words = [], [], [], [], {}
     for scenario in scenarios:
         for base in bases:
             applicable, not_applicable = applicable_split(base, mutants)
-            words = {}
             for m in applicable:
                 v = verdicts[(scenario, base, m)]
-                words[m] = WORDS[v.verdict]
-                needed = needed_of(plan, (scenario, base, m), v, rounds, results, meta)
-                rows.append([scenario, drivers[scenario], base, m, LIBRARY[m].klass, role(m), words[m], v.mean,
-                             v.low, v.high, v.episodes, v.looks, plan.budget, "" if needed is None else needed])
-                md.append([scenario, base, m if m not in PROFILES else f"{m} (profile)", words[m],
+                word = words[(scenario, base, m)] = WORDS[v.verdict]
+                needed = needed_of(part, (scenario, base, m), v, rounds, results, meta)
+                rows.append([scenario, drivers.get(scenario, ""), base, m, LIBRARY[m].klass, role(m), word, v.mean,
+                             v.low, v.high, v.episodes, v.looks, part.budget, "" if needed is None else needed,
+                             part.label])
+                md.append([part.label, scenario, base, m if m not in PROFILES else f"{m} (profile)", word,
                            f"{v.mean:+.4f} [{v.low:+.4f}, {v.high:+.4f}]", str(v.episodes), str(v.looks),
                            "–" if needed is None else f"{needed:,}"])
             defects = [m for m in applicable if m not in PROFILES]
-            tally = {w: sum(words[m] == w for m in defects) for w in ("worse", "better", "equivalent", "unresolved")}
+            tally = {w: sum(words[(scenario, base, m)] == w for m in defects)
+                     for w in ("worse", "better", "equivalent", "unresolved")}
             runs = sum(1 for r in rounds if meta[r.key][1:3] == (scenario, base))
-            counts.append([scenario, drivers[scenario], base, *tally.values(), len(defects),
-                           len(applicable) - len(defects), len(not_applicable), runs])
-            md_counts.append([scenario, base, f"{tally['worse']}/{len(defects)}", str(tally["better"]),
+            counts.append([scenario, drivers.get(scenario, ""), base, *tally.values(), len(defects),
+                           len(applicable) - len(defects), len(not_applicable), runs, part.label])
+            md_counts.append([part.label, scenario, base, f"{tally['worse']}/{len(defects)}", str(tally["better"]),
                               str(tally["equivalent"]), str(tally["unresolved"]), f"{runs:,}"])
+    return rows, md, counts, md_counts, words
+
+
+def replication_rows(labels: Sequence[str], words: Sequence[dict]) -> tuple[list, list, list]:
+    """Per comparison its verdict in every block side by side and whether they contradict (worse in one block,
+    better in another): ``replication.csv``'s rows, Markdown rows, and the contradicting comparisons."""
+    rows, md, contradictions = [], [], []
+    for comp in words[0]:
+        per = [w.get(comp, "") for w in words]
+        clash = "worse" in per and "better" in per
+        if clash:
+            contradictions.append(comp)
+        rows.append([*comp, role(comp[2]), *per, "yes" if clash else ""])
+        md.append([*comp, *per, "**yes**" if clash else ""])
+    return rows, md, contradictions
+
+
+def write_blocks(out: Path, plan: Plan, bases: Sequence[str], scenarios: Sequence[str], mutants: Sequence[str],
+                 parts: Sequence[tuple]) -> str:
+    """``verdicts.csv`` (per block and comparison), ``verdict_counts.csv`` (per block, scenario and base: worse /
+    applicable defects), ``rounds.csv``, ``sensitivity.md`` and, with two or more blocks, ``replication.csv``
+    (:func:`replication_rows`); ``parts``: (design, verdicts, rounds, results, meta) per block. Returns the
+    Markdown tables."""
+    from evoscen_experiments.experiments import write_csv
+    from evoscen_experiments.sensitivity_tables import ROUNDS_CSV, round_rows
+    from evoscen_experiments.stats import markdown_table
+
+    several = len(parts) > 1
+    rows, md, counts, md_counts, words, rounds, results, meta = [], [], [], [], [], [], {}, {}
+    for part, p_verdicts, p_rounds, p_results, p_meta in parts:
+        r, m, c, mc, w = _block_rows(part, bases, scenarios, mutants, p_verdicts, p_rounds, p_results, p_meta)
+        rows += r
+        md += m
+        counts += c
+        md_counts += mc
+        words.append(w)
+        rounds += p_rounds
+        results.update(p_results)
+        meta.update(p_meta)
+    cut = 0 if several else 1  # one block: no block column in the Markdown
     write_csv(out / "verdicts.csv", VERDICTS_CSV, rows)
     write_csv(out / "verdict_counts.csv", COUNTS_CSV, counts)
     write_csv(out / "rounds.csv", ROUNDS_CSV, round_rows(SimpleNamespace(name="sequential"), rounds, results, meta))
-    table = (markdown_table(["scenario", "SUT", "mutant", "mutant vs intact", "ΔD intact − mutant [RCI]",
-                             "episodes", "looks", "episodes needed"], md)
-             + "\n" + markdown_table(["scenario", "SUT", "worse / applicable defects", "better", "equivalent",
-                                      "unresolved", "runs"], md_counts))
+    table = (markdown_table(["block", "scenario", "SUT", "mutant", "mutant vs intact", "ΔD intact − mutant [RCI]",
+                             "episodes", "looks", "episodes needed"][cut:], [x[cut:] for x in md])
+             + "\n" + markdown_table(["block", "scenario", "SUT", "worse / applicable defects", "better",
+                                      "equivalent", "unresolved", "runs"][cut:], [x[cut:] for x in md_counts]))
+    labels = [part.label for part, *_ in parts]
+    if several:
+        rep_rows, rep_md, clashes = replication_rows(labels, words)
+        write_csv(out / "replication.csv", ["scenario", "base", "mutant", "role",
+                                            *(f"verdict_block_{x.replace('–', '_')}" for x in labels),
+                                            "contradiction"], rep_rows)
+        table += ("\n" + markdown_table(["scenario", "SUT", "mutant", *labels, "contradiction"], rep_md)
+                  + f"\nContradictions (worse in one block, better in another): "
+                    f"{', '.join('/'.join(c) for c in clashes) or 'none'}.\n")
+    seeds = (f"seed blocks {', '.join(labels)}, each a design of its own from its first seed"
+             if several else f"seeds {plan.first_seed} on")
     text = (f"# Sensitivity experiment: sequential verdicts\n\n## Sequential verdicts\n\nPer (base, mutant): D of "
-            f"the intact SUT minus D of the mutant, paired by episode (seeds {plan.first_seed} on, in order, "
+            f"the intact SUT minus D of the mutant, paired by episode ({seeds}, in order, "
             f"{plan.steps} steps each), looked at every {plan.round_size} episodes up to {plan.budget} "
             f"(docs/sensitivity.md \"Sequential verdicts\"); a comparison stops at its verdict: **worse** (the "
             f"repeated confidence interval, RCI, of ΔD lies above 0: the mutant scores lower), **better** (below "
