@@ -91,8 +91,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--mutant-base", default=REFERENCE,
                     help=f"the SUT whose mutants are the references (default {REFERENCE}; one of the SUTs ranked)")
     add_sequential(ap, "sequential pair verdicts: looks of --round-size paired episodes (seeds from --first-seed "
-                       "on), each pair of SUTs stopped at its verdict (a > b, a < b, a ≈ b on D) or unresolved at "
-                       "--budget; replaces --episodes, --blocks, --block-size, --seed-blocks")
+                       "on, or one design per --seed-blocks block), each pair of SUTs stopped at its verdict (a > b, "
+                       "a < b, a ≈ b on D) or unresolved at --budget; replaces --episodes, --blocks, --block-size")
     cli.add_jobs(ap)
     return ap.parse_args(argv)
 

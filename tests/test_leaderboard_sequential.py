@@ -5,10 +5,12 @@ a look, which pairs close, values by hand), the tables turned to the ranking, an
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -122,6 +124,54 @@ def test_the_looks_run_each_sut_while_it_has_an_open_pair_and_the_tables_rank_an
     assert "| 2 | 2–3 | b | b |" in printed and text.endswith("python scripts/leaderboard.py --sequential\n")
 
 
+def test_seed_blocks_give_a_ranking_per_block_and_the_pairs_side_by_side(tmp_path):
+    plan = ls.plan_of(SimpleNamespace(sequential=True, budget="8", round_size="4", delta="0.05", spending=None,
+                                      episode_steps="20", first_seed="20000", seed_blocks="700:707,800:807"),
+                      {}, "20", "20000")
+    load = config_loader(None)
+    overrides = {"c": {"sut.model": "level0"}, "b": {"sut.model": "nilsson"}, "a": {"sut.model": "mobil"}}
+
+    class Blocks(Engine):  # block 800: b and c swapped, so c − b turns round
+        def __call__(self, rounds):
+            for rnd in rounds:
+                seed = rnd.cfg.seed
+                if seed >= 800 and rnd.key not in self.saved:
+                    label = {"b": "c", "c": "b"}.get(rnd.label, rnd.label)
+                    d = {"a": 1.0, "b": 0.5, "c": 0.3}[label]
+                    self.saved[rnd.key] = {"seed": seed, "report": {
+                        "settings": {"score_form": "comparative"}, "comparative": {
+                            "score": d, "safety": {"score": 1.0}, "progress": {"score": d},
+                            "interaction": {"score": 1.0}}}}
+            return super().__call__(rounds)
+
+    engine = Blocks()
+    parts = []
+    for part in plan.parts:
+        verdicts, d, rounds, _ = ls.run_looks(part, NAMES, overrides, load, engine)
+        parts.append((part, verdicts, d, rounds))
+    # block 800: constant differences, every pair resolved at the first look: c − b = 0.5 − 0.3 > 0 there, while
+    # block 700 leaves c − b unresolved (the first test's hand values); b − a, c − a below 0 in both
+    assert {p: v.verdict for p, v in parts[1][1].items()} == {("c", "b"): "a_higher", ("c", "a"): "b_higher",
+                                                               ("b", "a"): "b_higher"}
+    text, printed = ls.write_blocks(tmp_path, plan, parts, ["--sequential"], 1.0)
+    with (tmp_path / "replication.csv").open(newline="") as f:
+        rep = [(r["x"], r["y"], r["verdict_block_700_707"], r["verdict_block_800_807"], r["contradiction"])
+               for r in csv.DictReader(f)]
+    assert rep == [("c", "b", "unresolved", "a_higher", ""), ("c", "a", "b_higher", "b_higher", ""),
+                   ("b", "a", "b_higher", "b_higher", "")]
+    with (tmp_path / "pairs.csv").open(newline="") as f:
+        assert [(p["a"], p["b"], p["block"]) for p in csv.DictReader(f)] == [
+            ("a", "b", "700–707"), ("a", "c", "700–707"), ("b", "c", "700–707"),
+            ("a", "c", "800–807"), ("a", "b", "800–807"), ("c", "b", "800–807")]
+    assert "### Seeds 800–807" in printed and "| c | b | unresolved | x > y |  |" in printed
+    assert "Contradictions (x above y in one block, below in another): none." in printed
+    assert "seed blocks 700–707, 800–807, each a design of its own" in text
+    # a contradiction: the same verdicts with block 800's c − b turned round against a block where it resolved
+    flipped = {**parts[1][1], ("c", "b"): dataclasses.replace(parts[1][1][("c", "b")], verdict="b_higher")}
+    rows, _, clashes = ls.replication(NAMES, ["1", "2"], [parts[1][1], flipped])
+    assert clashes == [("c", "b")] and rows[0][-1] == "yes"
+
+
 @pytest.fixture(scope="module")
 def door(load_door):
     """The script as a module."""
@@ -133,7 +183,10 @@ def door(load_door):
                                           "runs rounds of --round-size episodes from --first-seed up to --budget"),
     (["--sequential", "--blocks", "2"], "error: --sequential and --blocks together"),
     (["--sequential", "--block-size", "5"], "error: --sequential and --block-size together"),
-    (["--sequential", "--seed-blocks", "1:4"], "error: --sequential and --seed-blocks together"),
+    (["--sequential", "--seed-blocks", "1:400", "--first-seed", "7"], "error: --seed-blocks and --first-seed "
+                                                                      "together: the blocks name their seeds"),
+    (["--sequential", "--seed-blocks", "1:50"], "error: --seed-blocks: block 1–50 holds 50 seeds, fewer than "
+                                                "--round-size 100"),
     (["--budget", "8"], "error: --budget applies with --sequential only"),
     (["--spending", "pocock"], "error: --spending applies with --sequential only"),
     (["--sequential", "--round-size", "9", "--budget", "8"], "error: --round-size 9 exceeds --budget 8"),

@@ -36,6 +36,8 @@ PAIRS_CSV = ["a", "b", "verdict", "delta_d_mean", "delta_d_low", "delta_d_high",
              "episodes_needed"]
 SUTS_CSV = ["rank", "rank_best", "rank_worst", "letters", "sut", "d_mean", "d_ci95", "episodes"]
 FLIP = {"a_higher": "b_higher", "b_higher": "a_higher"}
+XY = {"a_higher": "x > y", "b_higher": "x < y", "equivalent": "x ≈ y", "unresolved": "unresolved", "": ""}
+"""A verdict on x − y in the replication table's words."""
 
 
 def all_pairs(names: Sequence[str]) -> list[Pair]:
@@ -176,8 +178,8 @@ def main(args, argv: list[str]) -> int:
     from evoscen_experiments import leaderboard
     from evoscen_experiments.experiments import challenge_mode, config_loader, run_rounds_with_bar, set_up
 
-    plan = plan_of(args, {"--episodes": args.episodes, "--blocks": args.blocks, "--block-size": args.block_size,
-                          "--seed-blocks": args.seed_blocks}, leaderboard.EPISODE_STEPS)
+    plan = plan_of(args, {"--episodes": args.episodes, "--blocks": args.blocks, "--block-size": args.block_size},
+                   leaderboard.EPISODE_STEPS, leaderboard.FIRST_SEED)
     if plan is None:
         return leaderboard.main(args, argv)
     started = time.monotonic()
@@ -189,41 +191,88 @@ def main(args, argv: list[str]) -> int:
         looks[0] += 1
         return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"leaderboard, look {looks[0]}")
 
-    done = run_looks(plan, names, overrides, load, run)
-    if done is None:
-        return EXIT_INTERRUPTED
-    verdicts, d, rounds, results = done
-    text, printed = write_tables(args.out, plan, d, verdicts, rounds, argv, time.monotonic() - started)
+    parts = []
+    for part in plan.parts:
+        done = run_looks(part, names, overrides, load, run)
+        if done is None:
+            return EXIT_INTERRUPTED
+        parts.append((part, *done[:3]))
+    text, printed = write_blocks(args.out, plan, parts, argv, time.monotonic() - started)
     print(printed, end="")
-    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, pairs.csv")
+    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, pairs.csv"
+          + (", replication.csv" if len(parts) > 1 else ""))
     finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 
 def write_tables(out: Path, plan: Plan, d: Mapping[str, Mapping[int, float]], verdicts: Mapping[Pair, Verdict],
                  rounds: list, argv: Sequence[str], wall: float) -> tuple[str, str]:
-    """``leaderboard.csv``, ``pairs.csv`` and ``leaderboard.md``; returns the Markdown text and the tables."""
+    """The tables of one design (:func:`write_blocks`)."""
+    return write_blocks(out, plan, [(plan, verdicts, d, rounds)], argv, wall)
+
+
+def replication(names: Sequence[str], labels: Sequence[str], verdicts: Sequence[Mapping[Pair, Verdict]]
+                ) -> tuple[list, list, list]:
+    """Every pair (x, y) of ``names``, in their order, with its verdict on x − y in every block side by side and
+    whether they contradict (x above y in one block, below in another): ``replication.csv``'s rows, Markdown
+    rows and the contradicting pairs."""
+    rows, md, clashes = [], [], []
+    for pair in all_pairs(names):
+        per = [v[pair].verdict if pair in v else "" for v in verdicts]
+        per = ["unresolved" if w == "continue" else w for w in per]
+        clash = "a_higher" in per and "b_higher" in per
+        if clash:
+            clashes.append(pair)
+        rows.append([*pair, *per, "yes" if clash else ""])
+        md.append([*pair, *(XY[w] for w in per), "**yes**" if clash else ""])
+    return rows, md, clashes
+
+
+def write_blocks(out: Path, plan: Plan, parts: Sequence[tuple], argv: Sequence[str], wall: float) -> tuple[str, str]:
+    """``leaderboard.csv`` and ``pairs.csv`` (a ``block`` column each), ``leaderboard.md`` (a section per block)
+    and, with two or more blocks, ``replication.csv`` (:func:`replication`); ``parts``: (design, verdicts, D per
+    SUT and seed, rounds) per block. Returns the Markdown text and the printed tables."""
     from evoscen_experiments.experiments import write_csv
 
-    suts_md, suts_csv, pairs_md, pairs_csv = tables(d, verdicts)
-    write_csv(out / "leaderboard.csv", SUTS_CSV, suts_csv)
-    write_csv(out / "pairs.csv", PAIRS_CSV, pairs_csv)
-    printed = (markdown_table(["rank", "rank range", "letters", "SUT", "D ± 95 %", "episodes"], suts_md) + "\n"
-               + markdown_table(["a", "b", "verdict", "ΔD = a − b [RCI]", "episodes", "looks", "episodes needed"],
-                                pairs_md))
-    cfg0 = rounds[0].cfg if rounds else None
+    several = len(parts) > 1
+    sections, suts_rows, pairs_rows, runs = [], [], [], 0
+    for part, verdicts, d, rounds in parts:
+        suts_md, suts_csv, pairs_md, pairs_csv = tables(d, verdicts)
+        suts_rows += [[*r, part.label] for r in suts_csv]
+        pairs_rows += [[*r, part.label] for r in pairs_csv]
+        runs += len(rounds)
+        sections.append((f"### Seeds {part.label}\n\n" if several else "")
+                        + markdown_table(["rank", "rank range", "letters", "SUT", "D ± 95 %", "episodes"], suts_md)
+                        + "\n" + markdown_table(["a", "b", "verdict", "ΔD = a − b [RCI]", "episodes", "looks",
+                                                 "episodes needed"], pairs_md))
+    write_csv(out / "leaderboard.csv", [*SUTS_CSV, "block"], suts_rows)
+    write_csv(out / "pairs.csv", [*PAIRS_CSV, "block"], pairs_rows)
+    printed = "\n".join(sections)
+    labels = [part.label for part, *_ in parts]
+    if several:
+        names = list(parts[0][2])
+        rep_rows, rep_md, clashes = replication(names, labels, [v for _, v, _, _ in parts])
+        write_csv(out / "replication.csv", ["x", "y", *(f"verdict_block_{x.replace('–', '_')}" for x in labels),
+                                            "contradiction"], rep_rows)
+        printed += ("\n### Replication\n\n" + markdown_table(["x", "y", *labels, "contradiction"], rep_md)
+                    + "\nContradictions (x above y in one block, below in another): "
+                    + (", ".join(f"{x}/{y}" for x, y in clashes) or "none") + ".\n")
+    cfg0 = next((r[0].cfg for _, _, _, r in parts if r), None)
     setting = (f", {cfg0.bvs.count} BVs ({cfg0.bvs.driver}), challenge.mode {cfg0.challenge.mode}"
                if cfg0 is not None else "")
-    text = (f"# Planner leaderboard: sequential verdicts\n\n{len(d)} SUTs{setting}; episodes of {plan.steps} steps "
-            f"on seeds {plan.first_seed} on, the same for every SUT. Every pair a, b (a ranked above b): D of a "
+    seeds = (f"seed blocks {', '.join(labels)}, each a design of its own from its first seed" if several
+             else f"seeds {plan.first_seed} on")
+    n_suts = len(parts[0][2]) if parts else 0
+    text = (f"# Planner leaderboard: sequential verdicts\n\n{n_suts} SUTs{setting}; episodes of {plan.steps} steps "
+            f"on {seeds}, the same for every SUT. Every pair a, b (a ranked above b): D of a "
             f"minus D of b paired by episode, looked at every {plan.round_size} episodes up to {plan.budget}; a "
             f"SUT runs a look while one of its pairs is open, a pair stops at its verdict: a > b (the repeated "
             f"confidence interval, RCI, above 0), a < b (below 0), a ≈ b (inside ±{plan.delta:g}) or unresolved "
             f"at the budget (with the paired episodes a fixed design would need for its observed ΔD at 80 % "
-            f"power); {plan.spending} spending, each verdict wrong with probability at most {plan.alpha:g} over all looks "
-            f"(docs/sensitivity.md \"Sequential verdicts\"). SUTs ranked by mean D ± 95 % interval "
+            f"power); {plan.spending} spending, each verdict wrong with probability at most {plan.alpha:g} over "
+            f"all looks (docs/sensitivity.md \"Sequential verdicts\"). SUTs ranked by mean D ± 95 % interval "
             f"over the episodes each ran; rank range: the best and worst rank the resolved pairs leave a SUT; "
-            f"SUTs sharing a letter are not told apart (Piepho 2004). {len(rounds):,} runs; this command's wall "
+            f"SUTs sharing a letter are not told apart (Piepho 2004). {runs:,} runs; this command's wall "
             f"time {wall:,.0f} s.\n\n{printed}\nMade by:\n\n    python scripts/leaderboard.py {' '.join(argv)}\n")
     (out / "leaderboard.md").write_text(text, encoding="utf-8")
     return text, printed

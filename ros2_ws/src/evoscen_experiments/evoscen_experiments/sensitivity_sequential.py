@@ -96,13 +96,13 @@ def resolve_plan(args, episode_steps: str = "300") -> Plan | None:
     return plan_of(args, {f: given[f] for f in CONFLICTS}, episode_steps)
 
 
-def plan_of(args, conflicts: dict[str, object], episode_steps: str = "300") -> Plan | None:
+def plan_of(args, conflicts: dict[str, object], episode_steps: str = "300", first_seed: str = "0") -> Plan | None:
     """The sequential design of parsed options with ``--sequential``, ``--budget``, ``--round-size``, ``--delta``,
     ``--spending``, ``--episode-steps`` and ``--first-seed`` (the sensitivity experiment's and the leaderboard's),
     None without ``--sequential``; with ``--seed-blocks`` one design per block (:attr:`Plan.parts`, the
     replication of the verdicts). ``conflicts``: the fixed designs' flags (in the order to name them) -> their
     values, None or False where not given. InputError (one line) on a bad value, on a conflicting flag with
-    ``--sequential``, or on the sequential flags without it."""
+    ``--sequential``, or on the sequential flags without it (``first_seed``: ``--first-seed``'s default)."""
     from evoscen_experiments.experiments import positive_int
 
     own = [f for f, v in (("--budget", args.budget), ("--round-size", args.round_size), ("--delta", args.delta),
@@ -130,10 +130,10 @@ def plan_of(args, conflicts: dict[str, object], episode_steps: str = "300") -> P
         raise InputError(f"--spending {spending!r}: expected one of {', '.join(SPENDING)}")
     steps = positive_int("--episode-steps", args.episode_steps or episode_steps)
     first = positive_int("--first-seed", args.first_seed, 0)
-    return Plan(size, budget, delta, spending, steps, first, blocks=_blocks(args, size))
+    return Plan(size, budget, delta, spending, steps, first, blocks=_blocks(args, size, first_seed))
 
 
-def _blocks(args, round_size: int) -> tuple:
+def _blocks(args, round_size: int, first_seed: str) -> tuple:
     """The ``--seed-blocks`` of a sequential design (empty without); InputError (one line) with ``--first-seed``
     or a block smaller than a round."""
     from evoscen_experiments.replication import parse_seed_blocks
@@ -141,7 +141,7 @@ def _blocks(args, round_size: int) -> tuple:
     text = getattr(args, "seed_blocks", None)
     if text is None:
         return ()
-    if args.first_seed not in (None, "0"):
+    if args.first_seed not in (None, first_seed):
         raise InputError("--seed-blocks and --first-seed together: the blocks name their seeds")
     blocks = parse_seed_blocks(text)
     for b in blocks:
