@@ -102,24 +102,6 @@ def test_truck_cap():
     assert onsets and onsets[0].decel_mps2 == 5.0
 
 
-def test_draws_are_synchronised_by_step_whatever_the_state():
-    """Two runs on the same seed whose states differ for 20 steps (one's leader too slow to brake, the other's
-    braking again and again) draw the same numbers at every step: from step 20 on, in the same states, their
-    onsets fall on the same steps with the same decelerations (common random numbers for a pair's members)."""
-    process = OnsetProcess(per_1000km=2.0e5, decel_mps2=(4.0, 7.0), duration_s=(0.1, 0.1))  # μ = 5 m: p = 0.45
-    a = LeaderBraking(2, process, Tilt(3.0, 1.0, 2.0), np.random.default_rng(7))
-    b = LeaderBraking(2, process, Tilt(3.0, 1.0, 2.0), np.random.default_rng(7))
-    for k in range(20):
-        a.apply(_world(10.0, 25.0, 9.0, k), np.zeros(2))  # leader at 9 m/s: below the minimum speed
-        b.apply(_world(10.0, 25.0, 30.0, k), np.zeros(2))
-    assert not a.onsets and b.onsets  # b braked in the first 20 steps, a never
-    for k in range(20, 120):
-        for layer in (a, b):
-            layer.apply(_world(10.0 + (k % 3) * 20.0, 25.0, 30.0, k), np.zeros(2))  # headways 0.4, 1.2, 2.0 s
-    later = [(s, o.decel_mps2, o.multiplier) for s, o in b.onsets if s >= 20]
-    assert later and [(s, o.decel_mps2, o.multiplier) for s, o in a.onsets] == later
-
-
 # ---------------------------------------------------------------------- in a scenario
 
 def _config(**over):

@@ -645,11 +645,11 @@ def test_no_bvs_graph_bag_equals_inprocess_bag(tmp_path):
 
 def test_challenge_graph_bag_equals_inprocess_bag(tmp_path):
     """``challenge.mode: nade`` (docs/challenges.md): the layer runs in the simulation, so the graph and the
-    in-process runner record the same bytes, its onsets and the run's weight included (seed 990008 has an
-    onset in its first 150 steps, at step 111)."""
+    in-process runner record the same bytes, its onsets and the run's weight included (seed 990004 has two
+    onsets in 300 steps; 150 steps hold the first)."""
     config = tmp_path / "nade.yaml"
     config.write_text("challenge: {mode: nade}\n")
-    args = ("--config", config, "--sut", "mobil", "--steps", 150, "--seed", 990008)
+    args = ("--config", config, "--sut", "mobil", "--steps", 150, "--seed", 990004)
     graph = _run_cli("--mode", "graph", *args, "--out", tmp_path / "graph")
     assert graph.returncode == 0, graph.stderr
     inproc = _run_cli("--mode", "inprocess", *args, "--out", tmp_path / "inproc", "--quiet", "--no-plots")

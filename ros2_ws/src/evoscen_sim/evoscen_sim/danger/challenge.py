@@ -18,12 +18,10 @@ happened: e^((m − 1) ds/μ) for a step without an onset, (1 − e^(−ds/μ)) 
 one. The mean over runs of score × weight estimates the naturalistic mean without bias (docs/challenges.md,
 "The estimator").
 
-Draws, synchronised by step: one generator (the scenario's ``challenge`` stream) gives three uniforms at every
-step, whatever happens — whether the step holds an onset (the first below the step's probability under q), the
-deceleration and the duration (the second and third, scaled to their ranges). A run's draws at step k are
-therefore the same whatever its state, and the two members of a paired comparison meet an onset at the same
-step wherever both follow a leader at similar headways (common random numbers; docs/challenges.md, "Pairs").
-The world calls :meth:`apply` with the commands of every step, so both runners draw the same.
+The process keeps one exponential clock per vehicle in tilted distance (what is left before its next onset),
+drawn afresh after each onset; one generator (the scenario's ``challenge`` stream) draws, in order of use:
+every vehicle's first clock at construction, then at each onset its deceleration, duration and next clock. The world calls :meth:`apply`
+with the commands of every step, so both runners draw the same.
 """
 
 from __future__ import annotations
@@ -100,6 +98,8 @@ class LeaderBraking:
         self.tilt = tilt
         self.rng = rng
         self.mean_m = process.mean_m
+        self.to_go = rng.exponential(self.mean_m, size=n)
+        """Per vehicle: tilted distance left before its next onset."""
         self.until_step = np.full(n, -1, dtype=np.int64)
         self.decel = np.zeros(n)
         self.max_decel = np.full(n, np.inf) if max_decel_mps2 is None else np.asarray(max_decel_mps2, dtype=float)
@@ -115,7 +115,6 @@ class LeaderBraking:
         braking vehicle's throttle at most its deceleration's); advances the clocks and starts onsets."""
         p = self.process
         step, dt = int(world.step_index), float(world.dt_s)
-        u = self.rng.random(3)  # every step, used or not (module docstring)
         v = world.v
         self.until_step[v <= p.min_speed_mps] = -1  # never into a standstill
         braking = self.until_step > step
@@ -127,7 +126,7 @@ class LeaderBraking:
             gap = float(world.s[leader] - world.s[sut]) - 0.5 * float(world.length[leader] + world.length[sut])
             if gap <= VIEW_M:
                 headway = gap / float(v[sut]) if v[sut] > 0.0 else math.inf
-                onset = self._advance(leader, float(v[leader]) * dt, headway, step, dt, u)
+                onset = self._advance(leader, float(v[leader]) * dt, headway, step, dt)
                 if onset is not None:
                     new.append(onset)
                     braking[leader] = True
@@ -137,13 +136,14 @@ class LeaderBraking:
         out[braking] = np.minimum(out[braking], accel_to_throttle(-self.decel[braking], world.vehicle))
         return out, new
 
-    def _advance(self, k: int, ds: float, headway: float, step: int, dt: float, u: np.ndarray) -> Onset | None:
-        """Vehicle ``k`` drives ``ds`` metres as the SUT's leader at ``headway``: an onset when ``u[0]`` falls below
-        the step's probability under q, 1 − e^(−m ds/μ). The weight takes the step's factor: p/q of no onset,
-        exp((m − 1) ds / μ), or of an onset, (1 − e^(−ds/μ)) / (1 − e^(−m ds/μ))."""
+    def _advance(self, k: int, ds: float, headway: float, step: int, dt: float) -> Onset | None:
+        """Vehicle ``k`` drives ``ds`` metres as the SUT's leader at ``headway``: its clock runs m times as
+        fast; the step ends in an onset when it runs out (then a fresh clock). The weight takes the step's
+        factor: p/q of no onset, exp((m − 1) ds / μ), or of an onset, (1 − e^(−ds/μ)) / (1 − e^(−m ds/μ))."""
         m = 1.0 if self.tilt is None else self.tilt.multiplier(headway)
+        self.to_go[k] -= m * ds
         self.distance_m += ds
-        if u[0] >= -math.expm1(-m * ds / self.mean_m):
+        if self.to_go[k] > 0.0:
             if m != 1.0:
                 self.log_weight += (m - 1.0) * ds / self.mean_m
             return None
@@ -151,8 +151,9 @@ class LeaderBraking:
         if ratio != 1.0:
             self.log_weight -= math.log(ratio)
         p = self.process
-        decel = p.decel_mps2[0] + float(u[1]) * (p.decel_mps2[1] - p.decel_mps2[0])
-        duration = p.duration_s[0] + float(u[2]) * (p.duration_s[1] - p.duration_s[0])
+        decel = float(self.rng.uniform(*p.decel_mps2))
+        duration = float(self.rng.uniform(*p.duration_s))
+        self.to_go[k] = self.rng.exponential(self.mean_m)  # a fresh clock: one onset per step at most
         applied = min(decel, float(self.max_decel[k]))
         self.decel[k] = applied
         self.until_step[k] = step + max(1, int(round(duration / dt)))
