@@ -8,7 +8,7 @@
                                             [--blocks K] [--block-size N] [--seed-blocks A:B,C:D]
     python scripts/experiment_sensitivity.py --compare-designs [--first-seed S] [--long-first-seed S] ...
     python scripts/experiment_sensitivity.py --sequential [--budget 2000] [--round-size 100] [--delta 0.005]
-                                            [--spending obrien_fleming|pocock] [--episode-steps 300]
+                                            [--spending pocock|obrien_fleming] [--episode-steps 300]
                                             [--first-seed S | --seed-blocks A:B,C:D] ...
 
 For every base SUT model (``--base``) and every scenario (``evolving``: the configuration's BVs; a BV

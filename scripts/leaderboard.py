@@ -6,7 +6,7 @@
                                   | [--seed-blocks A:B,C:D] [--episode-steps 300]
                                   [--mutant-refs timid,frozen|none] [--mutant-base mobil] [--jobs N]
     python scripts/leaderboard.py --sequential [--budget 2000] [--round-size 100] [--delta 0.005]
-                                  [--spending obrien_fleming|pocock] [--first-seed 20000] ...
+                                  [--spending pocock|obrien_fleming] [--first-seed 20000] ...
 
 Every SUT model installed — the built-ins and the ``evoscen.sut`` plug-ins (docs/plugins.md);
 not the sensitivity experiment's ``mutant`` wrapper, which is a defect of another model — runs

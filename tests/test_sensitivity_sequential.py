@@ -137,7 +137,7 @@ def args_of(**kw) -> SimpleNamespace:
 def test_plan_defaults_and_bad_options():
     plan = sq.resolve_plan(args_of())
     assert (plan.budget, plan.round_size, plan.delta, plan.spending, plan.steps) == (2000, 100, 0.005,
-                                                                                     "obrien_fleming", 300)
+                                                                                     "pocock", 300)
     assert plan.looks[:2] == (100, 200) and len(plan.looks) == 20
     assert sq.resolve_plan(args_of(sequential=False)) is None
     from evoscen_sim.errors import InputError

@@ -89,7 +89,7 @@ def add_sequential(ap: argparse.ArgumentParser, what: str) -> None:
     ap.add_argument("--budget", help=f"with --sequential: most paired episodes per comparison (default {BUDGET})")
     ap.add_argument("--round-size", help=f"with --sequential: paired episodes between looks (default {ROUND_SIZE})")
     ap.add_argument("--delta", help=f"with --sequential: equivalence margin on D (default {DELTA})")
-    ap.add_argument("--spending", help=f"with --sequential: alpha spending, obrien_fleming or pocock "
+    ap.add_argument("--spending", help=f"with --sequential: alpha spending, pocock or obrien_fleming "
                                        f"(default {SPENDING_DEFAULT})")
 
 

@@ -28,11 +28,14 @@ from evoscen_experiments.sensitivity import PROFILES, score_of
 from evoscen_experiments.sensitivity_tables import INTACT, role
 from evoscen_experiments.sequential import SPENDING, Verdict, looks_of, verdict
 
-BUDGET, ROUND_SIZE, DELTA, SPENDING_DEFAULT = "2000", "100", "0.005", "obrien_fleming"
+BUDGET, ROUND_SIZE, DELTA, SPENDING_DEFAULT = "2000", "100", "0.005", "pocock"
 """The defaults: at most 2,000 paired episodes per comparison, looks every 100 episodes ([choice]: the first look
 is the fixed episodes design's 100, 20 looks in all, and the standard deviation of ≥ 100 differences makes the
 normal-scale boundaries of :mod:`~evoscen_experiments.sequential` close to Student-t's), margin δ = 0.005 of D,
-O'Brien–Fleming spending."""
+Pocock spending ([choice], docs/sensitivity.md "Sequential verdicts": a design's cost is the episodes its
+comparisons run before their verdicts, and O'Brien–Fleming's early boundaries (40, 6.2, 5.1, 4.4 standard errors at
+the first four of 20 looks; Pocock's 2.87 to 2.53) keep even large differences open for several looks;
+``obrien_fleming`` stays selectable)."""
 WORDS = {"a_higher": "worse", "b_higher": "better", "equivalent": "equivalent", "unresolved": "unresolved",
          "continue": "unresolved"}
 """A verdict on intact − mutant in the user's words about the mutant (``a_higher``: the intact SUT scores higher,
