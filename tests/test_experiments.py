@@ -296,7 +296,7 @@ def test_sensitivity_sequential_verdicts_and_resumption(tmp_path):
         assert seeds == list(range(5, 5 + n)) and n in (4, 8)  # the first n seeds, in order; only looks' sizes
         diffs = [d[("intact", s)] - d[(m, s)] for s in seeds]
         assert float(row["delta_d_mean"]) == pytest.approx(sum(diffs) / n)
-        v = verdict(diffs, round_size=4, budget=8, delta=0.005)
+        v = verdict(diffs, round_size=4, budget=8, delta=0.005, spending="pocock")  # the default
         assert (v.episodes, v.looks) == (n, int(row["looks"])) and v.low == pytest.approx(float(row["delta_d_low"]))
         word = row["verdict"]
         assert word == {"a_higher": "worse", "b_higher": "better"}.get(v.verdict, v.verdict)
