@@ -125,7 +125,7 @@ def test_the_looks_run_each_sut_while_it_has_an_open_pair_and_the_tables_rank_an
 
 
 def test_seed_blocks_give_a_ranking_per_block_and_the_pairs_side_by_side(tmp_path):
-    plan = ls.plan_of(SimpleNamespace(sequential=True, budget="8", round_size="4", delta="0.05", spending=None,
+    plan = ls.plan_of(SimpleNamespace(sequential=True, budget="8", round_size="4", delta="0.05", spending="obrien_fleming",
                                       episode_steps="20", first_seed="20000", seed_blocks="700:707,800:807"),
                       {}, "20", "20000")
     load = config_loader(None)
