@@ -165,23 +165,32 @@ class FissSut:
             return True
         return abs(float(view.d[i]) - float(view.road.lane_center_d(lane, s))) <= self.p.settle_tolerance_m
 
-    def corridor(self, view, i: int, ref_lane: int, road_s: np.ndarray, centre: np.ndarray) -> fp.Corridor:
-        """The lanes ``ref_lane`` - 1 … + 1 along ``road_s`` as bands relative to ``centre``."""
+    @staticmethod
+    def lanes_along(road, ref_lane: int, road_s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The lanes ``ref_lane`` - 1 … + 1 that are on the road and, along ``road_s`` (one row per lane), whether
+        each exists and its right and left borders: one broadcast query each, the values of the per-lane ones."""
+        lanes = np.arange(max(0, ref_lane - 1), min(road.num_lanes, ref_lane + 2))
+        right, left = road.lane_bounds_d(lanes[:, None], road_s[None, :])
+        return lanes, road.lane_exists(lanes[:, None], road_s[None, :]), right, left
+
+    def corridor(self, view, i: int, ref_lane: int, road_s: np.ndarray, centre: np.ndarray, along) -> fp.Corridor:
+        """The lanes ``ref_lane`` - 1 … + 1 along ``road_s`` (``along``: :meth:`lanes_along`) as bands relative
+        to ``centre``."""
         road = view.road
         s, lane = float(view.s[i]), int(view.lane[i])
         allowed = self.may_change(view, i, lane)
         corridor = fp.Corridor(road_s - road_s[0])
-        for k in range(max(0, ref_lane - 1), min(road.num_lanes, ref_lane + 2)):
-            exists = road.lane_exists(k, road_s)
+        for k, exists, right, left in zip(*along):
+            k = int(k)
             if not exists.any():
                 continue
-            right, left = road.lane_bounds_d(k, road_s)
             band = fp.LaneBand()
             band.lane_id = k
             band.offset = k - ref_lane
             band.right = (right - centre).tolist()
             band.left = (left - centre).tolist()
-            band.center = np.where(exists, road.lane_center_d(k, road_s) - centre, 0.5 * (right + left) - centre).tolist()
+            band.center = (0.5 * (right + left) - centre).tolist()  # the centre line (lane_center_d) or, where
+            # the lane does not exist, the middle of its zero-width band: the same value
             limit = float(road.speed_limit_max_mps(k, s))
             band.speed_limit = limit if np.isfinite(limit) else float(view.speed_limit_mps[i])
             band.change_allowed = k == ref_lane or (allowed and bool(road.lane_exists(k, s)))
@@ -206,9 +215,11 @@ class FissSut:
         ref_lane = int(view.target_lane[i])  # = lane when not changing
         reach = p.horizon_s[1] * self.vehicle.max_speed_mps + 2 * STATION_M
         road_s = s - p.reference_behind_m + np.arange(0.0, p.reference_behind_m + reach, STATION_M)
-        centre = road.lane_center_d(ref_lane, road_s)
+        along = self.lanes_along(road, ref_lane, road_s)
+        right, left = (b[int(np.flatnonzero(along[0] == ref_lane)[0])] for b in along[2:])
+        centre = 0.5 * (right + left)  # road.lane_center_d(ref_lane, road_s)
         reference = fp.ReferenceLine(road_s.tolist(), centre.tolist(), STATION_M)
-        corridor = self.corridor(view, i, ref_lane, road_s, centre)
+        corridor = self.corridor(view, i, ref_lane, road_s, centre, along)
         psi = float(view.psi[i])
         start = fp.FrenetState(s=s - road_s[0], s_d=v * np.cos(psi), s_dd=float(view.accel[i]),
                                d=d - float(road.lane_center_d(ref_lane, s)), d_d=v * np.sin(psi))
