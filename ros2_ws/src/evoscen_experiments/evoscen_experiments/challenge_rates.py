@@ -13,47 +13,18 @@ difference challenge − reference with its interval (independent sets). Writes 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from pathlib import Path
-
-import numpy as np
 
 from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_sim.config.config_schema import CHALLENGE_MODES
 from evoscen_sim.errors import InputError
 
 from evoscen_experiments.experiments import markdown_table, positive_int, write_csv
+from evoscen_experiments.stats import Z95, Rate, weighted_rate  # noqa: F401  (Rate: the estimates' type)
 from evoscen_experiments.timing import finish
 
-Z95 = 1.959963984540054
 RATES = (("exposures", "SUT exposures per SUT-km"), ("collisions", "SUT collisions per SUT-km"),
          ("front_ttc_episodes", "front TTC episodes per SUT-km"))
-
-
-@dataclass(frozen=True)
-class Rate:
-    """A weighted ratio estimate: its value, the half-width of its 95 % interval, the episodes and the effective
-    number of episodes."""
-
-    value: float
-    half: float
-    n: int
-    n_eff: float
-
-
-def weighted_rate(y, x, w) -> Rate:
-    """R = Σ w·y / Σ w·x and its 95 % half-width from the linearised variance n/(n−1) · Σ (w (y − R x))² / (Σ w x)²
-    (the ratio estimator's, Cochran, *Sampling Techniques*, §6.4); w all 1: the plain ratio of sums."""
-    y, x, w = (np.asarray(a, dtype=float) for a in (y, x, w))
-    n = y.size
-    if n < 2 or not (w * x).sum() > 0.0:
-        raise ValueError("weighted_rate: needs two or more episodes with distance")
-    sx = float((w * x).sum())
-    r = float((w * y).sum()) / sx
-    z = w * (y - r * x)
-    var = n / (n - 1) * float((z * z).sum()) / sx**2
-    n_eff = float(w.sum()) ** 2 / float((w * w).sum())
-    return Rate(r, Z95 * math.sqrt(var), n, n_eff)
 
 
 def episode_values(report: dict) -> dict[str, float]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,19 +22,46 @@ def mean_ci(values: Sequence[float]) -> tuple[float, float]:
     return float(x.mean()), half
 
 
+Z95 = 1.959963984540054
+"""z_{0.975}: the half-width of a 95 % interval in standard errors."""
+
+
+@dataclass(frozen=True)
+class Rate:
+    """A weighted ratio estimate: its value, the half-width of its 95 % interval, the episodes and the effective
+    number of episodes."""
+
+    value: float
+    half: float
+    n: int
+    n_eff: float
+
+
+def weighted_rate(y, x, w) -> Rate:
+    """R = Σ w·y / Σ w·x and its 95 % half-width from the linearised variance n/(n−1) · Σ (w (y − R x))² / (Σ w x)²
+    (the ratio estimator's, Cochran, *Sampling Techniques*, §6.4); w all 1: the plain ratio of sums."""
+    y, x, w = (np.asarray(a, dtype=float) for a in (y, x, w))
+    n = y.size
+    if n < 2 or not (w * x).sum() > 0.0:
+        raise ValueError("weighted_rate: needs two or more episodes with distance")
+    sx = float((w * x).sum())
+    r = float((w * y).sum()) / sx
+    z = w * (y - r * x)
+    var = n / (n - 1) * float((z * z).sum()) / sx**2
+    n_eff = float(w.sum()) ** 2 / float((w * w).sum())
+    return Rate(r, Z95 * math.sqrt(var), n, n_eff)
+
+
 def mean_ci_weighted(values: Sequence[float | None], weights: Sequence[float]) -> tuple[float, float]:
     """The weighted mean Σ w·x / Σ w of the values that are not None (a run of the challenge scenario weighted
     by its likelihood ratio p/q: the naturalistic mean, docs/challenges.md) and the half-width of its 95 %
-    interval by linearisation, 1.96 · √(n/(n−1) · Σ (w (x − m))² / (Σ w)²) (``nan`` with fewer than 2 values)."""
+    interval by linearisation: :func:`weighted_rate` with every x = 1 (``nan`` with fewer than 2 values)."""
     pairs = [(float(v), float(w)) for v, w in zip(values, weights) if v is not None]
-    if not pairs:
-        return math.nan, math.nan
-    x, w = (np.array(c) for c in zip(*pairs))
-    m = float((w * x).sum() / w.sum())
-    if x.size < 2:
-        return m, math.nan
-    z = w * (x - m)
-    return m, 1.959963984540054 * math.sqrt(x.size / (x.size - 1) * float((z * z).sum()) / float(w.sum()) ** 2)
+    if len(pairs) < 2 or not sum(w for _, w in pairs) > 0.0:
+        return (pairs[0][0], math.nan) if len(pairs) == 1 else (math.nan, math.nan)
+    y, w = zip(*pairs)
+    r = weighted_rate(y, np.ones(len(y)), w)
+    return r.value, r.half
 
 
 def fmt_ci(mean: float, half: float, digits: int = 4) -> str:
