@@ -172,6 +172,31 @@ def test_seed_blocks_give_a_ranking_per_block_and_the_pairs_side_by_side(tmp_pat
     assert clashes == [("c", "b")] and rows[0][-1] == "yes"
 
 
+def test_a_sut_whose_episode_fails_leaves_the_ranking_and_is_listed(tmp_path):
+    class Failing(Engine):  # b's episode 702 fails: its result never comes back
+        def __call__(self, rounds):
+            got = super().__call__(rounds)
+            return {k: v for k, v in got.items() if not (v["report"] and k in self.broken)}
+
+    engine = Failing()
+    load = config_loader(None)
+    overrides = {"c": {"sut.model": "level0"}, "b": {"sut.model": "nilsson"}, "a": {"sut.model": "mobil"}}
+    engine.broken = {r.key for r in ls.look_rounds(PLAN, ["b"], 0, load, overrides) if r.cfg.seed == 702}
+    verdicts, d, rounds, _ = ls.run_looks(PLAN, NAMES, overrides, load, engine)
+    # b's pairs dropped after look 1; c − a as in the first test (a above c at look 1): nothing open, no look 2
+    assert set(verdicts) == {("c", "a")} and verdicts[("c", "a")].verdict == "b_higher"
+    assert set(d) == {"c", "a"} and len(rounds) == 12
+    failed = {"b": (1, "RuntimeError: the planner raised")}
+    text, printed = ls.write_tables(tmp_path, PLAN, d, verdicts, rounds, ["--sequential"], 1.0, failed)
+    assert "Failed, not ranked: b (1 episode(s): RuntimeError: the planner raised)" in printed
+    with (tmp_path / "leaderboard.csv").open(newline="") as f:
+        assert [r["sut"] for r in csv.DictReader(f)] == ["a", "c"]
+    with (tmp_path / "episodes.csv").open(newline="") as f:
+        eps = list(csv.DictReader(f))
+    assert [(r["sut"], r["seed"]) for r in eps] == [("c", str(s)) for s in SEEDS[:4]] + [("a", str(s)) for s in SEEDS[:4]]
+    assert [float(r["d"]) for r in eps if r["sut"] == "a"] == pytest.approx(D["a"][:4])
+
+
 @pytest.fixture(scope="module")
 def door(load_door):
     """The script as a module."""

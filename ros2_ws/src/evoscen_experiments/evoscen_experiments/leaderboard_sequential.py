@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
@@ -81,11 +82,13 @@ def look_rounds(plan: Plan, names: Sequence[str], k: int, load: Callable, overri
 def run_looks(plan: Plan, names: Sequence[str], overrides: Mapping[str, dict], load: Callable,
               run: Callable[[list], dict | None]) -> tuple[dict, dict, list, dict] | None:
     """Run the looks: before each, the SUTs with an open pair get its seeds (:func:`look_rounds`); ``run(rounds)``
-    gives their results by key (the saved ones read back) or None when interrupted. Returns the pairs'
-    verdicts, D per SUT and seed, every round run and the results; None when interrupted."""
+    gives their results by key (the saved ones read back; a failed round's key absent) or None when interrupted.
+    A SUT with a failed episode leaves the ranking: its pairs are dropped and it runs no more (the fixed
+    leaderboard's rule; :func:`main` lists it). Returns the pairs' verdicts, D per SUT and seed (the SUTs ranked),
+    every round run and the results; None when interrupted."""
     d: dict[str, dict[int, float]] = {s: {} for s in names}
     verdicts = {p: plan.judge([]) for p in all_pairs(names)}
-    rounds, results = [], {}
+    rounds, results, failed = [], {}, set()
     for k, n in enumerate(plan.looks):
         todo = needing(names, verdicts)
         if not todo:
@@ -95,9 +98,15 @@ def run_looks(plan: Plan, names: Sequence[str], overrides: Mapping[str, dict], l
         if got is None:
             return None
         for rnd in look:
+            if rnd.key not in got:
+                failed.add(rnd.label)
+                continue
             results[rnd.key] = got[rnd.key]
             d[rnd.label][rnd.cfg.seed] = score_of(got[rnd.key]["report"], "intelligence")
         rounds += look
+        if failed:
+            verdicts = {p: v for p, v in verdicts.items() if not failed & set(p)}
+            d = {s: v for s, v in d.items() if s not in failed}
         verdicts = judge_open(plan, verdicts, d, n)
     return verdicts, d, rounds, results
 
@@ -185,11 +194,11 @@ def main(args, argv: list[str]) -> int:
     started = time.monotonic()
     names, overrides, jobs = set_up(args.out, lambda: _names(args))
     load = config_loader(args.config, challenge_mode(getattr(args, "challenge", None)))
-    looks = [0]
+    looks, fails = [0], {}
 
     def run(rounds: list) -> dict | None:
         looks[0] += 1
-        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"leaderboard, look {looks[0]}")
+        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"leaderboard, look {looks[0]}", failures=fails)
 
     parts = []
     for part in plan.parts:
@@ -197,18 +206,21 @@ def main(args, argv: list[str]) -> int:
         if done is None:
             return EXIT_INTERRUPTED
         parts.append((part, *done[:3]))
-    text, printed = write_blocks(args.out, plan, parts, argv, time.monotonic() - started)
+    failed = leaderboard.failed_suts([r for _, _, _, rounds in parts for r in rounds], fails)
+    text, printed = write_blocks(args.out, plan, parts, argv, time.monotonic() - started, failed)
     print(printed, end="")
-    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, pairs.csv"
+    for sut, (count, error) in failed.items():
+        print(f"failed: {sut}: {count} episode(s): {error}", file=sys.stderr)
+    print(f"written: {args.out / 'leaderboard.md'}, leaderboard.csv, pairs.csv, episodes.csv"
           + (", replication.csv" if len(parts) > 1 else ""))
     finish(args.out)  # the command's start-up and throughput (timing.json)
     return EXIT_OK
 
 
 def write_tables(out: Path, plan: Plan, d: Mapping[str, Mapping[int, float]], verdicts: Mapping[Pair, Verdict],
-                 rounds: list, argv: Sequence[str], wall: float) -> tuple[str, str]:
+                 rounds: list, argv: Sequence[str], wall: float, failed: Mapping | None = None) -> tuple[str, str]:
     """The tables of one design (:func:`write_blocks`)."""
-    return write_blocks(out, plan, [(plan, verdicts, d, rounds)], argv, wall)
+    return write_blocks(out, plan, [(plan, verdicts, d, rounds)], argv, wall, failed)
 
 
 def replication(names: Sequence[str], labels: Sequence[str], verdicts: Sequence[Mapping[Pair, Verdict]]
@@ -228,10 +240,12 @@ def replication(names: Sequence[str], labels: Sequence[str], verdicts: Sequence[
     return rows, md, clashes
 
 
-def write_blocks(out: Path, plan: Plan, parts: Sequence[tuple], argv: Sequence[str], wall: float) -> tuple[str, str]:
-    """``leaderboard.csv`` and ``pairs.csv`` (a ``block`` column each), ``leaderboard.md`` (a section per block)
-    and, with two or more blocks, ``replication.csv`` (:func:`replication`); ``parts``: (design, verdicts, D per
-    SUT and seed, rounds) per block. Returns the Markdown text and the printed tables."""
+def write_blocks(out: Path, plan: Plan, parts: Sequence[tuple], argv: Sequence[str], wall: float,
+                 failed: Mapping | None = None) -> tuple[str, str]:
+    """``leaderboard.csv``, ``pairs.csv`` and ``episodes.csv`` (a ``block`` column each), ``leaderboard.md`` (a
+    section per block, the failed SUTs after) and, with two or more blocks, ``replication.csv``
+    (:func:`replication`); ``parts``: (design, verdicts, D per SUT and seed, rounds) per block; ``failed``: SUT ->
+    (failed episodes, first error), not ranked. Returns the Markdown text and the printed tables."""
     from evoscen_experiments.experiments import write_csv
 
     several = len(parts) > 1
@@ -247,7 +261,11 @@ def write_blocks(out: Path, plan: Plan, parts: Sequence[tuple], argv: Sequence[s
                                                  "episodes needed"], pairs_md))
     write_csv(out / "leaderboard.csv", [*SUTS_CSV, "block"], suts_rows)
     write_csv(out / "pairs.csv", [*PAIRS_CSV, "block"], pairs_rows)
+    write_csv(out / "episodes.csv", ["sut", "seed", "d", "block"],
+              [[s, seed, v, part.label] for part, _, d, _ in parts for s in d for seed, v in sorted(d[s].items())])
     printed = "\n".join(sections)
+    if failed:
+        printed += "\nFailed, not ranked: " + "; ".join(f"{s} ({c} episode(s): {e})" for s, (c, e) in failed.items()) + "\n"
     labels = [part.label for part, *_ in parts]
     if several:
         names = list(parts[0][2])
