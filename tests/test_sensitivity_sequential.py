@@ -240,3 +240,28 @@ def test_seed_blocks_make_one_design_each_and_their_verdicts_stand_side_by_side(
     assert "| 700–707 | level0 | mobil | 1/4 |" in table and "| 800–807 | level0 | mobil | 2/4 |" in table
     assert "Contradictions (worse in one block, better in another): level0/mobil/late_braking." in table
     assert "seed blocks 700–707, 800–807, each a design of its own" in (tmp_path / "sensitivity.md").read_text()
+
+
+def test_a_failed_episode_fails_its_comparison_and_the_others_go_on(load, tmp_path):
+    class Failing(Engine):  # stale's episode 701 never comes back (its plug-in raised)
+        def __call__(self, rounds):
+            got = super().__call__(rounds)
+            return {k: v for k, v in got.items() if k not in self.broken}
+
+    engine = Failing()
+    first_look, meta = sq.look_rounds(PLAN, COMPS, 0, load)
+    engine.broken = {r.key for r in first_look if meta[r.key][3] == "stale" and r.cfg.seed == 701}
+    verdicts, rounds, results, meta = sq.run_looks(PLAN, COMPS, load, engine)
+    got = {m: sq.WORDS[v.verdict] for (_, _, m), v in verdicts.items()}
+    assert got == {"stale": "failed", "timid": "equivalent", "late_braking": "better", "weak_braking": "unresolved",
+                   "frozen": "worse"}  # the others as without the failure
+    assert len(rounds) == 35 and all(r.key in results for r in rounds)  # the failed round is not among them
+    sq.write_tables(tmp_path, PLAN, ["mobil"], ["level0"], list(DIFFS), verdicts, rounds, results, meta)
+    with (tmp_path / "verdict_counts.csv").open(newline="") as f:
+        (count,) = csv.DictReader(f)
+    assert (count["worse"], count["failed"], count["runs"]) == ("0", "1", "35")
+
+    engine = Failing()  # the intact SUT's episode fails: every comparison of the base
+    engine.broken = {r.key for r in first_look if meta[r.key][3] == "intact" and r.cfg.seed == 700}
+    verdicts = sq.run_looks(PLAN, COMPS, load, engine)[0]
+    assert {sq.WORDS[v.verdict] for v in verdicts.values()} == {"failed"}

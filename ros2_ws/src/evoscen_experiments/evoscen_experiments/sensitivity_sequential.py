@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,13 +38,13 @@ comparisons run before their verdicts, and O'Brien–Fleming's early boundaries 
 the first four of 20 looks; Pocock's 2.87 to 2.53) keep even large differences open for several looks;
 ``obrien_fleming`` stays selectable)."""
 WORDS = {"a_higher": "worse", "b_higher": "better", "equivalent": "equivalent", "unresolved": "unresolved",
-         "continue": "unresolved"}
+         "continue": "unresolved", "failed": "failed"}
 """A verdict on intact − mutant in the user's words about the mutant (``a_higher``: the intact SUT scores higher,
 so the mutant is *worse*)."""
 VERDICTS_CSV = ["scenario", "bv_driver", "base", "mutant", "class", "role", "verdict", "delta_d_mean",
                 "delta_d_low", "delta_d_high", "episodes", "looks", "budget", "episodes_needed", "block"]
 COUNTS_CSV = ["scenario", "bv_driver", "base", "worse", "better", "equivalent", "unresolved", "defects",
-              "profiles", "not_applicable", "runs", "block"]
+              "profiles", "not_applicable", "runs", "block", "failed"]
 CONFLICTS = ("--design long", "--compare-designs", "--episodes", "--seeds", "--steps", "--long-first-seed",
              "--blocks", "--block-size")
 
@@ -222,8 +223,10 @@ def needed_of(plan: Plan, comp: Comparison, v: Verdict, rounds: Sequence, result
 def run_looks(plan: Plan, comps: Sequence[Comparison], load: Callable,
               run: Callable[[list], dict | None]) -> tuple[dict, list, dict, dict] | None:
     """Run the looks: before each, the comparisons still ``continue`` get its seeds (:func:`look_rounds`),
-    ``run(rounds)`` gives their results by key (the saved ones read back) or None when interrupted. Returns
-    the verdicts, every round run, the results and the rounds' meta; None when interrupted."""
+    ``run(rounds)`` gives their results by key (the saved ones read back; a failed round's key absent) or None
+    when interrupted. A comparison whose mutant, or whose base's intact SUT, failed an episode ends ``failed``.
+    Returns the verdicts, every round that ran, the results and the rounds' meta (the failed ones' too); None
+    when interrupted."""
     d: dict[tuple[str, str, str], dict[int, float]] = {}
     all_rounds, results, meta = [], {}, {}
     verdicts = verdicts_of(plan, comps, d, 0)
@@ -235,12 +238,18 @@ def run_looks(plan: Plan, comps: Sequence[Comparison], load: Callable,
         got = run(rounds)
         if got is None:
             return None
+        failed = {look_meta[r.key][1:] for r in rounds if r.key not in got}
         for rnd in rounds:
-            results[rnd.key] = got[rnd.key]
-            d.setdefault(look_meta[rnd.key][1:], {})[rnd.cfg.seed] = score_of(got[rnd.key]["report"], "intelligence")
-        all_rounds += rounds
+            if rnd.key in got:
+                results[rnd.key] = got[rnd.key]
+                d.setdefault(look_meta[rnd.key][1:], {})[rnd.cfg.seed] = score_of(got[rnd.key]["report"],
+                                                                                 "intelligence")
+        all_rounds += [r for r in rounds if r.key in got]
         meta.update(look_meta)
         new = verdicts_of(plan, open_, d, plan.looks[k])
+        for c in open_:
+            if c in failed or (c[0], c[1], INTACT) in failed:
+                new[c] = dataclasses.replace(new[c], verdict="failed")
         verdicts.update(new)
     return verdicts, all_rounds, results, meta
 
@@ -256,11 +265,11 @@ def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
     if not comps:
         raise InputError("--sequential: no mutant applies to the bases given")
     load = config_loader(args.config, challenge_mode(getattr(args, "challenge", None)))
-    looks = [0]
+    looks, fails = [0], {}
 
     def run(rounds: list) -> dict | None:
         looks[0] += 1
-        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"sensitivity, look {looks[0]}")
+        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"sensitivity, look {looks[0]}", failures=fails)
 
     parts = []
     for part in plan.parts:
@@ -270,6 +279,10 @@ def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
         parts.append((part, *done))
     table = write_blocks(args.out, plan, bases, scenarios, mutants, parts)
     print(table, end="")
+    for part, _, _, _, meta in parts:
+        for key, error in fails.items():
+            if key in meta:
+                print(f"failed: {'/'.join(meta[key][1:])} (seeds {part.label}): {error}", file=sys.stderr)
     print(f"written: {args.out / 'sensitivity.md'}, verdicts.csv, verdict_counts.csv, rounds.csv"
           + (", replication.csv" if len(parts) > 1 else ""))
     finish(args.out)  # the command's start-up and throughput (timing.json)
@@ -306,10 +319,10 @@ def _block_rows(part: Plan, bases: Sequence[str], scenarios: Sequence[str], muta
                            "–" if needed is None else f"{needed:,}"])
             defects = [m for m in applicable if m not in PROFILES]
             tally = {w: sum(words[(scenario, base, m)] == w for m in defects)
-                     for w in ("worse", "better", "equivalent", "unresolved")}
+                     for w in ("worse", "better", "equivalent", "unresolved", "failed")}
             runs = sum(1 for r in rounds if meta[r.key][1:3] == (scenario, base))
-            counts.append([scenario, drivers.get(scenario, ""), base, *tally.values(), len(defects),
-                           len(applicable) - len(defects), len(not_applicable), runs, part.label])
+            counts.append([scenario, drivers.get(scenario, ""), base, *list(tally.values())[:4], len(defects),
+                           len(applicable) - len(defects), len(not_applicable), runs, part.label, tally["failed"]])
             md_counts.append([part.label, scenario, base, f"{tally['worse']}/{len(defects)}", str(tally["better"]),
                               str(tally["equivalent"]), str(tally["unresolved"]), f"{runs:,}"])
     return rows, md, counts, md_counts, words
