@@ -265,3 +265,22 @@ def test_a_failed_episode_fails_its_comparison_and_the_others_go_on(load, tmp_pa
     engine.broken = {r.key for r in first_look if meta[r.key][3] == "intact" and r.cfg.seed == 700}
     verdicts = sq.run_looks(PLAN, COMPS, load, engine)[0]
     assert {sq.WORDS[v.verdict] for v in verdicts.values()} == {"failed"}
+
+
+def test_a_profile_is_looked_at_once(load):
+    class OpenProfile(Engine):  # frozen as weak_braking: open after the first look (its mean 0, sd 1.155)
+        def __call__(self, rounds):
+            for rnd in rounds:
+                variant = rnd.label.split("--")[2]
+                if variant == "frozen" and rnd.key not in self.saved:
+                    d = INTACT_D - DIFFS["weak_braking"][rnd.cfg.seed - FIRST]
+                    self.saved[rnd.key] = {"seed": rnd.cfg.seed, "steps": 20, "wall_time_s": 0.1, "report": report(d)}
+                    self.computed.append((variant, rnd.cfg.seed))
+            return super().__call__(rounds)
+
+    engine = OpenProfile()
+    verdicts = sq.run_looks(PLAN, COMPS, load, engine)[0]
+    frozen, weak = verdicts[("level0", "mobil", "frozen")], verdicts[("level0", "mobil", "weak_braking")]
+    assert sq.WORDS[frozen.verdict] == "unresolved" and (frozen.episodes, frozen.looks) == (4, 1)
+    assert sq.WORDS[weak.verdict] == "unresolved" and weak.episodes == 8  # a defect runs to the budget
+    assert sorted(s for v, s in engine.computed if v == "frozen") == [700, 701, 702, 703]

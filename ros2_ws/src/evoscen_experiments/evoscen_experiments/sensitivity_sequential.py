@@ -224,14 +224,16 @@ def run_looks(plan: Plan, comps: Sequence[Comparison], load: Callable,
               run: Callable[[list], dict | None]) -> tuple[dict, list, dict, dict] | None:
     """Run the looks: before each, the comparisons still ``continue`` get its seeds (:func:`look_rounds`),
     ``run(rounds)`` gives their results by key (the saved ones read back; a failed round's key absent) or None
-    when interrupted. A comparison whose mutant, or whose base's intact SUT, failed an episode ends ``failed``.
+    when interrupted. A comparison whose mutant, or whose base's intact SUT, failed an episode ends ``failed``; a
+    profile's (:data:`~evoscen_experiments.sensitivity.PROFILES`) ends after the first look, unresolved if open.
     Returns the verdicts, every round that ran, the results and the rounds' meta (the failed ones' too); None
     when interrupted."""
     d: dict[tuple[str, str, str], dict[int, float]] = {}
     all_rounds, results, meta = [], {}, {}
     verdicts = verdicts_of(plan, comps, d, 0)
     for k in range(len(plan.looks)):
-        open_ = [c for c in comps if verdicts[c].verdict == "continue"]
+        # [choice] a profile (reported, never counted) is looked at once: no budget spent on it after the first look
+        open_ = [c for c in comps if verdicts[c].verdict == "continue" and not (k and c[2] in PROFILES)]
         if not open_:
             break
         rounds, look_meta = look_rounds(plan, open_, k, load)
