@@ -16,6 +16,7 @@ import pytest
 
 from evoscen_experiments import leaderboard_sequential as ls
 from evoscen_experiments.experiments import config_loader
+from evoscen_experiments.replication import SeedBlock
 from evoscen_experiments.sensitivity_sequential import Plan
 from evoscen_experiments.sequential import boundaries
 
@@ -170,6 +171,29 @@ def test_seed_blocks_give_a_ranking_per_block_and_the_pairs_side_by_side(tmp_pat
     flipped = {**parts[1][1], ("c", "b"): dataclasses.replace(parts[1][1][("c", "b")], verdict="b_higher")}
     rows, _, clashes = ls.replication(NAMES, ["1", "2"], [parts[1][1], flipped])
     assert clashes == [("c", "b")] and rows[0][-1] == "yes"
+
+
+def test_replication_keeps_a_sut_missing_from_the_first_block_and_reads_each_block_in_its_own_order(tmp_path):
+    # block 1: b failed (its pairs dropped, its D gone); block 2: all three, b ranked between them
+    v = ls.Verdict
+    block1 = {("c", "a"): v("b_higher", 4, -0.5, -0.6, -0.4, 1)}
+    block2 = {("c", "b"): v("b_higher", 4, -0.2, -0.3, -0.1, 1), ("c", "a"): v("b_higher", 4, -0.5, -0.6, -0.4, 1),
+              ("b", "a"): v("continue", 8, -0.1, -0.3, 0.1, 2)}
+    d1 = {"c": {FIRST: 0.0}, "a": {FIRST: 0.5}}
+    d2 = {"c": {FIRST: 0.0}, "b": {FIRST: 0.2}, "a": {FIRST: 0.5}}
+    plan = dataclasses.replace(PLAN, blocks=(SeedBlock(FIRST, FIRST + 7), SeedBlock(FIRST + 100, FIRST + 107)))
+    parts = [(p, verdicts, d, []) for p, verdicts, d in zip(plan.parts, (block1, block2), (d1, d2))]
+    ls.write_blocks(tmp_path, plan, parts, ["--sequential"], 1.0)
+    with (tmp_path / "replication.csv").open(newline="") as f:
+        rep = [(r["x"], r["y"], r["verdict_block_700_707"], r["verdict_block_800_807"]) for r in csv.DictReader(f)]
+    # the SUTs in their first-seen order c, a, b: (a, b) is block 2's (b, a) turned round, open -> unresolved
+    assert rep == [("c", "a", "b_higher", "b_higher"), ("c", "b", "", "b_higher"), ("a", "b", "", "unresolved")]
+    # a pair seen the other way round in a block: its verdict turned, a contradiction found across orientations
+    turned = {("a", "c"): v("b_higher", 4, -0.5, -0.6, -0.4, 1)}
+    rows, _, clashes = ls.replication(["c", "a"], ["1", "2"], [block1, turned])
+    assert rows == [["c", "a", "b_higher", "a_higher", "yes"]] and clashes == [("c", "a")]
+    with pytest.raises(ValueError, match="2 block labels for 1 blocks"):
+        ls.replication(["c", "a"], ["1", "2"], [block1])
 
 
 def test_a_sut_whose_episode_fails_leaves_the_ranking_and_is_listed(tmp_path):

@@ -190,11 +190,15 @@ def test_an_unresolved_comparison_states_the_episodes_a_fixed_design_would_need(
             results[key] = {"report": report(d)}
             meta[key] = ("sequential", "level0", "mobil", variant)
     comp = ("level0", "mobil", "stale")
+    d = sq.scores_into({}, rounds, results, meta)
+    assert d[("level0", "mobil", "stale")] == pytest.approx({FIRST + k: INTACT_D - x for k, x in enumerate(diffs)})
     for words, expected in (("continue", 95), ("unresolved", 95), ("a_higher", None), ("equivalent", None)):
         v = sq.Verdict(words, 4, 0.25, -1.0, 1.5, 1)
-        assert sq.needed_of(PLAN, comp, v, rounds, results, meta) == expected
+        assert sq.needed_of(PLAN, comp, v, d) == expected
     # only the comparison's own episodes count: the first two give mean 0.25, sd 1.0607 -> (2.8016 x 4.243)² = 141.3
-    assert sq.needed_of(PLAN, comp, sq.Verdict("unresolved", 2, 0.25, -9, 9, 1), rounds, results, meta) == 142
+    assert sq.needed_of(PLAN, comp, sq.Verdict("unresolved", 2, 0.25, -9, 9, 1), d) == 142
+    # a round without a result adds nothing
+    assert sq.scores_into({}, rounds, {}, meta) == {}
 
 
 def test_seed_blocks_make_one_design_each_and_their_verdicts_stand_side_by_side(load, tmp_path):

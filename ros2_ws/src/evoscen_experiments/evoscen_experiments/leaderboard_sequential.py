@@ -39,6 +39,8 @@ SUTS_CSV = ["rank", "rank_best", "rank_worst", "letters", "sut", "d_mean", "d_ci
 FLIP = {"a_higher": "b_higher", "b_higher": "a_higher"}
 XY = {"a_higher": "x > y", "b_higher": "x < y", "equivalent": "x ≈ y", "unresolved": "unresolved", "": ""}
 """A verdict on x − y in the replication table's words."""
+TURNED = {"a_higher": "b_higher", "b_higher": "a_higher"}
+"""A verdict on x − y as the verdict on y − x."""
 
 
 def all_pairs(names: Sequence[str]) -> list[Pair]:
@@ -226,13 +228,22 @@ def write_tables(out: Path, plan: Plan, d: Mapping[str, Mapping[int, float]], ve
 def replication(names: Sequence[str], labels: Sequence[str], verdicts: Sequence[Mapping[Pair, Verdict]]
                 ) -> tuple[list, list, list]:
     """Every pair (x, y) of ``names``, in their order, with its verdict on x − y in every block side by side and
-    whether they contradict (x above y in one block, below in another): ``replication.csv``'s rows, Markdown
-    rows and the contradicting pairs."""
+    whether they contradict (x above y in one block, below in another;
+    :func:`evoscen_experiments.replication.side_by_side`): ``replication.csv``'s rows, Markdown rows and the
+    contradicting pairs. ``labels``: the blocks', one per entry of ``verdicts``."""
+    from evoscen_experiments.replication import side_by_side
+
+    if len(labels) != len(verdicts):
+        raise ValueError(f"replication: {len(labels)} block labels for {len(verdicts)} blocks of verdicts")
+    words = []
+    for block in verdicts:  # each pair in both orientations: a block's pairs follow its own SUTs' order
+        w = {}
+        for (a, b), v in block.items():
+            word = "unresolved" if v.verdict == "continue" else v.verdict
+            w[(a, b)], w[(b, a)] = word, TURNED.get(word, word)
+        words.append(w)
     rows, md, clashes = [], [], []
-    for pair in all_pairs(names):
-        per = [v[pair].verdict if pair in v else "" for v in verdicts]
-        per = ["unresolved" if w == "continue" else w for w in per]
-        clash = "a_higher" in per and "b_higher" in per
+    for pair, per, clash in side_by_side(all_pairs(names), words, "a_higher", "b_higher"):
         if clash:
             clashes.append(pair)
         rows.append([*pair, *per, "yes" if clash else ""])
@@ -268,7 +279,7 @@ def write_blocks(out: Path, plan: Plan, parts: Sequence[tuple], argv: Sequence[s
         printed += "\nFailed, not ranked: " + "; ".join(f"{s} ({c} episode(s): {e})" for s, (c, e) in failed.items()) + "\n"
     labels = [part.label for part, *_ in parts]
     if several:
-        names = list(parts[0][2])
+        names = list(dict.fromkeys(s for _, _, d, _ in parts for s in d))  # every block's SUTs, first seen first
         rep_rows, rep_md, clashes = replication(names, labels, [v for _, v, _, _ in parts])
         write_csv(out / "replication.csv", ["x", "y", *(f"verdict_block_{x.replace('–', '_')}" for x in labels),
                                             "contradiction"], rep_rows)

@@ -14,6 +14,8 @@ and :mod:`evoscen_experiments.leaderboard` (docs/sensitivity.md "Seed blocks", d
   applicable, and the mutation score counts applicable (base, mutant) pairs only;
 * **pairwise verdicts** — :func:`pairwise`: every pair of SUTs paired by episode, mean ± 95 %
   Student-t interval, n and the words "significantly higher/lower";
+* **verdicts side by side** — :func:`side_by_side`: the sequential designs' verdicts of one comparison in
+  every block, and whether two blocks contradict each other;
 * **Kendall τ** — :func:`kendall_tau`: the agreement of two blocks' orders (τ-b: ties in either
   block counted as neither concordant nor discordant, and taken out of the denominator).
 
@@ -216,6 +218,19 @@ def pairwise(order: Sequence[str], values: Mapping[str, Mapping[int, float]]) ->
     return [PairVerdict(a, b, paired(values[a], values[b]))
             for i, a in enumerate(order) for b in order[i + 1:]]
 
+
+
+def side_by_side(keys: Sequence, per_block: Sequence[Mapping[object, str]], one_way: str, other_way: str
+                 ) -> list[tuple[object, list[str], bool]]:
+    """Per key (a comparison, a pair of SUTs) its verdict word in every block (``""`` where a block has none) and
+    whether the blocks contradict: one block says ``one_way`` and another ``other_way`` (worse and better; x above
+    y and below). The replication tables of :mod:`evoscen_experiments.sensitivity_sequential` and
+    :mod:`evoscen_experiments.leaderboard_sequential`."""
+    out = []
+    for key in keys:
+        per = [block.get(key, "") for block in per_block]
+        out.append((key, per, one_way in per and other_way in per))
+    return out
 
 def kendall_tau(x: Mapping[str, float], y: Mapping[str, float]) -> tuple[float, int, int, int]:
     """Kendall's τ-b of two score maps over the names both have: returns (τ, concordant, discordant, n).

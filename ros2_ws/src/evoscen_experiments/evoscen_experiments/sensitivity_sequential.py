@@ -201,22 +201,28 @@ def verdicts_of(plan: Plan, comps: Sequence[Comparison], d: dict, n: int) -> dic
     return out
 
 
-def needed_of(plan: Plan, comp: Comparison, v: Verdict, rounds: Sequence, results: dict, meta: dict) -> int | None:
+def scores_into(d: dict, rounds: Sequence, results: dict, meta: dict) -> dict:
+    """``d`` ((scenario, base, variant) -> seed -> D) with the D of every round of ``rounds`` that has a result
+    (the rounds' ``meta``: (design, scenario, base, variant)); returns ``d``."""
+    for rnd in rounds:
+        if rnd.key in results:
+            d.setdefault(meta[rnd.key][1:], {})[rnd.cfg.seed] = score_of(results[rnd.key]["report"], "intelligence")
+    return d
+
+
+def needed_of(plan: Plan, comp: Comparison, v: Verdict, d: dict) -> int | None:
     """For a comparison left unresolved, the paired episodes a fixed design would need to resolve a true ΔD equal to
     the one observed over its ``v.episodes`` (:func:`evoscen_experiments.leaderboard_tiers.episodes_needed`: 80 %
-    power, two-sided 5 %; the sequential boundaries ask a few per cent more); None for a resolved one."""
+    power, two-sided 5 %; the sequential boundaries ask a few per cent more); None for a resolved one. ``d``: D per
+    (scenario, base, variant) and seed (:func:`scores_into`)."""
     from evoscen_experiments.leaderboard_tiers import episodes_needed
 
     if WORDS[v.verdict] != "unresolved":
         return None
     scenario, base, mutant = comp
-    d: dict[str, dict[int, float]] = {INTACT: {}, mutant: {}}
-    for r in rounds:
-        design, sc, b, variant = meta[r.key]
-        if (sc, b) == (scenario, base) and variant in d:
-            d[variant][r.cfg.seed] = score_of(results[r.key]["report"], "intelligence")
+    intact, mutated = d.get((scenario, base, INTACT), {}), d.get(comp, {})
     seeds = range(plan.first_seed, plan.first_seed + v.episodes)
-    diffs = [d[INTACT][s] - d[mutant][s] for s in seeds if s in d[INTACT] and s in d[mutant]]
+    diffs = [intact[s] - mutated[s] for s in seeds if s in intact and s in mutated]
     return episodes_needed([x for x in diffs if math.isfinite(x)])
 
 
@@ -241,11 +247,8 @@ def run_looks(plan: Plan, comps: Sequence[Comparison], load: Callable,
         if got is None:
             return None
         failed = {look_meta[r.key][1:] for r in rounds if r.key not in got}
-        for rnd in rounds:
-            if rnd.key in got:
-                results[rnd.key] = got[rnd.key]
-                d.setdefault(look_meta[rnd.key][1:], {})[rnd.cfg.seed] = score_of(got[rnd.key]["report"],
-                                                                                 "intelligence")
+        scores_into(d, rounds, got, look_meta)
+        results.update((r.key, got[r.key]) for r in rounds if r.key in got)
         all_rounds += [r for r in rounds if r.key in got]
         meta.update(look_meta)
         new = verdicts_of(plan, open_, d, plan.looks[k])
@@ -305,6 +308,7 @@ def _block_rows(part: Plan, bases: Sequence[str], scenarios: Sequence[str], muta
     from evoscen_sut.mutants import LIBRARY
 
     drivers = {meta[r.key][1]: r.cfg.bvs.driver for r in rounds}
+    d = scores_into({}, rounds, results, meta)  # D per variant and seed, once per block
     rows, md, counts, md_counts, words = [], [], [], [], {}
     for scenario in scenarios:
         for base in bases:
@@ -312,7 +316,7 @@ def _block_rows(part: Plan, bases: Sequence[str], scenarios: Sequence[str], muta
             for m in applicable:
                 v = verdicts[(scenario, base, m)]
                 word = words[(scenario, base, m)] = WORDS[v.verdict]
-                needed = needed_of(part, (scenario, base, m), v, rounds, results, meta)
+                needed = needed_of(part, (scenario, base, m), v, d)
                 rows.append([scenario, drivers.get(scenario, ""), base, m, LIBRARY[m].klass, role(m), word, v.mean,
                              v.low, v.high, v.episodes, v.looks, part.budget, "" if needed is None else needed,
                              part.label])
@@ -330,13 +334,14 @@ def _block_rows(part: Plan, bases: Sequence[str], scenarios: Sequence[str], muta
     return rows, md, counts, md_counts, words
 
 
-def replication_rows(labels: Sequence[str], words: Sequence[dict]) -> tuple[list, list, list]:
+def replication_rows(words: Sequence[dict]) -> tuple[list, list, list]:
     """Per comparison its verdict in every block side by side and whether they contradict (worse in one block,
-    better in another): ``replication.csv``'s rows, Markdown rows, and the contradicting comparisons."""
+    better in another; :func:`evoscen_experiments.replication.side_by_side`): ``replication.csv``'s rows, Markdown
+    rows, and the contradicting comparisons."""
+    from evoscen_experiments.replication import side_by_side
+
     rows, md, contradictions = [], [], []
-    for comp in words[0]:
-        per = [w.get(comp, "") for w in words]
-        clash = "worse" in per and "better" in per
+    for comp, per, clash in side_by_side(list(words[0]), words, "worse", "better"):
         if clash:
             contradictions.append(comp)
         rows.append([*comp, role(comp[2]), *per, "yes" if clash else ""])
@@ -376,7 +381,7 @@ def write_blocks(out: Path, plan: Plan, bases: Sequence[str], scenarios: Sequenc
                                       "equivalent", "unresolved", "runs"][cut:], [x[cut:] for x in md_counts]))
     labels = [part.label for part, *_ in parts]
     if several:
-        rep_rows, rep_md, clashes = replication_rows(labels, words)
+        rep_rows, rep_md, clashes = replication_rows(words)
         write_csv(out / "replication.csv", ["scenario", "base", "mutant", "role",
                                             *(f"verdict_block_{x.replace('–', '_')}" for x in labels),
                                             "contradiction"], rep_rows)
