@@ -286,6 +286,28 @@ def test_checked_answer_passes_a_good_answer_through_and_names_a_bv_model():
         checked_answer(BadDriver([0, 1], "nan"), (throttle, np.array([0, 0.5])), 2)
 
 
+@pytest.mark.parametrize("dtypes", [(np.float64, np.int64), (np.float32, np.int32), (np.float64, np.int8)])
+def test_the_quick_check_takes_exactly_the_good_answers_whatever_the_dtypes(dtypes):
+    # float64/int64 answers go through the compiled check, the others through numpy: both take the same answers
+    from evoscen_sim.model_registry import _fine
+
+    f, i = dtypes
+    good = (np.array([0.5, -1.0, 0.0], dtype=f), np.array([1, -1, 0], dtype=i))
+    assert _fine(*good, 3) and _fine(*good, None) and not _fine(*good, 2)
+    assert _fine(np.zeros(0, dtype=f), np.zeros(0, dtype=i), 0)
+    for k in range(3):  # one bad entry anywhere is refused
+        for bad in (np.nan, np.inf, -np.inf):
+            t = good[0].copy()
+            t[k] = bad
+            assert not _fine(t, good[1], 3)
+        for bad in (2, -2):
+            lc = good[1].copy()
+            lc[k] = bad
+            assert not _fine(good[0], lc, 3)
+    assert not _fine(good[0], good[1].astype(float), 3)  # lane changes must be integers
+    assert not _fine(good[0].reshape(3, 1), good[1].reshape(3, 1), 3)
+
+
 @pytest.fixture(scope="module")
 def bad_package(tmp_path_factory, pip_install_into) -> Path:
     """A package with a BadDriver SUT ('nan' from step 3) behind an entry point, pip-installed into a directory."""

@@ -391,14 +391,25 @@ def _built(driver: Any) -> tuple[str, str, int] | None:
     return what if what is not None else _BUILT_BY_ID.get(id(driver))
 
 
+_ANSWER_KERNEL = None
+""":func:`evoscen_sim.answer_check.answer_fine`, imported at the first check (numba is not imported with this module)."""
+
+
 def _fine(throttle: Any, lane_change: Any, count: int | None) -> bool:
     """A quick yes for the common answer: two arrays of ``count``, finite throttle, integer lane changes in {-1, 0, 1}."""
     import numpy as np
 
+    global _ANSWER_KERNEL
     if type(throttle) is not np.ndarray or type(lane_change) is not np.ndarray:
         return False
     if throttle.ndim != 1 or throttle.shape != lane_change.shape or (count is not None and len(throttle) != count):
         return False
+    if throttle.dtype.char == "d" and lane_change.dtype.char in "lq":  # float64 and int64: one compiled pass
+        if _ANSWER_KERNEL is None:
+            from evoscen_sim.answer_check import answer_fine
+
+            _ANSWER_KERNEL = answer_fine
+        return _ANSWER_KERNEL(throttle, lane_change)
     if lane_change.dtype.kind not in "iu" or throttle.dtype.kind != "f":
         return False
     if not throttle.size:

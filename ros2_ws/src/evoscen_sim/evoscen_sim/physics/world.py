@@ -44,6 +44,7 @@ from evoscen_contract.contract import ROLE_BV, ROLE_SUT  # noqa: F401  (re-expor
 from evoscen_sim.config.config_schema import ReentryConfig
 from evoscen_sim.jit import kernel
 from evoscen_sim.physics.window import TrafficParams, TrafficWindow
+from evoscen_sim.road.road_kernels import lane_center_d
 
 from .collision import overlapping_pairs
 from .control import ControlParams, DualPidController, dual_pid_one
@@ -366,7 +367,7 @@ class World:
         self.s[i] = s_entry
         self.lane[i] = lane
         self.target_lane[i] = lane
-        self.d[i] = road.lane_center_d(np.array([lane]), np.array([max(s_entry, 0.0)]))[0]
+        self.d[i] = lane_center_d(road.kernel_tables(), int(lane), max(float(s_entry), 0.0))  # = road.lane_center_d, compiled
         self.psi[i] = 0.0
         self.steer[i] = 0.0
         self.v[i] = speed
