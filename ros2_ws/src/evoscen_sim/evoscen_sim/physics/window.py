@@ -170,11 +170,9 @@ class TrafficWindow:
         s_sut = float(s[self.sut])
         lo = s_sut - p.behind_m - p.exit_margin_m
         hi = s_sut + p.ahead_m + p.exit_margin_m
-        out = ((s < lo) | (s > hi)) & (world.role != world.role[self.sut])
-        out[self.sut] = False
         road_end = world.road.length_m
         retry = self._retry_step
-        for i in np.flatnonzero(out):
+        for i in _exits(s, world.role, self.sut, lo, hi):
             if retry is not None and retry[i] > world.step_index:
                 placed = None  # highd: it found no place lately; it tries again at its retry step
             else:
@@ -274,6 +272,20 @@ def _by_speed(rows: list, wish: float, lane_speed: np.ndarray) -> list:
         v = lane_speed[lane]
         return abs((mean if np.isnan(v) else v) - wish)
     return [rows[k] for k in sorted(range(len(rows)), key=lambda k: (gap(k), k))]
+
+
+@kernel
+def _exits(s, role, sut, lo, hi):
+    """The vehicles outside ``[lo, hi]`` that are not of the SUT's role, in index order (step 2 of
+    :meth:`TrafficWindow.after_step`; compiled: every step)."""
+    n = s.shape[0]
+    out = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if i != sut and (s[i] < lo or s[i] > hi) and role[i] != role[sut]:
+            out[m] = i
+            m += 1
+    return out[:m]
 
 
 @kernel

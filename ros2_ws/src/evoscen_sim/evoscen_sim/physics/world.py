@@ -44,7 +44,8 @@ from evoscen_contract.contract import ROLE_BV, ROLE_SUT  # noqa: F401  (re-expor
 from evoscen_sim.config.config_schema import ReentryConfig
 from evoscen_sim.jit import kernel
 from evoscen_sim.physics.window import TrafficParams, TrafficWindow
-from evoscen_sim.road.road_kernels import lane_center_d
+from evoscen_sim.road.road_kernels import lane_center_d, lane_lookup_kernel
+from evoscen_sim.road.road_model import LaneLookup
 
 from .collision import overlapping_pairs
 from .control import ControlParams, DualPidController, dual_pid_one
@@ -273,9 +274,12 @@ class World:
         cp = c.params
         vp = self.vehicle
 
-        # 1. lane-change requests, 2. control and dynamics: one compiled pass
-        executed, reset = _advance_kernel(
+        # 1. lane-change requests, 2. control and dynamics, 3. the lanes at the new positions and the lane
+        # changes completed or aborted: one compiled pass (docs/performance.md "Per-step work of the world")
+        (executed, d_right, d_left, present, vmax, lane_now, kappa, done, done_from, done_duration, aborted,
+         aborted_from, newly_off) = _step_kernel(
             np.asarray(lane_change_request, dtype=np.int64), np.asarray(throttle, dtype=float), self.time_s,
+            (self.step_index + 1) * self.dt_s,
             self.lane, self.lane_change, self.target_lane, self.lane_change_start_s,
             lanes.d_right, lanes.d_left, lanes.present, lanes.curvature,
             self.s, self.d, self.psi, self.v, self.accel, self.steer,
@@ -283,19 +287,15 @@ class World:
             cp.lat_kp, cp.lat_ki, cp.lat_kd, cp.head_kp, cp.head_ki, cp.head_kd, cp.max_lateral_speed_mps,
             cp.max_heading_ref_rad, vp.wheelbase_m, vp.max_speed_mps, vp.max_accel_mps2, vp.max_brake_mps2,
             vp.max_steer_rad, vp.max_steer_rate_radps * self.dt_s, self.dt_s,
+            self.off_road, self.lane_change_count, self.last_lane_change_duration_s, *road.lookup_tables(),
         )
         self.step_index += 1
         self._neighborhood = None
         result = StepResult(step=self.step_index, time_s=self.time_s, executed_lane_change=executed)
         if onsets:
             result.challenges = onsets
-
-        # 3. lanes, lane-change completion and abortion, leaving the road
-        self._refresh_road_lookups()
-        done, done_from, done_duration, aborted, aborted_from, newly_off = _lane_bookkeeping_kernel(
-            self._lanes.lane, self._lanes.present, self.time_s, self.lane, self.off_road, self.lane_change,
-            self.target_lane, self.lane_change_start_s, self.lane_change_count, self.last_lane_change_duration_s,
-        )
+        self._lanes = LaneLookup(d_right, d_left, present, vmax, lane_now, kappa)  # = _refresh_road_lookups()
+        self._speed_limit = None
         if done.size:
             result.lane_changes_completed = [
                 (int(i), int(f), int(self.lane[i]), float(t)) for i, f, t in zip(done, done_from, done_duration)
@@ -471,3 +471,38 @@ def _lane_bookkeeping_kernel(lane_now, present, time_s, lane, off_road, lane_cha
                 lane_change_start_s[i] = np.nan
     return (np.array(done, dtype=np.int64), np.array(done_from, dtype=np.int64), np.array(done_duration, dtype=np.float64),
             np.array(aborted, dtype=np.int64), np.array(aborted_from, dtype=np.int64), np.array(newly_off, dtype=np.int64))
+
+
+@kernel
+def _step_kernel(request, throttle, time_s, time_next, lane, lane_change, target_lane, lane_change_start_s,
+                 d_right, d_left, present, kappa, s, d, psi, v, accel, steer,
+                 int_d, int_psi, prev_e_d, prev_e_psi, fresh,
+                 lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading,
+                 wheelbase, max_speed, max_accel, max_brake, max_steer, max_steer_step, dt,
+                 off_road, lane_change_count, last_duration,
+                 length_m, breaks, seg_const, dr_table, dl_table, present_table, vmax_table, w_coef, w_origin,
+                 off_coef, off_origin, g_s0, g_k):
+    """Steps 1 to 3 of :meth:`World.step` in one call: :func:`_advance_kernel` (``time_s``), the road look-up
+    at the new positions (:meth:`World._refresh_road_lookups`: ``s`` below 0 looked up at 0, as
+    ``np.maximum(s, 0.0)`` gives it) and :func:`_lane_bookkeeping_kernel` (``time_next``). Returns the
+    executed lane changes, the six :class:`~evoscen_sim.road.road_model.LaneLookup` fields and the
+    bookkeeping's six arrays; the state is updated in place. The same operations in the same order as the
+    three calls, so the same bits."""
+    executed, _reset = _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, lane_change_start_s,
+                                       d_right, d_left, present, kappa, s, d, psi, v, accel, steer,
+                                       int_d, int_psi, prev_e_d, prev_e_psi, fresh,
+                                       lat_kp, lat_ki, lat_kd, head_kp, head_ki, head_kd, max_lat_speed, max_heading,
+                                       wheelbase, max_speed, max_accel, max_brake, max_steer, max_steer_step, dt)
+    n = s.shape[0]
+    s_road = np.empty(n)
+    for i in range(n):  # np.maximum(s, 0.0): NaN kept, -0.0 kept
+        x = s[i]
+        s_road[i] = x if (x >= 0.0 or x != x) else 0.0
+    dr, dl, here, vmax, lane_now, kap = lane_lookup_kernel(s_road, d, length_m, breaks, seg_const, dr_table, dl_table,
+                                                           present_table, vmax_table, w_coef, w_origin, off_coef,
+                                                           off_origin, g_s0, g_k)
+    done, done_from, done_duration, aborted, aborted_from, newly_off = _lane_bookkeeping_kernel(
+        lane_now, here, time_next, lane, off_road, lane_change, target_lane, lane_change_start_s, lane_change_count,
+        last_duration)
+    return (executed, dr, dl, here, vmax, lane_now, kap, done, done_from, done_duration, aborted, aborted_from,
+            newly_off)

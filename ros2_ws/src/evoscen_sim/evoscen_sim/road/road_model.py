@@ -324,11 +324,19 @@ class RoadModel:
         borders, existence and speed limits, the lane containing ``d`` (as :meth:`lane_of`)
         and the reference line's curvature (as :meth:`curvature`). See :class:`LaneLookup`.
         """
-        return LaneLookup(*lane_lookup_kernel(
-            np.asarray(s, dtype=float), np.asarray(d, dtype=float), self.length_m, self._breaks,
-            self._seg_const, self._dr_table, self._dl_table, self._present, self._vmax,
-            self._w_coef, self._w_origin, self._off_coef, self._off_origin, self._g_s0, self._g_k,
-        ))
+        return LaneLookup(*lane_lookup_kernel(np.asarray(s, dtype=float), np.asarray(d, dtype=float),
+                                              *self.lookup_tables()))
+
+    def lookup_tables(self) -> tuple:
+        """The arguments of :func:`~evoscen_sim.road.road_kernels.lane_lookup_kernel` after ``(s, d)``: the
+        road's length and tables (read-only), for a compiled caller that looks lanes up itself (the world's
+        step, :mod:`evoscen_sim.physics.world`). Made once."""
+        tables = getattr(self, "_lookup_tables", None)
+        if tables is None:
+            tables = self._lookup_tables = (
+                self.length_m, self._breaks, self._seg_const, self._dr_table, self._dl_table, self._present,
+                self._vmax, self._w_coef, self._w_origin, self._off_coef, self._off_origin, self._g_s0, self._g_k)
+        return tables
 
     def lane_of(self, s: ArrayLike, d: ArrayLike) -> np.ndarray:
         """Index of the lane containing lateral position ``d`` at ``s``, -1 if off the road."""
