@@ -32,8 +32,7 @@ from evoscen_contract.contract import POLICY_CODES, ROLE_SUT, SOCIAL_POLICIES
 from evoscen_sim.config.scenario_config import share_candidates
 from evoscen_sim.errors import InputError
 from evoscen_sim.jit import kernel
-from evoscen_sim.danger.safety import sut_leader_ttc_state
-from evoscen_sim.physics.window import NEW_TRIP_MAX_SPEED_MPS, common_shift_kernel, new_trips_kernel
+from evoscen_sim.physics.window import NEW_TRIP_MAX_SPEED_MPS
 from evoscen_sim.physics.vehicle import accel_to_throttle
 
 from .car_following import ReactionState, learned_throttle, throttle_constants
@@ -47,6 +46,7 @@ from .lane_change_decision import (
     merge_seek_accel,
     observation_grid,
 )
+from .learned_step import HARD_BRAKE_VIEW_M, _hard_brake_scan, _lane_hold_step, driver_step
 from .profile import get_profile
 from .td3 import NumpyActor
 from .training_config import TrainingConfig, load_training_config
@@ -56,13 +56,6 @@ POLICY_FILES = {"mutual": "mutual.npz", "competitive": "competitive.npz", "coope
 CONTROLLER_FILE = "controller.npz"
 POLICY_CODE = {name: POLICY_CODES[name] for name in SOCIAL_POLICIES}
 """The world's policy codes of the social types (``evoscen_contract.contract.POLICY_CODES``)."""
-
-
-HARD_BRAKE_VIEW_M = 100.0
-"""A hard-braking episode starts only for a BV that is the SUT's leader (the nearest vehicle ahead
-whose body overlaps the SUT's path, :func:`evoscen_sim.danger.safety.sut_leader`) with a bumper-to-bumper
-gap of at most this many metres. [choice] 100 m: the vehicle a driver follows at highway speed
-(3.3 s at 30 m/s); a leader farther away braking hard is no challenge."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,12 +120,14 @@ class HardBrakeState:
         self.until_step[k] = step + max(1, int(round(duration / dt_s)))
         self.episodes.append((k, step, decel, duration))
 
-    def bound(self, view, vehicles: np.ndarray, throttle: np.ndarray, vehicle_params) -> np.ndarray:
-        """``throttle`` with the episodes' braking; advances the odometers and starts episodes."""
+    def bound(self, view, vehicles: np.ndarray, throttle: np.ndarray, vehicle_params, scan: tuple | None = None
+              ) -> np.ndarray:
+        """``throttle`` with the episodes' braking; advances the odometers and starts episodes. ``scan``: this
+        step's :func:`_hard_brake_scan` result, if the caller made it."""
         p = self.params
         step, dt = int(view.step_index), float(view.dt_s)
         v = np.asarray(view.v, dtype=np.float64)
-        braking, k = _hard_brake_scan(np.asarray(vehicles, dtype=np.int64), self.until_step, v,
+        braking, k = scan if scan is not None else _hard_brake_scan(np.asarray(vehicles, dtype=np.int64), self.until_step, v,
                                       np.asarray(view.role, dtype=np.int64), np.asarray(view.s, dtype=np.float64),
                                       np.asarray(view.d, dtype=np.float64), np.asarray(view.length, dtype=np.float64),
                                       np.asarray(view.width, dtype=np.float64),
@@ -150,39 +145,6 @@ class HardBrakeState:
         out = np.array(throttle, dtype=float)
         out[braking] = np.minimum(out[braking], accel_to_throttle(-self.decel[braking], vehicle_params))
         return out
-
-
-@kernel
-def _hard_brake_scan(vehicles, until_step, v, role, s, d, length, width, lane_change, min_speed, step, view_m,
-                     role_sut):
-    """One step of :meth:`HardBrakeState.bound` up to its random draws (compiled: called on every
-    step): ends the episodes of hosted vehicles at ``min_speed`` or slower (``until_step`` in place)
-    and returns (which hosted vehicles brake, the hosted position whose odometer runs this step or
-    -1): the SUT's leader (:func:`~evoscen_sim.danger.safety.sut_leader_ttc_state`) when it is
-    hosted, not braking, within ``view_m`` (bumper gap), faster than ``min_speed``, not changing lanes."""
-    m = vehicles.shape[0]
-    braking = np.empty(m, dtype=np.bool_)
-    for k in range(m):
-        if v[vehicles[k]] <= min_speed:  # never into a standstill
-            until_step[k] = -1
-        braking[k] = until_step[k] > step
-    sut = -1
-    for j in range(role.shape[0]):
-        if role[j] == role_sut:
-            sut = j
-            break
-    if sut < 0:
-        return braking, -1
-    leader, _ttc = sut_leader_ttc_state(s, d, v, length, width, sut)
-    if leader < 0:
-        return braking, -1
-    for k in range(m):
-        if vehicles[k] == leader:
-            gap = (s[leader] - s[sut]) - 0.5 * (length[leader] + length[sut])
-            if not braking[k] and gap <= view_m and v[leader] > min_speed and lane_change[leader] == 0:
-                return braking, k
-            return braking, -1
-    return braking, -1
 
 
 def shipped_policy_dir() -> Path:
@@ -379,9 +341,9 @@ class LearnedDriver:
         if self.hard_brake is not None:
             self.hard_brake.restrict(positions)
 
-    def throttle(self, view) -> np.ndarray:
-        """The controller's throttle for every hosted vehicle (one compiled pass, see
-        :func:`evoscen_bv.car_following.learned_throttle`)."""
+    def prepare_throttle(self, view) -> None:
+        """The profile's state (at the first step: N needs the step length) and the throttle's constants (again
+        when the road is another), as :meth:`throttle` and :func:`evoscen_bv.learned_step.driver_step` need them."""
         if self.reaction is None and self.profile.name != "safety_net":
             p = self.profile
             brake = float(self.vehicle_params.max_brake_mps2)
@@ -393,6 +355,11 @@ class LearnedDriver:
             self._throttle_road = view.road
             self._throttle_constants = throttle_constants(self.controller_bank, self.config.car_following, view.road,
                                                           vp.max_accel_mps2, vp.max_brake_mps2)
+
+    def throttle(self, view) -> np.ndarray:
+        """The controller's throttle for every hosted vehicle (one compiled pass, see
+        :func:`evoscen_bv.car_following.learned_throttle`)."""
+        self.prepare_throttle(view)
         late, sut = None, -1
         if self.compete_with_sut:
             sut_rows = np.flatnonzero(np.asarray(view.role) == ROLE_SUT)
@@ -410,10 +377,12 @@ class LearnedDriver:
             self._nan_limits = np.full(shape, np.nan)
         return self._nan_limits
 
-    def _merge_seek_bound(self, view, throttle: np.ndarray) -> np.ndarray:
+    def _merge_seek_bound(self, view, throttle: np.ndarray, targets: np.ndarray | None = None) -> np.ndarray:
         """``throttle`` bounded by the merge's speed adaptation (:func:`merge_seek_accel`) for the
-        hosted vehicles that must merge (few: those on a lane that ends)."""
-        targets = forced_merge_targets(view, self.vehicles, self.forced_merge_m)
+        hosted vehicles that must merge (few: those on a lane that ends); ``targets``: their
+        :func:`forced_merge_targets`, if the caller has them."""
+        if targets is None:
+            targets = forced_merge_targets(view, self.vehicles, self.forced_merge_m)
         if not targets.any():
             if not self._merge_seek_ready:
                 # The first act runs the merge's kernel on no vehicle (nothing changes): compiled, or
@@ -459,12 +428,17 @@ class LearnedDriver:
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
-        throttle = self.throttle(view)
+        fused = self.profile.name != "safety_net"
+        targets = scan = None
+        if fused:  # the throttle, the merge targets, the hard-braking scan and the lane hold: one call
+            throttle, targets, scan = driver_step(self, view)
+        else:
+            throttle = self.throttle(view)
         if self.forced_merge and self.merge_seek:
-            throttle = self._merge_seek_bound(view, throttle)
+            throttle = self._merge_seek_bound(view, throttle, targets)
         if self.hard_brake is not None:
-            throttle = self.hard_brake.bound(view, self.vehicles, throttle, self.vehicle_params)
-        if self.lane_hold_s > 0.0:
+            throttle = self.hard_brake.bound(view, self.vehicles, throttle, self.vehicle_params, scan)
+        if self.lane_hold_s > 0.0 and not fused:
             dt = float(view.dt_s)
             self._changing, self._last_s = _lane_hold_step(
                 self.vehicles, np.asarray(view.lane_change, dtype=np.int64), np.asarray(view.s, dtype=np.float64),
@@ -479,29 +453,6 @@ class LearnedDriver:
                 self.last_request[:] = 0
                 self.last_request[positions] = requested
         return throttle, request
-
-
-@kernel
-def _lane_hold_step(vehicles, lane_change, s_all, changing_before, hold_until, last_s, step, n_hold, hold_on_entry,
-                    forward_m):
-    """One step of the lane hold (compiled: every step): a hosted vehicle whose lane change ended is
-    held ``n_hold`` steps (``hold_until`` in place); then one that began a new trip since the last
-    step (:func:`evoscen_sim.physics.window.new_trips`, ``last_s`` None on the first step) is held
-    (``hold_on_entry``) or freed. Returns (which hosted vehicles change lanes, their ``s``)."""
-    m = vehicles.shape[0]
-    changing = np.empty(m, dtype=np.bool_)
-    s = np.empty(m)
-    for k in range(m):
-        changing[k] = lane_change[vehicles[k]] != 0
-        s[k] = s_all[vehicles[k]]
-        if changing_before[k] and not changing[k]:
-            hold_until[k] = step + n_hold
-    if last_s is not None:
-        entered = new_trips_kernel(last_s, s, common_shift_kernel(last_s, s), forward_m)
-        for k in range(m):
-            if entered[k]:
-                hold_until[k] = step + n_hold if hold_on_entry else -1
-    return changing, s
 
 
 _POLICY_CACHE: dict[Path, tuple[tuple, tuple[NumpyActor, dict[int, NumpyActor], TrainingConfig]]] = {}
