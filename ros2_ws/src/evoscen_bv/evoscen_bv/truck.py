@@ -144,6 +144,27 @@ class TruckDriver:
                             p.time_headway_s, p.min_gap_m, p.accel_mps2, p.comfort_decel_mps2, p.delta,
                             p.max_decel_mps2)
 
+    def step_args(self, view) -> tuple:
+        """The trucks' part of :func:`_makeup_kernel`'s arguments: what :meth:`act` passes its kernels, the MOBIL
+        request made here on a decision step (zeros otherwise, as :meth:`act` has them)."""
+        if self._no_late is None or self._no_late.size != self.vehicles.size:
+            self._no_late = np.zeros(self.vehicles.size, dtype=np.bool_)
+        p = self.params
+        vp = self.vehicle_params
+        decide = int(view.step_index) % int(p.decision_interval_steps) == 0
+        if decide and self.vehicles.size:
+            nb = view.neighborhood()
+            request = np.asarray(_mobil_decision_kernel(
+                self.vehicles, view.s, view.d, view.v, view.length, view.lane, view.target_lane, view.lane_change,
+                view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower,
+                nb.follower_speed_mps, view.road.kernel_tables(), *self._mobil_kernel_args), dtype=np.int64)
+        else:
+            request = np.zeros(self.vehicles.size, dtype=np.int64)
+        return (self.vehicles, float(view.road.lane_end_s[0]) - self._margin.merge_stop_margin_m, self._no_late,
+                _ALL_SEEN, self.desired_speed_mps, p.time_headway_s, p.min_gap_m, p.accel_mps2, p.comfort_decel_mps2,
+                p.delta, p.max_decel_mps2, request, decide, float(p.overtake_deficit_mps),
+                int(view.road.num_lanes) - int(p.keep_off_left_lanes), float(vp.max_accel_mps2), float(vp.max_brake_mps2))
+
     def act(self, view, occ: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted truck (``occ`` as
         :meth:`accel`'s)."""
@@ -236,6 +257,32 @@ class MakeupDriver:
         self._approach = None
 
     def act(self, view) -> tuple[np.ndarray, np.ndarray]:
+        """Throttle and lane-change request of every hosted vehicle: the cars' driver asked, then the cars' approach
+        bound and the trucks' commands in one compiled call (:func:`_makeup_kernel`; the same kernels as
+        :meth:`approach_bound` and :meth:`TruckDriver.act`, so the same bits; docs/performance.md "Per-step work
+        of the BV drivers")."""
+        if self._car_pos is None:
+            self._layout()
+        if self._car_pos.size:
+            thr, lc = self.car_driver.act(view)
+            car_thr, car_lc = np.asarray(thr, dtype=float), np.asarray(lc, dtype=np.int64)
+        else:
+            car_thr, car_lc = _NO_FLOATS, _NO_INTS
+        idx, max_decel, brake, no_seen = self._approach_args()
+        reaction = getattr(self.car_driver, "reaction", None)
+        seen = reaction.seen if reaction is not None else None
+        truck = self.truck_driver
+        lk = view.lane_lookup()
+        return _makeup_kernel(
+            self.vehicles.size, self._car_pos, self._truck_pos, car_thr, car_lc, idx, view.s, view.d, view.psi, view.v,
+            view.accel, view.lane, view.lane_change, view.target_lane, view.length, view.width, lk.d_right, lk.d_left,
+            lk.present, seen if seen is not None else no_seen, seen is not None,
+            reaction.n_react + 1 if seen is not None else 0, APPROACH.trigger_mps2, APPROACH.margin_m, max_decel, brake,
+            *truck.step_args(view))
+
+    def act_unfused(self, view) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`act` call by call (the cars' approach bound, the trucks' :meth:`TruckDriver.act`): what the fused
+        call must equal (a test compares them)."""
         if self._car_pos is None:
             self._layout()
         throttle = np.zeros(self.vehicles.size)
@@ -259,13 +306,7 @@ class MakeupDriver:
         at least at b = Δv² / (2 (gap − margin)) once b reaches the trigger, at most ``max_decel_mps2`` of
         its profile (the full brake where the gap is already below the margin)."""
         car = self.car_driver
-        if self._approach is None:
-            brake = float(car.vehicle_params.max_brake_mps2)
-            profile = getattr(car, "profile", None)
-            max_decel = brake if profile is None or profile.max_decel_mps2 is None else float(profile.max_decel_mps2)
-            self._approach = (np.asarray(car.vehicles, dtype=np.int64), max_decel, brake,
-                              np.zeros((1, 1, 1), dtype=np.int64))
-        idx, max_decel, brake, no_seen = self._approach
+        idx, max_decel, brake, no_seen = self._approach_args()
         if occ is None:
             lk = view.lane_lookup()
             occ = _occupancy(view.s, view.d, view.psi, view.lane, view.lane_change, view.target_lane, view.length,
@@ -277,6 +318,53 @@ class MakeupDriver:
                                 seen if seen is not None else no_seen, seen is not None,
                                 full, APPROACH.trigger_mps2, APPROACH.margin_m, max_decel, brake,
                                 np.array(throttle, dtype=float))
+
+
+    def _approach_args(self) -> tuple:
+        """The approach bound's (cars, their profile's largest deceleration, the full brake, the ``seen`` of no
+        profile), made once per :meth:`restrict`."""
+        if self._approach is None:
+            car = self.car_driver
+            brake = float(car.vehicle_params.max_brake_mps2)
+            profile = getattr(car, "profile", None)
+            max_decel = brake if profile is None or profile.max_decel_mps2 is None else float(profile.max_decel_mps2)
+            self._approach = (np.asarray(car.vehicles, dtype=np.int64), max_decel, brake,
+                              np.zeros((1, 1, 1), dtype=np.int64))
+        return self._approach
+
+
+_NO_FLOATS = np.zeros(0)
+_NO_INTS = np.zeros(0, dtype=np.int64)
+
+
+@kernel
+def _makeup_kernel(n_hosted, car_pos, truck_pos, car_thr, car_lc, car_idx, s, d, psi, v, a, lane, lane_change,
+                   target_lane, length, width, d_right, d_left, present, seen, has_seen, full, trigger, margin, max_decel,
+                   brake, truck_idx, stop, no_late, all_seen, desired, time_headway, min_gap, accel, comfort_decel, delta,
+                   truck_max_decel, request, decide, deficit, top, max_accel, max_brake):
+    """:meth:`MakeupDriver.act` after the cars' driver answered: the occupancy, the cars' approach bound
+    (:func:`_approach_kernel`) and the trucks' leaders, IDM and commands (:meth:`TruckDriver.act`: ``request`` its
+    MOBIL request, made by the caller on a decision step), each answer put at its vehicles' positions."""
+    occ = _occupancy(s, d, psi, lane, lane_change, target_lane, length, width, d_right, d_left, present, -1)
+    throttle = np.zeros(n_hosted)
+    out = np.zeros(n_hosted, dtype=np.int64)
+    if car_pos.shape[0] > 0:
+        thr = _approach_kernel(car_idx, s, v, lane, target_lane, length, occ, seen, has_seen, full, trigger, margin,
+                               max_decel, brake, car_thr.copy())
+        for k in range(car_pos.shape[0]):
+            throttle[car_pos[k]] = thr[k]
+            out[car_pos[k]] = car_lc[k]
+    if truck_pos.shape[0] > 0:
+        gap, vl, _al = _nearest_leaders(truck_idx, s, v, a, lane, lane_change, target_lane, length, present, stop, occ,
+                                        all_seen, 0, occ, no_late)
+        acc = _truck_accel(truck_idx, v, desired, gap, vl, time_headway, min_gap, accel, comfort_decel, delta,
+                           truck_max_decel)
+        thr_t, req_t = _truck_commands(truck_idx, acc, request, decide, v, lane, desired, deficit, top, max_accel,
+                                       max_brake)
+        for k in range(truck_pos.shape[0]):
+            throttle[truck_pos[k]] = thr_t[k]
+            out[truck_pos[k]] = req_t[k]
+    return throttle, out
 
 
 @kernel
