@@ -6,8 +6,8 @@
 (:meth:`evoscen_bv.learned.HardBrakeState.bound`) and the lane hold's step. None of them reads what another
 writes, so :func:`driver_step` makes the four compiled calls as one (:func:`_driver_step_kernel`): the same
 kernels on the same arguments, so the same bits, at a quarter of the calls (docs/performance.md
-"Per-step work of the BV drivers"). What follows them — the merge's speed adaptation, the hard-braking
-odometers and their draws, the bounds — stays with the driver, in the order it had.
+"Per-step work of the world and of the BV drivers"). What follows them — the merge's speed adaptation, the
+hard-braking odometers and their draws, the bounds — stays with the driver, in the order it had.
 """
 
 from __future__ import annotations

@@ -260,7 +260,7 @@ class MakeupDriver:
         """Throttle and lane-change request of every hosted vehicle: the cars' driver asked, then the cars' approach
         bound and the trucks' commands in one compiled call (:func:`_makeup_kernel`; the same kernels as
         :meth:`approach_bound` and :meth:`TruckDriver.act`, so the same bits; docs/performance.md "Per-step work
-        of the BV drivers")."""
+        of the world and of the BV drivers")."""
         if self._car_pos is None:
             self._layout()
         if self._car_pos.size:

@@ -1,5 +1,5 @@
 """The BV drivers' fused steps equal their calls one by one, bit for bit (docs/performance.md "Per-step work of the
-BV drivers"): a learned driver's :func:`evoscen_bv.learned_step.driver_step` against its throttle, forced-merge,
+world and of the BV drivers"): a learned driver's :func:`evoscen_bv.learned_step.driver_step` against its throttle, forced-merge,
 hard-braking and lane-hold calls made separately, and :meth:`evoscen_bv.truck.MakeupDriver.act` against
 :meth:`~evoscen_bv.truck.MakeupDriver.act_unfused`, on every state of runs with learned and with rule-based cars."""
 

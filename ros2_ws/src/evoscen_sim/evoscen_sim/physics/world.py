@@ -275,7 +275,8 @@ class World:
         vp = self.vehicle
 
         # 1. lane-change requests, 2. control and dynamics, 3. the lanes at the new positions and the lane
-        # changes completed or aborted: one compiled pass (docs/performance.md "Per-step work of the world")
+        # changes completed or aborted: one compiled pass (docs/performance.md "Per-step work of the world
+        # and of the BV drivers")
         (executed, d_right, d_left, present, vmax, lane_now, kappa, done, done_from, done_duration, aborted,
          aborted_from, newly_off) = _step_kernel(
             np.asarray(lane_change_request, dtype=np.int64), np.asarray(throttle, dtype=float), self.time_s,
