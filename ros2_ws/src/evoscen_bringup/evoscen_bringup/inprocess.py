@@ -138,6 +138,10 @@ class _InProcessPort(Port):
 
     def send_world(self, world, *, roster: bool) -> None:
         rec, acc = self.rec, self.acc
+        if rec is None and acc is not None:  # scored, no bag: the table in one compiled pass (World.table)
+            self._cols = None
+            acc.add_world_table(world.table(), world.time_ns)
+            return
         # the columns when someone here reads them (the process writer copies the state instead)
         need = acc is not None or (rec is not None and not rec.snapshots)
         self._cols = cols = world.columns() if need else None

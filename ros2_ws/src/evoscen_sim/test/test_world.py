@@ -291,3 +291,24 @@ def test_spawn_jitter_never_puts_a_ramp_vehicle_before_the_merge_lane(road: Road
                   vehicle_length_m=L, ramp_vehicles=3)
     lowest = min(spawn_layout(road, rng=np.random.default_rng(seed), **kwargs).s_m[1] for seed in range(200))
     assert lowest == pytest.approx(600.0 + L / 2)
+
+
+def test_the_world_table_is_the_columns_stacked_as_the_evaluator_stacks_them():
+    # World.table (one compiled pass) against its definition: the columns of state_columns, in the contract's order,
+    # stacked as rows and transposed (evoscen_eval's add_world_columns), bit for bit, on every state of a run
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_contract.contract import WORLD_FIELDS
+    from evoscen_sim.config.scenario_config import load_scenario_config
+    from evoscen_sim.physics.world import TABLE_FIELDS
+
+    assert TABLE_FIELDS == WORLD_FIELDS
+    sc = build_scenario(load_scenario_config(None, {"bvs.nodes": "single", "seed": 4303, "traffic.warmup_s": 5.0}))
+    w = sc.world
+    w.s[3] = -12.5  # a vehicle waiting on the approach: looked up at s = 0, its own s kept
+    for _ in range(150):
+        cols = w.columns()
+        want = np.array([cols[f] for f in WORLD_FIELDS], dtype=np.float64).T.copy()
+        got = w.table()
+        assert got.dtype == np.float64 and got.flags.c_contiguous
+        assert np.array_equal(got.view(np.int64), want.view(np.int64))  # the same bits, NaN included
+        sc.step()

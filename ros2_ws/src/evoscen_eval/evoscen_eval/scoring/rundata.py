@@ -128,6 +128,14 @@ class RunAccumulator:
         table = rows.T.copy()
         self._add_state(table, t_ns)
 
+    def add_world_table(self, table: np.ndarray, t_ns: int) -> None:
+        """A world state as the world table's rows ``[V, F]`` (float64, the contract's columns; kept, not copied:
+        :meth:`evoscen_sim.physics.world.World.table` makes a fresh one per state)."""
+        if table.ndim != 2 or table.shape[1] != len(C.WORLD_FIELDS) or table.dtype != np.float64:
+            raise ValueError(f"world table: expected float64 rows of {len(C.WORLD_FIELDS)} columns, got "
+                             f"{table.dtype} of shape {table.shape}")
+        self._add_state(table, t_ns)
+
     def add_events(self, events: Iterable[Mapping[str, Any]]) -> None:
         """Event dicts of one ``/evoscen/events`` message."""
         for event in events:

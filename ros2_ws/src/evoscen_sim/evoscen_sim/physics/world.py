@@ -44,7 +44,7 @@ from evoscen_contract.contract import ROLE_BV, ROLE_SUT  # noqa: F401  (re-expor
 from evoscen_sim.config.config_schema import ReentryConfig
 from evoscen_sim.jit import kernel
 from evoscen_sim.physics.window import TrafficParams, TrafficWindow
-from evoscen_sim.road.road_kernels import lane_center_d, lane_lookup_kernel
+from evoscen_sim.road.road_kernels import frenet_to_cartesian_kernel, lane_center_d, lane_lookup_kernel
 from evoscen_sim.road.road_model import LaneLookup
 
 from .collision import overlapping_pairs
@@ -251,6 +251,13 @@ class World:
         them (``np.column_stack`` does) to keep a snapshot.
         """
         return state_columns(self.road, self.state_arrays())
+
+    def table(self) -> np.ndarray:
+        """The world table of the current state, ``[N, len(WORLD_FIELDS)]`` float64 in the contract's column order:
+        :meth:`columns` stacked as the evaluator stacks them, made in one compiled pass (a fresh array)."""
+        return _world_table_kernel(self.s, self.d, self.psi, self.v, self.accel, self.steer, self.length, self.width,
+                                   self.ids, self.role, self.policy, self.lane, self.target_lane, self.lane_change,
+                                   *self.road.geometry_tables())
 
     def state_arrays(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """The state :func:`state_columns` needs, as ``(floats, integers)`` (live views, in
@@ -507,3 +514,41 @@ def _step_kernel(request, throttle, time_s, time_next, lane, lane_change, target
         last_duration)
     return (executed, dr, dl, here, vmax, lane_now, kap, done, done_from, done_duration, aborted, aborted_from,
             newly_off)
+
+
+TABLE_FIELDS = ("id", "role", "policy", "x", "y", "yaw", "s", "d", "heading_rel", "speed", "accel", "steer", "lane",
+                "target_lane", "lane_change", "length", "width")
+""":meth:`World.table`'s columns: the contract's ``WORLD_FIELDS`` (a test holds them equal)."""
+
+
+@kernel
+def _world_table_kernel(s, d, psi, v, accel, steer, length, width, ids, role, policy, lane, target_lane, lane_change,
+                        g_s0, g_x0, g_y0, g_h0, g_k):
+    """:meth:`World.table`: :func:`state_columns` (``x``, ``y`` and the heading at ``s`` below 0 taken at 0, as
+    ``np.maximum(s, 0.0)``; ``yaw`` = heading + ``heading_rel``) as float64 rows in :data:`TABLE_FIELDS` order."""
+    n = s.shape[0]
+    s_road = np.empty(n)
+    for i in range(n):  # np.maximum(s, 0.0): NaN kept, -0.0 kept
+        x = s[i]
+        s_road[i] = x if (x >= 0.0 or x != x) else 0.0
+    x, y, h = frenet_to_cartesian_kernel(s_road, d, g_s0, g_x0, g_y0, g_h0, g_k)
+    t = np.empty((n, 17))
+    for i in range(n):
+        t[i, 0] = ids[i]
+        t[i, 1] = role[i]
+        t[i, 2] = policy[i]
+        t[i, 3] = x[i]
+        t[i, 4] = y[i]
+        t[i, 5] = h[i] + psi[i]
+        t[i, 6] = s[i]
+        t[i, 7] = d[i]
+        t[i, 8] = psi[i]
+        t[i, 9] = v[i]
+        t[i, 10] = accel[i]
+        t[i, 11] = steer[i]
+        t[i, 12] = lane[i]
+        t[i, 13] = target_lane[i]
+        t[i, 14] = lane_change[i]
+        t[i, 15] = length[i]
+        t[i, 16] = width[i]
+    return t

@@ -387,6 +387,11 @@ class RoadModel:
         s_a = np.asarray(s, dtype=float)
         return self._g_k[self._piece(s_a)].copy()
 
+    def geometry_tables(self) -> tuple:
+        """The planView pieces' start ``s``, ``x``, ``y``, heading and curvature (read-only), the arguments of
+        :func:`~evoscen_sim.road.road_kernels.frenet_to_cartesian_kernel` after ``(s, d)``, for a compiled caller."""
+        return self._g_s0, self._g_x0, self._g_y0, self._g_h0, self._g_k
+
     def frenet_to_cartesian(self, s: ArrayLike, d: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(x_m, y_m, heading_rad): the point at lateral offset ``d`` from the reference line at ``s``,
         and the reference line's heading there. Exact for line and arc pieces."""
