@@ -156,3 +156,18 @@ def test_a_recorded_run_from_a_shared_start_writes_the_same_bag(tmp_path):
         for name in names:
             assert (shared / name).read_bytes() == (fresh / name).read_bytes(), (variant, name)
     assert (cache.built, cache.reused) == (1, 1)
+
+
+def test_a_run_scores_the_same_with_and_without_a_bag(tmp_path):
+    # with a bag the evaluator stacks the world's columns (as the bag holds them); without one it takes the table
+    # made in one compiled pass (World.table): the reports are the same, byte for byte as JSON
+    from pathlib import Path
+
+    for seed in SEEDS:
+        bag = Path(tmp_path) / f"bag{seed}"
+        summary = run_inprocess(_cfg(seed, VARIANTS[0], **{"recording.enabled": "true"}), bag_dir=bag, evaluate=True,
+                                plots=False)
+        recorded = summary.report
+        plain = run_inprocess(_cfg(seed, VARIANTS[0]), bag_dir=None, evaluate=True, plots=False).report
+        assert summary.bag_bytes > 0 and any(bag.glob("*.mcap"))
+        assert json.dumps(recorded, sort_keys=True) == json.dumps(plain, sort_keys=True)
