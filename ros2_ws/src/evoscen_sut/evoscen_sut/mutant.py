@@ -71,6 +71,7 @@ from evoscen_sim.config.scenario_config import integer, number, text
 from evoscen_sim.errors import InputError
 from evoscen_sim.model_registry import ModelSpec, get_model, model_names
 from evoscen_sim.physics.window import common_shift
+from evoscen_sim.road.road_kernels import lane_end_distance
 from evoscen_sim.loop.view import WorldView
 
 from .krauss_lane_change import KraussLaneChangeDriver
@@ -310,9 +311,8 @@ class MutantDriver:
 
     def _on_ending_lane(self, view: Any) -> bool:
         """The SUT is on a lane that ends ahead (the merge lane): changing out of it is mandatory."""
-        ego = self.ego
-        dist = view.road.distance_to_lane_end(np.array([view.lane[ego]]), np.array([view.s[ego]], dtype=float))
-        return bool(np.isfinite(dist[0]))
+        ego = self.ego  # road.distance_to_lane_end, compiled (inf where numpy's is NaN: neither is finite)
+        return bool(np.isfinite(lane_end_distance(view.road.kernel_tables(), int(view.lane[ego]), float(view.s[ego]))))
 
     @staticmethod
     def _throttle(driver: Any, view: Any) -> np.ndarray:
