@@ -127,12 +127,14 @@ class HardBrakeState:
         p = self.params
         step, dt = int(view.step_index), float(view.dt_s)
         v = np.asarray(view.v, dtype=np.float64)
-        braking, k = scan if scan is not None else _hard_brake_scan(np.asarray(vehicles, dtype=np.int64), self.until_step, v,
-                                      np.asarray(view.role, dtype=np.int64), np.asarray(view.s, dtype=np.float64),
-                                      np.asarray(view.d, dtype=np.float64), np.asarray(view.length, dtype=np.float64),
-                                      np.asarray(view.width, dtype=np.float64),
-                                      np.asarray(view.lane_change, dtype=np.int64), float(p.min_speed_mps), step,
-                                      HARD_BRAKE_VIEW_M, ROLE_SUT)
+        if scan is None:
+            scan = _hard_brake_scan(np.asarray(vehicles, dtype=np.int64), self.until_step, v,
+                                    np.asarray(view.role, dtype=np.int64), np.asarray(view.s, dtype=np.float64),
+                                    np.asarray(view.d, dtype=np.float64), np.asarray(view.length, dtype=np.float64),
+                                    np.asarray(view.width, dtype=np.float64),
+                                    np.asarray(view.lane_change, dtype=np.int64), float(p.min_speed_mps), step,
+                                    HARD_BRAKE_VIEW_M, ROLE_SUT)
+        braking, k = scan
         if k >= 0:  # the SUT's leader is hosted here and its odometer runs
             vk = v[vehicles[k]]
             self.to_go_m[k] -= vk * dt

@@ -171,22 +171,10 @@ class TruckDriver:
         if self.vehicles.size == 0:
             return np.zeros(0), np.zeros(0, dtype=np.int64)
         acc = self.accel(view, occ)
-        p = self.params
-        vp = self.vehicle_params
-        decide = int(view.step_index) % int(p.decision_interval_steps) == 0
-        if decide:
-            nb = view.neighborhood()  # evoscen_sut.mobil.lane_change_decision, its parameters made once
-            request = _mobil_decision_kernel(
-                self.vehicles, view.s, view.d, view.v, view.length, view.lane, view.target_lane, view.lane_change,
-                view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower,
-                nb.follower_speed_mps, view.road.kernel_tables(), *self._mobil_kernel_args)
-        else:
-            request = np.zeros(self.vehicles.size, dtype=np.int64)
-        return _truck_commands(self.vehicles, acc, np.asarray(request, dtype=np.int64), decide,
-                               np.asarray(view.v, dtype=float), np.asarray(view.lane, dtype=np.int64),
-                               self.desired_speed_mps, float(p.overtake_deficit_mps),
-                               int(view.road.num_lanes) - int(p.keep_off_left_lanes),
-                               float(vp.max_accel_mps2), float(vp.max_brake_mps2))
+        *_, request, decide, deficit, top, max_accel, max_brake = self.step_args(view)  # the MOBIL request, once
+        return _truck_commands(self.vehicles, acc, request, decide, np.asarray(view.v, dtype=float),
+                               np.asarray(view.lane, dtype=np.int64), self.desired_speed_mps, deficit, top, max_accel,
+                               max_brake)
 
 
 @kernel
