@@ -128,9 +128,9 @@ def test_the_recorder_and_the_scorer_get_only_their_parts(writer, tmp_path, monk
     spy(bag_writer.ProcessRecorder, "recorder")
     start_scoring = RunAccumulator.start_scoring
 
-    def scoring(self, ev, dt_s=None):
+    def scoring(self, ev, dt_s=None, **kwargs):
         seen["scorer"] = ((ev, dt_s), {})
-        return start_scoring(self, ev, dt_s)
+        return start_scoring(self, ev, dt_s, **kwargs)
     monkeypatch.setattr(RunAccumulator, "start_scoring", scoring)
 
     cfg = _cfg()

@@ -263,7 +263,8 @@ def run_plan(
         from evoscen_eval.scoring.rundata import RunAccumulator
 
         acc = RunAccumulator(expected_states=n_steps + 1, keep_world=keep_run)
-        acc.start_scoring(ev.settings, ev.dt_s)  # the settings an evaluation of the bag reads back
+        # the settings an evaluation of the bag reads back; the animation's frames only for a report with plots
+        acc.start_scoring(ev.settings, ev.dt_s, frames=report_dir is not None and plots)
         if report_dir is not None:  # the lane lines of the report's snapshots
             acc.add_map(world.road)
     summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)

@@ -171,3 +171,16 @@ def test_a_run_scores_the_same_with_and_without_a_bag(tmp_path):
         plain = run_inprocess(_cfg(seed, VARIANTS[0]), bag_dir=None, evaluate=True, plots=False).report
         assert summary.bag_bytes > 0 and any(bag.glob("*.mcap"))
         assert json.dumps(recorded, sort_keys=True) == json.dumps(plain, sort_keys=True)
+
+
+def test_the_animation_frames_are_kept_only_for_a_report_with_plots(tmp_path):
+    # the frames feed the report's animation alone: a run scored for its figures skips them and scores the same
+    cfg = _cfg(SEEDS[0], VARIANTS[0])
+    plain = run_inprocess(cfg, bag_dir=None, evaluate=True, plots=False)
+    written = run_inprocess(cfg, bag_dir=None, report_dir=tmp_path / "report", plots=True)
+    no_plots = run_inprocess(cfg, bag_dir=None, report_dir=tmp_path / "report2", plots=False)
+    assert plain.plot.frames.frames == [] and no_plots.plot.frames.frames == []
+    # 51 states (50 steps and the first), every one kept below the series' cap
+    assert [f.state for f in written.plot.frames.frames] == list(range(STEPS + 1))
+    assert _report_text(plain) == _report_text(written) == _report_text(no_plots)
+    assert (tmp_path / "report" / "run.gif").exists() and not (tmp_path / "report2" / "run.gif").exists()

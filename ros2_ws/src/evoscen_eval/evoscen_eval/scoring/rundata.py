@@ -97,14 +97,15 @@ class RunAccumulator:
         self._last_table: np.ndarray | None = None
         self._last_stamp: int | None = None
 
-    def start_scoring(self, ev: Any, dt_s: float | None = None) -> Any:
+    def start_scoring(self, ev: Any, dt_s: float | None = None, *, frames: bool = True) -> Any:
         """Score the states as they come (a :class:`~evoscen_eval.scoring.streaming.ScoreStream` under
-        ``ev``, step ``dt_s`` or from the stamps); before the first world state."""
+        ``ev``, step ``dt_s`` or from the stamps; ``frames``: collect the animation's frames); before the
+        first world state."""
         from evoscen_eval.scoring.streaming import ScoreStream
 
         if self._k:
             raise ValueError("scoring must start before the first world state")
-        self.stream = ScoreStream(ev, dt_s)
+        self.stream = ScoreStream(ev, dt_s, frames=frames)
         self.stream.add_events(self.events)
         if not self.keep_world:
             self.events = [e for e in self.events if e["name"] == C.EVENT_RUN_END]

@@ -108,9 +108,12 @@ class ScoreStream:
         dt_s: the step; None: taken from the first two stamps (0.1 s for a single state).
     """
 
-    def __init__(self, ev, dt_s: float | None = None) -> None:  # EvaluationConfig
+    def __init__(self, ev, dt_s: float | None = None, *, frames: bool = True) -> None:  # EvaluationConfig
         self.ev = ev
         self.dt_s = dt_s
+        self.keep_frames = bool(frames)
+        """Whether the animation's frames are collected (``frames``): only a report written with its plots
+        draws them, so a run scored for its figures alone skips them (a few per cent of a scored step)."""
         self._block: list[np.ndarray] = []
         self._block_t: list[int] = []
         self.states = 0
@@ -346,7 +349,8 @@ class ScoreStream:
 
         # --- plots
         self.plots.add_block(ks, times, speed, lane, ttc, bvs_near)
-        self.frames.add_block(ks, times, tables, self.ids, sut)
+        if self.keep_frames:
+            self.frames.add_block(ks, times, tables, self.ids, sut)
         self.collisions.add_block(k0, ks, tables, times, lc, self.ids, sut, dt)
 
     def _accel_activity_counts(self, a: np.ndarray, dt: float) -> np.ndarray:

@@ -63,20 +63,23 @@ def compute_neighborhood(
     s: np.ndarray, lane: np.ndarray, v: np.ndarray, a: np.ndarray, length: np.ndarray
 ) -> Neighborhood:
     """Leaders and followers of every vehicle (see :class:`Neighborhood`)."""
-    return Neighborhood(*_neighborhood_kernel(s, lane.astype(np.int64), v, a, length))
+    ints, floats = _neighborhood_kernel(s, lane.astype(np.int64), v, a, length)
+    return Neighborhood(*ints, *floats)
 
 
 @kernel
 def _neighborhood_kernel(s, lane, v, a, length):
+    """The fields of :class:`Neighborhood` as two arrays (a compiled call pays about half a microsecond
+    for every array it hands back: docs/performance.md "Per-step work of the world and of the BV
+    drivers"): ``(2, N, 5)`` integers (leader, follower) and ``(6, N, 5)`` floats (the gaps, speeds and
+    accelerations in the dataclass's order)."""
     n = s.shape[0]
-    lead = np.full((n, 5), -1, dtype=np.int64)
-    foll = np.full((n, 5), -1, dtype=np.int64)
-    gap_f = np.full((n, 5), np.inf)
-    gap_r = np.full((n, 5), np.inf)
-    v_f = np.full((n, 5), np.nan)
-    v_r = np.full((n, 5), np.nan)
-    a_f = np.full((n, 5), np.nan)
-    a_r = np.full((n, 5), np.nan)
+    ints = np.full((2, n, 5), -1, dtype=np.int64)
+    floats = np.empty((6, n, 5))
+    floats[0:2] = np.inf
+    floats[2:6] = np.nan
+    lead, foll = ints[0], ints[1]
+    gap_f, gap_r, v_f, v_r, a_f, a_r = floats[0], floats[1], floats[2], floats[3], floats[4], floats[5]
     best_f = np.empty(5)
     best_r = np.empty(5)
     for i in range(n):
@@ -105,7 +108,7 @@ def _neighborhood_kernel(s, lane, v, a, length):
                 gap_r[i, c] = best_r[c] - 0.5 * (length[i] + length[j])
                 v_r[i, c] = v[j]
                 a_r[i, c] = a[j]
-    return lead, foll, gap_f, gap_r, v_f, v_r, a_f, a_r
+    return ints, floats
 
 
 def time_to_collision(gap_m: np.ndarray, speed_mps: np.ndarray, leader_speed_mps: np.ndarray) -> np.ndarray:

@@ -284,8 +284,7 @@ class World:
         # 1. lane-change requests, 2. control and dynamics, 3. the lanes at the new positions and the lane
         # changes completed or aborted: one compiled pass (docs/performance.md "Per-step work of the world
         # and of the BV drivers")
-        (executed, d_right, d_left, present, vmax, lane_now, kappa, done, done_from, done_duration, aborted,
-         aborted_from, newly_off) = _step_kernel(
+        lane_floats, present, ints, kappa, changes, done_duration = _step_kernel(
             np.asarray(lane_change_request, dtype=np.int64), np.asarray(throttle, dtype=float), self.time_s,
             (self.step_index + 1) * self.dt_s,
             self.lane, self.lane_change, self.target_lane, self.lane_change_start_s,
@@ -297,6 +296,8 @@ class World:
             vp.max_steer_rad, vp.max_steer_rate_radps * self.dt_s, self.dt_s,
             self.off_road, self.lane_change_count, self.last_lane_change_duration_s, *road.lookup_tables(),
         )
+        executed, lane_now = ints
+        d_right, d_left, vmax = lane_floats
         self.step_index += 1
         self._neighborhood = None
         result = StepResult(step=self.step_index, time_s=self.time_s, executed_lane_change=executed)
@@ -304,19 +305,25 @@ class World:
             result.challenges = onsets
         self._lanes = LaneLookup(d_right, d_left, present, vmax, lane_now, kappa)  # = _refresh_road_lookups()
         self._speed_limit = None
-        if done.size:
-            result.lane_changes_completed = [
-                (int(i), int(f), int(self.lane[i]), float(t)) for i, f, t in zip(done, done_from, done_duration)
-            ]
-        if aborted.size:
-            result.lane_changes_aborted = [
-                (int(i), int(f), int(self.target_lane[i])) for i, f in zip(aborted, aborted_from)
-            ]
-            # the target reverts to the lane the vehicle is in
-            self.target_lane[aborted] = self.lane[aborted]
-            self.controller.reset(aborted)
-        if newly_off.size:
-            result.off_road = [int(i) for i in newly_off]
+        if changes.size > 3:  # lane changes completed or aborted, vehicles newly off the road (_step_kernel)
+            n_done, n_aborted, _ = changes[:3].tolist()
+            done, done_from = changes[3:3 + n_done], changes[3 + n_done:3 + 2 * n_done]
+            k = 3 + 2 * n_done
+            aborted, aborted_from = changes[k:k + n_aborted], changes[k + n_aborted:k + 2 * n_aborted]
+            newly_off = changes[k + 2 * n_aborted:]
+            if n_done:
+                result.lane_changes_completed = [
+                    (int(i), int(f), int(self.lane[i]), float(t)) for i, f, t in zip(done, done_from, done_duration)
+                ]
+            if n_aborted:
+                result.lane_changes_aborted = [
+                    (int(i), int(f), int(self.target_lane[i])) for i, f in zip(aborted, aborted_from)
+                ]
+                # the target reverts to the lane the vehicle is in
+                self.target_lane[aborted] = self.lane[aborted]
+                self.controller.reset(aborted)
+            if newly_off.size:
+                result.off_road = [int(i) for i in newly_off]
 
         # 4. the traffic window (shift, exits, entries), or re-entry of vehicles past the road's end
         if self.window is not None:
@@ -492,10 +499,16 @@ def _step_kernel(request, throttle, time_s, time_next, lane, lane_change, target
                  off_coef, off_origin, g_s0, g_k):
     """Steps 1 to 3 of :meth:`World.step` in one call: :func:`_advance_kernel` (``time_s``), the road look-up
     at the new positions (:meth:`World._refresh_road_lookups`: ``s`` below 0 looked up at 0, as
-    ``np.maximum(s, 0.0)`` gives it) and :func:`_lane_bookkeeping_kernel` (``time_next``). Returns the
-    executed lane changes, the six :class:`~evoscen_sim.road.road_model.LaneLookup` fields and the
-    bookkeeping's six arrays; the state is updated in place. The same operations in the same order as the
-    three calls, so the same bits."""
+    ``np.maximum(s, 0.0)`` gives it) and :func:`_lane_bookkeeping_kernel` (``time_next``); the state is
+    updated in place. The same operations in the same order as the three calls, so the same bits.
+
+    Returns six arrays, packed because a compiled call pays about half a microsecond for every array it
+    hands back (docs/performance.md "Per-step work of the world and of the BV drivers"): the
+    :class:`~evoscen_sim.road.road_model.LaneLookup` borders and speed limits as one ``(3, N, lanes)`` array
+    (``d_right``, ``d_left``, ``max_speed_mps``), its ``present``, the executed lane changes and the lanes
+    as one ``(2, N)`` integer array, the curvature; then the bookkeeping's changes as one integer array
+    ``[n_done, n_aborted, n_off, done…, done_from…, aborted…, aborted_from…, newly_off…]`` and the
+    completed changes' durations."""
     executed, _reset = _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, lane_change_start_s,
                                        d_right, d_left, present, kappa, s, d, psi, v, accel, steer,
                                        int_d, int_psi, prev_e_d, prev_e_psi, fresh,
@@ -512,8 +525,23 @@ def _step_kernel(request, throttle, time_s, time_next, lane, lane_change, target
     done, done_from, done_duration, aborted, aborted_from, newly_off = _lane_bookkeeping_kernel(
         lane_now, here, time_next, lane, off_road, lane_change, target_lane, lane_change_start_s, lane_change_count,
         last_duration)
-    return (executed, dr, dl, here, vmax, lane_now, kap, done, done_from, done_duration, aborted, aborted_from,
-            newly_off)
+    lane_floats = np.empty((3, n, here.shape[1]))
+    lane_floats[0] = dr
+    lane_floats[1] = dl
+    lane_floats[2] = vmax
+    ints = np.empty((2, n), dtype=np.int64)
+    ints[0] = executed
+    ints[1] = lane_now
+    nd, na, no = done.shape[0], aborted.shape[0], newly_off.shape[0]
+    changes = np.empty(3 + 2 * nd + 2 * na + no, dtype=np.int64)
+    changes[0], changes[1], changes[2] = nd, na, no
+    changes[3:3 + nd] = done
+    changes[3 + nd:3 + 2 * nd] = done_from
+    k = 3 + 2 * nd
+    changes[k:k + na] = aborted
+    changes[k + na:k + 2 * na] = aborted_from
+    changes[k + 2 * na:] = newly_off
+    return lane_floats, here, ints, kap, changes, done_duration
 
 
 TABLE_FIELDS = ("id", "role", "policy", "x", "y", "yaw", "s", "d", "heading_rel", "speed", "accel", "steer", "lane",
