@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from evoscen_sim.config.scenario_config import integer, number
-from evoscen_sim.jit import kernel
+from evoscen_sim.jit import kernel, plain
 from evoscen_sim.physics.idm import idm_scalar
 from evoscen_sut.krauss_lane_change import kernel_params
 from evoscen_sut.mobil import MobilKernelParams, MobilParams, _mobil_decision_kernel, conflict_rule
@@ -117,8 +117,10 @@ class TruckDriver:
         self.desired_speed_mps = np.asarray(desired_speed_mps, dtype=float).copy()
         self.vehicle_params = vehicle_params
         self.mobil = _mobil_params(params)
-        self._mobil_kernel_args = (kernel_params(MobilKernelParams, self.mobil), conflict_rule(self.mobil))
-        """What :func:`evoscen_sut.mobil.lane_change_decision` makes of the parameters each call, made once."""
+        self._mobil_kernel_args = (tuple(kernel_params(MobilKernelParams, self.mobil)),
+                                   tuple(conflict_rule(self.mobil)))
+        """What :func:`evoscen_sut.mobil.lane_change_decision` makes of the parameters each call, made once (plain
+        tuples, as the kernel takes them: :func:`evoscen_sim.jit.plain`)."""
         self._margin = _Margin(float(params.merge_stop_margin_m))
         self._no_late: np.ndarray | None = None
 
@@ -157,7 +159,7 @@ class TruckDriver:
             request = np.asarray(_mobil_decision_kernel(
                 self.vehicles, view.s, view.d, view.v, view.length, view.lane, view.target_lane, view.lane_change,
                 view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower,
-                nb.follower_speed_mps, view.road.kernel_tables(), *self._mobil_kernel_args), dtype=np.int64)
+                nb.follower_speed_mps, plain(view.road.kernel_tables()), *self._mobil_kernel_args), dtype=np.int64)
         else:
             request = np.zeros(self.vehicles.size, dtype=np.int64)
         return (self.vehicles, float(view.road.lane_end_s[0]) - self._margin.merge_stop_margin_m, self._no_late,

@@ -22,9 +22,9 @@ from functools import lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
-from evoscen_sim.jit import kernel
+from evoscen_sim.jit import kernel, plain
 from evoscen_sim.physics.vehicle import VehicleParams, accel_to_throttle
-from evoscen_sim.road.road_kernels import lane_center_d, lane_end_distance
+from evoscen_sim.road.road_kernels import RoadTables, lane_center_d, lane_end_distance
 
 from .kernel_math import maximum, minimum
 from .krauss import KraussCarFollowing, follow_speed_scalar, krauss_for, next_speed_scalar
@@ -201,7 +201,7 @@ class KraussLaneChangeDriver:
         limit = view.speed_limit_mps if self.speed_cap else self._no_limit(view.s.shape[0])
         return _krauss_kernel(idx, self._factors(kr, idx, prm.desired_speed_mps), u, u_target, view.s, view.v,
                               view.length, lane, target_lane, limit, nb.gap_front_m, nb.leader_speed_mps,
-                              view.road.kernel_tables(), prm)
+                              plain(view.road.kernel_tables()), plain(prm))
 
     def _kernel_params(self, kr: KraussCarFollowing, view_dt_s: float) -> KraussDriverParams:
         """:func:`_krauss_params` of this driver, kept while the car follower's parameters and the
@@ -319,8 +319,10 @@ def _count_changing(idx, lane, target_lane):
 
 @kernel
 def _krauss_kernel(idx, factor, u, u_target, s, v, length, lane, target_lane, speed_limit, gap_front,
-                   leader_speed, road, prm):
-    """:class:`KraussLaneChangeDriver`'s acceleration and throttle (class docstring)."""
+                   leader_speed, road_t, prm_t):
+    """:class:`KraussLaneChangeDriver`'s acceleration and throttle (class docstring); the road's tables and the
+    parameters as plain tuples (:func:`evoscen_sim.jit.plain`)."""
+    road, prm = RoadTables(*road_t), KraussDriverParams(*prm_t)
     min_gap, accel, decel, emergency, sigma, tau = (prm.min_gap_m, prm.accel_mps2, prm.decel_mps2,
                                                     prm.emergency_decel_mps2, prm.sigma, prm.tau_s)
     desired, dt, view_dt, margin = prm.desired_speed_mps, prm.dt_s, prm.view_dt_s, prm.stop_margin_m

@@ -71,11 +71,11 @@ from typing import Any
 
 import numpy as np
 from evoscen_sim.config.scenario_config import flag, number
-from evoscen_sim.jit import kernel
+from evoscen_sim.jit import kernel, plain
 from evoscen_sim.model_registry import ModelSpec
 from evoscen_sim.physics.idm import idm_scalar
 from evoscen_sim.physics.neighbors import LEFT, OWN, RIGHT
-from evoscen_sim.road.road_kernels import lane_end_distance, segment_index
+from evoscen_sim.road.road_kernels import RoadTables, lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum, nan_to_num
@@ -327,8 +327,10 @@ def _mobil_kernel(idx, s, v, length, lane, target_lane, speed_limit, gap_front, 
 
 @kernel
 def _mobil_decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, speed_limit, gap_front,
-                           leader_speed, gap_rear, follower, follower_speed, road, prm, rule):
-    """:func:`lane_change_decision` (evaluation, choice, settling and conflicts) in one pass."""
+                           leader_speed, gap_rear, follower, follower_speed, road_t, prm_t, rule_t):
+    """:func:`lane_change_decision` (evaluation, choice, settling and conflicts) in one pass. The road's
+    tables, the parameters and the conflict rule come as plain tuples (:func:`evoscen_sim.jit.plain`)."""
+    road, prm, rule = RoadTables(*road_t), MobilKernelParams(*prm_t), ConflictRule(*rule_t)
     exists, _acc_ego, _gain_n, _gain_o, _at_n, inc, safe, mandatory = _mobil_kernel(
         idx, s, v, length, lane, target_lane, speed_limit, gap_front, leader_speed, gap_rear, follower,
         follower_speed, road, prm)
@@ -384,8 +386,8 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: MobilParams) -
     nb = view.neighborhood()
     return _mobil_decision_kernel(idx, view.s, view.d, view.v, view.length, view.lane, view.target_lane,
                                   view.lane_change, view.speed_limit_mps, nb.gap_front_m, nb.leader_speed_mps,
-                                  nb.gap_rear_m, nb.follower, nb.follower_speed_mps, view.road.kernel_tables(),
-                                  kernel_params(MobilKernelParams, params), conflict_rule(params))
+                                  nb.gap_rear_m, nb.follower, nb.follower_speed_mps, plain(view.road.kernel_tables()),
+                                  plain(kernel_params(MobilKernelParams, params)), plain(conflict_rule(params)))
 
 
 make_driver = lane_change_factory(lane_change_decision, MobilParams)

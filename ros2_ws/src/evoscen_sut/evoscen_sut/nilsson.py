@@ -82,9 +82,9 @@ from typing import Any
 
 import numpy as np
 from evoscen_sim.config.scenario_config import number
-from evoscen_sim.jit import kernel
+from evoscen_sim.jit import kernel, plain
 from evoscen_sim.model_registry import ModelSpec
-from evoscen_sim.road.road_kernels import lane_end_distance, segment_index
+from evoscen_sim.road.road_kernels import RoadTables, lane_end_distance, segment_index
 
 from .conflicts import ConflictRule, resolve_conflicts
 from .kernel_math import argmax, maximum, minimum
@@ -315,8 +315,10 @@ def _nilsson_kernel(idx, s, v, length, lane, target_lane, road, prm):
 
 
 @kernel
-def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, road, prm, rule):
-    """:func:`lane_change_decision` (evaluation, safety, settling and conflicts) in one pass."""
+def _decision_kernel(idx, s, d, v, length, lane, target_lane, lane_change, road_t, prm_t, rule_t):
+    """:func:`lane_change_decision` (evaluation, safety, settling and conflicts) in one pass. The road's
+    tables, the parameters and the conflict rule come as plain tuples (:func:`evoscen_sim.jit.plain`)."""
+    road, prm, rule = RoadTables(*road_t), NilssonKernelParams(*prm_t), ConflictRule(*rule_t)
     _utility, _speed, _time_gap, _score, target, step_safe, own_candidate = _nilsson_kernel(
         idx, s, v, length, lane, target_lane, road, prm)
     k = idx.shape[0]
@@ -357,8 +359,8 @@ def lane_change_decision(view: Any, vehicles: np.ndarray, params: NilssonParams)
     if idx.size == 0:
         return np.zeros(0, dtype=np.int64)
     return _decision_kernel(idx, view.s, view.d, view.v, view.length, view.lane, view.target_lane,
-                            view.lane_change, view.road.kernel_tables(), kernel_params(NilssonKernelParams, params),
-                            conflict_rule(params))
+                            view.lane_change, plain(view.road.kernel_tables()),
+                            plain(kernel_params(NilssonKernelParams, params)), plain(conflict_rule(params)))
 
 
 make_driver = lane_change_factory(lane_change_decision, NilssonParams)
