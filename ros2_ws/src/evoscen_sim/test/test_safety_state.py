@@ -351,3 +351,28 @@ def test_headway_grace_counts_unbroken_runs_across_blocks():
     a, c = held_longer_than(np.array([True, True]), 2)
     b, _ = held_longer_than(np.array([True, False]), 2, c)
     assert (a.tolist(), b.tolist()) == ([False, False], [True, False])
+
+
+def test_one_value_test_and_the_scalar_paths_agree_with_the_arrays() -> None:
+    from evoscen_sim.danger.safety import _one, follower_headway, headway_dangerous, held_longer_than
+
+    for x in (1.0, 3, True, np.float64(2.5), np.int64(4), np.bool_(False), np.array(1.0), np.float32(1.0)):
+        assert _one(x), x
+    for x in (np.array([1.0]), [1.0], np.zeros((2, 2))):
+        assert not _one(x), x
+    # by hand: 20 m at 25 m/s is 0.8 s < 1 s while not slower than the leader; 30 m is 1.2 s
+    assert bool(headway_dangerous(20.0, 25.0, 24.0, 1.0)) is True
+    assert bool(headway_dangerous(30.0, 25.0, 24.0, 1.0)) is False
+    assert bool(headway_dangerous(20.0, 25.0, 26.0, 1.0)) is False  # falling back
+    assert bool(headway_dangerous(math.inf, 25.0, math.nan, 1.0)) is False
+    gaps, v, vl = np.array([20.0, 30.0, 20.0, math.inf]), np.full(4, 25.0), np.array([24.0, 24.0, 26.0, math.nan])
+    assert headway_dangerous(gaps, v, vl, 1.0).tolist() == [True, False, False, False]
+    assert [bool(headway_dangerous(np.float64(g), np.float64(25.0), np.float64(u), 1.0))
+            for g, u in zip(gaps, vl)] == [True, False, False, False]
+    assert float(follower_headway(10.0, 20.0)) == 0.5 and float(follower_headway(10.0, 0.0)) == math.inf
+    assert follower_headway(np.array([10.0, 10.0]), np.array([20.0, 0.0])).tolist() == [0.5, math.inf]
+    # a run of 3 states held, grace 2: the third is past the grace; a scalar state continues a carry of 2
+    held, run = held_longer_than(np.array([True, True, True]), 2)
+    assert held.tolist() == [False, False, True] and run == 3
+    assert held_longer_than(np.bool_(True), 2, carry=2) == (True, 3)
+    assert held_longer_than(False, 2, carry=2) == (False, 0)

@@ -143,6 +143,16 @@ def sut_leader_ttc_state(s: np.ndarray, d: np.ndarray, speed: np.ndarray, length
     return leader, np.inf
 
 
+_SCALAR_TYPES = frozenset((float, int, bool, np.float64, np.int64, np.bool_))
+
+
+def _one(x) -> bool:
+    """Whether ``x`` is one value (``np.ndim(x) == 0``), answered without numpy for the plain and numpy
+    scalars the live monitor passes: ``np.ndim`` of a Python float costs ~1.5 µs (it tries ``.ndim``
+    and catches the AttributeError), the type test ~50 ns (docs/performance.md "Per-step work of the scores")."""
+    return type(x) in _SCALAR_TYPES or np.ndim(x) == 0
+
+
 def headway_dangerous(gap_m: np.ndarray | float, sut_speed: np.ndarray | float, leader_speed: np.ndarray | float,
                       threshold_s: float) -> np.ndarray:
     """Whether the SUT follows its leader too closely (docs/evaluation.md §2, "tailgating"):
@@ -153,7 +163,7 @@ def headway_dangerous(gap_m: np.ndarray | float, sut_speed: np.ndarray | float, 
     A SUT that has dropped below the threshold and is falling back (slower than its leader, as
     after a vehicle cut in ahead of it) is not tailgating. Scalars give a numpy bool.
     """
-    if np.ndim(gap_m) == 0 and np.ndim(sut_speed) == 0 and np.ndim(leader_speed) == 0:
+    if _one(gap_m) and _one(sut_speed) and _one(leader_speed):
         # one state in plain floats: the same IEEE operations, at a fraction of numpy's per-call cost
         g, v, vl = float(gap_m), float(sut_speed), float(leader_speed)
         return np.bool_(threshold_s > 0.0 and math.isfinite(g) and v > 0.0 and g / v < threshold_s and v >= vl)
@@ -177,7 +187,7 @@ def held_longer_than(condition: np.ndarray, steps: int, carry: int = 0) -> tuple
     and including it, counting ``carry`` states of an unbroken run before the first (a block of a
     longer run); returns (that, the run length at the last state: the next block's carry).
     A scalar ``condition`` is one state: a bool and the run length at it."""
-    if np.ndim(condition) == 0:  # one state (the live monitor)
+    if _one(condition):  # one state (the live monitor)
         r = int(carry) + 1 if condition else 0
         return r > steps, r
     cond = np.asarray(condition, dtype=bool)
@@ -400,7 +410,7 @@ def follower_headway(gap_m: np.ndarray, follower_speed_mps: np.ndarray) -> np.nd
     """The follower's time headway to the SUT (s): gap / its speed while it moves, else ``inf``
     (also ``inf`` without a follower: ``inf`` gap or ``nan`` speed); negative while the bodies
     overlap longitudinally. Scalars give a numpy float."""
-    if np.ndim(gap_m) == 0 and np.ndim(follower_speed_mps) == 0:
+    if _one(gap_m) and _one(follower_speed_mps):
         # one state in plain floats (the live monitor): the same IEEE operations, at a fraction of
         # numpy's per-call cost (docs/performance.md "Per-step work of the scores")
         g, v = float(gap_m), float(follower_speed_mps)
