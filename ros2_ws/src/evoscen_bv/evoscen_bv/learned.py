@@ -142,7 +142,7 @@ class HardBrakeState:
             if self.to_go_m[k] <= 0.0:
                 self.start(k, step, dt)
                 braking[k] = True
-        if not braking.any():
+        if not np.count_nonzero(braking):
             return throttle
         out = np.array(throttle, dtype=float)
         out[braking] = np.minimum(out[braking], accel_to_throttle(-self.decel[braking], vehicle_params))
@@ -385,7 +385,7 @@ class LearnedDriver:
         :func:`forced_merge_targets`, if the caller has them."""
         if targets is None:
             targets = forced_merge_targets(view, self.vehicles, self.forced_merge_m)
-        if not targets.any():
+        if not np.count_nonzero(targets):  # count_nonzero: a fifth of .any()'s cost on a small int array
             if not self._merge_seek_ready:
                 # The first act runs the merge's kernel on no vehicle (nothing changes): compiled, or
                 # loaded from numba's cache, here rather than at the first merge. A controller node

@@ -312,3 +312,24 @@ def test_the_world_table_is_the_columns_stacked_as_the_evaluator_stacks_them():
         assert got.dtype == np.float64 and got.flags.c_contiguous
         assert np.array_equal(got.view(np.int64), want.view(np.int64))  # the same bits, NaN included
         sc.step()
+
+
+def test_the_step_hands_back_the_look_ups_of_the_new_positions():
+    # the world's step makes the lane look-up and the speed limits in its compiled pass; after every step they are
+    # those of the road at the new positions (entries and window shifts included), bit for bit
+    sc = build_scenario(load_scenario_config(None, {"bvs.nodes": "single", "seed": "1031000"}))
+    w = sc.world
+    rows = np.arange(w.n)
+    entries = shifts = 0
+    for _ in range(700):  # the window shifts first at step 627 of this seed
+        result = sc.step()
+        entries += len(result.reentries)
+        shifts += bool(result.shift_m)
+        fresh = w.road.lane_lookup(np.maximum(w.s, 0.0), w.d)
+        got = w.lane_lookup()
+        for name in ("d_right", "d_left", "present", "max_speed_mps", "lane", "curvature"):
+            a, b = np.asarray(getattr(got, name)), np.asarray(getattr(fresh, name))
+            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), name
+        assert w.speed_limit_mps.tobytes() == fresh.max_speed_mps[rows, w.lane].tobytes()
+        assert w.speed_limit_mps.dtype == np.float64 and w.speed_limit_mps.shape == (w.n,)
+    assert entries > 0 and shifts > 0  # both ways the look-ups are made again were taken

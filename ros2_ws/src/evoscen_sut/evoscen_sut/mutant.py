@@ -241,9 +241,22 @@ def subview(view: Any, ego: int, others: np.ndarray, *, source: dict[str, np.nda
     return RowView(view.road, cols, view.step_index, view.dt_s, limit)
 
 
+_OTHERS: dict[tuple[int, int], np.ndarray] = {}
+
+
 def _others(view: Any, ego: int) -> np.ndarray:
-    idx = np.arange(view.n)
-    return idx[idx != ego]
+    """The rows of ``view`` but ``ego``, in order (made once per vehicle count and ego, read-only: the
+    callers index with it, never write it)."""
+    key = (int(view.n), int(ego))
+    out = _OTHERS.get(key)
+    if out is None:
+        idx = np.arange(key[0])
+        out = idx[idx != key[1]]
+        out.flags.writeable = False
+        if len(_OTHERS) >= 256:
+            _OTHERS.clear()
+        _OTHERS[key] = out
+    return out
 
 
 # ------------------------------------------------------------------------------- driver

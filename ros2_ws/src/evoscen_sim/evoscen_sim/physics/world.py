@@ -284,7 +284,7 @@ class World:
         # 1. lane-change requests, 2. control and dynamics, 3. the lanes at the new positions and the lane
         # changes completed or aborted: one compiled pass (docs/performance.md "Per-step work of the world
         # and of the BV drivers")
-        lane_floats, present, ints, kappa, changes, done_duration = _step_kernel(
+        lane_floats, present, ints, per_vehicle, changes, done_duration = _step_kernel(
             np.asarray(lane_change_request, dtype=np.int64), np.asarray(throttle, dtype=float), self.time_s,
             (self.step_index + 1) * self.dt_s,
             self.lane, self.lane_change, self.target_lane, self.lane_change_start_s,
@@ -298,13 +298,14 @@ class World:
         )
         executed, lane_now = ints
         d_right, d_left, vmax = lane_floats
+        kappa, speed_limit = per_vehicle
         self.step_index += 1
         self._neighborhood = None
         result = StepResult(step=self.step_index, time_s=self.time_s, executed_lane_change=executed)
         if onsets:
             result.challenges = onsets
         self._lanes = LaneLookup(d_right, d_left, present, vmax, lane_now, kappa)  # = _refresh_road_lookups()
-        self._speed_limit = None
+        self._speed_limit = speed_limit  # = speed_limit_mps (made again if the window moves vehicles below)
         if changes.size > 3:  # lane changes completed or aborted, vehicles newly off the road (_step_kernel)
             n_done, n_aborted, _ = changes[:3].tolist()
             done, done_from = changes[3:3 + n_done], changes[3 + n_done:3 + 2 * n_done]
@@ -342,7 +343,7 @@ class World:
 
         # 5. collisions (rising edge of each overlapping pair)
         pairs = overlapping_pairs(self.s, self.d, self.psi, self.length, self.width)
-        contacts = {(int(i), int(j)) for i, j in pairs}
+        contacts = {(int(i), int(j)) for i, j in pairs.tolist()} if pairs.shape[0] else set()
         if contacts or self._contacts:
             result.collisions = sorted(contacts - self._contacts)
             self._contacts = contacts
@@ -506,7 +507,8 @@ def _step_kernel(request, throttle, time_s, time_next, lane, lane_change, target
     hands back (docs/performance.md "Per-step work of the world and of the BV drivers"): the
     :class:`~evoscen_sim.road.road_model.LaneLookup` borders and speed limits as one ``(3, N, lanes)`` array
     (``d_right``, ``d_left``, ``max_speed_mps``), its ``present``, the executed lane changes and the lanes
-    as one ``(2, N)`` integer array, the curvature; then the bookkeeping's changes as one integer array
+    as one ``(2, N)`` integer array, the curvature and each vehicle's speed limit in its lane after the
+    bookkeeping (:attr:`World.speed_limit_mps`) as one ``(2, N)`` array; then the bookkeeping's changes as one integer array
     ``[n_done, n_aborted, n_off, done…, done_from…, aborted…, aborted_from…, newly_off…]`` and the
     completed changes' durations."""
     executed, _reset = _advance_kernel(request, throttle, time_s, lane, lane_change, target_lane, lane_change_start_s,
@@ -532,6 +534,10 @@ def _step_kernel(request, throttle, time_s, time_next, lane, lane_change, target
     ints = np.empty((2, n), dtype=np.int64)
     ints[0] = executed
     ints[1] = lane_now
+    per_vehicle = np.empty((2, n))
+    per_vehicle[0] = kap
+    for i in range(n):  # max_speed_mps[rows, lane]
+        per_vehicle[1, i] = vmax[i, lane[i]]
     nd, na, no = done.shape[0], aborted.shape[0], newly_off.shape[0]
     changes = np.empty(3 + 2 * nd + 2 * na + no, dtype=np.int64)
     changes[0], changes[1], changes[2] = nd, na, no
@@ -541,7 +547,7 @@ def _step_kernel(request, throttle, time_s, time_next, lane, lane_change, target
     changes[k:k + na] = aborted
     changes[k + na:k + 2 * na] = aborted_from
     changes[k + 2 * na:] = newly_off
-    return lane_floats, here, ints, kap, changes, done_duration
+    return lane_floats, here, ints, per_vehicle, changes, done_duration
 
 
 TABLE_FIELDS = ("id", "role", "policy", "x", "y", "yaw", "s", "d", "heading_rel", "speed", "accel", "steer", "lane",
