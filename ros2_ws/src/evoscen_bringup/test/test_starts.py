@@ -184,3 +184,35 @@ def test_the_animation_frames_are_kept_only_for_a_report_with_plots(tmp_path):
     assert [f.state for f in written.plot.frames.frames] == list(range(STEPS + 1))
     assert _report_text(plain) == _report_text(written) == _report_text(no_plots)
     assert (tmp_path / "report" / "run.gif").exists() and not (tmp_path / "report2" / "run.gif").exists()
+
+
+def test_copies_of_a_driver_share_the_read_only_weights_and_answer_alike():
+    import copy
+
+    import numpy as np
+    from evoscen_bv.learned import LearnedDriver, PolicyBank
+    from evoscen_bv.td3 import NumpyActor
+
+    cfg = load_scenario_config(None, {"seed": "1031002", "steps": "20", "recording.enabled": "false"})
+    cache = StartCache()
+    first, second = (cache.scenario(cfg, partitioned=False) for _ in range(2))
+    cars = [getattr(sc.bv_driver, "car_driver", sc.bv_driver) for sc in (first, second)]
+    assert all(isinstance(c, LearnedDriver) for c in cars)
+    assert cars[0] is not cars[1] and cars[0].stack is cars[1].stack  # shared, not copied per run
+    assert cars[0].controller_bank is cars[1].controller_bank
+    with pytest.raises(ValueError):
+        cars[0].stack.W1[0, 0, 0] = 1.0
+    for _ in range(20):  # the copies drive alike from the same start
+        a, b = first.step(), second.step()
+        assert a.executed_lane_change.tolist() == b.executed_lane_change.tolist()
+    assert first.world.s.tobytes() == second.world.s.tobytes()
+    # an actor with writable weights (one made in memory) is copied, not shared
+    w = {k: np.ones((2, 2)) if k in ("W1", "W2") else np.ones(2) if k in ("b1", "b2") else np.ones((2, 1))
+         for k in ("W1", "b1", "W2", "b2", "W3")}
+    actor = NumpyActor({**w, "b3": np.zeros(1), "max_action": np.array(1.0)})
+    twin = copy.deepcopy(actor)
+    assert twin is not actor and twin.W1 is not actor.W1 and np.array_equal(twin.W1, actor.W1)
+    bank = PolicyBank([actor])
+    assert copy.deepcopy(bank) is bank
+    # by hand: relu(1*1 + 1*1 + 1) = 3 per unit, relu(3 + 3 + 1) = 7, 7 + 7 + 0 = 14, tanh(14) * 1
+    assert bank.forward(np.ones((1, 2)))[0] == pytest.approx(np.tanh(14.0))

@@ -180,6 +180,13 @@ class PolicyBank:
         self.W3 = np.ascontiguousarray(np.stack([a.W3[:, 0] for a in actors]))
         self.b3 = np.array([a.b3[0] for a in actors])
         self.max_action = np.array([a.max_action for a in actors])
+        for w in (self.W1, self.b1, self.W2, self.b2, self.W3, self.b3, self.max_action):
+            w.flags.writeable = False  # read by the forward pass only: a copy of a driver shares them
+
+    def __deepcopy__(self, memo: dict) -> PolicyBank:
+        """The bank itself: its weights are read-only, so a copied driver (a run from a shared start,
+        :mod:`evoscen_bringup.starts`) shares them instead of copying ~1.8 MB per run."""
+        return self
 
     def forward(self, x: np.ndarray, column: np.ndarray | None = None) -> np.ndarray:
         x = np.ascontiguousarray(x, dtype=np.float64)

@@ -290,6 +290,16 @@ class NumpyActor:
         self.state_dim = self.W1.shape[0]
         self.action_dim = self.W3.shape[1]
 
+    def __deepcopy__(self, memo: dict) -> NumpyActor:
+        """Itself while its weights are read-only (those :func:`evoscen_bv.learned.load_policies` hands out,
+        shared by every driver of the process); else a copy of its own."""
+        if not any(w.flags.writeable for w in (self.W1, self.b1, self.W2, self.b2, self.W3, self.b3)):
+            return self
+        out = NumpyActor.__new__(NumpyActor)
+        memo[id(self)] = out
+        out.__dict__.update(copy.deepcopy(self.__dict__, memo))
+        return out
+
     @classmethod
     def load(cls, path: Path) -> NumpyActor:
         path = Path(path)
