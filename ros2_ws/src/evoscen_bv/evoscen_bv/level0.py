@@ -74,6 +74,14 @@ class Level0Driver:
         self.vehicles = self.vehicles[positions]
         self.desired_speed_mps = self.desired_speed_mps[positions]
 
+    def _no_limits(self, n: int) -> np.ndarray:
+        """Limits that cap nothing (``inf``) for ``n`` vehicles, made once per count (read-only: the kernel only reads)."""
+        c = getattr(self, "_inf_limits", None)
+        if c is None or c.shape[0] != n:
+            c = self._inf_limits = np.full(n, np.inf)
+            c.flags.writeable = False
+        return c
+
     def act(self, world) -> tuple[np.ndarray, np.ndarray]:  # world: evoscen_sim.physics.world.World
         """Throttle in [-1, 1] and lane-change request in {-1, 0, +1} for each hosted vehicle."""
         p = self.params
@@ -82,7 +90,7 @@ class Level0Driver:
         nb = world.neighborhood()
         return _level0_kernel(
             self.vehicles, world.v, world.s, world.lane, world.lane_change, world.length,
-            world.speed_limit_mps if self.speed_cap else np.full(world.n, np.inf), self.desired_speed_mps,
+            world.speed_limit_mps if self.speed_cap else self._no_limits(world.n), self.desired_speed_mps,
             nb.gap_front_m, nb.leader_speed_mps, nb.gap_rear_m, nb.follower_speed_mps,
             float(world.road.lane_end_s[MERGE_LANE]),
             idm.time_headway_s, idm.min_gap_m, idm.accel_mps2, idm.comfort_decel_mps2, idm.delta,
