@@ -347,3 +347,34 @@ def test_runs_with_the_compiled_search_equal_the_reference_step_by_step(road) ->
             entries += len(ra.reentries)
             _same_world(*worlds)
     assert entries >= 15
+
+
+@pytest.mark.parametrize("car_lanes", ["by_speed", "by_density"])
+def test_the_compiled_entry_rows_are_pythons_for_cars_and_trucks_of_highd(car_lanes) -> None:
+    # every vehicle of a highd world over a run, the window's lanes as _targets and _by_speed build them in Python
+    from evoscen_bringup.scenario import build_scenario
+    from evoscen_sim.physics.window import _entry_rows
+
+    cfg = load_scenario_config(None, {"bvs.nodes": "single", "seed": "1031003", "models.highd.car_lanes": car_lanes})
+    sc = build_scenario(cfg)
+    w, win = sc.world, sc.world.window
+    mk, p = win.makeup, win.p
+    kinds = {"truck": 0, "car": 0, "several": 0}
+    for step in range(240):
+        sc.step()
+        if step % 8:
+            continue
+        for i in range(1, w.n):
+            truck = bool(mk.truck[i])
+            lanes, means, sds = _entry_rows(
+                w.s, w.v, w.lane, w.target_lane, w.lane_change, win.sut, float(w.s[win.sut]), float(p.behind_m),
+                float(p.ahead_m), win._num_lanes, *win._row_arrays, win.has_ramp and p.ramp_density_per_km > 0.0,
+                float(p.ramp_density_per_km), win._ramp_start_s, win._ramp_end_s, float(p.ramp_speed_mps[0]),
+                float(p.ramp_speed_mps[1]), MERGE_LANE, win._truck_mask if truck else win._all_lanes,
+                mk.cars_by_speed and not truck, float(mk.wish_mps[i]))
+            want = win._enter_rows(w, i)
+            assert lanes.tolist() == [r[1] for r in want], (step, i)
+            assert means.tolist() == [float(r[2]) for r in want] and sds.tolist() == [float(r[3]) for r in want]
+            kinds["truck" if truck else "car"] += 1
+            kinds["several"] += len(want) > 1
+    assert min(kinds.values()) > 0, kinds  # trucks, cars, and rows to order were all seen

@@ -45,8 +45,8 @@ import math
 import numpy as np
 
 from evoscen_sim.config.config_schema import TrafficParams
-from evoscen_sim.jit import kernel
-from evoscen_sim.road.road_kernels import lane_borders, lane_present
+from evoscen_sim.jit import kernel, plain
+from evoscen_sim.road.road_kernels import BorderTables, lane_borders, lane_present
 from evoscen_sim.road.road_model import MERGE_LANE
 
 ENTRY_RETRY_STEPS = 10
@@ -139,6 +139,9 @@ class TrafficWindow:
         self._ramp_start_s = float(road.lane_start_s[MERGE_LANE]) if self.has_ramp else 0.0
         self._ramp_end_s = float(road.lane_end_s[MERGE_LANE]) if self.has_ramp else 0.0
         self._num_lanes = road.num_lanes
+        self._all_lanes = np.ones(road.num_lanes, dtype=np.bool_)
+        self._truck_mask = np.zeros(road.num_lanes, dtype=np.bool_)  # the lanes a truck may enter
+        self._truck_mask[list(self.truck_lanes)] = True
 
     @property
     def p(self) -> TrafficParams:
@@ -150,6 +153,11 @@ class TrafficWindow:
         self._p = params
         self._lane_rows = tuple(zip(self.mainline, params.lane_density_per_km, params.lane_speed_mps))
         """(lane, target density, (mean, sd) of entry speed) of each mainline lane, rightmost first."""
+        self._row_arrays = (np.array([r[0] for r in self._lane_rows], dtype=np.int64),
+                            np.array([float(r[1]) for r in self._lane_rows], dtype=np.float64),
+                            np.array([float(r[2][0]) for r in self._lane_rows], dtype=np.float64),
+                            np.array([float(r[2][1]) for r in self._lane_rows], dtype=np.float64))
+        """:attr:`_lane_rows` as the compiled entry's arrays (lanes, densities, means, sds)."""
         self._consts = (float(params.insertion_band_m), float(params.insertion_min_gap_m),
                         float(params.insertion_headway_s), float(params.insertion_decel_mps2),
                         float((params.insertion_decel_mps2 * params.insertion_headway_s) ** 2))
@@ -212,9 +220,50 @@ class TrafficWindow:
         return [r for r in rows if r[0] < 0.0] or rows
 
     def _enter(self, world, i: int) -> tuple[int, int, float] | None:
+        """Vehicle ``i`` entered in the first of :meth:`_targets`'s lanes (a car of ``highd``'s ``by_speed`` in
+        :func:`_by_speed`'s order) that has a safe place (:func:`_place_first`), or None. Compiled
+        (:func:`_entry_rows`, :func:`_entry_place`: the same numbers and order as the rows built here before,
+        :meth:`_enter_rows` being that reference; docs/performance.md "Per-step work of the world and of the BV
+        drivers"); ``uniform``'s entry speeds are drawn here, one normal per lane tried."""
         p = self.p
-        s_sut, v_sut = float(world.s[self.sut]), float(world.v[self.sut])
-        half = 0.5 * world.length[i]  # (uniform: the vehicle section's length, as every vehicle's)
+        sut = self.sut
+        mk = self.makeup
+        truck = mk is not None and bool(mk.truck[i])
+        wish = float(mk.wish_mps[i]) if mk is not None else 0.0
+        lanes, means, sds = _entry_rows(
+            world.s, world.v, world.lane, world.target_lane, world.lane_change, sut, float(world.s[sut]),
+            float(p.behind_m), float(p.ahead_m), self._num_lanes, *self._row_arrays,
+            self.has_ramp and p.ramp_density_per_km > 0.0, float(p.ramp_density_per_km), self._ramp_start_s,
+            self._ramp_end_s, float(p.ramp_speed_mps[0]), float(p.ramp_speed_mps[1]), MERGE_LANE,
+            self._truck_mask if truck else self._all_lanes, mk is not None and mk.cars_by_speed and not truck, wish)
+        n = lanes.shape[0]
+        rng = world.rng
+        state = None
+        draws = _NO_DRAWS
+        if mk is None and n:  # every lane's draw made here: the kernel tries them in order (one draw per lane tried)
+            state = rng.bit_generator.state if n > 1 else None
+            # standard normals: the kernel takes mean + sd·z, as rng.normal(mean, sd) computes it, the same stream
+            draws = rng.standard_normal(n)
+        c = self._consts
+        k, s_at, v_at = _entry_place(
+            world.s, world.d, world.v, world.length, world.width, world.lane, world.target_lane, i, lanes, means, sds,
+            draws, mk is not None, wish, float(world.v[sut]), float(world.s[sut]), float(p.behind_m), float(p.ahead_m),
+            self._ramp_start_s, 0.5 * world.length[i], MERGE_LANE, mk is not None and mk.raise_front_entries,
+            c[0], c[1], c[2], c[3], c[4], plain(self._tables))
+        if state is not None and 0 <= k < n - 1:  # placed before the last lane: only k + 1 draws were due
+            rng.bit_generator.state = state
+            rng.standard_normal(k + 1)
+        if k < 0:
+            return None
+        lane = int(lanes[k])
+        world._place(i, lane, s_at, v_at)
+        return (i, lane, float(s_at))
+
+    def _enter_rows(self, world, i: int) -> list[tuple[float, int, float, float]]:
+        """The rows :meth:`_enter` tries, in order, as Python builds them (:meth:`_targets`, :func:`_by_speed`): what
+        :func:`_entry_rows` must equal (a test compares them)."""
+        p = self.p
+        s_sut = float(world.s[self.sut])
         mk = self.makeup
         allowed = self.truck_lanes if mk is not None and mk.truck[i] else None
         rows = self._targets(world, s_sut, allowed)
@@ -222,44 +271,10 @@ class TrafficWindow:
             rows = _by_speed(rows, float(mk.wish_mps[i]), _lane_mean_speeds(
                 world.s, world.v, world.lane, world.target_lane, world.lane_change,
                 s_sut - p.behind_m, s_sut + p.ahead_m, world.road.num_lanes))
-        n = len(rows)
-        rng = world.rng
-        state = rng.bit_generator.state if mk is None and n > 1 else None
-        v_try, v_floor, s_new, v_raise = [0.0] * n, [0.0] * n, [0.0] * n, [0.0] * n
-        for k, (_, lane, mean, sd) in enumerate(rows):
-            if mk is None:  # every lane's draw made here: the kernel tries them in order (one draw per lane tried)
-                v = float(_np_clip(rng.normal(mean, sd), mean - 2.0 * sd, mean + 2.0 * sd))
-                v_floor[k] = max(0.0, mean - 2.0 * sd)
-            else:  # highd: the slot's own desired speed, lowered to any safe one; trucks on the right
-                # (docs/bv-profiles.md, "Traffic make-up")
-                v = float(mk.wish_mps[i])
-                if lane == MERGE_LANE:  # from the on-ramp: at most the ramp's mean speed
-                    v = min(v, float(mean))
-                # v_floor 0: any safe speed up to the wish (SUMO's departSpeed="max")
-            v_try[k] = v
-            if lane == MERGE_LANE:
-                s_new[k] = self._ramp_start_s + half
-            elif v < v_sut:
-                s_new[k] = s_sut + p.ahead_m
-            else:
-                s_new[k] = s_sut - p.behind_m
-            # highd, front_entry_speed raise: a vehicle entering ahead may go as fast as the SUT for its follower
-            if mk is not None and mk.raise_front_entries and s_new[k] > s_sut:
-                v_raise[k] = v_sut
-        c = self._consts
-        k, s_at, v_at = _place_first(
-            world.s, world.d, world.v, world.length, world.width, world.lane, world.target_lane, i,
-            np.array([r[1] for r in rows], dtype=np.int64), np.array(s_new), s_sut, np.array(v_try),
-            np.array(v_floor), half, c[0], c[1], c[2], c[3], c[4], self._tables, np.array(v_raise))
-        if state is not None and 0 <= k < n - 1:  # placed before the last lane: only k + 1 draws were due
-            rng.bit_generator.state = state
-            for _, _, mean, sd in rows[:k + 1]:
-                rng.normal(mean, sd)
-        if k < 0:
-            return None
-        lane = rows[k][1]
-        world._place(i, lane, s_at, v_at)
-        return (i, int(lane), float(s_at))
+        return rows
+
+
+_NO_DRAWS = np.zeros(0)
 
 
 def _by_speed(rows: list, wish: float, lane_speed: np.ndarray) -> list:
@@ -456,6 +471,121 @@ def _place_in_lane(s, d, v, length, width, lane_of, target_lane, i, lane, s_edge
         if v_try >= v_floor:
             return True, s_try, v_try
     return False, 0.0, 0.0
+
+
+@kernel
+def _entry_rows(s, v, lane, target_lane, lane_change, sut, s_sut, behind_m, ahead_m, num_lanes, row_lanes, row_density,
+                row_mean, row_sd, ramp, ramp_density, ramp_start, ramp_end, ramp_mean, ramp_sd, merge_lane, allowed,
+                by_speed, wish):
+    """:meth:`TrafficWindow._targets` (of the lanes ``allowed``) and, with ``by_speed``, :func:`_by_speed` for the
+    wish ``wish``: the lanes to try, most wanted first, and their entry speeds' (mean, sd). The same arithmetic,
+    and the order of Python's stable sorts on the same keys: (deficit, lane), then (speed gap, row)."""
+    lo, hi = s_sut - behind_m, s_sut + ahead_m
+    counts = _lane_counts(s, lane, target_lane, lane_change, sut, lo, hi, num_lanes)
+    m = row_lanes.shape[0] + 1
+    deficit = np.empty(m)
+    lanes = np.empty(m, dtype=np.int64)
+    mean = np.empty(m)
+    sd = np.empty(m)
+    r = 0
+    length_km = (hi - lo) / 1000.0
+    for q in range(row_lanes.shape[0]):
+        target = row_density[q] * length_km
+        if target <= 0.0:
+            continue
+        deficit[r] = (counts[row_lanes[q]] - target) / target
+        lanes[r], mean[r], sd[r] = row_lanes[q], row_mean[q], row_sd[q]
+        r += 1
+    if ramp:
+        target = ramp_density * (min(ramp_end, hi) - ramp_start) / 1000.0
+        if lo <= ramp_start <= hi and target > 0.0:  # (the start exactly at the front edge: no room yet)
+            deficit[r] = (counts[merge_lane] - target) / target
+            lanes[r], mean[r], sd[r] = merge_lane, ramp_mean, ramp_sd
+            r += 1
+    order = np.empty(r, dtype=np.int64)
+    for a in range(r):  # a stable insertion sort by (deficit, lane)
+        key = a
+        b = a - 1
+        while b >= 0 and (deficit[key] < deficit[order[b]]
+                          or (deficit[key] == deficit[order[b]] and lanes[key] < lanes[order[b]])):
+            order[b + 1] = order[b]
+            b -= 1
+        order[b + 1] = key
+    kept = np.empty(r, dtype=np.int64)
+    n = 0
+    negative = 0
+    for a in range(r):  # the allowed lanes; of them those below their target, if any
+        if allowed[lanes[order[a]]]:
+            kept[n] = order[a]
+            n += 1
+            if deficit[order[a]] < 0.0:
+                negative += 1
+    rows = np.empty(negative if negative else n, dtype=np.int64)
+    w = 0
+    for a in range(n):
+        if negative == 0 or deficit[kept[a]] < 0.0:
+            rows[w] = kept[a]
+            w += 1
+    if by_speed:
+        speed = _lane_mean_speeds(s, v, lane, target_lane, lane_change, lo, hi, num_lanes)
+        gap = np.empty(w)
+        for a in range(w):
+            vl = speed[lanes[rows[a]]]
+            gap[a] = abs((mean[rows[a]] if np.isnan(vl) else vl) - wish)
+        by = np.empty(w, dtype=np.int64)
+        for a in range(w):  # stable by (gap, position)
+            b = a - 1
+            while b >= 0 and gap[a] < gap[by[b]]:
+                by[b + 1] = by[b]
+                b -= 1
+            by[b + 1] = a
+        rows = rows[by]
+    out_lanes = np.empty(w, dtype=np.int64)
+    out_mean = np.empty(w)
+    out_sd = np.empty(w)
+    for a in range(w):
+        out_lanes[a], out_mean[a], out_sd[a] = lanes[rows[a]], mean[rows[a]], sd[rows[a]]
+    return out_lanes, out_mean, out_sd
+
+
+@kernel
+def _entry_place(s, d, v, length, width, lane_of, target_lane, i, lanes, means, sds, draws, makeup, wish, v_sut, s_sut,
+                 behind_m, ahead_m, ramp_start, half, merge_lane, raise_front, band, g0, tau, b, b_tau_sq, tables_t):
+    """The rest of :meth:`TrafficWindow._enter`: each lane's entry speed (``uniform``: mean + sd × its standard
+    normal ``draws[k]``, as the generator's ``normal(mean, sd)`` computes it, clipped to the mean
+    ± 2 sd, as :func:`_np_clip`, no slower than the mean − 2 sd floor; ``highd``: the wish, at most the ramp's
+    mean on the ramp), entry point and front-entry raise, then :func:`_place_first`."""
+    n = lanes.shape[0]
+    v_try = np.empty(n)
+    v_floor = np.zeros(n)
+    s_new = np.empty(n)
+    v_raise = np.zeros(n)
+    for k in range(n):
+        mean, sd = means[k], sds[k]
+        if not makeup:
+            x = mean + sd * draws[k]  # rng.normal(mean, sd) of the standard normal draws[k]
+            lo, hi = mean - 2.0 * sd, mean + 2.0 * sd
+            if x == x:
+                x = x if x >= lo else lo
+                if x == x:
+                    x = x if x <= hi else hi
+            floor = mean - 2.0 * sd
+            v_floor[k] = floor if floor > 0.0 else 0.0  # max(0.0, floor)
+        else:
+            x = wish
+            if lanes[k] == merge_lane:  # min(x, mean)
+                x = mean if mean < x else x
+        v_try[k] = x
+        if lanes[k] == merge_lane:
+            s_new[k] = ramp_start + half
+        elif x < v_sut:
+            s_new[k] = s_sut + ahead_m
+        else:
+            s_new[k] = s_sut - behind_m
+        if makeup and raise_front and s_new[k] > s_sut:
+            v_raise[k] = v_sut
+    return _place_first(s, d, v, length, width, lane_of, target_lane, i, lanes, s_new, s_sut, v_try, v_floor, half,
+                        band, g0, tau, b, b_tau_sq, BorderTables(*tables_t), v_raise)
 
 
 @kernel
