@@ -118,3 +118,24 @@ def test_vehicle_steps_and_the_makeup_ratios_by_hand():
         "highd_over_uniform/level0": 0.8, "highd_over_uniform/learned": 0.8,  # 4000/5000, 3200/4000
         "learned_added_percent/highd": 25.0, "learned_added_percent/uniform": 25.0})  # 100 (4000/3200 - 1)
     assert ratios({"uniform/level0": 5000.0}, None) == {}  # no SUMO, one make-up, no learned: nothing to compare
+
+
+def test_worlds_memory_runs_its_children_and_prints_per_world(capsys):
+    from evoscen_experiments import bench_run_costs
+
+    bench_run_costs.worlds_memory(3, 5, per_seed=2)  # 3 worlds: two of one seed, one of the next; 5 steps each
+    out = capsys.readouterr().out
+    assert "    1 world(s): peak" in out and "    3 world(s): peak" in out and out.count(", 0 failed") == 2
+    assert "per world:" in out and "3 worlds in" in out
+
+
+def test_worlds_option_is_checked():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    done = subprocess.run([sys.executable, str(repo / "scripts" / "bench_memory.py"), "--worlds", "0", "--steps", "5",
+                           "5"], cwd=repo, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines()[-1] == "error: --worlds 0 --steps 5: expected at least 1 of each"

@@ -86,10 +86,13 @@ def add_seeds(p: argparse.ArgumentParser, *, count: int, first: int = 0, what: s
 
 
 def add_jobs(p: argparse.ArgumentParser, default: int | None = None) -> None:
-    """``--jobs N``: Ray workers (default: the CPUs this process may use)."""
+    """``--jobs N``: Ray workers (default: the CPUs this process may use); ``--batch N``: the runs of one start a
+    worker's task steps in lockstep (:func:`evoscen_experiments.experiments.batch_option`)."""
     n = default if default is not None else len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
         else os.cpu_count() or 1
     p.add_argument("--jobs", default=str(n), help=f"parallel workers (default {n})")
+    p.add_argument("--batch", default="16", help="runs of one start per worker task, stepped together in lockstep "
+                                                  "(default 16; 1: one run at a time)")
 
 
 def add_steps(p: argparse.ArgumentParser, default: int) -> None:

@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 from evoscen_contract.contract import KIND_ABORT, KIND_INTERRUPTED, NODE_SUT
@@ -256,32 +256,23 @@ def run_plan(
     """
     if bag_dir is not None and plan.recording is None:
         raise ValueError("bag_dir given for a plan without a recording part (plan_of(..., recorded=False))")
-    sc, n_steps, ev = plan.scenario, plan.steps, plan.evaluation
-    world = sc.world
-    acc = None
-    if report_dir is not None or evaluate:
-        from evoscen_eval.scoring.rundata import RunAccumulator
-
-        acc = RunAccumulator(expected_states=n_steps + 1, keep_world=keep_run)
-        # the settings an evaluation of the bag reads back; the animation's frames only for a report with plots
-        acc.start_scoring(ev.settings, ev.dt_s, frames=report_dir is not None and plots)
-        if report_dir is not None:  # the lane lines of the report's snapshots
-            acc.add_map(world.road)
-    summary = RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
+    scored = report_dir is not None or evaluate
+    acc, summary = _scoring(plan, bag_dir, report_dir, plots, keep_run) if scored else (None, None)
+    if summary is None:
+        summary = RunSummary(steps=plan.steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
     rec = None
     if bag_dir is not None:
         from evoscen_record.bag_writer import ProcessRecorder, resolve_writer
 
+        world = plan.scenario.world
         if resolve_writer(bag_writer) == "process":
             rec = ProcessRecorder(bag_dir, plan.recording, world)
         else:
             rec = StepRecorder(bag_dir, plan.recording, world.road)
     with _CtrlC() as ctrl_c:
         try:  # from here on the bag is closed, whatever happens
-            port = _InProcessPort(sc, plan.drivers, rec, acc, summary, progress)
-            port.ctrl_c = ctrl_c
-            loop = StepLoop(world, ev.settings, port, interrupted_text="run interrupted", finish_on_error=True)
-            outcome = loop.run(n_steps)
+            port, loop = _loop(plan, rec, acc, summary, progress, ctrl_c)
+            outcome = loop.run(plan.steps)
         finally:
             t_close = time.perf_counter()
             if rec is not None:
@@ -289,6 +280,86 @@ def run_plan(
             t_close = time.perf_counter() - t_close
     if ctrl_c.pending:  # noted after the last step began: the run completed, the user asked to stop
         raise KeyboardInterrupt
+    return _finish(plan, outcome, port, acc, summary, bag_dir, rec, t_close, report_dir, plots, keep_run)
+
+
+def run_plans(plans: Sequence[RunPlan], *, keep_run: bool = False) -> list[RunSummary | Exception]:
+    """Unrecorded runs scored as :func:`run_plan` scores them (``evaluate=True``, no report written), stepped in
+    lockstep in this process: step ``k`` of every run, then step ``k + 1`` (docs/performance.md "Many worlds at
+    once"). Each run's :class:`RunSummary`, equal to its :func:`run_plan`'s (its report and plot data the same;
+    ``steps_wall_s`` and ``wall_time_s`` its share of the batch's wall time), or the exception its run ended with
+    (a :class:`~evoscen_sim.errors.PluginFault` for a driver that raised, a ValueError …), in the order of
+    ``plans``; a run that ends early leaves the others going. Ctrl-C ends every run at its next step boundary
+    (``interrupted``) and raises KeyboardInterrupt; a :class:`~evoscen_sim.errors.HostFault` is raised."""
+    from evoscen_sim.errors import HostFault
+
+    out: list[RunSummary | Exception | None] = [None] * len(plans)
+    runs = []
+    with _CtrlC() as ctrl_c:
+        for j, plan in enumerate(plans):
+            if plan.recording is not None:
+                raise ValueError("run_plans: plans of unrecorded runs only (plan_of(..., recorded=False))")
+            acc, summary = _scoring(plan, None, None, False, keep_run)
+            port, loop = _loop(plan, None, acc, summary, None, ctrl_c)
+            runs.append((j, plan, acc, summary, port, loop.stepping(plan.steps)))
+        t0 = time.perf_counter()
+        outcomes: dict[int, object] = {}
+        live = runs
+        while live:
+            going = []
+            for run in live:
+                try:
+                    next(run[5])
+                    going.append(run)
+                except StopIteration as done:
+                    outcomes[run[0]] = done.value
+                except HostFault:
+                    raise
+                except Exception as exc:  # noqa: BLE001 - this run's own error: it ends here, the others go on
+                    out[run[0]] = exc
+            live = going
+        share = (time.perf_counter() - t0) / max(len(runs), 1)
+    if ctrl_c.pending or any(getattr(o, "kind", None) == KIND_INTERRUPTED for o in outcomes.values()):
+        raise KeyboardInterrupt
+    for j, plan, acc, summary, port, _ in runs:
+        if j in outcomes:
+            outcome = outcomes[j]
+            outcome.wall_s = share
+            try:
+                out[j] = _finish(plan, outcome, port, acc, summary, None, None, 0.0, None, False, keep_run)
+            except HostFault:
+                raise
+            except Exception as exc:  # noqa: BLE001 - a driver's fault (PluginFault), a scoring error: this run's
+                out[j] = exc
+    return out  # type: ignore[return-value]
+
+
+def _scoring(plan: RunPlan, bag_dir: Path | None, report_dir: Path | None, plots: bool, keep_run: bool):
+    """The run's evaluator accumulator (scoring as the states come) and its summary to fill."""
+    from evoscen_eval.scoring.rundata import RunAccumulator
+
+    n_steps, ev = plan.steps, plan.evaluation
+    acc = RunAccumulator(expected_states=n_steps + 1, keep_world=keep_run)
+    # the settings an evaluation of the bag reads back; the animation's frames only for a report with plots
+    acc.start_scoring(ev.settings, ev.dt_s, frames=report_dir is not None and plots)
+    if report_dir is not None:  # the lane lines of the report's snapshots
+        acc.add_map(plan.scenario.world.road)
+    return acc, RunSummary(steps=n_steps, sim_time_s=0.0, wall_time_s=0.0, bag_dir=bag_dir)
+
+
+def _loop(plan: RunPlan, rec, acc, summary: RunSummary, progress, ctrl_c: _CtrlC) -> tuple[_InProcessPort, StepLoop]:
+    """The run's port and step loop."""
+    port = _InProcessPort(plan.scenario, plan.drivers, rec, acc, summary, progress)
+    port.ctrl_c = ctrl_c
+    loop = StepLoop(plan.scenario.world, plan.evaluation.settings, port, interrupted_text="run interrupted",
+                    finish_on_error=True)
+    return port, loop
+
+
+def _finish(plan: RunPlan, outcome, port: _InProcessPort, acc, summary: RunSummary, bag_dir: Path | None, rec,
+            t_close: float, report_dir: Path | None, plots: bool, keep_run: bool) -> RunSummary:
+    """The run's summary after its loop ended (:func:`run_plan`'s errors raised), scored when ``acc``."""
+    world, ev = plan.scenario.world, plan.evaluation
     summary.wall_time_s = outcome.wall_s + t_close if outcome.wall_s is not None else outcome.wall_s
     summary.steps_wall_s = outcome.wall_s if outcome.wall_s is not None else 0.0
     summary.steps = world.step_index

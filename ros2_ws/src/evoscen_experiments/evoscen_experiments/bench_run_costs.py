@@ -65,6 +65,58 @@ for name, snap in snaps.items():
 at the end of the simulation and the peak of the scoring, printed."""
 
 
+WORLDS_CHILD = r"""
+import json, resource, sys, time
+from evoscen_bringup.inprocess import run_plans
+from evoscen_bringup.plan import plan_of
+from evoscen_bringup.starts import StartCache
+from evoscen_experiments.experiments import config_loader
+from evoscen_sut.mutants import mutant_overrides, mutants_for
+worlds, steps, per_seed = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+load = config_loader(None)
+variants = [{"sut.model": "mobil"}] + [mutant_overrides("mobil", m) for m in mutants_for("mobil")]
+rss = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+base = rss()
+cache = StartCache(size=worlds)
+plans = []
+for k in range(worlds):  # a sensitivity design: per_seed variants of each seed, from its shared start
+    cfg = load({**variants[k % per_seed % len(variants)], "seed": str(1033000 + k // per_seed), "steps": str(steps),
+                "recording.enabled": "false"})
+    plans.append(plan_of(cfg, recorded=False, scenario=cache.scenario(cfg, partitioned=False)))
+built = rss()
+t0 = time.perf_counter()
+results = run_plans(plans)
+wall = time.perf_counter() - t0
+failed = sum(isinstance(r, Exception) for r in results)
+print(json.dumps({"worlds": worlds, "base": base, "built": built, "peak": rss(), "wall_s": wall, "failed": failed}))
+"""
+"""A fresh process's ``argv[1]`` scored worlds without a bag (MOBIL and its mutants, ``argv[3]`` per seed), stepped
+``argv[2]`` steps in lockstep (:func:`evoscen_bringup.inprocess.run_plans`): its peak RSS before, once they are built
+and at the end, as one JSON line."""
+
+
+def worlds_memory(worlds: int, steps: int, per_seed: int = 12) -> None:
+    """``scripts/bench_memory.py --worlds N``: the peak memory of ``worlds`` worlds stepped in lockstep in one
+    process against one world alone (:data:`WORLDS_CHILD`, each a fresh process), the memory per world, printed."""
+    from evoscen_experiments.bench import child_env
+
+    def peaks(n: int) -> dict:
+        out = subprocess.run([sys.executable, "-c", WORLDS_CHILD, str(n), str(steps), str(per_seed)], check=True,
+                             env=child_env(), capture_output=True, text=True)
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    one, many = peaks(1), peaks(worlds)
+    mib = 2**20
+    per_world = (many["peak"] - one["peak"]) / max(worlds - 1, 1)
+    print(f"bench_memory --worlds: scored worlds without a bag (MOBIL and its mutants, {per_seed} per seed, shared "
+          f"starts), {steps} steps in lockstep in one process; RSS = ru_maxrss (peak)")
+    for r in (one, many):
+        print(f"  {r['worlds']:>5} world(s): peak {r['peak'] / mib:8.1f} MiB (built {r['built'] / mib:.1f}, at import "
+              f"{r['base'] / mib:.1f}); stepped in {r['wall_s']:.1f} s, {r['failed']} failed")
+    print(f"  per world: {per_world / mib:.2f} MiB above one world; {worlds} worlds in {many['peak'] / 2**30:.2f} GiB "
+          f"(target <= 4 GiB for 1,000)")
+
+
 def _child(code: str, steps: int, bvs: int, **kwargs) -> subprocess.CompletedProcess:
     from evoscen_experiments.bench import child_env
 

@@ -100,6 +100,11 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
         summary, files, clips = _simulate(run, out_dir, record, clip_s)
     except OSError as exc:  # the worker's temporary directory (the bag, the clips): a fault of the host
         raise HostFault.of(exc, exc.filename or tempfile.gettempdir()) from None
+    return _answer(run, summary, files, clips, time.perf_counter() - t0)
+
+
+def _answer(run: CampaignRun, summary, files: dict[str, bytes], clips: list, wall_s: float) -> dict[str, Any]:
+    """:func:`execute`'s answer for a run simulated and scored (``summary``), its time ``wall_s``."""
     report = summary.report
     row: dict[str, Any] = {"key": run.key, **dict(run.cell), "seed": run.seed, "steps": summary.steps}
     for name, value in score_columns(report).items():
@@ -111,7 +116,7 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
     row["exposures"] = int(report["safety"]["exposures"])
     row.update(traffic_columns(report))
     row["clips"] = len(clips)
-    row["wall_time_s"] = time.perf_counter() - t0
+    row["wall_time_s"] = wall_s
     row["node"] = "local"
     try:
         import ray
@@ -126,14 +131,17 @@ def execute(run: CampaignRun, out_dir: str, record: str, clip_s: float = 5.0) ->
 
 
 def execute_batch(runs: Sequence[CampaignRun], out_dir: str, record: str,
-                  clip_s: float = 5.0, sent: float | None = None) -> list[dict[str, Any]]:
+                  clip_s: float = 5.0, sent: float | None = None, lockstep: bool = False) -> list[dict[str, Any]]:
     """:func:`execute` for each run of a batch (one Ray task), in order; a run that fails gives
     ``{"error": one line, "host_fault": (path, cause) or None}`` in its place and the others go on.
     The runs of a batch share their start when they can (:mod:`evoscen_bringup.starts`). A run's answer
     notes for the start-up figures (:mod:`evoscen_experiments.timing`) whether it was this worker's first,
-    the task's wait since ``sent`` (its submission, :func:`time.time`) and whether it built its start."""
+    the task's wait since ``sent`` (its submission, :func:`time.time`) and whether it built its start.
+    ``lockstep`` (runs without a bag): the batch's runs step together (:func:`_execute_lockstep`), the same answers."""
     global _RUNS_DONE
     wait_s = 0.0 if sent is None else time.time() - sent
+    if lockstep and record == "none" and len(runs) > 1:
+        return _execute_lockstep(runs, wait_s)
     out = []
     for run in runs:
         built = 0 if _STARTS is None else _STARTS.built
@@ -146,6 +154,41 @@ def execute_batch(runs: Sequence[CampaignRun], out_dir: str, record: str,
             out.append(_failure(exc))
         _RUNS_DONE += 1
     return out
+
+
+def _execute_lockstep(runs: Sequence[CampaignRun], wait_s: float) -> list[dict[str, Any]]:
+    """:func:`execute_batch` of runs without a bag, stepped in lockstep in this process
+    (:func:`evoscen_bringup.inprocess.run_plans`): each run's answer is :func:`execute`'s (the same row, report and
+    plot data), its ``wall_time_s`` its own set-up (its start built or copied) plus its share of the stepping."""
+    global _RUNS_DONE
+    from evoscen_bringup.inprocess import run_plans
+    from evoscen_bringup.plan import plan_of
+
+    answers: list[dict[str, Any] | None] = [None] * len(runs)
+    plans, where, setup, built = [], [], [], []
+    for j, run in enumerate(runs):
+        before = _starts().built
+        t0 = time.perf_counter()
+        try:  # a shared start (the warm-up once per start); one driver of all BVs, as _simulate without a bag
+            plans.append(plan_of(run.cfg, recorded=False, scenario=_starts().scenario(run.cfg, partitioned=False)))
+        except Exception as exc:  # noqa: BLE001 - this run's failure; the others go on
+            answers[j] = _failure(exc)
+            continue
+        where.append(j)
+        setup.append(time.perf_counter() - t0)
+        built.append(_starts().built > before)
+    t0 = time.perf_counter()
+    results = run_plans(plans)
+    share = (time.perf_counter() - t0) / max(len(plans), 1)
+    for j, res, own, new in zip(where, results, setup, built):
+        if isinstance(res, Exception):
+            answers[j] = _failure(res)
+            continue
+        done = _answer(runs[j], res, {}, [], own + share)
+        done["worker"] = {"first": _RUNS_DONE == 0, "wait_s": wait_s, "built": new}
+        answers[j] = done
+        _RUNS_DONE += 1
+    return answers  # type: ignore[return-value]
 
 
 def _failure(exc: BaseException) -> dict[str, Any]:
@@ -267,6 +310,9 @@ def _write_files(run_dir: Path, files: Mapping[str, bytes]) -> None:
 BATCH_RUNS = 16
 """The most runs one Ray task computes (:func:`batches`): a start's SUT variants go together so that the
 warm-up is computed once for them; a cap keeps the tasks many enough to share out (docs/performance.md)."""
+LOCKSTEP = True
+"""[choice] An experiment's task steps its runs in lockstep (:func:`_execute_lockstep`; docs/performance.md
+"Many worlds at once"); False: one run after the other. The same results either way (tested)."""
 
 
 def batches(runs: Sequence[CampaignRun], group: Callable[[CampaignRun], Any] | None,
@@ -284,7 +330,8 @@ def batches(runs: Sequence[CampaignRun], group: Callable[[CampaignRun], Any] | N
 def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "none", clip_s: float = 5.0,
                  address: str | None = None, cpus: int | None = None, retries: int = 3,
                  progress: Callable[[int, int, float, float], None] | None = None,
-                 group: Callable[[CampaignRun], Any] | None = None, batch_runs: int = BATCH_RUNS) -> CampaignResult:
+                 group: Callable[[CampaignRun], Any] | None = None, batch_runs: int = BATCH_RUNS,
+                 lockstep: bool = False) -> CampaignResult:
     """Run every run of ``runs`` without a result in ``out_dir`` on Ray (see the module docstring).
 
     ``progress(done, total, runs_per_s, sut_steps_per_s)`` after each finished run, the rates over the
@@ -292,6 +339,7 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
     (finished runs are kept; ``interrupted`` is set). :func:`~evoscen_experiments.campaign_summary.write_results` writes the table.
     ``group`` (e.g. :func:`evoscen_bringup.starts.start_key` of the run's configuration): the runs of
     one value go to one task, up to ``batch_runs`` at a time (:func:`batches`); the results are the same.
+    ``lockstep``: a task's runs without a bag step together in its worker (:func:`execute_batch`); the same results.
     """
     out_dir.mkdir(parents=True, exist_ok=True)
     end_leftovers(out_dir)  # of a driver that was killed (scripts/campaign.py names them)
@@ -301,7 +349,8 @@ def run_campaign(runs: Sequence[CampaignRun], out_dir: Path, *, record: str = "n
     if todo:
         with _ctrl_c_interrupts() as arm:
             _run_todo(batches(todo, group, batch_runs), out_dir, result, len(runs), record=record,
-                      clip_s=clip_s, address=address, cpus=cpus, retries=retries, progress=progress, arm=arm)
+                      clip_s=clip_s, address=address, cpus=cpus, retries=retries, progress=progress, arm=arm,
+                      lockstep=lockstep)
     result.wall_s = time.monotonic() - t0
     return result
 
@@ -333,7 +382,8 @@ def _ctrl_c_interrupts():
 
 def _run_todo(todo: Sequence[Sequence[CampaignRun]], out_dir: Path, result: CampaignResult, total: int, *,
               record: str, clip_s: float, address: str | None, cpus: int | None, retries: int,
-              progress: Callable[[int, int, float, float], None] | None, arm: Callable[[], None]) -> None:
+              progress: Callable[[int, int, float, float], None] | None, arm: Callable[[], None],
+              lockstep: bool = False) -> None:
     """Submit ``todo`` (batches of runs, one task each) to Ray and write each result as it comes (see
     :func:`run_campaign`)."""
     import ray
@@ -355,7 +405,7 @@ def _run_todo(todo: Sequence[Sequence[CampaignRun]], out_dir: Path, result: Camp
                 _note_driver(out_dir, session)
     arm()
     task = ray.remote(num_cpus=1, max_retries=retries, retry_exceptions=False)(execute_batch)
-    pending = {task.remote(batch, str(out_dir), record, clip_s, time.time()): batch for batch in todo}
+    pending = {task.remote(batch, str(out_dir), record, clip_s, time.time(), lockstep): batch for batch in todo}
     notes: list[dict[str, Any]] = []  # the computed runs' worker notes (execute_batch)
     try:
         while pending:

@@ -19,7 +19,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_sim.config.config_schema import CHALLENGE_MODES
 from evoscen_sim.errors import InputError
 
-from evoscen_experiments.experiments import markdown_table, positive_int, write_csv
+from evoscen_experiments.experiments import markdown_table, positive_int, write_csv, batch_option
 from evoscen_experiments.stats import Z95, Rate, weighted_rate  # noqa: F401  (Rate: the estimates' type)
 from evoscen_experiments.timing import finish
 
@@ -69,7 +69,7 @@ def main(args) -> int:
     from evoscen_experiments.experiments import run_rounds_with_bar, set_up
 
     sets, rounds, jobs = set_up(args.out, lambda: _build(args))
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="rates")
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="rates", batch=batch_option(args))
     if results is None:
         return EXIT_INTERRUPTED
     per_set = {}

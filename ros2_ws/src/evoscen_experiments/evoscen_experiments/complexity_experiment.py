@@ -15,7 +15,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
-from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv
+from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv, batch_option
 
 
 def _build(args):
@@ -48,7 +48,7 @@ def main(args) -> int:
     from evoscen_experiments.experiments import run_rounds_with_bar, set_up
 
     scenarios, rounds, jobs, n_rounds = set_up(args.out, lambda: _build(args))
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="complexity")
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="complexity", batch=batch_option(args))
     if results is None:
         return EXIT_INTERRUPTED
     ev = rounds[0].cfg.evaluation

@@ -51,16 +51,26 @@ class Round:
         return run_key(self.cfg, code_version())
 
 
+def batch_option(args: Any) -> int:
+    """An experiment command's ``--batch N`` (:func:`evoscen.cli.add_jobs`; absent: 16), at least 1, else a one-line
+    InputError naming it."""
+    from evoscen_experiments.campaign import BATCH_RUNS
+
+    return positive_int("--batch", str(getattr(args, "batch", BATCH_RUNS)).strip())
+
+
 def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
                progress: Callable[[int, int, str], None] | None = None,
-               failures: dict[str, str] | None = None) -> dict[str, dict[str, Any]]:
+               failures: dict[str, str] | None = None, batch: int | None = None) -> dict[str, dict[str, Any]]:
     """Run the rounds not finished yet on a local Ray of ``jobs`` workers; returns every round's
     result by key (``label``, ``seed``, ``steps``, ``wall_time_s``, ``report``, ``ttc_hist``,
     ``speed_hist``). ``progress(done, total, text)`` as rounds finish (the saved ones first).
     KeyboardInterrupt after Ctrl-C (finished rounds are kept); RuntimeError naming the rounds
     that failed after their retries — unless ``failures`` is given: then each failed round's
     error (one line: the exception's type and first line) goes into it by key, and the
-    returned dict has the rounds that finished.
+    returned dict has the rounds that finished. ``batch``: at most this many rounds of one start per Ray task,
+    stepped in lockstep in its worker (default :data:`~evoscen_experiments.campaign.BATCH_RUNS`; 1: one at a time);
+    the results are the same.
     """
     from evoscen_experiments.campaign import load_result, result_path, run_campaign
     from evoscen_experiments.campaign_spec import CampaignRun
@@ -77,8 +87,11 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
             progress(n, total, f"{rate:.2f} rounds/s, {steps_per_s:,.0f} SUT-steps/s")
 
     # rounds record no bag: their BVs are driven by one driver (partitioned=False, as campaign._simulate)
-    result = (run_campaign(runs, out_dir, cpus=jobs, progress=tick,
-                           group=lambda r: start_key(r.cfg, partitioned=False)) if done < total else None)
+    from evoscen_experiments.campaign import BATCH_RUNS, LOCKSTEP
+
+    size = BATCH_RUNS if batch is None else int(batch)
+    result = (run_campaign(runs, out_dir, cpus=jobs, progress=tick, group=lambda r: start_key(r.cfg, partitioned=False),
+                           batch_runs=size, lockstep=LOCKSTEP and size > 1) if done < total else None)
     if result is not None and result.interrupted:
         raise KeyboardInterrupt
     if result is not None and result.failed:
@@ -199,7 +212,8 @@ def set_up(out_dir: Path, build: Callable[[], T]) -> T:
 
 
 def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, desc: str,
-                        failures: dict[str, str] | None = None) -> dict[str, dict[str, Any]] | None:
+                        failures: dict[str, str] | None = None, batch: int | None = None
+                        ) -> dict[str, dict[str, Any]] | None:
     """:func:`run_rounds` behind a tqdm progress bar (stderr); None after Ctrl-C (finished rounds are kept).
     ``failures``: as for :func:`run_rounds` (failed rounds collected, not fatal)."""
     import sys
@@ -214,7 +228,7 @@ def run_rounds_with_bar(rounds: Sequence[Round], out_dir: Path, *, jobs: int, de
         bar.refresh()
 
     try:
-        return run_rounds(rounds, out_dir, jobs=jobs, progress=progress, failures=failures)
+        return run_rounds(rounds, out_dir, jobs=jobs, progress=progress, failures=failures, batch=batch)
     except KeyboardInterrupt:
         bar.close()
         print(f"interrupted: finished rounds are kept in {out_dir / 'runs'}; run again to continue",

@@ -16,7 +16,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 
 from evoscen_experiments.timing import finish
 
-from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv
+from evoscen_experiments.experiments import fmt_ci, markdown_table, mean_ci, positive_int, write_csv, batch_option
 from evoscen_experiments.sensitivity import SSM_RATES, ssm_label, ssm_rate
 
 
@@ -46,7 +46,7 @@ def main(args) -> int:
     from evoscen_experiments.experiments import run_rounds_with_bar, set_up
 
     suts, rounds, jobs, seeds, first = set_up(args.out, lambda: _build(args))
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="intelligence")
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="intelligence", batch=batch_option(args))
     if results is None:
         return EXIT_INTERRUPTED
     table, ssm_table = per_sut_tables(args.out, suts, rounds, results)

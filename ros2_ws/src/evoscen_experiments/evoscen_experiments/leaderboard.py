@@ -23,7 +23,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
-from evoscen_experiments.experiments import distinct_names, positive_int
+from evoscen_experiments.experiments import distinct_names, positive_int, batch_option
 from evoscen_experiments.leaderboard_tiers import DELTA, pair_tables, pairs_csv_header, range_text, tiers
 from evoscen_experiments.sensitivity import SSM_RATES, score_of, ssm_label, ssm_rate, symbols
 from evoscen_experiments.stats import fmt_ci, markdown_table, mean_ci
@@ -254,7 +254,7 @@ def main(args, argv: list[str]) -> int:
     started = time.monotonic()
     planners, ref_names, rounds, blocks, steps, jobs = set_up(args.out, lambda: _build(args))
     failures: dict[str, str] = {}
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="leaderboard", failures=failures)
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="leaderboard", failures=failures, batch=batch_option(args))
     if results is None:
         return EXIT_INTERRUPTED
     board = Board(args, planners, ref_names, rounds, blocks, steps, results, failed_suts(rounds, failures))

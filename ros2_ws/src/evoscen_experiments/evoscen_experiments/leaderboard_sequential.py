@@ -187,7 +187,7 @@ def main(args, argv: list[str]) -> int:
     into ``args.out``, the tables printed), else :func:`evoscen_experiments.leaderboard.main`. InputError (one
     line) on bad input, before anything is written."""
     from evoscen_experiments import leaderboard
-    from evoscen_experiments.experiments import challenge_mode, config_loader, run_rounds_with_bar, set_up
+    from evoscen_experiments.experiments import batch_option, challenge_mode, config_loader, run_rounds_with_bar, set_up
 
     plan = plan_of(args, {"--episodes": args.episodes, "--blocks": args.blocks, "--block-size": args.block_size},
                    leaderboard.EPISODE_STEPS, leaderboard.FIRST_SEED)
@@ -200,7 +200,7 @@ def main(args, argv: list[str]) -> int:
 
     def run(rounds: list) -> dict | None:
         looks[0] += 1
-        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"leaderboard, look {looks[0]}", failures=fails)
+        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"leaderboard, look {looks[0]}", failures=fails, batch=batch_option(args))
 
     parts = []
     for part in plan.parts:

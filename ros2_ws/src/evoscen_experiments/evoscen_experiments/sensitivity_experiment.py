@@ -18,7 +18,7 @@ from evoscen_contract.contract import EXIT_INTERRUPTED, EXIT_OK
 from evoscen_experiments.timing import finish
 from evoscen_sim.errors import InputError
 
-from evoscen_experiments.experiments import challenge_mode, positive_int
+from evoscen_experiments.experiments import challenge_mode, positive_int, batch_option
 from evoscen_experiments.sensitivity_tables import INTACT, compute_text, summarise, warmup_steps
 
 DEFAULT_DESIGN = "episodes"
@@ -191,7 +191,7 @@ def main(args) -> int:
     if plan is not None:
         return sensitivity_sequential.main(args, plan, lambda: variant_names(args))
     designs, bases, scenarios, mutants, rounds, meta, jobs = set_up(args.out, lambda: _build(args))
-    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity")
+    results = run_rounds_with_bar(rounds, args.out, jobs=jobs, desc="sensitivity", batch=batch_option(args))
     if results is None:
         return EXIT_INTERRUPTED
     cfg0 = rounds[0].cfg

@@ -263,7 +263,7 @@ def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
     """The sequential design of the parsed options (``names()``: their bases, scenarios, mutants and workers,
     checked): looks run (or read back), then ``verdicts.csv``, ``verdict_counts.csv``, ``rounds.csv`` and
     ``sensitivity.md`` in ``args.out``, the table printed."""
-    from evoscen_experiments.experiments import challenge_mode, config_loader, run_rounds_with_bar, set_up
+    from evoscen_experiments.experiments import batch_option, challenge_mode, config_loader, run_rounds_with_bar, set_up
 
     bases, scenarios, mutants, jobs = set_up(args.out, names)
     comps = comparisons(bases, scenarios, mutants)
@@ -274,7 +274,7 @@ def main(args, plan: Plan, names: Callable[[], tuple]) -> int:
 
     def run(rounds: list) -> dict | None:
         looks[0] += 1
-        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"sensitivity, look {looks[0]}", failures=fails)
+        return run_rounds_with_bar(rounds, args.out, jobs=jobs, desc=f"sensitivity, look {looks[0]}", failures=fails, batch=batch_option(args))
 
     parts = []
     for part in plan.parts:

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import time
 from abc import ABC, abstractmethod
+from collections.abc import Generator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -134,6 +135,27 @@ class StepLoop:
 
     def run(self, steps: int) -> Outcome:
         """Start, run ``steps`` steps, end; Ctrl-C and :class:`RunAborted` end the run early."""
+        stepping = self.stepping(steps)
+        interrupt: KeyboardInterrupt | None = None
+        while True:
+            try:
+                if interrupt is None:
+                    next(stepping)
+                else:  # a Ctrl-C that came between two steps ends the run as one within a step
+                    interrupt, pending = None, interrupt
+                    stepping.throw(pending)
+            except StopIteration as done:
+                return done.value
+            except KeyboardInterrupt as exc:
+                if stepping.gi_frame is None:  # raised by the run's own ending: not ours to handle
+                    raise
+                interrupt = exc
+
+    def stepping(self, steps: int) -> Generator[int, None, Outcome]:
+        """:meth:`run` one step at a time: yields ``k`` after step ``k``, returns the :class:`Outcome` (as
+        :meth:`run` does) when the run has ended. Many runs advanced in turn step in lockstep
+        (:func:`evoscen_bringup.inprocess.run_plans`); a run ends the same way whether advanced so or by
+        :meth:`run`."""
         w, port = self.world, self.port
         # an exposure in the initial state goes out with the first events
         self._initial = self.exposures.observe(w)
@@ -152,6 +174,7 @@ class StepLoop:
                 # its events go out with the next state
                 self._stepped = w.step(cmds.throttle, cmds.lane_change)
                 port.stepped(k, self._stepped)
+                yield k
             kind, text = KIND_COMPLETED, f"run completed: {w.step_index} steps"
         except RunAborted as exc:
             kind, text = KIND_ABORTED, str(exc)
