@@ -91,8 +91,8 @@ def add_jobs(p: argparse.ArgumentParser, default: int | None = None) -> None:
     n = default if default is not None else len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") \
         else os.cpu_count() or 1
     p.add_argument("--jobs", default=str(n), help=f"parallel workers (default {n})")
-    p.add_argument("--batch", default="16", help="runs of one start per worker task, stepped together in lockstep "
-                                                  "(default 16; 1: one run at a time)")
+    p.add_argument("--batch", default=None, help="runs of one start per worker task, stepped together in lockstep "
+                                                  "(default: 16 per task, one after the other)")
 
 
 def add_steps(p: argparse.ArgumentParser, default: int) -> None:

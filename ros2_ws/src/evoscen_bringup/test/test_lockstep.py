@@ -101,3 +101,16 @@ def test_a_lockstep_task_answers_as_one_run_at_a_time(tmp_path, monkeypatch):
         assert {k: v for k, v in b["row"].items() if k not in skip} == {k: v for k, v in a["row"].items()
                                                                           if k not in skip}
         assert b["row"]["wall_time_s"] > 0.0
+
+
+def test_the_batch_option_is_a_positive_count_or_absent():
+    import argparse
+
+    from evoscen_experiments.experiments import batch_option
+    from evoscen_sim.errors import InputError
+
+    assert batch_option(argparse.Namespace()) is None and batch_option(argparse.Namespace(batch=None)) is None
+    assert batch_option(argparse.Namespace(batch=" 7 ")) == 7
+    for bad in ("0", "-2", "x"):
+        with pytest.raises(InputError, match="^--batch"):
+            batch_option(argparse.Namespace(batch=bad))

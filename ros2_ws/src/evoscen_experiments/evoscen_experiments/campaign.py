@@ -310,9 +310,10 @@ def _write_files(run_dir: Path, files: Mapping[str, bytes]) -> None:
 BATCH_RUNS = 16
 """The most runs one Ray task computes (:func:`batches`): a start's SUT variants go together so that the
 warm-up is computed once for them; a cap keeps the tasks many enough to share out (docs/performance.md)."""
-LOCKSTEP = True
-"""[choice] An experiment's task steps its runs in lockstep (:func:`_execute_lockstep`; docs/performance.md
-"Many worlds at once"); False: one run after the other. The same results either way (tested)."""
+LOCKSTEP = False
+"""[choice] An experiment's task steps its runs one after the other; True: in lockstep (:func:`_execute_lockstep`;
+an experiment's ``--batch N``). The same results either way (tested); without kernels over many worlds, lockstep
+costs ~12 % more per run (the worlds' data in turn through the caches: docs/performance.md "Many worlds at once")."""
 
 
 def batches(runs: Sequence[CampaignRun], group: Callable[[CampaignRun], Any] | None,

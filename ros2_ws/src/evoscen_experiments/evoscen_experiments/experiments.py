@@ -51,12 +51,11 @@ class Round:
         return run_key(self.cfg, code_version())
 
 
-def batch_option(args: Any) -> int:
-    """An experiment command's ``--batch N`` (:func:`evoscen.cli.add_jobs`; absent: 16), at least 1, else a one-line
-    InputError naming it."""
-    from evoscen_experiments.campaign import BATCH_RUNS
-
-    return positive_int("--batch", str(getattr(args, "batch", BATCH_RUNS)).strip())
+def batch_option(args: Any) -> int | None:
+    """An experiment command's ``--batch N`` (:func:`evoscen.cli.add_jobs`): at least 1, else a one-line InputError
+    naming it; None when not given."""
+    text = getattr(args, "batch", None)
+    return None if text is None else positive_int("--batch", str(text).strip())
 
 
 def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
@@ -69,8 +68,8 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     that failed after their retries — unless ``failures`` is given: then each failed round's
     error (one line: the exception's type and first line) goes into it by key, and the
     returned dict has the rounds that finished. ``batch``: at most this many rounds of one start per Ray task,
-    stepped in lockstep in its worker (default :data:`~evoscen_experiments.campaign.BATCH_RUNS`; 1: one at a time);
-    the results are the same.
+    stepped in lockstep in its worker; None: :data:`~evoscen_experiments.campaign.BATCH_RUNS` per task, in lockstep
+    as :data:`~evoscen_experiments.campaign.LOCKSTEP` says. The results are the same.
     """
     from evoscen_experiments.campaign import load_result, result_path, run_campaign
     from evoscen_experiments.campaign_spec import CampaignRun
@@ -89,9 +88,9 @@ def run_rounds(rounds: Sequence[Round], out_dir: Path, *, jobs: int = 1,
     # rounds record no bag: their BVs are driven by one driver (partitioned=False, as campaign._simulate)
     from evoscen_experiments.campaign import BATCH_RUNS, LOCKSTEP
 
-    size = BATCH_RUNS if batch is None else int(batch)
+    size, lockstep = (BATCH_RUNS, LOCKSTEP) if batch is None else (int(batch), True)
     result = (run_campaign(runs, out_dir, cpus=jobs, progress=tick, group=lambda r: start_key(r.cfg, partitioned=False),
-                           batch_runs=size, lockstep=LOCKSTEP and size > 1) if done < total else None)
+                           batch_runs=size, lockstep=lockstep) if done < total else None)
     if result is not None and result.interrupted:
         raise KeyboardInterrupt
     if result is not None and result.failed:
