@@ -3,7 +3,7 @@
 
     python scripts/bench.py [--mode inprocess|graph] [--steps 5000] [--repeats 5] [--bag-steps 10000] [--no-sumo]
                             [--bv-driver level0|learned] [--bv-nodes single,by_policy] [--node-cpu]
-                            [--sut-models] [--learned] [--experiment] [--makeups highd,uniform] [--json]
+                            [--sut-models] [--learned] [--experiment] [--makeups highd,uniform] [--batched 1,8,64] [--json]
 
 For the shipped default scenario (1 SUT + 20 BVs, dt 0.1 s) with the BV drivers of ``--bv-driver``
 (default ``level0``, the rule-based drivers SUMO is compared with): in-process steps/s with recording
@@ -15,7 +15,9 @@ SUMO, timed repeats alternated, in steps/s and vehicle-steps/s with their ratios
 ratio evoscen / SUMO. ``--mode graph`` adds the node graph's lockstep rate beside in-process runs, the
 BV-node partitions of ``--bv-nodes`` and, with ``--node-cpu``, each node's CPU time per step;
 ``--learned`` the learned BVs' cost; ``--experiment`` a small sensitivity experiment's throughput on
-``--jobs`` Ray workers beside the core's rate; ``--sut-models`` every SUT model's per-decision cost.
+``--jobs`` Ray workers beside the core's rate; ``--sut-models`` every SUT model's per-decision cost;
+``--batched`` many worlds stepped in lockstep in each of ``--jobs`` processes, in vehicle-steps/s beside
+libsumo's (:mod:`evoscen_experiments.bench_batched`).
 
 Figures, not assertions (docs/performance.md; the figures are in
 :mod:`evoscen_experiments.bench` and :mod:`evoscen_experiments.bench_graph`). Exit status: 0, 2 bad input.
@@ -63,6 +65,9 @@ def parse_args(argv: list[str] | None):
                     help="one world's rate under each of these bvs.makeup, comma-separated (level-0 BVs, with "
                          "--learned also learned BVs; one BV driver), alternated with SUMO's, in steps/s and "
                          "vehicle-steps/s, and their ratios (default highd,uniform; empty: skip)")
+    ap.add_argument("--batched", default="",
+                    help="also batched worlds: these batch sizes, comma-separated (e.g. 1,8,64), stepped in lockstep "
+                         "in each of --jobs processes, in vehicle-steps/s beside libsumo's (default: skip)")
     ap.add_argument("--json", action="store_true", help="also print the figures as one JSON line")
     return ap.parse_args(argv)
 

@@ -139,3 +139,24 @@ def test_worlds_option_is_checked():
                            "5"], cwd=repo, capture_output=True, text=True, timeout=120)
     assert done.returncode == 2
     assert done.stderr.strip().splitlines()[-1] == "error: --worlds 0 --steps 5: expected at least 1 of each"
+
+
+def test_batched_sizes_are_distinct_positive_counts():
+    from evoscen_experiments.bench_batched import parse_sizes
+    from evoscen_sim.errors import InputError
+
+    assert parse_sizes("") == [] and parse_sizes("1,8,64") == [1, 8, 64]
+    for bad in ("0", "1,1", "x", "4,-1"):
+        with pytest.raises(InputError, match="^--batched = "):
+            parse_sizes(bad)
+
+
+def test_batched_worlds_count_every_vehicle_step(capsys):
+    from evoscen_experiments import bench_batched
+
+    rows = bench_batched.report([1, 2], 5, 1, False)["batched"]
+    # 21 vehicles (SUT and 20 BVs) x 5 steps per world
+    assert [(r["batch"], r["worlds"], r["vehicle_steps"]) for r in rows] == [(1, 1, 105), (2, 2, 210)]
+    assert all(r["vehicle_steps_per_s"] == r["vehicle_steps"] / r["wall_s"] > 0 for r in rows)
+    out = capsys.readouterr().out
+    assert "batch    1 x 1:" in out and "batch    2 x 1:" in out

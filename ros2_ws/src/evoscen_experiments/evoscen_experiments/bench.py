@@ -235,10 +235,11 @@ def checked_options(args) -> tuple[list[str], list[str]]:
 def run(args) -> None:
     """The benchmark of ``scripts/bench.py`` with its options ``args`` (an argparse namespace): the figures
     its options ask for, printed (and with ``args.json`` one JSON line of them all)."""
-    from evoscen_experiments import bench_graph, bench_makeups
+    from evoscen_experiments import bench_batched, bench_graph, bench_makeups
 
     mutants, partitions = checked_options(args)
     makeups = bench_makeups.parse_makeups(args.makeups)
+    batched = bench_batched.parse_sizes(getattr(args, "batched", ""))
     drv = args.bv_driver
     out: dict = {"python": sys.version.split()[0], "bv_driver": drv}
     rates = time_inprocess(args.steps, args.repeats, drv)
@@ -269,6 +270,8 @@ def run(args) -> None:
     if args.experiment:
         out["experiment"] = _report_experiment(experiment_throughput(args.experiment_episodes, mutants, args.jobs,
                                                                      args.steps, args.repeats))
+    if batched:
+        out.update(bench_batched.report(batched, args.steps, args.jobs, not args.no_sumo))
     if not args.no_sumo:
         _report_sumo(out, args.steps)
     if args.json:
