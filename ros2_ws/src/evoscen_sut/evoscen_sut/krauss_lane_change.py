@@ -22,7 +22,7 @@ from functools import lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
-from evoscen_sim.jit import kernel, plain
+from evoscen_sim.jit import by_identity, kernel, plain  # noqa: F401 - by_identity: the models take it from here
 from evoscen_sim.physics.vehicle import VehicleParams, accel_to_throttle
 from evoscen_sim.road.road_kernels import RoadTables, lane_center_d, lane_end_distance
 
@@ -44,28 +44,6 @@ _KERNEL_PARAMS: dict[tuple[int, int], tuple[type, Any, tuple]] = {}
 """:func:`kernel_params`'s tuples by the identity of (tuple type, parameter set); each entry holds
 both objects, so an id is not reused while its entry lives."""
 _KERNEL_PARAMS_MAX = 256
-
-
-def by_identity(fn: Callable[[Any], Any]) -> Callable[[Any], Any]:
-    """``fn`` of one frozen parameter set, remembered by the identity of its argument (the last
-    :data:`_KERNEL_PARAMS_MAX` sets): a lookup without hashing the dataclass's fields, for what a
-    model derives from its parameters every decision (docs/performance.md "Per-step work of the SUT
-    drivers"). ``fn`` itself is called once per parameter set object."""
-    memo: dict[int, tuple[Any, Any]] = {}
-
-    def cached(params: Any) -> Any:
-        hit = memo.get(id(params))
-        if hit is not None and hit[0] is params:
-            return hit[1]
-        out = fn(params)
-        if len(memo) >= _KERNEL_PARAMS_MAX:
-            memo.clear()
-        memo[id(params)] = (params, out)
-        return out
-
-    cached.__doc__, cached.__name__, cached.__qualname__ = fn.__doc__, fn.__name__, fn.__qualname__
-    cached.__module__, cached.__wrapped__ = fn.__module__, fn  # type: ignore[attr-defined]
-    return cached
 
 
 def kernel_params(tuple_type: type, params: Any) -> tuple:
