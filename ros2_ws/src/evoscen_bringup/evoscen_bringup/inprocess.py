@@ -289,18 +289,22 @@ def run_plans(plans: Sequence[RunPlan], *, keep_run: bool = False) -> list[RunSu
     once"). Each run's :class:`RunSummary`, equal to its :func:`run_plan`'s (its report and plot data the same;
     ``steps_wall_s`` and ``wall_time_s`` its share of the batch's wall time), or the exception its run ended with
     (a :class:`~evoscen_sim.errors.PluginFault` for a driver that raised, a ValueError …), in the order of
-    ``plans``; a run that ends early leaves the others going. Ctrl-C ends every run at its next step boundary
-    (``interrupted``) and raises KeyboardInterrupt; a :class:`~evoscen_sim.errors.HostFault` is raised."""
-    from evoscen_sim.errors import HostFault
-
+    ``plans``; a run that fails (in its set-up, a step or its scoring; a
+    :class:`~evoscen_sim.errors.HostFault` too, as :func:`run_plan` would raise it for that run alone) ends
+    alone, its exception in its place, and leaves the others going. Ctrl-C ends every run at its next step
+    boundary (``interrupted``) and raises KeyboardInterrupt."""
+    if any(plan.recording is not None for plan in plans):
+        raise ValueError("run_plans: plans of unrecorded runs only (plan_of(..., recorded=False))")
     out: list[RunSummary | Exception | None] = [None] * len(plans)
     runs = []
     with _CtrlC() as ctrl_c:
         for j, plan in enumerate(plans):
-            if plan.recording is not None:
-                raise ValueError("run_plans: plans of unrecorded runs only (plan_of(..., recorded=False))")
-            acc, summary = _scoring(plan, None, None, False, keep_run)
-            port, loop = _loop(plan, None, acc, summary, None, ctrl_c)
+            try:
+                acc, summary = _scoring(plan, None, None, False, keep_run)
+                port, loop = _loop(plan, None, acc, summary, None, ctrl_c)
+            except Exception as exc:  # noqa: BLE001 - this run's own error: the others go on
+                out[j] = exc
+                continue
             runs.append((j, plan, acc, summary, port, loop.stepping(plan.steps)))
         t0 = time.perf_counter()
         outcomes: dict[int, object] = {}
@@ -313,8 +317,6 @@ def run_plans(plans: Sequence[RunPlan], *, keep_run: bool = False) -> list[RunSu
                     going.append(run)
                 except StopIteration as done:
                     outcomes[run[0]] = done.value
-                except HostFault:
-                    raise
                 except Exception as exc:  # noqa: BLE001 - this run's own error: it ends here, the others go on
                     out[run[0]] = exc
             live = going
@@ -327,8 +329,6 @@ def run_plans(plans: Sequence[RunPlan], *, keep_run: bool = False) -> list[RunSu
             outcome.wall_s = share
             try:
                 out[j] = _finish(plan, outcome, port, acc, summary, None, None, 0.0, None, False, keep_run)
-            except HostFault:
-                raise
             except Exception as exc:  # noqa: BLE001 - a driver's fault (PluginFault), a scoring error: this run's
                 out[j] = exc
     return out  # type: ignore[return-value]

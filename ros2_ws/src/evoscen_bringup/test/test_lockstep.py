@@ -63,6 +63,63 @@ def test_a_world_whose_driver_raises_ends_alone_and_the_others_go_on():
     assert [_text(got[0]), _text(got[2])] == [_text(a) for a in alone]
 
 
+def test_a_run_that_fails_in_its_set_up_or_its_scoring_ends_alone(monkeypatch):
+    """One run's error while its scorer is made, and a fault of the host while another is scored: each is
+    that run's answer (as run_plan would raise it for that run alone); the third scores as alone."""
+    from evoscen_sim.errors import HostFault
+
+    cfgs = [_cfg(1032150 + k, VARIANTS[k]) for k in range(3)]
+    plans = _plans(cfgs, StartCache())
+    real_scoring, real_finish = inprocess._scoring, inprocess._finish
+
+    def scoring(plan, *a):
+        if plan is plans[0]:
+            raise ValueError("scorer broke")
+        return real_scoring(plan, *a)
+
+    def finish(plan, *a):
+        if plan is plans[2]:
+            raise HostFault("no space left", path="/full/report.json", cause="No space left on device")
+        return real_finish(plan, *a)
+
+    monkeypatch.setattr(inprocess, "_scoring", scoring)
+    monkeypatch.setattr(inprocess, "_finish", finish)
+    got = run_plans(plans)
+    assert isinstance(got[0], ValueError) and str(got[0]) == "scorer broke"
+    assert isinstance(got[2], HostFault) and got[2].path == "/full/report.json"
+    assert plans[0].scenario.world.step_index == 0 and plans[2].scenario.world.step_index == STEPS
+    monkeypatch.undo()
+    alone = run_plan(_plans([cfgs[1]], StartCache())[0], bag_dir=None, evaluate=True)
+    assert _text(got[1]) == _text(alone)
+
+
+def test_a_lockstep_task_counts_every_run_given_as_one_at_a_time_does(tmp_path, monkeypatch):
+    """A failed run counts among the worker's runs in both paths: only the task's first run is the worker's
+    first, and a host fault is that run's answer (its file and reason), not the task's failure."""
+    from evoscen_sim.errors import HostFault
+
+    runs = [CampaignRun(f"c{i}", (("label", str(i)),), 1032400, _cfg(1032400, v)) for i, v in enumerate(VARIANTS)]
+    real, calls = inprocess._finish, []
+
+    def finish(plan, *a):
+        calls.append(plan)
+        if len(calls) == 3:  # the third run's scoring (each path scores in the runs' order)
+            raise HostFault("no space left", path="/full/x", cause="No space left on device")
+        return real(plan, *a)
+
+    monkeypatch.setattr(inprocess, "_finish", finish)
+    for lockstep in (False, True):
+        calls.clear()
+        monkeypatch.setattr(campaign, "_STARTS", None)
+        monkeypatch.setattr(campaign, "_RUNS_DONE", 0)
+        got = execute_batch(runs, str(tmp_path), "none", lockstep=lockstep)
+        assert campaign._RUNS_DONE == 3
+        assert [a["worker"]["first"] for a in got[:2]] == [True, False]
+        assert got[2]["host_fault"] == ("/full/x", "No space left on device") and "row" not in got[2]
+        again = execute_batch(runs[:1], str(tmp_path), "none", lockstep=lockstep)
+        assert again[0]["worker"]["first"] is False and campaign._RUNS_DONE == 4
+
+
 def test_a_recorded_plan_is_refused():
     cfg = load_scenario_config(None, {"steps": "5"})
     with pytest.raises(ValueError, match="unrecorded runs only"):

@@ -185,9 +185,9 @@ def _execute_lockstep(runs: Sequence[CampaignRun], wait_s: float) -> list[dict[s
             answers[j] = _failure(res)
             continue
         done = _answer(runs[j], res, {}, [], own + share)
-        done["worker"] = {"first": _RUNS_DONE == 0, "wait_s": wait_s, "built": new}
+        done["worker"] = {"first": _RUNS_DONE + j == 0, "wait_s": wait_s, "built": new}
         answers[j] = done
-        _RUNS_DONE += 1
+    _RUNS_DONE += len(runs)  # every run given, failed or not, as one at a time counts them
     return answers  # type: ignore[return-value]
 
 
