@@ -141,6 +141,16 @@ def test_export_numbers_and_a_clips_summary_line():
     assert summary_line("c", "exposure", unchecked) == "c: exposure, 4 vehicles, 31 states; 2.2 s"
 
 
+def test_a_problem_runs_log_tail(tmp_path):
+    """A graph run with a problem keeps the last lines of its logs, each headed by its file's name."""
+    from evoscen_experiments.faults import _log_tail
+
+    log = tmp_path / "launcher.log"
+    log.write_text("".join(f"line {k}\n" for k in range(30)), encoding="utf-8")
+    assert _log_tail(log, 3) == "\nlauncher.log:\nline 27\nline 28\nline 29"
+    assert _log_tail(tmp_path / "gone.log", 3) == ""
+
+
 def test_the_fault_classes_and_their_statuses():
     from evoscen_experiments.faults import chosen_classes, class_name, expected_kill_statuses, fault_classes
 

@@ -29,7 +29,7 @@ class GraphResult:
     steps_lost: int | None
     world_identical: bool | None = None
     problems: list[str] = field(default_factory=list)
-    stderr_tail: str = ""  # the launcher's last lines, kept for runs with a problem
+    stderr_tail: str = ""  # the launcher's last lines (and its log's, the simulation's), kept for runs with a problem
     orphans: int = 0  # processes of the run left running after it ended (driver-kill: after the resume)
 
 

@@ -369,9 +369,22 @@ def _graph_run(fault: tuple, seed: int, steps: int, rng: random.Random, work: Pa
         problems.append(f"attacked run ended {status}, not 0")
     if orphans:
         problems.append(f"{orphans} processes of the run left running")
+    tail = stderr_tail(stderr, problems)
+    if problems:  # what the launcher saw, and when, and how the simulation ended: why, in the campaign's output
+        tail += "".join(_log_tail(out / "logs" / name, keep) for name, keep in (("launcher.log", 20),
+                                                                                ("evoscen_sim.log", 4)))
     shutil.rmtree(out, ignore_errors=True)
     return GraphResult(" ".join(fault), seed, status, end_s, hang, traceback, readable, reindexed, lost, identical,
-                       problems, stderr_tail(stderr, problems), orphans)
+                       problems, tail, orphans)
+
+
+def _log_tail(path: Path, keep: int) -> str:
+    """The last ``keep`` lines of a node's log (for a run with a problem), headed by its name; '' if none."""
+    try:
+        lines = path.read_text(encoding="utf-8", errors="replace").strip().splitlines()[-keep:]
+    except OSError:
+        return ""
+    return f"\n{path.name}:\n" + "\n".join(lines)
 
 
 def chosen_classes(text: str | None) -> list[tuple]:
@@ -448,6 +461,8 @@ def run_campaign(*, graph_runs: int, fuzz_inputs: int, steps: int, seed: int, cl
                   f"end {'-' if r.end_s is None else f'{r.end_s:.1f} s'}, lost {r.steps_lost}"
                   + (f", world identical {r.world_identical}" if r.world_identical is not None else "")
                   + (f"  PROBLEMS: {'; '.join(r.problems)}" if r.problems else ""), flush=True)
+            if r.problems and r.stderr_tail:
+                print("    " + r.stderr_tail.strip().replace("\n", "\n    "), flush=True)
         fuzzed = fuzz(fuzz_inputs, np.random.default_rng(seed), work, clis()) if fuzz_inputs else []
     finally:
         if out is None:
