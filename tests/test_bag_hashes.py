@@ -62,8 +62,16 @@ highD, the ``highd_trained`` policies; docs/bv-profiles.md), trucks are coloured
 markers, and Stackelberg honours d_min to the target lane's vehicles now
 (``models.stackelberg.target_gap_rule: d_min_now``, docs/method.md §4.3). The defaults' hashes are new
 (:data:`HASHES`); with ``bvs.makeup: uniform`` (and ``target_gap_rule: end_of_game`` for Stackelberg)
-every bag is still the one before, byte for byte (:data:`UNIFORM_HASHES`, the hashes 0.6 pinned; Stackelberg's
+every bag is still the one before, byte for byte (the hashes 0.6 pinned; Stackelberg's
 metadata record gains the rule's key, its messages are 0.6's).
+
+Then, meant to change behaviour: a vehicle that finds no place to enter tries again
+``traffic.entry_retry_s`` [1 s] later under both make-ups (``uniform`` tried at every step; docs/method.md
+§1). The metadata record gains the key in every bag. Compared per topic with the bags before (3,000
+steps, the five runs of each make-up): under ``highd`` every message of all eleven topics is
+byte-identical (:data:`HASHES`); under ``uniform`` the worlds change (:data:`UNIFORM_HASHES`), and with
+``traffic.entry_retry_s: 0`` every message of all eleven topics is byte-identical to the bags before,
+those of 0.6 (:data:`EVERY_STEP_HASHES`).
 """
 
 from __future__ import annotations
@@ -75,23 +83,29 @@ import pytest
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
-UNIFORM_HASHES = {  # bvs.makeup: uniform; Stackelberg with target_gap_rule: end_of_game (the bags of 0.6)
-    None: "15dd1faa6d268ba0a7582fa2c2a3856b5acffd7d5b2e65ccfcc3e1ecbd0a0d2d",  # the shipped default (level0 SUT)
-    "nilsson": "87733d380065fff56a64841982664fcb0f3393cb43c9dc6670ea698cca26fbd1",
-    "mobil": "390fcf8e339c4a1a8b7ea90ea246a4042fbf6d0b1558c3e279b6cf6258347822",
-    # the metadata record gains models.stackelberg.target_gap_rule; every message of all eleven topics is
-    # byte-identical to 0.6's bag (3acc408f…, compared per topic)
-    "stackelberg": "e5996a6b4b9cb55ddcc6cab553ad10f078ea8f0cc22d69b3767550dd93638b4c",
-    "mutant": "93b5fedcac7343512a4b270a815fb38e03b7656584505ec7042ec5dbeee85910",  # the default mutant
+UNIFORM_HASHES = {  # bvs.makeup: uniform; Stackelberg with target_gap_rule: end_of_game
+    None: "916f7ca241a09065f62d57c9d4a6431307af703e0399359ff86bbb48de75f219",  # the shipped default (level0 SUT)
+    "nilsson": "430103039a359cb978b9b0c957bb61608e00b3835f37fbdd34a2116c7925d317",
+    "mobil": "f349fc07b64483e1fa7c954c0057262209c82e7a5fd4ccda0987b3e1af4fd709",
+    "stackelberg": "d4d8f5b09f80cf65641364f730c41fc8431559b6607f2b681f197a4db18b56ec",
+    "mutant": "e4ba314de982a5f085b1c22359db54f61d96f4b6a5763eda05f459a046b1a264",  # the default mutant
+}
+
+EVERY_STEP_HASHES = {  # the same with traffic.entry_retry_s: 0: every message is 0.6's (compared per topic)
+    None: "39814b7b4d805d58b9bc0aa04b496564b183c7002d391856b34ed166aab2d9e8",
+    "nilsson": "7415207a42042c8e8211b56a606bfdb21ed71e52225c93bd855ec4d23f0aec5c",
+    "mobil": "ce9e2fadb99123509a8a10fad51fd058588ca52615e17476635f7c7f4bd140e1",
+    "stackelberg": "947117e0a0fb59d76e94ce16c7106cbb985ab7a39c0b73482d755da88c900ed9",
+    "mutant": "320a31b97b0acf4b04b5da6b42dd88b19b4b756dc1c6a896b99050e36d65d3f1",
 }
 
 
-HASHES = {  # the shipped defaults (bvs.makeup: highd, the highd_trained policies; evoscen 0.7.0)
-    None: "99c839de31c5f68a88f823c85f5ebfff41c5e376f23be396b4f6d6a8a1cef52f",  # the shipped default (level0 SUT)
-    "nilsson": "25f6ac1b5cfea1deedfaa20547b36bc87ff4c70c65f3a69e4a165423a62bc72e",
-    "mobil": "d536a6fa811bed1435f95fa79aa5b78c2f18c374566a3399f3238f1ebfb8cba7",
-    "stackelberg": "3d8d4cd514231a9b444b1c53fac49494dd04ed02fae43c3c233eb542a2c37c82",
-    "mutant": "3601aa7e6fdfde30f925519e415472abdf9b7ee889470f3a6e57b7ad8bcf2c33",  # the default mutant
+HASHES = {  # the shipped defaults (bvs.makeup: highd, the highd_trained policies)
+    None: "18c53b0480788a4a93fb77e2ea07b7e72129b49413780493a8f849f31662103d",  # the shipped default (level0 SUT)
+    "nilsson": "1469a2fc63066c1199f58adb8c24c76a3f64569e10a518166ec4e8196decbd16",
+    "mobil": "e3c396085a508d871844fe13db166bc10e3ea728e4afec0a7ccd1819aa497c74",
+    "stackelberg": "54bf70808f41a1bd88ccdc38d3282546398a95c0783c4f7b9d4423c555f8a3ad",
+    "mutant": "bee272419a00bc4b3f2f0b50b44e4fe29319c1397723b144b1af068b708b4049",  # the default mutant
 }
 
 
@@ -109,10 +123,14 @@ def test_bag_bytes_unchanged(model: str | None, tmp_path: Path) -> None:
     assert digest == HASHES[model], f"{model or 'default'}: the bag changed ({digest})"
 
 
+@pytest.mark.parametrize("every_step", [False, True], ids=["retry-1s", "retry-every-step"])
 @pytest.mark.parametrize("model", list(UNIFORM_HASHES), ids=lambda m: m or "default")
-def test_uniform_bags_are_those_of_0_6(model: str | None, tmp_path: Path) -> None:
+def test_uniform_bags(model: str | None, every_step: bool, tmp_path: Path) -> None:
     overrides = {"bvs.makeup": "uniform"} | ({"sut.model": model} if model else {})
     if model == "stackelberg":
         overrides["models.stackelberg.target_gap_rule"] = "end_of_game"
+    if every_step:
+        overrides["traffic.entry_retry_s"] = 0
     digest = _digest(overrides, tmp_path)
-    assert digest == UNIFORM_HASHES[model], f"{model or 'default'} (uniform): the bag changed ({digest})"
+    want = (EVERY_STEP_HASHES if every_step else UNIFORM_HASHES)[model]
+    assert digest == want, f"{model or 'default'} (uniform, every_step={every_step}): the bag changed ({digest})"

@@ -20,8 +20,9 @@ def test_yield_drives_exactly_as_before_and_compete_is_the_default():
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}})).compete_with_sut is True
     assert build_bv_driver(config_from_dict({"bvs": {"driver": "learned", "makeup": "uniform"}, "models": {
         "learned": {"competitive_cut_in": "yield"}}})).compete_with_sut is False
-    assert commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform", "models.learned.competitive_cut_in": "yield"}, 1000) \
-        == BEFORE_COMMANDS_SHA256
+    # with the earlier entry rule too (traffic.entry_retry_s: 0, uniform's before evoscen 0.8)
+    assert commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform", "models.learned.competitive_cut_in": "yield",
+                            "traffic.entry_retry_s": 0}, 1000) == BEFORE_COMMANDS_SHA256
     # seed 3: MOBIL cuts in ahead of a competitive BV within the first 1,000 steps, so the default differs
     assert commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform"}, 1000) != BEFORE_COMMANDS_SHA256
 

@@ -143,8 +143,8 @@ competitive BVs' rule at its earlier form (``competitive_cut_in: yield``)."""
 
 def test_off_drives_exactly_as_before():
     assert commands_digest({"bvs.driver": "learned", "bvs.makeup": "uniform", "models.learned.hard_brake": False,
-                            "models.learned.competitive_cut_in": "yield"}, 1000) \
-        == BEFORE_COMMANDS_SHA256
+                            "models.learned.competitive_cut_in": "yield", "traffic.entry_retry_s": 0}, 1000) \
+        == BEFORE_COMMANDS_SHA256  # and the entry rule of then (every step)
 
 
 def test_rule_based_bvs_ignore_the_keys():

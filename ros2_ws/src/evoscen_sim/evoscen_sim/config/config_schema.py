@@ -172,6 +172,10 @@ class TrafficParams:
     insertion_band_m: float = field(default=50.0, metadata=_check(_Float(0.0, 1000.0)))
     """When the edge itself is taken, a vehicle may enter the middle of the largest gap of its lane
     within this distance inside the window from the edge (m), [0, 1000]; 0 = the edge only."""
+    entry_retry_s: float = field(default=1.0, metadata=_check(_Float(0.0, 60.0)))
+    """A vehicle that found no safe place to enter tries again this long later (s), [0, 60], rounded to
+    whole steps; 0 = at the next step (``uniform``'s rule before evoscen 0.8). [choice] 1 s under both
+    make-ups (docs/method.md §1): the search every step cost ``uniform`` about a third of its step."""
     warmup_s: float = field(default=20.0, metadata=_check(_Float(0.0, 600.0)))
     """Before step 0 the traffic evolves this long around the SUT's start (s), [0, 600]: BVs with
     their own drivers, the SUT driven by the level-0 lane keeper and held at sut.s_m (every vehicle

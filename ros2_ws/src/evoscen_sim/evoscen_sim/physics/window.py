@@ -25,8 +25,8 @@ After every step of the world (:meth:`evoscen_sim.physics.world.World.step`, ste
    follow safely (:func:`insertion_speed`): if the gap to its leader is too short for the drawn
    speed the speed is lowered to the largest safe one (never below the lane's mean minus two
    standard deviations), and if its follower could not follow it, the next lane is tried. A
-   vehicle that finds no safe place keeps driving where it is and tries again at the next step;
-   one that reaches the road's end waits at the road's start.
+   vehicle that finds no safe place keeps driving where it is and tries again ``entry_retry_s``
+   later (:func:`entry_retry_steps`); one that reaches the road's end waits at the road's start.
 
 Random draws come from the world's seeded generator (docs/architecture.md: random streams): one
 ``normal`` per lane tried, in Python. The search for a place (positions, lane existence, neighbours,
@@ -60,10 +60,14 @@ from evoscen_sim.physics.entry_kernels import (  # noqa: F401 - re-exported: the
 )
 from evoscen_sim.road.road_model import MERGE_LANE
 
-ENTRY_RETRY_STEPS = 10
-"""Under ``bvs.makeup: highd`` a vehicle that found no place to enter tries again this many steps later
-(every step under ``uniform``). [choice] 10 (1 s at dt = 0.1 s): trucks enter lane II only and waited there
-often, and the search every step cost the make-up a tenth of its step rate (docs/bv-profiles.md)."""
+
+
+def entry_retry_steps(retry_s: float, dt_s: float) -> int:
+    """Steps after which a vehicle that found no place to enter tries again (``traffic.entry_retry_s``, at
+    least one step); 0 for ``retry_s`` 0: at the next step. [choice] 1 s, 10 steps at dt = 0.1 s: trucks
+    enter lane II only and waited there often, and the search every step cost ``highd`` a tenth of its step
+    rate and ``uniform`` about a third (docs/method.md §1, docs/bv-profiles.md)."""
+    return 0 if retry_s <= 0.0 else max(1, int(round(retry_s / dt_s)))
 
 
 def required_gap(v_back: float, v_front: float, p: TrafficParams) -> float:
@@ -134,8 +138,9 @@ class TrafficWindow:
         self.p = params
         self.makeup = makeup
         """The highd make-up's entries (:class:`evoscen_sim.traffic.makeup.WindowMakeup`); None: uniform."""
-        self._retry_step = np.zeros(world.n, dtype=np.int64) if makeup is not None else None
-        """highd: the step from which each vehicle that found no place tries again (None: uniform, every step)."""
+        self._retry_steps = entry_retry_steps(params.entry_retry_s, world.dt_s)
+        self._retry_step = np.zeros(world.n, dtype=np.int64) if self._retry_steps else None
+        """The step from which each vehicle that found no place tries again (None: at every step)."""
         self.truck_lanes = (frozenset([*self.mainline[:makeup.truck_entry_lanes],
                                        *([MERGE_LANE] if makeup.truck_ramp_entries else [])])
                             if makeup is not None else frozenset())
@@ -193,11 +198,11 @@ class TrafficWindow:
         retry = self._retry_step
         for i in _exits(s, world.role, self.sut, lo, hi):
             if retry is not None and retry[i] > world.step_index:
-                placed = None  # highd: it found no place lately; it tries again at its retry step
+                placed = None  # it found no place lately; it tries again at its retry step
             else:
                 placed = self._enter(world, int(i))
                 if placed is None and retry is not None:
-                    retry[i] = world.step_index + ENTRY_RETRY_STEPS
+                    retry[i] = world.step_index + self._retry_steps
             if placed is not None:
                 result.reentries.append(placed)
             elif s[i] > road_end:  # no safe place: wait at the road's start (outside the window)
