@@ -378,3 +378,37 @@ def test_the_compiled_entry_rows_are_pythons_for_cars_and_trucks_of_highd(car_la
             kinds["truck" if truck else "car"] += 1
             kinds["several"] += len(want) > 1
     assert min(kinds.values()) > 0, kinds  # trucks, cars, and rows to order were all seen
+
+
+# ---------------------------------------------------------------- the retry rule (traffic.entry_retry_s)
+def test_entry_retry_steps_by_hand():
+    from evoscen_sim.physics.window import entry_retry_steps
+
+    assert entry_retry_steps(1.0, 0.1) == 10 and entry_retry_steps(0.3, 0.1) == 3 and entry_retry_steps(2.0, 0.05) == 40
+    assert entry_retry_steps(0.0, 0.1) == 0  # at the next step
+    assert entry_retry_steps(0.01, 0.1) == 1  # never sooner than the next step
+
+
+@pytest.mark.parametrize("makeup", ["uniform", "highd"])
+@pytest.mark.parametrize(("retry_s", "every"), [(1.0, 10), (0.3, 3), (0.0, 1)])
+def test_a_vehicle_without_a_place_tries_again_after_the_retry_time(monkeypatch, makeup, retry_s, every):
+    """Every entry search fails (no place anywhere): each waiting vehicle searches again exactly ``every`` steps
+    after its last search, under both make-ups, never sooner."""
+    from evoscen_bringup.inprocess import run_plan
+    from evoscen_bringup.plan import plan_of
+    from evoscen_sim.physics.window import TrafficWindow
+
+    tries: dict[int, list[int]] = {}
+
+    def no_place(self, world, i):
+        tries.setdefault(int(i), []).append(int(world.step_index))
+        return None
+
+    monkeypatch.setattr(TrafficWindow, "_enter", no_place)
+    cfg = load_scenario_config(None, {"steps": "200", "seed": "11", "bvs.makeup": makeup, "bvs.driver": "level0",
+                                      "traffic.warmup_s": "0", "traffic.entry_retry_s": str(retry_s),
+                                      "recording.enabled": "false"})
+    run_plan(plan_of(cfg, recorded=False), bag_dir=None, evaluate=False)
+    gaps = [b - a for steps in tries.values() for a, b in zip(steps, steps[1:])]
+    assert len(tries) >= 3 and gaps, tries  # vehicles left the window and waited
+    assert min(gaps) == every
