@@ -175,7 +175,7 @@ class TrafficParams:
     entry_retry_s: float = field(default=1.0, metadata=_check(_Float(0.0, 60.0)))
     """A vehicle that found no safe place to enter tries again this long later (s), [0, 60], rounded to
     whole steps; 0 = at the next step (``uniform``'s rule before evoscen 0.8). [choice] 1 s under both
-    make-ups (docs/method.md §1): the search every step cost ``uniform`` about a third of its step."""
+    make-ups (docs/method.md §1): the search every step cost ``uniform`` about a quarter of its step time."""
     warmup_s: float = field(default=20.0, metadata=_check(_Float(0.0, 600.0)))
     """Before step 0 the traffic evolves this long around the SUT's start (s), [0, 600]: BVs with
     their own drivers, the SUT driven by the level-0 lane keeper and held at sut.s_m (every vehicle

@@ -61,12 +61,11 @@ from evoscen_sim.physics.entry_kernels import (  # noqa: F401 - re-exported: the
 from evoscen_sim.road.road_model import MERGE_LANE
 
 
-
 def entry_retry_steps(retry_s: float, dt_s: float) -> int:
     """Steps after which a vehicle that found no place to enter tries again (``traffic.entry_retry_s``, at
     least one step); 0 for ``retry_s`` 0: at the next step. [choice] 1 s, 10 steps at dt = 0.1 s: trucks
     enter lane II only and waited there often, and the search every step cost ``highd`` a tenth of its step
-    rate and ``uniform`` about a third (docs/method.md §1, docs/bv-profiles.md)."""
+    rate and ``uniform`` about a quarter of its step time (docs/method.md §1, docs/bv-profiles.md)."""
     return 0 if retry_s <= 0.0 else max(1, int(round(retry_s / dt_s)))
 
 
