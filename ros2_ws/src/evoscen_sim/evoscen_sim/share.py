@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+import os
 from pathlib import Path
 
 from evoscen_sim.errors import InputError
@@ -9,6 +11,7 @@ from evoscen_sim.errors import InputError
 PACKAGE = "evoscen_sim"
 
 
+@functools.lru_cache(maxsize=None)
 def _source_dir(package: str) -> Path:
     here = Path(__file__).resolve().parents[1]  # ros2_ws/src/evoscen_sim
     return here if package == PACKAGE else here.parent / package
@@ -25,6 +28,24 @@ def share_candidates(relative: str, package: str = PACKAGE, source: Path | None 
     path). The paths are returned whether or not they exist.
     """
     candidates: list[Path] = []
+    share = _share_dir(package)
+    if share is not None:
+        candidates.append(share / relative)
+    candidates.append(_source_dir(package) / relative if source is None else source)
+    return candidates
+
+
+_SHARE_DIRS: dict[tuple[str, str | None], Path | None] = {}
+"""The ament share directory of each package, per ``AMENT_PREFIX_PATH`` (the index is read from the file
+system; an experiment resolves thousands of configurations' maps: docs/performance.md, "Start-up")."""
+
+
+def _share_dir(package: str) -> Path | None:
+    """``share/<package>`` of the installed workspace that ``AMENT_PREFIX_PATH`` names; None if none."""
+    key = (package, os.environ.get("AMENT_PREFIX_PATH"))
+    if key in _SHARE_DIRS:
+        return _SHARE_DIRS[key]
+    found = None
     try:
         from ament_index_python.packages import (  # type: ignore[import-not-found]
             PackageNotFoundError,
@@ -34,12 +55,12 @@ def share_candidates(relative: str, package: str = PACKAGE, source: Path | None 
         pass
     else:
         try:
-            candidates.append(Path(get_package_share_directory(package)) / relative)
+            found = Path(get_package_share_directory(package))
         except (PackageNotFoundError, OSError, ValueError):
             # not installed, or no AMENT_PREFIX_PATH (OSError): use the source tree
             pass
-    candidates.append(_source_dir(package) / relative if source is None else source)
-    return candidates
+    _SHARE_DIRS[key] = found
+    return found
 
 
 def share_path(relative: str, package: str = PACKAGE) -> Path:

@@ -16,6 +16,7 @@ validated by it; :func:`parse_yaml` gives the line numbers.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import re
 from collections.abc import Callable, Mapping
@@ -117,12 +118,31 @@ _CLI_DECIMAL = re.compile(r"^[-+]?[0-9]+$")
 _CLI_FLOAT = re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?$")
 
 
+_CLI_SCALARS: dict[str, Any] = {}
+"""Texts :func:`_parse_cli_scalar` read as a plain scalar (str, int, float, bool, None; immutable, so shared):
+an experiment builds thousands of configurations from the same few override texts (docs/performance.md,
+"Start-up")."""
+_CLI_SCALARS_MAX = 4096
+
+
 def _parse_cli_scalar(text: str) -> Any:
     """Interpret an override given as text (``"200"``, ``"true"``, ``"[24, 30]"``) as YAML.
 
     Numbers on the command line are strict: a plain decimal integer (``16``, not ``0x10``,
     ``0b10000`` or ``1_6``, which YAML would read as 16) or a plain decimal float; anything
     else stays text, so the key's check rejects it naming the value as typed."""
+    try:
+        return _CLI_SCALARS[text]
+    except KeyError:
+        pass
+    value = _read_cli_scalar(text)
+    if type(value) in (str, int, float, bool, type(None)) and len(_CLI_SCALARS) < _CLI_SCALARS_MAX:
+        _CLI_SCALARS[text] = value  # a list or a mapping is read anew each time (the caller may change it)
+    return value
+
+
+def _read_cli_scalar(text: str) -> Any:
+    """:func:`_parse_cli_scalar` without its memo."""
     if len(text) > 10_000:
         return text
     try:
@@ -328,8 +348,15 @@ def resolve_map_path(value: str, base_dir: str | Path | None = None) -> Path:
         tried = [base / candidate, *share_candidates(f"maps/{value}", PACKAGE)]
     for path in tried:
         if path.is_file():
-            return path.resolve()
+            return _resolved(str(path))
     raise InputError(f"map '{value}': file not found (tried {', '.join(map(str, tried))})")
+
+
+@functools.lru_cache(maxsize=256)
+def _resolved(path: str) -> Path:
+    """``Path(path).resolve()``, once per path (symbolic links followed: an installed workspace's share files are
+    links; an experiment resolves thousands of configurations' maps, docs/performance.md "Start-up")."""
+    return Path(path).resolve()
 
 
 def config_from_dict(data: Any, *, source: str = "<dict>",
@@ -417,15 +444,22 @@ def load_scenario_config(path: str | Path | None = None,
                             overrides=overrides, _lines=lines)
 
 
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}
+"""Each config dataclass's field names, in order (``dataclasses.fields`` builds them anew at every call)."""
+_PLAIN_SCALARS = frozenset({str, int, float, bool, type(None)})
+
+
 def config_to_dict(cfg: Any) -> dict[str, Any]:
     """Plain nested dict (str keys; int/float/str/bool/list values) of a config or section."""
-    out: dict[str, Any] = {}
-    for f in dataclasses.fields(cfg):
-        out[f.name] = _plain(getattr(cfg, f.name))
-    return out
+    names = _FIELD_NAMES.get(type(cfg))
+    if names is None:
+        names = _FIELD_NAMES[type(cfg)] = tuple(f.name for f in dataclasses.fields(cfg))
+    return {name: _plain(getattr(cfg, name)) for name in names}
 
 
 def _plain(value: Any) -> Any:
+    if type(value) in _PLAIN_SCALARS:  # most values: the checks below would leave them as they are
+        return value
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
         return config_to_dict(value)
     if isinstance(value, Mapping):
