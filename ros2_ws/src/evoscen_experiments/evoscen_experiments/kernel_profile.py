@@ -28,10 +28,12 @@ import numpy as np
 
 SAMPLE_EVERY = 25
 """A call's arguments are kept for the compute measurement once in this many calls of its kernel."""
-MAX_SAMPLES = 40
+MAX_SAMPLES = 60
 """At most this many kept calls per kernel are measured."""
-COMPUTE_REPEATS = 20
-"""Each kept call is run this many times from the compiled loop (after one untimed run)."""
+COMPUTE_REPEATS = 10
+"""Each kept call is run this many times in a block from the compiled loop (after one untimed run)."""
+COMPUTE_BLOCKS = 3
+"""Blocks per kept call; its compute is the least block's mean."""
 
 
 def copied(value):
@@ -138,10 +140,13 @@ class KernelProfile:
             for args in kept[:max_samples]:
                 loop = compiled_loop(len(args))
                 loop(dispatcher, 1, *copied(args))
-                fresh = copied(args)
-                t0 = time.perf_counter()
-                loop(dispatcher, repeats, *fresh)
-                times.append((time.perf_counter() - t0) / repeats)
+                blocks = []
+                for _ in range(COMPUTE_BLOCKS):  # the least of a few blocks: a burst of the host's other work left out
+                    fresh = copied(args)
+                    t0 = time.perf_counter()
+                    loop(dispatcher, repeats, *fresh)
+                    blocks.append((time.perf_counter() - t0) / repeats)
+                times.append(min(blocks))
             out[name] = float(np.mean(times))
         return out
 
@@ -226,9 +231,25 @@ def _batched(worlds: int, steps: int) -> tuple[float, int, KernelProfile]:
     return wall, worlds * steps, prof
 
 
-def profile_kernels(cases_text: str, steps_text: str, worlds_text: str) -> int:
+def budget_lines(splits: dict[str, dict[str, float]], sumo_steps_per_s: float, jobs: int = 2) -> list[str]:
+    """Each case's wall and compute beside libsumo's step (same road, its vehicles as the worlds'), and for the
+    batched case the world-step that 5 x libsumo's vehicle-steps/s on ``jobs`` processes allows: ``jobs`` / (5 R)
+    (equal vehicles a world and a SUMO step)."""
+    step = 1e6 / sumo_steps_per_s
+    out = [f"libsumo: {sumo_steps_per_s:.0f} steps/s = {step:.1f} us a step"]
+    for case, s in splits.items():
+        out.append(f"  {case}: wall {s['wall_us'] / step:.2f}, compute {s['compute_us'] / step:.2f} of libsumo's step")
+        if case == "batched":
+            allowed = jobs * step / 5.0
+            out.append(f"  batched at 5x libsumo's vehicle-steps/s on {jobs} processes: {allowed:.1f} us a world-step; "
+                       f"compute alone is {s['compute_us'] / allowed:.2f} of it, the step {s['wall_us'] / allowed:.2f}")
+    return out
+
+
+def profile_kernels(cases_text: str, steps_text: str, worlds_text: str, sumo: bool = True) -> int:
     """``scripts/profile_kernels.py`` with its options' text: checked (a one-line InputError), each case profiled
-    and printed (:func:`lines`); exit status 0."""
+    and printed (:func:`lines`), then (``sumo`` and libsumo installed) libsumo's rate in this process and
+    :func:`budget_lines`; exit status 0."""
     from evoscen_experiments.experiments import distinct_names, positive_int
     from evoscen_sim.errors import InputError
 
@@ -238,6 +259,7 @@ def profile_kernels(cases_text: str, steps_text: str, worlds_text: str) -> int:
         raise InputError(f"--cases: unknown case {unknown[0]!r}: expected names from {', '.join(CASES)}")
     steps = positive_int("--steps", steps_text)
     worlds = positive_int("--worlds", worlds_text)
+    splits = {}
     for case in cases:
         if case == "batched":
             wall, n, prof = _batched(worlds, steps)
@@ -245,6 +267,18 @@ def profile_kernels(cases_text: str, steps_text: str, worlds_text: str) -> int:
         else:
             wall, n, prof = _single(case, steps)
             title = f"{case}: one world, {steps} steps"
-        for line in lines(title, wall, n, prof.rows(n)):
+        rows = prof.rows(n)
+        splits[case] = split(wall, n, rows)
+        for line in lines(title, wall, n, rows):
+            print(line, flush=True)
+    if sumo:
+        from evoscen_experiments.sumo_baseline import measure_sumo_steps_per_second, sumo_available
+
+        ok, why = sumo_available()
+        if not ok:
+            print(f"libsumo skipped: {why}")
+            return 0
+        rate = measure_sumo_steps_per_second(steps=3000, vehicles=21, seed=0, in_process=True)["steps_per_s"]
+        for line in budget_lines(splits, rate):
             print(line, flush=True)
     return 0

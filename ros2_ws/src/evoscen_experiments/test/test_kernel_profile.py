@@ -11,7 +11,8 @@ import numba
 import numpy as np
 import pytest
 
-from evoscen_experiments.kernel_profile import KernelProfile, KernelRow, copied, lines, profile_kernels, split
+from evoscen_experiments.kernel_profile import (KernelProfile, KernelRow, budget_lines, copied, lines, profile_kernels,
+                                                split)
 from evoscen_sim.errors import InputError
 
 
@@ -134,3 +135,15 @@ def test_profile_kernels_options_are_checked_before_any_work(cases, steps, world
     with pytest.raises(InputError) as err:
         profile_kernels(cases, steps, worlds)
     assert str(err.value) == line
+
+
+def test_budget_lines_by_hand() -> None:
+    splits = {"uniform-level0": {"wall_us": 50.0, "compute_us": 12.5},
+              "batched": {"wall_us": 200.0, "compute_us": 30.0}}
+    # libsumo 20,000 steps/s = 50 us a step; 5x its vehicle-steps/s on 2 processes: 2 x 50 / 5 = 20 us a world-step
+    assert budget_lines(splits, 20_000.0) == [
+        "libsumo: 20000 steps/s = 50.0 us a step",
+        "  uniform-level0: wall 1.00, compute 0.25 of libsumo's step",
+        "  batched: wall 4.00, compute 0.60 of libsumo's step",
+        "  batched at 5x libsumo's vehicle-steps/s on 2 processes: 20.0 us a world-step; compute alone is 1.50 of it, "
+        "the step 10.00"]
