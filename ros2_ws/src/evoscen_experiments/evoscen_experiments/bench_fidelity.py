@@ -1,5 +1,5 @@
 """The benchmark of ``scripts/bench_fidelity.py``: the HighD loader and the behaviour extraction on a
-HighD-sized recording (docs/performance.md "Fidelity").
+HighD-sized recording (docs/performance.md: its figures in the CHANGELOG).
 
 A synthetic recording of HighD's size (by default 1,000 vehicles over 20,000 frames at 25 Hz,
 1,000,000 track rows; both driving directions, three lanes each, cars and trucks, half of the

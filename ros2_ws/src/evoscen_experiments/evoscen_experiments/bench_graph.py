@@ -1,5 +1,5 @@
 """The node graph's figures of ``scripts/bench.py --mode graph``: the lockstep rate beside an in-process
-run, the BV-node partitions, and each node's CPU time per step (docs/performance.md "The node graph").
+run, the BV-node partitions, and each node's CPU time per step (docs/performance.md: its figures in the CHANGELOG).
 
 A graph run's nodes are child processes of the launcher; :class:`NodeCpuSampler` reads their
 CPU time (user + system, all threads) from ``/proc`` every ``period_s`` while the run goes, and
@@ -9,7 +9,7 @@ named by its ROS node name (``-r __node:=NAME``) or else by the package of its `
 
 A run's CPU time includes each node's start-up (imports, compiled kernels loaded, discovery),
 seconds on a 2-core machine; :func:`per_step_us` takes the difference of two runs of different
-lengths, which leaves the cost of the steps alone (docs/performance.md, "BV nodes").
+lengths, which leaves the cost of the steps alone (docs/performance.md: its figures in the CHANGELOG).
 """
 
 from __future__ import annotations

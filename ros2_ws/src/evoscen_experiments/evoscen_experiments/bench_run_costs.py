@@ -1,7 +1,7 @@
 """What one in-process run costs beside its stepping: its peak memory at two run lengths
 (``scripts/bench_memory.py``) and what recording costs it, with the recorder's write path
 (``scripts/bench_recording.py``); each figure against a reference measured by the same script
-(docs/input-limits.md, docs/performance.md "Recording"). Figures only; nothing is asserted.
+(docs/input-limits.md, docs/performance.md: its figures in the CHANGELOG). Figures only; nothing is asserted.
 """
 
 from __future__ import annotations
