@@ -29,26 +29,33 @@ def parse_sizes(text: str) -> list[int]:
     return sizes
 
 
-def batch_rate(size: int, steps: int, first_seed: int) -> tuple[int, float]:
-    """In this process: ``size`` worlds (seeds ``first_seed`` on, MOBIL SUT, learned BVs, ``steps`` steps) built, then
-    stepped in lockstep; (their vehicle-steps, the lockstep run's seconds)."""
-    from evoscen_bringup.inprocess import run_plans
+def batched_plans(size: int, steps: int, first_seed: int) -> tuple[list, object]:
+    """``size`` scored worlds without a bag (seeds ``first_seed`` on, MOBIL SUT, learned BVs, ``steps`` steps) built from
+    one start cache, and one more short world (20 steps) to run first, untimed, so that the kernels are loaded from
+    numba's cache before a clock starts: (the plans, the short world's plan)."""
     from evoscen_bringup.plan import plan_of
     from evoscen_bringup.starts import StartCache
     from evoscen_experiments.experiments import config_loader
 
     load = config_loader(None)
     cache = StartCache(size=max(size, 1))
-    plans = []
-    for k in range(size):
-        cfg = load({"sut.model": "mobil", "bvs.driver": "learned", "seed": str(first_seed + k), "steps": str(steps),
+
+    def plan(seed: int, n: int):
+        cfg = load({"sut.model": "mobil", "bvs.driver": "learned", "seed": str(seed), "steps": str(n),
                     "recording.enabled": "false"})
-        plans.append(plan_of(cfg, recorded=False, scenario=cache.scenario(cfg, partitioned=False)))
+        return plan_of(cfg, recorded=False, scenario=cache.scenario(cfg, partitioned=False))
+
+    return [plan(first_seed + k, steps) for k in range(size)], plan(first_seed + size, 20)
+
+
+def batch_rate(size: int, steps: int, first_seed: int) -> tuple[int, float]:
+    """In this process: :func:`batched_plans` built, the short world run, then the worlds stepped in lockstep;
+    (their vehicle-steps, the lockstep run's seconds)."""
+    from evoscen_bringup.inprocess import run_plans
+
+    plans, warm = batched_plans(size, steps, first_seed)
     vehicle_steps = sum(p.scenario.world.n * steps for p in plans)
-    # untimed: a short run of one more world first, so that kernels are loaded from numba's cache before the clock
-    warm = load({"sut.model": "mobil", "bvs.driver": "learned", "seed": str(first_seed + size), "steps": "20",
-                 "recording.enabled": "false"})
-    run_plans([plan_of(warm, recorded=False, scenario=cache.scenario(warm, partitioned=False))])
+    run_plans([warm])
     t0 = time.perf_counter()
     failed = [r for r in run_plans(plans) if isinstance(r, Exception)]
     wall = time.perf_counter() - t0

@@ -212,20 +212,10 @@ def _single(case: str, steps: int) -> tuple[float, int, KernelProfile]:
 
 def _batched(worlds: int, steps: int) -> tuple[float, int, KernelProfile]:
     from evoscen_bringup.inprocess import run_plans
-    from evoscen_bringup.plan import plan_of
-    from evoscen_bringup.starts import StartCache
-    from evoscen_experiments.experiments import config_loader
+    from evoscen_experiments.bench_batched import batched_plans
 
-    load = config_loader(None)
-    cache = StartCache(size=worlds + 1)
-
-    def plan(seed: int, n: int):
-        cfg = load({"sut.model": "mobil", "bvs.driver": "learned", "seed": str(seed), "steps": str(n),
-                    "recording.enabled": "false"})
-        return plan_of(cfg, recorded=False, scenario=cache.scenario(cfg, partitioned=False))
-
-    plans = [plan(FIRST_SEED + k, steps) for k in range(worlds)]
-    run_plans([plan(FIRST_SEED + worlds, 20)])  # untimed: kernels loaded before the profile
+    plans, warm = batched_plans(worlds, steps, FIRST_SEED)
+    run_plans([warm])  # untimed: kernels loaded before the profile
     with KernelProfile() as prof:
         t0 = time.perf_counter()
         failed = [r for r in run_plans(plans) if isinstance(r, Exception)]
