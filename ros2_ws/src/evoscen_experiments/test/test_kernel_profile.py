@@ -148,3 +148,29 @@ def test_budget_lines_by_hand() -> None:
         "  batched: wall 4.00, compute 0.60 of libsumo's step",
         "  batched at 5x libsumo's vehicle-steps/s on 2 processes: 20.0 us a world-step; compute alone is 1.50 of it, "
         "the step 10.00"]
+
+
+def test_a_failed_sumo_reference_is_one_line_and_the_profile_stands(monkeypatch, capsys) -> None:
+    from evoscen_experiments import kernel_profile, sumo_baseline
+
+    monkeypatch.setattr(kernel_profile, "_single", lambda case, steps: (0.002, steps, _fixed_profile()))
+    monkeypatch.setattr(sumo_baseline, "sumo_available", lambda: (True, "test"))
+
+    def failed(**_):
+        raise RuntimeError("SUMO measurement failed (rc=1): netconvert crashed\ntraceback lines")
+
+    monkeypatch.setattr(sumo_baseline, "measure_sumo_steps_per_second", failed)
+    assert profile_kernels("uniform-level0", "10", "2") == 0
+    out = capsys.readouterr().out.splitlines()
+    # 2 ms over 10 steps = 200 us a step; calls 1 ms / 10 = 100 us, of which 10 x 5 us / 10 = 5 us compute
+    assert out[0] == "uniform-level0: one world, 10 steps: 200.0 us a step = compute 5.0 (2%) + call overhead 95.0 + Python 100.0"
+    assert out[-1] == "libsumo skipped: SUMO measurement failed (rc=1): netconvert crashed"
+
+
+def _fixed_profile() -> KernelProfile:
+    """A closed profile of one kernel: 10 calls, 1 ms in them, its compute 5 us a call."""
+    prof = KernelProfile(prefixes=("kptoy",))
+    prof.calls.update({"a": 10})
+    prof.call_s.update({"a": 0.001})
+    prof.compute_s = lambda *_, **__: {"a": 5e-6}  # type: ignore[method-assign]
+    return prof
